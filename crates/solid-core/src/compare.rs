@@ -1,0 +1,191 @@
+//! Comparing descriptors (SPEC §3): cosine distance of R-SOLiDs and heading from A-SOLiDs.
+
+use crate::math::sqrt;
+use crate::Error;
+
+fn same_len(what: &'static str, a: &[f32], b: &[f32]) -> Result<(), Error> {
+    if a.len() != b.len() {
+        return Err(Error::LengthMismatch {
+            what,
+            left: a.len(),
+            right: b.len(),
+        });
+    }
+    if a.is_empty() {
+        return Err(Error::Empty { what });
+    }
+    Ok(())
+}
+
+/// Cosine distance `1 − q·c / (‖q‖‖c‖)` between two R-SOLiDs, in `[0, 1]` for the non-negative
+/// vectors SOLiD produces; `1` when either vector is all zeros (SPEC §3). Accumulates in `f64`.
+///
+/// # Errors
+/// [`Error::LengthMismatch`] when the lengths differ, [`Error::Empty`] when both are empty.
+pub fn cosine_distance(q: &[f32], c: &[f32]) -> Result<f64, Error> {
+    same_len("r_solid", q, c)?;
+    let (mut dot, mut nq, mut nc) = (0.0f64, 0.0f64, 0.0f64);
+    for (&a, &b) in q.iter().zip(c) {
+        let (a, b) = (f64::from(a), f64::from(b));
+        dot += a * b;
+        nq += a * a;
+        nc += b * b;
+    }
+    if nq == 0.0 || nc == 0.0 {
+        return Ok(1.0);
+    }
+    // One square root of the product: identical vectors give exactly 0 (f32 inputs cannot overflow it).
+    let d = 1.0 - dot / sqrt(nq * nc);
+    Ok(d.clamp(0.0, 1.0))
+}
+
+/// A heading estimate between two scans (SPEC §3): the query ≈ the candidate rotated by
+/// `degrees` about +z (counter-clockwise seen from above).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Heading {
+    /// The best circular shift `s*` of the candidate's A-SOLiD, in bins (`0..n_azimuth`).
+    pub shift: usize,
+    /// The heading in degrees, wrapped into `(−180, 180]`.
+    pub degrees: f64,
+}
+
+/// `cost[s] = Σⱼ (q[j] − c[(j − s) mod n])²`.
+fn shift_cost(q: &[f32], c: &[f32], s: usize) -> f64 {
+    let n = q.len();
+    let sq = |a: f32, b: f32| {
+        let d = f64::from(a) - f64::from(b);
+        d * d
+    };
+    // j in s..n reads c[j - s]; j in 0..s reads c[j + n - s].
+    let head: f64 = q[s..]
+        .iter()
+        .zip(&c[..n - s])
+        .map(|(&a, &b)| sq(a, b))
+        .sum();
+    let tail: f64 = q[..s]
+        .iter()
+        .zip(&c[n - s..])
+        .map(|(&a, &b)| sq(a, b))
+        .sum();
+    head + tail
+}
+
+fn wrap_degrees(mut d: f64) -> f64 {
+    while d > 180.0 {
+        d -= 360.0;
+    }
+    while d <= -180.0 {
+        d += 360.0;
+    }
+    d
+}
+
+fn best_shift(q: &[f32], c: &[f32]) -> (usize, f64) {
+    let mut best = (0, shift_cost(q, c, 0));
+    for s in 1..q.len() {
+        let cost = shift_cost(q, c, s);
+        if cost < best.1 {
+            best = (s, cost);
+        }
+    }
+    best
+}
+
+/// Integer heading (SPEC §3): the first shift that minimises the squared difference of the
+/// A-SOLiDs, as `s*·360/n` degrees wrapped into `(−180, 180]`.
+///
+/// # Errors
+/// [`Error::LengthMismatch`] when the lengths differ, [`Error::Empty`] when both are empty.
+pub fn heading(a_query: &[f32], a_candidate: &[f32]) -> Result<Heading, Error> {
+    same_len("a_solid", a_query, a_candidate)?;
+    let (s, _) = best_shift(a_query, a_candidate);
+    Ok(Heading {
+        shift: s,
+        degrees: wrap_degrees(s as f64 * 360.0 / a_query.len() as f64),
+    })
+}
+
+/// Refined heading (SPEC §3): the integer heading plus a parabolic sub-bin offset
+/// `δ = (c₋ − c₊) / (2(c₋ − 2c₀ + c₊))` in `[−0.5, 0.5]` (0 when the parabola is not convex).
+///
+/// # Errors
+/// [`Error::LengthMismatch`] when the lengths differ, [`Error::Empty`] when both are empty.
+pub fn heading_refined(a_query: &[f32], a_candidate: &[f32]) -> Result<Heading, Error> {
+    same_len("a_solid", a_query, a_candidate)?;
+    let n = a_query.len();
+    let (s, c0) = best_shift(a_query, a_candidate);
+    let cm = shift_cost(a_query, a_candidate, (s + n - 1) % n);
+    let cp = shift_cost(a_query, a_candidate, (s + 1) % n);
+    let den = 2.0 * (cm - 2.0 * c0 + cp);
+    let delta = if den > 0.0 {
+        ((cm - cp) / den).clamp(-0.5, 0.5)
+    } else {
+        0.0
+    };
+    Ok(Heading {
+        shift: s,
+        degrees: wrap_degrees((s as f64 + delta) * 360.0 / n as f64),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn distance_basics() {
+        assert!(cosine_distance(&[1.0, 2.0], &[2.0, 4.0]).unwrap() < 1e-15);
+        assert_eq!(
+            cosine_distance(&[1.5, 2.0, 7.0], &[1.5, 2.0, 7.0]).unwrap(),
+            0.0
+        );
+        assert_eq!(cosine_distance(&[1.0, 0.0], &[0.0, 3.0]).unwrap(), 1.0);
+        assert_eq!(cosine_distance(&[0.0, 0.0], &[0.0, 0.0]).unwrap(), 1.0);
+        assert_eq!(cosine_distance(&[0.0, 0.0], &[1.0, 0.0]).unwrap(), 1.0);
+        let d = cosine_distance(&[1.0, 1.0], &[1.0, 0.0]).unwrap();
+        assert!((d - (1.0 - core::f64::consts::FRAC_1_SQRT_2)).abs() < 1e-12);
+        assert!(matches!(
+            cosine_distance(&[1.0], &[1.0, 2.0]),
+            Err(Error::LengthMismatch { .. })
+        ));
+        assert!(matches!(
+            cosine_distance(&[], &[]),
+            Err(Error::Empty { .. })
+        ));
+    }
+
+    fn bump(n: usize, at: f64) -> [f32; 60] {
+        let mut v = [0.0f32; 60];
+        for (j, x) in v.iter_mut().enumerate().take(n) {
+            let d = (j as f64 - at).rem_euclid(n as f64);
+            let d = d.min(n as f64 - d);
+            *x = (10.0 * libm::exp(-d * d / 8.0)) as f32;
+        }
+        v
+    }
+
+    #[test]
+    fn heading_sign_follows_the_convention() {
+        // Query = candidate rotated by +30° (5 bins of 6°): features move to higher azimuth.
+        let c = bump(60, 10.0);
+        let q = bump(60, 15.0);
+        let h = heading(&q, &c).unwrap();
+        assert_eq!((h.shift, h.degrees), (5, 30.0));
+        let h = heading(&c, &q).unwrap();
+        assert_eq!((h.shift, h.degrees), (55, -30.0));
+        // Exactly half a turn stays +180.
+        let q = bump(60, 40.0);
+        assert_eq!(heading(&q, &c).unwrap().degrees, 180.0);
+    }
+
+    #[test]
+    fn refined_heading_interpolates_between_bins() {
+        let c = bump(60, 10.0);
+        let q = bump(60, 12.5); // +15°
+        let h = heading_refined(&q, &c).unwrap();
+        assert!((h.degrees - 15.0).abs() < 1.0, "{}", h.degrees);
+        // A flat cost (all-zero vectors) gives shift 0, no refinement.
+        let z = [0.0f32; 60];
+        assert_eq!(heading_refined(&z, &z).unwrap().degrees, 0.0);
+    }
+}

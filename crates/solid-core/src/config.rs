@@ -1,0 +1,303 @@
+//! Descriptor configuration (SPEC §1) and sensor presets (SPEC §4).
+
+use crate::Error;
+
+/// Bound on `max_range / voxel_size` (voxel keys pack 21 bits per axis, which leaves a margin for rounding).
+pub const MAX_VOXELS_PER_AXIS: f64 = (1u64 << 19) as f64;
+
+/// The parameters of the SOLiD descriptor (SPEC §1).
+///
+/// Fields are public; [`Config::validate`] checks them and every function that takes a `Config`
+/// validates it first, so an invalid value is an error naming the parameter, never a clamp.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Config {
+    /// Number of range bins over `[0, max_range)` (1..=1024).
+    pub n_range: usize,
+    /// Number of azimuth bins over `[0°, 360°)` (1..=3600).
+    pub n_azimuth: usize,
+    /// Number of elevation bins over `[fov_down, fov_up)` (1..=1024).
+    pub n_elevation: usize,
+    /// Upper edge of the vertical field of view, degrees, in `[-90, 90]`.
+    pub fov_up: f64,
+    /// Lower edge of the vertical field of view, degrees, in `[-90, 90]`, below `fov_up`.
+    pub fov_down: f64,
+    /// Points with 3-D norm `<= min_range` (metres) are dropped; `0 <= min_range < max_range`.
+    pub min_range: f64,
+    /// Points with 3-D norm `>= max_range` (metres) are dropped.
+    pub max_range: f64,
+    /// Voxel edge in metres; `0` disables downsampling. Otherwise at least
+    /// `max_range / 2^19` (voxel keys hold 2^19 voxels per axis on each side of the sensor).
+    pub voxel_size: f64,
+}
+
+/// A named sensor preset (SPEC §4).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Preset {
+    /// The preset's name, as accepted by [`Config::preset`].
+    pub name: &'static str,
+    /// The sensor it describes.
+    pub sensor: &'static str,
+    /// Its configuration (SPEC §1 defaults for everything the sensor does not fix).
+    pub config: Config,
+}
+
+const fn sensor(fov_up: f64, fov_down: f64, n_elevation: usize, max_range: f64) -> Config {
+    Config {
+        n_range: 40,
+        n_azimuth: 60,
+        n_elevation,
+        fov_up,
+        fov_down,
+        min_range: 3.0,
+        max_range,
+        voxel_size: 0.5,
+    }
+}
+
+/// The sensor presets of SPEC §4.
+pub const PRESETS: [Preset; 6] = [
+    Preset {
+        name: "hdl64",
+        sensor: "Velodyne HDL-64E (KITTI)",
+        config: sensor(2.0, -24.8, 64, 80.0),
+    },
+    Preset {
+        name: "hdl32",
+        sensor: "Velodyne HDL-32E (NCLT)",
+        config: sensor(10.67, -30.67, 32, 80.0),
+    },
+    Preset {
+        name: "vlp16",
+        sensor: "Velodyne VLP-16",
+        config: sensor(15.0, -15.0, 16, 80.0),
+    },
+    Preset {
+        name: "os1-64",
+        sensor: "Ouster OS1-64",
+        config: sensor(22.5, -22.5, 64, 80.0),
+    },
+    Preset {
+        name: "avia",
+        sensor: "Livox Avia",
+        config: sensor(38.6, -38.6, 64, 120.0),
+    },
+    Preset {
+        name: "aeva",
+        sensor: "Aeva Aeries II",
+        config: sensor(9.6, -9.6, 64, 120.0),
+    },
+];
+
+impl Config {
+    /// The configuration of a named preset (`hdl64`, `hdl32`, `vlp16`, `os1-64`, `avia`, `aeva`).
+    ///
+    /// # Errors
+    /// [`Error::UnknownPreset`] for any other name.
+    pub fn preset(name: &str) -> Result<Config, Error> {
+        PRESETS
+            .iter()
+            .find(|p| p.name == name)
+            .map(|p| p.config)
+            .ok_or(Error::UnknownPreset)
+    }
+
+    /// Checks every parameter against SPEC §1.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming the first invalid parameter.
+    pub fn validate(&self) -> Result<(), Error> {
+        fn count(
+            name: &'static str,
+            v: usize,
+            max: usize,
+            expected: &'static str,
+        ) -> Result<(), Error> {
+            if v == 0 || v > max {
+                return Err(Error::InvalidParameter {
+                    name,
+                    value: v as f64,
+                    expected,
+                });
+            }
+            Ok(())
+        }
+        fn bad(name: &'static str, value: f64, expected: &'static str) -> Result<(), Error> {
+            Err(Error::InvalidParameter {
+                name,
+                value,
+                expected,
+            })
+        }
+        count("n_range", self.n_range, 1024, "an integer in 1..=1024")?;
+        count("n_azimuth", self.n_azimuth, 3600, "an integer in 1..=3600")?;
+        count(
+            "n_elevation",
+            self.n_elevation,
+            1024,
+            "an integer in 1..=1024",
+        )?;
+        let angle = "a finite angle in [-90, 90] degrees";
+        if !(self.fov_up.is_finite() && (-90.0..=90.0).contains(&self.fov_up)) {
+            return bad("fov_up", self.fov_up, angle);
+        }
+        if !(self.fov_down.is_finite() && (-90.0..=90.0).contains(&self.fov_down)) {
+            return bad("fov_down", self.fov_down, angle);
+        }
+        if self.fov_down >= self.fov_up {
+            return bad("fov_down", self.fov_down, "a value below fov_up");
+        }
+        if !(self.min_range.is_finite() && self.min_range >= 0.0) {
+            return bad("min_range", self.min_range, "a finite value >= 0 metres");
+        }
+        if !(self.max_range.is_finite() && self.max_range > self.min_range) {
+            return bad(
+                "max_range",
+                self.max_range,
+                "a finite value above min_range",
+            );
+        }
+        if !(self.voxel_size.is_finite() && self.voxel_size >= 0.0) {
+            return bad(
+                "voxel_size",
+                self.voxel_size,
+                "a finite value >= 0 metres (0 disables downsampling)",
+            );
+        }
+        if self.voxel_size > 0.0 && self.max_range / self.voxel_size >= MAX_VOXELS_PER_AXIS {
+            return bad(
+                "voxel_size",
+                self.voxel_size,
+                "0, or at least max_range / 2^19 (at most 2^19 voxels per axis within max_range)",
+            );
+        }
+        Ok(())
+    }
+
+    /// A 64-bit fingerprint of every parameter (FNV-1a over their little-endian bytes).
+    ///
+    /// Two descriptors are comparable only when their configurations have the same fingerprint.
+    pub fn fingerprint(&self) -> u64 {
+        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+        let mut eat = |bytes: [u8; 8]| {
+            for b in bytes {
+                h ^= u64::from(b);
+                h = h.wrapping_mul(0x0000_0100_0000_01b3);
+            }
+        };
+        eat((self.n_range as u64).to_le_bytes());
+        eat((self.n_azimuth as u64).to_le_bytes());
+        eat((self.n_elevation as u64).to_le_bytes());
+        for v in [
+            self.fov_up,
+            self.fov_down,
+            self.min_range,
+            self.max_range,
+            self.voxel_size,
+        ] {
+            eat(v.to_bits().to_le_bytes());
+        }
+        h
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn presets_are_valid_and_found_by_name() {
+        for p in PRESETS {
+            p.config.validate().unwrap();
+            assert_eq!(Config::preset(p.name).unwrap(), p.config);
+        }
+        assert_eq!(Config::preset("hdl-64"), Err(Error::UnknownPreset));
+    }
+
+    #[test]
+    fn invalid_values_name_the_parameter() {
+        let base = PRESETS[0].config;
+        let cases: [(Config, &str); 10] = [
+            (Config { n_range: 0, ..base }, "n_range"),
+            (
+                Config {
+                    n_azimuth: 3601,
+                    ..base
+                },
+                "n_azimuth",
+            ),
+            (
+                Config {
+                    n_elevation: 1025,
+                    ..base
+                },
+                "n_elevation",
+            ),
+            (
+                Config {
+                    fov_up: 91.0,
+                    ..base
+                },
+                "fov_up",
+            ),
+            (
+                Config {
+                    fov_down: f64::NAN,
+                    ..base
+                },
+                "fov_down",
+            ),
+            (
+                Config {
+                    fov_down: 2.0,
+                    ..base
+                },
+                "fov_down",
+            ),
+            (
+                Config {
+                    min_range: -1.0,
+                    ..base
+                },
+                "min_range",
+            ),
+            (
+                Config {
+                    max_range: 3.0,
+                    ..base
+                },
+                "max_range",
+            ),
+            (
+                Config {
+                    voxel_size: f64::INFINITY,
+                    ..base
+                },
+                "voxel_size",
+            ),
+            (
+                Config {
+                    voxel_size: 1e-5,
+                    ..base
+                },
+                "voxel_size",
+            ),
+        ];
+        for (cfg, name) in cases {
+            match cfg.validate() {
+                Err(Error::InvalidParameter { name: got, .. }) => assert_eq!(got, name),
+                other => panic!("{name}: expected InvalidParameter, got {other:?}"),
+            }
+        }
+    }
+
+    #[test]
+    fn fingerprint_separates_configs() {
+        let a = PRESETS[0].config;
+        let b = Config {
+            voxel_size: 0.4,
+            ..a
+        };
+        assert_eq!(a.fingerprint(), PRESETS[0].config.fingerprint());
+        assert_ne!(a.fingerprint(), b.fingerprint());
+    }
+}

@@ -1,0 +1,677 @@
+//! The SOLiD descriptor, step by step as SPEC §2 defines it.
+
+use crate::math::{atan2, sqrt};
+use crate::{Config, Error};
+
+/// One element of the caller-owned scratch buffer of [`describe`].
+///
+/// Allocate `describe_scratch_len(n_points, &cfg)` of them (any initial value) and reuse them across
+/// calls: `describe` never allocates.
+pub type Scratch = u64;
+
+mod sealed {
+    pub trait Sealed {}
+    impl Sealed for f32 {}
+    impl Sealed for f64 {}
+}
+
+/// A point coordinate type that [`describe`] reads: `f32` or `f64`.
+pub trait Coord: Copy + sealed::Sealed {
+    /// The value as `f64` (exact for both types).
+    fn to_f64(self) -> f64;
+}
+
+impl Coord for f32 {
+    #[inline(always)]
+    fn to_f64(self) -> f64 {
+        f64::from(self)
+    }
+}
+
+impl Coord for f64 {
+    #[inline(always)]
+    fn to_f64(self) -> f64 {
+        self
+    }
+}
+
+/// A borrowed point cloud: a flat row-major slice with `stride` values per point, of which the
+/// first three are x, y, z (metres, sensor frame: x forward, y left, z up). Extra columns such as
+/// intensity or time are ignored, so an N×4 KITTI array is read in place.
+#[derive(Debug, Clone, Copy)]
+pub struct Points<'a, T> {
+    data: &'a [T],
+    stride: usize,
+}
+
+impl<'a, T: Coord> Points<'a, T> {
+    /// Wraps `data` holding `data.len() / stride` points.
+    ///
+    /// # Errors
+    /// [`Error::BadPointLayout`] when `stride < 3` or `data.len()` is not a multiple of `stride`.
+    pub fn new(data: &'a [T], stride: usize) -> Result<Self, Error> {
+        if stride < 3 || data.len() % stride != 0 {
+            return Err(Error::BadPointLayout {
+                len: data.len(),
+                stride,
+            });
+        }
+        Ok(Points { data, stride })
+    }
+
+    /// Number of points.
+    pub fn len(&self) -> usize {
+        self.data.len() / self.stride
+    }
+
+    /// True when there are no points.
+    pub fn is_empty(&self) -> bool {
+        self.data.is_empty()
+    }
+
+    /// Values per point.
+    pub fn stride(&self) -> usize {
+        self.stride
+    }
+
+    /// The flat slice the points are read from.
+    pub fn as_slice(&self) -> &'a [T] {
+        self.data
+    }
+}
+
+/// Point counts of one [`describe`] call.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Stats {
+    /// Points passed in (before any filtering).
+    pub n_points: usize,
+    /// Points left after the finite and range filters (SPEC §2 steps 1–2).
+    pub n_in_range: usize,
+    /// Points binned: voxel centroids after downsampling (step 3), or `n_in_range` without it.
+    pub n_kept: usize,
+}
+
+/// Slots of the voxel hash table for `n` points: a power of two at least twice `n`.
+fn table_slots(n: usize) -> usize {
+    n.saturating_mul(2).max(16).next_power_of_two()
+}
+
+/// Words of a voxel record: key, sum x, sum y, sum z, count.
+const REC: usize = 5;
+const EMPTY: u32 = u32::MAX;
+
+/// How many [`Scratch`] elements [`describe`] needs for `n_points` points under `cfg`.
+///
+/// Grows linearly with `n_points`: about 6 words a point with voxel downsampling (hash table and
+/// voxel accumulators), half a word a point without, plus a few words per bin.
+pub fn describe_scratch_len(n_points: usize, cfg: &Config) -> usize {
+    let bins = cfg.n_range + cfg.n_azimuth + 2 * cfg.n_elevation;
+    let per_point = if cfg.voxel_size > 0.0 {
+        (table_slots(n_points) / 2).saturating_add(n_points.saturating_mul(REC))
+    } else {
+        n_points.div_ceil(2)
+    };
+    bins.saturating_add(per_point)
+}
+
+/// Bin geometry derived once per call from a validated config: every division of SPEC §2 step 5
+/// becomes a multiplication by a precomputed factor (a point exactly on a bin edge may land one
+/// bin over, well within SPEC §7's tolerance; the result is still the same bits everywhere).
+struct Binner {
+    range_scale: f64,
+    azimuth_scale: f64,
+    elevation_scale: f64,
+    fov_down: f64,
+    nr_max: usize,
+    na_max: usize,
+    ne_max: usize,
+}
+
+impl Binner {
+    fn new(cfg: &Config) -> Self {
+        use core::f64::consts::PI;
+        let deg = PI / 180.0;
+        Binner {
+            range_scale: cfg.n_range as f64 / cfg.max_range,
+            azimuth_scale: cfg.n_azimuth as f64 / (2.0 * PI),
+            elevation_scale: cfg.n_elevation as f64 / ((cfg.fov_up - cfg.fov_down) * deg),
+            fov_down: cfg.fov_down * deg,
+            nr_max: cfg.n_range - 1,
+            na_max: cfg.n_azimuth - 1,
+            ne_max: cfg.n_elevation - 1,
+        }
+    }
+
+    /// Packed bin indices `i | j << 10 | k << 22` of one point (SPEC §2 steps 4–5).
+    #[inline(always)]
+    fn bin(&self, x: f64, y: f64, z: f64) -> u32 {
+        use core::f64::consts::TAU;
+        let r = sqrt(x * x + y * y);
+        let theta = atan2(y, x);
+        let theta = if theta < 0.0 { theta + TAU } else { theta };
+        let phi = atan2(z, r);
+        // Range and azimuth quotients are >= 0; the elevation one is clamped below at 0. `as usize`
+        // saturates and `min` keeps every index in range: points on or past the last edge (or
+        // above the field of view) join the last bin, points below it the first.
+        let i = ((r * self.range_scale) as usize).min(self.nr_max);
+        let j = ((theta * self.azimuth_scale) as usize).min(self.na_max);
+        let k = (((phi - self.fov_down) * self.elevation_scale).max(0.0) as usize).min(self.ne_max);
+        (i | (j << 10) | (k << 22)) as u32
+    }
+}
+
+#[inline(always)]
+fn unpack(b: u32) -> (usize, usize, usize) {
+    let b = b as usize;
+    (b & 0x3ff, (b >> 10) & 0xfff, b >> 22)
+}
+
+/// Computes the SOLiD descriptor of one scan (SPEC §2): R-SOLiD into `r_out[..n_range]` and
+/// A-SOLiD into `a_out[..n_azimuth]`.
+///
+/// Non-finite points and points outside `(min_range, max_range)` are dropped; an empty result is
+/// valid and gives all-zero vectors. Allocates nothing.
+///
+/// # Errors
+/// - [`Error::InvalidParameter`] when `cfg` is invalid (see [`Config::validate`]).
+/// - [`Error::BufferTooSmall`] when `scratch` is shorter than [`describe_scratch_len`] or an output
+///   is shorter than its vector.
+///
+/// # Panics
+/// Never.
+pub fn describe<T: Coord>(
+    points: Points<'_, T>,
+    cfg: &Config,
+    scratch: &mut [Scratch],
+    r_out: &mut [f32],
+    a_out: &mut [f32],
+) -> Result<Stats, Error> {
+    cfg.validate()?;
+    let n = points.len();
+    let needed = describe_scratch_len(n, cfg);
+    for (buffer, needed, got) in [
+        ("scratch", needed, scratch.len()),
+        ("r_out", cfg.n_range, r_out.len()),
+        ("a_out", cfg.n_azimuth, a_out.len()),
+    ] {
+        if got < needed {
+            return Err(Error::BufferTooSmall {
+                buffer,
+                needed,
+                got,
+            });
+        }
+    }
+    let (nr, na, ne) = (cfg.n_range, cfg.n_azimuth, cfg.n_elevation);
+    let (acc, rest) = scratch.split_at_mut(nr + na + 2 * ne);
+    let acc: &mut [f64] = bytemuck::cast_slice_mut(acc);
+    let (r_acc, acc) = acc.split_at_mut(nr);
+    let (a_acc, acc) = acc.split_at_mut(na);
+    let (iev, ec) = acc.split_at_mut(ne);
+    let ec: &mut [u64] = bytemuck::cast_slice_mut(ec);
+    ec.fill(0);
+
+    let binner = Binner::new(cfg);
+    let (n_in_range, bins): (usize, &[u32]) = if cfg.voxel_size > 0.0 {
+        let (table, recs) = rest.split_at_mut(table_slots(n) / 2);
+        let table: &mut [u32] = bytemuck::cast_slice_mut(table);
+        let (n_in, m) = voxelize(points, cfg, table, recs);
+        // Centroids, then their bins, written over the record keys.
+        for rec in recs[..m * REC].chunks_exact_mut(REC) {
+            let cnt = rec[4] as f64;
+            let x = f64::from_bits(rec[1]) / cnt;
+            let y = f64::from_bits(rec[2]) / cnt;
+            let z = f64::from_bits(rec[3]) / cnt;
+            let b = binner.bin(x, y, z);
+            ec[unpack(b).2] += 1;
+            rec[0] = u64::from(b);
+        }
+        // Compact the bins to the front of `table` (no longer needed) for the second pass.
+        for v in 0..m {
+            table[v] = recs[v * REC] as u32;
+        }
+        (n_in, &table[..m])
+    } else {
+        let bins: &mut [u32] = &mut bytemuck::cast_slice_mut(rest)[..n];
+        let mut m = 0;
+        for_each_in_range(points, cfg, |x, y, z| {
+            let b = binner.bin(x, y, z);
+            ec[unpack(b).2] += 1;
+            bins[m] = b;
+            m += 1;
+        });
+        (m, &bins[..m])
+    };
+
+    // IEV (SPEC §2 step 7): min-max normalised elevation counts; flat counts give all ones.
+    let (lo, hi) = ec
+        .iter()
+        .fold((u64::MAX, 0), |(lo, hi), &c| (lo.min(c), hi.max(c)));
+    let span = (hi - lo) as f64;
+    for (w, &c) in iev.iter_mut().zip(ec.iter()) {
+        *w = if hi == lo {
+            1.0
+        } else {
+            (c - lo) as f64 / span
+        };
+    }
+    // R-SOLiD = REC · IEV and A-SOLiD = AEC · IEV, accumulated point by point.
+    r_acc.fill(0.0);
+    a_acc.fill(0.0);
+    for &b in bins {
+        let (i, j, k) = unpack(b);
+        r_acc[i] += iev[k];
+        a_acc[j] += iev[k];
+    }
+    for (o, &v) in r_out.iter_mut().zip(r_acc.iter()) {
+        *o = v as f32;
+    }
+    for (o, &v) in a_out.iter_mut().zip(a_acc.iter()) {
+        *o = v as f32;
+    }
+    Ok(Stats {
+        n_points: n,
+        n_in_range,
+        n_kept: bins.len(),
+    })
+}
+
+/// Steps of the pipeline on their own, for users who need one (a downsampled cloud, say) and for
+/// the benchmarks. [`describe`] runs them all in one pass and is what place recognition wants.
+pub mod stages {
+    use super::*;
+
+    /// Number of points that are finite and within `(min_range, max_range)` (SPEC §2 steps 1–2).
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] when `cfg` is invalid.
+    pub fn count_in_range<T: Coord>(points: Points<'_, T>, cfg: &Config) -> Result<usize, Error> {
+        cfg.validate()?;
+        let mut n = 0;
+        for_each_in_range(points, cfg, |_, _, _| n += 1);
+        Ok(n)
+    }
+
+    /// Voxel downsampling (SPEC §2 steps 1–3): writes the centroid of every occupied voxel as x, y, z
+    /// rows into `out_xyz`, in order of first occupation, and returns (points in range, voxels).
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] when `cfg` is invalid or its `voxel_size` is 0;
+    /// [`Error::BufferTooSmall`] when `scratch` is shorter than [`describe_scratch_len`] or `out_xyz`
+    /// shorter than three values per voxel.
+    pub fn voxel_downsample<T: Coord>(
+        points: Points<'_, T>,
+        cfg: &Config,
+        scratch: &mut [Scratch],
+        out_xyz: &mut [f64],
+    ) -> Result<(usize, usize), Error> {
+        cfg.validate()?;
+        if cfg.voxel_size <= 0.0 {
+            return Err(Error::InvalidParameter {
+                name: "voxel_size",
+                value: cfg.voxel_size,
+                expected: "a voxel size > 0 for voxel_downsample",
+            });
+        }
+        let n = points.len();
+        let needed = describe_scratch_len(n, cfg);
+        if scratch.len() < needed {
+            return Err(Error::BufferTooSmall {
+                buffer: "scratch",
+                needed,
+                got: scratch.len(),
+            });
+        }
+        let (table, recs) = scratch.split_at_mut(table_slots(n) / 2);
+        let (n_in, m) = voxelize(points, cfg, bytemuck::cast_slice_mut(table), recs);
+        if out_xyz.len() < 3 * m {
+            return Err(Error::BufferTooSmall {
+                buffer: "out_xyz",
+                needed: 3 * m,
+                got: out_xyz.len(),
+            });
+        }
+        for (rec, out) in recs[..m * REC]
+            .chunks_exact(REC)
+            .zip(out_xyz.chunks_exact_mut(3))
+        {
+            let cnt = rec[4] as f64;
+            for d in 0..3 {
+                out[d] = f64::from_bits(rec[1 + d]) / cnt;
+            }
+        }
+        Ok((n_in, m))
+    }
+}
+
+/// Calls `f(x, y, z)` for every point that is finite and within `(min_range, max_range)`
+/// (SPEC §2 steps 1–2). The squared-norm test also rejects NaN and infinities.
+#[inline(always)]
+fn for_each_in_range<T: Coord>(
+    points: Points<'_, T>,
+    cfg: &Config,
+    mut f: impl FnMut(f64, f64, f64),
+) {
+    let min2 = cfg.min_range * cfg.min_range;
+    let max2 = cfg.max_range * cfg.max_range;
+    for p in points.data.chunks_exact(points.stride) {
+        let (x, y, z) = (p[0].to_f64(), p[1].to_f64(), p[2].to_f64());
+        let d2 = x * x + y * y + z * z;
+        if d2 > min2 && d2 < max2 {
+            f(x, y, z);
+        }
+    }
+}
+
+/// Voxel downsampling on an origin-anchored grid (SPEC §2 step 3): accumulates each occupied
+/// voxel's coordinate sums and count into `recs` (in order of first occupation) through an
+/// open-addressing hash table. Returns (points in range, voxels occupied).
+fn voxelize<T: Coord>(
+    points: Points<'_, T>,
+    cfg: &Config,
+    table: &mut [u32],
+    recs: &mut [u64],
+) -> (usize, usize) {
+    const BIAS: i64 = 1 << 20;
+    // Start with a small, cache-resident table and double it whenever it gets half full; the
+    // scratch holds room for the worst case (every point its own voxel).
+    let mut cap = table.len().min(INITIAL_SLOTS);
+    table[..cap].fill(EMPTY);
+    let mut shift = 64 - cap.trailing_zeros();
+    let inv = 1.0 / cfg.voxel_size;
+    let mut n_in = 0usize;
+    let mut m = 0usize;
+    // Consecutive points of a scan line often share a voxel: sum them in registers and touch the
+    // table only when the voxel changes.
+    let mut last_key = u64::MAX;
+    let mut cur = usize::MAX;
+    let (mut sx, mut sy, mut sz, mut cnt) = (0.0f64, 0.0f64, 0.0f64, 0u64);
+    let flush = |recs: &mut [u64], cur: usize, sx: f64, sy: f64, sz: f64, cnt: u64| {
+        let rec = &mut recs[cur * REC..cur * REC + REC];
+        rec[1] = (f64::from_bits(rec[1]) + sx).to_bits();
+        rec[2] = (f64::from_bits(rec[2]) + sy).to_bits();
+        rec[3] = (f64::from_bits(rec[3]) + sz).to_bits();
+        rec[4] += cnt;
+    };
+    for_each_in_range(points, cfg, |x, y, z| {
+        n_in += 1;
+        // |coordinate| / voxel_size < 2^19 (validated), so the casts are exact and the biased
+        // indices fit in 21 bits.
+        let key = (vox(x * inv) + BIAS) as u64
+            | ((vox(y * inv) + BIAS) as u64) << 21
+            | ((vox(z * inv) + BIAS) as u64) << 42;
+        if key == last_key {
+            sx += x;
+            sy += y;
+            sz += z;
+            cnt += 1;
+            return;
+        }
+        if cur != usize::MAX {
+            flush(recs, cur, sx, sy, sz, cnt);
+        }
+        if 2 * (m + 1) > cap {
+            cap *= 2;
+            shift -= 1;
+            rehash(&mut table[..cap], &recs[..m * REC], shift);
+        }
+        let mask = cap - 1;
+        let mut slot = slot_of(key, shift);
+        cur = loop {
+            let e = table[slot];
+            if e == EMPTY {
+                table[slot] = m as u32;
+                let rec = &mut recs[m * REC..m * REC + REC];
+                rec[0] = key;
+                rec[1] = 0f64.to_bits();
+                rec[2] = 0f64.to_bits();
+                rec[3] = 0f64.to_bits();
+                rec[4] = 0;
+                m += 1;
+                break m - 1;
+            }
+            if recs[e as usize * REC] == key {
+                break e as usize;
+            }
+            slot = (slot + 1) & mask;
+        };
+        last_key = key;
+        (sx, sy, sz, cnt) = (x, y, z, 1);
+    });
+    if cur != usize::MAX {
+        flush(recs, cur, sx, sy, sz, cnt);
+    }
+    (n_in, m)
+}
+
+/// Initial hash-table size in slots (128 KiB of `u32`).
+const INITIAL_SLOTS: usize = 1 << 15;
+
+#[inline(always)]
+fn slot_of(key: u64, shift: u32) -> usize {
+    (key.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> shift) as usize
+}
+
+/// Clears `table` and re-inserts the records `recs` (keys in their first word).
+#[cold]
+fn rehash(table: &mut [u32], recs: &[u64], shift: u32) {
+    table.fill(EMPTY);
+    let mask = table.len() - 1;
+    for (v, rec) in recs.chunks_exact(REC).enumerate() {
+        let mut slot = slot_of(rec[0], shift);
+        while table[slot] != EMPTY {
+            slot = (slot + 1) & mask;
+        }
+        table[slot] = v as u32;
+    }
+}
+
+/// ⌊v⌋ for |v| < 2^52.
+#[inline(always)]
+fn vox(v: f64) -> i64 {
+    let t = v as i64;
+    t - i64::from((t as f64) > v)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cfg() -> Config {
+        Config::preset("hdl64").unwrap()
+    }
+
+    fn run(xyz: &[f64], cfg: &Config) -> (Vec<f32>, Vec<f32>, Stats) {
+        let pts = Points::new(xyz, 3).unwrap();
+        let mut scratch = vec![0; describe_scratch_len(pts.len(), cfg)];
+        let mut r = vec![0.0; cfg.n_range];
+        let mut a = vec![0.0; cfg.n_azimuth];
+        let s = describe(pts, cfg, &mut scratch, &mut r, &mut a).unwrap();
+        (r, a, s)
+    }
+
+    #[test]
+    fn floor_is_exact() {
+        for v in [
+            -2.5, -2.0, -1e-300, -0.0, 0.0, 0.5, 1.0, 3.999_999, 524_287.9,
+        ] {
+            assert_eq!(vox(v), libm::floor(v) as i64, "{v}");
+        }
+    }
+
+    #[test]
+    fn empty_scan_is_all_zero() {
+        let (r, a, s) = run(&[], &cfg());
+        assert!(r.iter().chain(&a).all(|&v| v == 0.0));
+        assert_eq!(s, Stats::default());
+    }
+
+    #[test]
+    fn single_point_lands_in_its_bins() {
+        // x = 10, y = 10: r = 14.14 m -> bin 7 of 40 over 80 m; azimuth 45° -> bin 7 of 60;
+        // flat EC (one point in one bin, but min = 0 over 64 bins) -> IEV of its bin is 1.
+        let (r, a, s) = run(&[10.0, 10.0, -1.0], &cfg());
+        assert_eq!(s.n_kept, 1);
+        let nz: Vec<usize> = (0..40).filter(|&i| r[i] != 0.0).collect();
+        assert_eq!(nz, [7]);
+        assert_eq!(r[7], 1.0);
+        let nz: Vec<usize> = (0..60).filter(|&j| a[j] != 0.0).collect();
+        assert_eq!(nz, [7]);
+    }
+
+    #[test]
+    fn range_filter_is_strict_and_drops_non_finite() {
+        let c = Config {
+            voxel_size: 0.0,
+            ..cfg()
+        };
+        let pts = [
+            3.0,
+            0.0,
+            0.0, // on min_range: dropped
+            80.0,
+            0.0,
+            0.0, // on max_range: dropped
+            f64::NAN,
+            1.0,
+            1.0,
+            f64::INFINITY,
+            0.0,
+            0.0,
+            1e200,
+            0.0,
+            0.0,
+            5.0,
+            0.0,
+            0.0, // kept
+        ];
+        let (_, _, s) = run(&pts, &c);
+        assert_eq!((s.n_points, s.n_in_range, s.n_kept), (6, 1, 1));
+    }
+
+    #[test]
+    fn voxel_centroids_merge_points() {
+        // Two points in voxel (20,0,0) and one in (21,0,0) with v = 0.5.
+        let pts = [10.1, 0.1, 0.1, 10.2, 0.2, 0.2, 10.6, 0.1, 0.1];
+        let (_, _, s) = run(&pts, &cfg());
+        assert_eq!((s.n_in_range, s.n_kept), (3, 2));
+        // Negative coordinates floor away from zero: -0.1 and 0.1 are different voxels.
+        let pts = [10.1, -0.1, 0.1, 10.1, 0.1, 0.1];
+        let (_, _, s) = run(&pts, &cfg());
+        assert_eq!(s.n_kept, 2);
+    }
+
+    #[test]
+    fn voxel_table_grows_and_matches_a_naive_grouping() {
+        // 60k pseudo-random points, many sharing voxels, enough distinct voxels to force several
+        // table doublings; centroids must equal a BTreeMap grouping.
+        use std::collections::BTreeMap;
+        let mut state = 0x1234_5678_9abc_def0u64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut xyz = Vec::new();
+        for _ in 0..60_000 {
+            xyz.extend([
+                next() * 120.0 - 60.0,
+                next() * 120.0 - 60.0,
+                next() * 8.0 - 4.0,
+            ]);
+        }
+        let c = cfg();
+        let pts = Points::new(&xyz, 3).unwrap();
+        let mut scratch = vec![0; describe_scratch_len(pts.len(), &c)];
+        let mut out = vec![0.0; xyz.len()];
+        let (n_in, m) = stages::voxel_downsample(pts, &c, &mut scratch, &mut out).unwrap();
+        let mut groups: BTreeMap<[i64; 3], (f64, f64, f64, f64)> = BTreeMap::new();
+        let mut n_naive = 0;
+        for p in xyz.chunks_exact(3) {
+            let d = libm::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
+            if !(d > 3.0 && d < 80.0) {
+                continue;
+            }
+            n_naive += 1;
+            let k = [0, 1, 2].map(|i| libm::floor(p[i] / 0.5) as i64);
+            let g = groups.entry(k).or_insert((0.0, 0.0, 0.0, 0.0));
+            *g = (g.0 + p[0], g.1 + p[1], g.2 + p[2], g.3 + 1.0);
+        }
+        assert_eq!(n_in, n_naive);
+        assert_eq!(m, groups.len());
+        assert!(
+            m > INITIAL_SLOTS,
+            "test must force two table doublings ({m} voxels)"
+        );
+        let mut ours: Vec<[f64; 3]> = out[..3 * m]
+            .chunks_exact(3)
+            .map(|c| [c[0], c[1], c[2]])
+            .collect();
+        let mut naive: Vec<[f64; 3]> = groups
+            .values()
+            .map(|g| [g.0 / g.3, g.1 / g.3, g.2 / g.3])
+            .collect();
+        ours.sort_by(|a, b| a.partial_cmp(b).unwrap());
+        naive.sort_by(|a, b| a.partial_cmp(b).unwrap());
+        for (a, b) in ours.iter().zip(&naive) {
+            for i in 0..3 {
+                assert!((a[i] - b[i]).abs() < 1e-9, "{a:?} vs {b:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn out_of_fov_points_go_to_edge_bins() {
+        let c = Config {
+            voxel_size: 0.0,
+            ..cfg()
+        };
+        // Straight up and straight down: elevation bins 63 and 0; both counted, nothing wraps.
+        let (r, _, s) = run(&[0.0, 0.0, 10.0, 0.0, 0.0, -10.0, 20.0, 0.0, 0.0], &c);
+        assert_eq!(s.n_kept, 3);
+        assert!(r.iter().all(|v| v.is_finite()));
+    }
+
+    #[test]
+    fn buffers_too_small_are_errors() {
+        let c = cfg();
+        let xyz = [10.0f32, 0.0, 0.0];
+        let pts = Points::new(&xyz, 3).unwrap();
+        let need = describe_scratch_len(1, &c);
+        let mut scratch = vec![0; need - 1];
+        let mut r = vec![0.0; 40];
+        let mut a = vec![0.0; 60];
+        assert_eq!(
+            describe(pts, &c, &mut scratch, &mut r, &mut a),
+            Err(Error::BufferTooSmall {
+                buffer: "scratch",
+                needed: need,
+                got: need - 1
+            })
+        );
+        let mut scratch = vec![0; need];
+        assert!(matches!(
+            describe(pts, &c, &mut scratch, &mut r[..39], &mut a),
+            Err(Error::BufferTooSmall {
+                buffer: "r_out",
+                ..
+            })
+        ));
+        assert!(matches!(
+            describe(pts, &c, &mut scratch, &mut r, &mut a[..1]),
+            Err(Error::BufferTooSmall {
+                buffer: "a_out",
+                ..
+            })
+        ));
+    }
+
+    #[test]
+    fn bad_layout_is_an_error() {
+        let xyz = [1.0f32; 8];
+        assert!(Points::new(&xyz, 3).is_err());
+        assert!(Points::new(&xyz, 2).is_err());
+        assert_eq!(Points::new(&xyz, 4).unwrap().len(), 2);
+    }
+}

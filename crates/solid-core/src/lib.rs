@@ -1,0 +1,47 @@
+//! # solid-core
+//!
+//! SOLiD (Kim et al., IEEE RA-L 2024): a LiDAR place-recognition descriptor made of two short
+//! vectors per scan, R-SOLiD (range, to recognise a place) and A-SOLiD (azimuth, to estimate the
+//! heading between two visits). This crate computes them exactly as the project's SPEC defines,
+//! compares them, and searches databases of them.
+//!
+//! `#![no_std]` and allocation-free: every function takes caller-owned input, output and scratch
+//! slices. The `alloc` feature adds owning conveniences ([`Describer`], [`Descriptor`]); `std`
+//! (the default) adds `std::error::Error`. All floating-point math goes through `libm` or plain
+//! IEEE arithmetic, so every build on every platform gives the same bits.
+//!
+//! ```
+//! use solid_core::{describe, describe_scratch_len, Config, Points, Scratch};
+//!
+//! let cfg = Config::preset("hdl64").unwrap();
+//! // Three points, x y z per row (a KITTI N x 4 array would use stride 4).
+//! let xyz = [10.0f32, 0.0, -1.0, 0.0, 12.0, 0.5, -20.0, -3.0, -2.0];
+//! let points = Points::new(&xyz, 3).unwrap();
+//! let mut scratch = vec![Scratch::default(); describe_scratch_len(points.len(), &cfg)];
+//! let (mut r, mut a) = (vec![0.0f32; cfg.n_range], vec![0.0f32; cfg.n_azimuth]);
+//! let stats = describe(points, &cfg, &mut scratch, &mut r, &mut a).unwrap();
+//! assert_eq!(stats.n_kept, 3);
+//! ```
+#![cfg_attr(not(feature = "std"), no_std)]
+#![deny(missing_docs)]
+#![forbid(unsafe_code)]
+
+#[cfg(feature = "alloc")]
+extern crate alloc;
+
+mod compare;
+mod config;
+mod describe;
+mod error;
+mod math;
+pub mod search;
+
+#[cfg(feature = "alloc")]
+mod owned;
+
+pub use compare::{cosine_distance, heading, heading_refined, Heading};
+pub use config::{Config, Preset, MAX_VOXELS_PER_AXIS, PRESETS};
+pub use describe::{describe, describe_scratch_len, stages, Coord, Points, Scratch, Stats};
+pub use error::Error;
+#[cfg(feature = "alloc")]
+pub use owned::{Describer, Descriptor};

@@ -1,0 +1,95 @@
+//! Portable, deterministic math helpers.
+//!
+//! Only IEEE-754 basic operations (`+ - * /`, `sqrt`) are used, which are correctly rounded on every
+//! platform, so results are the same bits on x86-64 and AArch64, with or without `std`.
+
+use core::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI};
+
+/// tan(π/8): the polynomial below covers `|u| <= TAN_PI_8`.
+const TAN_PI_8: f64 = 0.414_213_562_373_095_1;
+
+/// Coefficients of `atan(u) ≈ u · P(u²)` on `|u| <= tan(π/8)`, fitted by least squares on Chebyshev
+/// nodes against a 40-digit reference (max abs error 2.9e-13 rad, far below any bin width).
+const ATAN_COEFFS: [f64; 8] = [
+    0.999_999_999_999_270_9,
+    -0.333_333_332_783_842_14,
+    0.199_999_931_888_795_25,
+    -0.142_853_912_594_656_55,
+    0.111_035_349_208_560_91,
+    -0.089_932_173_490_933_77,
+    0.069_770_056_381_327_31,
+    -0.037_701_746_387_426_04,
+];
+
+/// `u · P(u²)`, with `P` evaluated by Estrin's scheme (a shorter dependency chain than Horner's).
+#[inline(always)]
+fn atan_poly(u: f64) -> f64 {
+    let c = &ATAN_COEFFS;
+    let s = u * u;
+    let s2 = s * s;
+    let s4 = s2 * s2;
+    let p01 = c[0] + c[1] * s;
+    let p23 = c[2] + c[3] * s;
+    let p45 = c[4] + c[5] * s;
+    let p67 = c[6] + c[7] * s;
+    let p03 = p01 + s2 * p23;
+    let p47 = p45 + s2 * p67;
+    u * (p03 + s4 * p47)
+}
+
+/// `atan2(y, x)` in radians, in `[-π, π]`; `atan2(0, 0) = 0`. Absolute error below 3e-13.
+///
+/// Branch-free (selects only) with one division: with `mn <= mx` the absolute values, the octant
+/// angle is `atan(mn/mx)`, reduced when `mn/mx > tan(π/8)` by `atan(t) = π/4 + atan((t−1)/(t+1))`,
+/// and `(t−k)/(1+kt)` with `t = mn/mx` is `(mn − k·mx)/(mx + k·mn)` for `k` in {0, 1}.
+#[inline(always)]
+pub(crate) fn atan2(y: f64, x: f64) -> f64 {
+    let ax = x.abs();
+    let ay = y.abs();
+    let mx = ax.max(ay);
+    let mn = ax.min(ay);
+    let big = mn > TAN_PI_8 * mx;
+    let k = if big { 1.0 } else { 0.0 };
+    let den = mx + k * mn;
+    // den == 0 only at the origin, where mn == 0 too: divide by 1 to get 0.
+    let u = (mn - k * mx) / if den == 0.0 { 1.0 } else { den };
+    let mut a = k * FRAC_PI_4 + atan_poly(u);
+    a = if ay > ax { FRAC_PI_2 - a } else { a };
+    a = if x < 0.0 { PI - a } else { a };
+    if y < 0.0 {
+        -a
+    } else {
+        a
+    }
+}
+
+#[inline(always)]
+pub(crate) fn sqrt(x: f64) -> f64 {
+    libm::sqrt(x)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn atan2_matches_libm_everywhere() {
+        let mut worst: f64 = 0.0;
+        let n = 2000;
+        for i in 0..n {
+            let ang = -PI + 2.0 * PI * (i as f64 + 0.37) / n as f64;
+            for &rad in &[1e-30, 1e-3, 1.0, 37.5, 1e30] {
+                let (y, x) = (rad * libm::sin(ang), rad * libm::cos(ang));
+                let err = (atan2(y, x) - libm::atan2(y, x)).abs();
+                worst = worst.max(err);
+            }
+        }
+        assert!(worst < 5e-13, "worst error {worst}");
+        // Axes and the degenerate origin.
+        assert_eq!(atan2(0.0, 1.0), 0.0);
+        assert!((atan2(1.0, 0.0) - FRAC_PI_2).abs() < 1e-15);
+        assert!((atan2(0.0, -1.0) - PI).abs() < 1e-15);
+        assert!((atan2(-1.0, 0.0) + FRAC_PI_2).abs() < 1e-15);
+        assert_eq!(atan2(0.0, 0.0), 0.0);
+    }
+}

@@ -1,0 +1,82 @@
+//! Test helpers: locate `../shared` and read the shared scans (formats of shared/data/README.md).
+#![allow(dead_code)]
+
+use std::path::PathBuf;
+
+/// The shared folder (`SOLID_SHARED`, else `<repo>/../shared`), or `None` when absent.
+/// Under `CI=true` a missing folder is a failure, not a skip.
+pub fn shared() -> Option<PathBuf> {
+    let dir = match std::env::var_os("SOLID_SHARED") {
+        Some(d) => PathBuf::from(d),
+        None => PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared"),
+    };
+    if dir.join("data").is_dir() {
+        return Some(dir);
+    }
+    assert!(
+        std::env::var("CI").as_deref() != Ok("true"),
+        "shared data folder {} is missing under CI",
+        dir.display()
+    );
+    eprintln!("skipping: shared data folder {} not found", dir.display());
+    None
+}
+
+fn f32s(bytes: &[u8], record: usize, n_fields: usize) -> Vec<f32> {
+    assert_eq!(bytes.len() % record, 0, "truncated file");
+    bytes
+        .chunks_exact(record)
+        .flat_map(|r| {
+            (0..n_fields).map(move |f| f32::from_le_bytes(r[4 * f..4 * f + 4].try_into().unwrap()))
+        })
+        .collect()
+}
+
+/// A scan as f64 x, y, z rows (stride 3), whatever its file format.
+pub fn read_scan(path: &std::path::Path) -> Vec<f64> {
+    let bytes = std::fs::read(path).unwrap();
+    let name = path.to_string_lossy();
+    let xyz: Vec<f32> = if name.ends_with(".pcd") {
+        let marker = b"DATA binary\n";
+        let at = bytes
+            .windows(marker.len())
+            .position(|w| w == marker)
+            .expect("binary PCD");
+        let header = std::str::from_utf8(&bytes[..at]).unwrap();
+        let fields = header
+            .lines()
+            .find(|l| l.starts_with("FIELDS"))
+            .unwrap()
+            .split_whitespace()
+            .count()
+            - 1;
+        let body = &bytes[at + marker.len()..];
+        let all = f32s(body, 4 * fields, fields);
+        all.chunks_exact(fields)
+            .flat_map(|p| p[..3].to_vec())
+            .collect()
+    } else if name.contains("helipr_aeva") {
+        f32s(&bytes, 29, 3)
+    } else if name.contains("helipr_avia") {
+        f32s(&bytes, 19, 3)
+    } else if name.contains("nclt") {
+        assert_eq!(bytes.len() % 8, 0);
+        return bytes
+            .chunks_exact(8)
+            .flat_map(|r| {
+                (0..3).map(move |i| {
+                    f64::from(u16::from_le_bytes([r[2 * i], r[2 * i + 1]])) * 0.005 - 100.0
+                })
+            })
+            .collect();
+    } else {
+        let all = f32s(&bytes, 16, 4);
+        all.chunks_exact(4).flat_map(|p| p[..3].to_vec()).collect()
+    };
+    xyz.into_iter().map(f64::from).collect()
+}
+
+/// A KITTI `.bin` as its raw float32 N×4 array.
+pub fn read_kitti(path: &std::path::Path) -> Vec<f32> {
+    f32s(&std::fs::read(path).unwrap(), 16, 4)
+}

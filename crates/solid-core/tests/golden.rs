@@ -1,0 +1,112 @@
+//! Every case of shared/golden/descriptors.json, compared as SPEC §7 says.
+
+mod common;
+
+use solid_core::{Config, Describer, Points};
+
+fn vecf(v: &serde_json::Value) -> Vec<f64> {
+    v.as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect()
+}
+
+fn rel_l1(ours: &[f32], golden: &[f64]) -> f64 {
+    assert_eq!(ours.len(), golden.len());
+    let err: f64 = ours
+        .iter()
+        .zip(golden)
+        .map(|(&o, &g)| (f64::from(o) - g).abs())
+        .sum();
+    let norm: f64 = golden.iter().map(|g| g.abs()).sum();
+    if norm == 0.0 {
+        err
+    } else {
+        err / norm
+    }
+}
+
+#[test]
+fn golden_descriptors_match() {
+    let Some(shared) = common::shared() else {
+        return;
+    };
+    let text = std::fs::read_to_string(shared.join("golden/descriptors.json")).unwrap();
+    let doc: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let cases = doc["cases"].as_array().unwrap();
+    assert!(cases.len() >= 50, "only {} golden cases", cases.len());
+    let mut worst: f64 = 0.0;
+    for case in cases {
+        let file = case["file"].as_str().unwrap();
+        let c = &case["config"];
+        let cfg = Config {
+            n_range: c["n_range"].as_u64().unwrap() as usize,
+            n_azimuth: c["n_azimuth"].as_u64().unwrap() as usize,
+            n_elevation: c["n_elevation"].as_u64().unwrap() as usize,
+            fov_up: c["fov_up"].as_f64().unwrap(),
+            fov_down: c["fov_down"].as_f64().unwrap(),
+            min_range: c["min_range"].as_f64().unwrap(),
+            max_range: c["max_range"].as_f64().unwrap(),
+            voxel_size: c["voxel_size"].as_f64().unwrap(),
+        };
+        // The named preset agrees with the config recorded in the golden file, voxel aside.
+        let preset = Config::preset(case["preset"].as_str().unwrap()).unwrap();
+        assert_eq!(
+            Config {
+                voxel_size: cfg.voxel_size,
+                ..preset
+            },
+            cfg,
+            "{file}"
+        );
+
+        let xyz = common::read_scan(&shared.join(file));
+        let d = Describer::new(cfg)
+            .unwrap()
+            .describe(Points::new(&xyz, 3).unwrap())
+            .unwrap();
+        let ctx = format!("{file} voxel {}", cfg.voxel_size);
+        assert_eq!(
+            d.stats.n_points as u64,
+            case["n_points"].as_u64().unwrap(),
+            "{ctx}"
+        );
+        assert_eq!(
+            d.stats.n_in_range as u64,
+            case["n_in_range"].as_u64().unwrap(),
+            "{ctx}"
+        );
+        let kept = case["n_kept"].as_u64().unwrap() as f64;
+        assert!(
+            (d.stats.n_kept as f64 - kept).abs() <= 1e-3 * kept,
+            "{ctx}: kept {} vs golden {kept}",
+            d.stats.n_kept
+        );
+        let er = rel_l1(&d.r, &vecf(&case["r_solid"]));
+        let ea = rel_l1(&d.a, &vecf(&case["a_solid"]));
+        assert!(
+            er <= 1e-3 && ea <= 1e-3,
+            "{ctx}: relative L1 error r {er:e}, a {ea:e}"
+        );
+        worst = worst.max(er).max(ea);
+    }
+    eprintln!(
+        "{} golden cases match; worst relative L1 error {worst:e}",
+        cases.len()
+    );
+}
+
+#[test]
+fn f32_and_f64_input_agree_on_kitti() {
+    let Some(shared) = common::shared() else {
+        return;
+    };
+    let raw = common::read_kitti(&shared.join("data/kitti00/velodyne/000000.bin"));
+    let wide: Vec<f64> = raw.iter().map(|&v| f64::from(v)).collect();
+    let mut desc = Describer::new(Config::preset("hdl64").unwrap()).unwrap();
+    let a = desc.describe(Points::new(&raw, 4).unwrap()).unwrap();
+    let b = desc.describe(Points::new(&wide, 4).unwrap()).unwrap();
+    assert_eq!(a, b);
+    assert_eq!(a.stats.n_points, 124_668);
+}

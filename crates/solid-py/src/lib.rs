@@ -1,0 +1,665 @@
+//! Python bindings of `solid-core`: argument checks, GIL release and error mapping only; the
+//! algorithm lives in the core crate.
+
+use std::cell::RefCell;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use numpy::{PyArray1, PyArray2, PyArrayMethods, PyUntypedArray, PyUntypedArrayMethods};
+use pyo3::create_exception;
+use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList, PyTuple};
+use solid_core::{Config, Describer, Descriptor, Error, Points, Stats, PRESETS};
+
+create_exception!(
+    solid,
+    SolidError,
+    PyValueError,
+    "Base class of the errors raised by solid (a ValueError)."
+);
+create_exception!(
+    solid,
+    ConfigError,
+    SolidError,
+    "An invalid configuration parameter or preset name."
+);
+
+/// Maps a core error to the matching Python exception.
+pub fn core_err(e: Error) -> PyErr {
+    match e {
+        Error::InvalidParameter { .. } | Error::UnknownPreset => {
+            ConfigError::new_err(e.to_string())
+        }
+        _ => SolidError::new_err(e.to_string()),
+    }
+}
+
+/// The descriptor configuration exposed as `solid.SolidConfig` (immutable).
+#[pyclass(name = "SolidConfig", module = "solid", frozen, eq)]
+#[derive(Clone, PartialEq)]
+pub struct PyConfig {
+    /// The validated core config.
+    pub inner: Config,
+}
+
+const FIELDS: [&str; 8] = [
+    "n_range",
+    "n_azimuth",
+    "n_elevation",
+    "fov_up",
+    "fov_down",
+    "min_range",
+    "max_range",
+    "voxel_size",
+];
+
+fn count_param(name: &str, v: i64) -> PyResult<usize> {
+    usize::try_from(v).map_err(|_| {
+        ConfigError::new_err(format!("invalid {name} = {v}: expected a positive integer"))
+    })
+}
+
+/// Applies keyword overrides (by field name) to `cfg`, then validates it.
+fn apply_overrides(mut cfg: Config, overrides: Option<&Bound<'_, PyDict>>) -> PyResult<Config> {
+    if let Some(kw) = overrides {
+        for (k, v) in kw.iter() {
+            let key: String = k.extract()?;
+            let float = |v: &Bound<'_, PyAny>| -> PyResult<f64> {
+                v.extract::<f64>().map_err(|_| {
+                    PyTypeError::new_err(format!(
+                        "{key} must be a number, got {}",
+                        v.get_type()
+                            .name()
+                            .map(|n| n.to_string())
+                            .unwrap_or_default()
+                    ))
+                })
+            };
+            let int = |v: &Bound<'_, PyAny>| -> PyResult<usize> {
+                let i: i64 = v
+                    .extract()
+                    .map_err(|_| PyTypeError::new_err(format!("{key} must be an integer")))?;
+                count_param(&key, i)
+            };
+            match key.as_str() {
+                "n_range" => cfg.n_range = int(&v)?,
+                "n_azimuth" => cfg.n_azimuth = int(&v)?,
+                "n_elevation" => cfg.n_elevation = int(&v)?,
+                "fov_up" => cfg.fov_up = float(&v)?,
+                "fov_down" => cfg.fov_down = float(&v)?,
+                "min_range" => cfg.min_range = float(&v)?,
+                "max_range" => cfg.max_range = float(&v)?,
+                "voxel_size" => cfg.voxel_size = float(&v)?,
+                other => {
+                    return Err(PyTypeError::new_err(format!(
+                        "unknown SolidConfig parameter {other:?}; valid: {}",
+                        FIELDS.join(", ")
+                    )))
+                }
+            }
+        }
+    }
+    cfg.validate().map_err(core_err)?;
+    Ok(cfg)
+}
+
+#[pymethods]
+impl PyConfig {
+    #[new]
+    #[pyo3(signature = (*, fov_up, fov_down, n_elevation, n_range=40, n_azimuth=60, min_range=3.0, max_range=80.0, voxel_size=0.5))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        fov_up: f64,
+        fov_down: f64,
+        n_elevation: i64,
+        n_range: i64,
+        n_azimuth: i64,
+        min_range: f64,
+        max_range: f64,
+        voxel_size: f64,
+    ) -> PyResult<Self> {
+        let cfg = Config {
+            n_range: count_param("n_range", n_range)?,
+            n_azimuth: count_param("n_azimuth", n_azimuth)?,
+            n_elevation: count_param("n_elevation", n_elevation)?,
+            fov_up,
+            fov_down,
+            min_range,
+            max_range,
+            voxel_size,
+        };
+        cfg.validate().map_err(core_err)?;
+        Ok(PyConfig { inner: cfg })
+    }
+
+    /// A sensor preset (SPEC §4), with optional keyword overrides.
+    #[staticmethod]
+    #[pyo3(signature = (name, **overrides))]
+    fn preset(name: &str, overrides: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
+        let base = Config::preset(name).map_err(|_| {
+            ConfigError::new_err(format!(
+                "unknown preset {name:?}; available: {}",
+                PRESETS
+                    .iter()
+                    .map(|p| p.name)
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ))
+        })?;
+        Ok(PyConfig {
+            inner: apply_overrides(base, overrides)?,
+        })
+    }
+
+    /// A copy with some parameters changed.
+    #[pyo3(signature = (**overrides))]
+    fn replace(&self, overrides: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
+        Ok(PyConfig {
+            inner: apply_overrides(self.inner, overrides)?,
+        })
+    }
+
+    /// The parameters as a dict (what `SolidConfig(**d)` takes back).
+    fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let c = &self.inner;
+        let d = PyDict::new(py);
+        d.set_item("n_range", c.n_range)?;
+        d.set_item("n_azimuth", c.n_azimuth)?;
+        d.set_item("n_elevation", c.n_elevation)?;
+        d.set_item("fov_up", c.fov_up)?;
+        d.set_item("fov_down", c.fov_down)?;
+        d.set_item("min_range", c.min_range)?;
+        d.set_item("max_range", c.max_range)?;
+        d.set_item("voxel_size", c.voxel_size)?;
+        Ok(d)
+    }
+
+    #[getter]
+    fn n_range(&self) -> usize {
+        self.inner.n_range
+    }
+    #[getter]
+    fn n_azimuth(&self) -> usize {
+        self.inner.n_azimuth
+    }
+    #[getter]
+    fn n_elevation(&self) -> usize {
+        self.inner.n_elevation
+    }
+    #[getter]
+    fn fov_up(&self) -> f64 {
+        self.inner.fov_up
+    }
+    #[getter]
+    fn fov_down(&self) -> f64 {
+        self.inner.fov_down
+    }
+    #[getter]
+    fn min_range(&self) -> f64 {
+        self.inner.min_range
+    }
+    #[getter]
+    fn max_range(&self) -> f64 {
+        self.inner.max_range
+    }
+    #[getter]
+    fn voxel_size(&self) -> f64 {
+        self.inner.voxel_size
+    }
+    /// A 64-bit fingerprint of every parameter; equal configs have equal fingerprints.
+    #[getter]
+    fn fingerprint(&self) -> u64 {
+        self.inner.fingerprint()
+    }
+
+    fn __hash__(&self) -> u64 {
+        self.inner.fingerprint()
+    }
+
+    fn __repr__(&self) -> String {
+        let c = &self.inner;
+        format!(
+            "SolidConfig(n_range={}, n_azimuth={}, n_elevation={}, fov_up={:?}, fov_down={:?}, min_range={:?}, max_range={:?}, voxel_size={:?})",
+            c.n_range, c.n_azimuth, c.n_elevation, c.fov_up, c.fov_down, c.min_range, c.max_range, c.voxel_size
+        )
+    }
+
+    fn __reduce__<'py>(
+        slf: &Bound<'py, Self>,
+    ) -> PyResult<(Bound<'py, PyAny>, (Bound<'py, PyDict>,))> {
+        let py = slf.py();
+        let ctor = py.import("solid._solid")?.getattr("_config_from_dict")?;
+        Ok((ctor, (slf.get().to_dict(py)?,)))
+    }
+}
+
+#[pyfunction]
+fn _config_from_dict(d: &Bound<'_, PyDict>) -> PyResult<PyConfig> {
+    let base = Config {
+        n_range: 40,
+        n_azimuth: 60,
+        n_elevation: 1,
+        fov_up: 1.0,
+        fov_down: 0.0,
+        min_range: 3.0,
+        max_range: 80.0,
+        voxel_size: 0.5,
+    };
+    for need in ["fov_up", "fov_down", "n_elevation"] {
+        if !d.contains(need)? {
+            return Err(ConfigError::new_err(format!("config is missing {need}")));
+        }
+    }
+    Ok(PyConfig {
+        inner: apply_overrides(base, Some(d))?,
+    })
+}
+
+/// One scan's SOLiD descriptor, exposed as `solid.Descriptor` (immutable).
+#[pyclass(name = "Descriptor", module = "solid", frozen)]
+pub struct PyDescriptor {
+    /// The core descriptor (vectors, counts, config fingerprint).
+    pub inner: Descriptor,
+    /// The config that produced it.
+    pub cfg: Config,
+}
+
+impl PyDescriptor {
+    /// Wraps a core descriptor made with `cfg`.
+    pub fn new(inner: Descriptor, cfg: Config) -> Self {
+        PyDescriptor { inner, cfg }
+    }
+}
+
+/// Checks that two descriptors can be compared: same config.
+fn comparable(a: &PyDescriptor, b: &PyDescriptor) -> PyResult<()> {
+    if a.cfg != b.cfg {
+        return Err(SolidError::new_err(format!(
+            "descriptors come from different configs ({:?} vs {:?}); describe both scans with the same SolidConfig",
+            PyConfig { inner: a.cfg }.__repr__(),
+            PyConfig { inner: b.cfg }.__repr__()
+        )));
+    }
+    Ok(())
+}
+
+fn vector_from_py(name: &str, v: &Bound<'_, PyAny>, len: usize) -> PyResult<Vec<f32>> {
+    let arr: Vec<f32> = v
+        .extract()
+        .map_err(|_| PyTypeError::new_err(format!("{name} must be a 1-D sequence of floats")))?;
+    if arr.len() != len {
+        return Err(SolidError::new_err(format!(
+            "{name} has length {}, the config needs {len}",
+            arr.len()
+        )));
+    }
+    if let Some(bad) = arr.iter().find(|x| !x.is_finite() || **x < 0.0) {
+        return Err(SolidError::new_err(format!(
+            "{name} must be finite and non-negative, found {bad}"
+        )));
+    }
+    Ok(arr)
+}
+
+#[pymethods]
+impl PyDescriptor {
+    /// Rebuilds a descriptor from stored vectors (for instance read back from disk).
+    #[new]
+    #[pyo3(signature = (r, a, config, n_points=0, n_in_range=0, n_kept=0))]
+    fn py_new(
+        r: &Bound<'_, PyAny>,
+        a: &Bound<'_, PyAny>,
+        config: &PyConfig,
+        n_points: usize,
+        n_in_range: usize,
+        n_kept: usize,
+    ) -> PyResult<Self> {
+        let cfg = config.inner;
+        let inner = Descriptor {
+            r: vector_from_py("r", r, cfg.n_range)?,
+            a: vector_from_py("a", a, cfg.n_azimuth)?,
+            stats: Stats {
+                n_points,
+                n_in_range,
+                n_kept,
+            },
+            fingerprint: cfg.fingerprint(),
+        };
+        Ok(PyDescriptor { inner, cfg })
+    }
+
+    /// R-SOLiD (float32, length n_range).
+    #[getter]
+    fn r<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f32>> {
+        PyArray1::from_slice(py, &self.inner.r)
+    }
+    /// A-SOLiD (float32, length n_azimuth).
+    #[getter]
+    fn a<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f32>> {
+        PyArray1::from_slice(py, &self.inner.a)
+    }
+    #[getter]
+    fn n_points(&self) -> usize {
+        self.inner.stats.n_points
+    }
+    #[getter]
+    fn n_in_range(&self) -> usize {
+        self.inner.stats.n_in_range
+    }
+    #[getter]
+    fn n_kept(&self) -> usize {
+        self.inner.stats.n_kept
+    }
+    #[getter]
+    fn config(&self) -> PyConfig {
+        PyConfig { inner: self.cfg }
+    }
+
+    /// Cosine distance to `other` (SPEC §3).
+    fn distance(&self, other: &PyDescriptor) -> PyResult<f64> {
+        distance(self, other)
+    }
+
+    /// Heading of this scan relative to `candidate`, degrees in (-180, 180] (SPEC §3).
+    #[pyo3(signature = (candidate, refine=true))]
+    fn heading(&self, candidate: &PyDescriptor, refine: bool) -> PyResult<f64> {
+        heading(self, candidate, refine)
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Descriptor(n_range={}, n_azimuth={}, n_points={}, n_in_range={}, n_kept={})",
+            self.inner.r.len(),
+            self.inner.a.len(),
+            self.inner.stats.n_points,
+            self.inner.stats.n_in_range,
+            self.inner.stats.n_kept
+        )
+    }
+
+    fn __reduce__<'py>(
+        slf: &Bound<'py, Self>,
+    ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyTuple>)> {
+        let py = slf.py();
+        let d = slf.get();
+        let cls = py.import("solid._solid")?.getattr("Descriptor")?;
+        let args = (
+            d.r(py),
+            d.a(py),
+            PyConfig { inner: d.cfg },
+            d.inner.stats.n_points,
+            d.inner.stats.n_in_range,
+            d.inner.stats.n_kept,
+        )
+            .into_pyobject(py)?;
+        Ok((cls, args))
+    }
+}
+
+/// A point array checked and borrowed for reading without the GIL.
+pub enum PointSlice<'a> {
+    /// float32 rows.
+    F32(&'a [f32], usize),
+    /// float64 rows.
+    F64(&'a [f64], usize),
+}
+
+/// Keeps the numpy read-only borrow alive while its slice is used.
+pub enum Borrowed<'py> {
+    /// float32 array.
+    F32(numpy::PyReadonlyArray2<'py, f32>),
+    /// float64 array.
+    F64(numpy::PyReadonlyArray2<'py, f64>),
+}
+
+impl Borrowed<'_> {
+    /// The flat slice and its stride.
+    pub fn slice(&self) -> PointSlice<'_> {
+        match self {
+            // Contiguity and alignment were checked in `borrow_points`.
+            Borrowed::F32(a) => {
+                PointSlice::F32(a.as_slice().expect("checked C-contiguous"), a.shape()[1])
+            }
+            Borrowed::F64(a) => {
+                PointSlice::F64(a.as_slice().expect("checked C-contiguous"), a.shape()[1])
+            }
+        }
+    }
+}
+
+/// Checks a points argument (numpy, 2-D, ≥ 3 columns, float32/float64, C-contiguous, aligned)
+/// and borrows it read-only. `what` names the argument in messages.
+pub fn borrow_points<'py>(points: &Bound<'py, PyAny>, what: &str) -> PyResult<Borrowed<'py>> {
+    let arr = points.cast::<PyUntypedArray>().map_err(|_| {
+        let ty = points.get_type().name().map(|n| n.to_string()).unwrap_or_default();
+        PyTypeError::new_err(format!(
+            "{what} must be a numpy array of shape (N, >=3), got {ty}; convert with np.asarray({what}, dtype=np.float32)"
+        ))
+    })?;
+    let shape = arr.shape().to_vec();
+    if shape.len() != 2 || shape[1] < 3 {
+        return Err(SolidError::new_err(format!(
+            "{what} must have shape (N, >=3) with x, y, z first; got shape {}",
+            fmt_shape(&shape)
+        )));
+    }
+    let borrowed = if let Ok(a) = points.cast::<PyArray2<f32>>() {
+        Borrowed::F32(
+            a.try_readonly()
+                .map_err(|e| SolidError::new_err(format!("{what}: {e}")))?,
+        )
+    } else if let Ok(a) = points.cast::<PyArray2<f64>>() {
+        Borrowed::F64(
+            a.try_readonly()
+                .map_err(|e| SolidError::new_err(format!("{what}: {e}")))?,
+        )
+    } else {
+        let dt = arr.dtype().str().map(|s| s.to_string()).unwrap_or_default();
+        return Err(PyTypeError::new_err(format!(
+            "{what} has dtype {dt}; solid reads native float32 or float64: convert with {what}.astype(np.float32)"
+        )));
+    };
+    if !arr.is_c_contiguous() {
+        return Err(SolidError::new_err(format!(
+            "{what} is not C-contiguous (Fortran-ordered or a strided view); reading it in place would be wrong: pass np.ascontiguousarray({what})"
+        )));
+    }
+    let (ptr, align) = match &borrowed {
+        Borrowed::F32(a) => (a.as_array().as_ptr() as usize, std::mem::align_of::<f32>()),
+        Borrowed::F64(a) => (a.as_array().as_ptr() as usize, std::mem::align_of::<f64>()),
+    };
+    if ptr % align != 0 {
+        return Err(SolidError::new_err(format!(
+            "{what} is not aligned for its dtype; pass np.array({what}) (an aligned copy)"
+        )));
+    }
+    Ok(borrowed)
+}
+
+fn fmt_shape(shape: &[usize]) -> String {
+    let parts: Vec<String> = shape.iter().map(|d| d.to_string()).collect();
+    if parts.len() == 1 {
+        format!("({},)", parts[0])
+    } else {
+        format!("({})", parts.join(", "))
+    }
+}
+
+/// Scratch buffers above this size are freed after a call instead of kept for the next one.
+const KEEP_SCRATCH_BYTES: usize = 64 << 20;
+
+thread_local! {
+    static DESCRIBER: RefCell<Option<Describer>> = const { RefCell::new(None) };
+}
+
+/// Describes `points` with a per-thread [`Describer`] so repeated calls reuse their scratch.
+pub fn describe_slice(points: &PointSlice<'_>, cfg: &Config) -> Result<Descriptor, Error> {
+    DESCRIBER.with(|cell| {
+        let mut slot = cell.borrow_mut();
+        if slot.as_ref().is_none_or(|d| d.config() != cfg) {
+            *slot = Some(Describer::new(*cfg)?);
+        }
+        let describer = slot.as_mut().expect("set above");
+        let out = match *points {
+            PointSlice::F32(s, stride) => describer.describe(Points::new(s, stride)?),
+            PointSlice::F64(s, stride) => describer.describe(Points::new(s, stride)?),
+        };
+        if describer.scratch_bytes() > KEEP_SCRATCH_BYTES {
+            *slot = None;
+        }
+        out
+    })
+}
+
+/// Checks `points`, then describes them with the GIL released.
+pub fn describe_points(
+    py: Python<'_>,
+    points: &Bound<'_, PyAny>,
+    cfg: &Config,
+) -> PyResult<Descriptor> {
+    let borrowed = borrow_points(points, "points")?;
+    let slice = borrowed.slice();
+    py.detach(|| describe_slice(&slice, cfg)).map_err(core_err)
+}
+
+/// Computes the SOLiD descriptor of one scan.
+#[pyfunction]
+fn describe(
+    py: Python<'_>,
+    points: &Bound<'_, PyAny>,
+    config: &PyConfig,
+) -> PyResult<PyDescriptor> {
+    let d = describe_points(py, points, &config.inner)?;
+    Ok(PyDescriptor::new(d, config.inner))
+}
+
+/// Describes many scans in parallel (every core by default), GIL released.
+#[pyfunction]
+#[pyo3(signature = (scans, config, threads=None))]
+fn describe_batch(
+    py: Python<'_>,
+    scans: &Bound<'_, PyAny>,
+    config: &PyConfig,
+    threads: Option<usize>,
+) -> PyResult<Vec<PyDescriptor>> {
+    let items: Vec<Bound<'_, PyAny>> = if let Ok(list) = scans.cast::<PyList>() {
+        list.iter().collect()
+    } else {
+        scans
+            .try_iter()
+            .map_err(|_| {
+                PyTypeError::new_err("scans must be a list (or iterable) of numpy arrays")
+            })?
+            .collect::<PyResult<_>>()?
+    };
+    let borrowed = items
+        .iter()
+        .enumerate()
+        .map(|(i, p)| borrow_points(p, &format!("scans[{i}]")))
+        .collect::<PyResult<Vec<_>>>()?;
+    let slices: Vec<PointSlice<'_>> = borrowed.iter().map(Borrowed::slice).collect();
+    let threads = match threads {
+        Some(0) => {
+            return Err(SolidError::new_err(
+                "threads must be at least 1 (or None for every core)",
+            ))
+        }
+        Some(t) => t,
+        None => std::thread::available_parallelism().map_or(1, |n| n.get()),
+    }
+    .min(slices.len().max(1));
+    let cfg = config.inner;
+    let results: Vec<Result<Descriptor, Error>> = py.detach(|| {
+        let next = AtomicUsize::new(0);
+        let mut out: Vec<Option<Result<Descriptor, Error>>> =
+            (0..slices.len()).map(|_| None).collect();
+        let chunks: Vec<Vec<(usize, Result<Descriptor, Error>)>> = std::thread::scope(|s| {
+            let workers: Vec<_> = (0..threads)
+                .map(|_| {
+                    s.spawn(|| {
+                        let mut done = Vec::new();
+                        loop {
+                            let i = next.fetch_add(1, Ordering::Relaxed);
+                            if i >= slices.len() {
+                                break done;
+                            }
+                            done.push((i, describe_slice(&slices[i], &cfg)));
+                        }
+                    })
+                })
+                .collect();
+            workers
+                .into_iter()
+                .map(|w| w.join().expect("describe worker panicked"))
+                .collect()
+        });
+        for (i, r) in chunks.into_iter().flatten() {
+            out[i] = Some(r);
+        }
+        out.into_iter()
+            .map(|r| r.expect("every scan described"))
+            .collect()
+    });
+    results
+        .into_iter()
+        .map(|r| r.map(|d| PyDescriptor::new(d, cfg)).map_err(core_err))
+        .collect()
+}
+
+/// Cosine distance between two descriptors' R-SOLiDs (SPEC §3), in [0, 1].
+#[pyfunction]
+fn distance(a: &PyDescriptor, b: &PyDescriptor) -> PyResult<f64> {
+    comparable(a, b)?;
+    a.inner.distance(&b.inner).map_err(core_err)
+}
+
+/// Heading of `query` relative to `candidate` in degrees, (-180, 180] (SPEC §3): the query scan
+/// is the candidate rotated by this angle counter-clockwise about +z.
+#[pyfunction]
+#[pyo3(signature = (query, candidate, refine=true))]
+fn heading(query: &PyDescriptor, candidate: &PyDescriptor, refine: bool) -> PyResult<f64> {
+    comparable(query, candidate)?;
+    Ok(query
+        .inner
+        .heading(&candidate.inner, refine)
+        .map_err(core_err)?
+        .degrees)
+}
+
+/// Every sensor preset (SPEC §4) by name.
+#[pyfunction]
+fn presets<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    for p in PRESETS {
+        d.set_item(p.name, PyConfig { inner: p.config })?;
+    }
+    Ok(d)
+}
+
+/// The sensor each preset describes, by preset name.
+#[pyfunction]
+fn preset_sensors<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    for p in PRESETS {
+        d.set_item(p.name, p.sensor)?;
+    }
+    Ok(d)
+}
+
+#[pymodule(gil_used = false)]
+fn _solid(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    let py = m.py();
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add("SolidError", py.get_type::<SolidError>())?;
+    m.add("ConfigError", py.get_type::<ConfigError>())?;
+    m.add_class::<PyConfig>()?;
+    m.add_class::<PyDescriptor>()?;
+    m.add_function(wrap_pyfunction!(describe, m)?)?;
+    m.add_function(wrap_pyfunction!(describe_batch, m)?)?;
+    m.add_function(wrap_pyfunction!(distance, m)?)?;
+    m.add_function(wrap_pyfunction!(heading, m)?)?;
+    m.add_function(wrap_pyfunction!(presets, m)?)?;
+    m.add_function(wrap_pyfunction!(preset_sensors, m)?)?;
+    m.add_function(wrap_pyfunction!(_config_from_dict, m)?)?;
+    Ok(())
+}

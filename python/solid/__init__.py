@@ -1,0 +1,46 @@
+"""SOLiD: fast, trustworthy LiDAR place recognition.
+
+Describe a scan with two short vectors (R-SOLiD for place recognition, A-SOLiD for heading),
+compare them, and find loop closures::
+
+    import numpy as np
+    import solid
+
+    cfg = solid.SolidConfig.preset("hdl64")
+    points = np.fromfile("000000.bin", dtype=np.float32).reshape(-1, 4)  # KITTI x y z i
+    d = solid.describe(points, cfg)
+    print(d.r.shape, d.a.shape, d.n_kept)
+
+The heading convention: ``solid.heading(q, c)`` is the angle ψ (degrees, counter-clockwise about
++z) such that the query scan ≈ the candidate scan rotated by ψ.
+"""
+
+from __future__ import annotations
+
+from ._solid import (
+    ConfigError,
+    Descriptor,
+    SolidConfig,
+    SolidError,
+    __version__,
+    describe,
+    describe_batch,
+    distance,
+    heading,
+    preset_sensors,
+    presets,
+)
+
+__all__ = [
+    "ConfigError",
+    "Descriptor",
+    "SolidConfig",
+    "SolidError",
+    "__version__",
+    "describe",
+    "describe_batch",
+    "distance",
+    "heading",
+    "preset_sensors",
+    "presets",
+]
