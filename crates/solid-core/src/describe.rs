@@ -1,6 +1,6 @@
 //! The SOLiD descriptor, step by step as SPEC §2 defines it.
 
-use crate::math::{atan2, sqrt};
+use crate::math::{atan2, floor_i64, sqrt};
 use crate::{Config, Error};
 
 /// One element of the caller-owned scratch buffer of [`describe`].
@@ -98,16 +98,19 @@ fn table_slots(n: usize) -> usize {
 
 /// Words of a voxel record: key, sum x, sum y, sum z, count.
 const REC: usize = 5;
-const EMPTY: u32 = u32::MAX;
+/// Words of a hash-table slot: the voxel key ([`OUTSIDE`] when empty) and its record's index.
+/// Keeping the key in the slot leaves one memory access on a lookup's critical path.
+const SLOT: usize = 2;
 
 /// How many [`Scratch`] elements [`describe`] needs for `n_points` points under `cfg`.
 ///
-/// Grows linearly with `n_points`: about 6 words a point with voxel downsampling (hash table and
-/// voxel accumulators), half a word a point without, plus a few words per bin.
+/// Grows linearly with `n_points`: 9 to 13 words a point with voxel downsampling (hash table and
+/// voxel accumulators), half a word a point without, plus a few words per bin. Only what a scan
+/// occupies is touched, so a generous buffer costs address space, not time.
 pub fn describe_scratch_len(n_points: usize, cfg: &Config) -> usize {
     let bins = cfg.n_range + cfg.n_azimuth + 2 * cfg.n_elevation;
     let per_point = if cfg.voxel_size > 0.0 {
-        (table_slots(n_points) / 2).saturating_add(n_points.saturating_mul(REC))
+        (table_slots(n_points) * SLOT).saturating_add(n_points.saturating_mul(REC))
     } else {
         n_points.div_ceil(2)
     };
@@ -122,9 +125,9 @@ struct Binner {
     azimuth_scale: f64,
     elevation_scale: f64,
     fov_down: f64,
-    nr_max: usize,
-    na_max: usize,
-    ne_max: usize,
+    nr_max: f64,
+    na_max: f64,
+    ne_max: f64,
 }
 
 impl Binner {
@@ -136,9 +139,9 @@ impl Binner {
             azimuth_scale: cfg.n_azimuth as f64 / (2.0 * PI),
             elevation_scale: cfg.n_elevation as f64 / ((cfg.fov_up - cfg.fov_down) * deg),
             fov_down: cfg.fov_down * deg,
-            nr_max: cfg.n_range - 1,
-            na_max: cfg.n_azimuth - 1,
-            ne_max: cfg.n_elevation - 1,
+            nr_max: (cfg.n_range - 1) as f64,
+            na_max: (cfg.n_azimuth - 1) as f64,
+            ne_max: (cfg.n_elevation - 1) as f64,
         }
     }
 
@@ -150,13 +153,26 @@ impl Binner {
         let theta = atan2(y, x);
         let theta = if theta < 0.0 { theta + TAU } else { theta };
         let phi = atan2(z, r);
-        // Range and azimuth quotients are >= 0; the elevation one is clamped below at 0. `as usize`
-        // saturates and `min` keeps every index in range: points on or past the last edge (or
-        // above the field of view) join the last bin, points below it the first.
-        let i = ((r * self.range_scale) as usize).min(self.nr_max);
-        let j = ((theta * self.azimuth_scale) as usize).min(self.na_max);
-        let k = (((phi - self.fov_down) * self.elevation_scale).max(0.0) as usize).min(self.ne_max);
+        // Clamp in floating point, then floor: floor(min(v, n - 1)) = min(floor(v), n - 1) for
+        // integer n. Range and azimuth quotients are >= 0; the elevation one is clamped at 0, so
+        // points on or past the last edge (or above the field of view) join the last bin and
+        // points below the field of view the first. Branch-free, so blocks vectorise.
+        let i = floor_i64((r * self.range_scale).min(self.nr_max));
+        let j = floor_i64((theta * self.azimuth_scale).min(self.na_max));
+        let k = floor_i64(
+            ((phi - self.fov_down) * self.elevation_scale)
+                .max(0.0)
+                .min(self.ne_max),
+        );
         (i | (j << 10) | (k << 22)) as u32
+    }
+
+    /// Bins of the first `n` points of `xyz` into `out`.
+    #[inline(always)]
+    fn bin_block(&self, xyz: &[[f64; BLOCK]; 3], n: usize, out: &mut [u32; BLOCK]) {
+        for i in 0..n.min(BLOCK) {
+            out[i] = self.bin(xyz[0][i], xyz[1][i], xyz[2][i]);
+        }
     }
 }
 
@@ -212,36 +228,52 @@ pub fn describe<T: Coord>(
     ec.fill(0);
 
     let binner = Binner::new(cfg);
+    let mut xyz = [[0f64; BLOCK]; 3];
+    let mut block_bins = [0u32; BLOCK];
     let (n_in_range, bins): (usize, &[u32]) = if cfg.voxel_size > 0.0 {
-        let (table, recs) = rest.split_at_mut(table_slots(n) / 2);
-        let table: &mut [u32] = bytemuck::cast_slice_mut(table);
+        let (table, recs) = rest.split_at_mut(table_slots(n) * SLOT);
         let (n_in, m) = voxelize(points, cfg, table, recs);
-        // Centroids, then their bins, written over the record keys.
-        for rec in recs[..m * REC].chunks_exact_mut(REC) {
-            let cnt = rec[4] as f64;
-            let x = f64::from_bits(rec[1]) / cnt;
-            let y = f64::from_bits(rec[2]) / cnt;
-            let z = f64::from_bits(rec[3]) / cnt;
-            let b = binner.bin(x, y, z);
-            ec[unpack(b).2] += 1;
-            rec[0] = u64::from(b);
-        }
-        // Compact the bins to the front of `table` (no longer needed) for the second pass.
-        for v in 0..m {
-            table[v] = recs[v * REC] as u32;
+        let table: &mut [u32] = bytemuck::cast_slice_mut(table);
+        // Centroids block by block, their bins written over the table (no longer needed).
+        for (out, recs) in table[..m]
+            .chunks_mut(BLOCK)
+            .zip(recs[..m * REC].chunks(BLOCK * REC))
+        {
+            let nb = out.len();
+            for (i, rec) in recs.chunks_exact(REC).enumerate() {
+                let cnt = rec[4] as f64;
+                for d in 0..3 {
+                    xyz[d][i] = f64::from_bits(rec[1 + d]) / cnt;
+                }
+            }
+            binner.bin_block(&xyz, nb, &mut block_bins);
+            out.copy_from_slice(&block_bins[..nb]);
         }
         (n_in, &table[..m])
     } else {
         let bins: &mut [u32] = &mut bytemuck::cast_slice_mut(rest)[..n];
+        let (min2, max2) = (cfg.min_range * cfg.min_range, cfg.max_range * cfg.max_range);
         let mut m = 0;
-        for_each_in_range(points, cfg, |x, y, z| {
-            let b = binner.bin(x, y, z);
-            ec[unpack(b).2] += 1;
-            bins[m] = b;
-            m += 1;
-        });
+        for block in points.data.chunks(BLOCK * points.stride) {
+            let nb = deinterleave(block, points.stride, &mut xyz);
+            // Keep the points in range, compacted to the front of the block (branch-free).
+            let mut kept = 0;
+            for i in 0..nb {
+                let (x, y, z) = (xyz[0][i], xyz[1][i], xyz[2][i]);
+                xyz[0][kept] = x;
+                xyz[1][kept] = y;
+                xyz[2][kept] = z;
+                kept += usize::from(in_range(x, y, z, min2, max2));
+            }
+            binner.bin_block(&xyz, kept, &mut block_bins);
+            bins[m..m + kept].copy_from_slice(&block_bins[..kept]);
+            m += kept;
+        }
         (m, &bins[..m])
     };
+    for &b in bins {
+        ec[unpack(b).2] += 1;
+    }
 
     // IEV (SPEC §2 step 7): min-max normalised elevation counts; flat counts give all ones.
     let (lo, hi) = ec
@@ -322,8 +354,8 @@ pub mod stages {
                 got: scratch.len(),
             });
         }
-        let (table, recs) = scratch.split_at_mut(table_slots(n) / 2);
-        let (n_in, m) = voxelize(points, cfg, bytemuck::cast_slice_mut(table), recs);
+        let (table, recs) = scratch.split_at_mut(table_slots(n) * SLOT);
+        let (n_in, m) = voxelize(points, cfg, table, recs);
         if out_xyz.len() < 3 * m {
             return Err(Error::BufferTooSmall {
                 buffer: "out_xyz",
@@ -366,86 +398,207 @@ fn for_each_in_range<T: Coord>(
 /// Voxel downsampling on an origin-anchored grid (SPEC §2 step 3): accumulates each occupied
 /// voxel's coordinate sums and count into `recs` (in order of first occupation) through an
 /// open-addressing hash table. Returns (points in range, voxels occupied).
+///
+/// Points go through in blocks: a branch-free pass computes every point's voxel key (or
+/// [`OUTSIDE`]) so that the compiler can vectorise it, then a scalar pass accumulates.
 fn voxelize<T: Coord>(
     points: Points<'_, T>,
     cfg: &Config,
-    table: &mut [u32],
+    table: &mut [u64],
     recs: &mut [u64],
 ) -> (usize, usize) {
-    const BIAS: i64 = 1 << 20;
-    // Start with a small, cache-resident table and double it whenever it gets half full; the
-    // scratch holds room for the worst case (every point its own voxel).
-    let mut cap = table.len().min(INITIAL_SLOTS);
-    table[..cap].fill(EMPTY);
-    let mut shift = 64 - cap.trailing_zeros();
-    let inv = 1.0 / cfg.voxel_size;
-    let mut n_in = 0usize;
-    let mut m = 0usize;
-    // Consecutive points of a scan line often share a voxel: sum them in registers and touch the
-    // table only when the voxel changes.
-    let mut last_key = u64::MAX;
-    let mut cur = usize::MAX;
-    let (mut sx, mut sy, mut sz, mut cnt) = (0.0f64, 0.0f64, 0.0f64, 0u64);
-    let flush = |recs: &mut [u64], cur: usize, sx: f64, sy: f64, sz: f64, cnt: u64| {
-        let rec = &mut recs[cur * REC..cur * REC + REC];
-        rec[1] = (f64::from_bits(rec[1]) + sx).to_bits();
-        rec[2] = (f64::from_bits(rec[2]) + sy).to_bits();
-        rec[3] = (f64::from_bits(rec[3]) + sz).to_bits();
-        rec[4] += cnt;
-    };
-    for_each_in_range(points, cfg, |x, y, z| {
-        n_in += 1;
-        // |coordinate| / voxel_size < 2^19 (validated), so the casts are exact and the biased
-        // indices fit in 21 bits.
-        let key = (vox(x * inv) + BIAS) as u64
-            | ((vox(y * inv) + BIAS) as u64) << 21
-            | ((vox(z * inv) + BIAS) as u64) << 42;
-        if key == last_key {
-            sx += x;
-            sy += y;
-            sz += z;
-            cnt += 1;
-            return;
-        }
-        if cur != usize::MAX {
-            flush(recs, cur, sx, sy, sz, cnt);
-        }
-        if 2 * (m + 1) > cap {
-            cap *= 2;
-            shift -= 1;
-            rehash(&mut table[..cap], &recs[..m * REC], shift);
-        }
-        let mask = cap - 1;
-        let mut slot = slot_of(key, shift);
-        cur = loop {
-            let e = table[slot];
-            if e == EMPTY {
-                table[slot] = m as u32;
-                let rec = &mut recs[m * REC..m * REC + REC];
-                rec[0] = key;
-                rec[1] = 0f64.to_bits();
-                rec[2] = 0f64.to_bits();
-                rec[3] = 0f64.to_bits();
-                rec[4] = 0;
-                m += 1;
-                break m - 1;
-            }
-            if recs[e as usize * REC] == key {
-                break e as usize;
-            }
-            slot = (slot + 1) & mask;
-        };
-        last_key = key;
-        (sx, sy, sz, cnt) = (x, y, z, 1);
-    });
-    if cur != usize::MAX {
-        flush(recs, cur, sx, sy, sz, cnt);
+    // Constant strides let the key pass use fixed shuffles; others take the general path.
+    match points.stride {
+        3 => voxelize_strided::<T, 3>(points, cfg, table, recs),
+        4 => voxelize_strided::<T, 4>(points, cfg, table, recs),
+        _ => voxelize_strided::<T, 0>(points, cfg, table, recs),
     }
-    (n_in, m)
 }
 
-/// Initial hash-table size in slots (128 KiB of `u32`).
-const INITIAL_SLOTS: usize = 1 << 15;
+/// Key of a point outside the range filter (no real key has all 64 bits set).
+const OUTSIDE: u64 = u64::MAX;
+const BLOCK: usize = 256;
+
+/// Copies x, y, z of the points of `rows` (stride `s`) into `xyz` as `f64`; returns the count.
+#[inline(always)]
+fn deinterleave<T: Coord>(rows: &[T], s: usize, xyz: &mut [[f64; BLOCK]; 3]) -> usize {
+    let mut n = 0;
+    for (i, p) in rows.chunks_exact(s).enumerate() {
+        xyz[0][i] = p[0].to_f64();
+        xyz[1][i] = p[1].to_f64();
+        xyz[2][i] = p[2].to_f64();
+        n = i + 1;
+    }
+    n
+}
+
+/// Whether each point is finite and within `(min_range, max_range)` (SPEC §2 steps 1–2; the
+/// squared-norm test also rejects NaN and infinities).
+#[inline(always)]
+fn in_range(x: f64, y: f64, z: f64, min2: f64, max2: f64) -> bool {
+    let d2 = x * x + y * y + z * z;
+    (d2 > min2) & (d2 < max2)
+}
+
+/// Voxel key of each point: three 21-bit biased voxel indices, or [`OUTSIDE`] for points that
+/// fail the range filter. Branch-free over contiguous arrays, so it vectorises.
+#[inline(always)]
+fn block_keys(
+    xyz: &[[f64; BLOCK]; 3],
+    n: usize,
+    inv: f64,
+    min2: f64,
+    max2: f64,
+    keys: &mut [u64; BLOCK],
+) {
+    const BIAS: i64 = 1 << 20;
+    for i in 0..n.min(BLOCK) {
+        let (x, y, z) = (xyz[0][i], xyz[1][i], xyz[2][i]);
+        // In range, |coordinate| / voxel_size < 2^19 (validated): the biased indices fit in 21
+        // bits. Out of range the indices are garbage and the key is discarded.
+        let key = vox(x * inv).wrapping_add(BIAS) as u64
+            | (vox(y * inv).wrapping_add(BIAS) as u64) << 21
+            | (vox(z * inv).wrapping_add(BIAS) as u64) << 42;
+        keys[i] = if in_range(x, y, z, min2, max2) {
+            key
+        } else {
+            OUTSIDE
+        };
+    }
+}
+
+fn voxelize_strided<T: Coord, const S: usize>(
+    points: Points<'_, T>,
+    cfg: &Config,
+    table: &mut [u64],
+    recs: &mut [u64],
+) -> (usize, usize) {
+    let s = if S == 0 { points.stride } else { S };
+    let inv = 1.0 / cfg.voxel_size;
+    let (min2, max2) = (cfg.min_range * cfg.min_range, cfg.max_range * cfg.max_range);
+    let mut acc = VoxelTable::new(table, recs);
+    let mut xyz = [[0f64; BLOCK]; 3];
+    let mut keys = [0u64; BLOCK];
+    let mut n_in = 0usize;
+    for block in points.data.chunks(BLOCK * s) {
+        let nb = deinterleave(block, s, &mut xyz);
+        block_keys(&xyz, nb, inv, min2, max2, &mut keys);
+        for i in 0..nb {
+            if keys[i] != OUTSIDE {
+                n_in += 1;
+                acc.add(keys[i], xyz[0][i], xyz[1][i], xyz[2][i]);
+            }
+        }
+    }
+    (n_in, acc.finish())
+}
+
+/// The voxel hash table and its records, with the running sums of the current voxel.
+struct VoxelTable<'a> {
+    table: &'a mut [u64],
+    recs: &'a mut [u64],
+    cap: usize,
+    shift: u32,
+    m: usize,
+    last_key: u64,
+    cur: usize,
+    sum: [f64; 3],
+    cnt: u64,
+}
+
+impl<'a> VoxelTable<'a> {
+    fn new(table: &'a mut [u64], recs: &'a mut [u64]) -> Self {
+        // Start with a small, cache-resident table and double it whenever it gets 3/4 full; the
+        // scratch holds room for the worst case (every point its own voxel).
+        let cap = (table.len() / SLOT).min(INITIAL_SLOTS);
+        clear_slots(&mut table[..cap * SLOT]);
+        VoxelTable {
+            table,
+            recs,
+            cap,
+            shift: 64 - cap.trailing_zeros(),
+            m: 0,
+            last_key: OUTSIDE,
+            cur: usize::MAX,
+            sum: [0.0; 3],
+            cnt: 0,
+        }
+    }
+
+    /// Adds a point to voxel `key`. Consecutive points of a scan line often share a voxel: they
+    /// are summed in registers and the table is touched only when the voxel changes.
+    #[inline(always)]
+    fn add(&mut self, key: u64, x: f64, y: f64, z: f64) {
+        if key == self.last_key {
+            self.sum[0] += x;
+            self.sum[1] += y;
+            self.sum[2] += z;
+            self.cnt += 1;
+            return;
+        }
+        self.flush();
+        self.cur = self.find_or_insert(key);
+        self.last_key = key;
+        self.sum = [x, y, z];
+        self.cnt = 1;
+    }
+
+    #[inline(always)]
+    fn flush(&mut self) {
+        if self.cur != usize::MAX {
+            let rec = &mut self.recs[self.cur * REC..self.cur * REC + REC];
+            for d in 0..3 {
+                rec[1 + d] = (f64::from_bits(rec[1 + d]) + self.sum[d]).to_bits();
+            }
+            rec[4] += self.cnt;
+        }
+    }
+
+    fn find_or_insert(&mut self, key: u64) -> usize {
+        if 4 * (self.m + 1) > 3 * self.cap {
+            self.cap *= 2;
+            self.shift -= 1;
+            rehash(
+                &mut self.table[..self.cap * SLOT],
+                &self.recs[..self.m * REC],
+                self.shift,
+            );
+        }
+        let mask = self.cap - 1;
+        let mut slot = slot_of(key, self.shift);
+        loop {
+            let k = self.table[slot * SLOT];
+            if k == key {
+                return self.table[slot * SLOT + 1] as usize;
+            }
+            if k == OUTSIDE {
+                self.table[slot * SLOT] = key;
+                self.table[slot * SLOT + 1] = self.m as u64;
+                let rec = &mut self.recs[self.m * REC..self.m * REC + REC];
+                rec.copy_from_slice(&[key, 0f64.to_bits(), 0f64.to_bits(), 0f64.to_bits(), 0]);
+                self.m += 1;
+                return self.m - 1;
+            }
+            slot = (slot + 1) & mask;
+        }
+    }
+
+    /// Flushes the current voxel; returns the number of voxels.
+    fn finish(mut self) -> usize {
+        self.flush();
+        self.m
+    }
+}
+
+/// Initial hash-table size in slots (128 KiB).
+const INITIAL_SLOTS: usize = 1 << 13;
+
+/// Marks every slot of `table` empty.
+fn clear_slots(table: &mut [u64]) {
+    for slot in table.chunks_exact_mut(SLOT) {
+        slot[0] = OUTSIDE;
+    }
+}
 
 #[inline(always)]
 fn slot_of(key: u64, shift: u32) -> usize {
@@ -454,23 +607,23 @@ fn slot_of(key: u64, shift: u32) -> usize {
 
 /// Clears `table` and re-inserts the records `recs` (keys in their first word).
 #[cold]
-fn rehash(table: &mut [u32], recs: &[u64], shift: u32) {
-    table.fill(EMPTY);
-    let mask = table.len() - 1;
+fn rehash(table: &mut [u64], recs: &[u64], shift: u32) {
+    clear_slots(table);
+    let mask = table.len() / SLOT - 1;
     for (v, rec) in recs.chunks_exact(REC).enumerate() {
         let mut slot = slot_of(rec[0], shift);
-        while table[slot] != EMPTY {
+        while table[slot * SLOT] != OUTSIDE {
             slot = (slot + 1) & mask;
         }
-        table[slot] = v as u32;
+        table[slot * SLOT] = rec[0];
+        table[slot * SLOT + 1] = v as u64;
     }
 }
 
-/// ⌊v⌋ for |v| < 2^52.
+/// ⌊v⌋ for |v| < 2^51 (unspecified beyond, never a panic).
 #[inline(always)]
 fn vox(v: f64) -> i64 {
-    let t = v as i64;
-    t - i64::from((t as f64) > v)
+    floor_i64(v)
 }
 
 #[cfg(test)]

@@ -63,14 +63,73 @@ pub(crate) fn atan2(y: f64, x: f64) -> f64 {
     }
 }
 
+/// Correctly rounded square root (IEEE 754 requires it, so both paths give the same bits); the
+/// `std` one is an LLVM intrinsic the compiler can vectorise, `libm`'s is inline assembly.
 #[inline(always)]
 pub(crate) fn sqrt(x: f64) -> f64 {
-    libm::sqrt(x)
+    #[cfg(feature = "std")]
+    {
+        x.sqrt()
+    }
+    #[cfg(not(feature = "std"))]
+    {
+        libm::sqrt(x)
+    }
+}
+
+/// 1.5 · 2^52: adding it to |v| < 2^51 rounds v to an integer held in the low mantissa bits.
+const ROUND_MAGIC: f64 = 6_755_399_441_055_744.0;
+
+/// ⌊v⌋ for |v| < 2^51, with only add, subtract and compare in 64-bit lanes (vectorisable, unlike
+/// the saturating `as` cast): `v + 1.5·2^52` lies in [2^52, 2^53), where its bits are those of
+/// the magic number plus round-to-nearest(v). Other inputs (huge, infinite, NaN) give an
+/// unspecified value, never a panic.
+#[inline(always)]
+pub(crate) fn floor_i64(v: f64) -> i64 {
+    let r = v + ROUND_MAGIC;
+    let nearest = r.to_bits().wrapping_sub(ROUND_MAGIC.to_bits()) as i64;
+    let back = r - ROUND_MAGIC;
+    nearest.wrapping_sub(i64::from(back > v))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn floor_i64_is_floor() {
+        for v in [
+            -2.5,
+            -2.0,
+            -1.5,
+            -1e-300,
+            -0.0,
+            0.0,
+            0.5,
+            1.0,
+            1.5,
+            2.5,
+            3.999_999,
+            -524_287.9,
+            524_287.9,
+            1_073_741_823.5,
+            -1_073_741_824.0,
+        ] {
+            assert_eq!(floor_i64(v), libm::floor(v) as i64, "{v}");
+        }
+        let mut x = -1000.0;
+        while x < 1000.0 {
+            assert_eq!(floor_i64(x), libm::floor(x) as i64, "{x}");
+            x += 0.123_456_789;
+        }
+        // Out of contract: no panic.
+        let _ = (
+            floor_i64(f64::NAN),
+            floor_i64(1e300),
+            floor_i64(f64::NEG_INFINITY),
+        );
+        assert_eq!(floor_i64(-1.5e15), -1_500_000_000_000_000);
+    }
 
     #[test]
     fn atan2_matches_libm_everywhere() {
