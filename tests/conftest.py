@@ -26,6 +26,11 @@ def require_shared() -> Path:
     pytest.skip(f"shared data folder {d} not found (set SOLID_SHARED)")
 
 
+def data_dir() -> Path:
+    """`<shared>/data`; skips the test when absent, fails under CI=true."""
+    return require_shared() / "data"
+
+
 @pytest.fixture(scope="session")
 def shared() -> Path:
     return require_shared()

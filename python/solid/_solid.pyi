@@ -1,6 +1,7 @@
 """Type stubs of the compiled extension `solid._solid` (checked by mypy.stubtest)."""
 
 from collections.abc import Iterable
+from os import PathLike
 from typing import Any, final
 
 import numpy as np
@@ -19,6 +20,13 @@ __all__ = [
     "presets",
     "preset_sensors",
     "_config_from_dict",
+    "DatabaseError",
+    "Database",
+    "Match",
+    "LoopDetector",
+    "Loop",
+    "encode_place",
+    "decode_place",
 ]
 
 __version__: str
@@ -112,3 +120,110 @@ def heading(query: Descriptor, candidate: Descriptor, refine: bool = True) -> fl
 def presets() -> dict[str, SolidConfig]: ...
 def preset_sensors() -> dict[str, str]: ...
 def _config_from_dict(d: dict[str, Any]) -> SolidConfig: ...
+
+# --- search, database, loop detector, wire form (engine.rs) ---
+
+class DatabaseError(SolidError):
+    """A database, place or loop-detector error: config mismatch, corrupt, truncated, foreign or
+    newer-version file (the message names the file and the reason)."""
+
+@final
+class Match:
+    """One search result."""
+    @property
+    def id(self) -> int: ...
+    @property
+    def distance(self) -> float: ...
+    def __eq__(self, other: object, /) -> bool: ...
+
+@final
+class Loop:
+    """A detected loop closure."""
+    @property
+    def query(self) -> int: ...
+    @property
+    def candidate(self) -> int: ...
+    @property
+    def distance(self) -> float: ...
+    @property
+    def heading(self) -> float: ...
+    def __eq__(self, other: object, /) -> bool: ...
+
+@final
+class Database:
+    """Places with exact search at every size (online kd-tree index), merge, save and load."""
+    def __new__(cls, cfg: SolidConfig) -> Database: ...
+    def add(
+        self,
+        descriptor: Descriptor,
+        session: int = 0,
+        timestamp: float | None = None,
+        pose: npt.ArrayLike | None = None,
+    ) -> int: ...
+    def search(
+        self,
+        descriptor: Descriptor | npt.ArrayLike,
+        k: int = 1,
+        exclude_recent: int = 0,
+        method: str = "auto",
+        not_newer_than: float | None = None,
+    ) -> list[Match]: ...
+    def merge(self, other: Database) -> None: ...
+    def save(self, path: str | PathLike[str]) -> None: ...
+    @staticmethod
+    def load(path: str | PathLike[str]) -> Database: ...
+    def to_bytes(self) -> bytes: ...
+    @staticmethod
+    def from_bytes(data: bytes) -> Database: ...
+    def __len__(self) -> int: ...
+    @property
+    def config(self) -> SolidConfig: ...
+    @property
+    def r(self) -> npt.NDArray[np.float32]: ...
+    @property
+    def a(self) -> npt.NDArray[np.float32]: ...
+    @property
+    def ids(self) -> npt.NDArray[np.int64]: ...
+    @property
+    def sessions(self) -> npt.NDArray[np.uint32]: ...
+    @property
+    def timestamps(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def poses(self) -> npt.NDArray[np.float64]: ...
+
+@final
+class LoopDetector:
+    """Online loop closure: each scan is searched against all but the `exclude_recent` most
+    recent scans, then added."""
+    def __new__(
+        cls,
+        cfg: SolidConfig,
+        exclude_recent: int = 50,
+        threshold: float = 0.1,
+        top_k: int = 10,
+        rerank: bool = True,
+    ) -> LoopDetector: ...
+    @staticmethod
+    def from_database(
+        database: Database,
+        exclude_recent: int = 50,
+        threshold: float = 0.1,
+        top_k: int = 10,
+        rerank: bool = True,
+    ) -> LoopDetector: ...
+    def add(self, points_or_descriptor: Descriptor | npt.ArrayLike, timestamp: float | None = None) -> Loop | None: ...
+    def query(self, points_or_descriptor: Descriptor | npt.ArrayLike) -> Loop | None: ...
+    def __len__(self) -> int: ...
+    @property
+    def database(self) -> Database: ...
+    @property
+    def exclude_recent(self) -> int: ...
+    @property
+    def threshold(self) -> float: ...
+    @property
+    def top_k(self) -> int: ...
+    @property
+    def rerank(self) -> bool: ...
+
+def encode_place(descriptor: Descriptor, quantized: bool = False) -> bytes: ...
+def decode_place(data: bytes, cfg: SolidConfig) -> Descriptor: ...

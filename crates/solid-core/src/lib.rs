@@ -31,6 +31,8 @@ extern crate alloc;
 
 mod compare;
 mod config;
+#[cfg(feature = "alloc")]
+pub mod db;
 mod describe;
 mod error;
 mod math;

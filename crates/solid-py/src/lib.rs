@@ -11,6 +11,8 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
 use solid_core::{Config, Describer, Descriptor, Error, Points, Stats, PRESETS};
 
+mod engine;
+
 create_exception!(
     solid,
     SolidError,
@@ -101,6 +103,13 @@ fn apply_overrides(mut cfg: Config, overrides: Option<&Bound<'_, PyDict>>) -> Py
     }
     cfg.validate().map_err(core_err)?;
     Ok(cfg)
+}
+
+impl PyConfig {
+    /// Wraps a config that was validated already (a database's, say).
+    pub fn new_unchecked(inner: Config) -> Self {
+        PyConfig { inner }
+    }
 }
 
 #[pymethods]
@@ -661,5 +670,6 @@ fn _solid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(presets, m)?)?;
     m.add_function(wrap_pyfunction!(preset_sensors, m)?)?;
     m.add_function(wrap_pyfunction!(_config_from_dict, m)?)?;
+    engine::register(m)?;
     Ok(())
 }

@@ -1,0 +1,100 @@
+"""Times solid.describe against a vectorised numpy implementation of SPEC §2, in one process.
+
+    python benches/python_baseline.py            # or: make bench-py
+
+Prints, for the full KITTI frame 000000 (124,668 points, hdl64, voxel 0.5) and its 60° clip, the
+median milliseconds of each implementation and their ratio, checks that both give the same
+descriptor, and prints the Python call overhead (describe of a one-point array).
+"""
+
+from __future__ import annotations
+
+import os
+import statistics
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+
+import solid
+from solid import io as sio
+
+F64 = npt.NDArray[np.float64]
+
+
+def describe_numpy(points: npt.NDArray[np.floating], cfg: solid.SolidConfig) -> tuple[F64, F64, int]:
+    """SPEC §2 with numpy, vectorised throughout (no Python loop over points)."""
+    xyz = np.asarray(points[:, :3], dtype=np.float64)
+    xyz = xyz[np.isfinite(xyz).all(axis=1)]
+    d = np.sqrt((xyz * xyz).sum(axis=1))
+    xyz = xyz[(d > cfg.min_range) & (d < cfg.max_range)]
+    if cfg.voxel_size > 0:
+        k = np.floor(xyz / cfg.voxel_size).astype(np.int64) + (1 << 20)
+        packed = k[:, 0] | (k[:, 1] << 21) | (k[:, 2] << 42)
+        _, inverse, counts = np.unique(packed, return_inverse=True, return_counts=True)
+        xyz = np.stack([np.bincount(inverse, weights=xyz[:, c]) for c in range(3)], axis=1) / counts[:, None]
+    x, y, z = xyz[:, 0], xyz[:, 1], xyz[:, 2]
+    r = np.hypot(x, y)
+    theta = np.degrees(np.arctan2(y, x)) % 360.0
+    phi = np.degrees(np.arctan2(z, r))
+    nr, na, ne = cfg.n_range, cfg.n_azimuth, cfg.n_elevation
+    i = np.minimum(np.floor(r * nr / cfg.max_range), nr - 1).astype(np.int64)
+    j = np.minimum(np.floor(theta * na / 360.0), na - 1).astype(np.int64)
+    kk = np.clip(np.floor((phi - cfg.fov_down) * ne / (cfg.fov_up - cfg.fov_down)), 0, ne - 1).astype(np.int64)
+    rec = np.bincount(i * ne + kk, minlength=nr * ne).reshape(nr, ne).astype(np.float64)
+    aec = np.bincount(j * ne + kk, minlength=na * ne).reshape(na, ne).astype(np.float64)
+    ec = rec.sum(axis=0)
+    span = ec.max() - ec.min() if len(ec) else 0.0
+    iev = (ec - ec.min()) / span if span > 0 else np.ones(ne)
+    return rec @ iev, aec @ iev, len(xyz)
+
+
+def median_seconds(fn: Callable[[], object], repeats: int) -> float:
+    fn()  # warm up (page faults, scratch buffers)
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times)
+
+
+def shared_data() -> Path:
+    env = os.environ.get("SOLID_SHARED")
+    root = Path(env) if env else Path(__file__).resolve().parents[2] / "shared"
+    if not (root / "data").is_dir():
+        sys.exit(f"benchmark data not found under {root} (set SOLID_SHARED)")
+    return root / "data"
+
+
+def main() -> int:
+    data = shared_data()
+    cfg = solid.SolidConfig.preset("hdl64")
+    scans = {
+        "KITTI 000000, full 360° (124,668 pts)": sio.read_points(data / "kitti00/velodyne/000000.bin", "kitti"),
+        "KITTI 000000, 60° clip": sio.read_points(data / "solid-samples/kitti_00_60/000000.bin", "kitti"),
+    }
+    print(f"solid {solid.__version__}, single thread, hdl64, voxel {cfg.voxel_size} m; median of repeated runs")
+    print(f"{'scan':40s} {'numpy ms':>9s} {'solid ms':>9s} {'speed-up':>9s}")
+    for name, pts in scans.items():
+        r_np, a_np, kept = describe_numpy(pts, cfg)
+        d = solid.describe(pts, cfg)
+        # Same descriptor (SPEC §7 tolerance): the benchmark compares equal work.
+        assert abs(d.n_kept - kept) <= 1e-3 * kept, (d.n_kept, kept)
+        assert np.abs(d.r - r_np).sum() <= 1e-3 * np.abs(r_np).sum()
+        assert np.abs(d.a - a_np).sum() <= 1e-3 * np.abs(a_np).sum()
+        t_np = median_seconds(lambda: describe_numpy(pts, cfg), 15)
+        t_solid = median_seconds(lambda: solid.describe(pts, cfg), 200)
+        print(f"{name:40s} {t_np * 1e3:9.3f} {t_solid * 1e3:9.3f} {t_np / t_solid:8.1f}x")
+    one = np.array([[10.0, 1.0, -1.0]], dtype=np.float32)
+    t_call = median_seconds(lambda: solid.describe(one, cfg), 20000)
+    t_noop = median_seconds(lambda: one.sum(), 20000)
+    print(f"Python call overhead (describe of 1 point): {t_call * 1e6:.2f} µs ({t_call / t_noop:.1f}x a numpy .sum() of it)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

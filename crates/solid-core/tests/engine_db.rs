@@ -1,0 +1,330 @@
+//! The database, its file format, the loop detector and the wire form.
+#![cfg(feature = "std")]
+
+use proptest::prelude::*;
+use solid_core::db::{
+    decode_place, encode_place, Database, DbError, LoopDetector, Method, SearchOptions,
+};
+use solid_core::search::Neighbor;
+use solid_core::{Config, Descriptor, Stats};
+
+fn cfg() -> Config {
+    Config::preset("hdl64").unwrap()
+}
+
+fn desc(cfg: &Config, seed: u32) -> Descriptor {
+    // A deterministic, descriptor-shaped vector pair.
+    let mut x = seed.wrapping_mul(2_654_435_761).wrapping_add(12345);
+    let mut next = || {
+        x ^= x << 13;
+        x ^= x >> 17;
+        x ^= x << 5;
+        (x % 1000) as f32 / 10.0
+    };
+    Descriptor {
+        r: (0..cfg.n_range).map(|_| next()).collect(),
+        a: (0..cfg.n_azimuth).map(|_| next()).collect(),
+        stats: Stats::default(),
+        fingerprint: cfg.fingerprint(),
+    }
+}
+
+fn sample_db(n: u32) -> Database {
+    let c = cfg();
+    let mut db = Database::new(c).unwrap();
+    for i in 0..n {
+        let pose = (i % 2 == 0).then(|| {
+            let mut p = [0.0; 12];
+            p[0] = 1.0;
+            p[5] = 1.0;
+            p[10] = 1.0;
+            p[3] = f64::from(i);
+            p
+        });
+        let t = if i % 3 == 0 {
+            f64::NAN
+        } else {
+            f64::from(i) * 0.1
+        };
+        assert_eq!(db.add(&desc(&c, i), i % 4, t, pose).unwrap(), i);
+    }
+    db
+}
+
+fn same(a: &Database, b: &Database) {
+    assert_eq!(a.len(), b.len());
+    assert_eq!(a.config(), b.config());
+    assert_eq!(a.r_all(), b.r_all());
+    assert_eq!(a.a_all(), b.a_all());
+    assert_eq!(a.sessions(), b.sessions());
+    assert_eq!(a.poses(), b.poses());
+    let bits = |d: &Database| {
+        d.timestamps()
+            .iter()
+            .map(|t| t.to_bits())
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(bits(a), bits(b));
+}
+
+fn format_reason(e: DbError) -> String {
+    match e {
+        DbError::Format { reason, .. } => reason,
+        other => panic!("expected a format error, got {other:?}"),
+    }
+}
+
+#[test]
+fn bytes_round_trip_and_search_agree() {
+    let db = sample_db(300);
+    let back = Database::from_bytes(&db.to_bytes()).unwrap();
+    same(&db, &back);
+    let c = cfg();
+    for q in 0..20 {
+        let d = desc(&c, 1000 + q);
+        for m in [Method::Brute, Method::KdTree, Method::Auto] {
+            assert_eq!(
+                db.search(&d.r, 5, 10, m).unwrap(),
+                back.search(&d.r, 5, 10, Method::Brute).unwrap()
+            );
+        }
+    }
+    // An entry is its own nearest neighbour.
+    let hit = db.search(&desc(&c, 42).r, 1, 0, Method::KdTree).unwrap();
+    assert_eq!(hit[0].id, 42);
+    assert!(hit[0].distance < 1e-6);
+}
+
+#[test]
+fn file_round_trip_is_atomic_and_names_the_file_on_errors() {
+    let dir = std::env::temp_dir().join(format!("solid-engine-test-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("map.soliddb");
+    let db = sample_db(57);
+    db.save(&path).unwrap();
+    same(&db, &Database::load(&path).unwrap());
+    // No temporary file is left behind.
+    let names: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(names, [std::ffi::OsString::from("map.soliddb")]);
+    // Overwriting works.
+    sample_db(3).save(&path).unwrap();
+    assert_eq!(Database::load(&path).unwrap().len(), 3);
+
+    // Corrupt file: the message names the file and the reason.
+    let mut bytes = std::fs::read(&path).unwrap();
+    let mid = bytes.len() / 2;
+    bytes[mid] ^= 0x10;
+    std::fs::write(&path, &bytes).unwrap();
+    let msg = Database::load(&path).unwrap_err().to_string();
+    assert!(
+        msg.contains("map.soliddb") && msg.contains("checksum"),
+        "{msg}"
+    );
+
+    // Missing file: an I/O error of kind NotFound that names the file.
+    match Database::load(dir.join("nope.soliddb")) {
+        Err(DbError::Io { file, source }) => {
+            assert!(file.ends_with("nope.soliddb"));
+            assert_eq!(source.kind(), std::io::ErrorKind::NotFound);
+        }
+        other => panic!("expected an I/O error, got {other:?}"),
+    }
+    // Saving into a missing directory fails cleanly.
+    assert!(matches!(
+        db.save(dir.join("missing/dir/x.db")),
+        Err(DbError::Io { .. })
+    ));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn every_truncation_is_rejected_as_truncated() {
+    let bytes = sample_db(4).to_bytes();
+    for len in 0..bytes.len() {
+        let reason = format_reason(Database::from_bytes(&bytes[..len]).unwrap_err());
+        assert!(
+            reason.contains("truncated") || (len < 8 && reason.contains("not a SOLiD database")),
+            "length {len}: {reason}"
+        );
+    }
+    let mut longer = bytes.clone();
+    longer.push(0);
+    assert!(format_reason(Database::from_bytes(&longer).unwrap_err()).contains("unexpected bytes"));
+}
+
+#[test]
+fn every_single_byte_corruption_is_rejected() {
+    let bytes = sample_db(3).to_bytes();
+    for i in 0..bytes.len() {
+        for flip in [0x01u8, 0x80, 0xff] {
+            let mut b = bytes.clone();
+            b[i] ^= flip;
+            let r = Database::from_bytes(&b);
+            assert!(r.is_err(), "byte {i} ^ {flip:#x} was accepted");
+        }
+    }
+}
+
+#[test]
+fn foreign_and_newer_files_are_rejected_with_the_reason() {
+    let reason =
+        format_reason(Database::from_bytes(b"PK\x03\x04 a zip file, not a database").unwrap_err());
+    assert!(reason.contains("not a SOLiD database"), "{reason}");
+    assert!(format_reason(Database::from_bytes(&[]).unwrap_err()).contains("not a SOLiD database"));
+    let mut bytes = sample_db(2).to_bytes();
+    bytes[8..12].copy_from_slice(&2u32.to_le_bytes());
+    let reason = format_reason(Database::from_bytes(&bytes).unwrap_err());
+    assert!(reason.contains("version 2 is newer"), "{reason}");
+    // A header that announces an absurd number of entries.
+    let mut bytes = sample_db(2).to_bytes();
+    bytes[80..88].copy_from_slice(&u64::MAX.to_le_bytes());
+    let reason = format_reason(Database::from_bytes(&bytes).unwrap_err());
+    assert!(
+        reason.contains("impossible") || reason.contains("truncated"),
+        "{reason}"
+    );
+}
+
+#[test]
+fn merge_appends_and_refuses_other_configs() {
+    let mut a = sample_db(20);
+    let b = sample_db(13);
+    a.merge(&b).unwrap();
+    assert_eq!(a.len(), 33);
+    assert_eq!(a.r(25), b.r(5));
+    assert_eq!(a.sessions()[25], b.sessions()[5]);
+    let c = cfg();
+    // Entry 5 of b now exists twice (ids 5 and 25): the lower id wins the tie.
+    let hits = a.search(&desc(&c, 5).r, 2, 0, Method::KdTree).unwrap();
+    assert_eq!(hits.iter().map(|h| h.id).collect::<Vec<_>>(), [5, 25]);
+    assert_eq!(hits, a.search(&desc(&c, 5).r, 2, 0, Method::Brute).unwrap());
+
+    let other = Database::new(Config {
+        max_range: 40.0,
+        ..c
+    })
+    .unwrap();
+    let err = a.merge(&other).unwrap_err();
+    assert!(matches!(err, DbError::ConfigMismatch { .. }));
+    assert!(err.to_string().contains("config"));
+    let foreign = desc(&Config { n_range: 20, ..c }, 1);
+    assert!(matches!(
+        a.add(&foreign, 0, 0.0, None),
+        Err(DbError::ConfigMismatch { .. })
+    ));
+}
+
+#[test]
+fn search_options_exclude_recent_and_newer_entries() {
+    let db = sample_db(100);
+    let c = cfg();
+    let q = desc(&c, 99);
+    let hits = db.search(&q.r, 100, 30, Method::KdTree).unwrap();
+    assert_eq!(hits.len(), 70);
+    assert!(hits.iter().all(|h| h.id < 70));
+    let opts = SearchOptions {
+        k: 100,
+        exclude_recent: 0,
+        not_newer_than: Some(5.0),
+        method: Method::KdTree,
+    };
+    let hits = db.search_with(&q.r, &opts).unwrap();
+    // Ids with time <= 5.0 (i * 0.1) or without time (every third id).
+    let ok = |i: u32| i % 3 == 0 || f64::from(i) * 0.1 <= 5.0;
+    assert_eq!(hits.len(), (0..100).filter(|&i| ok(i)).count());
+    assert!(hits.iter().all(|h| ok(h.id)));
+    assert_eq!(
+        hits,
+        db.search_with(
+            &q.r,
+            &SearchOptions {
+                method: Method::Brute,
+                ..opts
+            }
+        )
+        .unwrap()
+    );
+    assert!(db.search(&q.r[..5], 1, 0, Method::Auto).is_err());
+    assert!(Method::parse("kd").is_err());
+}
+
+#[test]
+fn loop_detector_finds_revisits_after_the_exclusion_window() {
+    let c = cfg();
+    let mut det = LoopDetector::new(c, 5, 0.05, 10).unwrap();
+    // Ten distinct places, then place 2 again (rotated A-SOLiD by 3 bins = 18°).
+    for i in 0..10 {
+        assert_eq!(det.add(&desc(&c, i), f64::from(i)).unwrap(), None);
+    }
+    let mut again = desc(&c, 2);
+    again.a.rotate_right(3);
+    let found = det.query(&again).unwrap().expect("a loop");
+    assert_eq!((found.query, found.candidate), (10, 2));
+    assert!(found.distance < 1e-6);
+    assert!(
+        (found.heading_deg - 18.0).abs() < 1e-9,
+        "{}",
+        found.heading_deg
+    );
+    assert_eq!(det.add(&again, 10.0).unwrap(), Some(found));
+    // A revisit of the most recent scan is inside the exclusion window: no loop.
+    assert_eq!(det.add(&desc(&c, 9), 11.0).unwrap(), None);
+    assert_eq!(det.database().len(), 12);
+    assert!(LoopDetector::new(c, 5, f64::NAN, 10).is_err());
+    assert!(LoopDetector::new(c, 5, 0.1, 0).is_err());
+}
+
+#[test]
+fn wire_form_round_trips() {
+    let c = cfg();
+    let d = desc(&c, 7);
+    let f = encode_place(&d.r, &d.a, d.fingerprint, false).unwrap();
+    assert_eq!(f.len(), 16 + 400 + 4);
+    let p = decode_place(&f).unwrap();
+    assert_eq!(
+        (p.r, p.a, p.fingerprint, p.quantized),
+        (d.r.clone(), d.a.clone(), d.fingerprint, false)
+    );
+    let q = encode_place(&d.r, &d.a, d.fingerprint, true).unwrap();
+    assert!(q.len() <= 200, "{}", q.len());
+    let p = decode_place(&q).unwrap();
+    assert!(p.quantized);
+    let err = solid_core::cosine_distance(&p.r, &d.r).unwrap();
+    assert!(err < 1e-3, "quantisation moved the descriptor by {err}");
+    for bytes in [&f, &q] {
+        for i in 0..bytes.len() {
+            let mut b = bytes.to_vec();
+            b[i] ^= 0x04;
+            assert!(decode_place(&b).is_err(), "corruption at byte {i} accepted");
+        }
+        assert!(decode_place(&bytes[..bytes.len() - 1]).is_err());
+    }
+    assert!(encode_place(&[-1.0], &[1.0], 0, true).is_err());
+    assert!(encode_place(&[f32::NAN], &[1.0], 0, false).is_err());
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    #[test]
+    fn random_databases_round_trip(
+        entries in prop::collection::vec(
+            (any::<u32>(), prop_oneof![Just(f64::NAN), -1e9f64..1e9], prop::option::of(prop::array::uniform12(-1e3f64..1e3)),
+             prop::collection::vec(0.0f32..1e4, 40), prop::collection::vec(0.0f32..1e4, 60)),
+            0..30),
+        q in prop::collection::vec(0.0f32..1e4, 40),
+    ) {
+        let mut db = Database::new(cfg()).unwrap();
+        for (s, t, p, r, a) in &entries {
+            db.add_vectors(r, a, *s, *t, *p).unwrap();
+        }
+        let back = Database::from_bytes(&db.to_bytes()).unwrap();
+        same(&db, &back);
+        let k = entries.len().min(5);
+        let want: Vec<Neighbor> = db.search(&q, k, 0, Method::Brute).unwrap();
+        prop_assert_eq!(back.search(&q, k, 0, Method::KdTree).unwrap(), want);
+    }
+}

@@ -1,0 +1,70 @@
+//! Brute force, kd-tree build and query, and the online index allocate nothing: a counting
+//! global allocator sees zero allocations across them.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use solid_core::search::{
+    brute_force, normalize_rows, online_insert, online_rebuild, Exclude, KdTree, Neighbor,
+    OnlineIndex,
+};
+
+struct Counting;
+static ALLOCS: AtomicUsize = AtomicUsize::new(0);
+
+// SAFETY: forwards to the system allocator; only counts calls.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCS.fetch_add(1, Ordering::SeqCst);
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        ALLOCS.fetch_add(1, Ordering::SeqCst);
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+#[test]
+fn searches_allocate_nothing() {
+    let (n, dim) = (5000usize, 40usize);
+    let raw: Vec<f32> = (0..n * dim)
+        .map(|i| ((i * 2_654_435_761) % 1000) as f32 * if i % 3 == 0 { 0.0 } else { 1.0 })
+        .collect();
+    let mut rows = vec![0f32; raw.len()];
+    let (mut perm, mut splits) = (vec![0u32; n], vec![0u16; n]);
+    let (mut operm, mut osplits) = (vec![0u32; n], vec![0u16; n]);
+    let mut out = vec![Neighbor::default(); 10];
+    let mut out2 = vec![Neighbor::default(); 10];
+    let times: Vec<f64> = (0..n).map(|i| i as f64).collect();
+
+    let before = ALLOCS.load(Ordering::SeqCst);
+    normalize_rows(&raw, dim, &mut rows).unwrap();
+    let q = &rows[17 * dim..18 * dim];
+    let ex = Exclude {
+        before_id: n - 50,
+        not_newer_than: Some((&times, 4000.0)),
+    };
+    let got = brute_force(&rows, dim, q, 10, &ex, &mut out).unwrap();
+    let tree = KdTree::build(&rows, dim, &mut perm, &mut splits).unwrap();
+    tree.search(q, 10, &ex, &mut out2).unwrap();
+    for k in 1..=n {
+        online_insert(&rows[..k * dim], dim, &mut operm, &mut osplits).unwrap();
+    }
+    online_rebuild(&rows, dim, &mut operm, &mut osplits).unwrap();
+    let index = OnlineIndex::new(&rows, dim, &operm, &osplits).unwrap();
+    let mut out3 = [Neighbor::default(); 10];
+    index.search(q, 10, &ex, &mut out3).unwrap();
+    let after = ALLOCS.load(Ordering::SeqCst);
+
+    assert_eq!(after - before, 0, "the searches allocated");
+    assert_eq!(got, 10);
+    assert_eq!(out[0].id, 17);
+    assert_eq!(out, out2);
+    assert_eq!(&out[..], &out3[..]);
+}

@@ -1,0 +1,368 @@
+//! Exactness of the searches: kd-tree and online index against brute force (SPEC §3), on random
+//! vectors, adversarial ones (duplicates, all-zero, many equal coordinates, a single entry) and
+//! real descriptors of the HKU Livox Avia sequence.
+
+use proptest::prelude::*;
+use solid_core::search::{
+    brute_force, normalize, normalize_rows, normalized_distance, online_insert, online_rebuild,
+    Exclude, KdTree, Neighbor, OnlineIndex,
+};
+use solid_core::{cosine_distance, Config, Describer, Points};
+use std::path::PathBuf;
+
+/// `SOLID_DATA`, else `<repo>/../shared/data`; `None` (skip) when absent, a failure under CI.
+fn data_dir() -> Option<PathBuf> {
+    let dir = match std::env::var_os("SOLID_DATA") {
+        Some(d) => PathBuf::from(d),
+        None => PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data"),
+    };
+    if dir.is_dir() {
+        return Some(dir);
+    }
+    assert!(
+        std::env::var("CI").as_deref() != Ok("true"),
+        "data folder {} is missing under CI=true",
+        dir.display()
+    );
+    eprintln!(
+        "skipping: data folder {} not found (set SOLID_DATA)",
+        dir.display()
+    );
+    None
+}
+
+/// Reads a binary PCD whose fields are all float32 (x y z first); returns x y z rows.
+fn read_pcd(path: &std::path::Path) -> Vec<f32> {
+    let bytes = std::fs::read(path).unwrap();
+    let marker = b"DATA binary\n";
+    let at = bytes
+        .windows(marker.len())
+        .position(|w| w == marker)
+        .expect("a binary PCD");
+    let header = std::str::from_utf8(&bytes[..at]).unwrap();
+    let line = |key: &str| {
+        header
+            .lines()
+            .find(|l| l.starts_with(key))
+            .unwrap_or_else(|| panic!("{}: no {key} line", path.display()))
+            .split_whitespace()
+            .skip(1)
+            .map(String::from)
+            .collect::<Vec<_>>()
+    };
+    let fields = line("FIELDS");
+    assert_eq!(&fields[..3], ["x", "y", "z"], "{}", path.display());
+    assert!(line("SIZE").iter().all(|s| s == "4") && line("TYPE").iter().all(|t| t == "F"));
+    let n: usize = line("POINTS")[0].parse().unwrap();
+    let body = &bytes[at + marker.len()..];
+    let rec = 4 * fields.len();
+    assert!(body.len() >= n * rec, "{}: truncated", path.display());
+    body[..n * rec]
+        .chunks_exact(rec)
+        .flat_map(|r| {
+            (0..3).map(move |i| f32::from_le_bytes(r[4 * i..4 * i + 4].try_into().unwrap()))
+        })
+        .collect()
+}
+
+/// R-SOLiD of every HKU scan (every `step`-th), described with the core.
+fn hku_r(step: usize) -> Option<(Vec<f32>, usize)> {
+    let dir = data_dir()?.join("hku1-avia/Scans");
+    let cfg = Config::preset("avia").unwrap();
+    let mut describer = Describer::new(cfg).unwrap();
+    let mut names: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "pcd"))
+        .collect();
+    names.sort();
+    assert!(names.len() >= 300, "expected the 314 HKU scans");
+    let mut r = Vec::new();
+    for p in names.iter().step_by(step) {
+        let xyz = read_pcd(p);
+        let d = describer.describe(Points::new(&xyz, 3).unwrap()).unwrap();
+        r.extend_from_slice(&d.r);
+    }
+    Some((r, cfg.n_range))
+}
+
+fn normed(raw: &[f32], dim: usize) -> Vec<f32> {
+    let mut out = vec![0.0; raw.len()];
+    normalize_rows(raw, dim, &mut out).unwrap();
+    out
+}
+
+fn brute(rows: &[f32], dim: usize, q: &[f32], k: usize, ex: &Exclude<'_>) -> Vec<Neighbor> {
+    let mut out = vec![Neighbor::default(); k];
+    let n = brute_force(rows, dim, q, k, ex, &mut out).unwrap();
+    out.truncate(n);
+    out
+}
+
+fn tree(rows: &[f32], dim: usize, q: &[f32], k: usize, ex: &Exclude<'_>) -> Vec<Neighbor> {
+    let n = rows.len() / dim;
+    let (mut perm, mut splits) = (vec![0u32; n], vec![0u16; n]);
+    let t = KdTree::build(rows, dim, &mut perm, &mut splits).unwrap();
+    let mut out = vec![Neighbor::default(); k];
+    let got = t.search(q, k, ex, &mut out).unwrap();
+    out.truncate(got);
+    // The built permutation is a permutation of 0..n.
+    let mut sorted = perm.clone();
+    sorted.sort_unstable();
+    assert!(sorted.iter().enumerate().all(|(i, &p)| p as usize == i));
+    out
+}
+
+/// The online index grown one row at a time.
+fn online(rows: &[f32], dim: usize, q: &[f32], k: usize, ex: &Exclude<'_>) -> Vec<Neighbor> {
+    let n = rows.len() / dim;
+    let (mut perm, mut splits) = (Vec::new(), Vec::new());
+    for i in 0..n {
+        perm.push(i as u32);
+        splits.push(0);
+        online_insert(&rows[..(i + 1) * dim], dim, &mut perm, &mut splits).unwrap();
+    }
+    let mut out = vec![Neighbor::default(); k];
+    let got = OnlineIndex::new(rows, dim, &perm, &splits)
+        .unwrap()
+        .search(q, k, ex, &mut out)
+        .unwrap();
+    out.truncate(got);
+    // Rebuilding from scratch gives the same structure.
+    let (mut p2, mut s2) = (vec![0u32; n], vec![0u16; n]);
+    online_rebuild(rows, dim, &mut p2, &mut s2).unwrap();
+    assert_eq!(p2, perm);
+    out
+}
+
+/// Checks that every method agrees with brute force, and that brute force is right: sorted by
+/// (distance, id), the k smallest of all candidates.
+fn check_all(raw: &[f32], dim: usize, query_raw: &[f32], k: usize, ex: &Exclude<'_>) {
+    let rows = normed(raw, dim);
+    let mut q = vec![0.0; dim];
+    normalize(query_raw, &mut q).unwrap();
+    let b = brute(&rows, dim, &q, k, ex);
+    let t = tree(&rows, dim, &q, k, ex);
+    let o = online(&rows, dim, &q, k, ex);
+    assert_eq!(b, t, "kd-tree differs from brute force");
+    assert_eq!(b, o, "online index differs from brute force");
+    // Reference: sort all allowed candidates.
+    let n = rows.len() / dim;
+    let mut all: Vec<Neighbor> = (0..n)
+        .filter(|&i| {
+            i < ex.before_id
+                && ex
+                    .not_newer_than
+                    .is_none_or(|(t, m)| t[i].is_nan() || t[i] <= m)
+        })
+        .map(|i| Neighbor {
+            id: i as u32,
+            distance: normalized_distance(&q, &rows[i * dim..(i + 1) * dim]).unwrap(),
+        })
+        .collect();
+    all.sort_by(|x, y| x.distance.total_cmp(&y.distance).then(x.id.cmp(&y.id)));
+    all.truncate(k);
+    assert_eq!(b, all, "brute force is not the sorted k best");
+    // Distances agree with the f64 cosine distance of SPEC §3.
+    for nb in &b {
+        let i = nb.id as usize;
+        let want = cosine_distance(query_raw, &raw[i * dim..(i + 1) * dim]).unwrap();
+        assert!(
+            (f64::from(nb.distance) - want).abs() < 1e-5,
+            "distance {} vs {want}",
+            nb.distance
+        );
+    }
+}
+
+/// Non-negative vectors shaped like R-SOLiDs: a few large bins, many small or zero ones, values
+/// drawn from a small set so that coordinates repeat often.
+fn descriptor_like(dim: usize) -> impl Strategy<Value = Vec<f32>> {
+    prop::collection::vec(
+        prop_oneof![
+            3 => Just(0.0f32),
+            2 => (0u8..4).prop_map(f32::from),
+            2 => 0.0f32..100.0,
+        ],
+        dim,
+    )
+}
+
+fn dataset() -> impl Strategy<Value = (usize, Vec<f32>, Vec<f32>, usize)> {
+    (1usize..12, 1usize..300, 1usize..8).prop_flat_map(|(dim, n, k)| {
+        (
+            Just(dim),
+            prop::collection::vec(descriptor_like(dim), n)
+                .prop_map(|rows| rows.into_iter().flatten().collect::<Vec<f32>>()),
+            descriptor_like(dim),
+            Just(k),
+        )
+    })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(200))]
+
+    #[test]
+    fn kdtree_and_online_equal_brute_force((dim, raw, q, k) in dataset()) {
+        check_all(&raw, dim, &q, k, &Exclude::NONE);
+    }
+
+    #[test]
+    fn duplicated_rows_tie_by_lower_id((dim, raw, q, k) in dataset(), copies in 2usize..6) {
+        let n = raw.len() / dim;
+        let mut rows = Vec::new();
+        for _ in 0..copies {
+            rows.extend_from_slice(&raw[..n.min(20) * dim]);
+        }
+        check_all(&rows, dim, &q, k * copies, &Exclude::NONE);
+    }
+
+    #[test]
+    fn exclusions_are_respected((dim, raw, q, k) in dataset(), recent in 0usize..50, bound in 0.0f64..300.0) {
+        let n = raw.len() / dim;
+        let times: Vec<f64> = (0..n).map(|i| if i % 7 == 3 { f64::NAN } else { i as f64 }).collect();
+        let ex = Exclude { before_id: n.saturating_sub(recent), not_newer_than: Some((&times, bound)) };
+        check_all(&raw, dim, &q, k, &ex);
+        check_all(&raw, dim, &q, k, &Exclude::recent(n, recent));
+    }
+
+    #[test]
+    fn gaussian_vectors_with_signs(seed_rows in prop::collection::vec(prop::collection::vec(-1.0f32..1.0, 16), 1..200), q in prop::collection::vec(-1.0f32..1.0, 16), k in 1usize..10) {
+        let raw: Vec<f32> = seed_rows.into_iter().flatten().collect();
+        check_all(&raw, 16, &q, k, &Exclude::NONE);
+    }
+}
+
+#[test]
+fn all_zero_rows_and_query() {
+    let dim = 5;
+    let mut raw = vec![0.0f32; 40 * dim];
+    for i in (0..40).step_by(3) {
+        raw[i * dim + i % dim] = 1.0 + i as f32;
+    }
+    check_all(&raw, dim, &[0.0; 5], 10, &Exclude::NONE);
+    check_all(&raw, dim, &[0.0, 1.0, 0.0, 0.0, 2.0], 40, &Exclude::NONE);
+    // Every row zero: all distances are 1 and the order is by id.
+    let zeros = vec![0.0f32; 100 * dim];
+    let rows = normed(&zeros, dim);
+    let got = tree(&rows, dim, &[0.6, 0.8, 0.0, 0.0, 0.0], 3, &Exclude::NONE);
+    assert_eq!(
+        got.iter().map(|n| (n.id, n.distance)).collect::<Vec<_>>(),
+        [(0, 1.0), (1, 1.0), (2, 1.0)]
+    );
+}
+
+#[test]
+fn single_entry_and_empty() {
+    check_all(&[3.0, 4.0], 2, &[4.0, 3.0], 1, &Exclude::NONE);
+    check_all(&[3.0, 4.0], 2, &[4.0, 3.0], 5, &Exclude::NONE);
+    let empty: [f32; 0] = [];
+    assert!(brute(&empty, 2, &[1.0, 0.0], 3, &Exclude::NONE).is_empty());
+    assert!(tree(&empty, 2, &[1.0, 0.0], 3, &Exclude::NONE).is_empty());
+    assert!(brute(&[1.0, 0.0], 2, &[1.0, 0.0], 0, &Exclude::NONE).is_empty());
+}
+
+#[test]
+fn many_identical_rows_keep_the_tree_balanced_and_exact() {
+    // 5,000 copies of 3 distinct vectors: every coordinate repeats thousands of times.
+    let base = [
+        [1.0f32, 0.0, 2.0, 0.0],
+        [1.0, 0.0, 2.0, 0.5],
+        [0.0, 0.0, 0.0, 0.0],
+    ];
+    let raw: Vec<f32> = (0..5000).flat_map(|i| base[i % 3]).collect();
+    check_all(&raw, 4, &[1.0, 0.0, 2.0, 0.4], 7, &Exclude::NONE);
+    check_all(
+        &raw,
+        4,
+        &[1.0, 0.0, 2.0, 0.0],
+        3000,
+        &Exclude::recent(5000, 10),
+    );
+}
+
+#[test]
+fn errors_instead_of_panics() {
+    let rows = [1.0f32, 0.0, 0.0, 1.0];
+    let mut out = [Neighbor::default(); 1];
+    assert!(brute_force(&rows, 3, &[1.0, 0.0, 0.0], 1, &Exclude::NONE, &mut out).is_err());
+    assert!(brute_force(&rows, 2, &[1.0], 1, &Exclude::NONE, &mut out).is_err());
+    assert!(brute_force(&rows, 2, &[1.0, 0.0], 2, &Exclude::NONE, &mut out).is_err());
+    let times = [0.0f64];
+    let ex = Exclude {
+        before_id: usize::MAX,
+        not_newer_than: Some((&times, 1.0)),
+    };
+    assert!(brute_force(&rows, 2, &[1.0, 0.0], 1, &ex, &mut out).is_err());
+    let (mut perm, mut splits) = ([0u32; 1], [0u16; 2]);
+    assert!(KdTree::build(&rows, 2, &mut perm, &mut splits).is_err());
+    assert!(KdTree::from_built(&rows, 2, &[0, 5], &[0, 0]).is_err());
+    let mut o = [0.0f32; 2];
+    assert!(normalize(&[f32::NAN, 1.0], &mut o).is_err());
+    assert!(normalize(&[1.0], &mut o).is_err());
+    assert!(online_insert(&[], 2, &mut [], &mut []).is_err());
+}
+
+#[test]
+fn real_descriptors_kdtree_equals_brute_force() {
+    let Some((raw, dim)) = hku_r(1) else { return };
+    let n = raw.len() / dim;
+    let rows = normed(&raw, dim);
+    // Every scan as the query, SPEC §5 exclusion of the 50 most recent, k = 1 and 10.
+    for qi in 0..n {
+        let q = &rows[qi * dim..(qi + 1) * dim];
+        for k in [1, 10] {
+            let ex = Exclude::recent(qi, 50);
+            let b = brute(&rows[..qi * dim], dim, q, k, &ex);
+            assert_eq!(b, tree(&rows[..qi * dim], dim, q, k, &ex), "query {qi}");
+            assert_eq!(b, online(&rows[..qi * dim], dim, q, k, &ex), "query {qi}");
+        }
+    }
+    // Duplicated database (every scan twice): ties must go to the lower id.
+    let mut dup = rows.clone();
+    dup.extend_from_slice(&rows);
+    for qi in (0..n).step_by(5) {
+        let q = &rows[qi * dim..(qi + 1) * dim];
+        let b = brute(&dup, dim, q, 4, &Exclude::NONE);
+        assert_eq!(b[0].id as usize, qi);
+        assert_eq!(b, tree(&dup, dim, q, 4, &Exclude::NONE));
+        assert_eq!(b, online(&dup, dim, q, 4, &Exclude::NONE));
+    }
+}
+
+/// The HKU R-SOLiDs, described once for all the property cases.
+fn hku_cached() -> Option<&'static (Vec<f32>, usize)> {
+    static CACHE: std::sync::OnceLock<Option<(Vec<f32>, usize)>> = std::sync::OnceLock::new();
+    CACHE.get_or_init(|| hku_r(1)).as_ref()
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    /// Random subsets of the real descriptors (some duplicated, some zeroed), random queries
+    /// among them (or perturbed), random k and exclusions.
+    #[test]
+    fn real_descriptor_subsets(
+        picks in prop::collection::vec((0usize..314, 0u8..10), 1..400),
+        query in 0usize..314,
+        noise in prop::collection::vec(0.8f32..1.25, 40),
+        k in 1usize..12,
+        recent in 0usize..60,
+    ) {
+        let Some((all, dim)) = hku_cached() else { return Ok(()) };
+        let dim = *dim;
+        let mut raw = Vec::new();
+        for &(i, kind) in &picks {
+            let row = &all[i * dim..(i + 1) * dim];
+            match kind {
+                0 => raw.extend(std::iter::repeat_n(0.0f32, dim)),
+                1 => raw.extend(row.iter().zip(&noise).map(|(a, b)| a * b)),
+                _ => raw.extend_from_slice(row),
+            }
+        }
+        let q: Vec<f32> = all[query * dim..(query + 1) * dim].to_vec();
+        let n = raw.len() / dim;
+        check_all(&raw, dim, &q, k, &Exclude::recent(n, recent));
+    }
+}

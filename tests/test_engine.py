@@ -1,0 +1,194 @@
+"""The place-recognition engine from Python: Database, LoopDetector, wire form (issue 3)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+import pytest
+from conftest import data_dir
+
+import solid
+from solid import io as sio
+
+
+
+def kitti(name: str) -> npt.NDArray[np.float32]:
+    return np.fromfile(data_dir() / "kitti00" / "velodyne" / f"{name}.bin", dtype="<f4").reshape(-1, 4)
+
+
+def synthetic(cfg: solid.SolidConfig, seed: int) -> solid.Descriptor:
+    """A descriptor of a random scene (points on a few walls and the ground)."""
+    rng = np.random.default_rng(seed)
+    n = 3000
+    az = rng.uniform(0, 2 * np.pi, n)
+    rho = rng.choice(rng.uniform(5, 60, 8), n) + rng.normal(0, 0.3, n)
+    z = rng.uniform(-1.7, 3.0, n)
+    pts = np.stack([rho * np.cos(az), rho * np.sin(az), z], axis=1)
+    return solid.describe(pts, cfg)
+
+
+@pytest.fixture
+def cfg() -> solid.SolidConfig:
+    return solid.SolidConfig.preset("hdl64")
+
+
+@pytest.fixture
+def db(cfg: solid.SolidConfig) -> solid.Database:
+    db = solid.Database(cfg)
+    for i in range(40):
+        pose: npt.NDArray[np.float64] | None = None
+        if i % 2 == 0:
+            pose = np.hstack([np.eye(3), np.array([[i], [0.0], [0.0]])])
+        assert db.add(synthetic(cfg, i), session=i % 3, timestamp=float(i) if i % 5 else None, pose=pose) == i
+    return db
+
+
+def test_search_is_exact_and_methods_agree(cfg: solid.SolidConfig, db: solid.Database) -> None:
+    assert len(db) == 40
+    q = synthetic(cfg, 7)
+    hits = db.search(q, k=5)
+    assert [type(h) for h in hits] == [solid.Match] * 5
+    assert hits[0].id == 7 and hits[0].distance < 1e-6
+    assert [h.distance for h in hits] == sorted(h.distance for h in hits)
+    for method in ("brute", "kdtree", "auto"):
+        assert db.search(q, k=5, method=method) == hits
+    # The distances are the SPEC §3 cosine distances.
+    for h in hits:
+        assert h.distance == pytest.approx(solid.distance(q, synthetic(cfg, h.id)), abs=1e-5)
+    # An R-SOLiD array works as a query too.
+    assert db.search(np.asarray(q.r), k=5) == hits
+    recent = db.search(q, k=100, exclude_recent=35)
+    assert sorted(h.id for h in recent) == list(range(5))
+    with pytest.raises(ValueError, match="method"):
+        db.search(q, method="fast")
+
+
+def test_numpy_export(cfg: solid.SolidConfig, db: solid.Database) -> None:
+    assert db.r.shape == (40, cfg.n_range) and db.r.dtype == np.float32
+    assert db.a.shape == (40, 60) and db.a.dtype == np.float32
+    np.testing.assert_array_equal(db.r[3], synthetic(cfg, 3).r)
+    np.testing.assert_array_equal(db.ids, np.arange(40))
+    np.testing.assert_array_equal(db.sessions, np.arange(40) % 3)
+    assert math.isnan(db.timestamps[0]) and db.timestamps[1] == 1.0
+    assert db.poses.shape == (40, 3, 4)
+    assert db.poses[4, 0, 3] == 4.0 and np.isnan(db.poses[1]).all()
+
+
+def test_save_load_round_trip(tmp_path: Path, db: solid.Database) -> None:
+    path = tmp_path / "map.soliddb"
+    db.save(path)
+    assert [p.name for p in tmp_path.iterdir()] == ["map.soliddb"]
+    back = solid.Database.load(path)
+    assert len(back) == len(db)
+    np.testing.assert_array_equal(back.r, db.r)
+    np.testing.assert_array_equal(back.a, db.a)
+    np.testing.assert_array_equal(back.sessions, db.sessions)
+    np.testing.assert_array_equal(back.timestamps, db.timestamps)
+    np.testing.assert_array_equal(back.poses, db.poses)
+    assert solid.Database.from_bytes(db.to_bytes()).search(db.r[5], k=3) == db.search(db.r[5], k=3)
+
+
+def test_bad_files_raise_clear_errors(tmp_path: Path, db: solid.Database) -> None:
+    path = tmp_path / "map.soliddb"
+    db.save(path)
+    data = bytearray(path.read_bytes())
+    data[len(data) // 2] ^= 0x40
+    path.write_bytes(bytes(data))
+    with pytest.raises(solid.DatabaseError, match="map.soliddb.*checksum"):
+        solid.Database.load(path)
+    assert issubclass(solid.DatabaseError, solid.SolidError)
+    assert issubclass(solid.DatabaseError, ValueError)
+    path.write_bytes(db.to_bytes()[:1000])
+    with pytest.raises(ValueError, match="truncated"):
+        solid.Database.load(path)
+    path.write_bytes(b"\x89PNG\r\n\x1a\n" + bytes(200))
+    with pytest.raises(ValueError, match="not a SOLiD database"):
+        solid.Database.load(path)
+    with pytest.raises(FileNotFoundError) as e:
+        solid.Database.load(tmp_path / "missing.soliddb")
+    assert e.value.filename is not None and e.value.filename.endswith("missing.soliddb")
+
+
+def test_merge(cfg: solid.SolidConfig, db: solid.Database) -> None:
+    other = solid.Database(cfg)
+    other.add(synthetic(cfg, 100), session=9)
+    db.merge(other)
+    assert len(db) == 41 and db.sessions[40] == 9
+    assert db.search(synthetic(cfg, 100))[0].id == 40
+    db.merge(db)
+    assert len(db) == 82
+    foreign = solid.Database(solid.SolidConfig.preset("vlp16"))
+    with pytest.raises(solid.DatabaseError, match="config"):
+        db.merge(foreign)
+    with pytest.raises(solid.DatabaseError, match="config"):
+        db.add(synthetic(solid.SolidConfig.preset("vlp16"), 1))
+
+
+def test_loop_detector_on_kitti_revisit() -> None:
+    cfg = solid.SolidConfig.preset("hdl64")
+    # KITTI 94/95 and 198/199 are the same places; other pairs are at distance >= 0.08.
+    det = solid.LoopDetector(cfg, exclude_recent=0, threshold=0.03, top_k=10)
+    assert det.add(kitti("000000")) is None
+    assert det.add(kitti("000094"), timestamp=9.4) is None
+    assert det.add(kitti("000198")) is None
+    assert len(det) == 3
+    found = det.query(kitti("000095"))
+    assert isinstance(found, solid.Loop)
+    assert (found.query, found.candidate) == (3, 1)
+    assert 0.0 <= found.distance <= 0.03
+    assert -180.0 < found.heading <= 180.0
+    assert len(det) == 3
+    assert det.add(solid.describe(kitti("000095"), cfg)) == found
+    loop = det.add(kitti("000199"))
+    assert loop is not None and (loop.query, loop.candidate) == (4, 2)
+    assert len(det) == 5 and len(det.database) == 5
+
+
+def test_loop_detector_on_hku_matches_exact_search() -> None:
+    root = data_dir() / "hku1-avia"
+    scans = sorted((root / "Scans").glob("*.pcd"))
+    positions = np.loadtxt(root / "odom_poses.txt").reshape(-1, 3, 4)[:, :, 3]
+    cfg = solid.SolidConfig.preset("avia")
+    threshold = 0.05
+    det = solid.LoopDetector(cfg, exclude_recent=50, threshold=threshold, rerank=False)
+    loops = [det.add(sio.read_points(p), timestamp=float(i)) for i, p in enumerate(scans)]
+    assert len(det) == len(scans) == 314
+    # Reference: the exact nearest neighbour among frames < q - 50 (SPEC §5), computed in numpy.
+    r = det.database.r.astype(np.float64)
+    unit = r / np.linalg.norm(r, axis=1, keepdims=True)
+    for q, lp in enumerate(loops):
+        if q <= 50:
+            assert lp is None
+            continue
+        dist = 1.0 - unit[: q - 50] @ unit[q]
+        best = int(np.argmin(dist))
+        if dist[best] > threshold + 1e-5:
+            assert lp is None, q
+        elif dist[best] < threshold - 1e-5:
+            assert lp is not None and lp.query == q
+            assert lp.distance == pytest.approx(dist[best], abs=1e-5)
+            assert dist[lp.candidate] == pytest.approx(dist[best], abs=1e-5)
+    # The strongest loops are the true revisit of the walk's start (odometry poses within 5 m).
+    found = sorted((lp for lp in loops if lp is not None), key=lambda lp: lp.distance)
+    true = [np.linalg.norm(positions[lp.query] - positions[lp.candidate]) <= 5.0 for lp in found[:5]]
+    assert sum(true) >= 3, found[:5]
+
+
+def test_wire_form(cfg: solid.SolidConfig) -> None:
+    d = synthetic(cfg, 3)
+    f = solid.encode_place(d)
+    q = solid.encode_place(d, quantized=True)
+    assert len(f) == 420 and len(q) <= 200
+    back = solid.decode_place(f, cfg)
+    np.testing.assert_array_equal(back.r, d.r)
+    approx = solid.decode_place(q, cfg)
+    assert solid.distance(approx, d) < 1e-3
+    with pytest.raises(solid.DatabaseError, match="config"):
+        solid.decode_place(f, solid.SolidConfig.preset("vlp16"))
+    broken = bytearray(q)
+    broken[20] ^= 1
+    with pytest.raises(solid.DatabaseError, match="checksum"):
+        solid.decode_place(bytes(broken), cfg)
