@@ -22,7 +22,7 @@ wheel: venv
 	$(PY) -m pip install --quiet --force-reinstall --no-deps dist/*.whl
 
 demo: wheel
-	$(PY) -m solid.demo
+	$(VENV)/bin/solid demo
 
 lint:
 	cargo fmt --all -- --check

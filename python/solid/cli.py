@@ -178,10 +178,26 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--fov-center", type=float, default=0.0, metavar="DEG", help="centre of --fov (default 0 = +x)")
     p.add_argument("--occlude", type=float, default=None, metavar="DEG", help="remove a sector this wide from every scan")
     p.add_argument("--occlude-center", type=float, default=0.0, metavar="DEG")
+    p.add_argument("--threshold", type=float, default=0.03, help="loop detector distance threshold (default 0.03)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     p.add_argument("--threads", type=int, default=None, help="threads for describing (default: all cores)")
     _add_config_args(p)
     _add_reader_args(p)
+    _add_common(p)
+
+    p = sub.add_parser(
+        "demo",
+        help="simulate a drive with a loop under a narrow FOV and score SOLiD against the truth",
+        formatter_class=fmt,
+        epilog="examples:\n  solid demo\n  solid demo --sensor os1-64 --fov 120 -o demo_out\n",
+    )
+    p.add_argument("-o", "--output", type=Path, default=Path("solid_demo"), help="output folder (default: solid_demo)")
+    p.add_argument("--sensor", choices=["hdl64", "vlp16", "os1-64", "avia", "aeva"], default="hdl64", help="simulated sensor (default hdl64)")
+    p.add_argument("--fov", type=float, default=60.0, metavar="DEG", help="horizontal field of view (default 60)")
+    p.add_argument("--seed", type=int, default=3, help="world seed (default 3)")
+    p.add_argument("--laps", type=float, default=1.5, help="laps around the block (default 1.5)")
+    p.add_argument("--threshold", type=float, default=0.03, help="loop detector distance threshold (default 0.03)")
+    p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     _add_common(p)
 
     p = sub.add_parser("presets", help="list the sensor presets", formatter_class=fmt, epilog="example:\n  solid presets --json\n")
@@ -371,6 +387,22 @@ def cmd_describe(args: argparse.Namespace, out: TextIO) -> int:
         _write_text(args.output, text)
     else:
         out.write(text)
+    return 0
+
+
+def cmd_demo(args: argparse.Namespace, out: TextIO) -> int:
+    from . import sim
+
+    m = sim.run_demo(
+        args.output,
+        seed=args.seed,
+        sensor=args.sensor,
+        h_fov=args.fov,
+        laps=args.laps,
+        threshold=args.threshold,
+        plots=not args.no_plots,
+    )
+    out.write(sim.demo_summary(m))
     return 0
 
 
@@ -622,6 +654,7 @@ def main(argv: AbcSequence[str] | None = None) -> int:
     out = sys.stdout
     handlers = {
         "describe": cmd_describe,
+        "demo": cmd_demo,
         "detect": cmd_detect,
         "eval": cmd_eval,
         "presets": cmd_presets,

@@ -12,6 +12,7 @@ use pyo3::types::{PyDict, PyList, PyTuple};
 use solid_core::{Config, Describer, Descriptor, Error, Points, Stats, PRESETS};
 
 mod engine;
+mod sim;
 
 create_exception!(
     solid,
@@ -671,5 +672,6 @@ fn _solid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(preset_sensors, m)?)?;
     m.add_function(wrap_pyfunction!(_config_from_dict, m)?)?;
     engine::register(m)?;
+    sim::register(m)?;
     Ok(())
 }

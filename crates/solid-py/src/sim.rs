@@ -1,0 +1,468 @@
+//! Bindings of the LiDAR simulator (`solid-sim`), exposed as private `_sim_*` functions and
+//! `_SimWorld` / `_SimSensor` classes; the typed API is `solid.sim` (python/solid/sim.py).
+
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
+use pyo3::exceptions::{PyOSError, PyValueError};
+use pyo3::prelude::*;
+use solid_sim::{Pose, RouteOptions, Sensor, SimError, Trajectory, World, WorldConfig};
+use std::path::PathBuf;
+
+fn sim_err(e: SimError) -> PyErr {
+    match e {
+        SimError::Io(io) => PyOSError::new_err(io.to_string()),
+        other => PyValueError::new_err(other.to_string()),
+    }
+}
+
+/// A generated world (immutable).
+#[pyclass(name = "_SimWorld", module = "solid._solid", frozen)]
+pub struct PySimWorld {
+    inner: World,
+}
+
+#[pymethods]
+impl PySimWorld {
+    /// Seed the world was generated from.
+    #[getter]
+    fn seed(&self) -> u64 {
+        self.inner.config().seed
+    }
+    /// Number of blocks per side inside the road grid.
+    #[getter]
+    fn blocks(&self) -> usize {
+        self.inner.config().blocks
+    }
+    /// Distance between parallel roads, metres.
+    #[getter]
+    fn block_pitch(&self) -> f64 {
+        self.inner.config().block_pitch
+    }
+    /// Road centreline coordinates.
+    #[getter]
+    fn roads(&self) -> Vec<f64> {
+        self.inner.roads().to_vec()
+    }
+    /// Extent of the objects (xmin, ymin, xmax, ymax).
+    #[getter]
+    fn bounds(&self) -> (f64, f64, f64, f64) {
+        let b = self.inner.bounds();
+        (b[0], b[1], b[2], b[3])
+    }
+    /// Number of primitives.
+    fn __len__(&self) -> usize {
+        self.inner.primitives().len()
+    }
+    /// Ground height at (x, y).
+    fn ground_height(&self, x: f64, y: f64) -> f64 {
+        self.inner.ground_height(x, y)
+    }
+    /// (kinds, footprints (P, 4) float64 [xmin, ymin, xmax, ymax], tops (P,) float64).
+    #[allow(clippy::type_complexity)]
+    fn footprints<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> PyResult<(
+        Vec<&'static str>,
+        Bound<'py, PyAny>,
+        Bound<'py, PyArray1<f64>>,
+    )> {
+        let prims = self.inner.primitives();
+        let kinds = prims.iter().map(|p| p.kind.name()).collect();
+        let fp: Vec<f64> = prims.iter().flat_map(|p| p.shape.footprint()).collect();
+        let tops: Vec<f64> = prims.iter().map(|p| p.shape.top()).collect();
+        let fp = PyArray1::from_vec(py, fp).reshape([prims.len(), 4])?;
+        Ok((kinds, fp.into_any(), PyArray1::from_vec(py, tops)))
+    }
+    fn __repr__(&self) -> String {
+        let c = self.inner.config();
+        format!(
+            "_SimWorld(seed={}, blocks={}, block_pitch={}, primitives={})",
+            c.seed,
+            c.blocks,
+            c.block_pitch,
+            self.inner.primitives().len()
+        )
+    }
+}
+
+/// A sensor model (immutable).
+#[pyclass(name = "_SimSensor", module = "solid._solid", frozen)]
+pub struct PySimSensor {
+    inner: Sensor,
+}
+
+#[pymethods]
+impl PySimSensor {
+    /// Model name.
+    #[getter]
+    fn name(&self) -> String {
+        self.inner.name.clone()
+    }
+    /// Horizontal window width, degrees.
+    #[getter]
+    fn h_fov(&self) -> f64 {
+        self.inner.h_fov_deg
+    }
+    /// Horizontal window centre, degrees.
+    #[getter]
+    fn h_centre(&self) -> f64 {
+        self.inner.h_centre_deg
+    }
+    /// Minimum range, metres.
+    #[getter]
+    fn min_range(&self) -> f64 {
+        self.inner.min_range
+    }
+    /// Maximum range, metres.
+    #[getter]
+    fn max_range(&self) -> f64 {
+        self.inner.max_range
+    }
+    /// Range noise standard deviation, metres.
+    #[getter]
+    fn noise(&self) -> f64 {
+        self.inner.range_noise_sd
+    }
+    /// Dropout probability.
+    #[getter]
+    fn dropout(&self) -> f64 {
+        self.inner.dropout
+    }
+    /// Noise seed.
+    #[getter]
+    fn seed(&self) -> u64 {
+        self.inner.noise_seed
+    }
+    /// (fov_down, fov_up) of the beams in degrees.
+    #[getter]
+    fn vertical_fov(&self) -> (f64, f64) {
+        match &self.inner.pattern {
+            solid_sim::Pattern::Spinning { elevations_deg, .. } => {
+                let lo = elevations_deg.iter().copied().fold(f64::INFINITY, f64::min);
+                let hi = elevations_deg
+                    .iter()
+                    .copied()
+                    .fold(f64::NEG_INFINITY, f64::max);
+                (lo, hi)
+            }
+            solid_sim::Pattern::Rosette {
+                half_height_deg, ..
+            } => (-half_height_deg, *half_height_deg),
+        }
+    }
+    /// Number of beams (spinning) or emitters (rosette).
+    #[getter]
+    fn channels(&self) -> usize {
+        match &self.inner.pattern {
+            solid_sim::Pattern::Spinning { elevations_deg, .. } => elevations_deg.len(),
+            solid_sim::Pattern::Rosette { emitters, .. } => *emitters,
+        }
+    }
+    /// Rays fired in frame `frame` (after the horizontal window).
+    #[pyo3(signature = (frame = 0))]
+    fn n_rays(&self, frame: u64) -> usize {
+        self.inner.ray_directions(frame).len()
+    }
+    fn __repr__(&self) -> String {
+        let s = &self.inner;
+        format!(
+            "_SimSensor(name={:?}, h_fov={}, h_centre={}, max_range={}, noise={}, dropout={}, seed={})",
+            s.name, s.h_fov_deg, s.h_centre_deg, s.max_range, s.range_noise_sd, s.dropout, s.noise_seed
+        )
+    }
+}
+
+#[pyfunction]
+#[pyo3(signature = (seed = 0, blocks = 4, block_pitch = 80.0, road_half_width = 7.0, slope = (0.01, -0.006), repetition = 0.3, cell_size = 4.0))]
+#[allow(clippy::too_many_arguments)]
+fn _sim_world(
+    py: Python<'_>,
+    seed: u64,
+    blocks: usize,
+    block_pitch: f64,
+    road_half_width: f64,
+    slope: (f64, f64),
+    repetition: f64,
+    cell_size: f64,
+) -> PyResult<PySimWorld> {
+    let cfg = WorldConfig {
+        seed,
+        blocks,
+        block_pitch,
+        road_half_width,
+        slope: [slope.0, slope.1],
+        repetition,
+        cell_size,
+    };
+    let inner = py.detach(|| World::new(cfg)).map_err(sim_err)?;
+    Ok(PySimWorld { inner })
+}
+
+#[pyfunction]
+#[pyo3(signature = (name, h_fov = None, h_centre = 0.0, min_range = None, max_range = None, noise = None, dropout = 0.0, seed = 0, points = None))]
+#[allow(clippy::too_many_arguments)]
+fn _sim_sensor(
+    name: &str,
+    h_fov: Option<f64>,
+    h_centre: f64,
+    min_range: Option<f64>,
+    max_range: Option<f64>,
+    noise: Option<f64>,
+    dropout: f64,
+    seed: u64,
+    points: Option<usize>,
+) -> PyResult<PySimSensor> {
+    let mut s = Sensor::preset(name).map_err(sim_err)?;
+    if let Some(w) = h_fov {
+        s.h_fov_deg = w;
+    }
+    s.h_centre_deg = h_centre;
+    if let Some(r) = min_range {
+        s.min_range = r;
+    }
+    if let Some(r) = max_range {
+        s.max_range = r;
+    }
+    if let Some(n) = noise {
+        s.range_noise_sd = n;
+    }
+    s.dropout = dropout;
+    s.noise_seed = seed;
+    if let Some(n) = points {
+        match &mut s.pattern {
+            solid_sim::Pattern::Rosette { points, .. } => *points = n,
+            solid_sim::Pattern::Spinning { .. } => {
+                return Err(PyValueError::new_err(
+                    "points applies to the rosette (avia) sensor only",
+                ))
+            }
+        }
+    }
+    s.validate().map_err(sim_err)?;
+    Ok(PySimSensor { inner: s })
+}
+
+/// Reads a (M, 3, 4) or (3, 4) float64 C-contiguous array as poses.
+fn read_poses(poses: &PyReadonlyArrayDyn<'_, f64>) -> PyResult<Vec<Pose>> {
+    let shape = poses.shape();
+    let ok = (shape.len() == 3 && shape[1] == 3 && shape[2] == 4)
+        || (shape.len() == 2 && shape == [3, 4]);
+    if !ok || !poses.is_c_contiguous() {
+        return Err(PyValueError::new_err(format!(
+            "poses must be a C-contiguous float64 array of shape (M, 3, 4) or (3, 4), got shape {shape:?}"
+        )));
+    }
+    let data = poses
+        .as_slice()
+        .map_err(|e| PyValueError::new_err(e.to_string()))?;
+    let mut out = Vec::with_capacity(data.len() / 12);
+    for chunk in data.chunks_exact(12) {
+        if chunk.iter().any(|v| !v.is_finite()) {
+            return Err(PyValueError::new_err("poses must be finite"));
+        }
+        let mut m = [0.0; 12];
+        m.copy_from_slice(chunk);
+        out.push(Pose { m });
+    }
+    Ok(out)
+}
+
+fn points_array<'py>(py: Python<'py>, pts: Vec<[f32; 4]>) -> PyResult<Bound<'py, PyAny>> {
+    let n = pts.len();
+    let flat: Vec<f32> = pts.into_iter().flatten().collect();
+    Ok(PyArray1::from_vec(py, flat).reshape([n, 4])?.into_any())
+}
+
+fn trajectory_arrays<'py>(
+    py: Python<'py>,
+    t: Trajectory,
+) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyArray1<f64>>)> {
+    let m = t.poses.len();
+    let flat: Vec<f64> = t.poses.iter().flat_map(|p| p.m).collect();
+    let poses = PyArray1::from_vec(py, flat).reshape([m, 3, 4])?.into_any();
+    Ok((poses, PyArray1::from_vec(py, t.times)))
+}
+
+#[pyfunction]
+#[pyo3(signature = (world, sensor, pose, frame = 0))]
+fn _sim_scan<'py>(
+    py: Python<'py>,
+    world: &Bound<'py, PySimWorld>,
+    sensor: &Bound<'py, PySimSensor>,
+    pose: PyReadonlyArrayDyn<'py, f64>,
+    frame: u64,
+) -> PyResult<Bound<'py, PyAny>> {
+    let poses = read_poses(&pose)?;
+    if poses.len() != 1 {
+        return Err(PyValueError::new_err("pose must have shape (3, 4)"));
+    }
+    let (w, s) = (world.get(), sensor.get());
+    let pts = py
+        .detach(|| s.inner.scan(&w.inner, &poses[0], frame))
+        .map_err(sim_err)?;
+    points_array(py, pts)
+}
+
+#[pyfunction]
+#[pyo3(signature = (world, sensor, poses, first_frame = 0))]
+fn _sim_scans<'py>(
+    py: Python<'py>,
+    world: &Bound<'py, PySimWorld>,
+    sensor: &Bound<'py, PySimSensor>,
+    poses: PyReadonlyArrayDyn<'py, f64>,
+    first_frame: u64,
+) -> PyResult<Vec<Bound<'py, PyAny>>> {
+    let poses = read_poses(&poses)?;
+    let (w, s) = (world.get(), sensor.get());
+    let scans = py
+        .detach(|| {
+            poses
+                .iter()
+                .enumerate()
+                .map(|(i, p)| s.inner.scan(&w.inner, p, first_frame + i as u64))
+                .collect::<Result<Vec<_>, _>>()
+        })
+        .map_err(sim_err)?;
+    scans.into_iter().map(|p| points_array(py, p)).collect()
+}
+
+#[pyfunction]
+#[pyo3(signature = (world, kind, spacing = 1.0, laps = 1.0, lane_offset = 1.75, corner_radius = 8.0, speed = 10.0, mount_height = 1.73))]
+#[allow(clippy::too_many_arguments, clippy::type_complexity)]
+fn _sim_trajectory<'py>(
+    py: Python<'py>,
+    world: &Bound<'py, PySimWorld>,
+    kind: &str,
+    spacing: f64,
+    laps: f64,
+    lane_offset: f64,
+    corner_radius: f64,
+    speed: f64,
+    mount_height: f64,
+) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyArray1<f64>>)> {
+    let opts = RouteOptions {
+        spacing,
+        lane_offset,
+        corner_radius,
+        speed,
+        mount_height,
+    };
+    let t = Trajectory::by_name(&world.get().inner, kind, laps, &opts).map_err(sim_err)?;
+    trajectory_arrays(py, t)
+}
+
+#[pyfunction]
+#[pyo3(signature = (world, waypoints, spacing = 1.0, lane_offset = 1.75, corner_radius = 8.0, speed = 10.0, mount_height = 1.73))]
+#[allow(clippy::too_many_arguments, clippy::type_complexity)]
+fn _sim_route<'py>(
+    py: Python<'py>,
+    world: &Bound<'py, PySimWorld>,
+    waypoints: Vec<(f64, f64)>,
+    spacing: f64,
+    lane_offset: f64,
+    corner_radius: f64,
+    speed: f64,
+    mount_height: f64,
+) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyArray1<f64>>)> {
+    let opts = RouteOptions {
+        spacing,
+        lane_offset,
+        corner_radius,
+        speed,
+        mount_height,
+    };
+    let wps: Vec<[f64; 2]> = waypoints.into_iter().map(|(x, y)| [x, y]).collect();
+    let t = Trajectory::from_waypoints(&world.get().inner, &wps, &opts).map_err(sim_err)?;
+    trajectory_arrays(py, t)
+}
+
+#[pyfunction]
+#[pyo3(signature = (world, x, y, headings, mount_height = 1.73))]
+#[allow(clippy::type_complexity)]
+fn _sim_spin<'py>(
+    py: Python<'py>,
+    world: &Bound<'py, PySimWorld>,
+    x: f64,
+    y: f64,
+    headings: Vec<f64>,
+    mount_height: f64,
+) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyArray1<f64>>)> {
+    if !(x.is_finite() && y.is_finite() && mount_height.is_finite())
+        || headings.iter().any(|h| !h.is_finite())
+    {
+        return Err(PyValueError::new_err(
+            "x, y, headings and mount_height must be finite",
+        ));
+    }
+    let t = Trajectory::spin(&world.get().inner, x, y, &headings, mount_height);
+    trajectory_arrays(py, t)
+}
+
+#[pyfunction]
+#[pyo3(signature = (directory, world, sensor, poses, times))]
+fn _sim_write_sequence<'py>(
+    py: Python<'py>,
+    directory: PathBuf,
+    world: &Bound<'py, PySimWorld>,
+    sensor: &Bound<'py, PySimSensor>,
+    poses: PyReadonlyArrayDyn<'py, f64>,
+    times: Vec<f64>,
+) -> PyResult<usize> {
+    let traj = Trajectory {
+        poses: read_poses(&poses)?,
+        times,
+    };
+    let (w, s) = (world.get(), sensor.get());
+    py.detach(|| solid_sim::write_sequence(&directory, &w.inner, &s.inner, &traj, |_, _| {}))
+        .map_err(sim_err)
+}
+
+#[pyfunction]
+#[pyo3(signature = (directory, scans, poses, times))]
+fn _sim_write_scans<'py>(
+    py: Python<'py>,
+    directory: PathBuf,
+    scans: Vec<PyReadonlyArrayDyn<'py, f32>>,
+    poses: PyReadonlyArrayDyn<'py, f64>,
+    times: Vec<f64>,
+) -> PyResult<usize> {
+    let poses = read_poses(&poses)?;
+    let mut owned: Vec<Vec<[f32; 4]>> = Vec::with_capacity(scans.len());
+    for (i, s) in scans.iter().enumerate() {
+        let shape = s.shape();
+        if shape.len() != 2 || shape[1] != 4 || !s.is_c_contiguous() {
+            return Err(PyValueError::new_err(format!(
+                "scan {i} must be a C-contiguous float32 array of shape (N, 4), got {shape:?}"
+            )));
+        }
+        let data = s
+            .as_slice()
+            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        owned.push(
+            data.chunks_exact(4)
+                .map(|c| [c[0], c[1], c[2], c[3]])
+                .collect(),
+        );
+    }
+    py.detach(|| solid_sim::write_scans(&directory, &owned, &poses, &times))
+        .map_err(sim_err)
+}
+
+/// Adds the simulator's classes and functions to the extension module.
+///
+/// # Errors
+/// Propagates failures of `add_class` / `add_function`.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PySimWorld>()?;
+    m.add_class::<PySimSensor>()?;
+    m.add_function(wrap_pyfunction!(_sim_world, m)?)?;
+    m.add_function(wrap_pyfunction!(_sim_sensor, m)?)?;
+    m.add_function(wrap_pyfunction!(_sim_scan, m)?)?;
+    m.add_function(wrap_pyfunction!(_sim_scans, m)?)?;
+    m.add_function(wrap_pyfunction!(_sim_trajectory, m)?)?;
+    m.add_function(wrap_pyfunction!(_sim_route, m)?)?;
+    m.add_function(wrap_pyfunction!(_sim_spin, m)?)?;
+    m.add_function(wrap_pyfunction!(_sim_write_sequence, m)?)?;
+    m.add_function(wrap_pyfunction!(_sim_write_scans, m)?)?;
+    Ok(())
+}

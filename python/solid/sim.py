@@ -1,0 +1,585 @@
+"""A deterministic LiDAR simulator: procedural worlds, sensor models, trajectories, sequences.
+
+The heavy lifting (world generation, exact ray casting through a uniform grid) is the Rust crate
+``solid-sim``; this module is its typed Python face. Everything is seeded: the same seeds give
+bit-identical scans on every platform.
+
+>>> from solid import sim
+>>> world = sim.World(seed=7)
+>>> sensor = sim.Sensor("hdl64", h_fov=60.0)             # HDL-64E clipped to 60° ahead
+>>> traj = sim.Trajectory.loop(world, laps=1.5)           # 1.5 laps around a block, 1 m apart
+>>> seq = sim.simulate(world, sensor, traj)               # scans (N, 4) float32 + poses (M, 3, 4)
+>>> seq.write("sim_seq")                                  # KITTI layout: velodyne/*.bin, poses.txt
+
+Frames: the sensor frame is x forward, y left, z up; poses are ``T_world_sensor`` as (3, 4)
+row-major float64 matrices, the KITTI convention in the LiDAR frame. Heading convention of SPEC §3:
+:func:`true_heading` gives ψ with ``p_query ≈ Rz(ψ) · p_candidate``.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Iterator, Sequence as AbcSequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Union, overload
+
+import numpy as np
+import numpy.typing as npt
+
+from . import _solid
+
+__all__ = [
+    "SENSORS",
+    "TRAJECTORIES",
+    "Sensor",
+    "Sequence",
+    "Trajectory",
+    "World",
+    "demo_summary",
+    "run_demo",
+    "scan",
+    "simulate",
+    "true_heading",
+    "write_sequence",
+]
+
+F32 = npt.NDArray[np.float32]
+F64 = npt.NDArray[np.float64]
+PathLike = Union[str, "os.PathLike[str]"]
+
+#: Sensor model names; each matches the descriptor preset of the same name (``solid.presets()``).
+SENSORS: tuple[str, ...] = ("hdl64", "vlp16", "os1-64", "avia", "aeva")
+#: Built-in trajectory kinds (see :class:`Trajectory`).
+TRAJECTORIES: tuple[str, ...] = ("loop", "figure-eight", "reverse", "crossing")
+
+
+class World:
+    """A seeded procedural city: a sloped ground plane, a grid of roads, blocks of buildings, parks
+    (trees behind fences), parking lots (rows of cars, light poles, a low wall), walled compounds,
+    and street furniture (poles, street trees, parked cars, walls and fences).
+
+    With probability ``repetition`` a block or a street side copies one of three shared templates,
+    so some places look alike. The default world is 480 m × 480 m (4 × 4 blocks inside the road
+    grid plus an outer ring). Immutable.
+    """
+
+    __slots__ = ("_ext", "_args")
+
+    def __init__(
+        self,
+        seed: int = 0,
+        *,
+        blocks: int = 4,
+        block_pitch: float = 80.0,
+        road_half_width: float = 7.0,
+        slope: tuple[float, float] = (0.01, -0.006),
+        repetition: float = 0.3,
+        cell_size: float = 4.0,
+    ) -> None:
+        self._args: dict[str, Any] = dict(
+            seed=seed,
+            blocks=blocks,
+            block_pitch=block_pitch,
+            road_half_width=road_half_width,
+            slope=(float(slope[0]), float(slope[1])),
+            repetition=repetition,
+            cell_size=cell_size,
+        )
+        self._ext = _solid._sim_world(**self._args)
+
+    def __reduce__(self) -> tuple[Any, tuple[Any, ...]]:
+        # Pickled by its parameters; unpickling regenerates the identical world.
+        return (_world_from_args, (self._args,))
+
+    @property
+    def seed(self) -> int:
+        """The world's seed."""
+        return self._ext.seed
+
+    @property
+    def blocks(self) -> int:
+        """Blocks per side inside the road grid."""
+        return self._ext.blocks
+
+    @property
+    def block_pitch(self) -> float:
+        """Distance between parallel roads, metres."""
+        return self._ext.block_pitch
+
+    @property
+    def roads(self) -> list[float]:
+        """Road centrelines: roads run along x at each of these y, and along y at each of these x."""
+        return self._ext.roads
+
+    @property
+    def bounds(self) -> tuple[float, float, float, float]:
+        """(xmin, ymin, xmax, ymax) covered by objects."""
+        return self._ext.bounds
+
+    def __len__(self) -> int:
+        return len(self._ext)
+
+    def ground_height(self, x: float, y: float) -> float:
+        """Height of the ground at (x, y)."""
+        return self._ext.ground_height(x, y)
+
+    def footprints(self) -> tuple[list[str], F64, F64]:
+        """(kinds, footprints (P, 4) as [xmin, ymin, xmax, ymax], tops (P,)) of every primitive."""
+        return self._ext.footprints()
+
+    def __repr__(self) -> str:
+        return f"World(seed={self.seed}, blocks={self.blocks}, block_pitch={self.block_pitch:g}, primitives={len(self)})"
+
+
+def _world_from_args(args: dict[str, Any]) -> World:
+    return World(**args)
+
+
+@dataclass(frozen=True)
+class Sensor:
+    """A sensor model: one of :data:`SENSORS` plus options.
+
+    - ``hdl64``: Velodyne HDL-64E, 64 beams at the data sheet's elevations (upper block +2.0° to
+      −8.33° at ≈1/3°, lower block −8.83° to −24.33° at 0.5°), 2083 columns (≈0.17°), 120 m;
+    - ``vlp16``: 16 beams from −15° to +15° every 2°, 0.2° columns, 100 m;
+    - ``os1-64``: 64 beams uniform over ±22.5°, 1024 columns, 120 m;
+    - ``avia``: a Livox-Avia-like non-repetitive rosette over 70.4° × 77.2°, ``points`` per 0.1 s
+      frame (24 000 by default), 190 m;
+    - ``aeva``: an Aeva-like raster, 64 lines over ±9.6°, 120° horizontal at 0.12°, 250 m.
+
+    ``h_fov`` (degrees, (0, 360]; default: the model's own) keeps only the rays whose azimuth lies
+    within ``h_fov / 2`` of ``h_centre`` (0 = ahead, +90 = left): the window turns with the
+    vehicle. ``noise`` is the standard deviation of Gaussian range noise in metres (default: the
+    data sheet's accuracy, 2–3 cm), ``dropout`` the probability of losing a return, ``seed`` the
+    seed of both (combined with the frame index). ``min_range``/``max_range`` default to the model's.
+    """
+
+    name: str = "hdl64"
+    h_fov: float | None = None
+    h_centre: float = 0.0
+    min_range: float | None = None
+    max_range: float | None = None
+    noise: float | None = None
+    dropout: float = 0.0
+    seed: int = 0
+    points: int | None = None
+    _ext: _solid._SimSensor = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        ext = _solid._sim_sensor(
+            self.name,
+            h_fov=self.h_fov,
+            h_centre=self.h_centre,
+            min_range=self.min_range,
+            max_range=self.max_range,
+            noise=self.noise,
+            dropout=self.dropout,
+            seed=self.seed,
+            points=self.points,
+        )
+        object.__setattr__(self, "_ext", ext)
+
+    def __reduce__(self) -> tuple[Any, tuple[Any, ...]]:
+        return (Sensor, (self.name, self.h_fov, self.h_centre, self.min_range, self.max_range, self.noise, self.dropout, self.seed, self.points))
+
+    @property
+    def effective_h_fov(self) -> float:
+        """The horizontal window actually used, degrees."""
+        return float(self._ext.h_fov)
+
+    @property
+    def effective_max_range(self) -> float:
+        """The maximum range actually used, metres."""
+        return float(self._ext.max_range)
+
+    @property
+    def effective_noise(self) -> float:
+        """The range-noise standard deviation actually used, metres."""
+        return float(self._ext.noise)
+
+    @property
+    def vertical_fov(self) -> tuple[float, float]:
+        """(lowest, highest) beam elevation in degrees."""
+        return self._ext.vertical_fov
+
+    @property
+    def channels(self) -> int:
+        """Beams (spinning and raster models) or emitters (rosette)."""
+        return self._ext.channels
+
+    def n_rays(self, frame: int = 0) -> int:
+        """Rays fired in frame ``frame`` (after the horizontal window)."""
+        return self._ext.n_rays(frame)
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """Sensor poses ``T_world_sensor`` (M, 3, 4) float64 and time stamps (M,) in seconds.
+
+    The builders drive on the world's roads in the right-hand lane (``lane_offset`` metres right
+    of the centreline), round corners with ``corner_radius`` arcs, keep the sensor
+    ``mount_height`` above the sloped ground (its z axis along the ground normal), and place
+    frames ``spacing`` metres apart (measured on the map) at ``speed`` m/s.
+    """
+
+    poses: F64
+    times: F64
+
+    def __post_init__(self) -> None:
+        p = np.ascontiguousarray(self.poses, dtype=np.float64)
+        t = np.ascontiguousarray(self.times, dtype=np.float64)
+        if p.ndim != 3 or p.shape[1:] != (3, 4):
+            raise ValueError(f"poses must have shape (M, 3, 4), got {p.shape}")
+        if t.shape != (p.shape[0],):
+            raise ValueError(f"times must have shape ({p.shape[0]},), got {t.shape}")
+        object.__setattr__(self, "poses", p)
+        object.__setattr__(self, "times", t)
+
+    def __len__(self) -> int:
+        return int(self.poses.shape[0])
+
+    @property
+    def positions(self) -> F64:
+        """Sensor positions (M, 3)."""
+        return np.ascontiguousarray(self.poses[:, :, 3])
+
+    @property
+    def headings(self) -> F64:
+        """Yaw of each pose in degrees, (−180, 180]."""
+        return np.degrees(np.arctan2(self.poses[:, 1, 0], self.poses[:, 0, 0]))
+
+    def __getitem__(self, index: slice) -> Trajectory:
+        return Trajectory(self.poses[index], self.times[index])
+
+    @classmethod
+    def named(
+        cls,
+        world: World,
+        kind: str,
+        *,
+        laps: float = 1.0,
+        spacing: float = 1.0,
+        lane_offset: float = 1.75,
+        corner_radius: float = 8.0,
+        speed: float = 10.0,
+        mount_height: float = 1.73,
+    ) -> Trajectory:
+        """One of :data:`TRAJECTORIES` (``laps`` applies to ``loop`` only)."""
+        poses, times = _solid._sim_trajectory(
+            world._ext,
+            kind,
+            spacing=spacing,
+            laps=laps,
+            lane_offset=lane_offset,
+            corner_radius=corner_radius,
+            speed=speed,
+            mount_height=mount_height,
+        )
+        return cls(poses, times)
+
+    @classmethod
+    def loop(cls, world: World, laps: float = 1.0, **options: float) -> Trajectory:
+        """Counter-clockwise laps around the block south-west of the world's centre, starting
+        mid-way along its southern street; 1.0 returns to the start, 1.5 repeats half the loop."""
+        return cls.named(world, "loop", laps=laps, **options)
+
+    @classmethod
+    def figure_eight(cls, world: World, **options: float) -> Trajectory:
+        """Around the north-east block, straight through the central intersection (90° to the
+        first pass), around the south-west block, and on along the first street again."""
+        return cls.named(world, "figure-eight", **options)
+
+    @classmethod
+    def reverse(cls, world: World, **options: float) -> Trajectory:
+        """Two blocks east along the central street, a U-turn, and back in the opposite lane."""
+        return cls.named(world, "reverse", **options)
+
+    @classmethod
+    def crossing(cls, world: World, **options: float) -> Trajectory:
+        """Through the central intersection heading east, around the south-east block, and
+        through it again heading north (a revisit at a 90° different heading)."""
+        return cls.named(world, "crossing", **options)
+
+    @classmethod
+    def from_waypoints(
+        cls,
+        world: World,
+        waypoints: AbcSequence[tuple[float, float]] | npt.ArrayLike,
+        *,
+        spacing: float = 1.0,
+        lane_offset: float = 1.75,
+        corner_radius: float = 8.0,
+        speed: float = 10.0,
+        mount_height: float = 1.73,
+    ) -> Trajectory:
+        """Drive along a centreline polyline (K, 2) in metres; 180° reversals become U-turns."""
+        wp = np.asarray(waypoints, dtype=np.float64)
+        if wp.ndim != 2 or wp.shape[1] != 2:
+            raise ValueError(f"waypoints must have shape (K, 2), got {wp.shape}")
+        poses, times = _solid._sim_route(
+            world._ext,
+            [(float(x), float(y)) for x, y in wp],
+            spacing=spacing,
+            lane_offset=lane_offset,
+            corner_radius=corner_radius,
+            speed=speed,
+            mount_height=mount_height,
+        )
+        return cls(poses, times)
+
+    @classmethod
+    def spin(cls, world: World, x: float, y: float, headings: AbcSequence[float], mount_height: float = 1.73) -> Trajectory:
+        """Poses at one place (x, y) on the ground, one per heading (degrees); times = indices."""
+        poses, times = _solid._sim_spin(world._ext, float(x), float(y), [float(h) for h in headings], mount_height)
+        return cls(poses, times)
+
+
+@dataclass(frozen=True)
+class Sequence:
+    """Simulated scans ((N, 4) float32: x, y, z, intensity in the sensor frame) with their poses."""
+
+    scans: list[F32]
+    trajectory: Trajectory
+    sensor: Sensor
+
+    def __len__(self) -> int:
+        return len(self.scans)
+
+    def __iter__(self) -> Iterator[F32]:
+        return iter(self.scans)
+
+    @property
+    def poses(self) -> F64:
+        """(M, 3, 4) ``T_world_sensor``."""
+        return self.trajectory.poses
+
+    @property
+    def times(self) -> F64:
+        """(M,) seconds."""
+        return self.trajectory.times
+
+    def write(self, directory: PathLike) -> Path:
+        """Write as a KITTI-layout folder (see :func:`write_sequence`); returns the folder."""
+        write_sequence(directory, self)
+        return Path(directory)
+
+
+def _pose_array(pose: npt.ArrayLike) -> F64:
+    p = np.ascontiguousarray(pose, dtype=np.float64)
+    if p.shape == (4, 4):
+        p = np.ascontiguousarray(p[:3])
+    if p.shape != (3, 4):
+        raise ValueError(f"pose must have shape (3, 4) or (4, 4), got {p.shape}")
+    return p
+
+
+def scan(world: World, sensor: Sensor, pose: npt.ArrayLike, frame: int = 0) -> F32:
+    """One frame seen from ``pose`` (``T_world_sensor``, (3, 4) or (4, 4)): (N, 4) float32 points
+    x, y, z, intensity in the sensor frame. ``frame`` selects the noise stream (and the rosette's
+    time window). Rays with no return within range, or dropped, give no point."""
+    return _solid._sim_scan(world._ext, sensor._ext, _pose_array(pose), frame)
+
+
+def simulate(world: World, sensor: Sensor, trajectory: Trajectory, first_frame: int = 0) -> Sequence:
+    """Scan every pose of ``trajectory`` (frame indices ``first_frame + i``), with the GIL released."""
+    scans = _solid._sim_scans(world._ext, sensor._ext, trajectory.poses, first_frame)
+    return Sequence(scans=scans, trajectory=trajectory, sensor=sensor)
+
+
+@overload
+def write_sequence(directory: PathLike, source: Sequence) -> int: ...
+@overload
+def write_sequence(directory: PathLike, source: World, sensor: Sensor, trajectory: Trajectory) -> int: ...
+def write_sequence(
+    directory: PathLike,
+    source: Sequence | World,
+    sensor: Sensor | None = None,
+    trajectory: Trajectory | None = None,
+) -> int:
+    """Write a KITTI-layout folder: ``velodyne/000000.bin`` … (float32 N×4, little-endian),
+    ``poses.txt`` (12 numbers per line: row-major 3×4 ``T_world_sensor``) and ``times.txt``.
+    Each file is written under a temporary name and renamed. Either pass a simulated
+    :class:`Sequence`, or a world, sensor and trajectory to simulate and write one frame at a time
+    (constant memory). Returns the number of frames."""
+    d = os.fspath(directory)
+    if isinstance(source, Sequence):
+        if sensor is not None or trajectory is not None:
+            raise TypeError("pass either a Sequence or (world, sensor, trajectory)")
+        scans = [np.ascontiguousarray(s, dtype=np.float32) for s in source.scans]
+        return _solid._sim_write_scans(d, scans, source.poses, [float(t) for t in source.times])
+    if sensor is None or trajectory is None:
+        raise TypeError("write_sequence(directory, world, sensor, trajectory) needs all three")
+    return _solid._sim_write_sequence(d, source._ext, sensor._ext, trajectory.poses, [float(t) for t in trajectory.times])
+
+
+def true_heading(pose_query: npt.ArrayLike, pose_candidate: npt.ArrayLike) -> float:
+    """SPEC §3 ground-truth heading in degrees, (−180, 180]: ψ = yaw(R_queryᵀ · R_candidate), so
+    that ``p_query ≈ Rz(ψ) · p_candidate``."""
+    rq = _pose_array(pose_query)[:, :3]
+    rc = _pose_array(pose_candidate)[:, :3]
+    r = rq.T @ rc
+    psi = math.degrees(math.atan2(float(r[1, 0]), float(r[0, 0])))
+    return 180.0 if psi <= -180.0 else psi
+
+
+def run_demo(
+    out_dir: PathLike = "solid_demo",
+    *,
+    seed: int = 3,
+    sensor: str = "hdl64",
+    h_fov: float = 60.0,
+    laps: float = 1.5,
+    spacing: float = 1.0,
+    exclude: int = 50,
+    radius: float = 5.0,
+    threshold: float = 0.03,
+    plots: bool = True,
+) -> dict[str, Any]:
+    """Simulate a drive with a loop under a narrow field of view, detect its loops with SOLiD and
+    score them against the simulator's exact poses: the online :class:`solid.LoopDetector` (at
+    ``threshold``), and the SPEC §5 protocol over every query. Writes ``metrics.json``,
+    ``queries.csv`` and (with ``plots``) ``pr.png``, ``roc.png`` and ``map.png`` into ``out_dir``.
+    Returns the metrics dictionary (``metrics.json``) plus ``"simulation"`` (the settings) and
+    ``"written"`` (name → path); :func:`demo_summary` formats it."""
+    import solid
+
+    from .evaluation import evaluate_solid, write_report
+
+    world = World(seed=seed)
+    sens = Sensor(sensor, h_fov=h_fov)
+    traj = Trajectory.loop(world, laps=laps, spacing=spacing)
+    seq = simulate(world, sens, traj)
+    cfg = solid.SolidConfig.preset(sensor)
+    descs = solid.describe_batch(seq.scans, cfg)
+    r = np.stack([d.r for d in descs])
+    a = np.stack([d.a for d in descs])
+    ev = evaluate_solid(r, a, traj.poses, exclude=exclude, radius=radius, name=f"SOLiD ({sensor}, {h_fov:g}° FOV)")
+    extra: dict[str, Any] = {
+        "simulation": {"seed": seed, "sensor": sensor, "h_fov": h_fov, "laps": laps, "spacing": spacing},
+        "loop_detector": _detect_loops(cfg, descs, traj.poses, exclude, radius, threshold),
+    }
+    written = write_report(out_dir, ev, extra=extra, plots=plots)
+    if plots:
+        written["map"] = _plot_map(Path(out_dir) / "map.png", world, traj, ev.queries, ev.top_ids[:, 0], ev.correct, ev.gt_positive)
+    out = dict(ev.metrics())
+    out.update(extra)
+    out["written"] = {k: str(v) for k, v in written.items()}
+    return out
+
+
+def _detect_loops(
+    cfg: Any, descs: list[Any], poses: npt.NDArray[np.float64], exclude: int, radius: float, threshold: float
+) -> dict[str, Any]:
+    """Runs the online loop detector frame by frame; scores its loops against the true poses."""
+    import solid
+
+    det = solid.LoopDetector(cfg, exclude_recent=exclude, threshold=threshold)
+    loops = [lp for i, d in enumerate(descs) if (lp := det.add(d, timestamp=float(i))) is not None]
+    true, errors = 0, []
+    for lp in loops:
+        gap = float(np.linalg.norm(poses[lp.query][:, 3] - poses[lp.candidate][:, 3]))
+        if gap <= radius:
+            true += 1
+            psi = true_heading(poses[lp.query], poses[lp.candidate])
+            errors.append(abs((lp.heading - psi + 180.0) % 360.0 - 180.0))
+    return {
+        "threshold": threshold,
+        "loops": len(loops),
+        "true_loops": true,
+        "precision": true / len(loops) if loops else None,
+        "heading_error_deg_mean": float(np.mean(errors)) if errors else None,
+        "heading_error_deg_max": float(np.max(errors)) if errors else None,
+    }
+
+
+def demo_summary(metrics: dict[str, Any]) -> str:
+    """Human-readable lines for the result of :func:`run_demo` (what ``solid demo`` prints)."""
+
+    def f(key: str, fmt: str = ".3f") -> str:
+        v = metrics.get(key)
+        return "n/a" if v is None else format(v, fmt)
+
+    sim_cfg = metrics.get("simulation", {})
+    lines = [
+        f"simulated drive: {sim_cfg.get('laps', '?')} laps around a block, {metrics.get('frames')} frames "
+        f"{sim_cfg.get('spacing', '?')} m apart, sensor {sim_cfg.get('sensor', '?')} clipped to "
+        f"{sim_cfg.get('h_fov', '?')}° field of view (world seed {sim_cfg.get('seed', '?')})",
+        f"loop detection (exclude {metrics.get('exclude')} frames, radius {metrics.get('radius')} m, "
+        f"{metrics.get('gt_queries')} revisiting queries of {metrics.get('queries')}):",
+        f"  Recall@1 {f('recall_at_1')}   Recall@5 {f('recall_at_5')}   F1 max {f('f1_max')} "
+        f"(at distance <= {f('f1_threshold')})   AUC {f('auc')}",
+        f"  heading error vs the simulator's truth over {metrics.get('correct_top1')} correct matches: "
+        f"mean {f('rotation_error_deg_mean', '.2f')}°, median {f('rotation_error_deg_median', '.2f')}°, "
+        f"max {f('rotation_error_deg_max', '.2f')}°",
+    ]
+    ld = metrics.get("loop_detector")
+    if ld:
+
+        def g(key: str, fmt: str) -> str:
+            v = ld.get(key)
+            return "n/a" if v is None else format(v, fmt)
+
+        lines.insert(
+            1,
+            f"online loop detector (threshold {ld['threshold']}): {ld['loops']} loops, {ld['true_loops']} true "
+            f"(precision {g('precision', '.3f')}); heading error of true loops mean "
+            f"{g('heading_error_deg_mean', '.2f')}°, max {g('heading_error_deg_max', '.2f')}°",
+        )
+    written = metrics.get("written", {})
+    if written:
+        lines.append("written: " + ", ".join(str(p) for p in written.values()))
+    return "\n".join(lines) + "\n"
+
+
+def _plot_map(
+    path: Path,
+    world: World,
+    traj: Trajectory,
+    queries: npt.NDArray[np.int64],
+    top1: npt.NDArray[np.int64],
+    correct: npt.NDArray[np.bool_],
+    gt: npt.NDArray[np.bool_],
+) -> Path:
+    import io
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Rectangle
+
+    from .io import _atomic_write_bytes
+
+    colours = {"building": "0.6", "car": "tab:blue", "crown": "tab:green", "trunk": "tab:brown",
+               "pole": "k", "wall": "tab:red", "fence": "tab:orange"}
+    kinds, fp, _ = world.footprints()
+    xy = traj.positions
+    pad = 60.0
+    lo, hi = xy[:, :2].min(axis=0) - pad, xy[:, :2].max(axis=0) + pad
+    fig, ax = plt.subplots(figsize=(6.5, 6.5), dpi=120)
+    for k, f in zip(kinds, fp):
+        if f[2] < lo[0] or f[0] > hi[0] or f[3] < lo[1] or f[1] > hi[1]:
+            continue
+        ax.add_patch(Rectangle((f[0], f[1]), f[2] - f[0], f[3] - f[1], color=colours.get(k, "0.5"), alpha=0.5, lw=0))
+    ax.plot(xy[:, 0], xy[:, 1], color="k", lw=1.0, label="trajectory")
+    ok_q = queries[correct]
+    ax.scatter(xy[ok_q, 0], xy[ok_q, 1], s=6, color="tab:green", zorder=3, label="query with a correct top-1")
+    for q, c, ok, g in zip(queries, top1, correct, gt):
+        if g and not ok and c >= 0:
+            ax.plot([xy[q, 0], xy[c, 0]], [xy[q, 1], xy[c, 1]], color="tab:red", lw=0.8, alpha=0.7, zorder=3)
+    ax.plot([], [], color="tab:red", label="wrong top-1 of a GT-positive query")
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_title(f"simulated world (seed {world.seed}) and loop matches", fontsize=9)
+    ax.legend(loc="upper right", fontsize=7)
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png")
+    plt.close(fig)
+    _atomic_write_bytes(path, buf.getvalue())
+    return path

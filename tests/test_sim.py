@@ -1,0 +1,296 @@
+"""The LiDAR simulator (solid.sim): determinism, geometry, sequence files, and two experiments with
+exact ground truth: heading under a limited field of view (the paper's Fig. 6) and revisit
+detection per sensor model (SPEC §5).
+
+Run with ``pytest -s tests/test_sim.py`` to see the per-FOV heading table and the Recall@1 per
+sensor. Everything here is seeded, so the measured figures are reproducible bit for bit on one
+build; the bounds leave room for float32-versus-float64 differences between implementations.
+"""
+
+from __future__ import annotations
+
+import pickle
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+import pytest
+
+import solid
+from solid import sim
+from solid.io import Sequence as ReadSequence
+
+F64 = npt.NDArray[np.float64]
+
+
+@pytest.fixture(scope="module")
+def world() -> sim.World:
+    return sim.World(seed=0)
+
+
+# ---------------------------------------------------------------------------------------------
+# determinism and basic geometry
+
+
+def test_same_seed_gives_bit_identical_scans(world: sim.World) -> None:
+    traj = sim.Trajectory.loop(world, spacing=40.0)
+    other_world = sim.World(seed=0)
+    for name in sim.SENSORS:
+        sensor = sim.Sensor(name, dropout=0.05, seed=3)
+        a = sim.simulate(world, sensor, traj)
+        b = sim.simulate(other_world, sim.Sensor(name, dropout=0.05, seed=3), traj)
+        assert len(a) == len(b) == len(traj)
+        for x, y in zip(a, b):
+            assert x.dtype == np.float32 and x.shape[1] == 4 and x.shape[0] > 1000
+            assert x.tobytes() == y.tobytes()
+        # One scan on its own equals the same frame inside a sequence.
+        assert sim.scan(world, sensor, traj.poses[2], frame=2).tobytes() == a.scans[2].tobytes()
+
+
+def test_worlds_and_sensors_pickle_by_their_parameters(world: sim.World) -> None:
+    sensor = sim.Sensor("avia", h_fov=50.0, noise=0.05, dropout=0.1, seed=9, points=6000)
+    w2, s2 = pickle.loads(pickle.dumps((world, sensor)))
+    assert s2 == sensor and w2.seed == world.seed and len(w2) == len(world)
+    pose = sim.Trajectory.loop(world).poses[5]
+    assert sim.scan(w2, s2, pose, 4).tobytes() == sim.scan(world, sensor, pose, 4).tobytes()
+
+
+def test_different_seeds_give_different_scans(world: sim.World) -> None:
+    pose = sim.Trajectory.loop(world).poses[10]
+    base = sim.scan(world, sim.Sensor("vlp16"), pose)
+    other_world = sim.scan(sim.World(seed=1), sim.Sensor("vlp16"), sim.Trajectory.loop(sim.World(seed=1)).poses[10])
+    other_noise = sim.scan(world, sim.Sensor("vlp16", seed=1), pose)
+    # With nothing near the range limits every ray returns in both, so rays pair up by index.
+    far = sim.scan(world, sim.Sensor("vlp16", max_range=1000.0), pose)
+    far_noisy = sim.scan(world, sim.Sensor("vlp16", max_range=1000.0, seed=1), pose)
+    other_frame = sim.scan(world, sim.Sensor("vlp16"), pose, frame=1)
+    for other in (other_world, other_noise, other_frame):
+        assert base.tobytes() != other.tobytes()
+    # Noise changes ranges by centimetres, not the scene: the difference of two draws with
+    # σ = 3 cm has σ·√2 ≈ 4.2 cm.
+    assert far.shape == far_noisy.shape
+    diff = np.linalg.norm(far_noisy[:, :3] - far[:, :3], axis=1)
+    assert 0.035 < float(np.sqrt(np.mean(diff**2))) < 0.05
+    # The rosette never repeats: consecutive frames fire different rays.
+    avia = sim.Sensor("avia", noise=0.0)
+    assert sim.scan(world, avia, pose, 0).tobytes() != sim.scan(world, avia, pose, 1).tobytes()
+
+
+def test_scans_respect_the_sensor_model(world: sim.World) -> None:
+    pose = sim.Trajectory.loop(world).poses[30]
+    for name in sim.SENSORS:
+        sensor = sim.Sensor(name, noise=0.0)
+        pts = sim.scan(world, sensor, pose)
+        r = np.linalg.norm(pts[:, :3].astype(np.float64), axis=1)
+        assert r.min() > 1.0 and r.max() < sensor.effective_max_range
+        assert pts[:, 3].min() >= 0.0 and pts[:, 3].max() <= 1.0
+        elev = np.degrees(np.arcsin(pts[:, 2] / r))
+        lo, hi = sensor.vertical_fov
+        assert elev.min() >= lo - 1e-3 and elev.max() <= hi + 1e-3, name
+        az = np.degrees(np.arctan2(pts[:, 1], pts[:, 0]))
+        half = sensor.effective_h_fov / 2.0
+        if half < 180.0:
+            assert np.abs(az).max() <= half + 1e-3, name
+        # Most rays of a street scene return (the ground or an object).
+        assert pts.shape[0] > 0.5 * sensor.n_rays(), name
+    narrow = sim.scan(world, sim.Sensor("hdl64", h_fov=60.0, h_centre=90.0), pose)
+    az = np.degrees(np.arctan2(narrow[:, 1], narrow[:, 0]))
+    assert np.abs(az - 90.0).max() <= 30.0 + 1e-3
+    dropped = sim.scan(world, sim.Sensor("hdl64", dropout=0.5, seed=1), pose)
+    full = sim.scan(world, sim.Sensor("hdl64"), pose)
+    assert 0.45 < dropped.shape[0] / full.shape[0] < 0.55
+
+
+def test_invalid_parameters_are_rejected(world: sim.World) -> None:
+    with pytest.raises(ValueError, match="sensor preset"):
+        sim.Sensor("hdl65")
+    with pytest.raises(ValueError, match="h_fov"):
+        sim.Sensor("hdl64", h_fov=0.0)
+    with pytest.raises(ValueError, match="dropout"):
+        sim.Sensor("hdl64", dropout=1.5)
+    with pytest.raises(ValueError, match="points"):
+        sim.Sensor("hdl64", points=1000)
+    with pytest.raises(ValueError, match="blocks"):
+        sim.World(blocks=0)
+    with pytest.raises(ValueError, match="trajectory kind"):
+        sim.Trajectory.named(world, "spiral")
+    with pytest.raises(ValueError, match="shape"):
+        sim.scan(world, sim.Sensor(), np.eye(3))
+
+
+def test_trajectories_revisit_as_described(world: sim.World) -> None:
+    loop = sim.Trajectory.loop(world, laps=1.0)
+    assert np.linalg.norm(loop.positions[0] - loop.positions[-1]) < 1.0
+    assert abs(sim.true_heading(loop.poses[-1], loop.poses[0])) < 1e-6
+    steps = np.linalg.norm(np.diff(loop.positions[:, :2], axis=0), axis=1)
+    assert steps.max() <= 1.0 + 1e-9 and steps.min() > 0.99  # chords of the corner arcs are shorter
+    rev = sim.Trajectory.reverse(world)
+    assert abs(abs(sim.true_heading(rev.poses[-11], rev.poses[10])) - 180.0) < 1e-6
+    for traj, angle in ((sim.Trajectory.crossing(world), 90.0), (sim.Trajectory.figure_eight(world), 90.0)):
+        p = traj.positions
+        d = np.linalg.norm(p[:, None, :2] - p[None, :, :2], axis=2)
+        d[np.abs(np.arange(len(p))[:, None] - np.arange(len(p))[None, :]) < 60] = np.inf
+        i, j = np.unravel_index(int(np.argmin(d)), d.shape)
+        assert d[i, j] < 2.0
+        assert abs(abs(sim.true_heading(traj.poses[i], traj.poses[j])) - angle) < 1.0
+
+
+def test_write_sequence_round_trips_through_the_readers(world: sim.World, tmp_path: Path) -> None:
+    traj = sim.Trajectory.figure_eight(world, spacing=25.0)
+    sensor = sim.Sensor("os1-64", seed=2)
+    seq = sim.simulate(world, sensor, traj)
+    n = sim.write_sequence(tmp_path / "a", seq)
+    m = sim.write_sequence(tmp_path / "b", world, sensor, traj)
+    assert n == m == len(traj)
+    for folder in ("a", "b"):
+        files = sorted((tmp_path / folder / "velodyne").iterdir())
+        assert [f.name for f in files] == [f"{i:06d}.bin" for i in range(n)]
+        back = ReadSequence(tmp_path / folder, poses="poses.txt", timestamps="times.txt", xyz_only=False)
+        assert len(back) == n and back.poses is not None and back.timestamps is not None
+        np.testing.assert_allclose(back.poses, traj.poses, rtol=1e-11, atol=1e-9)
+        np.testing.assert_allclose(back.timestamps, traj.times, rtol=1e-6)
+        for i in range(n):
+            assert back[i].tobytes() == seq.scans[i].tobytes()
+
+
+# ---------------------------------------------------------------------------------------------
+# heading under a limited field of view (paper Fig. 6)
+
+#: Yaw offsets of the query against the reference, degrees: multiples of the 6° azimuth bin and
+#: values between bins, both signs, up to a U-turn.
+OFFSETS = (3.0, -8.0, 17.0, -30.0, 30.0, -43.0, 51.0, 77.0, -90.0, 90.0, 135.0, -150.0, 180.0)
+FOVS = (360.0, 180.0, 120.0, 60.0)
+
+
+def _heading_errors(world: sim.World, fov: float, places: F64) -> dict[float, list[float]]:
+    """For each place, scan at the road's heading and at heading + offset (the sensor, and so its
+    field-of-view window, turns with the vehicle) and estimate the query's heading against the
+    reference with A-SOLiD. The true heading is ψ = yaw(R_qᵀ R_c) = −offset."""
+    sensor = sim.Sensor("hdl64", h_fov=fov)
+    cfg = solid.SolidConfig.preset("hdl64")
+    errors: dict[float, list[float]] = {o: [] for o in OFFSETS}
+    for x, y, h in places:
+        traj = sim.Trajectory.spin(world, x, y, [h] + [h + o for o in OFFSETS])
+        descs = solid.describe_batch(sim.simulate(world, sensor, traj).scans, cfg)
+        ref = descs[0]
+        for o, d in zip(OFFSETS, descs[1:]):
+            est = solid.heading(d, ref, refine=True)
+            true = sim.true_heading(traj.poses[1 + OFFSETS.index(o)], traj.poses[0])
+            assert abs(true + o - 360.0 * round((true + o) / 360.0)) < 0.01  # tilt by the slope
+            errors[o].append(abs((est - true + 180.0) % 360.0 - 180.0))
+    return errors
+
+
+def test_heading_error_per_field_of_view(world: sim.World) -> None:
+    loop = sim.Trajectory.loop(world)
+    idx = np.arange(20, len(loop), 50)  # places along the loop's streets and corners
+    places = np.column_stack([loop.positions[idx, 0], loop.positions[idx, 1], loop.headings[idx]])
+    print(f"\nrefined heading error (degrees), HDL-64E, {len(places)} places x {len(OFFSETS)} offsets")
+    print(f"{'FOV':>5} | {'all: mean':>9} {'median':>6} {'max':>6} | {'|off|<=8: mean':>14} {'max':>5} | {'<3 deg':>6} | {'|off|>=FOV: mean':>16}")
+    success = []
+    for fov in FOVS:
+        errors = _heading_errors(world, fov, places)
+        every = np.concatenate([errors[o] for o in OFFSETS])
+        small = np.concatenate([errors[o] for o in OFFSETS if abs(o) <= 8.0])
+        far_offsets = [o for o in OFFSETS if abs(o) >= fov]
+        far = np.concatenate([errors[o] for o in far_offsets]) if far_offsets else np.array([])
+        rate = float((every < 3.0).mean())
+        success.append(rate)
+        far_txt = f"{far.mean():16.1f}" if far.size else f"{'-':>16}"
+        print(
+            f"{fov:5.0f} | {every.mean():9.2f} {np.median(every):6.2f} {every.max():6.2f} | "
+            f"{small.mean():14.2f} {small.max():5.2f} | {rate:6.0%} | {far_txt}"
+        )
+        if fov == 360.0:
+            # Full view: every offset is recovered to a fraction of the 6° bin (measured: mean
+            # 0.25°, max 1.1°), far better than the ±3° of the bare bin.
+            assert every.mean() < 0.6 and every.max() < 2.0
+        else:
+            # The window turns with the vehicle. A small turn (≤ 8°, most of the view shared)
+            # is still recovered within about half a bin on average (measured means: 0.8° at
+            # 180°, 1.7° at 120°, 2.8° at 60°; maxima 2.9°, 7.2°, 8.7°; seeds 1–3 give means up
+            # to 4.2° at 60°) ...
+            assert small.mean() < 5.0 and small.max() < 15.0, fov
+            # ... and once the two windows no longer overlap, A-SOLiD carries no heading
+            # information: the estimate stays near 0 and the error is about the offset itself
+            # (measured means ≥ 100°), the effect the paper's Fig. 6 shows on recall.
+            assert far.mean() > 45.0, fov
+    # The narrower the view, the fewer headings are recovered (measured: 100 %, 53 %, 35 %, 15 %).
+    assert success[0] == 1.0
+    assert all(a >= b for a, b in zip(success, success[1:])), success
+    assert success[-1] < 0.5
+
+
+# ---------------------------------------------------------------------------------------------
+# revisit detection per sensor model (SPEC §5)
+
+#: Recall@1 floors per sensor on the seed-0 loop below. Measured with the extension: hdl64 0.98,
+#: vlp16 0.99, os1-64 0.99, avia 0.98, aeva 0.99 (seeds 1–3: 0.98–0.99 for every sensor). The
+#: second lap drives the same lane in the same direction, so every sensor, even the 70° Avia whose
+#: rosette never repeats, sees each place again from within a metre; R-SOLiD then finds nearly
+#: every revisit. The floor 0.9 allows ~8 of the 99 GT-positive queries to flip (float32 versus
+#: float64 binning at bin edges, a changed tie) and is still 30× the chance level (0.027) that the
+#: test prints. Harder revisits (reverse direction, narrow FOV) are tested separately below.
+RECALL_FLOOR = {"hdl64": 0.9, "vlp16": 0.9, "os1-64": 0.9, "aeva": 0.9, "avia": 0.9}
+SPACING = 2.0  # metres between frames, as the paper's Park protocol
+EXCLUDE = 25  # frames (50 m)
+RADIUS = 5.0  # metres
+
+
+@pytest.fixture(scope="module")
+def revisit_loop(world: sim.World) -> sim.Trajectory:
+    # 1.6 laps of a 320 m block: the second lap revisits 60 % of the first.
+    return sim.Trajectory.loop(world, laps=1.6, spacing=SPACING)
+
+
+def recall_at_1(r: npt.NDArray[np.float32], positions: F64, exclude: int, radius: float) -> tuple[float, int, float]:
+    """SPEC §5 Recall@1 with exact brute-force cosine search; also the number of GT-positive
+    queries and the chance level (expected Recall@1 of a random database frame)."""
+    rn = r.astype(np.float64)
+    rn /= np.maximum(np.linalg.norm(rn, axis=1, keepdims=True), 1e-300)
+    xy = positions[:, :2]
+    positives = correct = 0
+    chance = 0.0
+    for q in range(len(r)):
+        db = q - exclude
+        if db <= 0:
+            continue
+        d = np.linalg.norm(xy[:db] - xy[q], axis=1)
+        if d.min() > radius:
+            continue
+        positives += 1
+        top = int(np.argmax(rn[:db] @ rn[q]))  # first maximum: ties go to the lower id
+        correct += int(d[top] <= radius)
+        chance += float((d <= radius).mean())
+    return correct / max(positives, 1), positives, chance / max(positives, 1)
+
+
+@pytest.mark.parametrize("name", sim.SENSORS)
+def test_revisit_recall_per_sensor(world: sim.World, revisit_loop: sim.Trajectory, name: str) -> None:
+    seq = sim.simulate(world, sim.Sensor(name), revisit_loop)
+    descs = solid.describe_batch(seq.scans, solid.SolidConfig.preset(name))
+    r = np.stack([d.r for d in descs])
+    recall, positives, chance = recall_at_1(r, revisit_loop.positions, EXCLUDE, RADIUS)
+    print(f"\n{name:7} Recall@1 {recall:.3f} over {positives} GT-positive queries (chance {chance:.3f}, floor {RECALL_FLOOR[name]})")
+    assert positives >= 90
+    assert RECALL_FLOOR[name] > 10 * chance
+    assert recall >= RECALL_FLOOR[name]
+
+
+def test_reverse_revisit_needs_the_full_view(world: sim.World) -> None:
+    """Driving back the other way: with 360° the street is recognised; clipped to 60° ahead the
+    two visits see opposite sides of every place and SOLiD cannot match them (the limitation the
+    paper's conclusion names)."""
+    traj = sim.Trajectory.reverse(world, spacing=SPACING)
+    cfg = solid.SolidConfig.preset("hdl64")
+    recalls = {}
+    for fov in (360.0, 60.0):
+        seq = sim.simulate(world, sim.Sensor("hdl64", h_fov=fov), traj)
+        r = np.stack([d.r for d in solid.describe_batch(seq.scans, cfg)])
+        recalls[fov], positives, chance = recall_at_1(r, traj.positions, EXCLUDE, RADIUS)
+        print(f"\nreverse revisit, hdl64 {fov:.0f}°: Recall@1 {recalls[fov]:.3f} over {positives} queries (chance {chance:.3f})")
+        assert positives >= 50
+    # Measured: 360° 0.75 (R-SOLiD ignores the heading, but the lanes are 3.5 m apart, so each
+    # place is seen from a shifted position), 60° 0.045, i.e. chance (0.041).
+    assert recalls[360.0] >= 0.6
+    assert recalls[60.0] <= 0.2
