@@ -573,6 +573,18 @@ def _pcd_ascii(
     return _finish(path, cols, fnames)
 
 
+def _columns_to_write(points: npt.ArrayLike, fields: AbcSequence[str] | None) -> tuple[F32, list[str]]:
+    """The (N, C >= 3) float32 array a writer stores and its field names (x y z, then f3, f4, ...)."""
+    pts = np.asarray(points, dtype=np.float32)
+    if pts.ndim != 2 or pts.shape[1] < 3:
+        raise ValueError(f"points must have shape (N, >=3), got {pts.shape}")
+    c = pts.shape[1]
+    names = list(fields) if fields is not None else ["x", "y", "z"] + [f"f{i}" for i in range(3, c)]
+    if len(names) != c:
+        raise ValueError(f"{len(names)} field names for {c} columns")
+    return pts, names
+
+
 def write_pcd(
     path: PathLike,
     points: npt.ArrayLike,
@@ -580,13 +592,8 @@ def write_pcd(
     data: Literal["ascii", "binary", "binary_compressed"] = "binary",
 ) -> None:
     """Write an (N, C) array as PCD v0.7 with float32 fields (default names x y z, then f3, f4, ...)."""
-    pts = np.asarray(points, dtype=np.float32)
-    if pts.ndim != 2 or pts.shape[1] < 3:
-        raise ValueError(f"points must have shape (N, >=3), got {pts.shape}")
+    pts, names = _columns_to_write(points, fields)
     n, c = pts.shape
-    names = list(fields) if fields is not None else ["x", "y", "z"] + [f"f{i}" for i in range(3, c)]
-    if len(names) != c:
-        raise ValueError(f"{len(names)} field names for {c} columns")
     head = (
         "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\n"
         f"FIELDS {' '.join(names)}\nSIZE {' '.join(['4'] * c)}\nTYPE {' '.join(['F'] * c)}\n"
@@ -735,13 +742,8 @@ def write_ply(
     data: Literal["ascii", "binary_little_endian", "binary_big_endian"] = "binary_little_endian",
 ) -> None:
     """Write an (N, C) array as a PLY vertex list with float properties."""
-    pts = np.asarray(points, dtype=np.float32)
-    if pts.ndim != 2 or pts.shape[1] < 3:
-        raise ValueError(f"points must have shape (N, >=3), got {pts.shape}")
+    pts, names = _columns_to_write(points, fields)
     n, c = pts.shape
-    names = list(fields) if fields is not None else ["x", "y", "z"] + [f"f{i}" for i in range(3, c)]
-    if len(names) != c:
-        raise ValueError(f"{len(names)} field names for {c} columns")
     head = f"ply\nformat {data} 1.0\ncomment written by solid\nelement vertex {n}\n"
     head += "".join(f"property float {nm}\n" for nm in names) + "end_header\n"
     if data == "ascii":

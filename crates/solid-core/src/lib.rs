@@ -41,6 +41,11 @@ pub mod search;
 #[cfg(feature = "alloc")]
 mod owned;
 
+/// The project README's Rust examples, compiled as doctests.
+#[cfg(doctest)]
+#[doc = include_str!("../../../README.md")]
+pub struct ReadmeDoctests;
+
 pub use compare::{cosine_distance, heading, heading_refined, Heading};
 pub use config::{Config, Preset, MAX_VOXELS_PER_AXIS, PRESETS};
 pub use describe::{describe, describe_scratch_len, stages, Coord, Points, Scratch, Stats};

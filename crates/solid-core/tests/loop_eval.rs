@@ -6,60 +6,11 @@
 //! re-rank, and the quantised wire form keeps Recall@1 within 2 points of float32.
 #![cfg(feature = "std")]
 
+mod common;
+use common::{data_dir, read_xyz_f32};
+
 use solid_core::db::{decode_place, encode_place, LoopDetector};
 use solid_core::{Config, Describer, Descriptor, Points};
-use std::path::PathBuf;
-
-fn data_dir() -> Option<PathBuf> {
-    let dir = match std::env::var_os("SOLID_DATA") {
-        Some(d) => PathBuf::from(d),
-        None => PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data"),
-    };
-    if dir.join("hku1-avia").is_dir() {
-        return Some(dir);
-    }
-    assert!(
-        std::env::var("CI").as_deref() != Ok("true"),
-        "data folder {} is missing under CI=true",
-        dir.display()
-    );
-    eprintln!(
-        "skipping: data folder {} not found (set SOLID_DATA)",
-        dir.display()
-    );
-    None
-}
-
-fn read_pcd_xyz(path: &std::path::Path) -> Vec<f32> {
-    let bytes = std::fs::read(path).unwrap();
-    let marker = b"DATA binary\n";
-    let at = bytes
-        .windows(marker.len())
-        .position(|w| w == marker)
-        .unwrap();
-    let header = std::str::from_utf8(&bytes[..at]).unwrap();
-    let value = |key: &str| -> Vec<String> {
-        header
-            .lines()
-            .find(|l| l.starts_with(key))
-            .unwrap()
-            .split_whitespace()
-            .skip(1)
-            .map(String::from)
-            .collect()
-    };
-    let fields = value("FIELDS");
-    assert_eq!(&fields[..3], ["x", "y", "z"]);
-    assert!(value("TYPE").iter().all(|t| t == "F") && value("SIZE").iter().all(|s| s == "4"));
-    let n: usize = value("POINTS")[0].parse().unwrap();
-    let rec = 4 * fields.len();
-    bytes[at + marker.len()..at + marker.len() + n * rec]
-        .chunks_exact(rec)
-        .flat_map(|r| {
-            (0..3).map(move |i| f32::from_le_bytes(r[4 * i..4 * i + 4].try_into().unwrap()))
-        })
-        .collect()
-}
 
 struct Sequence {
     descriptors: Vec<Descriptor>,
@@ -78,7 +29,7 @@ fn load(cfg: &Config) -> Option<Sequence> {
     let mut describer = Describer::new(*cfg).unwrap();
     let descriptors: Vec<Descriptor> = (0..poses.len())
         .map(|i| {
-            let xyz = read_pcd_xyz(&dir.join(format!("Scans/{i:06}.pcd")));
+            let xyz = read_xyz_f32(&dir.join(format!("Scans/{i:06}.pcd")));
             describer.describe(Points::new(&xyz, 3).unwrap()).unwrap()
         })
         .collect();

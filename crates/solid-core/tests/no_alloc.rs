@@ -3,33 +3,12 @@
 
 mod common;
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
-
 use solid_core::{
     cosine_distance, describe, describe_scratch_len, heading, heading_refined, Config, Points,
 };
 
-struct Counting;
-static ALLOCS: AtomicUsize = AtomicUsize::new(0);
-
-// SAFETY: forwards to the system allocator; only counts calls.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCS.fetch_add(1, Ordering::SeqCst);
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCS.fetch_add(1, Ordering::SeqCst);
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: common::Counting = common::Counting;
 
 #[test]
 fn describe_distance_heading_allocate_nothing() {
@@ -47,7 +26,7 @@ fn describe_distance_heading_allocate_nothing() {
         let mut scratch = vec![0u64; describe_scratch_len(n, &cfg)];
         let (mut r1, mut a1) = (vec![0f32; 40], vec![0f32; 60]);
         let (mut r2, mut a2) = (vec![0f32; 40], vec![0f32; 60]);
-        let before = ALLOCS.load(Ordering::SeqCst);
+        let before = common::allocations();
         let mut total = 0.0;
         for _ in 0..3 {
             describe(
@@ -70,7 +49,7 @@ fn describe_distance_heading_allocate_nothing() {
             total +=
                 heading(&a1, &a2).unwrap().degrees + heading_refined(&a1, &a2).unwrap().degrees;
         }
-        let after = ALLOCS.load(Ordering::SeqCst);
+        let after = common::allocations();
         assert_eq!(
             after - before,
             0,

@@ -1,34 +1,15 @@
 //! Brute force, kd-tree build and query, and the online index allocate nothing: a counting
 //! global allocator sees zero allocations across them.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
+mod common;
 
 use solid_core::search::{
     brute_force, normalize_rows, online_insert, online_rebuild, Exclude, KdTree, Neighbor,
     OnlineIndex,
 };
 
-struct Counting;
-static ALLOCS: AtomicUsize = AtomicUsize::new(0);
-
-// SAFETY: forwards to the system allocator; only counts calls.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCS.fetch_add(1, Ordering::SeqCst);
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCS.fetch_add(1, Ordering::SeqCst);
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: common::Counting = common::Counting;
 
 #[test]
 fn searches_allocate_nothing() {
@@ -43,7 +24,7 @@ fn searches_allocate_nothing() {
     let mut out2 = vec![Neighbor::default(); 10];
     let times: Vec<f64> = (0..n).map(|i| i as f64).collect();
 
-    let before = ALLOCS.load(Ordering::SeqCst);
+    let before = common::allocations();
     normalize_rows(&raw, dim, &mut rows).unwrap();
     let q = &rows[17 * dim..18 * dim];
     let ex = Exclude {
@@ -60,7 +41,7 @@ fn searches_allocate_nothing() {
     let index = OnlineIndex::new(&rows, dim, &operm, &osplits).unwrap();
     let mut out3 = [Neighbor::default(); 10];
     index.search(q, 10, &ex, &mut out3).unwrap();
-    let after = ALLOCS.load(Ordering::SeqCst);
+    let after = common::allocations();
 
     assert_eq!(after - before, 0, "the searches allocated");
     assert_eq!(got, 10);

@@ -2,68 +2,15 @@
 //! vectors, adversarial ones (duplicates, all-zero, many equal coordinates, a single entry) and
 //! real descriptors of the HKU Livox Avia sequence.
 
+mod common;
+use common::{data_dir, read_xyz_f32};
+
 use proptest::prelude::*;
 use solid_core::search::{
     brute_force, normalize, normalize_rows, normalized_distance, online_insert, online_rebuild,
     Exclude, KdTree, Neighbor, OnlineIndex,
 };
 use solid_core::{cosine_distance, Config, Describer, Points};
-use std::path::PathBuf;
-
-/// `SOLID_DATA`, else `<repo>/../shared/data`; `None` (skip) when absent, a failure under CI.
-fn data_dir() -> Option<PathBuf> {
-    let dir = match std::env::var_os("SOLID_DATA") {
-        Some(d) => PathBuf::from(d),
-        None => PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data"),
-    };
-    if dir.is_dir() {
-        return Some(dir);
-    }
-    assert!(
-        std::env::var("CI").as_deref() != Ok("true"),
-        "data folder {} is missing under CI=true",
-        dir.display()
-    );
-    eprintln!(
-        "skipping: data folder {} not found (set SOLID_DATA)",
-        dir.display()
-    );
-    None
-}
-
-/// Reads a binary PCD whose fields are all float32 (x y z first); returns x y z rows.
-fn read_pcd(path: &std::path::Path) -> Vec<f32> {
-    let bytes = std::fs::read(path).unwrap();
-    let marker = b"DATA binary\n";
-    let at = bytes
-        .windows(marker.len())
-        .position(|w| w == marker)
-        .expect("a binary PCD");
-    let header = std::str::from_utf8(&bytes[..at]).unwrap();
-    let line = |key: &str| {
-        header
-            .lines()
-            .find(|l| l.starts_with(key))
-            .unwrap_or_else(|| panic!("{}: no {key} line", path.display()))
-            .split_whitespace()
-            .skip(1)
-            .map(String::from)
-            .collect::<Vec<_>>()
-    };
-    let fields = line("FIELDS");
-    assert_eq!(&fields[..3], ["x", "y", "z"], "{}", path.display());
-    assert!(line("SIZE").iter().all(|s| s == "4") && line("TYPE").iter().all(|t| t == "F"));
-    let n: usize = line("POINTS")[0].parse().unwrap();
-    let body = &bytes[at + marker.len()..];
-    let rec = 4 * fields.len();
-    assert!(body.len() >= n * rec, "{}: truncated", path.display());
-    body[..n * rec]
-        .chunks_exact(rec)
-        .flat_map(|r| {
-            (0..3).map(move |i| f32::from_le_bytes(r[4 * i..4 * i + 4].try_into().unwrap()))
-        })
-        .collect()
-}
 
 /// R-SOLiD of every HKU scan (every `step`-th), described with the core.
 fn hku_r(step: usize) -> Option<(Vec<f32>, usize)> {
@@ -79,7 +26,7 @@ fn hku_r(step: usize) -> Option<(Vec<f32>, usize)> {
     assert!(names.len() >= 300, "expected the 314 HKU scans");
     let mut r = Vec::new();
     for p in names.iter().step_by(step) {
-        let xyz = read_pcd(p);
+        let xyz = read_xyz_f32(p);
         let d = describer.describe(Points::new(&xyz, 3).unwrap()).unwrap();
         r.extend_from_slice(&d.r);
     }

@@ -22,6 +22,16 @@ pub fn shared() -> Option<PathBuf> {
     None
 }
 
+/// `<shared>/data`, or `None` when absent (a failure under `CI=true`).
+pub fn data_dir() -> Option<PathBuf> {
+    shared().map(|s| s.join("data"))
+}
+
+/// x, y, z rows of a shared scan as `f32` (exact for the float32 formats).
+pub fn read_xyz_f32(path: &std::path::Path) -> Vec<f32> {
+    read_scan(path).into_iter().map(|v| v as f32).collect()
+}
+
 fn f32s(bytes: &[u8], record: usize, n_fields: usize) -> Vec<f32> {
     assert_eq!(bytes.len() % record, 0, "truncated file");
     bytes
@@ -79,4 +89,30 @@ pub fn read_scan(path: &std::path::Path) -> Vec<f64> {
 /// A KITTI `.bin` as its raw float32 N×4 array.
 pub fn read_kitti(path: &std::path::Path) -> Vec<f32> {
     f32s(&std::fs::read(path).unwrap(), 16, 4)
+}
+
+/// A global allocator that counts allocations, for the no-allocation tests: install it with
+/// `#[global_allocator] static GLOBAL: common::Counting = common::Counting;`.
+pub struct Counting;
+
+static ALLOCS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+
+/// Allocations (and reallocations) so far through [`Counting`].
+pub fn allocations() -> usize {
+    ALLOCS.load(std::sync::atomic::Ordering::SeqCst)
+}
+
+// SAFETY: forwards every call to the system allocator; only counts them.
+unsafe impl std::alloc::GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: std::alloc::Layout) -> *mut u8 {
+        ALLOCS.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+        unsafe { std::alloc::System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: std::alloc::Layout) {
+        unsafe { std::alloc::System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: std::alloc::Layout, new_size: usize) -> *mut u8 {
+        ALLOCS.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+        unsafe { std::alloc::System.realloc(ptr, layout, new_size) }
+    }
 }
