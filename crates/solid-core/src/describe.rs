@@ -193,9 +193,44 @@ fn unpack(b: u32) -> (usize, usize, usize) {
 /// - [`Error::BufferTooSmall`] when `scratch` is shorter than [`describe_scratch_len`] or an output
 ///   is shorter than its vector.
 ///
+/// With `std` on x86-64, a copy of the same code compiled for AVX2 runs when the CPU has it
+/// (without FMA, so every operation rounds as in the portable copy: the same bits either way,
+/// which the tests check on every shared scan); [`stages::describe_portable`] is the other copy.
+///
 /// # Panics
 /// Never.
 pub fn describe<T: Coord>(
+    points: Points<'_, T>,
+    cfg: &Config,
+    scratch: &mut [Scratch],
+    r_out: &mut [f32],
+    a_out: &mut [f32],
+) -> Result<Stats, Error> {
+    #[cfg(all(feature = "std", target_arch = "x86_64"))]
+    if std::is_x86_feature_detected!("avx2") {
+        #[allow(unsafe_code)]
+        // SAFETY: the CPU supports AVX2 (checked just above), the only requirement for calling a
+        // function compiled with `#[target_feature(enable = "avx2")]`.
+        return unsafe { describe_avx2(points, cfg, scratch, r_out, a_out) };
+    }
+    describe_impl(points, cfg, scratch, r_out, a_out)
+}
+
+#[cfg(all(feature = "std", target_arch = "x86_64"))]
+#[target_feature(enable = "avx2")]
+fn describe_avx2<T: Coord>(
+    points: Points<'_, T>,
+    cfg: &Config,
+    scratch: &mut [Scratch],
+    r_out: &mut [f32],
+    a_out: &mut [f32],
+) -> Result<Stats, Error> {
+    describe_impl(points, cfg, scratch, r_out, a_out)
+}
+
+/// The body of [`describe`], inlined into each of its compiled copies.
+#[inline(always)]
+fn describe_impl<T: Coord>(
     points: Points<'_, T>,
     cfg: &Config,
     scratch: &mut [Scratch],
@@ -313,6 +348,21 @@ pub fn describe<T: Coord>(
 pub mod stages {
     use super::*;
 
+    /// [`describe`] without the runtime choice of a CPU-specific copy: the portable code, for
+    /// checking that every copy gives the same bits.
+    ///
+    /// # Errors
+    /// As [`describe`].
+    pub fn describe_portable<T: Coord>(
+        points: Points<'_, T>,
+        cfg: &Config,
+        scratch: &mut [Scratch],
+        r_out: &mut [f32],
+        a_out: &mut [f32],
+    ) -> Result<Stats, Error> {
+        describe_impl(points, cfg, scratch, r_out, a_out)
+    }
+
     /// Number of points that are finite and within `(min_range, max_range)` (SPEC §2 steps 1–2).
     ///
     /// # Errors
@@ -401,6 +451,7 @@ fn for_each_in_range<T: Coord>(
 ///
 /// Points go through in blocks: a branch-free pass computes every point's voxel key (or
 /// [`OUTSIDE`]) so that the compiler can vectorise it, then a scalar pass accumulates.
+#[inline(always)]
 fn voxelize<T: Coord>(
     points: Points<'_, T>,
     cfg: &Config,
@@ -467,6 +518,7 @@ fn block_keys(
     }
 }
 
+#[inline(always)]
 fn voxelize_strided<T: Coord, const S: usize>(
     points: Points<'_, T>,
     cfg: &Config,
@@ -507,6 +559,7 @@ struct VoxelTable<'a> {
 }
 
 impl<'a> VoxelTable<'a> {
+    #[inline(always)]
     fn new(table: &'a mut [u64], recs: &'a mut [u64]) -> Self {
         // Start with a small, cache-resident table and double it whenever it gets 3/4 full; the
         // scratch holds room for the worst case (every point its own voxel).
@@ -584,6 +637,7 @@ impl<'a> VoxelTable<'a> {
     }
 
     /// Flushes the current voxel; returns the number of voxels.
+    #[inline(always)]
     fn finish(mut self) -> usize {
         self.flush();
         self.m

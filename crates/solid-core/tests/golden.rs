@@ -97,6 +97,74 @@ fn golden_descriptors_match() {
     );
 }
 
+/// Every compiled copy of `describe` (AVX2 where the CPU has it, portable) gives the same bits.
+#[test]
+fn dispatched_and_portable_describe_give_the_same_bits() {
+    let Some(shared) = common::shared() else {
+        return;
+    };
+    let text = std::fs::read_to_string(shared.join("golden/descriptors.json")).unwrap();
+    let doc: serde_json::Value = serde_json::from_str(&text).unwrap();
+    for case in doc["cases"].as_array().unwrap() {
+        let file = case["file"].as_str().unwrap();
+        let xyz = common::read_scan(&shared.join(file));
+        let f32s: Vec<f32> = xyz.iter().map(|&v| v as f32).collect();
+        let voxel = case["config"]["voxel_size"].as_f64().unwrap();
+        let preset = Config::preset(case["preset"].as_str().unwrap()).unwrap();
+        let cfg = Config {
+            voxel_size: voxel,
+            ..preset
+        };
+        let mut scratch = vec![0u64; solid_core::describe_scratch_len(xyz.len() / 3, &cfg)];
+        let run = |portable: bool, scratch: &mut [u64], wide: bool| {
+            let (mut r, mut a) = (vec![0f32; cfg.n_range], vec![0f32; cfg.n_azimuth]);
+            let stats = match (portable, wide) {
+                (true, true) => solid_core::stages::describe_portable(
+                    Points::new(&xyz, 3).unwrap(),
+                    &cfg,
+                    scratch,
+                    &mut r,
+                    &mut a,
+                ),
+                (false, true) => solid_core::describe(
+                    Points::new(&xyz, 3).unwrap(),
+                    &cfg,
+                    scratch,
+                    &mut r,
+                    &mut a,
+                ),
+                (true, false) => solid_core::stages::describe_portable(
+                    Points::new(&f32s, 3).unwrap(),
+                    &cfg,
+                    scratch,
+                    &mut r,
+                    &mut a,
+                ),
+                (false, false) => solid_core::describe(
+                    Points::new(&f32s, 3).unwrap(),
+                    &cfg,
+                    scratch,
+                    &mut r,
+                    &mut a,
+                ),
+            }
+            .unwrap();
+            (
+                stats,
+                r.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+                a.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+            )
+        };
+        for wide in [true, false] {
+            assert_eq!(
+                run(true, &mut scratch, wide),
+                run(false, &mut scratch, wide),
+                "{file} voxel {voxel}"
+            );
+        }
+    }
+}
+
 #[test]
 fn f32_and_f64_input_agree_on_kitti() {
     let Some(shared) = common::shared() else {
