@@ -110,8 +110,33 @@ def test_forced_format_and_unknown() -> None:
     assert sio.read_points(p, format="helipr-avia").shape[1] == 7
     with pytest.raises(ValueError, match="unknown format"):
         sio.read_points(p, format="lasx")
-    with pytest.raises(sio.ReadError, match="not supported"):
+    # 233,320 B is not a whole number of 26 B Ouster records either.
+    with pytest.raises(sio.ReadError, match=r"000001\.bin"):
         sio.read_points(p, format="helipr-ouster")
+
+
+def test_helipr_ouster_and_velodyne_records(tmp_path: Path) -> None:
+    rng = np.random.default_rng(3)
+    n = 257
+    xyzi = rng.normal(0, 20, size=(n, 4)).astype("<f4")
+    ouster = np.zeros(n, dtype=[("p", "<f4", 4), ("t", "<u4"), ("refl", "<u2"), ("ring", "<u2"), ("amb", "<u2")])
+    ouster["p"], ouster["t"], ouster["ring"] = xyzi, np.arange(n), np.arange(n) % 128
+    velo = np.zeros(n, dtype=[("p", "<f4", 4), ("ring", "<u2"), ("time", "<f4")])
+    velo["p"], velo["ring"], velo["time"] = xyzi, np.arange(n) % 16, np.linspace(0, 0.1, n)
+    assert ouster.itemsize == 26 and velo.itemsize == 22
+    for kind, rec in (("Ouster", ouster), ("Velodyne", velo)):
+        path = tmp_path / "LiDAR" / kind / "1692248305025943817.bin"
+        path.parent.mkdir(parents=True)
+        path.write_bytes(rec.tobytes())
+        assert sio.detect_format(path) == f"helipr-{kind.lower()}"
+        pts = sio.read_points(path)
+        np.testing.assert_array_equal(pts[:, :4], xyzi)
+        np.testing.assert_array_equal(pts[:, 4 if kind == "Velodyne" else 6], rec["ring"])
+        path.write_bytes(rec.tobytes()[:-5])
+        with pytest.raises(sio.ReadError, match="1692248305025943817.bin"):
+            sio.read_points(path)
+    # KITTI keeps its velodyne/ folder.
+    assert sio.detect_format(tmp_path / "kitti" / "00" / "velodyne" / "000000.bin") == "kitti"
 
 
 def test_clip_fov_reproduces_authors_clipped_samples() -> None:

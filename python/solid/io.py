@@ -11,17 +11,20 @@ Supported formats (``format=`` names in brackets):
 * PLY: ``ascii``, ``binary_little_endian``, ``binary_big_endian`` (``ply``)
 * HeLiPR Aeva Aeries II ``.bin``: packed 29 B records (``helipr-aeva``)
 * HeLiPR Livox Avia ``.bin``: packed 19 B records (``helipr-avia``)
+* HeLiPR Ouster OS2-128 ``.bin``: packed 26 B records, x y z intensity (float32), t (uint32),
+  reflectivity, ring, ambient (uint16) (``helipr-ouster``)
+* HeLiPR Velodyne VLP-16 ``.bin``: packed 22 B records, x y z intensity (float32), ring (uint16),
+  time (float32) (``helipr-velodyne``)
 * NCLT ``velodyne_sync`` ``.bin``: packed 8 B records, uint16 ×3 scaled (``nclt``)
 * numpy ``.npy`` and ``.npz`` (``npy``, ``npz``)
 * ROS 1 bags, ROS 2 bags and MCAP with ``sensor_msgs/PointCloud2`` (``rosbag``; needs the
   optional ``rosbags`` package: ``pip install solid[ros]``), read as a :class:`Sequence`.
 
-HeLiPR's Ouster and Velodyne ``.bin`` layouts are not supported: public descriptions of their
-record layouts disagree (26 B vs 28 B), so reading them would be guesswork. Convert them to
-KITTI ``.bin`` or ``.npy`` first.
+The HeLiPR layouts are those the dataset's own file player reads (field by field, packed).
 
-The reader is chosen from the file extension and, for ``.bin``, from the path (a path that
-mentions ``aeva``, ``avia`` or ``nclt``/``velodyne_sync`` selects that layout; otherwise KITTI);
+The reader is chosen from the file extension and, for ``.bin``, from the file name and its two
+parent folders (one that mentions ``aeva``, ``avia``, ``ouster``, ``LiDAR/Velodyne`` or ``nclt``/``velodyne_sync`` selects that
+layout; otherwise KITTI);
 ``format=`` forces one. Any malformed, truncated or inconsistent file raises :class:`ReadError`
 (a :class:`ValueError`) whose message names the file and what is wrong.
 """
@@ -78,6 +81,8 @@ FORMATS: Final = (
     "ply",
     "helipr-aeva",
     "helipr-avia",
+    "helipr-ouster",
+    "helipr-velodyne",
     "nclt",
     "npy",
     "npz",
@@ -195,8 +200,24 @@ _AVIA = np.dtype(
         ("offset_time", "<u4"),
     ]
 )
+_OUSTER = np.dtype(
+    [
+        ("x", "<f4"),
+        ("y", "<f4"),
+        ("z", "<f4"),
+        ("intensity", "<f4"),
+        ("t", "<u4"),
+        ("reflectivity", "<u2"),
+        ("ring", "<u2"),
+        ("ambient", "<u2"),
+    ]
+)
+_VELODYNE = np.dtype(
+    [("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("intensity", "<f4"), ("ring", "<u2"), ("time", "<f4")]
+)
 _NCLT = np.dtype([("x", "<u2"), ("y", "<u2"), ("z", "<u2"), ("intensity", "u1"), ("laser_id", "u1")])
 assert _AEVA.itemsize == 29 and _AVIA.itemsize == 19 and _NCLT.itemsize == 8
+assert _OUSTER.itemsize == 26 and _VELODYNE.itemsize == 22
 
 
 def _read_kitti(path: PathLike, xyz_only: bool) -> Cloud:
@@ -808,11 +829,18 @@ def detect_format(path: PathLike) -> str:
     if ext in (".bag", ".mcap", ".db3") or (p.is_dir() and (p / "metadata.yaml").exists()):
         return "rosbag"
     if ext == ".bin":
-        s = str(p).lower()
+        # Only the file and its two parent folders decide: where a recording sits (a user's
+        # home, a test's temporary folder) must not.
+        s = "/".join(p.parts[-3:]).lower()
         if "aeva" in s:
             return "helipr-aeva"
         if "avia" in s or "livox" in s:
             return "helipr-avia"
+        # HeLiPR keeps scans in LiDAR/Ouster/ and LiDAR/Velodyne/; KITTI's velodyne/ stays KITTI.
+        if "ouster" in s:
+            return "helipr-ouster"
+        if "lidar/velodyne" in s:
+            return "helipr-velodyne"
         if "nclt" in s or "velodyne_sync" in s or "hdl32e" in s:
             return "nclt"
         return "kitti"
@@ -840,8 +868,10 @@ def read_cloud(path: PathLike, format: str | None = None, *, xyz_only: bool = Fa
         return _read_numpy(path, fmt, xyz_only)
     if fmt == "rosbag":
         raise ReadError(path, "a bag holds many scans: open it with solid.io.Sequence(path)")
-    if fmt in ("helipr-ouster", "helipr-velodyne"):
-        raise ReadError(path, f"format {fmt!r} is not supported (record layout not pinned down; see solid.io)")
+    if fmt == "helipr-ouster":
+        return _read_packed(path, _OUSTER, "HeLiPR Ouster (26 B)", xyz_only)
+    if fmt == "helipr-velodyne":
+        return _read_packed(path, _VELODYNE, "HeLiPR Velodyne (22 B)", xyz_only)
     raise ValueError(f"unknown format {format!r}; one of {', '.join(FORMATS)}")
 
 
