@@ -569,7 +569,7 @@ def cmd_detect(args: argparse.Namespace, out: TextIO) -> int:
             loop = det.add(pts, timestamp=ts)
             if loop is not None:
                 rows.append((int(loop.query), int(loop.candidate), float(loop.distance), float(loop.heading)))
-                bar.set_postfix(loops=len(rows))
+                bar.set_postfix(loops=len(rows), refresh=False)  # shown at the next regular redraw
             bar.update(1)
     dt = time.perf_counter() - t0
     buf = _io.StringIO()
