@@ -97,7 +97,7 @@ fn normalize(v: [f64; 3]) -> [f64; 3] {
 }
 
 /// Slab interval of one axis: returns (t_near, t_far) or None when the ray is parallel and outside.
-fn slab(o: f64, d: f64, lo: f64, hi: f64) -> Option<(f64, f64)> {
+pub(crate) fn slab(o: f64, d: f64, lo: f64, hi: f64) -> Option<(f64, f64)> {
     if d == 0.0 {
         if o < lo || o > hi {
             None

@@ -2,7 +2,7 @@
 //! through a uniform 2-D grid.
 
 use crate::error::{check, SimError};
-use crate::prim::{Hit, Kind, Primitive, Shape};
+use crate::prim::{slab, Hit, Kind, Primitive, Shape};
 use crate::rng::{mix_seed, Rng};
 
 /// Parameters of a procedural world. `World::new` validates them.
@@ -750,10 +750,10 @@ impl World {
         }
         let g = &self.grid;
         let (x1, y1) = (g.x0 + g.nx as f64 * g.cell, g.y0 + g.ny as f64 * g.cell);
-        let Some((tx0, tx1)) = axis_interval(o[0], d[0], g.x0, x1) else {
+        let Some((tx0, tx1)) = slab(o[0], d[0], g.x0, x1) else {
             return best;
         };
-        let Some((ty0, ty1)) = axis_interval(o[1], d[1], g.y0, y1) else {
+        let Some((ty0, ty1)) = slab(o[1], d[1], g.y0, y1) else {
             return best;
         };
         let t_enter = tx0.max(ty0).max(0.0);
@@ -818,20 +818,6 @@ impl World {
             }
         }
         best
-    }
-}
-
-fn axis_interval(o: f64, d: f64, lo: f64, hi: f64) -> Option<(f64, f64)> {
-    if d == 0.0 {
-        if o < lo || o > hi {
-            None
-        } else {
-            Some((f64::NEG_INFINITY, f64::INFINITY))
-        }
-    } else {
-        let a = (lo - o) / d;
-        let b = (hi - o) / d;
-        Some(if a < b { (a, b) } else { (b, a) })
     }
 }
 
