@@ -9,6 +9,7 @@ import numpy as np
 import numpy.typing as npt
 import pytest
 from conftest import data_dir
+from scans import read_kitti
 
 import solid
 from solid import io as sio
@@ -16,7 +17,7 @@ from solid import io as sio
 
 
 def kitti(name: str) -> npt.NDArray[np.float32]:
-    return np.fromfile(data_dir() / "kitti00" / "velodyne" / f"{name}.bin", dtype="<f4").reshape(-1, 4)
+    return read_kitti(data_dir() / "kitti00" / "velodyne" / f"{name}.bin")
 
 
 def synthetic(cfg: solid.SolidConfig, seed: int) -> solid.Descriptor:
