@@ -30,8 +30,8 @@ lint:
 
 rust-test:
 	cargo test --workspace
-	cargo build -p solid-core --no-default-features
-	cargo build -p solid-core --no-default-features --features alloc
+	cargo build -p solid-lidar --no-default-features
+	cargo build -p solid-lidar --no-default-features --features alloc
 
 py-test: wheel
 	$(PY) -m pytest
@@ -45,7 +45,7 @@ typecheck: wheel
 test: lint rust-test py-test typecheck
 
 bench:
-	cargo bench -p solid-benches
+	cargo bench -p solid-lidar-benches
 
 bench-py: wheel
 	$(PY) benches/python_baseline.py

@@ -618,7 +618,7 @@ def _write_bags(tmp_path: Path, clouds: list[npt.NDArray[np.float32]]) -> list[P
 
 
 def test_rosbag_pointcloud2(tmp_path: Path) -> None:
-    pytest.importorskip("rosbags", reason="rosbags is an optional extra: pip install solid[ros]")
+    pytest.importorskip("rosbags", reason="rosbags is an optional extra: pip install solid-lidar[ros]")
     clouds = [cloud(20 + 5 * i, 4, seed=i) for i in range(3)]
     for path in _write_bags(tmp_path, clouds):
         seq = sio.Sequence(path, xyz_only=False)
@@ -647,5 +647,5 @@ def test_rosbag_missing_extra_message(monkeypatch: pytest.MonkeyPatch, tmp_path:
     monkeypatch.setattr(builtins, "__import__", fake_import)
     bag = tmp_path / "x.bag"
     bag.write_bytes(b"#ROSBAG V2.0\n")
-    with pytest.raises(ImportError, match=r"pip install solid\[ros\]"):
+    with pytest.raises(ImportError, match=r"pip install solid-lidar\[ros\]"):
         sio.Sequence(bag)

@@ -2,10 +2,10 @@
 //! 60° clip: each stage alone and the whole pipeline.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use solid_benches::kitti;
-use solid_core::{
+use solid_lidar::{
     cosine_distance, describe, describe_scratch_len, heading_refined, Config, Points,
 };
+use solid_lidar_benches::kitti;
 use std::hint::black_box;
 
 fn bench_describe(c: &mut Criterion) {
@@ -27,13 +27,13 @@ fn bench_describe(c: &mut Criterion) {
         let (mut r, mut a) = (vec![0f32; 40], vec![0f32; 60]);
         g.bench_function("range_filter", |b| {
             b.iter(|| {
-                solid_core::stages::count_in_range(black_box(Points::new(&raw, 4).unwrap()), &cfg)
+                solid_lidar::stages::count_in_range(black_box(Points::new(&raw, 4).unwrap()), &cfg)
             })
         });
         let mut cent = vec![0f64; 3 * n];
         g.bench_function("voxel_downsample", |b| {
             b.iter(|| {
-                solid_core::stages::voxel_downsample(
+                solid_lidar::stages::voxel_downsample(
                     Points::new(black_box(&raw), 4).unwrap(),
                     &cfg,
                     &mut scratch,
@@ -42,7 +42,7 @@ fn bench_describe(c: &mut Criterion) {
                 .unwrap()
             })
         });
-        let (_, m) = solid_core::stages::voxel_downsample(
+        let (_, m) = solid_lidar::stages::voxel_downsample(
             Points::new(&raw, 4).unwrap(),
             &cfg,
             &mut scratch,

@@ -8,12 +8,12 @@
 //! `SOLID_BENCH_QUICK=1` skips the 1M size.
 
 use criterion::{BenchmarkId, Criterion, Throughput};
-use solid_benches::{kitti, shared_dir};
-use solid_core::db::{Database, LoopDetector, Method};
-use solid_core::search::{
+use solid_lidar::db::{Database, LoopDetector, Method};
+use solid_lidar::search::{
     brute_force, normalize_rows, online_insert, Exclude, KdTree, Neighbor, OnlineIndex,
 };
-use solid_core::{Config, Describer, Descriptor, Points};
+use solid_lidar::{Config, Describer, Descriptor, Points};
+use solid_lidar_benches::{kitti, shared_dir};
 use std::hint::black_box;
 use std::time::Instant;
 
@@ -186,7 +186,7 @@ fn index(set: &Set) -> Index {
     let (mut perm, mut splits) = (vec![0u32; n], vec![0u16; n]);
     KdTree::build(&set.rows, DIM, &mut perm, &mut splits).unwrap();
     let (mut op, mut os) = (vec![0u32; n], vec![0u16; n]);
-    solid_core::search::online_rebuild(&set.rows, DIM, &mut op, &mut os).unwrap();
+    solid_lidar::search::online_rebuild(&set.rows, DIM, &mut op, &mut os).unwrap();
     Index {
         perm,
         splits,

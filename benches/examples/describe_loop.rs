@@ -1,10 +1,10 @@
 //! Describes one KITTI frame many times: a fixed workload for `valgrind --tool=callgrind`
 //! (instruction counts are repeatable on a loaded machine, unlike wall-clock time).
 //!
-//! `cargo run --release -p solid-benches --example describe_loop -- [ITERATIONS] [VOXEL]`
+//! `cargo run --release -p solid-lidar-benches --example describe_loop -- [ITERATIONS] [VOXEL]`
 
-use solid_benches::kitti;
-use solid_core::{describe, describe_scratch_len, Config, Points};
+use solid_lidar::{describe, describe_scratch_len, Config, Points};
+use solid_lidar_benches::kitti;
 
 fn main() {
     let mut args = std::env::args().skip(1);

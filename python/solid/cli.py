@@ -63,7 +63,7 @@ examples:
 
 A SEQUENCE is a folder of scans (.bin .pcd .ply .npy .npz, natural order; a velodyne/ or Scans/
 sub-folder is used when present), a ROS 1 bag, a ROS 2 bag folder or an MCAP file
-(pip install solid[ros]). Exit codes: 0 ok, 1 failure, 2 usage error.
+(pip install solid-lidar[ros]). Exit codes: 0 ok, 1 failure, 2 usage error.
 """
 
 
@@ -102,7 +102,7 @@ def build_parser() -> argparse.ArgumentParser:
     try:
         from importlib.metadata import version as _dist_version
 
-        version = _dist_version("solid")
+        version = _dist_version("solid-lidar")
     except Exception:  # not installed as a distribution (e.g. a source checkout)
         version = "unknown"
 

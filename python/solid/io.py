@@ -18,7 +18,7 @@ Supported formats (``format=`` names in brackets):
 * NCLT ``velodyne_sync`` ``.bin``: packed 8 B records, uint16 ×3 scaled (``nclt``)
 * numpy ``.npy`` and ``.npz`` (``npy``, ``npz``)
 * ROS 1 bags, ROS 2 bags and MCAP with ``sensor_msgs/PointCloud2`` (``rosbag``; needs the
-  optional ``rosbags`` package: ``pip install solid[ros]``), read as a :class:`Sequence`.
+  optional ``rosbags`` package: ``pip install solid-lidar[ros]``), read as a :class:`Sequence`.
 
 The HeLiPR layouts are those the dataset's own file player reads (field by field, packed).
 
@@ -91,7 +91,7 @@ FORMATS: Final = (
 #: File extensions a :class:`Sequence` folder scan picks up.
 SCAN_EXTENSIONS: Final = (".bin", ".pcd", ".ply", ".npy", ".npz")
 
-_ROS_HINT: Final = "reading ROS bags and MCAP needs the optional 'rosbags' package: pip install solid[ros]"
+_ROS_HINT: Final = "reading ROS bags and MCAP needs the optional 'rosbags' package: pip install solid-lidar[ros]"
 
 
 class ReadError(ValueError):
@@ -1081,7 +1081,7 @@ class Sequence:
     """A recording: scans in natural order, optional poses and timestamps.
 
     ``path`` is a folder of scans (or a folder holding ``velodyne/`` or ``Scans/``), or a ROS 1 bag,
-    ROS 2 bag folder or MCAP file (needs ``pip install solid[ros]``). ``poses`` and ``timestamps`` are
+    ROS 2 bag folder or MCAP file (needs ``pip install solid-lidar[ros]``). ``poses`` and ``timestamps`` are
     file paths; a relative path that does not exist is also looked up inside the sequence folder.
     ``len(seq)``, ``seq[i]`` (float32 (N, C) points; only x, y, z unless ``xyz_only=False``) and
     iteration work for every kind; bags are read sequentially, so random access into a bag is slow.

@@ -1,7 +1,7 @@
 """A deterministic LiDAR simulator: procedural worlds, sensor models, trajectories, sequences.
 
 The heavy lifting (world generation, exact ray casting through a uniform grid) is the Rust crate
-``solid-sim``; this module is its typed Python face. Everything is seeded: the same seeds give
+``solid-lidar-sim``; this module is its typed Python face. Everything is seeded: the same seeds give
 bit-identical scans on every platform.
 
 >>> from solid import sim

@@ -9,8 +9,8 @@
 //! form for exchanging one place between robots.
 //!
 //! ```
-//! use solid_core::db::{Database, Method};
-//! use solid_core::Config;
+//! use solid_lidar::db::{Database, Method};
+//! use solid_lidar::Config;
 //!
 //! let cfg = Config::preset("hdl64").unwrap();
 //! let mut db = Database::new(cfg).unwrap();

@@ -2,7 +2,7 @@
 
 use core::fmt;
 
-/// Everything that can go wrong in `solid-core`.
+/// Everything that can go wrong in `solid-lidar`.
 ///
 /// Every variant names what was wrong, so that a message can tell the user what to fix.
 #[non_exhaustive]

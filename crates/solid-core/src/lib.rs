@@ -1,4 +1,4 @@
-//! # solid-core
+//! # solid-lidar
 //!
 //! SOLiD (Kim et al., IEEE RA-L 2024): a LiDAR place-recognition descriptor made of two short
 //! vectors per scan, R-SOLiD (range, to recognise a place) and A-SOLiD (azimuth, to estimate the
@@ -11,7 +11,7 @@
 //! IEEE arithmetic, so every build on every platform gives the same bits.
 //!
 //! ```
-//! use solid_core::{describe, describe_scratch_len, Config, Points, Scratch};
+//! use solid_lidar::{describe, describe_scratch_len, Config, Points, Scratch};
 //!
 //! let cfg = Config::preset("hdl64").unwrap();
 //! // Three points, x y z per row (a KITTI N x 4 array would use stride 4).

@@ -22,7 +22,7 @@
 //! recent entries of a loop detector) and only entries not newer than a time.
 //!
 //! ```
-//! use solid_core::search::{brute_force, normalize_rows, Exclude, KdTree, Neighbor};
+//! use solid_lidar::search::{brute_force, normalize_rows, Exclude, KdTree, Neighbor};
 //!
 //! let raw = [1.0f32, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0, 0.0];
 //! let dim = 2;

@@ -2,11 +2,11 @@
 #![cfg(feature = "std")]
 
 use proptest::prelude::*;
-use solid_core::db::{
+use solid_lidar::db::{
     decode_place, encode_place, Database, DbError, LoopDetector, Method, SearchOptions,
 };
-use solid_core::search::Neighbor;
-use solid_core::{Config, Descriptor, Stats};
+use solid_lidar::search::Neighbor;
+use solid_lidar::{Config, Descriptor, Stats};
 
 fn cfg() -> Config {
     Config::preset("hdl64").unwrap()
@@ -292,7 +292,7 @@ fn wire_form_round_trips() {
     assert!(q.len() <= 200, "{}", q.len());
     let p = decode_place(&q).unwrap();
     assert!(p.quantized);
-    let err = solid_core::cosine_distance(&p.r, &d.r).unwrap();
+    let err = solid_lidar::cosine_distance(&p.r, &d.r).unwrap();
     assert!(err < 1e-3, "quantisation moved the descriptor by {err}");
     for bytes in [&f, &q] {
         for i in 0..bytes.len() {

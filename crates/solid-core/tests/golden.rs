@@ -2,7 +2,7 @@
 
 mod common;
 
-use solid_core::{Config, Describer, Points};
+use solid_lidar::{Config, Describer, Points};
 
 fn vecf(v: &serde_json::Value) -> Vec<f64> {
     v.as_array()
@@ -115,32 +115,32 @@ fn dispatched_and_portable_describe_give_the_same_bits() {
             voxel_size: voxel,
             ..preset
         };
-        let mut scratch = vec![0u64; solid_core::describe_scratch_len(xyz.len() / 3, &cfg)];
+        let mut scratch = vec![0u64; solid_lidar::describe_scratch_len(xyz.len() / 3, &cfg)];
         let run = |portable: bool, scratch: &mut [u64], wide: bool| {
             let (mut r, mut a) = (vec![0f32; cfg.n_range], vec![0f32; cfg.n_azimuth]);
             let stats = match (portable, wide) {
-                (true, true) => solid_core::stages::describe_portable(
+                (true, true) => solid_lidar::stages::describe_portable(
                     Points::new(&xyz, 3).unwrap(),
                     &cfg,
                     scratch,
                     &mut r,
                     &mut a,
                 ),
-                (false, true) => solid_core::describe(
+                (false, true) => solid_lidar::describe(
                     Points::new(&xyz, 3).unwrap(),
                     &cfg,
                     scratch,
                     &mut r,
                     &mut a,
                 ),
-                (true, false) => solid_core::stages::describe_portable(
+                (true, false) => solid_lidar::stages::describe_portable(
                     Points::new(&f32s, 3).unwrap(),
                     &cfg,
                     scratch,
                     &mut r,
                     &mut a,
                 ),
-                (false, false) => solid_core::describe(
+                (false, false) => solid_lidar::describe(
                     Points::new(&f32s, 3).unwrap(),
                     &cfg,
                     scratch,

@@ -1,7 +1,7 @@
 //! Loop closure on the HKU Livox Avia sequence (SPEC §5): Recall@1 of the loop detector with and
 //! without A-SOLiD re-ranking, and with places sent in the quantised wire form.
 //!
-//! Prints its figures (`cargo test -p solid-core --test loop_eval -- --nocapture`) and asserts
+//! Prints its figures (`cargo test -p solid-lidar --test loop_eval -- --nocapture`) and asserts
 //! the properties the library relies on: the detector equals plain exact search when it does not
 //! re-rank, and the quantised wire form keeps Recall@1 within 2 points of float32.
 #![cfg(feature = "std")]
@@ -9,8 +9,8 @@
 mod common;
 use common::{data_dir, read_xyz_f32};
 
-use solid_core::db::{decode_place, encode_place, LoopDetector};
-use solid_core::{Config, Describer, Descriptor, Points};
+use solid_lidar::db::{decode_place, encode_place, LoopDetector};
+use solid_lidar::{Config, Describer, Descriptor, Points};
 
 struct Sequence {
     descriptors: Vec<Descriptor>,

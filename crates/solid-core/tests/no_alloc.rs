@@ -3,7 +3,7 @@
 
 mod common;
 
-use solid_core::{
+use solid_lidar::{
     cosine_distance, describe, describe_scratch_len, heading, heading_refined, Config, Points,
 };
 

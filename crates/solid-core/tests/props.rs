@@ -1,7 +1,7 @@
 //! Property tests of the descriptor's invariants (SPEC §2).
 
 use proptest::prelude::*;
-use solid_core::{Config, Describer, Descriptor, Points};
+use solid_lidar::{Config, Describer, Descriptor, Points};
 
 fn cfg(voxel: f64) -> Config {
     Config {

@@ -2,7 +2,7 @@
 
 mod common;
 
-use solid_core::{Config, Describer, Points};
+use solid_lidar::{Config, Describer, Points};
 
 #[test]
 fn rotated_kitti_scan_gives_the_rotation_as_heading() {

@@ -3,7 +3,7 @@
 
 mod common;
 
-use solid_core::search::{
+use solid_lidar::search::{
     brute_force, normalize_rows, online_insert, online_rebuild, Exclude, KdTree, Neighbor,
     OnlineIndex,
 };

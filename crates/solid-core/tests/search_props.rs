@@ -6,11 +6,11 @@ mod common;
 use common::{data_dir, read_xyz_f32};
 
 use proptest::prelude::*;
-use solid_core::search::{
+use solid_lidar::search::{
     brute_force, normalize, normalize_rows, normalized_distance, online_insert, online_rebuild,
     Exclude, KdTree, Neighbor, OnlineIndex,
 };
-use solid_core::{cosine_distance, Config, Describer, Points};
+use solid_lidar::{cosine_distance, Config, Describer, Points};
 
 /// R-SOLiD of every HKU scan (every `step`-th), described with the core.
 fn hku_r(step: usize) -> Option<(Vec<f32>, usize)> {

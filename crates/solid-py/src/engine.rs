@@ -1,6 +1,6 @@
 //! Bindings of the place-recognition engine: `Database`, `Match`, `LoopDetector`, `Loop` and the
 //! wire form of one place. Argument checks, GIL release and error mapping only; the algorithms
-//! live in `solid_core::db` and `solid_core::search`.
+//! live in `solid_lidar::db` and `solid_lidar::search`.
 
 use std::path::PathBuf;
 
@@ -12,8 +12,8 @@ use pyo3::exceptions::{
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
 use pyo3::types::{PyBytes, PyType};
-use solid_core::db::{self, Database, DbError, LoopDetector, Method, SearchOptions};
-use solid_core::{Descriptor, Stats};
+use solid_lidar::db::{self, Database, DbError, LoopDetector, Method, SearchOptions};
+use solid_lidar::{Descriptor, Stats};
 
 use crate::{PyConfig, PyDescriptor};
 
@@ -166,7 +166,7 @@ pub struct PyDatabase {
     inner: Database,
 }
 
-fn to_matches(v: Vec<solid_core::search::Neighbor>) -> Vec<PyMatch> {
+fn to_matches(v: Vec<solid_lidar::search::Neighbor>) -> Vec<PyMatch> {
     v.into_iter()
         .map(|n| PyMatch {
             id: n.id,

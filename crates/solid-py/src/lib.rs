@@ -1,4 +1,4 @@
-//! Python bindings of `solid-core`: argument checks, GIL release and error mapping only; the
+//! Python bindings of `solid-lidar`: argument checks, GIL release and error mapping only; the
 //! algorithm lives in the core crate.
 
 use std::cell::RefCell;
@@ -9,7 +9,7 @@ use pyo3::create_exception;
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
-use solid_core::{Config, Describer, Descriptor, Error, Points, Stats, PRESETS};
+use solid_lidar::{Config, Describer, Descriptor, Error, Points, Stats, PRESETS};
 
 mod engine;
 mod sim;

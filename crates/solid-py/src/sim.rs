@@ -1,10 +1,10 @@
-//! Bindings of the LiDAR simulator (`solid-sim`), exposed as private `_sim_*` functions and
+//! Bindings of the LiDAR simulator (`solid-lidar-sim`), exposed as private `_sim_*` functions and
 //! `_SimWorld` / `_SimSensor` classes; the typed API is `solid.sim` (python/solid/sim.py).
 
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyOSError, PyValueError};
 use pyo3::prelude::*;
-use solid_sim::{Pose, RouteOptions, Sensor, SimError, Trajectory, World, WorldConfig};
+use solid_lidar_sim::{Pose, RouteOptions, Sensor, SimError, Trajectory, World, WorldConfig};
 use std::path::PathBuf;
 
 fn sim_err(e: SimError) -> PyErr {
@@ -137,7 +137,7 @@ impl PySimSensor {
     #[getter]
     fn vertical_fov(&self) -> (f64, f64) {
         match &self.inner.pattern {
-            solid_sim::Pattern::Spinning { elevations_deg, .. } => {
+            solid_lidar_sim::Pattern::Spinning { elevations_deg, .. } => {
                 let lo = elevations_deg.iter().copied().fold(f64::INFINITY, f64::min);
                 let hi = elevations_deg
                     .iter()
@@ -145,7 +145,7 @@ impl PySimSensor {
                     .fold(f64::NEG_INFINITY, f64::max);
                 (lo, hi)
             }
-            solid_sim::Pattern::Rosette {
+            solid_lidar_sim::Pattern::Rosette {
                 half_height_deg, ..
             } => (-half_height_deg, *half_height_deg),
         }
@@ -154,8 +154,8 @@ impl PySimSensor {
     #[getter]
     fn channels(&self) -> usize {
         match &self.inner.pattern {
-            solid_sim::Pattern::Spinning { elevations_deg, .. } => elevations_deg.len(),
-            solid_sim::Pattern::Rosette { emitters, .. } => *emitters,
+            solid_lidar_sim::Pattern::Spinning { elevations_deg, .. } => elevations_deg.len(),
+            solid_lidar_sim::Pattern::Rosette { emitters, .. } => *emitters,
         }
     }
     /// Rays fired in frame `frame` (after the horizontal window).
@@ -230,8 +230,8 @@ fn _sim_sensor(
     s.noise_seed = seed;
     if let Some(n) = points {
         match &mut s.pattern {
-            solid_sim::Pattern::Rosette { points, .. } => *points = n,
-            solid_sim::Pattern::Spinning { .. } => {
+            solid_lidar_sim::Pattern::Rosette { points, .. } => *points = n,
+            solid_lidar_sim::Pattern::Spinning { .. } => {
                 return Err(PyValueError::new_err(
                     "points applies to the rosette (avia) sensor only",
                 ))
@@ -413,7 +413,7 @@ fn _sim_write_sequence<'py>(
         times,
     };
     let (w, s) = (world.get(), sensor.get());
-    py.detach(|| solid_sim::write_sequence(&directory, &w.inner, &s.inner, &traj, |_, _| {}))
+    py.detach(|| solid_lidar_sim::write_sequence(&directory, &w.inner, &s.inner, &traj, |_, _| {}))
         .map_err(sim_err)
 }
 
@@ -444,7 +444,7 @@ fn _sim_write_scans<'py>(
                 .collect(),
         );
     }
-    py.detach(|| solid_sim::write_scans(&directory, &owned, &poses, &times))
+    py.detach(|| solid_lidar_sim::write_scans(&directory, &owned, &poses, &times))
         .map_err(sim_err)
 }
 

@@ -1,7 +1,7 @@
 //! Scan simulation time per sensor model, with a brute-force baseline (every primitive tested)
 //! measured in the same run on a subsample of the rays.
 use criterion::{criterion_group, criterion_main, Criterion};
-use solid_sim::{Sensor, Trajectory, World, WorldConfig, SENSOR_PRESETS};
+use solid_lidar_sim::{Sensor, Trajectory, World, WorldConfig, SENSOR_PRESETS};
 use std::hint::black_box;
 use std::time::Instant;
 

@@ -1,7 +1,7 @@
 //! Prints the time to simulate one frame per sensor preset (median of repeated runs, one core).
 //!
-//! `cargo run --release -p solid-sim --example scan_time`
-use solid_sim::{Sensor, Trajectory, World, WorldConfig, SENSOR_PRESETS};
+//! `cargo run --release -p solid-lidar-sim --example scan_time`
+use solid_lidar_sim::{Sensor, Trajectory, World, WorldConfig, SENSOR_PRESETS};
 use std::time::Instant;
 
 fn main() {

@@ -118,7 +118,7 @@ mod tests {
 
     #[test]
     fn writes_kitti_layout() {
-        let dir = std::env::temp_dir().join(format!("solid-sim-io-{}", std::process::id()));
+        let dir = std::env::temp_dir().join(format!("solid-lidar-sim-io-{}", std::process::id()));
         let _ = fs::remove_dir_all(&dir);
         let world = World::new(WorldConfig {
             blocks: 2,

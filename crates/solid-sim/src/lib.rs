@@ -1,4 +1,4 @@
-//! # solid-sim
+//! # solid-lidar-sim
 //!
 //! A deterministic LiDAR simulator for testing the SOLiD place-recognition descriptor: a seeded
 //! procedural city (ground with a gentle slope, a road grid, buildings, poles, trees, parked cars,
@@ -11,7 +11,7 @@
 //! through `libm`, so a seed gives the same bits on every platform.
 //!
 //! ```
-//! use solid_sim::{Pose, Sensor, Trajectory, World, WorldConfig};
+//! use solid_lidar_sim::{Pose, Sensor, Trajectory, World, WorldConfig};
 //!
 //! let world = World::new(WorldConfig { seed: 7, blocks: 2, ..WorldConfig::default() }).unwrap();
 //! let sensor = Sensor::preset("vlp16").unwrap();
