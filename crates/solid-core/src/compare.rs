@@ -49,25 +49,47 @@ pub struct Heading {
     pub degrees: f64,
 }
 
-/// `cost[s] = Σⱼ (q[j] − c[(j − s) mod n])²`.
-fn shift_cost(q: &[f32], c: &[f32], s: usize) -> f64 {
+/// `Σⱼ f(q[j], c[(j − s) mod n])` in `f64`: the crate's one circular-shift kernel (shift costs,
+/// aligned correlations). `q` and `c` have the same length `n` and `s < n`.
+#[inline]
+pub(crate) fn circular_sum(q: &[f32], c: &[f32], s: usize, f: impl Fn(f64, f64) -> f64) -> f64 {
     let n = q.len();
-    let sq = |a: f32, b: f32| {
-        let d = f64::from(a) - f64::from(b);
-        d * d
-    };
     // j in s..n reads c[j - s]; j in 0..s reads c[j + n - s].
     let head: f64 = q[s..]
         .iter()
         .zip(&c[..n - s])
-        .map(|(&a, &b)| sq(a, b))
+        .map(|(&a, &b)| f(f64::from(a), f64::from(b)))
         .sum();
     let tail: f64 = q[..s]
         .iter()
         .zip(&c[n - s..])
-        .map(|(&a, &b)| sq(a, b))
+        .map(|(&a, &b)| f(f64::from(a), f64::from(b)))
         .sum();
     head + tail
+}
+
+/// `cost[s] = Σⱼ (q[j] − c[(j − s) mod n])²` (SPEC §3).
+fn shift_cost(q: &[f32], c: &[f32], s: usize) -> f64 {
+    circular_sum(q, c, s, |a, b| (a - b) * (a - b))
+}
+
+/// Cosine distance between `q` and `c` circularly shifted by the shift that aligns them best
+/// (the largest correlation `Σⱼ q[j]·c[(j − s) mod n]` over all shifts), in `[0, 1]`; 1 when
+/// either vector is all zero. The loop detector re-ranks candidates with it.
+///
+/// # Errors
+/// [`Error::LengthMismatch`] when the lengths differ, [`Error::Empty`] when both are empty.
+pub fn aligned_distance(q: &[f32], c: &[f32]) -> Result<f64, Error> {
+    same_len("a_solid", q, c)?;
+    let norm2 = |v: &[f32]| -> f64 { v.iter().map(|&x| f64::from(x) * f64::from(x)).sum() };
+    let (nq, nc) = (norm2(q), norm2(c));
+    if nq == 0.0 || nc == 0.0 {
+        return Ok(1.0);
+    }
+    let best = (0..q.len())
+        .map(|s| circular_sum(q, c, s, |a, b| a * b))
+        .fold(f64::NEG_INFINITY, f64::max);
+    Ok((1.0 - best / sqrt(nq * nc)).clamp(0.0, 1.0))
 }
 
 fn wrap_degrees(mut d: f64) -> f64 {

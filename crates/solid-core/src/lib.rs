@@ -46,7 +46,7 @@ mod owned;
 #[doc = include_str!("../../../README.md")]
 pub struct ReadmeDoctests;
 
-pub use compare::{cosine_distance, heading, heading_refined, Heading};
+pub use compare::{aligned_distance, cosine_distance, heading, heading_refined, Heading};
 pub use config::{Config, Preset, MAX_VOXELS_PER_AXIS, PRESETS};
 pub use describe::{describe, describe_scratch_len, stages, Coord, Points, Scratch, Stats};
 pub use error::Error;
