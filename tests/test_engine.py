@@ -193,3 +193,63 @@ def test_wire_form(cfg: solid.SolidConfig) -> None:
     broken[20] ^= 1
     with pytest.raises(solid.DatabaseError, match="checksum"):
         solid.decode_place(bytes(broken), cfg)
+
+
+def test_database_and_detector_are_safe_to_share_between_threads(cfg: solid.SolidConfig) -> None:
+    """Issue 10, item 1: searches during adds, adds from several threads and merges during adds.
+
+    On the old main these raised ``RuntimeError: Already mutably borrowed``, lost scans and raised
+    pyo3's ``PanicException`` (not an ``Exception``), which the ``BaseException`` catch below records.
+    """
+    import threading
+
+    descs = [synthetic(cfg, s) for s in range(40)]
+    db = solid.Database(cfg)
+    det = solid.LoopDetector(cfg, exclude_recent=0, threshold=1.0)
+    other = solid.Database(cfg)
+    for d in descs[:10]:
+        other.add(d)
+    errors: list[BaseException] = []
+    adds_per_thread = 60
+
+    def adder(tid: int) -> None:
+        try:
+            for i in range(adds_per_thread):
+                d = descs[(tid * 7 + i) % len(descs)]
+                db.add(d, session=tid)
+                det.add(d)
+        except BaseException as e:  # noqa: BLE001 - PanicException derives from BaseException
+            errors.append(e)
+
+    def searcher() -> None:
+        try:
+            for i in range(200):
+                db.search(descs[i % len(descs)], k=3)
+                det.query(descs[i % len(descs)])
+                len(det)
+        except BaseException as e:  # noqa: BLE001
+            errors.append(e)
+
+    def merger() -> None:
+        try:
+            for _ in range(5):
+                db.merge(other)
+        except BaseException as e:  # noqa: BLE001
+            errors.append(e)
+
+    threads = [threading.Thread(target=adder, args=(t,)) for t in range(4)]
+    threads += [threading.Thread(target=searcher) for _ in range(2)]
+    threads.append(threading.Thread(target=merger))
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert errors == []
+    assert len(db) == 4 * adds_per_thread + 5 * len(other)
+    assert len(det) == 4 * adds_per_thread  # no scan lost
+    # Session 0 also holds the merged entries (added without a session).
+    assert list(np.bincount(db.sessions)) == [adds_per_thread + 5 * len(other)] + [adds_per_thread] * 3
+    # A self-merge doubles the database and does not deadlock.
+    n = len(db)
+    db.merge(db)
+    assert len(db) == 2 * n

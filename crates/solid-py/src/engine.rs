@@ -3,6 +3,7 @@
 //! live in `solid_lidar::db` and `solid_lidar::search`.
 
 use std::path::PathBuf;
+use std::sync::{PoisonError, RwLock, RwLockReadGuard, RwLockWriteGuard};
 
 use numpy::ndarray::{Array1, Array2, Array3};
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3};
@@ -13,7 +14,7 @@ use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
 use pyo3::types::{PyBytes, PyType};
 use solid_lidar::db::{self, Database, DbError, LoopDetector, Method, SearchOptions};
-use solid_lidar::{Descriptor, Stats};
+use solid_lidar::{Config, Descriptor, Stats};
 
 use crate::{PyConfig, PyDescriptor};
 
@@ -160,10 +161,48 @@ impl From<db::Loop> for PyLoop {
     }
 }
 
+/// Shared read access (searches run in parallel). Callers take it with the GIL released, so a
+/// thread waiting for a writer never blocks Python. No code panics while holding a lock; should
+/// one ever be poisoned, the data is still consistent (every update is applied whole or not at
+/// all), so the guard is recovered rather than turned into a panic.
+fn read<T>(l: &RwLock<T>) -> RwLockReadGuard<'_, T> {
+    l.read().unwrap_or_else(PoisonError::into_inner)
+}
+
+/// Exclusive access (adds, merges); see [`read`].
+fn write<T>(l: &RwLock<T>) -> RwLockWriteGuard<'_, T> {
+    l.write().unwrap_or_else(PoisonError::into_inner)
+}
+
 /// A database of places: exact search at every size, merge, save and load.
-#[pyclass(name = "Database", module = "solid")]
+///
+/// Safe to share between threads: searches run in parallel, an add or a merge waits for them
+/// and runs alone; every wait happens with the GIL released.
+#[pyclass(name = "Database", module = "solid", frozen)]
 pub struct PyDatabase {
-    inner: Database,
+    inner: RwLock<Database>,
+}
+
+impl PyDatabase {
+    fn wrap(inner: Database) -> Self {
+        PyDatabase {
+            inner: RwLock::new(inner),
+        }
+    }
+
+    /// `f` of the database under the read lock, taken with the GIL released.
+    fn with<R: Send>(&self, py: Python<'_>, f: impl FnOnce(&Database) -> R + Send) -> R {
+        py.detach(|| f(&read(&self.inner)))
+    }
+
+    /// A copy of the database (under the read lock, with the GIL released).
+    pub(crate) fn snapshot(&self, py: Python<'_>) -> Database {
+        self.with(py, Database::clone)
+    }
+
+    fn fingerprint(&self, py: Python<'_>) -> u64 {
+        self.with(py, |db| db.config().fingerprint())
+    }
 }
 
 fn to_matches(v: Vec<solid_lidar::search::Neighbor>) -> Vec<PyMatch> {
@@ -180,13 +219,13 @@ impl PyDatabase {
     #[new]
     fn new(py: Python<'_>, cfg: PyRef<'_, PyConfig>) -> PyResult<Self> {
         let inner = Database::new(cfg.inner).map_err(|e| db_err(py, e))?;
-        Ok(PyDatabase { inner })
+        Ok(PyDatabase::wrap(inner))
     }
 
     /// Adds a descriptor; returns its id.
     #[pyo3(signature = (descriptor, session=0, timestamp=None, pose=None))]
     fn add(
-        &mut self,
+        &self,
         py: Python<'_>,
         descriptor: PyRef<'_, PyDescriptor>,
         session: u32,
@@ -195,8 +234,7 @@ impl PyDatabase {
     ) -> PyResult<u32> {
         let pose = parse_pose(pose)?;
         let d = &descriptor.inner;
-        let inner = &mut self.inner;
-        py.detach(|| inner.add(d, session, self::timestamp(timestamp), pose))
+        py.detach(|| write(&self.inner).add(d, session, self::timestamp(timestamp), pose))
             .map_err(|e| db_err(py, e))
     }
 
@@ -212,41 +250,47 @@ impl PyDatabase {
         not_newer_than: Option<f64>,
     ) -> PyResult<Vec<PyMatch>> {
         let method = parse_method(method)?;
-        let r = query_r(descriptor, self.inner.config().fingerprint())?;
+        let r = query_r(descriptor, self.fingerprint(py))?;
         let opts = SearchOptions {
             k,
             exclude_recent,
             not_newer_than,
             method,
         };
-        let inner = &self.inner;
         let found = py
-            .detach(|| inner.search_with(&r, &opts))
+            .detach(|| read(&self.inner).search_with(&r, &opts))
             .map_err(|e| db_err(py, e))?;
         Ok(to_matches(found))
     }
 
     /// Appends every entry of `other` (same config required).
-    fn merge(slf: &Bound<'_, Self>, other: &Bound<'_, PyDatabase>) -> PyResult<()> {
-        let py = slf.py();
-        if slf.is(other) {
-            let copy = other.borrow().inner.clone();
-            return slf
-                .borrow_mut()
-                .inner
-                .merge(&copy)
+    fn merge(&self, py: Python<'_>, other: &PyDatabase) -> PyResult<()> {
+        if std::ptr::eq(self, other) {
+            let copy = self.snapshot(py);
+            return py
+                .detach(|| write(&self.inner).merge(&copy))
                 .map_err(|e| db_err(py, e));
         }
-        let other = other.borrow();
-        let mut me = slf.borrow_mut();
-        let (dst, src) = (&mut me.inner, &other.inner);
-        py.detach(|| dst.merge(src)).map_err(|e| db_err(py, e))
+        // Both locks in one global order (by address), so that a.merge(b) and b.merge(a) running
+        // at the same time cannot deadlock.
+        py.detach(|| {
+            if (self as *const Self) < (other as *const Self) {
+                let mut dst = write(&self.inner);
+                let src = read(&other.inner);
+                dst.merge(&src)
+            } else {
+                let src = read(&other.inner);
+                let mut dst = write(&self.inner);
+                dst.merge(&src)
+            }
+        })
+        .map_err(|e| db_err(py, e))
     }
 
     /// Saves atomically (temporary file in the same directory, then rename).
     fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
-        let inner = &self.inner;
-        py.detach(|| inner.save(&path)).map_err(|e| db_err(py, e))
+        py.detach(|| read(&self.inner).save(&path))
+            .map_err(|e| db_err(py, e))
     }
 
     /// Loads a database saved by `save`.
@@ -255,13 +299,12 @@ impl PyDatabase {
         let inner = py
             .detach(|| Database::load(&path))
             .map_err(|e| db_err(py, e))?;
-        Ok(PyDatabase { inner })
+        Ok(PyDatabase::wrap(inner))
     }
 
     /// The database in the file format, as bytes.
     fn to_bytes<'py>(&self, py: Python<'py>) -> Bound<'py, PyBytes> {
-        let inner = &self.inner;
-        let b = py.detach(|| inner.to_bytes());
+        let b = py.detach(|| read(&self.inner).to_bytes());
         PyBytes::new(py, &b)
     }
 
@@ -271,97 +314,116 @@ impl PyDatabase {
         let inner = py
             .detach(|| Database::from_bytes(data))
             .map_err(|e| db_err(py, e))?;
-        Ok(PyDatabase { inner })
+        Ok(PyDatabase::wrap(inner))
     }
 
-    fn __len__(&self) -> usize {
-        self.inner.len()
+    fn __len__(&self, py: Python<'_>) -> usize {
+        self.with(py, Database::len)
     }
 
-    fn __repr__(&self) -> String {
+    fn __repr__(&self, py: Python<'_>) -> String {
+        let (n, cfg) = self.with(py, |db| (db.len(), *db.config()));
         format!(
-            "Database(len={}, n_range={}, n_azimuth={})",
-            self.inner.len(),
-            self.inner.config().n_range,
-            self.inner.config().n_azimuth
+            "Database(len={n}, n_range={}, n_azimuth={})",
+            cfg.n_range, cfg.n_azimuth
         )
     }
 
     /// The configuration.
     #[getter]
-    fn config(&self) -> PyConfig {
-        PyConfig::new_unchecked(*self.inner.config())
+    fn config(&self, py: Python<'_>) -> PyConfig {
+        PyConfig::new_unchecked(self.with(py, |db| *db.config()))
     }
 
     /// All R-SOLiDs, shape (N, n_range), float32 (a copy).
     #[getter]
     fn r<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
-        let shape = (self.inner.len(), self.inner.config().n_range);
-        let a = Array2::from_shape_vec(shape, self.inner.r_all().to_vec())
-            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        let (shape, v) = self.with(py, |db| {
+            ((db.len(), db.config().n_range), db.r_all().to_vec())
+        });
+        let a =
+            Array2::from_shape_vec(shape, v).map_err(|e| PyValueError::new_err(e.to_string()))?;
         Ok(a.into_pyarray(py))
     }
 
     /// All A-SOLiDs, shape (N, n_azimuth), float32 (a copy).
     #[getter]
     fn a<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
-        let shape = (self.inner.len(), self.inner.config().n_azimuth);
-        let a = Array2::from_shape_vec(shape, self.inner.a_all().to_vec())
-            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        let (shape, v) = self.with(py, |db| {
+            ((db.len(), db.config().n_azimuth), db.a_all().to_vec())
+        });
+        let a =
+            Array2::from_shape_vec(shape, v).map_err(|e| PyValueError::new_err(e.to_string()))?;
         Ok(a.into_pyarray(py))
     }
 
     /// Entry ids, 0..N, int64.
     #[getter]
     fn ids<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<i64>> {
-        Array1::from_iter(0..self.inner.len() as i64).into_pyarray(py)
+        Array1::from_iter(0..self.with(py, Database::len) as i64).into_pyarray(py)
     }
 
     /// Sessions, uint32.
     #[getter]
     fn sessions<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<u32>> {
-        PyArray1::from_slice(py, self.inner.sessions())
+        self.with(py, |db| db.sessions().to_vec()).into_pyarray(py)
     }
 
     /// Timestamps, float64 (NaN where none was given).
     #[getter]
     fn timestamps<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
-        PyArray1::from_slice(py, self.inner.timestamps())
+        self.with(py, |db| db.timestamps().to_vec())
+            .into_pyarray(py)
     }
 
     /// Poses, shape (N, 3, 4), float64 (all NaN where none was given).
     #[getter]
     fn poses<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray3<f64>>> {
-        let flat: Vec<f64> = self
-            .inner
-            .poses()
-            .iter()
-            .flat_map(|p| p.unwrap_or([f64::NAN; 12]))
-            .collect();
-        let a = Array3::from_shape_vec((self.inner.len(), 3, 4), flat)
+        let (n, flat) = self.with(py, |db| {
+            let flat: Vec<f64> = db
+                .poses()
+                .iter()
+                .flat_map(|p| p.unwrap_or([f64::NAN; 12]))
+                .collect();
+            (db.len(), flat)
+        });
+        let a = Array3::from_shape_vec((n, 3, 4), flat)
             .map_err(|e| PyValueError::new_err(e.to_string()))?;
         Ok(a.into_pyarray(py))
     }
 }
 
 /// An online loop-closure detector.
-#[pyclass(name = "LoopDetector", module = "solid")]
+///
+/// Safe to share between threads: `add` (search then insert) runs alone, as one step, so no scan
+/// is lost or searched against a half-added entry; `query` and the getters run in parallel.
+#[pyclass(name = "LoopDetector", module = "solid", frozen)]
 pub struct PyLoopDetector {
-    inner: LoopDetector,
+    /// The descriptor configuration (fixed for the detector's life).
+    cfg: Config,
+    inner: RwLock<LoopDetector>,
 }
 
 impl PyLoopDetector {
+    fn wrap(inner: LoopDetector) -> Self {
+        PyLoopDetector {
+            cfg: *inner.database().config(),
+            inner: RwLock::new(inner),
+        }
+    }
+
+    /// `f` of the detector under the read lock, taken with the GIL released.
+    fn with<R: Send>(&self, py: Python<'_>, f: impl FnOnce(&LoopDetector) -> R + Send) -> R {
+        py.detach(|| f(&read(&self.inner)))
+    }
+
     fn descriptor(&self, py: Python<'_>, x: &Bound<'_, PyAny>) -> PyResult<Descriptor> {
         if let Ok(d) = x.cast::<PyDescriptor>() {
             let d = d.borrow();
-            check_fingerprint(
-                py,
-                d.inner.fingerprint,
-                self.inner.database().config().fingerprint(),
-            )?;
+            check_fingerprint(py, d.inner.fingerprint, self.cfg.fingerprint())?;
             return Ok(d.inner.clone());
         }
-        crate::describe_points(py, x, self.inner.database().config())
+        crate::describe_points(py, x, &self.cfg)
     }
 }
 
@@ -380,14 +442,15 @@ impl PyLoopDetector {
         let mut inner = LoopDetector::new(cfg.inner, exclude_recent, threshold, top_k)
             .map_err(|e| db_err(py, e))?;
         inner.rerank = rerank;
-        Ok(PyLoopDetector { inner })
+        Ok(PyLoopDetector::wrap(inner))
     }
 
     /// A detector over a copy of an existing database (a prior map).
     #[staticmethod]
     #[pyo3(signature = (database, exclude_recent=50, threshold=0.1, top_k=10, rerank=true))]
     fn from_database(
-        database: PyRef<'_, PyDatabase>,
+        py: Python<'_>,
+        database: &PyDatabase,
         exclude_recent: usize,
         threshold: f64,
         top_k: usize,
@@ -399,23 +462,22 @@ impl PyLoopDetector {
             ));
         }
         let mut inner =
-            LoopDetector::with_database(database.inner.clone(), exclude_recent, threshold, top_k);
+            LoopDetector::with_database(database.snapshot(py), exclude_recent, threshold, top_k);
         inner.rerank = rerank;
-        Ok(PyLoopDetector { inner })
+        Ok(PyLoopDetector::wrap(inner))
     }
 
     /// Searches the scan (points or a Descriptor) against the past scans, then adds it.
     #[pyo3(signature = (points_or_descriptor, timestamp=None))]
     fn add(
-        &mut self,
+        &self,
         py: Python<'_>,
         points_or_descriptor: &Bound<'_, PyAny>,
         timestamp: Option<f64>,
     ) -> PyResult<Option<PyLoop>> {
         let d = self.descriptor(py, points_or_descriptor)?;
-        let inner = &mut self.inner;
         let found = py
-            .detach(|| inner.add(&d, self::timestamp(timestamp)))
+            .detach(|| write(&self.inner).add(&d, self::timestamp(timestamp)))
             .map_err(|e| db_err(py, e))?;
         Ok(found.map(PyLoop::from))
     }
@@ -427,45 +489,44 @@ impl PyLoopDetector {
         points_or_descriptor: &Bound<'_, PyAny>,
     ) -> PyResult<Option<PyLoop>> {
         let d = self.descriptor(py, points_or_descriptor)?;
-        let inner = &self.inner;
-        let found = py.detach(|| inner.query(&d)).map_err(|e| db_err(py, e))?;
+        let found = self
+            .with(py, |det| det.query(&d))
+            .map_err(|e| db_err(py, e))?;
         Ok(found.map(PyLoop::from))
     }
 
-    fn __len__(&self) -> usize {
-        self.inner.database().len()
+    fn __len__(&self, py: Python<'_>) -> usize {
+        self.with(py, |det| det.database().len())
     }
 
     /// A copy of the detector's database.
     #[getter]
-    fn database(&self) -> PyDatabase {
-        PyDatabase {
-            inner: self.inner.database().clone(),
-        }
+    fn database(&self, py: Python<'_>) -> PyDatabase {
+        PyDatabase::wrap(self.with(py, |det| det.database().clone()))
     }
 
     /// Entries skipped as too recent.
     #[getter]
-    fn exclude_recent(&self) -> usize {
-        self.inner.exclude_recent
+    fn exclude_recent(&self, py: Python<'_>) -> usize {
+        self.with(py, |det| det.exclude_recent)
     }
 
     /// Largest accepted distance.
     #[getter]
-    fn threshold(&self) -> f64 {
-        self.inner.threshold
+    fn threshold(&self, py: Python<'_>) -> f64 {
+        self.with(py, |det| det.threshold)
     }
 
     /// Candidates re-ranked by A-SOLiD alignment.
     #[getter]
-    fn top_k(&self) -> usize {
-        self.inner.top_k
+    fn top_k(&self, py: Python<'_>) -> usize {
+        self.with(py, |det| det.top_k)
     }
 
     /// Whether re-ranking is on.
     #[getter]
-    fn rerank(&self) -> bool {
-        self.inner.rerank
+    fn rerank(&self, py: Python<'_>) -> bool {
+        self.with(py, |det| det.rerank)
     }
 }
 
