@@ -1,12 +1,14 @@
-"""The ``solid`` command line, end to end on the shared data."""
+"""The ``solid`` command line, end to end on the shared data and the simulator."""
 
 from __future__ import annotations
 
 import csv
 import json
 import os
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -14,10 +16,10 @@ import pytest
 from conftest import data_dir
 
 import solid
-from solid import evaluation as ev
 from solid import io as sio
+from solid import sim
 from solid.cli import main
-
+from solid.pipeline import LOOP_COLUMNS
 
 
 def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
@@ -29,12 +31,20 @@ def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
     return code, cap.out, cap.err
 
 
+def read_csv(path: Path) -> list[dict[str, str]]:
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
 def test_help_and_usage_errors(capsys: pytest.CaptureFixture[str]) -> None:
     code, out, _ = run(capsys, "--help")
-    assert code == 0 and "examples:" in out and "solid eval" in out
-    for sub in ("describe", "detect", "eval", "presets", "bench"):
+    assert code == 0 and "examples:" in out and "solid eval" in out and "docs/spec.md" in out
+    for sub in ("describe", "detect", "eval", "presets", "bench", "demo"):
         code, out, _ = run(capsys, sub, "--help")
         assert code == 0 and "usage: solid " + sub in out, sub
+    for sub in ("build", "merge", "info"):
+        code, out, _ = run(capsys, "map", sub, "--help")
+        assert code == 0 and "usage: solid map " + sub in out, sub
     code, _, err = run(capsys)
     assert code == 2 and "required" in err
     code, _, err = run(capsys, "eval", "somewhere", "--preset", "avia")
@@ -45,24 +55,54 @@ def test_help_and_usage_errors(capsys: pytest.CaptureFixture[str]) -> None:
     assert code == 2 and "invalid float value" in err
 
 
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ("detect", "s", "--preset", "avia", "--exclude", "-1"),
+        ("detect", "s", "--preset", "avia", "--top-k", "-1"),
+        ("detect", "s", "--preset", "avia", "--top-k", "0"),
+        ("detect", "s", "--preset", "avia", "--threads", "-1"),
+        ("detect", "s", "--preset", "avia", "--threshold", "1.5"),
+        ("detect", "s", "--preset", "avia", "--threshold", "nan"),
+        ("detect", "s", "--preset", "avia", "--exclude-m", "-3"),
+        ("detect", "s", "--preset", "avia", "--exclude", "99999999999999999999"),
+        ("eval", "s", "--poses", "p", "--preset", "avia", "--radius", "0"),
+        ("eval", "s", "--poses", "p", "--preset", "avia", "--fov", "400"),
+        ("demo", "--seed", "-1"),
+        ("demo", "--laps", "inf"),
+        ("describe", "x.bin", "--preset", "avia", "--n-range", "-3"),
+    ],
+)
+def test_out_of_range_options_are_usage_errors(capsys: pytest.CaptureFixture[str], argv: tuple[str, ...]) -> None:
+    """Issue 10, item 7: these ended in OverflowError tracebacks; now exit 2 with one line."""
+    code, _, err = run(capsys, *argv)
+    assert code == 2, err
+    assert "Traceback" not in err and err.strip().splitlines()[-1].startswith("solid ")
+
+
 def test_presets_and_config_dump(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     code, out, _ = run(capsys, "presets")
     assert code == 0
     names = {line.split()[0] for line in out.splitlines()[1:]}
-    assert {"hdl64", "hdl32", "vlp16", "os1-64", "avia", "aeva"} <= names
+    assert names == set(solid.presets())
     code, out, _ = run(capsys, "presets", "--json")
     doc = json.loads(out)
     assert doc["avia"]["fov_up"] == pytest.approx(38.6) and doc["avia"]["max_range"] == 120
-    code, out, _ = run(capsys, "config", "dump", "--preset", "avia", "--max-range", "40", "--n-range", "20")
+    assert doc["avia"]["loop_threshold"] == solid.DetectorConfig.preset("avia").threshold
+    code, out, _ = run(capsys, "config", "dump", "--preset", "avia", "--max-range", "40", "--n-range", "20", "--exclude-m", "12")
     assert code == 0
     cfg = json.loads(out)
-    assert cfg["preset"] == "avia" and cfg["max_range"] == 40 and cfg["n_range"] == 20
-    assert cfg["n_elevation"] == 64 and cfg["fov_down"] == pytest.approx(-38.6)
-    # a config without a preset name is complete too
-    bare = {k: v for k, v in cfg.items() if k != "preset"}
+    assert cfg["preset"] == "avia" and cfg["descriptor"]["max_range"] == 40 and cfg["descriptor"]["n_range"] == 20
+    assert cfg["descriptor"]["n_elevation"] == 64 and cfg["detector"]["exclude_meters"] == 12
+    assert cfg["detector"]["threshold"] == solid.DetectorConfig.preset("avia").threshold
+    # dump → --config → dump gives the same document, also without a preset name
+    (tmp_path / "c.json").write_text(out)
+    code, out2, _ = run(capsys, "config", "dump", "--config", str(tmp_path / "c.json"))
+    assert code == 0 and json.loads(out2) == cfg
+    bare = dict(cfg, preset=None)
     (tmp_path / "bare.json").write_text(json.dumps(bare))
-    code, out, _ = run(capsys, "config", "dump", "--config", str(tmp_path / "bare.json"))
-    assert code == 0 and {k: v for k, v in json.loads(out).items() if k != "preset"} == bare
+    code, out3, _ = run(capsys, "config", "dump", "--config", str(tmp_path / "bare.json"))
+    assert code == 0 and json.loads(out3) == bare
 
 
 def test_describe_matches_api_and_config_file(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
@@ -75,7 +115,6 @@ def test_describe_matches_api_and_config_file(capsys: pytest.CaptureFixture[str]
     assert doc["n_points"] == 124668 == d.n_points and doc["n_kept"] == d.n_kept
     assert np.array_equal(np.array(doc["r"], dtype=np.float32), d.r)
     assert np.array_equal(np.array(doc["a"], dtype=np.float32), d.a)
-    # config dump → edit → --config gives the same as the flags
     code, out, _ = run(capsys, "config", "dump", "--preset", "hdl64", "--max-range", "50")
     cfg_file = tmp_path / "c.json"
     cfg_file.write_text(out)
@@ -84,10 +123,8 @@ def test_describe_matches_api_and_config_file(capsys: pytest.CaptureFixture[str]
     a, b = json.loads(out1), json.loads(out2)
     assert code == code2 == 0 and a["r"] == b["r"] and a["config"]["max_range"] == 50
     assert a["r"] != doc["r"]
-    # -o writes the file atomically and prints nothing
     code, out, _ = run(capsys, "describe", str(scan), "--preset", "hdl64", "-o", str(tmp_path / "d.json"))
     assert code == 0 and out == "" and json.loads((tmp_path / "d.json").read_text())["r"] == doc["r"]
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["c.json", "d.json"]
 
 
 def test_user_errors_are_one_line(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
@@ -96,12 +133,11 @@ def test_user_errors_are_one_line(capsys: pytest.CaptureFixture[str], tmp_path: 
     bad = tmp_path / "bad.bin"
     bad.write_bytes(b"\0" * 17)
     code, _, err = run(capsys, "describe", str(bad), "--preset", "hdl64")
-    assert code == 1 and "bad.bin" in err and "multiple of 16" in err and err.count("\n") == 1
+    assert code == 1 and "bad.bin" in err and err.count("\n") == 1
     code, _, err = run(capsys, "describe", str(bad), "--preset", "hdl65")
     assert code == 1 and "unknown preset 'hdl65'" in err
-    pts = np.zeros((4, 4), dtype=np.float32)
     good = tmp_path / "good.bin"
-    good.write_bytes(pts.tobytes())
+    good.write_bytes(np.zeros((4, 4), dtype=np.float32).tobytes())
     code, _, err = run(capsys, "describe", str(good), "--preset", "hdl64", "--max-range", "-5")
     assert code == 1 and "max_range" in err and err.count("\n") == 1
     code, _, err = run(capsys, "describe", str(good))
@@ -109,9 +145,13 @@ def test_user_errors_are_one_line(capsys: pytest.CaptureFixture[str], tmp_path: 
     (tmp_path / "junk.json").write_text("{not json")
     code, _, err = run(capsys, "describe", str(good), "--config", str(tmp_path / "junk.json"))
     assert code == 1 and "junk.json" in err
-    (tmp_path / "unk.json").write_text('{"preset": "hdl64", "rings": 3}')
+    (tmp_path / "unk.json").write_text('{"preset": "hdl64", "descriptor": {"rings": 3}}')
     code, _, err = run(capsys, "describe", str(good), "--config", str(tmp_path / "unk.json"))
-    assert code == 1 and "unknown keys rings" in err
+    assert code == 1 and "unknown descriptor keys rings" in err
+    # Issue 10, item 7: a deeply nested configuration is one line, not a RecursionError.
+    (tmp_path / "deep.json").write_text("[" * 100_000)
+    code, _, err = run(capsys, "describe", str(good), "--config", str(tmp_path / "deep.json"))
+    assert code == 1 and "deep.json" in err and "Traceback" not in err and err.count("\n") == 1
 
 
 def test_subprocess_exit_codes(tmp_path: Path) -> None:
@@ -129,19 +169,26 @@ def test_subprocess_exit_codes(tmp_path: Path) -> None:
     assert r.returncode == 1 and "nope.pcd" in r.stderr and "Traceback" not in r.stderr
 
 
+HKU = ["--poses", "odom_poses.txt", "--preset", "avia"]
+
+
 def test_eval_end_to_end_hku(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     seq_dir = data_dir() / "hku1-avia"
     out_dir = tmp_path / "ev"
     code, out, err = run(
-        capsys, "eval", str(seq_dir), "--poses", "odom_poses.txt", "--preset", "avia",
-        "--frames", "0:60,284:314", "--exclude", "20", "--radius", "5",
+        capsys, "eval", str(seq_dir), *HKU, "--frames", "0:60,284:314", "--exclude", "20", "--radius", "5",
         "--baseline", "scancontext", "--output", str(out_dir), "--quiet",
     )  # fmt: skip
     assert code == 0, err
-    assert "SOLiD" in out and "Scan Context" in out
+    assert "SOLiD" in out and "Scan Context" in out and "best F1" in out and "--threshold" in out
     m = json.loads((out_dir / "metrics.json").read_text())
     # 90 frames, exclusion 20 → queries are selection positions 21..89
-    assert m["frames_evaluated"] == 90 and m["queries"] == 69
+    assert m["frames"] == 90 and m["queries"] == 69
+    # the configuration is recorded whole, the inputs with absolute paths
+    assert m["config"] == json.loads((out_dir / "config.json").read_text())
+    assert m["config"]["detector"]["exclude_frames"] == 20 and m["config"]["input"]["frames"] == "0:60,284:314"
+    assert m["inputs"]["sequence"] == str(seq_dir.absolute()) and Path(m["inputs"]["poses"]).is_absolute()
+    assert Path(m["inputs"]["poses"]) == (seq_dir / "odom_poses.txt").absolute()
     # ground truth recomputed here by brute force from the pose file
     P, _ = sio.load_poses(seq_dir / "odom_poses.txt")
     sel = list(range(60)) + list(range(284, 314))
@@ -152,54 +199,126 @@ def test_eval_end_to_end_hku(capsys: pytest.CaptureFixture[str], tmp_path: Path)
         assert isinstance(m[key], float) and 0 <= m[key] <= (180 if key.startswith("rot") else 1)
     assert m["recall_at_1"] > 0.5  # the last 30 keyframes revisit the first ones
     assert set(m["baselines"]) == {"scancontext"}
-    # the command line agrees with the library on the same frames
-    cfg = solid.SolidConfig.preset("avia")
-    seq = sio.Sequence(seq_dir, poses="odom_poses.txt")
-    assert seq.poses is not None
-    descs = [solid.describe(seq[i], cfg) for i in sel]
-    e = ev.evaluate_solid(np.stack([d.r for d in descs]), np.stack([d.a for d in descs]), seq.poses[sel], exclude=20, radius=5.0)
-    assert e.metrics()["recall_at_1"] == m["recall_at_1"] and e.metrics()["auc"] == m["auc"]
-    with open(out_dir / "queries.csv", newline="") as f:
-        rows = list(csv.DictReader(f))
+    rows = read_csv(out_dir / "queries.csv")
     assert len(rows) == 69 and int(rows[0]["query"]) == 21
-    assert (out_dir / "pr.png").read_bytes()[:4] == b"\x89PNG" and (out_dir / "roc.png").stat().st_size > 1000
-    assert not [p for p in out_dir.iterdir() if p.name.startswith(".")]
+    assert sum(r["correct"] == "True" for r in rows) == m["correct_top1"]
+    assert sum(r["accepted"] == "True" for r in rows) == m["accepted"]
+    for png in ("pr", "roc", "trajectory", "distances", "heading"):
+        assert (out_dir / f"{png}.png").read_bytes()[:4] == b"\x89PNG", png
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
+
+
+def test_eval_accepted_rows_are_exactly_detects_loops(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """One configuration: the rows of eval's queries.csv with accepted true are detect's loops.csv."""
+    seq = str(data_dir() / "hku1-avia")
+    common = ["--preset", "avia", "--threshold", "0.08", "-q"]
+    code, _, err = run(capsys, "detect", seq, *common, "-o", str(tmp_path / "d"))
+    assert code == 0, err
+    code, _, err = run(capsys, "eval", seq, *common, "--poses", "odom_poses.txt", "--no-plots", "-o", str(tmp_path / "e"))
+    assert code == 0, err
+    loops = read_csv(tmp_path / "d" / "loops.csv")
+    accepted = [{k: r[k] for k in LOOP_COLUMNS} for r in read_csv(tmp_path / "e" / "queries.csv") if r["accepted"] == "True"]
+    assert loops and accepted == loops
+    assert read_csv(tmp_path / "e" / "loops.csv") == loops
+    # and the library's detector, run by hand, made the same decisions
+    det = solid.LoopDetector(solid.SolidConfig.preset("avia"), threshold=0.08)
+    ds = sio.Sequence(seq)
+    mine = [lp for p in ds if (lp := det.add(p)) is not None]
+    assert [(lp.query, lp.candidate, f"{lp.distance:.6f}") for lp in mine] == [
+        (int(r["query"]), int(r["candidate"]), r["distance"]) for r in loops
+    ]
 
 
 def test_eval_transforms_change_the_input(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     seq_dir = data_dir() / "hku1-avia"
-    base = ["eval", str(seq_dir), "--poses", "odom_poses.txt", "--preset", "avia", "--frames", "0:30,290:314", "--exclude", "10", "--no-plots", "-q"]
+    base = ["eval", str(seq_dir), *HKU, "--frames", "0:30,290:314", "--exclude", "10", "--no-plots", "-q"]
     code, _, err = run(capsys, *base, "--output", str(tmp_path / "a"))
     assert code == 0, err
-    code, _, err = run(capsys, *base, "--output", str(tmp_path / "b"), "--fov", "30", "--occlude", "10", "--occlude-center", "5")
+    code, _, err = run(capsys, *base, "--output", str(tmp_path / "b"), "--fov", "30", "--fov-center", "0", "--occlude", "10", "--occlude-center", "5")
     assert code == 0, err
     a = json.loads((tmp_path / "a/metrics.json").read_text())
     b = json.loads((tmp_path / "b/metrics.json").read_text())
-    assert b["fov_clip_deg"] == [30, 0] and b["occluded_sector_deg"] == [10, 5]
+    assert b["config"]["input"]["fov"] == 30 and b["config"]["input"]["occlude_center"] == 5
     assert a["queries"] == b["queries"]
 
     def distances(d: str) -> list[str]:
-        with open(tmp_path / d / "queries.csv", newline="") as f:
-            return [r["distance"] for r in csv.DictReader(f)]
+        return [r["distance"] for r in read_csv(tmp_path / d / "queries.csv")]
 
     assert distances("a") != distances("b")
     assert not (tmp_path / "a/pr.png").exists()
     code, _, err = run(capsys, *base[:-2], "--subsample-m", "1.0", "--exclude", "3", "--output", str(tmp_path / "c"), "-q")
     assert code == 0, err
     c = json.loads((tmp_path / "c/metrics.json").read_text())
-    assert c["subsample_m"] == 1.0 and c["frames_evaluated"] < 54
+    assert c["config"]["input"]["subsample_m"] == 1.0 and c["frames"] < 54
     code, _, err = run(capsys, *base, "--exclude", "60", "--output", str(tmp_path / "d"))
-    assert code == 1 and "no query" in err
+    assert code == 1 and "no query" in err and not (tmp_path / "d").exists()
     # an identity extrinsic changes nothing; any extrinsic leaves the descriptors (distances) alone
     (tmp_path / "id.txt").write_text("1 0 0 0 0 1 0 0 0 0 1 0\n")
     code, _, err = run(capsys, *base, "--calib", str(tmp_path / "id.txt"), "--output", str(tmp_path / "e"))
     assert code == 0, err
     e = json.loads((tmp_path / "e/metrics.json").read_text())
-    assert {k: e[k] for k in ("recall_at_1", "auc", "rotation_error_deg_mean")} == {k: a[k] for k in ("recall_at_1", "auc", "rotation_error_deg_mean")}
+    keys = ("recall_at_1", "auc", "rotation_error_deg_mean")
+    assert {k: e[k] for k in keys} == {k: a[k] for k in keys}
     (tmp_path / "rz.txt").write_text("0 -1 0 0.1 1 0 0 0 0 0 1 0\n")
     code, _, err = run(capsys, *base, "--calib", str(tmp_path / "rz.txt"), "--output", str(tmp_path / "f"))
     assert code == 0, err
     assert distances("f") == distances("a")
+
+
+def test_fov_center_defaults_to_where_the_points_are(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """The trap of issue 8: --fov clipped around +x even when +x is a blocked, empty sector."""
+    world = sim.World(seed=2)
+    # A sensor looking left (+y): nothing at all around +x.
+    sens = sim.Sensor("vlp16", h_fov=120.0, h_centre=90.0)
+    traj = sim.Trajectory.loop(world, laps=0.3, spacing=3.0)
+    sim.write_sequence(tmp_path / "seq", world, sens, traj)
+    code, _, err = run(capsys, "detect", str(tmp_path / "seq"), "--preset", "vlp16", "--fov", "60", "-o", str(tmp_path / "out"), "-q")
+    assert code == 0, err
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert 60 <= summary["fov_center_deg"] <= 120
+    pts = sio.clip_fov(sim.simulate(world, sens, traj[:1]).scans[0], 60.0, summary["fov_center_deg"])
+    assert pts.shape[0] > 1000
+
+
+def test_output_folders_are_fresh_and_whole(capsys: pytest.CaptureFixture[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    seq = str(data_dir() / "hku1-avia")
+    args = ["detect", seq, "--preset", "avia", "--frames", "0:80", "-q"]
+    # an existing non-empty folder is refused, and left as it was
+    (tmp_path / "old").mkdir()
+    (tmp_path / "old" / "stale.csv").write_text("x\n")
+    code, _, err = run(capsys, *args, "-o", str(tmp_path / "old"))
+    assert code == 1 and "not empty" in err
+    assert [p.name for p in (tmp_path / "old").iterdir()] == ["stale.csv"]
+    # without -o: a fresh timestamped folder and a `latest` link, twice in a row
+    monkeypatch.chdir(tmp_path)
+    for _ in range(2):
+        code, out, err = run(capsys, *args)
+        assert code == 0, err
+    runs = sorted(p for p in (tmp_path / "solid_results").iterdir() if not p.is_symlink())
+    assert len(runs) == 2 and runs[0] != runs[1]
+    latest = tmp_path / "solid_results" / "latest"
+    assert latest.is_symlink() and latest.resolve() in {r.resolve() for r in runs}
+    assert (latest / "loops.csv").exists() and (latest / "config.json").exists()
+
+
+def test_interrupted_eval_leaves_no_folder(tmp_path: Path) -> None:
+    """Issue 10, item 7: SIGINT during eval left folders mixing two runs; now nothing is left."""
+    seq = str(data_dir() / "hku1-avia")
+    out = tmp_path / "out"
+    p = subprocess.Popen(
+        [sys.executable, "-m", "solid.cli", "eval", seq, *HKU, "-o", str(out), "-q", "--baseline", "scancontext"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    time.sleep(2.0)
+    p.send_signal(signal.SIGINT)
+    _, err = p.communicate(timeout=120)
+    if p.returncode == 0:  # finished before the signal: the folder must then be complete
+        assert (out / "metrics.json").exists()
+    else:
+        assert p.returncode == 130, err
+        assert not out.exists() and list(tmp_path.iterdir()) == []
 
 
 def test_bench_prints_rates(capsys: pytest.CaptureFixture[str]) -> None:
@@ -210,18 +329,52 @@ def test_bench_prints_rates(capsys: pytest.CaptureFixture[str]) -> None:
         assert float(line.split()[1]) > 0
 
 
-@pytest.mark.skipif(not hasattr(solid, "LoopDetector"), reason="solid.LoopDetector (issue 3) is not in this build yet")
 def test_detect_writes_loops(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     code, out, err = run(
         capsys, "detect", str(data_dir() / "hku1-avia"), "--preset", "avia", "--exclude", "50",
-        "--threshold", "0.2", "--output", str(tmp_path), "-q",
+        "--threshold", "0.2", "--output", str(tmp_path / "d"), "-q",
     )  # fmt: skip
     assert code == 0, err
-    with open(tmp_path / "loops.csv", newline="") as f:
-        rows = list(csv.DictReader(f))
-    assert list(rows[0].keys()) == ["query", "candidate", "distance", "heading_deg"] if rows else True
-    assert rows, "the HKU walk returns to its start: some loop must be found at threshold 0.2"
+    rows = read_csv(tmp_path / "d" / "loops.csv")
+    assert rows and tuple(rows[0].keys()) == LOOP_COLUMNS
+    times = sio.load_timestamps(data_dir() / "hku1-avia" / "times.txt")
     for r in rows:
         q, c = int(r["query"]), int(r["candidate"])
         assert q - c > 50 and 0 <= float(r["distance"]) <= 0.2 and -180 < float(r["heading_deg"]) <= 180
+        assert r["query_time"] == "" or float(r["query_time"]) == pytest.approx(times[q])
     assert f"{len(rows)} loops" in out
+
+
+def test_map_build_and_eval_across_two_simulated_sessions(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """Issue 8: a map from one session, queries from another, ground truth from both in one frame."""
+    world = sim.World(seed=1)
+    lap, second = sim.session_routes(world)
+    s0, s1 = sim.write_sessions(tmp_path / "sim", world, sim.Sensor("vlp16"), [lap, second])
+    code, out, err = run(capsys, "map", "build", str(s0), "--preset", "vlp16", "--poses", "poses.txt", "--timestamps", "times.txt", "-o", str(tmp_path / "run1.soliddb"), "-q")
+    assert code == 0, err
+    assert f"{len(lap)} places ({len(lap)} with poses)" in out
+    code, out, err = run(capsys, "map", "info", str(tmp_path / "run1.soliddb"), "--json")
+    info = json.loads(out)
+    assert info["places"] == len(lap) and info["sessions"][0]["with_pose"] == len(lap)
+    code, out, err = run(capsys, "eval", str(s1), "--poses", "poses.txt", "--map", str(tmp_path / "run1.soliddb"), "-o", str(tmp_path / "ev"), "--no-plots", "-q")
+    assert code == 0, err
+    m = json.loads((tmp_path / "ev" / "metrics.json").read_text())
+    assert m["map_places"] == len(lap) and m["queries"] == len(second)
+    assert m["gt_queries"] > 50
+    assert m["recall_at_1"] >= 0.9, m
+    rows = read_csv(tmp_path / "ev" / "queries.csv")
+    assert {r["candidate_session"] for r in rows if r["correct"] == "True"} == {"0"}
+    # detect against the map, and merging maps keeps the sessions apart
+    code, out, err = run(capsys, "detect", str(s1), "--map", str(tmp_path / "run1.soliddb"), "-o", str(tmp_path / "det"), "-q")
+    assert code == 0, err and f"map of {len(lap)} places" in out
+    code, out, err = run(capsys, "map", "build", str(s1), "--preset", "vlp16", "--poses", "poses.txt", "-o", str(tmp_path / "run2.soliddb"), "-q")
+    assert code == 0, err
+    code, out, err = run(capsys, "map", "merge", str(tmp_path / "run1.soliddb"), str(tmp_path / "run2.soliddb"), "-o", str(tmp_path / "both.soliddb"), "-q")
+    assert code == 0, err
+    both = solid.Database.load(tmp_path / "both.soliddb")
+    assert len(both) == len(lap) + len(second) and sorted(set(both.sessions.tolist())) == [0, 1]
+    # a map of another configuration is refused with both named
+    code, out, err = run(capsys, "eval", str(s1), "--poses", "poses.txt", "--preset", "hdl64", "--map", str(tmp_path / "run1.soliddb"), "-q")
+    assert code == 1 and "run1.soliddb" in err
+    code, out, err = run(capsys, "map", "build", str(s1), "--preset", "vlp16", "-o", str(tmp_path / "run1.soliddb"), "-q")
+    assert code == 1 and "exists" in err

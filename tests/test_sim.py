@@ -18,7 +18,9 @@ import pytest
 
 import solid
 from solid import sim
+from solid.config import PipelineConfig
 from solid.io import Sequence as ReadSequence
+from solid.pipeline import LoopClosurePipeline
 
 F64 = npt.NDArray[np.float64]
 
@@ -243,34 +245,26 @@ def revisit_loop(world: sim.World) -> sim.Trajectory:
     return sim.Trajectory.loop(world, laps=1.6, spacing=SPACING)
 
 
-def recall_at_1(r: npt.NDArray[np.float32], positions: F64, exclude: int, radius: float) -> tuple[float, int, float]:
-    """SPEC §5 Recall@1 with exact brute-force cosine search; also the number of GT-positive
-    queries and the chance level (expected Recall@1 of a random database frame)."""
-    rn = r.astype(np.float64)
-    rn /= np.maximum(np.linalg.norm(rn, axis=1, keepdims=True), 1e-300)
-    xy = positions[:, :2]
-    positives = correct = 0
-    chance = 0.0
-    for q in range(len(r)):
-        db = q - exclude
-        if db <= 0:
-            continue
-        d = np.linalg.norm(xy[:db] - xy[q], axis=1)
-        if d.min() > radius:
-            continue
-        positives += 1
-        top = int(np.argmax(rn[:db] @ rn[q]))  # first maximum: ties go to the lower id
-        correct += int(d[top] <= radius)
-        chance += float((d <= radius).mean())
-    return correct / max(positives, 1), positives, chance / max(positives, 1)
+def recall_at_1(seq: sim.Sequence, preset: str) -> tuple[float, int, float]:
+    """SPEC §5 Recall@1 of the shipped pipeline (the preset's detector, excluding EXCLUDE frames)
+    scored by solid.evaluation; also the number of GT-positive queries and the chance level (the
+    expected Recall@1 of a random eligible frame)."""
+    cfg = PipelineConfig.preset(preset, detector={"exclude_frames": EXCLUDE})
+    ev = LoopClosurePipeline(seq, cfg).run().evaluate(radius=RADIUS)
+    m = ev.metrics()
+    xyz = seq.poses[:, :, 3]
+    chance = [
+        float((np.linalg.norm(xyz[:e] - xyz[q], axis=1) <= RADIUS).mean())
+        for q, e, g in zip(ev.query, ev.eligible, ev.gt_positive)
+        if g
+    ]
+    return float(m["recall_at_1"]), int(m["gt_queries"]), float(np.mean(chance)) if chance else 0.0
 
 
 @pytest.mark.parametrize("name", sim.SENSORS)
 def test_revisit_recall_per_sensor(world: sim.World, revisit_loop: sim.Trajectory, name: str) -> None:
     seq = sim.simulate(world, sim.Sensor(name), revisit_loop)
-    descs = solid.describe_batch(seq.scans, solid.SolidConfig.preset(name))
-    r = np.stack([d.r for d in descs])
-    recall, positives, chance = recall_at_1(r, revisit_loop.positions, EXCLUDE, RADIUS)
+    recall, positives, chance = recall_at_1(seq, name)
     print(f"\n{name:7} Recall@1 {recall:.3f} over {positives} GT-positive queries (chance {chance:.3f}, floor {RECALL_FLOOR[name]})")
     assert positives >= 90
     assert RECALL_FLOOR[name] > 10 * chance
@@ -282,12 +276,10 @@ def test_reverse_revisit_needs_the_full_view(world: sim.World) -> None:
     two visits see opposite sides of every place and SOLiD cannot match them (the limitation the
     paper's conclusion names)."""
     traj = sim.Trajectory.reverse(world, spacing=SPACING)
-    cfg = solid.SolidConfig.preset("hdl64")
     recalls = {}
     for fov in (360.0, 60.0):
         seq = sim.simulate(world, sim.Sensor("hdl64", h_fov=fov), traj)
-        r = np.stack([d.r for d in solid.describe_batch(seq.scans, cfg)])
-        recalls[fov], positives, chance = recall_at_1(r, traj.positions, EXCLUDE, RADIUS)
+        recalls[fov], positives, chance = recall_at_1(seq, "hdl64")
         print(f"\nreverse revisit, hdl64 {fov:.0f}°: Recall@1 {recalls[fov]:.3f} over {positives} queries (chance {chance:.3f})")
         assert positives >= 50
     # Measured: 360° 0.75 (R-SOLiD ignores the heading, but the lanes are 3.5 m apart, so each

@@ -8,7 +8,7 @@
 //! `SOLID_BENCH_QUICK=1` skips the 1M size.
 
 use criterion::{BenchmarkId, Criterion, Throughput};
-use solid_lidar::db::{Database, LoopDetector, Method};
+use solid_lidar::db::{Database, DetectorConfig, LoopDetector, Method};
 use solid_lidar::search::{
     brute_force, normalize_rows, online_insert, Exclude, KdTree, Neighbor, OnlineIndex,
 };
@@ -332,8 +332,15 @@ fn bench_loop_step(c: &mut Criterion) {
     let mut g = c.benchmark_group("loop_step");
     g.sample_size(30);
     for rerank in [false, true] {
-        let mut det = LoopDetector::with_database(db.clone(), 50, 0.1, 10);
-        det.rerank = rerank;
+        let det = LoopDetector::with_database(
+            db.clone(),
+            DetectorConfig {
+                threshold: 0.1,
+                rerank,
+                ..DetectorConfig::default()
+            },
+        )
+        .unwrap();
         g.bench_function(
             format!(
                 "kitti_describe+search4541+heading{}",

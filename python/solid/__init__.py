@@ -18,10 +18,13 @@ The heading convention: ``solid.heading(q, c)`` is the angle ψ (degrees, counte
 from __future__ import annotations
 
 from ._solid import (
+    Candidate,
     ConfigError,
     Database,
     DatabaseError,
     Descriptor,
+    Detection,
+    DetectorConfig,
     Loop,
     LoopDetector,
     Match,
@@ -39,10 +42,13 @@ from ._solid import (
 )
 
 __all__ = [
+    "Candidate",
     "ConfigError",
     "Database",
     "DatabaseError",
     "Descriptor",
+    "Detection",
+    "DetectorConfig",
     "Loop",
     "LoopDetector",
     "Match",

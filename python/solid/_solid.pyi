@@ -1,7 +1,7 @@
 """Type stubs of the compiled extension `solid._solid` (checked by mypy.stubtest)."""
 
 import os
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from os import PathLike
 from typing import Any, final
 
@@ -26,6 +26,15 @@ __all__ = [
     "Match",
     "LoopDetector",
     "Loop",
+    "Candidate",
+    "Detection",
+    "DetectorConfig",
+    "_detector_config_from_dict",
+    "DEFAULT_RADIUS",
+    "Scores",
+    "score_candidates",
+    "_SIM_SENSORS",
+    "_SIM_TRAJECTORIES",
     "encode_place",
     "decode_place",
     "_SimWorld",
@@ -59,15 +68,17 @@ class SolidConfig:
         fov_up: float,
         fov_down: float,
         n_elevation: int,
-        n_range: int = 40,
-        n_azimuth: int = 60,
-        min_range: float = 3.0,
-        max_range: float = 80.0,
-        voxel_size: float = 0.5,
+        n_range: int | None = None,
+        n_azimuth: int | None = None,
+        min_range: float | None = None,
+        max_range: float | None = None,
+        voxel_size: float | None = None,
     ) -> SolidConfig: ...
     @staticmethod
     def preset(name: str, **overrides: float) -> SolidConfig: ...
     def replace(self, **overrides: float) -> SolidConfig: ...
+    @property
+    def base_preset(self) -> str | None: ...
     def to_dict(self) -> dict[str, Any]: ...
     @property
     def n_range(self) -> int: ...
@@ -159,7 +170,86 @@ class Loop:
     def distance(self) -> float: ...
     @property
     def heading(self) -> float: ...
+    @property
+    def score(self) -> float: ...
     def __eq__(self, other: object, /) -> bool: ...
+
+@final
+class Candidate:
+    """One candidate of a detector step, in the detector's order."""
+    @property
+    def id(self) -> int: ...
+    @property
+    def distance(self) -> float: ...
+    @property
+    def heading(self) -> float: ...
+    @property
+    def score(self) -> float: ...
+    def __eq__(self, other: object, /) -> bool: ...
+
+@final
+class Detection:
+    """Everything one detector step decided."""
+    @property
+    def query(self) -> int: ...
+    @property
+    def eligible(self) -> int: ...
+    @property
+    def candidates(self) -> list[Candidate]: ...
+    @property
+    def loop(self) -> Loop | None: ...
+
+@final
+class DetectorConfig:
+    """The loop detector's parameters; defaults come from the core."""
+    def __new__(
+        cls,
+        *,
+        exclude_frames: int = ...,
+        exclude_meters: float = ...,
+        exclude_seconds: float = ...,
+        threshold: float = ...,
+        top_k: int = ...,
+        rerank: bool = ...,
+    ) -> DetectorConfig: ...
+    @staticmethod
+    def preset(
+        name: str,
+        *,
+        exclude_frames: int = ...,
+        exclude_meters: float = ...,
+        exclude_seconds: float = ...,
+        threshold: float = ...,
+        top_k: int = ...,
+        rerank: bool = ...,
+    ) -> DetectorConfig: ...
+    def replace(
+        self,
+        *,
+        exclude_frames: int = ...,
+        exclude_meters: float = ...,
+        exclude_seconds: float = ...,
+        threshold: float = ...,
+        top_k: int = ...,
+        rerank: bool = ...,
+    ) -> DetectorConfig: ...
+    def to_dict(self) -> dict[str, Any]: ...
+    @property
+    def exclude_frames(self) -> int: ...
+    @property
+    def exclude_meters(self) -> float: ...
+    @property
+    def exclude_seconds(self) -> float: ...
+    @property
+    def threshold(self) -> float: ...
+    @property
+    def top_k(self) -> int: ...
+    @property
+    def rerank(self) -> bool: ...
+    def __eq__(self, other: object, /) -> bool: ...
+    def __reduce__(self) -> tuple[Any, tuple[dict[str, Any]]]: ...
+
+def _detector_config_from_dict(params: dict[str, Any]) -> DetectorConfig: ...
 
 @final
 class Database:
@@ -180,7 +270,8 @@ class Database:
         method: str = "auto",
         not_newer_than: float | None = None,
     ) -> list[Match]: ...
-    def merge(self, other: Database) -> None: ...
+    def distances(self, descriptor: Descriptor | npt.ArrayLike) -> npt.NDArray[np.float32]: ...
+    def merge(self, other: Database, new_sessions: bool = False) -> None: ...
     def save(self, path: str | PathLike[str]) -> None: ...
     @staticmethod
     def load(path: str | PathLike[str]) -> Database: ...
@@ -205,29 +296,67 @@ class Database:
 
 @final
 class LoopDetector:
-    """Online loop closure: each scan is searched against all but the `exclude_recent` most
-    recent scans, then added."""
+    """Online loop closure: each scan is searched against the places it may be matched with (a
+    prior map, and its own session minus the exclusion window), then added."""
     def __new__(
         cls,
         cfg: SolidConfig,
-        exclude_recent: int = 50,
-        threshold: float = 0.1,
-        top_k: int = 10,
-        rerank: bool = True,
+        exclude_recent: int | None = None,
+        threshold: float | None = None,
+        top_k: int | None = None,
+        rerank: bool | None = None,
+        *,
+        exclude_meters: float | None = None,
+        exclude_seconds: float | None = None,
+        detector: DetectorConfig | None = None,
     ) -> LoopDetector: ...
     @staticmethod
     def from_database(
         database: Database,
-        exclude_recent: int = 50,
-        threshold: float = 0.1,
-        top_k: int = 10,
-        rerank: bool = True,
+        exclude_recent: int | None = None,
+        threshold: float | None = None,
+        top_k: int | None = None,
+        rerank: bool | None = None,
+        *,
+        exclude_meters: float | None = None,
+        exclude_seconds: float | None = None,
+        detector: DetectorConfig | None = None,
     ) -> LoopDetector: ...
-    def add(self, points_or_descriptor: Descriptor | npt.ArrayLike, timestamp: float | None = None) -> Loop | None: ...
+    def add(
+        self,
+        points_or_descriptor: Descriptor | npt.ArrayLike,
+        timestamp: float | None = None,
+        pose: npt.ArrayLike | None = None,
+    ) -> Loop | None: ...
+    def detect(
+        self,
+        points_or_descriptor: Descriptor | npt.ArrayLike,
+        timestamp: float | None = None,
+        pose: npt.ArrayLike | None = None,
+    ) -> Detection: ...
+    def detect_many(
+        self,
+        descriptors: Sequence[Descriptor],
+        timestamps: Sequence[float | None] | npt.ArrayLike | None = None,
+        poses: Sequence[npt.ArrayLike | None] | npt.ArrayLike | None = None,
+    ) -> list[Detection]: ...
+    def candidates(
+        self,
+        points_or_descriptor: Descriptor | npt.ArrayLike,
+        k: int | None = None,
+        timestamp: float | None = None,
+        pose: npt.ArrayLike | None = None,
+    ) -> list[Candidate]: ...
     def query(self, points_or_descriptor: Descriptor | npt.ArrayLike) -> Loop | None: ...
     def __len__(self) -> int: ...
     @property
     def database(self) -> Database: ...
+    @property
+    def config(self) -> DetectorConfig: ...
+    @property
+    def session(self) -> int: ...
+    @property
+    def session_start(self) -> int: ...
     @property
     def exclude_recent(self) -> int: ...
     @property
@@ -237,10 +366,53 @@ class LoopDetector:
     @property
     def rerank(self) -> bool: ...
 
+# --- SPEC §5 scoring (eval.rs) ---
+
+DEFAULT_RADIUS: float
+
+@final
+class Scores:
+    """Per-query outcomes and summary metrics of one scored run (SPEC §5)."""
+    @property
+    def radius(self) -> float: ...
+    @property
+    def gt_positive(self) -> npt.NDArray[np.bool_]: ...
+    @property
+    def correct(self) -> npt.NDArray[np.bool_]: ...
+    @property
+    def first_hit(self) -> npt.NDArray[np.uint32]: ...
+    @property
+    def candidate_distance_m(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def true_heading_deg(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def n_gt(self) -> int: ...
+    def recall_at(self, n: int) -> float: ...
+    def pr_curve(self) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
+    def roc_curve(self) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
+    def f1_max(self) -> tuple[float, float]: ...
+    def auc(self) -> float: ...
+    def at_threshold(self, threshold: float) -> tuple[int, int, float, float]: ...
+    def rotation_errors(self) -> npt.NDArray[np.float64]: ...
+    def __len__(self) -> int: ...
+
+def score_candidates(
+    query: npt.NDArray[np.int64],
+    eligible: npt.NDArray[np.int64],
+    ids: npt.NDArray[np.int64],
+    score: npt.NDArray[np.float64],
+    heading_deg: npt.NDArray[np.float64],
+    poses: npt.NDArray[np.float64],
+    radius: float,
+) -> Scores: ...
+
 def encode_place(descriptor: Descriptor, quantized: bool = False) -> bytes: ...
 def decode_place(data: bytes, cfg: SolidConfig) -> Descriptor: ...
 
 # --- simulator (sim.rs), used by solid.sim ---
+
+_SIM_SENSORS: list[str]
+_SIM_TRAJECTORIES: list[str]
 
 @final
 class _SimWorld:

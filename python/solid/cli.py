@@ -1,69 +1,43 @@
-"""The ``solid`` command line: describe scans, detect loops, evaluate against poses, benchmark.
+"""The ``solid`` command line: parses the arguments and dispatches to :mod:`solid.commands`.
 
 Run ``solid --help`` or ``solid <command> --help`` for the options and examples. Exit codes: 0 on
-success, 2 for a usage error (bad or missing arguments), 1 for any other failure (a missing or
-corrupt file, an invalid parameter), reported as one line on stderr (``--debug`` shows the
-traceback instead).
+success, 2 for a usage error (an unknown option, a value out of range), 1 for any other failure
+(a missing or corrupt file, an invalid parameter), reported as one line on stderr (``--debug``
+shows the traceback instead), 130 when interrupted.
 """
 
 from __future__ import annotations
 
 import argparse
-import csv
-import io as _io
 import json
 import math
-import os
 import sys
-import time
 import traceback
-from collections.abc import Iterator, Sequence as AbcSequence
+from collections.abc import Callable, Sequence as AbcSequence
 from pathlib import Path
 from typing import Any, NoReturn, TextIO
 
-import numpy as np
-import numpy.typing as npt
+__all__ = ["build_parser", "main"]
 
-from . import io as sio
+_SPEC = "docs/spec.md"
 
-__all__ = ["main"]
-
-CONFIG_FIELDS = (
-    "n_range",
-    "n_azimuth",
-    "n_elevation",
-    "fov_up",
-    "fov_down",
-    "min_range",
-    "max_range",
-    "voxel_size",
-)
-_INT_FIELDS = {"n_range", "n_azimuth", "n_elevation"}
-
-F32 = npt.NDArray[np.float32]
-
-
-class UserError(Exception):
-    """A problem with the user's input: reported as one line, exit code 1."""
-
-
-# --------------------------------------------------------------------------------------------
-# argument parsing
-
-_EPILOG_MAIN = """\
+_EPILOG_MAIN = f"""\
 examples:
   solid presets
   solid describe 000000.bin --preset hdl64
-  solid detect  ~/data/kitti/00 --preset hdl64 --output out/
-  solid eval    ~/data/kitti/00 --poses poses.txt --calib calib.txt --preset hdl64 --radius 10 --baseline scancontext
-  solid eval    hku1-avia --poses odom_poses.txt --preset avia --exclude 50 --radius 3
+  solid detect  ~/data/kitti/00 --preset hdl64
+  solid eval    hku1-avia --poses odom_poses.txt --preset avia --radius 3 --baseline scancontext
+  solid eval    ~/kitti/00 --poses poses.txt --calib calib.txt --preset hdl64 --radius 10
+  solid map build run1/ --preset avia --poses run1/poses.txt -o run1.soliddb
+  solid eval    run2/ --poses run2/poses.txt --map run1.soliddb
   solid config dump --preset avia --max-range 40 > avia40.json
-  solid eval    hku1-avia --poses odom_poses.txt --config avia40.json
   solid bench   ~/data/kitti/00/velodyne --preset hdl64
 
 A SEQUENCE is a folder of scans (.bin .pcd .ply .npy .npz, natural order; a velodyne/ or Scans/
 sub-folder is used when present), a ROS 1 bag, a ROS 2 bag folder or an MCAP file
-(pip install solid-lidar[ros]). Exit codes: 0 ok, 1 failure, 2 usage error.
+(pip install solid-lidar[ros]). Results go to a fresh folder: -o DIR (which must not exist or be
+empty) or solid_results/<date>_<time>_<command>_<name>/ with solid_results/latest pointing at it.
+What is computed: {_SPEC}. Exit codes: 0 ok, 1 failure, 2 usage error, 130 interrupted.
 """
 
 
@@ -73,23 +47,76 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message}\n")
 
 
-def _add_config_args(p: argparse.ArgumentParser, preset_required: bool = False) -> None:
-    g = p.add_argument_group("descriptor configuration (SPEC §1; flags override --config, which overrides --preset)")
+# ---- value types: a bad value is a usage error (exit 2, one line) ----------------------------
+
+
+def _number(kind: Callable[[str], Any], what: str, ok: Callable[[Any], bool]) -> Callable[[str], Any]:
+    def parse(s: str) -> Any:
+        try:
+            v = kind(s)
+        except (ValueError, OverflowError):
+            raise argparse.ArgumentTypeError(f"invalid {kind.__name__} value: {s!r}") from None
+        if not ok(v):
+            raise argparse.ArgumentTypeError(f"{s!r} is not {what}")
+        return v
+
+    parse.__name__ = kind.__name__
+    return parse
+
+
+_BIG = 2**31 - 1
+nonneg_int = _number(int, "an integer in 0..2^31-1", lambda v: 0 <= v <= _BIG)
+pos_int = _number(int, "an integer in 1..2^31-1", lambda v: 1 <= v <= _BIG)
+any_float = _number(float, "a finite number", math.isfinite)
+pos_float = _number(float, "a finite number > 0", lambda v: math.isfinite(v) and v > 0)
+nonneg_float = _number(float, "a finite number >= 0", lambda v: math.isfinite(v) and v >= 0)
+unit_float = _number(float, "a number in [0, 1]", lambda v: 0.0 <= v <= 1.0)
+degrees = _number(float, "degrees in (0, 360]", lambda v: 0 < v <= 360)
+
+
+def _descriptor_fields() -> dict[str, type]:
+    from .config import descriptor_fields
+
+    return descriptor_fields()
+
+
+def _add_config_args(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group(f"descriptor ({_SPEC} §1; flags override --config, which is based on its preset)")
     g.add_argument("--preset", help="sensor preset (see `solid presets`), e.g. hdl64, vlp16, avia")
-    g.add_argument("--config", type=Path, metavar="FILE", help="JSON written by `solid config dump`")
-    for name in CONFIG_FIELDS:
+    g.add_argument("--config", type=Path, metavar="FILE", help="pipeline configuration (JSON from `solid config dump`)")
+    for name, kind in _descriptor_fields().items():
         g.add_argument(
             "--" + name.replace("_", "-"),
-            type=int if name in _INT_FIELDS else float,
+            type=pos_int if kind is int else any_float,
             default=None,
-            metavar="N" if name in _INT_FIELDS else "X",
+            metavar="N" if kind is int else "X",
         )
 
 
-def _add_reader_args(p: argparse.ArgumentParser) -> None:
-    g = p.add_argument_group("reading")
-    g.add_argument("--format", choices=[f for f in sio.FORMATS], help="force the scan reader (default: from the path)")
-    g.add_argument("--topic", help="PointCloud2 topic of a bag (default: the only one)")
+def _add_detector_args(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("loop detector (defaults: the preset's, from the core)")
+    g.add_argument("--exclude", type=nonneg_int, metavar="N", help="skip the N most recent frames of the own session (default 50)")
+    g.add_argument("--exclude-m", type=nonneg_float, metavar="M", help="also skip places less than M metres back along the path (needs poses)")
+    g.add_argument("--exclude-s", type=nonneg_float, metavar="S", help="also skip places less than S seconds back (needs timestamps)")
+    g.add_argument("--threshold", type=unit_float, metavar="X", help="accept a loop when its score (cosine distance) is <= X (default: the preset's)")
+    g.add_argument("--top-k", type=pos_int, metavar="K", help="candidates per query (default 10)")
+    g.add_argument("--no-rerank", action="store_true", help="do not re-rank candidates by A-SOLiD alignment")
+
+
+def _add_input_args(p: argparse.ArgumentParser, poses_required: bool = False) -> None:
+    g = p.add_argument_group("input")
+    g.add_argument("--format", help="force the scan reader (default: from the files' content and names)")
+    g.add_argument("--topic", help="point-cloud topic of a bag (default: the only one)")
+    g.add_argument("--poses", type=Path, required=poses_required, help="KITTI 3×4 rows or TUM (t x y z qx qy qz qw)")
+    g.add_argument("--timestamps", type=Path, help="timestamps file (one per scan)")
+    g.add_argument("--calib", type=Path, metavar="FILE", help="sensor → pose-frame extrinsic (KITTI calib.txt 'Tr:' line, or 12 numbers)")
+    g.add_argument("--frames", default=None, metavar="SPEC", help="frames to use, e.g. 0:60,284:314 (Python slices)")
+    g.add_argument("--subsample-m", type=pos_float, default=None, metavar="M", help="keep one frame per M metres travelled")
+    g.add_argument("--fov", type=degrees, default=None, metavar="DEG", help="clip every scan to this horizontal FOV")
+    g.add_argument("--fov-center", type=any_float, default=None, metavar="DEG", help="centre of --fov (default: where the first scan has its points; 0 = +x)")
+    g.add_argument("--occlude", type=degrees, default=None, metavar="DEG", help="remove a sector this wide from every scan")
+    g.add_argument("--occlude-center", type=any_float, default=None, metavar="DEG")
+    g.add_argument("--threads", type=pos_int, default=None, help="threads for describing (default: every core)")
 
 
 def _add_common(p: argparse.ArgumentParser) -> None:
@@ -108,7 +135,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     parser = _Parser(
         prog="solid",
-        description="SOLiD LiDAR place recognition: descriptors, loop detection and evaluation.",
+        description="SOLiD LiDAR place recognition: descriptors, loop detection, evaluation and maps.",
         epilog=_EPILOG_MAIN,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
@@ -125,64 +152,48 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("scan", type=Path, help="a scan file")
     p.add_argument("-o", "--output", type=Path, help="write the JSON here instead of stdout")
+    p.add_argument("--format", help="force the scan reader")
     _add_config_args(p)
-    _add_reader_args(p)
     _add_common(p)
 
     p = sub.add_parser(
         "detect",
         help="run the online loop detector over a sequence; writes loops.csv",
         formatter_class=fmt,
-        epilog="examples:\n  solid detect ~/kitti/00 --preset hdl64 --output out/\n"
-        "  solid detect run.bag --topic /points --preset os1-64 --threshold 0.08\n",
+        epilog="examples:\n  solid detect ~/kitti/00 --preset hdl64\n"
+        "  solid detect run.bag --topic /points --preset os1-64 --threshold 0.08 -o out/\n"
+        "  solid detect run2/ --map run1.soliddb          # against a prior session's map\n",
     )
     p.add_argument("sequence", type=Path)
-    p.add_argument("-o", "--output", type=Path, default=Path("solid_results"), help="output folder (default: solid_results)")
-    p.add_argument("--exclude", type=int, default=50, help="ignore the N most recent frames (default 50)")
-    p.add_argument("--threshold", type=float, default=0.1, help="accept a loop when the cosine distance ≤ this (default 0.1)")
-    p.add_argument("--top-k", type=int, default=10, help="candidates the detector considers (default 10)")
-    p.add_argument("--timestamps", type=Path, help="timestamps file (one per line)")
-    p.add_argument("--no-rerank", action="store_true", help="do not re-rank candidates by A-SOLiD alignment")
+    p.add_argument("-o", "--output", type=Path, default=None, help="output folder (must not exist or be empty)")
+    p.add_argument("--map", type=Path, metavar="FILE", help="a map from `solid map build`: query this recording against it")
     _add_config_args(p)
-    _add_reader_args(p)
+    _add_detector_args(p)
+    _add_input_args(p)
     _add_common(p)
 
     p = sub.add_parser(
         "eval",
-        help="evaluate loop closure against poses (SPEC §5): metrics.json, CSV, PR/ROC plots",
+        help=f"score the detector's candidates against poses ({_SPEC} §5): metrics, CSV, plots",
         formatter_class=fmt,
         epilog="examples:\n"
-        "  solid eval hku1-avia --poses odom_poses.txt --preset avia --exclude 50 --radius 3 --baseline scancontext\n"
+        "  solid eval hku1-avia --poses odom_poses.txt --preset avia --radius 3 --baseline scancontext\n"
         "  solid eval ~/kitti/00 --poses poses.txt --calib calib.txt --preset hdl64 --radius 10 --fov 60\n"
-        "  solid eval ~/kitti/00 --poses poses.txt --preset hdl64 --frames 0:1000 --subsample-m 1\n"
+        "  solid eval run2/ --poses run2/poses.txt --map run1.soliddb\n"
         "\nThe exclusion window counts frames of the evaluated selection (after --frames/--subsample-m).\n"
-        "A relative --poses path that does not exist is looked up inside SEQUENCE.\n",
+        "A relative --poses path is looked up inside SEQUENCE when it is not in the current folder.\n",
     )
     p.add_argument("sequence", type=Path)
-    p.add_argument("--poses", type=Path, required=True, help="KITTI 3×4 rows or TUM (t x y z qx qy qz qw), one per scan")
-    p.add_argument(
-        "--calib",
-        type=Path,
-        metavar="FILE",
-        help="sensor → pose-frame extrinsic: a KITTI calib.txt ('Tr:' line; KITTI poses are camera poses) or 12 numbers",
-    )
-    p.add_argument("--exclude", type=int, default=50, help="exclusion window in frames (default 50)")
-    p.add_argument("--radius", type=float, default=5.0, help="a match is correct within this many metres (default 5)")
-    p.add_argument("-o", "--output", type=Path, default=None, help="output folder (default: solid_results/<sequence>)")
-    p.add_argument("--baseline", action="append", choices=["scancontext"], default=[], help="also evaluate this baseline")
-    p.add_argument("--sc-max-range", type=float, default=None, help="Scan Context max range (default: the SOLiD max_range)")
-    p.add_argument("--sc-height-offset", type=float, default=2.0, help="added to z before max height (default 2.0 m)")
-    p.add_argument("--frames", default=None, metavar="SPEC", help="frames to use, e.g. 0:60,284:314 (Python slices)")
-    p.add_argument("--subsample-m", type=float, default=None, metavar="M", help="keep one frame per M metres travelled")
-    p.add_argument("--fov", type=float, default=None, metavar="DEG", help="clip every scan to this horizontal FOV")
-    p.add_argument("--fov-center", type=float, default=0.0, metavar="DEG", help="centre of --fov (default 0 = +x)")
-    p.add_argument("--occlude", type=float, default=None, metavar="DEG", help="remove a sector this wide from every scan")
-    p.add_argument("--occlude-center", type=float, default=0.0, metavar="DEG")
-    p.add_argument("--threshold", type=float, default=0.03, help="loop detector distance threshold (default 0.03)")
+    p.add_argument("-o", "--output", type=Path, default=None, help="output folder (must not exist or be empty)")
+    p.add_argument("--map", type=Path, metavar="FILE", help="a map from `solid map build` (with poses): score against it too")
+    p.add_argument("--radius", type=pos_float, default=None, help="a match is correct within this many metres (default 5)")
+    p.add_argument("--baseline", action="append", choices=["scancontext"], default=[], help="also evaluate this baseline on the same queries")
+    p.add_argument("--sc-max-range", type=pos_float, default=None, metavar="M", help="Scan Context max range (default 80, as the reference)")
+    p.add_argument("--sc-lidar-height", type=any_float, default=None, metavar="M", help="added to z before the max height (default 2.0)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
-    p.add_argument("--threads", type=int, default=None, help="threads for describing (default: all cores)")
     _add_config_args(p)
-    _add_reader_args(p)
+    _add_detector_args(p)
+    _add_input_args(p, poses_required=True)
     _add_common(p)
 
     p = sub.add_parser(
@@ -191,12 +202,14 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=fmt,
         epilog="examples:\n  solid demo\n  solid demo --sensor os1-64 --fov 120 -o demo_out\n",
     )
-    p.add_argument("-o", "--output", type=Path, default=Path("solid_demo"), help="output folder (default: solid_demo)")
-    p.add_argument("--sensor", choices=["hdl64", "vlp16", "os1-64", "avia", "aeva"], default="hdl64", help="simulated sensor (default hdl64)")
-    p.add_argument("--fov", type=float, default=60.0, metavar="DEG", help="horizontal field of view (default 60)")
-    p.add_argument("--seed", type=int, default=3, help="world seed (default 3)")
-    p.add_argument("--laps", type=float, default=1.5, help="laps around the block (default 1.5)")
-    p.add_argument("--threshold", type=float, default=0.03, help="loop detector distance threshold (default 0.03)")
+    from .sim import SENSORS
+
+    p.add_argument("-o", "--output", type=Path, default=None, help="output folder (must not exist or be empty)")
+    p.add_argument("--sensor", choices=list(SENSORS), default="hdl64", help="simulated sensor (default hdl64)")
+    p.add_argument("--fov", type=degrees, default=60.0, metavar="DEG", help="horizontal field of view (default 60)")
+    p.add_argument("--seed", type=nonneg_int, default=3, help="world seed (default 3)")
+    p.add_argument("--laps", type=pos_float, default=1.5, help="laps around the block (default 1.5)")
+    p.add_argument("--threshold", type=unit_float, default=None, help="loop detector threshold (default: the preset's)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     _add_common(p)
 
@@ -209,12 +222,42 @@ def build_parser() -> argparse.ArgumentParser:
     csub.required = True
     d = csub.add_parser(
         "dump",
-        help="print a configuration as JSON (to edit and pass back with --config)",
+        help="print a whole pipeline configuration as JSON (to edit and pass back with --config)",
         formatter_class=fmt,
-        epilog="example:\n  solid config dump --preset avia --max-range 40 > avia40.json\n",
+        epilog="example:\n  solid config dump --preset avia --max-range 40 --exclude-m 20 > avia40.json\n",
     )
     _add_config_args(d)
+    _add_detector_args(d)
+    d.add_argument("--radius", type=pos_float, default=None, help="evaluation radius in metres")
     _add_common(d)
+
+    p = sub.add_parser("map", help="saved maps: build one from a recording, merge, inspect", formatter_class=fmt)
+    msub = p.add_subparsers(dest="map_command", metavar="ACTION", parser_class=_Parser)
+    msub.required = True
+    b = msub.add_parser(
+        "build",
+        help="describe every scan of a recording into a map file (places with poses and times)",
+        formatter_class=fmt,
+        epilog="example:\n  solid map build run1/ --preset avia --poses run1/poses.txt -o run1.soliddb\n",
+    )
+    b.add_argument("sequence", type=Path)
+    b.add_argument("-o", "--output", type=Path, required=True, help="the map file to write (must not exist)")
+    _add_config_args(b)
+    _add_input_args(b)
+    _add_common(b)
+    mm = msub.add_parser(
+        "merge",
+        help="merge maps into one (each input's sessions renumbered after the previous ones)",
+        formatter_class=fmt,
+        epilog="example:\n  solid map merge run1.soliddb run2.soliddb -o both.soliddb\n",
+    )
+    mm.add_argument("maps", type=Path, nargs="+")
+    mm.add_argument("-o", "--output", type=Path, required=True, help="the map file to write (must not exist)")
+    _add_common(mm)
+    mi = msub.add_parser("info", help="what a map file holds", formatter_class=fmt, epilog="example:\n  solid map info run1.soliddb\n")
+    mi.add_argument("map", type=Path)
+    mi.add_argument("--json", action="store_true", help="print JSON")
+    _add_common(mi)
 
     p = sub.add_parser(
         "bench",
@@ -223,71 +266,58 @@ def build_parser() -> argparse.ArgumentParser:
         epilog="examples:\n  solid bench ~/kitti/00/velodyne --preset hdl64\n  solid bench scans/ --preset avia --frames 200 --db-size 5000\n",
     )
     p.add_argument("sequence", type=Path)
-    p.add_argument("--frames", type=int, default=200, help="scans to load (default 200)")
-    p.add_argument("--db-size", type=int, default=None, help="search a database of this many entries (descriptors repeated)")
-    p.add_argument("--threads", type=int, default=None, help="threads for the batch describe (default: all cores)")
+    p.add_argument("--frames", dest="n_frames", type=pos_int, default=200, help="scans to load (default 200)")
+    p.add_argument("--db-size", type=pos_int, default=None, help="search a database of this many entries (descriptors repeated)")
+    p.add_argument("--threads", type=pos_int, default=None, help="threads for the batch describe (default: every core)")
+    p.add_argument("--format", help="force the scan reader")
+    p.add_argument("--topic", help="point-cloud topic of a bag")
     _add_config_args(p)
-    _add_reader_args(p)
     _add_common(p)
     return parser
 
 
-# --------------------------------------------------------------------------------------------
-# helpers
+# ---- from arguments to objects -----------------------------------------------------------------
 
 
-def _solid() -> Any:
+def make_config(args: argparse.Namespace, base: Any | None = None) -> Any:
+    """The pipeline configuration: ``base``, else ``--config FILE``, else ``--preset``; then the
+    flags."""
     import solid
+    from .config import InputOptions, PipelineConfig
 
-    return solid
-
-
-def config_dict(cfg: Any) -> dict[str, Any]:
-    """The SPEC §1 fields of a SolidConfig as a plain dictionary."""
-    return {f: getattr(cfg, f) for f in CONFIG_FIELDS}
-
-
-def make_config(args: argparse.Namespace, required: bool = True) -> tuple[Any, str | None]:
-    """SolidConfig from --preset, then --config FILE, then the per-field flags."""
-    solid = _solid()
-    fields: dict[str, Any] = {}
-    preset: str | None = args.preset
-    if args.config is not None:
-        try:
-            doc = json.loads(Path(args.config).read_text())
-        except FileNotFoundError:
-            raise UserError(f"{args.config}: no such file") from None
-        except (json.JSONDecodeError, UnicodeDecodeError) as e:
-            raise UserError(f"{args.config}: not a JSON configuration ({e})") from None
-        if not isinstance(doc, dict):
-            raise UserError(f"{args.config}: expected a JSON object")
-        unknown = set(doc) - set(CONFIG_FIELDS) - {"preset"}
-        if unknown:
-            raise UserError(f"{args.config}: unknown keys {', '.join(sorted(unknown))} (allowed: preset, {', '.join(CONFIG_FIELDS)})")
-        if preset is None:
-            preset = doc.get("preset")
-        fields.update({k: v for k, v in doc.items() if k != "preset"})
-    for f in CONFIG_FIELDS:
-        v = getattr(args, f, None)
+    if base is not None:
+        pass
+    elif getattr(args, "config", None) is not None:
+        base = PipelineConfig.load(args.config)
+        if args.preset is not None and args.preset != base.preset_name:
+            raise solid.ConfigError(f"--preset {args.preset} contradicts the preset {base.preset_name!r} of {args.config}")
+    elif args.preset is not None:
+        base = PipelineConfig.preset(args.preset)
+    else:
+        raise solid.ConfigError("give --preset NAME (see `solid presets`) or --config FILE")
+    desc = {k: getattr(args, k) for k in _descriptor_fields() if getattr(args, k, None) is not None}
+    det: dict[str, Any] = {}
+    for flag, key in (("exclude", "exclude_frames"), ("exclude_m", "exclude_meters"), ("exclude_s", "exclude_seconds"), ("threshold", "threshold"), ("top_k", "top_k")):
+        v = getattr(args, flag, None)
         if v is not None:
-            fields[f] = v
-    if preset is None:
-        if not required and not fields:
-            return None, None
-        missing = [f for f in ("fov_up", "fov_down", "n_elevation") if f not in fields]
-        if missing:
-            raise UserError("give --preset NAME (see `solid presets`) or a --config file with a preset")
-        try:
-            return solid.SolidConfig(**fields), None
-        except TypeError as e:
-            raise UserError(f"bad configuration: {e}") from None
-    names = sorted(solid.presets())
-    if preset not in names:
-        raise UserError(f"unknown preset {preset!r}; one of: {', '.join(names)}")
-    try:
-        return solid.SolidConfig.preset(preset, **fields), preset
-    except TypeError as e:
-        raise UserError(f"bad configuration: {e}") from None
+            det[key] = v
+    if getattr(args, "no_rerank", False):
+        det["rerank"] = False
+    inp = {}
+    for key in ("fov", "fov_center", "occlude", "occlude_center", "frames", "subsample_m"):
+        v = getattr(args, key, None)
+        if v is not None:
+            inp[key] = v
+    cfg = base
+    if desc:
+        cfg = cfg.replace(descriptor=cfg.descriptor.replace(**desc))
+    if det:
+        cfg = cfg.replace(detector=cfg.detector.replace(**det))
+    if inp:
+        cfg = cfg.replace(input=InputOptions(**{**cfg.input.to_dict(), **inp}))
+    if getattr(args, "radius", None) is not None:
+        cfg = cfg.replace(radius=args.radius)
+    return cfg
 
 
 def _progress(args: argparse.Namespace, total: int | None, desc: str, unit: str = "scan") -> Any:
@@ -296,242 +326,143 @@ def _progress(args: argparse.Namespace, total: int | None, desc: str, unit: str 
     return tqdm(total=total, desc=desc, unit=unit, disable=bool(args.quiet), file=sys.stderr, dynamic_ncols=True, leave=False)
 
 
-def _open_sequence(args: argparse.Namespace, poses: Path | None = None, timestamps: Path | None = None) -> sio.Sequence:
-    return sio.Sequence(args.sequence, poses=poses, timestamps=timestamps, format=args.format, topic=args.topic)
+def _open(args: argparse.Namespace, err: TextIO) -> tuple[Any, Any]:
+    """The dataset and the record of its inputs; prints which reader was chosen."""
+    from .commands import Inputs
+    from .pipeline import open_dataset
+
+    ds, info = open_dataset(
+        args.sequence,
+        format=getattr(args, "format", None),
+        topic=getattr(args, "topic", None),
+        poses=getattr(args, "poses", None),
+        timestamps=getattr(args, "timestamps", None),
+        calib=getattr(args, "calib", None),
+    )
+    if not args.quiet:
+        err.write(f"solid: {info['sequence']}: {len(ds)} scans, reader {info['reader']}\n")
+    inputs = Inputs(
+        sequence=Path(info["sequence"]),
+        reader=info["reader"],
+        poses=info.get("poses"),
+        timestamps=info.get("timestamps"),
+        calib=info.get("calib"),
+        map=getattr(args, "map", None),
+    )
+    return ds, inputs
 
 
-def parse_frames(spec: str, n: int) -> list[int]:
-    """Frame selection ``"0:60,284:314,300"`` (Python slices and indices, in that order, no repeats)."""
-    out: list[int] = []
-    seen: set[int] = set()
-    for part in spec.split(","):
-        part = part.strip()
-        if not part:
-            continue
-        try:
-            if ":" in part:
-                bits = [int(b) if b.strip() else None for b in part.split(":")]
-                if len(bits) > 3:
-                    raise ValueError
-                idx = list(range(n))[slice(*bits)]
-            else:
-                i = int(part)
-                if not -n <= i < n:
-                    raise UserError(f"--frames: frame {i} is out of range for {n} scans")
-                idx = [i % n]
-        except ValueError:
-            raise UserError(f"--frames: cannot parse {part!r} (use e.g. 0:60,284:314)") from None
-        for i in idx:
-            if i not in seen:
-                seen.add(i)
-                out.append(i)
-    if not out:
-        raise UserError(f"--frames {spec!r} selects no scans")
-    return out
+def config_and_map(args: argparse.Namespace) -> tuple[Any, Any]:
+    """The pipeline configuration and the ``--map`` database (or None). Without ``--preset`` and
+    ``--config``, a map's own descriptor configuration is used (and its preset's detector
+    defaults when it is a preset's); otherwise the two must agree."""
+    import solid
+    from .config import PipelineConfig
 
-
-def _iter_selected(seq: sio.Sequence, idx: AbcSequence[int]) -> Iterator[F32]:
-    """Scans idx[0], idx[1], ... read once each (bags are streamed, folders read by index)."""
-    if seq.is_bag:
-        want = {i: k for k, i in enumerate(idx)}
-        buf: dict[int, F32] = {}
-        nxt = 0
-        for i, pts in enumerate(seq):
-            if i in want:
-                buf[want[i]] = pts
-                while nxt in buf:
-                    yield buf.pop(nxt)
-                    nxt += 1
-            if nxt == len(idx):
-                return
+    if getattr(args, "map", None) is None:
+        return make_config(args), None
+    m = solid.Database.load(args.map)
+    if args.preset is None and args.config is None:
+        base = next(
+            (PipelineConfig.preset(n) for n, c in solid.presets().items() if c == m.config),
+            PipelineConfig(descriptor=m.config, detector=solid.DetectorConfig()),
+        )
+        cfg = make_config(args, base)
     else:
-        for i in idx:
-            yield seq[i]
+        cfg = make_config(args)
+    if m.config != cfg.descriptor:
+        raise solid.ConfigError(f"{args.map} was built with {m.config!r}; this run asks for {cfg.descriptor!r}")
+    return cfg, m
 
 
-def _write_text(path: Path, text: str) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    sio._atomic_write_bytes(path, text.encode())
-
-
-def _short(v: float) -> float:
-    """A float32 value as the shortest decimal that reads back to the same float32."""
-    return float(str(np.float32(v)))
-
-
-# --------------------------------------------------------------------------------------------
-# commands
+# ---- commands ----------------------------------------------------------------------------------
 
 
 def cmd_describe(args: argparse.Namespace, out: TextIO) -> int:
-    solid = _solid()
-    cfg, preset = make_config(args)
-    pts = sio.read_points(args.scan, args.format, xyz_only=True)
-    t0 = time.perf_counter()
-    d = solid.describe(pts, cfg)
-    dt = time.perf_counter() - t0
-    doc = {
-        "file": str(args.scan),
-        "format": args.format or sio.detect_format(args.scan),
-        "preset": preset,
-        "config": config_dict(cfg),
-        "n_points": int(d.n_points),
-        "n_in_range": int(d.n_in_range),
-        "n_kept": int(d.n_kept),
-        "describe_ms": round(dt * 1e3, 3),
-        "r": [_short(v) for v in np.asarray(d.r)],
-        "a": [_short(v) for v in np.asarray(d.a)],
-    }
-    text = json.dumps(doc, indent=1) + "\n"
+    from .commands import describe_scan
+
+    cfg = make_config(args)
+    text = json.dumps(describe_scan(args.scan, cfg, args.format), indent=1) + "\n"
     if args.output is not None:
-        _write_text(args.output, text)
+        from .io import _atomic_write_bytes
+
+        _atomic_write_bytes(args.output, text.encode())
     else:
         out.write(text)
     return 0
 
 
-def cmd_demo(args: argparse.Namespace, out: TextIO) -> int:
-    from . import sim
+def cmd_detect(args: argparse.Namespace, out: TextIO) -> int:
+    from . import commands
 
-    m = sim.run_demo(
-        args.output,
-        seed=args.seed,
-        sensor=args.sensor,
-        h_fov=args.fov,
-        laps=args.laps,
-        threshold=args.threshold,
-        plots=not args.no_plots,
+    cfg, map_db = config_and_map(args)
+    ds, inputs = _open(args, sys.stderr)
+    with _progress(args, len(ds), "detect") as bar:
+        result, folder = commands.detect(ds, cfg, inputs, output=args.output, map_db=map_db, threads=args.threads, progress=bar.update)
+    t = result.timings
+    total = t["describe_s"] + t["detect_s"]
+    rate = len(result.frames) / total if total > 0 else math.inf
+    d = cfg.detector
+    out.write(
+        f"{len(result.frames)} scans, {len(result.loops())} loops (threshold {d.threshold:g}, exclude {d.exclude_frames} frames"
+        + (f" / {d.exclude_meters:g} m" if d.exclude_meters else "")
+        + (f" / {d.exclude_seconds:g} s" if d.exclude_seconds else "")
+        + f"{', map of ' + str(result.map_size) + ' places' if result.map_size else ''}), {rate:.1f} Hz\n"
     )
-    out.write(sim.demo_summary(m))
+    out.write(f"wrote {folder}\n")
     return 0
-
-
-def cmd_presets(args: argparse.Namespace, out: TextIO) -> int:
-    solid = _solid()
-    ps = solid.presets()
-    if args.json:
-        out.write(json.dumps({n: config_dict(c) for n, c in ps.items()}, indent=1) + "\n")
-        return 0
-    sensors: dict[str, str] = solid.preset_sensors() if hasattr(solid, "preset_sensors") else {}
-    head = f"{'name':<8} {'fov_up':>7} {'fov_down':>8} {'n_elev':>6} {'n_range':>7} {'n_azim':>6} {'min_r':>5} {'max_r':>6} {'voxel':>5}  sensor"
-    out.write(head + "\n")
-    for n, c in ps.items():
-        out.write(
-            f"{n:<8} {c.fov_up:>7g} {c.fov_down:>8g} {c.n_elevation:>6d} {c.n_range:>7d} {c.n_azimuth:>6d} "
-            f"{c.min_range:>5g} {c.max_range:>6g} {c.voxel_size:>5g}  {sensors.get(n, '')}\n"
-        )
-    return 0
-
-
-def cmd_config(args: argparse.Namespace, out: TextIO) -> int:
-    solid = _solid()
-    cfg, preset = make_config(args, required=False)
-    if cfg is None:
-        cfg = solid.SolidConfig.preset("hdl64")
-        preset = "hdl64"
-    doc: dict[str, Any] = {"preset": preset} if preset else {}
-    doc.update(config_dict(cfg))
-    out.write(json.dumps(doc, indent=2) + "\n")
-    return 0
-
-
-def _describe_all(args: argparse.Namespace, seq: sio.Sequence, idx: list[int], cfg: Any, sc_cfg: Any | None) -> tuple[F32, F32, npt.NDArray[np.float64] | None]:
-    solid = _solid()
-    from . import scancontext as sc
-
-    R: list[F32] = []
-    A: list[F32] = []
-    S: list[npt.NDArray[np.float64]] = []
-    batch: list[F32] = []
-    threads = getattr(args, "threads", None)
-
-    def flush() -> None:
-        if not batch:
-            return
-        for d in solid.describe_batch(batch, cfg, threads=threads):
-            R.append(np.asarray(d.r, dtype=np.float32))
-            A.append(np.asarray(d.a, dtype=np.float32))
-        batch.clear()
-
-    with _progress(args, len(idx), "describe") as bar:
-        for pts in _iter_selected(seq, idx):
-            if args.fov is not None:
-                pts = sio.clip_fov(pts, args.fov, args.fov_center)
-            if args.occlude is not None:
-                pts = sio.occlude_sector(pts, args.occlude, args.occlude_center)
-            batch.append(np.ascontiguousarray(pts[:, :3]))
-            if sc_cfg is not None:
-                S.append(sc.describe(pts, sc_cfg))
-            if len(batch) >= 64:
-                flush()
-            bar.update(1)
-        flush()
-    return np.stack(R), np.stack(A), (np.stack(S) if sc_cfg is not None else None)
 
 
 def cmd_eval(args: argparse.Namespace, out: TextIO) -> int:
-    from . import evaluation as ev
-    from . import scancontext as sc
+    from . import commands
 
-    cfg, preset = make_config(args)
-    if args.exclude < 0:
-        raise UserError("--exclude must be >= 0")
-    if not args.radius > 0:
-        raise UserError("--radius must be > 0")
-    seq = _open_sequence(args, poses=args.poses)
-    assert seq.poses is not None
-    idx = parse_frames(args.frames, len(seq)) if args.frames else list(range(len(seq)))
-    if args.subsample_m is not None:
-        keep = sio.subsample_by_distance(seq.poses[idx], args.subsample_m)
-        idx = [idx[int(k)] for k in keep]
-    if len(idx) <= args.exclude + 1:
-        raise UserError(f"{len(idx)} frames leave no query with an exclusion window of {args.exclude}")
-    poses = seq.poses[idx]
-    if args.calib is not None:
-        poses = sio.sensor_poses(poses, sio.load_extrinsic(args.calib))
+    cfg, map_db = config_and_map(args)
+    ds, inputs = _open(args, sys.stderr)
     sc_cfg = None
     if "scancontext" in args.baseline:
-        sc_cfg = sc.ScanContextConfig(
-            max_range=args.sc_max_range if args.sc_max_range is not None else float(cfg.max_range),
-            height_offset=args.sc_height_offset,
+        from .scancontext import ScanContextConfig
+
+        kw: dict[str, Any] = {}
+        if args.sc_max_range is not None:
+            kw["max_range"] = args.sc_max_range
+        if args.sc_lidar_height is not None:
+            kw["lidar_height"] = args.sc_lidar_height
+        sc_cfg = ScanContextConfig(**kw)
+    hint = ["solid", "detect", str(args.sequence)]
+    if map_db is not None:
+        hint += ["--map", str(args.map)]
+    with _progress(args, len(ds), "eval") as bar:
+        run = commands.evaluate(
+            ds,
+            cfg,
+            inputs,
+            output=args.output,
+            map_db=map_db,
+            scancontext=sc_cfg,
+            plots=not args.no_plots,
+            threads=args.threads,
+            progress=bar.update,
+            command_hint=hint,
         )
-    t0 = time.perf_counter()
-    R, A, S = _describe_all(args, seq, idx, cfg, sc_cfg)
-    t_desc = time.perf_counter() - t0
-    nq = len(ev.query_indices(len(idx), args.exclude))
-    with _progress(args, nq, "search SOLiD", "query") as bar:
-        main_ev = ev.evaluate_solid(R, A, poses, exclude=args.exclude, radius=args.radius, progress=bar.update)
-    main_ev.extra["describe_hz"] = round(len(idx) / t_desc, 1) if t_desc > 0 else None
-    baselines = []
-    if S is not None:
-        with _progress(args, nq, "search Scan Context", "query") as bar:
-            b = sc.evaluate_scancontext(S, poses, exclude=args.exclude, radius=args.radius, progress=bar.update)
-        assert sc_cfg is not None
-        b.extra["config"] = {"n_ring": sc_cfg.n_ring, "n_sector": sc_cfg.n_sector, "max_range": sc_cfg.max_range, "height_offset": sc_cfg.height_offset}
-        baselines.append(b)
-    out_dir = args.output if args.output is not None else Path("solid_results") / Path(args.sequence).resolve().name
-    extra: dict[str, Any] = {
-        "sequence": str(args.sequence),
-        "poses": str(args.poses),
-        "preset": preset,
-        "config": config_dict(cfg),
-        "frames_evaluated": len(idx),
-    }
-    if args.fov is not None:
-        extra["fov_clip_deg"] = [args.fov, args.fov_center]
-    if args.occlude is not None:
-        extra["occluded_sector_deg"] = [args.occlude, args.occlude_center]
-    if args.subsample_m is not None:
-        extra["subsample_m"] = args.subsample_m
-    if args.calib is not None:
-        extra["calib"] = str(args.calib)
-    written = ev.write_report(out_dir, main_ev, baselines, extra=extra, plots=not args.no_plots)
-    _print_table(out, [main_ev, *baselines])
-    out.write(f"wrote {', '.join(str(p) for p in written.values())}\n")
+    _print_table(out, run.evaluations)
+    m = run.metrics
+    excl = m.get("exclusion_median_m")
+    if excl is not None:
+        out.write(f"exclusion: {cfg.detector.exclude_frames} frames ≈ {excl:.1f} m travelled on this sequence (median)\n")
+    if m.get("accepted") is not None:
+        out.write(
+            f"at the threshold {m['threshold']:g}: {m['accepted']} loops accepted, {m['false_accepts']} false "
+            f"(precision {commands.fmt_metric(m['precision'])}, recall {commands.fmt_metric(m['recall'])})\n"
+        )
+    if m.get("best_threshold") is not None:
+        out.write(f"best F1 {commands.fmt_metric(m['f1_max'])} at threshold {m['best_threshold']:.6g}; to use it:\n  {m.get('best_threshold_command', '')}\n")
+    out.write(f"wrote {run.folder}\n")
     return 0
 
 
 def _print_table(out: TextIO, evals: AbcSequence[Any]) -> None:
+    from .commands import fmt_metric
+
     keys = [
         ("queries", "queries"),
         ("gt_queries", "GT+"),
@@ -544,107 +475,81 @@ def _print_table(out: TextIO, evals: AbcSequence[Any]) -> None:
     out.write(f"{'method':<14}" + "".join(f"{h:>10}" for _, h in keys) + "\n")
     for e in evals:
         m = e.metrics()
-        cells = []
-        for k, _ in keys:
-            v = m[k]
-            cells.append(f"{'n/a':>10}" if v is None else (f"{v:>10d}" if isinstance(v, int) else f"{v:>10.3f}"))
-        out.write(f"{e.name:<14}" + "".join(cells) + "\n")
+        out.write(f"{e.name:<14}" + "".join(f"{fmt_metric(m[k]):>10}" for k, _ in keys) + "\n")
 
 
-def cmd_detect(args: argparse.Namespace, out: TextIO) -> int:
-    solid = _solid()
-    if not hasattr(solid, "LoopDetector"):
-        raise UserError("this build of solid has no LoopDetector")
-    cfg, _ = make_config(args)
-    seq = _open_sequence(args, timestamps=args.timestamps)
-    kwargs: dict[str, Any] = {"exclude_recent": args.exclude, "threshold": args.threshold, "top_k": args.top_k}
-    if args.no_rerank:
-        kwargs["rerank"] = False
-    det = solid.LoopDetector(cfg, **kwargs)
-    rows: list[tuple[int, int, float, float]] = []
-    t0 = time.perf_counter()
-    with _progress(args, len(seq), "detect") as bar:
-        for i, pts in enumerate(seq):
-            ts = None if seq.timestamps is None else float(seq.timestamps[i])
-            loop = det.add(pts, timestamp=ts)
-            if loop is not None:
-                rows.append((int(loop.query), int(loop.candidate), float(loop.distance), float(loop.heading)))
-                bar.set_postfix(loops=len(rows), refresh=False)  # shown at the next regular redraw
-            bar.update(1)
-    dt = time.perf_counter() - t0
-    buf = _io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(["query", "candidate", "distance", "heading_deg"])
-    for q, c, d, h in rows:
-        w.writerow([q, c, f"{d:.6f}", f"{h:.3f}"])
-    path = Path(args.output) / "loops.csv"
-    _write_text(path, buf.getvalue())
-    rate = len(seq) / dt if dt > 0 else math.inf
-    out.write(f"{len(seq)} scans, {len(rows)} loops (threshold {args.threshold}, exclude {args.exclude}), {rate:.1f} Hz\n")
-    out.write(f"wrote {path}\n")
+def cmd_demo(args: argparse.Namespace, out: TextIO) -> int:
+    from . import sim
+
+    m = sim.run_demo(args.output, seed=args.seed, sensor=args.sensor, h_fov=args.fov, laps=args.laps, threshold=args.threshold, plots=not args.no_plots)
+    out.write(sim.demo_summary(m))
+    return 0
+
+
+def cmd_presets(args: argparse.Namespace, out: TextIO) -> int:
+    import solid
+
+    ps = solid.presets()
+    sensors = solid.preset_sensors()
+    if args.json:
+        doc = {n: {**c.to_dict(), "loop_threshold": solid.DetectorConfig.preset(n).threshold} for n, c in ps.items()}
+        out.write(json.dumps(doc, indent=1) + "\n")
+        return 0
+    head = f"{'name':<8} {'fov_up':>7} {'fov_down':>8} {'n_elev':>6} {'n_range':>7} {'n_azim':>6} {'min_r':>5} {'max_r':>6} {'voxel':>5} {'loop_thr':>8}  sensor"
+    out.write(head + "\n")
+    for n, c in ps.items():
+        thr = solid.DetectorConfig.preset(n).threshold
+        out.write(
+            f"{n:<8} {c.fov_up:>7g} {c.fov_down:>8g} {c.n_elevation:>6d} {c.n_range:>7d} {c.n_azimuth:>6d} "
+            f"{c.min_range:>5g} {c.max_range:>6g} {c.voxel_size:>5g} {thr:>8g}  {sensors.get(n, '')}\n"
+        )
+    return 0
+
+
+def cmd_config(args: argparse.Namespace, out: TextIO) -> int:
+    if args.preset is None and args.config is None:
+        args.preset = "hdl64"
+    out.write(make_config(args).dumps())
+    return 0
+
+
+def cmd_map(args: argparse.Namespace, out: TextIO) -> int:
+    from . import commands
+
+    if args.map_command == "build":
+        cfg = make_config(args)
+        ds, _ = _open(args, sys.stderr)
+        with _progress(args, len(ds), "map build") as bar:
+            db, result = commands.build_map(ds, cfg, args.output, threads=args.threads, progress=bar.update)
+        with_pose = int(sum(1 for p in db.poses if math.isfinite(float(p[0][0]))))
+        out.write(f"{len(db)} places ({with_pose} with poses), session {result.session}: wrote {args.output}\n")
+        return 0
+    if args.map_command == "merge":
+        db = commands.merge_maps(args.maps, args.output)
+        out.write(f"{len(db)} places in {len(set(int(s) for s in db.sessions))} sessions: wrote {args.output}\n")
+        return 0
+    info = commands.map_info(args.map)
+    if args.json:
+        out.write(json.dumps(info, indent=1) + "\n")
+        return 0
+    out.write(f"{info['file']}: {info['places']} places, {info['bytes']} bytes, config fingerprint {info['fingerprint']}\n")
+    out.write("config: " + ", ".join(f"{k}={v}" for k, v in info["config"].items()) + "\n")
+    for s in info["sessions"]:
+        span = s["time_span_s"]
+        span_s = f", times {span[0]:.3f}–{span[1]:.3f} s" if span else ""
+        out.write(f"  session {s['session']}: {s['places']} places, {s['with_pose']} with poses{span_s}\n")
     return 0
 
 
 def cmd_bench(args: argparse.Namespace, out: TextIO) -> int:
-    solid = _solid()
-    cfg, preset = make_config(args)
-    seq = _open_sequence(args)
-    n = min(args.frames, len(seq))
-    if n < 1:
-        raise UserError("--frames must be >= 1")
-    t0 = time.perf_counter()
-    scans: list[F32] = []
-    with _progress(args, n, "read") as bar:
-        for pts in _iter_selected(seq, list(range(n))):
-            scans.append(np.ascontiguousarray(pts[:, :3]))
-            bar.update(1)
-    t_read = time.perf_counter() - t0
-    npts = sum(s.shape[0] for s in scans)
-    descs = []
-    t0 = time.perf_counter()
-    with _progress(args, n, "describe") as bar:
-        for s in scans:
-            descs.append(solid.describe(s, cfg))
-            bar.update(1)
-    t_desc = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    solid.describe_batch(scans, cfg, threads=args.threads)
-    t_batch = time.perf_counter() - t0
-    R = np.stack([np.asarray(d.r, dtype=np.float32) for d in descs])
-    db_size = args.db_size or n
-    reps = -(-db_size // n)
-    Rdb = np.tile(R, (reps, 1))[:db_size]
-    lines = [
-        f"sequence   {args.sequence} ({n} scans, {npts / n:,.0f} points/scan), preset {preset}",
-        f"read       {n / t_read:10.1f} Hz   ({t_read / n * 1e3:.2f} ms/scan, {npts / t_read / 1e6:.1f} Mpoints/s)",
-        f"describe   {n / t_desc:10.1f} Hz   ({t_desc / n * 1e3:.3f} ms/scan, single thread)",
-        f"batch      {n / t_batch:10.1f} Hz   (describe_batch, threads={args.threads or 'all'})",
-    ]
-    nq = min(n, 200)
-    if hasattr(solid, "Database"):
-        db = solid.Database(cfg)
-        t0 = time.perf_counter()
-        for i in range(db_size):
-            db.add(descs[i % n])
-        t_add = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        for d in descs[:nq]:
-            db.search(d, k=1)
-        t_s = time.perf_counter() - t0
-        lines.append(f"db add     {db_size / t_add:10.1f} Hz   ({db_size} entries)")
-        lines.append(f"search     {nq / t_s:10.1f} Hz   (solid.Database, top-1 over {db_size} entries)")
-    U = Rdb / np.maximum(np.linalg.norm(Rdb, axis=1, keepdims=True), 1e-30)
-    t0 = time.perf_counter()
-    for r in R[:nq]:
-        int(np.argmax(U @ (r / max(float(np.linalg.norm(r)), 1e-30))))
-    t_np = time.perf_counter() - t0
-    lines.append(f"search     {nq / t_np:10.1f} Hz   (numpy brute force baseline, top-1 over {db_size} entries)")
-    out.write("\n".join(lines) + "\n")
+    from . import commands
+
+    cfg = make_config(args)
+    out.write(commands.bench(args.sequence, cfg, frames=args.n_frames, db_size=args.db_size, threads=args.threads, format=args.format, topic=args.topic) + "\n")
     return 0
 
 
-# --------------------------------------------------------------------------------------------
-# entry point
+# ---- entry point -------------------------------------------------------------------------------
 
 
 def main(argv: AbcSequence[str] | None = None) -> int:
@@ -652,24 +557,27 @@ def main(argv: AbcSequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(None if argv is None else list(argv))
     out = sys.stdout
-    handlers = {
+    handlers: dict[str, Callable[[argparse.Namespace, TextIO], int]] = {
         "describe": cmd_describe,
         "demo": cmd_demo,
         "detect": cmd_detect,
         "eval": cmd_eval,
         "presets": cmd_presets,
         "config": cmd_config,
+        "map": cmd_map,
         "bench": cmd_bench,
     }
     try:
         return handlers[args.command](args, out)
     except KeyboardInterrupt:
-        print("solid: interrupted", file=sys.stderr)
+        print("solid: interrupted (no partial results were left)", file=sys.stderr)
         return 130
-    except (UserError, ValueError, OSError, ImportError) as e:
+    except (ValueError, OSError, ImportError, MemoryError, RecursionError) as e:
         if getattr(args, "debug", False):
             traceback.print_exc()
         msg = str(e) or type(e).__name__
+        if isinstance(e, MemoryError):
+            msg = f"out of memory ({msg})"
         if isinstance(e, OSError) and e.filename and str(e.filename) not in msg:
             msg = f"{e.filename}: {msg}"
         print(f"solid {args.command}: error: {msg.splitlines()[0] if msg else type(e).__name__}", file=sys.stderr)

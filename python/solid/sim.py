@@ -40,19 +40,22 @@ __all__ = [
     "demo_summary",
     "run_demo",
     "scan",
+    "session_routes",
     "simulate",
     "true_heading",
     "write_sequence",
+    "write_sessions",
 ]
 
 F32 = npt.NDArray[np.float32]
 F64 = npt.NDArray[np.float64]
 PathLike = Union[str, "os.PathLike[str]"]
 
-#: Sensor model names; each matches the descriptor preset of the same name (``solid.presets()``).
-SENSORS: tuple[str, ...] = ("hdl64", "vlp16", "os1-64", "avia", "aeva")
-#: Built-in trajectory kinds (see :class:`Trajectory`).
-TRAJECTORIES: tuple[str, ...] = ("loop", "figure-eight", "reverse", "crossing")
+#: Sensor model names (read from the simulator crate); each matches the descriptor preset of the
+#: same name (``solid.presets()``).
+SENSORS: tuple[str, ...] = tuple(_solid._SIM_SENSORS)
+#: Built-in trajectory kinds (read from the simulator crate; see :class:`Trajectory`).
+TRAJECTORIES: tuple[str, ...] = tuple(_solid._SIM_TRAJECTORIES)
 
 
 class World:
@@ -350,10 +353,18 @@ class Sequence:
     def __iter__(self) -> Iterator[F32]:
         return iter(self.scans)
 
+    def __getitem__(self, i: int) -> F32:
+        return self.scans[i]
+
     @property
     def poses(self) -> F64:
         """(M, 3, 4) ``T_world_sensor``."""
         return self.trajectory.poses
+
+    @property
+    def timestamps(self) -> F64:
+        """(M,) seconds (the pipeline's name for :attr:`times`)."""
+        return self.trajectory.times
 
     @property
     def times(self) -> F64:
@@ -414,6 +425,35 @@ def write_sequence(
     return _solid._sim_write_sequence(d, source._ext, sensor._ext, trajectory.poses, [float(t) for t in trajectory.times])
 
 
+def session_routes(world: World, spacing: float = 2.0) -> tuple[Trajectory, Trajectory]:
+    """Two sessions' routes through one world, in one frame: a lap around the block south-west
+    of the centre (counter-clockwise), and a route that comes from the west along the block's
+    southern street, turns north up its eastern street (both the way the lap drove them), and
+    goes on north and east into streets the lap never saw. For multi-session tests and docs:
+    the second session revisits about half of its route in the first session's direction."""
+    pitch = world.block_pitch
+    lap = Trajectory.loop(world, laps=1.0, spacing=spacing)
+    second = Trajectory.from_waypoints(
+        world, [(-2 * pitch, -pitch), (0.0, -pitch), (0.0, pitch), (pitch, pitch)], spacing=spacing
+    )
+    return lap, second
+
+
+def write_sessions(
+    directory: PathLike, world: World, sensor: Sensor, trajectories: AbcSequence[Trajectory]
+) -> list[Path]:
+    """Simulate and write one KITTI-layout folder per trajectory (``session_0/``, ``session_1/``,
+    …, see :func:`write_sequence`), all poses in the world's frame, so that a map built from one
+    session can be evaluated against another (``solid map build`` / ``solid eval --map``).
+    Returns the folders."""
+    out = []
+    for i, traj in enumerate(trajectories):
+        d = Path(directory) / f"session_{i}"
+        write_sequence(d, world, sensor, traj)
+        out.append(d)
+    return out
+
+
 def true_heading(pose_query: npt.ArrayLike, pose_candidate: npt.ArrayLike) -> float:
     """SPEC §3 ground-truth heading in degrees, (−180, 180]: ψ = yaw(R_queryᵀ · R_candidate), so
     that ``p_query ≈ Rz(ψ) · p_candidate``."""
@@ -425,7 +465,7 @@ def true_heading(pose_query: npt.ArrayLike, pose_candidate: npt.ArrayLike) -> fl
 
 
 def run_demo(
-    out_dir: PathLike = "solid_demo",
+    out_dir: PathLike | None = None,
     *,
     seed: int = 3,
     sensor: str = "hdl64",
@@ -434,64 +474,55 @@ def run_demo(
     spacing: float = 1.0,
     exclude: int = 50,
     radius: float = 5.0,
-    threshold: float = 0.03,
+    threshold: float | None = None,
     plots: bool = True,
 ) -> dict[str, Any]:
-    """Simulate a drive with a loop under a narrow field of view, detect its loops with SOLiD and
-    score them against the simulator's exact poses: the online :class:`solid.LoopDetector` (at
-    ``threshold``), and the SPEC §5 protocol over every query. Writes ``metrics.json``,
-    ``queries.csv`` and (with ``plots``) ``pr.png``, ``roc.png`` and ``map.png`` into ``out_dir``.
-    Returns the metrics dictionary (``metrics.json``) plus ``"simulation"`` (the settings) and
-    ``"written"`` (name → path); :func:`demo_summary` formats it."""
-    import solid
-
-    from .evaluation import evaluate_solid, write_report
+    """Simulate a drive with a loop under a narrow field of view and run the loop-closure pipeline
+    on it (:class:`solid.pipeline.LoopClosurePipeline`, the preset's detector, ``threshold`` when
+    given), scored against the simulator's exact poses by the same evaluation as ``solid eval``.
+    Writes ``metrics.json``, ``queries.csv``, ``loops.csv``, ``config.json`` and (with ``plots``)
+    the evaluation plots and ``map.png`` into a fresh folder (``out_dir``, or one under
+    ``solid_results/``). Returns the metrics dictionary plus ``"simulation"`` (the settings) and
+    ``"folder"``; :func:`demo_summary` formats it."""
+    from .commands import Inputs, evaluate
+    from .config import PipelineConfig
 
     world = World(seed=seed)
     sens = Sensor(sensor, h_fov=h_fov)
     traj = Trajectory.loop(world, laps=laps, spacing=spacing)
     seq = simulate(world, sens, traj)
-    cfg = solid.SolidConfig.preset(sensor)
-    descs = solid.describe_batch(seq.scans, cfg)
-    r = np.stack([d.r for d in descs])
-    a = np.stack([d.a for d in descs])
-    ev = evaluate_solid(r, a, traj.poses, exclude=exclude, radius=radius, name=f"SOLiD ({sensor}, {h_fov:g}° FOV)")
-    extra: dict[str, Any] = {
-        "simulation": {"seed": seed, "sensor": sensor, "h_fov": h_fov, "laps": laps, "spacing": spacing},
-        "loop_detector": _detect_loops(cfg, descs, traj.poses, exclude, radius, threshold),
-    }
-    written = write_report(out_dir, ev, extra=extra, plots=plots)
-    if plots:
-        written["map"] = _plot_map(Path(out_dir) / "map.png", world, traj, ev.queries, ev.top_ids[:, 0], ev.correct, ev.gt_positive)
-    out = dict(ev.metrics())
-    out.update(extra)
-    out["written"] = {k: str(v) for k, v in written.items()}
+    det: dict[str, Any] = {"exclude_frames": exclude}
+    if threshold is not None:
+        det["threshold"] = threshold
+    cfg = PipelineConfig.preset(sensor, detector=det, radius=radius)
+    settings = {"seed": seed, "sensor": sensor, "h_fov": h_fov, "laps": laps, "spacing": spacing}
+
+    def heading_of_true_loops(ev: Any) -> dict[str, Any]:
+        m = ev.accepted & ev.correct
+        err = np.abs((ev.heading_deg[m] - np.asarray(ev.scores.true_heading_deg)[m] + 180.0) % 360.0 - 180.0)
+        return {
+            "true_loop_heading_error_deg_mean": float(err.mean()) if err.size else None,
+            "true_loop_heading_error_deg_max": float(err.max()) if err.size else None,
+        }
+
+    def map_png(folder: Path, result: Any, evals: list[Any]) -> None:
+        if plots:
+            ev = evals[0]
+            _plot_map(folder / "map.png", world, traj, ev.query, ev.ids[:, 0], ev.correct, ev.gt_positive)
+
+    run = evaluate(
+        seq,
+        cfg,
+        Inputs(sequence=Path(f"simulated_{sensor}_{h_fov:g}deg_seed{seed}"), reader="sim"),
+        output=None if out_dir is None else Path(out_dir),
+        plots=plots,
+        extra={"simulation": settings},
+        write_more=map_png,
+    )
+    out = dict(run.metrics)
+    out.update(heading_of_true_loops(run.evaluations[0]))
+    out["folder"] = str(run.folder)
     return out
-
-
-def _detect_loops(
-    cfg: Any, descs: list[Any], poses: npt.NDArray[np.float64], exclude: int, radius: float, threshold: float
-) -> dict[str, Any]:
-    """Runs the online loop detector frame by frame; scores its loops against the true poses."""
-    import solid
-
-    det = solid.LoopDetector(cfg, exclude_recent=exclude, threshold=threshold)
-    loops = [lp for i, d in enumerate(descs) if (lp := det.add(d, timestamp=float(i))) is not None]
-    true, errors = 0, []
-    for lp in loops:
-        gap = float(np.linalg.norm(poses[lp.query][:, 3] - poses[lp.candidate][:, 3]))
-        if gap <= radius:
-            true += 1
-            psi = true_heading(poses[lp.query], poses[lp.candidate])
-            errors.append(abs((lp.heading - psi + 180.0) % 360.0 - 180.0))
-    return {
-        "threshold": threshold,
-        "loops": len(loops),
-        "true_loops": true,
-        "precision": true / len(loops) if loops else None,
-        "heading_error_deg_mean": float(np.mean(errors)) if errors else None,
-        "heading_error_deg_max": float(np.max(errors)) if errors else None,
-    }
 
 
 def demo_summary(metrics: dict[str, Any]) -> str:
@@ -502,34 +533,24 @@ def demo_summary(metrics: dict[str, Any]) -> str:
         return "n/a" if v is None else format(v, fmt)
 
     sim_cfg = metrics.get("simulation", {})
+    det = metrics.get("config", {}).get("detector", {})
     lines = [
         f"simulated drive: {sim_cfg.get('laps', '?')} laps around a block, {metrics.get('frames')} frames "
         f"{sim_cfg.get('spacing', '?')} m apart, sensor {sim_cfg.get('sensor', '?')} clipped to "
         f"{sim_cfg.get('h_fov', '?')}° field of view (world seed {sim_cfg.get('seed', '?')})",
-        f"loop detection (exclude {metrics.get('exclude')} frames, radius {metrics.get('radius')} m, "
+        f"online loop detector (threshold {det.get('threshold')}): {metrics.get('accepted')} loops, "
+        f"{metrics.get('true_accepts')} true (precision {f('precision')}); heading error of true loops mean "
+        f"{f('true_loop_heading_error_deg_mean', '.2f')}°, max {f('true_loop_heading_error_deg_max', '.2f')}°",
+        f"loop detection (exclude {det.get('exclude_frames')} frames, radius {metrics.get('radius_m')} m, "
         f"{metrics.get('gt_queries')} revisiting queries of {metrics.get('queries')}):",
         f"  Recall@1 {f('recall_at_1')}   Recall@5 {f('recall_at_5')}   F1 max {f('f1_max')} "
-        f"(at distance <= {f('f1_threshold')})   AUC {f('auc')}",
+        f"(at score <= {f('f1_threshold')})   AUC {f('auc')}",
         f"  heading error vs the simulator's truth over {metrics.get('correct_top1')} correct matches: "
         f"mean {f('rotation_error_deg_mean', '.2f')}°, median {f('rotation_error_deg_median', '.2f')}°, "
         f"max {f('rotation_error_deg_max', '.2f')}°",
     ]
-    ld = metrics.get("loop_detector")
-    if ld:
-
-        def g(key: str, fmt: str) -> str:
-            v = ld.get(key)
-            return "n/a" if v is None else format(v, fmt)
-
-        lines.insert(
-            1,
-            f"online loop detector (threshold {ld['threshold']}): {ld['loops']} loops, {ld['true_loops']} true "
-            f"(precision {g('precision', '.3f')}); heading error of true loops mean "
-            f"{g('heading_error_deg_mean', '.2f')}°, max {g('heading_error_deg_max', '.2f')}°",
-        )
-    written = metrics.get("written", {})
-    if written:
-        lines.append("written: " + ", ".join(str(p) for p in written.values()))
+    if metrics.get("folder"):
+        lines.append(f"wrote {metrics['folder']}")
     return "\n".join(lines) + "\n"
 
 
@@ -542,34 +563,30 @@ def _plot_map(
     correct: npt.NDArray[np.bool_],
     gt: npt.NDArray[np.bool_],
 ) -> Path:
-    import io
-
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     from matplotlib.patches import Rectangle
 
-    from .io import _atomic_write_bytes
+    from .plots import _figure, save
 
-    colours = {"building": "0.6", "car": "tab:blue", "crown": "tab:green", "trunk": "tab:brown",
-               "pole": "k", "wall": "tab:red", "fence": "tab:orange"}
+    # Muted colours for the world, none of them the legend's green (correct) or red (wrong).
+    colours = {"building": "0.65", "car": "#9ecae1", "crown": "#c7b99a", "trunk": "#8c6d46",
+               "pole": "0.2", "wall": "#bcbddc", "fence": "#fdd0a2"}
     kinds, fp, _ = world.footprints()
     xy = traj.positions
     pad = 60.0
     lo, hi = xy[:, :2].min(axis=0) - pad, xy[:, :2].max(axis=0) + pad
-    fig, ax = plt.subplots(figsize=(6.5, 6.5), dpi=120)
+    fig = _figure(6.5, 6.5)
+    ax = fig.add_subplot()
     for k, f in zip(kinds, fp):
         if f[2] < lo[0] or f[0] > hi[0] or f[3] < lo[1] or f[1] > hi[1]:
             continue
         ax.add_patch(Rectangle((f[0], f[1]), f[2] - f[0], f[3] - f[1], color=colours.get(k, "0.5"), alpha=0.5, lw=0))
     ax.plot(xy[:, 0], xy[:, 1], color="k", lw=1.0, label="trajectory")
     ok_q = queries[correct]
-    ax.scatter(xy[ok_q, 0], xy[ok_q, 1], s=6, color="tab:green", zorder=3, label="query with a correct top-1")
+    ax.scatter(xy[ok_q, 0], xy[ok_q, 1], s=6, color="#1a9641", zorder=3, label="query with a correct top-1")
     for q, c, ok, g in zip(queries, top1, correct, gt):
         if g and not ok and c >= 0:
-            ax.plot([xy[q, 0], xy[c, 0]], [xy[q, 1], xy[c, 1]], color="tab:red", lw=0.8, alpha=0.7, zorder=3)
-    ax.plot([], [], color="tab:red", label="wrong top-1 of a GT-positive query")
+            ax.plot([xy[q, 0], xy[c, 0]], [xy[q, 1], xy[c, 1]], color="#d7191c", lw=0.8, alpha=0.7, zorder=3)
+    ax.plot([], [], color="#d7191c", label="wrong top-1 of a GT-positive query")
     ax.set_xlim(lo[0], hi[0])
     ax.set_ylim(lo[1], hi[1])
     ax.set_aspect("equal")
@@ -577,9 +594,4 @@ def _plot_map(
     ax.set_ylabel("y [m]")
     ax.set_title(f"simulated world (seed {world.seed}) and loop matches", fontsize=9)
     ax.legend(loc="upper right", fontsize=7)
-    fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png")
-    plt.close(fig)
-    _atomic_write_bytes(path, buf.getvalue())
-    return path
+    return save(fig, path)

@@ -35,6 +35,8 @@ mod config;
 pub mod db;
 mod describe;
 mod error;
+#[cfg(feature = "alloc")]
+pub mod eval;
 mod math;
 pub mod search;
 
@@ -47,7 +49,7 @@ mod owned;
 pub struct ReadmeDoctests;
 
 pub use compare::{aligned_distance, cosine_distance, heading, heading_refined, Heading};
-pub use config::{Config, Preset, MAX_VOXELS_PER_AXIS, PRESETS};
+pub use config::{Config, Preset, LOOP_THRESHOLD_MEASUREMENT, MAX_VOXELS_PER_AXIS, PRESETS};
 pub use describe::{describe, describe_scratch_len, stages, Coord, Points, Scratch, Stats};
 pub use error::Error;
 #[cfg(feature = "alloc")]

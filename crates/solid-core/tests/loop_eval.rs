@@ -9,22 +9,25 @@
 mod common;
 use common::{data_dir, read_xyz_f32};
 
-use solid_lidar::db::{decode_place, encode_place, LoopDetector};
+use solid_lidar::db::{decode_place, encode_place, DetectorConfig, LoopDetector};
+use solid_lidar::eval::{score, Queries, NO_CANDIDATE};
 use solid_lidar::{Config, Describer, Descriptor, Points};
 
 struct Sequence {
     descriptors: Vec<Descriptor>,
-    positions: Vec<[f64; 3]>,
-    yaw_world: Vec<[f64; 9]>,
+    poses: Vec<[f64; 12]>,
 }
 
 fn load(cfg: &Config) -> Option<Sequence> {
     let dir = data_dir()?.join("hku1-avia");
-    let poses: Vec<Vec<f64>> = std::fs::read_to_string(dir.join("odom_poses.txt"))
+    let poses: Vec<[f64; 12]> = std::fs::read_to_string(dir.join("odom_poses.txt"))
         .unwrap()
         .lines()
         .filter(|l| !l.trim().is_empty())
-        .map(|l| l.split_whitespace().map(|v| v.parse().unwrap()).collect())
+        .map(|l| {
+            let v: Vec<f64> = l.split_whitespace().map(|v| v.parse().unwrap()).collect();
+            v.try_into().unwrap()
+        })
         .collect();
     let mut describer = Describer::new(*cfg).unwrap();
     let descriptors: Vec<Descriptor> = (0..poses.len())
@@ -33,25 +36,7 @@ fn load(cfg: &Config) -> Option<Sequence> {
             describer.describe(Points::new(&xyz, 3).unwrap()).unwrap()
         })
         .collect();
-    Some(Sequence {
-        descriptors,
-        positions: poses.iter().map(|p| [p[3], p[7], p[11]]).collect(),
-        yaw_world: poses
-            .iter()
-            .map(|p| [p[0], p[1], p[2], p[4], p[5], p[6], p[8], p[9], p[10]])
-            .collect(),
-    })
-}
-
-fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
-    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
-}
-
-/// ψ_true = yaw(R_qᵀ R_c) (SPEC §3).
-fn true_heading(q: &[f64; 9], c: &[f64; 9]) -> f64 {
-    // (R_qᵀ R_c)[r][s] = Σ_k R_q[k][r] R_c[k][s]
-    let m = |r: usize, s: usize| (0..3).map(|k| q[3 * k + r] * c[3 * k + s]).sum::<f64>();
-    m(1, 0).atan2(m(0, 0)).to_degrees()
+    Some(Sequence { descriptors, poses })
 }
 
 struct Result1 {
@@ -60,13 +45,21 @@ struct Result1 {
     rot_err_deg: f64,
 }
 
-/// Runs a detector over the sequence and scores its top-1 per query at radii 3 m and 5 m.
+/// Runs a detector over the sequence and scores its candidates (SPEC §5, `eval::score`) at
+/// radii 3 m and 5 m.
 fn run(seq: &Sequence, cfg: &Config, rerank: bool, quantized: bool) -> Result1 {
-    let mut det = LoopDetector::new(*cfg, 50, 1.0, 10).unwrap();
-    det.rerank = rerank;
-    let radii = [3.0, 5.0];
-    let (mut pos, mut ok) = ([0usize; 2], [0usize; 2]);
-    let (mut rot_sum, mut rot_n) = (0.0, 0usize);
+    let mut det = LoopDetector::new(
+        *cfg,
+        DetectorConfig {
+            threshold: 1.0,
+            rerank,
+            ..DetectorConfig::default()
+        },
+    )
+    .unwrap();
+    let (mut query, mut eligible, mut ids, mut score_, mut heading) =
+        (vec![], vec![], vec![], vec![], vec![]);
+    let k = det.config().top_k;
     for (q, d) in seq.descriptors.iter().enumerate() {
         let d = if quantized {
             let p = decode_place(&encode_place(&d.r, &d.a, d.fingerprint, true).unwrap()).unwrap();
@@ -79,37 +72,37 @@ fn run(seq: &Sequence, cfg: &Config, rerank: bool, quantized: bool) -> Result1 {
         } else {
             d.clone()
         };
-        let found = det.add(&d, q as f64).unwrap();
-        if q <= 50 {
-            assert!(found.is_none());
+        let step = det.detect(&d, q as f64, None).unwrap();
+        assert_eq!(step.query as usize, q);
+        assert_eq!(step.eligible as usize, q.saturating_sub(50));
+        if step.eligible == 0 {
+            assert!(step.accepted.is_none() && step.candidates.is_empty());
             continue;
         }
-        let lp = found.expect("threshold 1 accepts every top-1");
-        assert_eq!(lp.query as usize, q);
-        let c = lp.candidate as usize;
-        assert!(c < q - 50);
-        for (ri, &rad) in radii.iter().enumerate() {
-            if (0..q - 50).any(|j| dist(seq.positions[q], seq.positions[j]) <= rad) {
-                pos[ri] += 1;
-                if dist(seq.positions[q], seq.positions[c]) <= rad {
-                    ok[ri] += 1;
-                    if ri == 1 {
-                        let t = true_heading(&seq.yaw_world[q], &seq.yaw_world[c]);
-                        let mut e = (lp.heading_deg - t).abs() % 360.0;
-                        if e > 180.0 {
-                            e = 360.0 - e;
-                        }
-                        rot_sum += e;
-                        rot_n += 1;
-                    }
-                }
-            }
-        }
+        let lp = step.accepted.expect("threshold 1 accepts every top-1");
+        assert_eq!(lp.candidate, step.candidates[0].id);
+        assert!((lp.candidate as usize) < q - 50);
+        query.push(step.query);
+        eligible.push(step.eligible);
+        score_.push(lp.score);
+        heading.push(lp.heading_deg);
+        ids.extend((0..k).map(|i| step.candidates.get(i).map_or(NO_CANDIDATE, |c| c.id)));
     }
+    let queries = Queries {
+        query: &query,
+        eligible: &eligible,
+        k,
+        ids: &ids,
+        score: &score_,
+        heading_deg: &heading,
+    };
+    let e3 = score(&queries, &seq.poses, 3.0).unwrap();
+    let e5 = score(&queries, &seq.poses, 5.0).unwrap();
+    let errs = e5.rotation_errors();
     Result1 {
-        recall: [ok[0] as f64 / pos[0] as f64, ok[1] as f64 / pos[1] as f64],
-        positives: pos,
-        rot_err_deg: rot_sum / rot_n.max(1) as f64,
+        recall: [e3.recall_at(1).unwrap(), e5.recall_at(1).unwrap()],
+        positives: [e3.n_gt(), e5.n_gt()],
+        rot_err_deg: errs.iter().sum::<f64>() / errs.len().max(1) as f64,
     }
 }
 

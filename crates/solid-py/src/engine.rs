@@ -7,13 +7,16 @@ use std::sync::{PoisonError, RwLock, RwLockReadGuard, RwLockWriteGuard};
 
 use numpy::ndarray::{Array1, Array2, Array3};
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3};
+use pyo3::exceptions::PyTypeError;
 use pyo3::exceptions::{
     PyFileNotFoundError, PyIsADirectoryError, PyOSError, PyPermissionError, PyValueError,
 };
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
-use pyo3::types::{PyBytes, PyType};
-use solid_lidar::db::{self, Database, DbError, LoopDetector, Method, SearchOptions};
+use pyo3::types::{PyBytes, PyDict, PyType};
+use solid_lidar::db::{
+    self, Database, DbError, DetectorConfig, LoopDetector, Method, SearchOptions,
+};
 use solid_lidar::{Config, Descriptor, Stats};
 
 use crate::{PyConfig, PyDescriptor};
@@ -43,6 +46,9 @@ fn db_err(py: Python<'_>, e: DbError) -> PyErr {
                 _ => PyOSError::new_err(args),
             }
         }
+        DbError::OutOfMemory => pyo3::exceptions::PyMemoryError::new_err(
+            "out of memory: the database operation could not allocate (nothing was changed)",
+        ),
         other => database_error(py, other.to_string()),
     }
 }
@@ -82,20 +88,29 @@ fn parse_pose(pose: Option<&Bound<'_, PyAny>>) -> PyResult<Option<[f64; 12]>> {
     if p.is_none() {
         return Ok(None);
     }
+    let msg =
+        "pose must be None, 12 floats, or a 3x4 or 4x4 array (row-major [R|t], T_world_sensor)";
     let flat: Vec<f64> = match p.extract::<Vec<Vec<f64>>>() {
         Ok(rows) if rows.len() == 3 && rows.iter().all(|r| r.len() == 4) => {
             rows.into_iter().flatten().collect()
         }
-        _ => p.extract::<Vec<f64>>().map_err(|_| {
-            PyValueError::new_err("pose must be None, 12 floats or a 3x4 array (row-major [R|t])")
-        })?,
+        Ok(rows) if rows.len() == 4 && rows.iter().all(|r| r.len() == 4) => {
+            if rows[3] != [0.0, 0.0, 0.0, 1.0] {
+                return Err(PyValueError::new_err(format!(
+                    "a 4x4 pose must end with the row [0, 0, 0, 1], got {:?}",
+                    rows[3]
+                )));
+            }
+            rows.into_iter().take(3).flatten().collect()
+        }
+        Ok(_) => return Err(PyValueError::new_err(msg)),
+        Err(_) => p
+            .extract::<Vec<f64>>()
+            .map_err(|_| PyValueError::new_err(msg))?,
     };
-    let arr: [f64; 12] = flat.try_into().map_err(|v: Vec<f64>| {
-        PyValueError::new_err(format!(
-            "pose must have 12 values (a 3x4 [R|t]), got {}",
-            v.len()
-        ))
-    })?;
+    let arr: [f64; 12] = flat
+        .try_into()
+        .map_err(|v: Vec<f64>| PyValueError::new_err(format!("{msg}; got {} values", v.len())))?;
     Ok(Some(arr))
 }
 
@@ -138,14 +153,17 @@ pub struct PyLoop {
     /// Heading of the query relative to the candidate, degrees in (-180, 180].
     #[pyo3(get)]
     pub heading: f64,
+    /// The score the threshold accepted (today the R-SOLiD distance).
+    #[pyo3(get)]
+    pub score: f64,
 }
 
 #[pymethods]
 impl PyLoop {
     fn __repr__(&self) -> String {
         format!(
-            "Loop(query={}, candidate={}, distance={:.6}, heading={:.3})",
-            self.query, self.candidate, self.distance, self.heading
+            "Loop(query={}, candidate={}, distance={:.6}, heading={:.3}, score={:.6})",
+            self.query, self.candidate, self.distance, self.heading, self.score
         )
     }
 }
@@ -157,8 +175,281 @@ impl From<db::Loop> for PyLoop {
             candidate: l.candidate,
             distance: l.distance,
             heading: l.heading_deg,
+            score: l.score,
         }
     }
+}
+
+/// One candidate of a detector step, in the detector's order.
+#[pyclass(name = "Candidate", module = "solid", frozen, eq)]
+#[derive(Clone, PartialEq)]
+pub struct PyCandidate {
+    /// Id of the database entry.
+    #[pyo3(get)]
+    pub id: u32,
+    /// Cosine distance of the R-SOLiDs.
+    #[pyo3(get)]
+    pub distance: f64,
+    /// Heading of the query relative to this candidate, degrees in (-180, 180].
+    #[pyo3(get)]
+    pub heading: f64,
+    /// What the threshold is compared with (the value a PR curve sweeps).
+    #[pyo3(get)]
+    pub score: f64,
+}
+
+#[pymethods]
+impl PyCandidate {
+    fn __repr__(&self) -> String {
+        format!(
+            "Candidate(id={}, distance={:.6}, heading={:.3}, score={:.6})",
+            self.id, self.distance, self.heading, self.score
+        )
+    }
+}
+
+impl From<&db::Candidate> for PyCandidate {
+    fn from(c: &db::Candidate) -> Self {
+        PyCandidate {
+            id: c.id,
+            distance: c.distance,
+            heading: c.heading_deg,
+            score: c.score,
+        }
+    }
+}
+
+/// Everything one detector step decided.
+#[pyclass(name = "Detection", module = "solid", frozen)]
+pub struct PyDetection {
+    /// Id of the query (the entry the step added).
+    #[pyo3(get)]
+    pub query: u32,
+    /// The candidates came from the entries 0..eligible (0: nothing to search yet).
+    #[pyo3(get)]
+    pub eligible: u32,
+    candidates: Vec<PyCandidate>,
+    accepted: Option<PyLoop>,
+}
+
+#[pymethods]
+impl PyDetection {
+    /// Up to top_k candidates, best first.
+    #[getter]
+    fn candidates(&self) -> Vec<PyCandidate> {
+        self.candidates.clone()
+    }
+
+    /// The loop, when the best candidate's score passes the threshold.
+    #[getter]
+    fn r#loop(&self) -> Option<PyLoop> {
+        self.accepted.clone()
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Detection(query={}, eligible={}, candidates={}, loop={})",
+            self.query,
+            self.eligible,
+            self.candidates.len(),
+            self.accepted
+                .as_ref()
+                .map_or_else(|| String::from("None"), PyLoop::__repr__)
+        )
+    }
+}
+
+impl From<db::Detection> for PyDetection {
+    fn from(d: db::Detection) -> Self {
+        PyDetection {
+            query: d.query,
+            eligible: d.eligible,
+            candidates: d.candidates.iter().map(PyCandidate::from).collect(),
+            accepted: d.accepted.map(PyLoop::from),
+        }
+    }
+}
+
+/// The loop detector's parameters (the defaults come from the core).
+#[pyclass(name = "DetectorConfig", module = "solid", frozen, eq)]
+#[derive(Clone, PartialEq)]
+pub struct PyDetectorConfig {
+    /// The validated core parameters.
+    pub inner: DetectorConfig,
+}
+
+/// Names of the detector parameters, in order.
+const DETECTOR_FIELDS: [&str; 6] = [
+    "exclude_frames",
+    "exclude_meters",
+    "exclude_seconds",
+    "threshold",
+    "top_k",
+    "rerank",
+];
+
+fn non_negative(name: &str, v: i64) -> PyResult<usize> {
+    usize::try_from(v).map_err(|_| {
+        crate::ConfigError::new_err(format!("invalid {name} = {v}: expected an integer >= 0"))
+    })
+}
+
+/// Applies detector overrides given by name; `None` values are skipped. Validates the result.
+fn detector_overrides(
+    mut c: DetectorConfig,
+    kw: Option<&Bound<'_, PyDict>>,
+) -> PyResult<DetectorConfig> {
+    if let Some(kw) = kw {
+        for (k, v) in kw.iter() {
+            if v.is_none() {
+                continue;
+            }
+            let key: String = k.extract()?;
+            let float = || -> PyResult<f64> {
+                v.extract::<f64>()
+                    .map_err(|_| PyTypeError::new_err(format!("{key} must be a number")))
+            };
+            let int = || -> PyResult<usize> {
+                if v.is_instance_of::<pyo3::types::PyBool>() {
+                    return Err(PyTypeError::new_err(format!(
+                        "{key} must be an integer, not a bool"
+                    )));
+                }
+                let i: i64 = v
+                    .extract()
+                    .map_err(|_| PyTypeError::new_err(format!("{key} must be an integer")))?;
+                non_negative(&key, i)
+            };
+            match key.as_str() {
+                "exclude_frames" | "exclude_recent" => c.exclude_frames = int()?,
+                "exclude_meters" => c.exclude_meters = float()?,
+                "exclude_seconds" => c.exclude_seconds = float()?,
+                "threshold" => c.threshold = float()?,
+                "top_k" => c.top_k = int()?,
+                "rerank" => {
+                    c.rerank = v
+                        .extract::<bool>()
+                        .map_err(|_| PyTypeError::new_err("rerank must be a bool"))?
+                }
+                other => {
+                    return Err(PyTypeError::new_err(format!(
+                        "unknown DetectorConfig parameter {other:?}; valid: {}",
+                        DETECTOR_FIELDS.join(", ")
+                    )))
+                }
+            }
+        }
+    }
+    c.validate().map_err(crate::core_err)?;
+    Ok(c)
+}
+
+#[pymethods]
+impl PyDetectorConfig {
+    /// Parameters by keyword; those not given take the core's defaults (the threshold: the
+    /// largest preset threshold; prefer `DetectorConfig.preset(name)`).
+    #[new]
+    #[pyo3(signature = (**params))]
+    fn new(params: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
+        Ok(PyDetectorConfig {
+            inner: detector_overrides(DetectorConfig::default(), params)?,
+        })
+    }
+
+    /// The defaults for a sensor preset (its measured loop threshold), with overrides.
+    #[staticmethod]
+    #[pyo3(signature = (name, **params))]
+    fn preset(name: &str, params: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
+        let base = DetectorConfig::for_preset(name).map_err(|_| {
+            crate::ConfigError::new_err(format!(
+                "unknown preset {name:?}; available: {}",
+                solid_lidar::PRESETS
+                    .iter()
+                    .map(|p| p.name)
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ))
+        })?;
+        Ok(PyDetectorConfig {
+            inner: detector_overrides(base, params)?,
+        })
+    }
+
+    /// A copy with some parameters changed.
+    #[pyo3(signature = (**params))]
+    fn replace(&self, params: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
+        Ok(PyDetectorConfig {
+            inner: detector_overrides(self.inner, params)?,
+        })
+    }
+
+    /// The parameters as a dict (what `DetectorConfig(**d)` takes back).
+    fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let c = &self.inner;
+        let d = PyDict::new(py);
+        d.set_item("exclude_frames", c.exclude_frames)?;
+        d.set_item("exclude_meters", c.exclude_meters + 0.0)?;
+        d.set_item("exclude_seconds", c.exclude_seconds + 0.0)?;
+        d.set_item("threshold", c.threshold + 0.0)?;
+        d.set_item("top_k", c.top_k)?;
+        d.set_item("rerank", c.rerank)?;
+        Ok(d)
+    }
+
+    /// Frames of the own session excluded (SPEC §5 `exclude`).
+    #[getter]
+    fn exclude_frames(&self) -> usize {
+        self.inner.exclude_frames
+    }
+    /// Metres of the own path excluded (0: off).
+    #[getter]
+    fn exclude_meters(&self) -> f64 {
+        self.inner.exclude_meters
+    }
+    /// Seconds of the own session excluded (0: off).
+    #[getter]
+    fn exclude_seconds(&self) -> f64 {
+        self.inner.exclude_seconds
+    }
+    /// Largest accepted score (cosine distance).
+    #[getter]
+    fn threshold(&self) -> f64 {
+        self.inner.threshold
+    }
+    /// Candidates per step.
+    #[getter]
+    fn top_k(&self) -> usize {
+        self.inner.top_k
+    }
+    /// Whether candidates are re-ranked by A-SOLiD alignment.
+    #[getter]
+    fn rerank(&self) -> bool {
+        self.inner.rerank
+    }
+
+    fn __repr__(&self) -> String {
+        let c = &self.inner;
+        format!(
+            "DetectorConfig(exclude_frames={}, exclude_meters={:?}, exclude_seconds={:?}, threshold={:?}, top_k={}, rerank={})",
+            c.exclude_frames, c.exclude_meters, c.exclude_seconds, c.threshold, c.top_k,
+            if c.rerank { "True" } else { "False" }
+        )
+    }
+
+    fn __reduce__<'py>(
+        slf: &Bound<'py, Self>,
+    ) -> PyResult<(Bound<'py, PyAny>, (Bound<'py, PyDict>,))> {
+        let py = slf.py();
+        let ctor = py
+            .import("solid._solid")?
+            .getattr("_detector_config_from_dict")?;
+        Ok((ctor, (slf.get().to_dict(py)?,)))
+    }
+}
+
+#[pyfunction]
+fn _detector_config_from_dict(params: &Bound<'_, PyDict>) -> PyResult<PyDetectorConfig> {
+    PyDetectorConfig::new(Some(params))
 }
 
 /// Shared read access (searches run in parallel). Callers take it with the GIL released, so a
@@ -263,12 +554,35 @@ impl PyDatabase {
         Ok(to_matches(found))
     }
 
-    /// Appends every entry of `other` (same config required).
-    fn merge(&self, py: Python<'_>, other: &PyDatabase) -> PyResult<()> {
+    /// The cosine distance from the query (a Descriptor or an R-SOLiD) to every entry, in id
+    /// order, float32 (for plots and analysis; `search` finds the nearest).
+    fn distances<'py>(
+        &self,
+        py: Python<'py>,
+        descriptor: &Bound<'_, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray1<f32>>> {
+        let r = query_r(descriptor, self.fingerprint(py))?;
+        let d = self
+            .with(py, |db| db.distances(&r))
+            .map_err(|e| db_err(py, e))?;
+        Ok(d.into_pyarray(py))
+    }
+
+    /// Appends every entry of `other` (same config required). With `new_sessions`, the sessions
+    /// of `other` are renumbered to follow this database's (maps of separate runs stay apart).
+    #[pyo3(signature = (other, new_sessions=false))]
+    fn merge(&self, py: Python<'_>, other: &PyDatabase, new_sessions: bool) -> PyResult<()> {
+        let apply = |dst: &mut Database, src: &Database| {
+            if new_sessions {
+                dst.merge_as_new_sessions(src).map(|_| ())
+            } else {
+                dst.merge(src)
+            }
+        };
         if std::ptr::eq(self, other) {
             let copy = self.snapshot(py);
             return py
-                .detach(|| write(&self.inner).merge(&copy))
+                .detach(|| apply(&mut write(&self.inner), &copy))
                 .map_err(|e| db_err(py, e));
         }
         // Both locks in one global order (by address), so that a.merge(b) and b.merge(a) running
@@ -277,11 +591,11 @@ impl PyDatabase {
             if (self as *const Self) < (other as *const Self) {
                 let mut dst = write(&self.inner);
                 let src = read(&other.inner);
-                dst.merge(&src)
+                apply(&mut dst, &src)
             } else {
                 let src = read(&other.inner);
                 let mut dst = write(&self.inner);
-                dst.merge(&src)
+                apply(&mut dst, &src)
             }
         })
         .map_err(|e| db_err(py, e))
@@ -427,62 +741,156 @@ impl PyLoopDetector {
     }
 }
 
+/// The detector parameters from a base (a DetectorConfig, else the config's preset defaults)
+/// and keyword overrides.
+fn detector_config(
+    cfg: &PyConfig,
+    detector: Option<&PyDetectorConfig>,
+    overrides: Option<&Bound<'_, PyDict>>,
+) -> PyResult<DetectorConfig> {
+    let base = detector.map_or_else(|| cfg.detector_defaults(), |d| d.inner);
+    detector_overrides(base, overrides)
+}
+
+/// Descriptors and per-scan timestamps/poses of a batch, checked.
+type Batch = (Vec<Descriptor>, Vec<f64>, Vec<Option<[f64; 12]>>);
+
 #[pymethods]
 impl PyLoopDetector {
     #[new]
-    #[pyo3(signature = (cfg, exclude_recent=50, threshold=0.1, top_k=10, rerank=true))]
+    #[pyo3(signature = (cfg, exclude_recent=None, threshold=None, top_k=None, rerank=None, *, exclude_meters=None, exclude_seconds=None, detector=None))]
+    #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
         cfg: PyRef<'_, PyConfig>,
-        exclude_recent: usize,
-        threshold: f64,
-        top_k: usize,
-        rerank: bool,
+        exclude_recent: Option<&Bound<'_, PyAny>>,
+        threshold: Option<&Bound<'_, PyAny>>,
+        top_k: Option<&Bound<'_, PyAny>>,
+        rerank: Option<&Bound<'_, PyAny>>,
+        exclude_meters: Option<&Bound<'_, PyAny>>,
+        exclude_seconds: Option<&Bound<'_, PyAny>>,
+        detector: Option<PyRef<'_, PyDetectorConfig>>,
     ) -> PyResult<Self> {
-        let mut inner = LoopDetector::new(cfg.inner, exclude_recent, threshold, top_k)
-            .map_err(|e| db_err(py, e))?;
-        inner.rerank = rerank;
+        let kw = overrides_dict(
+            py,
+            exclude_recent,
+            threshold,
+            top_k,
+            rerank,
+            exclude_meters,
+            exclude_seconds,
+        )?;
+        let dc = detector_config(&cfg, detector.as_deref(), Some(&kw))?;
+        let inner = LoopDetector::new(cfg.inner, dc).map_err(|e| db_err(py, e))?;
         Ok(PyLoopDetector::wrap(inner))
     }
 
-    /// A detector over a copy of an existing database (a prior map).
+    /// A detector over a copy of an existing database (a prior map): its places are candidates
+    /// from the first scan on and are never excluded as recent.
     #[staticmethod]
-    #[pyo3(signature = (database, exclude_recent=50, threshold=0.1, top_k=10, rerank=true))]
+    #[pyo3(signature = (database, exclude_recent=None, threshold=None, top_k=None, rerank=None, *, exclude_meters=None, exclude_seconds=None, detector=None))]
+    #[allow(clippy::too_many_arguments)]
     fn from_database(
         py: Python<'_>,
         database: &PyDatabase,
-        exclude_recent: usize,
-        threshold: f64,
-        top_k: usize,
-        rerank: bool,
+        exclude_recent: Option<&Bound<'_, PyAny>>,
+        threshold: Option<&Bound<'_, PyAny>>,
+        top_k: Option<&Bound<'_, PyAny>>,
+        rerank: Option<&Bound<'_, PyAny>>,
+        exclude_meters: Option<&Bound<'_, PyAny>>,
+        exclude_seconds: Option<&Bound<'_, PyAny>>,
+        detector: Option<PyRef<'_, PyDetectorConfig>>,
     ) -> PyResult<Self> {
-        if !threshold.is_finite() || top_k == 0 {
-            return Err(PyValueError::new_err(
-                "threshold must be finite and top_k at least 1",
-            ));
-        }
-        let mut inner =
-            LoopDetector::with_database(database.snapshot(py), exclude_recent, threshold, top_k);
-        inner.rerank = rerank;
+        let kw = overrides_dict(
+            py,
+            exclude_recent,
+            threshold,
+            top_k,
+            rerank,
+            exclude_meters,
+            exclude_seconds,
+        )?;
+        let db = database.snapshot(py);
+        let cfg = PyConfig::new_unchecked(*db.config());
+        let dc = detector_config(&cfg, detector.as_deref(), Some(&kw))?;
+        let inner = LoopDetector::with_database(db, dc).map_err(|e| db_err(py, e))?;
         Ok(PyLoopDetector::wrap(inner))
     }
 
-    /// Searches the scan (points or a Descriptor) against the past scans, then adds it.
-    #[pyo3(signature = (points_or_descriptor, timestamp=None))]
+    /// Searches the scan (points or a Descriptor) against the eligible places, adds it, and
+    /// returns the loop if its best candidate passes the threshold.
+    #[pyo3(signature = (points_or_descriptor, timestamp=None, pose=None))]
     fn add(
         &self,
         py: Python<'_>,
         points_or_descriptor: &Bound<'_, PyAny>,
         timestamp: Option<f64>,
+        pose: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Option<PyLoop>> {
-        let d = self.descriptor(py, points_or_descriptor)?;
-        let found = py
-            .detach(|| write(&self.inner).add(&d, self::timestamp(timestamp)))
-            .map_err(|e| db_err(py, e))?;
-        Ok(found.map(PyLoop::from))
+        Ok(self
+            .detect(py, points_or_descriptor, timestamp, pose)?
+            .accepted)
     }
 
-    /// Searches the scan against every entry without adding it.
+    /// As `add`, returning everything the step decided (a `Detection`).
+    #[pyo3(signature = (points_or_descriptor, timestamp=None, pose=None))]
+    fn detect(
+        &self,
+        py: Python<'_>,
+        points_or_descriptor: &Bound<'_, PyAny>,
+        timestamp: Option<f64>,
+        pose: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<PyDetection> {
+        let d = self.descriptor(py, points_or_descriptor)?;
+        let pose = parse_pose(pose)?;
+        let found = py
+            .detach(|| write(&self.inner).detect(&d, self::timestamp(timestamp), pose))
+            .map_err(|e| db_err(py, e))?;
+        Ok(PyDetection::from(found))
+    }
+
+    /// `detect` for many descriptors in order, in one call (the GIL is released once). Every
+    /// input is checked before the first is added: on error nothing is added.
+    #[pyo3(signature = (descriptors, timestamps=None, poses=None))]
+    fn detect_many(
+        &self,
+        py: Python<'_>,
+        descriptors: &Bound<'_, PyAny>,
+        timestamps: Option<&Bound<'_, PyAny>>,
+        poses: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Vec<PyDetection>> {
+        let (ds, ts, ps): Batch = self.batch(py, descriptors, timestamps, poses)?;
+        let found = py
+            .detach(|| write(&self.inner).detect_many(&ds, &ts, &ps))
+            .map_err(|e| db_err(py, e))?;
+        Ok(found.into_iter().map(PyDetection::from).collect())
+    }
+
+    /// The candidates the scan would get if it were added now, without adding it.
+    #[pyo3(signature = (points_or_descriptor, k=None, timestamp=None, pose=None))]
+    fn candidates(
+        &self,
+        py: Python<'_>,
+        points_or_descriptor: &Bound<'_, PyAny>,
+        k: Option<i64>,
+        timestamp: Option<f64>,
+        pose: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Vec<PyCandidate>> {
+        let d = self.descriptor(py, points_or_descriptor)?;
+        let pose = parse_pose(pose)?;
+        let k = match k {
+            Some(k) => non_negative("k", k)?,
+            None => self.with(py, |det| det.config().top_k),
+        };
+        let found = self
+            .with(py, |det| {
+                det.candidates(&d, k, self::timestamp(timestamp), pose)
+            })
+            .map_err(|e| db_err(py, e))?;
+        Ok(found.iter().map(PyCandidate::from).collect())
+    }
+
+    /// Searches the scan against every place without adding it (localisation in a prior map).
     fn query(
         &self,
         py: Python<'_>,
@@ -505,29 +913,120 @@ impl PyLoopDetector {
         PyDatabase::wrap(self.with(py, |det| det.database().clone()))
     }
 
-    /// Entries skipped as too recent.
+    /// The parameters.
+    #[getter]
+    fn config(&self, py: Python<'_>) -> PyDetectorConfig {
+        PyDetectorConfig {
+            inner: self.with(py, |det| *det.config()),
+        }
+    }
+
+    /// The session of the scans this detector adds.
+    #[getter]
+    fn session(&self, py: Python<'_>) -> u32 {
+        self.with(py, LoopDetector::session)
+    }
+
+    /// Id of the first scan of the own session (the number of prior-map places).
+    #[getter]
+    fn session_start(&self, py: Python<'_>) -> usize {
+        self.with(py, LoopDetector::session_start)
+    }
+
+    /// Frames of the own session excluded as too recent.
     #[getter]
     fn exclude_recent(&self, py: Python<'_>) -> usize {
-        self.with(py, |det| det.exclude_recent)
+        self.with(py, |det| det.config().exclude_frames)
     }
 
-    /// Largest accepted distance.
+    /// Largest accepted score.
     #[getter]
     fn threshold(&self, py: Python<'_>) -> f64 {
-        self.with(py, |det| det.threshold)
+        self.with(py, |det| det.config().threshold)
     }
 
-    /// Candidates re-ranked by A-SOLiD alignment.
+    /// Candidates per step.
     #[getter]
     fn top_k(&self, py: Python<'_>) -> usize {
-        self.with(py, |det| det.top_k)
+        self.with(py, |det| det.config().top_k)
     }
 
     /// Whether re-ranking is on.
     #[getter]
     fn rerank(&self, py: Python<'_>) -> bool {
-        self.with(py, |det| det.rerank)
+        self.with(py, |det| det.config().rerank)
     }
+}
+
+impl PyLoopDetector {
+    fn batch(
+        &self,
+        py: Python<'_>,
+        descriptors: &Bound<'_, PyAny>,
+        timestamps: Option<&Bound<'_, PyAny>>,
+        poses: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Batch> {
+        let mut ds = Vec::new();
+        for item in descriptors.try_iter()? {
+            let item = item?;
+            let d = item.cast::<PyDescriptor>().map_err(|_| {
+                pyo3::exceptions::PyTypeError::new_err(
+                    "detect_many takes a sequence of solid.Descriptor (describe_batch makes them)",
+                )
+            })?;
+            let d = d.borrow();
+            check_fingerprint(py, d.inner.fingerprint, self.cfg.fingerprint())?;
+            ds.push(d.inner.clone());
+        }
+        let ts: Vec<f64> = match timestamps {
+            Some(t) if !t.is_none() => t
+                .extract::<Vec<Option<f64>>>()
+                .map_err(|_| {
+                    PyTypeError::new_err("timestamps must be a sequence of floats (or None)")
+                })?
+                .into_iter()
+                .map(self::timestamp)
+                .collect(),
+            _ => Vec::new(),
+        };
+        let ps: Vec<Option<[f64; 12]>> = match poses {
+            Some(p) if !p.is_none() => {
+                let mut out = Vec::new();
+                for item in p.try_iter()? {
+                    out.push(parse_pose(Some(&item?))?);
+                }
+                out
+            }
+            _ => Vec::new(),
+        };
+        Ok((ds, ts, ps))
+    }
+}
+
+/// The positional/keyword detector arguments as a dict of overrides (None: not given).
+fn overrides_dict<'py>(
+    py: Python<'py>,
+    exclude_recent: Option<&Bound<'py, PyAny>>,
+    threshold: Option<&Bound<'py, PyAny>>,
+    top_k: Option<&Bound<'py, PyAny>>,
+    rerank: Option<&Bound<'py, PyAny>>,
+    exclude_meters: Option<&Bound<'py, PyAny>>,
+    exclude_seconds: Option<&Bound<'py, PyAny>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let kw = PyDict::new(py);
+    for (k, v) in [
+        ("exclude_frames", exclude_recent),
+        ("threshold", threshold),
+        ("top_k", top_k),
+        ("rerank", rerank),
+        ("exclude_meters", exclude_meters),
+        ("exclude_seconds", exclude_seconds),
+    ] {
+        if let Some(v) = v {
+            kw.set_item(k, v)?;
+        }
+    }
+    Ok(kw)
 }
 
 /// Encodes one place for exchange between robots: float32 (416 + 4 B for the defaults) or
@@ -588,6 +1087,10 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyMatch>()?;
     m.add_class::<PyLoopDetector>()?;
     m.add_class::<PyLoop>()?;
+    m.add_class::<PyCandidate>()?;
+    m.add_class::<PyDetection>()?;
+    m.add_class::<PyDetectorConfig>()?;
+    m.add_function(wrap_pyfunction!(_detector_config_from_dict, m)?)?;
     m.add_function(wrap_pyfunction!(encode_place, m)?)?;
     m.add_function(wrap_pyfunction!(decode_place, m)?)?;
     Ok(())

@@ -12,6 +12,7 @@ use pyo3::types::{PyDict, PyList, PyTuple};
 use solid_lidar::{Config, Describer, Descriptor, Error, Points, Stats, PRESETS};
 
 mod engine;
+mod eval;
 mod sim;
 
 create_exception!(
@@ -39,10 +40,19 @@ pub fn core_err(e: Error) -> PyErr {
 
 /// The descriptor configuration exposed as `solid.SolidConfig` (immutable).
 #[pyclass(name = "SolidConfig", module = "solid", frozen, eq)]
-#[derive(Clone, PartialEq)]
+#[derive(Clone)]
 pub struct PyConfig {
     /// The validated core config.
     pub inner: Config,
+    /// The preset it was made from (`SolidConfig.preset`), kept through `replace` and pickling:
+    /// it chooses the loop detector's default threshold. Not part of equality or hashing.
+    pub base_preset: Option<&'static str>,
+}
+
+impl PartialEq for PyConfig {
+    fn eq(&self, other: &Self) -> bool {
+        self.inner == other.inner
+    }
 }
 
 const FIELDS: [&str; 8] = [
@@ -109,37 +119,54 @@ fn apply_overrides(mut cfg: Config, overrides: Option<&Bound<'_, PyDict>>) -> Py
 impl PyConfig {
     /// Wraps a config that was validated already (a database's, say).
     pub fn new_unchecked(inner: Config) -> Self {
-        PyConfig { inner }
+        PyConfig {
+            inner,
+            base_preset: None,
+        }
+    }
+
+    /// The detector defaults for this config: its base preset's loop threshold, else the
+    /// general default.
+    pub fn detector_defaults(&self) -> solid_lidar::db::DetectorConfig {
+        self.base_preset
+            .and_then(|p| solid_lidar::db::DetectorConfig::for_preset(p).ok())
+            .unwrap_or_default()
     }
 }
 
 #[pymethods]
 impl PyConfig {
     #[new]
-    #[pyo3(signature = (*, fov_up, fov_down, n_elevation, n_range=40, n_azimuth=60, min_range=3.0, max_range=80.0, voxel_size=0.5))]
+    #[pyo3(signature = (*, fov_up, fov_down, n_elevation, n_range=None, n_azimuth=None, min_range=None, max_range=None, voxel_size=None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         fov_up: f64,
         fov_down: f64,
         n_elevation: i64,
-        n_range: i64,
-        n_azimuth: i64,
-        min_range: f64,
-        max_range: f64,
-        voxel_size: f64,
+        n_range: Option<i64>,
+        n_azimuth: Option<i64>,
+        min_range: Option<f64>,
+        max_range: Option<f64>,
+        voxel_size: Option<f64>,
     ) -> PyResult<Self> {
+        // The SPEC §1 defaults come from the core (Config::with_defaults), not from here.
+        let d = Config::with_defaults(fov_up, fov_down, 1);
+        let count = |name, v: Option<i64>, default| match v {
+            Some(v) => count_param(name, v),
+            None => Ok(default),
+        };
         let cfg = Config {
-            n_range: count_param("n_range", n_range)?,
-            n_azimuth: count_param("n_azimuth", n_azimuth)?,
+            n_range: count("n_range", n_range, d.n_range)?,
+            n_azimuth: count("n_azimuth", n_azimuth, d.n_azimuth)?,
             n_elevation: count_param("n_elevation", n_elevation)?,
             fov_up,
             fov_down,
-            min_range,
-            max_range,
-            voxel_size,
+            min_range: min_range.unwrap_or(d.min_range),
+            max_range: max_range.unwrap_or(d.max_range),
+            voxel_size: voxel_size.unwrap_or(d.voxel_size),
         };
         cfg.validate().map_err(core_err)?;
-        Ok(PyConfig { inner: cfg })
+        Ok(PyConfig::new_unchecked(cfg))
     }
 
     /// A sensor preset (SPEC §4), with optional keyword overrides.
@@ -156,17 +183,27 @@ impl PyConfig {
                     .join(", ")
             ))
         })?;
+        let preset = PRESETS.iter().find(|p| p.name == name).map(|p| p.name);
         Ok(PyConfig {
             inner: apply_overrides(base, overrides)?,
+            base_preset: preset,
         })
     }
 
-    /// A copy with some parameters changed.
+    /// A copy with some parameters changed (it keeps its base preset).
     #[pyo3(signature = (**overrides))]
     fn replace(&self, overrides: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
         Ok(PyConfig {
             inner: apply_overrides(self.inner, overrides)?,
+            base_preset: self.base_preset,
         })
+    }
+
+    /// The preset this config was made from (`SolidConfig.preset(name, ...)`), or None. It
+    /// chooses the loop detector's default threshold; it is not part of equality.
+    #[getter]
+    fn base_preset(&self) -> Option<&'static str> {
+        self.base_preset
     }
 
     /// The parameters as a dict (what `SolidConfig(**d)` takes back).
@@ -239,29 +276,34 @@ impl PyConfig {
     ) -> PyResult<(Bound<'py, PyAny>, (Bound<'py, PyDict>,))> {
         let py = slf.py();
         let ctor = py.import("solid._solid")?.getattr("_config_from_dict")?;
-        Ok((ctor, (slf.get().to_dict(py)?,)))
+        let d = slf.get().to_dict(py)?;
+        if let Some(p) = slf.get().base_preset {
+            d.set_item("base_preset", p)?;
+        }
+        Ok((ctor, (d,)))
     }
 }
 
 #[pyfunction]
 fn _config_from_dict(d: &Bound<'_, PyDict>) -> PyResult<PyConfig> {
-    let base = Config {
-        n_range: 40,
-        n_azimuth: 60,
-        n_elevation: 1,
-        fov_up: 1.0,
-        fov_down: 0.0,
-        min_range: 3.0,
-        max_range: 80.0,
-        voxel_size: 0.5,
-    };
+    let base = Config::with_defaults(1.0, 0.0, 1);
     for need in ["fov_up", "fov_down", "n_elevation"] {
         if !d.contains(need)? {
             return Err(ConfigError::new_err(format!("config is missing {need}")));
         }
     }
+    let d = d.copy()?;
+    let preset = match d.get_item("base_preset")? {
+        Some(v) => {
+            d.del_item("base_preset")?;
+            let name: String = v.extract()?;
+            PRESETS.iter().find(|p| p.name == name).map(|p| p.name)
+        }
+        None => None,
+    };
     Ok(PyConfig {
-        inner: apply_overrides(base, Some(d))?,
+        inner: apply_overrides(base, Some(&d))?,
+        base_preset: preset,
     })
 }
 
@@ -286,8 +328,8 @@ fn comparable(a: &PyDescriptor, b: &PyDescriptor) -> PyResult<()> {
     if a.cfg != b.cfg {
         return Err(SolidError::new_err(format!(
             "descriptors come from different configs ({:?} vs {:?}); describe both scans with the same SolidConfig",
-            PyConfig { inner: a.cfg }.__repr__(),
-            PyConfig { inner: b.cfg }.__repr__()
+            PyConfig::new_unchecked(a.cfg).__repr__(),
+            PyConfig::new_unchecked(b.cfg).__repr__()
         )));
     }
     Ok(())
@@ -362,7 +404,7 @@ impl PyDescriptor {
     }
     #[getter]
     fn config(&self) -> PyConfig {
-        PyConfig { inner: self.cfg }
+        PyConfig::new_unchecked(self.cfg)
     }
 
     /// Cosine distance to `other` (SPEC §3).
@@ -396,7 +438,7 @@ impl PyDescriptor {
         let args = (
             d.r(py),
             d.a(py),
-            PyConfig { inner: d.cfg },
+            PyConfig::new_unchecked(d.cfg),
             d.inner.stats.n_points,
             d.inner.stats.n_in_range,
             d.inner.stats.n_kept,
@@ -641,7 +683,13 @@ fn heading(query: &PyDescriptor, candidate: &PyDescriptor, refine: bool) -> PyRe
 fn presets<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
     for p in PRESETS {
-        d.set_item(p.name, PyConfig { inner: p.config })?;
+        d.set_item(
+            p.name,
+            PyConfig {
+                inner: p.config,
+                base_preset: Some(p.name),
+            },
+        )?;
     }
     Ok(d)
 }
@@ -672,6 +720,7 @@ fn _solid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(preset_sensors, m)?)?;
     m.add_function(wrap_pyfunction!(_config_from_dict, m)?)?;
     engine::register(m)?;
+    eval::register(m)?;
     sim::register(m)?;
     Ok(())
 }

@@ -453,6 +453,11 @@ fn _sim_write_scans<'py>(
 /// # Errors
 /// Propagates failures of `add_class` / `add_function`.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("_SIM_SENSORS", solid_lidar_sim::SENSOR_PRESETS.to_vec())?;
+    m.add(
+        "_SIM_TRAJECTORIES",
+        solid_lidar_sim::TRAJECTORY_KINDS.to_vec(),
+    )?;
     m.add_class::<PySimWorld>()?;
     m.add_class::<PySimSensor>()?;
     m.add_function(wrap_pyfunction!(_sim_world, m)?)?;

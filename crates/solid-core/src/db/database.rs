@@ -146,14 +146,7 @@ impl Database {
             .into());
         }
         if let Some(p) = &pose {
-            if let Some(bad) = p.iter().find(|v| !v.is_finite()) {
-                return Err(Error::InvalidParameter {
-                    name: "pose",
-                    value: *bad,
-                    expected: "finite values",
-                }
-                .into());
-            }
+            check_pose(p)?;
         }
         let id = self.len();
         if id >= u32::MAX as usize {
@@ -235,16 +228,7 @@ impl Database {
         opts: &SearchOptions,
     ) -> Result<Vec<Neighbor>, DbError> {
         let nr = self.config.n_range;
-        if query_r.len() != nr {
-            return Err(Error::LengthMismatch {
-                what: "query r_solid vs config n_range",
-                left: query_r.len(),
-                right: nr,
-            }
-            .into());
-        }
-        let mut q = vec![0.0f32; nr];
-        search::normalize(query_r, &mut q)?;
+        let q = self.normalized_query(query_r)?;
         let n = self.len();
         let exclude = Exclude {
             before_id: n.saturating_sub(opts.exclude_recent),
@@ -264,6 +248,40 @@ impl Database {
             search::brute_force(&self.normed, nr, &q, k, &exclude, &mut out)?
         };
         out.truncate(got);
+        Ok(out)
+    }
+
+    /// `query_r` checked against the config and L2-normalised.
+    fn normalized_query(&self, query_r: &[f32]) -> Result<Vec<f32>, DbError> {
+        let nr = self.config.n_range;
+        if query_r.len() != nr {
+            return Err(Error::LengthMismatch {
+                what: "query r_solid vs config n_range",
+                left: query_r.len(),
+                right: nr,
+            }
+            .into());
+        }
+        let mut q = vec![0.0f32; nr];
+        search::normalize(query_r, &mut q)?;
+        Ok(q)
+    }
+
+    /// The cosine distance (SPEC §3) from the R-SOLiD `query_r` to every entry, in id order
+    /// (for plots and analysis; searches use [`Database::search`]).
+    ///
+    /// # Errors
+    /// [`DbError::Core`] for a query of the wrong length or with non-finite values;
+    /// [`DbError::OutOfMemory`] when the output cannot be allocated.
+    pub fn distances(&self, query_r: &[f32]) -> Result<Vec<f32>, DbError> {
+        let nr = self.config.n_range;
+        let q = self.normalized_query(query_r)?;
+        let mut out = Vec::new();
+        out.try_reserve_exact(self.len())
+            .map_err(|_| DbError::OutOfMemory)?;
+        for row in self.normed.chunks_exact(nr) {
+            out.push(search::normalized_distance(&q, row)?);
+        }
         Ok(out)
     }
 
@@ -294,6 +312,28 @@ impl Database {
             &mut self.splits,
         )?;
         Ok(())
+    }
+
+    /// [`Database::merge`], with the sessions of `other` renumbered to follow this database's
+    /// (session `s` of `other` becomes `s + max(own sessions) + 1`): merging maps of separate
+    /// runs keeps them apart. Returns the offset added.
+    ///
+    /// # Errors
+    /// As [`Database::merge`]; [`DbError::Full`] when a renumbered session would exceed
+    /// `u32::MAX`. On error nothing is changed.
+    pub fn merge_as_new_sessions(&mut self, other: &Database) -> Result<u32, DbError> {
+        let offset = match self.sessions.iter().max() {
+            None => 0,
+            Some(&m) => m.checked_add(1).ok_or(DbError::Full)?,
+        };
+        let top = other.sessions.iter().max().copied().unwrap_or(0);
+        top.checked_add(offset).ok_or(DbError::Full)?;
+        let start = self.len();
+        self.merge(other)?;
+        for s in &mut self.sessions[start..] {
+            *s += offset;
+        }
+        Ok(offset)
     }
 
     /// All R-SOLiD vectors, row-major (`len() × n_range`).
@@ -338,4 +378,39 @@ impl Database {
     pub fn poses(&self) -> &[Option<[f64; 12]>] {
         &self.poses
     }
+}
+
+/// Checks a row-major 3×4 `[R|t]`: finite, and R a rotation (orthonormal, determinant +1, to
+/// 1e-3).
+///
+/// # Errors
+/// [`Error::InvalidParameter`] (name `pose`) otherwise.
+pub fn check_pose(p: &[f64; 12]) -> Result<(), Error> {
+    if let Some(bad) = p.iter().find(|v| !v.is_finite()) {
+        return Err(Error::InvalidParameter {
+            name: "pose",
+            value: *bad,
+            expected: "finite values",
+        });
+    }
+    let r = |i: usize, j: usize| p[4 * i + j];
+    let mut worst = 0.0f64;
+    for i in 0..3 {
+        for j in 0..3 {
+            let dot: f64 = (0..3).map(|k| r(k, i) * r(k, j)).sum();
+            let want = if i == j { 1.0 } else { 0.0 };
+            worst = worst.max((dot - want).abs());
+        }
+    }
+    let det = r(0, 0) * (r(1, 1) * r(2, 2) - r(1, 2) * r(2, 1))
+        - r(0, 1) * (r(1, 0) * r(2, 2) - r(1, 2) * r(2, 0))
+        + r(0, 2) * (r(1, 0) * r(2, 1) - r(1, 1) * r(2, 0));
+    if worst > 1e-3 || det < 0.0 {
+        return Err(Error::InvalidParameter {
+            name: "pose",
+            value: worst.max((det - 1.0).abs()),
+            expected: "a rotation in the 3x3 part (orthonormal, determinant +1, to 1e-3)",
+        });
+    }
+    Ok(())
 }

@@ -39,8 +39,11 @@ mod detector;
 pub mod format;
 pub mod wire;
 
-pub use database::{Database, SearchOptions, AUTO_KDTREE_MIN};
-pub use detector::{Loop, LoopDetector, DEFAULT_RERANK};
+pub use database::{check_pose, Database, SearchOptions, AUTO_KDTREE_MIN};
+pub use detector::{
+    Candidate, Detection, DetectorConfig, Loop, LoopDetector, DEFAULT_EXCLUDE_FRAMES,
+    DEFAULT_RERANK, DEFAULT_TOP_K, MAX_TOP_K,
+};
 pub use format::crc32;
 pub use wire::{decode_place, encode_place, Place};
 
@@ -72,8 +75,10 @@ pub enum DbError {
         /// The operating system's error.
         source: std::io::Error,
     },
-    /// More than `u32::MAX` entries.
+    /// More than `u32::MAX` entries (or sessions).
     Full,
+    /// Memory for the operation could not be allocated (nothing was changed).
+    OutOfMemory,
 }
 
 impl From<Error> for DbError {
@@ -99,6 +104,7 @@ impl fmt::Display for DbError {
             #[cfg(feature = "std")]
             DbError::Io { file, source } => write!(f, "{file}: {source}"),
             DbError::Full => write!(f, "database full: at most 2^32 - 1 entries"),
+            DbError::OutOfMemory => write!(f, "out of memory"),
         }
     }
 }

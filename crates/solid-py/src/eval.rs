@@ -1,0 +1,176 @@
+//! Binding of `solid_lidar::eval`: SPEC §5 scoring of a detector's candidates against poses.
+
+use numpy::{
+    IntoPyArray, PyArray1, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3,
+    PyUntypedArrayMethods,
+};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use solid_lidar::eval::{self, Evaluation, Queries, NO_CANDIDATE};
+
+/// The per-query outcomes and the summary metrics of one scored run (SPEC §5).
+#[pyclass(name = "Scores", module = "solid", frozen)]
+pub struct PyScores {
+    inner: Evaluation,
+}
+
+fn f64s<'py>(py: Python<'py>, v: &[f64]) -> Bound<'py, PyArray1<f64>> {
+    PyArray1::from_slice(py, v)
+}
+
+fn opt(v: Option<f64>) -> f64 {
+    v.unwrap_or(f64::NAN)
+}
+
+#[pymethods]
+impl PyScores {
+    /// Radius in metres.
+    #[getter]
+    fn radius(&self) -> f64 {
+        self.inner.radius
+    }
+    /// Whether some eligible place lies within the radius, per query (bool array).
+    #[getter]
+    fn gt_positive<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<bool>> {
+        PyArray1::from_slice(py, &self.inner.gt_positive)
+    }
+    /// Whether the best candidate lies within the radius, per query (bool array).
+    #[getter]
+    fn correct<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<bool>> {
+        PyArray1::from_slice(py, &self.inner.correct)
+    }
+    /// 1-based rank of the first candidate within the radius (0: none), per query.
+    #[getter]
+    fn first_hit<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<u32>> {
+        PyArray1::from_slice(py, &self.inner.first_hit)
+    }
+    /// Metres from each query to its best candidate (NaN: none).
+    #[getter]
+    fn candidate_distance_m<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        f64s(py, &self.inner.candidate_distance_m)
+    }
+    /// True heading between each query and its best candidate, degrees (NaN: none).
+    #[getter]
+    fn true_heading_deg<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        f64s(py, &self.inner.true_heading_deg)
+    }
+    /// Number of GT-positive queries.
+    #[getter]
+    fn n_gt(&self) -> usize {
+        self.inner.n_gt()
+    }
+    /// Recall@n (NaN without GT-positive queries).
+    fn recall_at(&self, n: usize) -> f64 {
+        opt(self.inner.recall_at(n))
+    }
+    /// (thresholds, precision, recall) arrays of the PR curve.
+    #[allow(clippy::type_complexity)]
+    fn pr_curve<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> (
+        Bound<'py, PyArray1<f64>>,
+        Bound<'py, PyArray1<f64>>,
+        Bound<'py, PyArray1<f64>>,
+    ) {
+        let (t, p, r) = self.inner.pr_curve();
+        (t.into_pyarray(py), p.into_pyarray(py), r.into_pyarray(py))
+    }
+    /// (thresholds, false-positive rate, true-positive rate) arrays of the ROC curve.
+    #[allow(clippy::type_complexity)]
+    fn roc_curve<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> (
+        Bound<'py, PyArray1<f64>>,
+        Bound<'py, PyArray1<f64>>,
+        Bound<'py, PyArray1<f64>>,
+    ) {
+        let (t, f, tp) = self.inner.roc_curve();
+        (t.into_pyarray(py), f.into_pyarray(py), tp.into_pyarray(py))
+    }
+    /// (F1 max, its threshold); (NaN, NaN) for an empty curve.
+    fn f1_max(&self) -> (f64, f64) {
+        self.inner.f1_max().unwrap_or((f64::NAN, f64::NAN))
+    }
+    /// AUC of correct vs incorrect top-1s (NaN when a class is empty).
+    fn auc(&self) -> f64 {
+        opt(self.inner.auc())
+    }
+    /// (accepted, correct accepted, precision, recall) when accepting scores <= threshold.
+    fn at_threshold(&self, threshold: f64) -> (usize, usize, f64, f64) {
+        self.inner.at_threshold(threshold)
+    }
+    /// Heading errors of the correct top-1s, degrees in [0, 180].
+    fn rotation_errors<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        self.inner.rotation_errors().into_pyarray(py)
+    }
+    fn __len__(&self) -> usize {
+        self.inner.len()
+    }
+}
+
+/// Scores candidates against poses (SPEC §5); see `solid.evaluation` for the friendly form.
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+fn score_candidates(
+    py: Python<'_>,
+    query: PyReadonlyArray1<'_, i64>,
+    eligible: PyReadonlyArray1<'_, i64>,
+    ids: PyReadonlyArray2<'_, i64>,
+    score: PyReadonlyArray1<'_, f64>,
+    heading_deg: PyReadonlyArray1<'_, f64>,
+    poses: PyReadonlyArray3<'_, f64>,
+    radius: f64,
+) -> PyResult<PyScores> {
+    let to_u32 = |name: &str, v: &[i64], allow_missing: bool| -> PyResult<Vec<u32>> {
+        v.iter()
+            .map(|&x| {
+                if allow_missing && x < 0 {
+                    return Ok(NO_CANDIDATE);
+                }
+                u32::try_from(x)
+                    .ok()
+                    .filter(|&u| u != NO_CANDIDATE)
+                    .ok_or_else(|| PyValueError::new_err(format!("{name}: {x} is not a valid id")))
+            })
+            .collect()
+    };
+    let shape = poses.shape();
+    if shape.len() != 3 || shape[1] != 3 || shape[2] != 4 {
+        return Err(PyValueError::new_err(format!(
+            "poses must have shape (N, 3, 4), got {shape:?}"
+        )));
+    }
+    let k = ids.shape()[1];
+    let query = to_u32("query", query.as_slice()?, false)?;
+    let eligible = to_u32("eligible", eligible.as_slice()?, false)?;
+    let ids = to_u32("ids", ids.as_slice()?, true)?;
+    let score = score.as_slice()?.to_vec();
+    let heading = heading_deg.as_slice()?.to_vec();
+    let poses: Vec<[f64; 12]> = poses
+        .as_slice()?
+        .chunks_exact(12)
+        .map(|c| c.try_into().expect("chunks of 12"))
+        .collect();
+    let q = Queries {
+        query: &query,
+        eligible: &eligible,
+        k,
+        ids: &ids,
+        score: &score,
+        heading_deg: &heading,
+    };
+    let inner = py
+        .detach(|| eval::score(&q, &poses, radius))
+        .map_err(crate::core_err)?;
+    Ok(PyScores { inner })
+}
+
+/// Registers the scoring function and class.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("DEFAULT_RADIUS", eval::DEFAULT_RADIUS)?;
+    m.add_class::<PyScores>()?;
+    m.add_function(wrap_pyfunction!(score_candidates, m)?)?;
+    Ok(())
+}

@@ -1,0 +1,396 @@
+"""What the ``solid`` commands do, callable from Python: run the pipeline and write its results.
+
+Every function here runs :class:`solid.pipeline.LoopClosurePipeline` once and writes into a fresh
+output folder (:mod:`solid.outputs`): ``config.json`` (the whole pipeline configuration),
+``loops.csv`` (the accepted loops), and for evaluations ``metrics.json``, ``queries.csv`` and the
+plots. ``metrics.json`` records the configuration and the absolute paths of every input.
+"""
+
+from __future__ import annotations
+
+import math
+import shlex
+from collections.abc import Callable, Sequence as AbcSequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from . import _solid
+from .config import PipelineConfig
+from .evaluation import QUERY_COLUMNS, Evaluation
+from .outputs import Output, output_folder, write_csv, write_json
+from .pipeline import LOOP_COLUMNS, LoopClosurePipeline, PipelineResult
+
+__all__ = ["Inputs", "bench", "build_map", "describe_scan", "detect", "evaluate", "map_info", "merge_maps"]
+
+
+@dataclass(frozen=True)
+class Inputs:
+    """Where the data came from, recorded with absolute paths."""
+
+    sequence: Path
+    reader: str | None = None
+    poses: Path | None = None
+    timestamps: Path | None = None
+    calib: Path | None = None
+    map: Path | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        def ab(p: Path | None) -> str | None:
+            return None if p is None else str(Path(p).absolute())
+
+        d: dict[str, Any] = {
+            "sequence": ab(self.sequence),
+            "reader": self.reader,
+            "poses": ab(self.poses),
+            "timestamps": ab(self.timestamps),
+            "calib": ab(self.calib),
+            "map": ab(self.map),
+        }
+        d.update(self.extra)
+        return d
+
+
+def _run(
+    dataset: Any,
+    config: PipelineConfig,
+    map_db: Any | None,
+    threads: int | None,
+    progress: Callable[[int], None] | None,
+    on_scan: Callable[[int, Any], None] | None = None,
+) -> PipelineResult:
+    return LoopClosurePipeline(dataset, config, map=map_db, threads=threads, progress=progress, on_scan=on_scan).run()
+
+
+def _summary(result: PipelineResult, inputs: Inputs, command: str) -> dict[str, Any]:
+    t = result.timings
+    n = len(result.frames)
+    total = t.get("describe_s", 0.0) + t.get("detect_s", 0.0)
+    doc: dict[str, Any] = {
+        "command": command,
+        "solid_version": _solid.__version__,
+        "inputs": inputs.to_dict(),
+        "config": result.config.to_dict(),
+        "frames": n,
+        "map_places": result.map_size,
+        "session": result.session,
+        "loops": len(result.loops()),
+        "fov_center_deg": result.fov_center,
+        "timing": {
+            "describe_s": round(t.get("describe_s", 0.0), 4),
+            "detect_s": round(t.get("detect_s", 0.0), 4),
+            "hz": round(n / total, 1) if total > 0 else None,
+        },
+    }
+    excl = exclusion_in_metres(result)
+    if excl is not None:
+        doc["exclusion_median_m"] = excl
+    return doc
+
+
+def exclusion_in_metres(result: PipelineResult) -> float | None:
+    """The median path length, in metres, that the frame exclusion window covers on this run
+    (how far back ``exclude_frames`` reaches); None without poses."""
+    k = result.config.detector.exclude_frames
+    P = result.poses
+    if P is None or k == 0 or len(P) <= k:
+        return None
+    steps = np.linalg.norm(np.diff(P[:, :, 3], axis=0), axis=1)
+    cum = np.r_[0.0, np.cumsum(steps)]
+    return float(np.median(cum[k:] - cum[:-k]))
+
+
+def _write_common(out: Output, result: PipelineResult) -> None:
+    result.config.dump(out.work / "config.json")
+    write_csv(out.work / "loops.csv", LOOP_COLUMNS, result.loop_rows())
+
+
+def detect(
+    dataset: Any,
+    config: PipelineConfig,
+    inputs: Inputs,
+    *,
+    output: Path | None = None,
+    map_db: Any | None = None,
+    threads: int | None = None,
+    progress: Callable[[int], None] | None = None,
+) -> tuple[PipelineResult, Path]:
+    """``solid detect``: the accepted loops in ``loops.csv``, the run in ``summary.json``."""
+    result = _run(dataset, config, map_db, threads, progress)
+    with output_folder(output, "detect", inputs.sequence.name) as out:
+        _write_common(out, result)
+        write_json(out.work / "summary.json", _summary(result, inputs, "detect"))
+    return result, out.final
+
+
+@dataclass
+class EvalRun:
+    """What ``solid eval`` produced."""
+
+    result: PipelineResult
+    evaluations: list[Evaluation]
+    folder: Path
+    metrics: dict[str, Any]
+
+
+def evaluate(
+    dataset: Any,
+    config: PipelineConfig,
+    inputs: Inputs,
+    *,
+    output: Path | None = None,
+    map_db: Any | None = None,
+    scancontext: Any | None = None,
+    plots: bool = True,
+    threads: int | None = None,
+    progress: Callable[[int], None] | None = None,
+    command_hint: AbcSequence[str] | None = None,
+    extra: dict[str, Any] | None = None,
+    write_more: Callable[[Path, PipelineResult, list[Evaluation]], None] | None = None,
+) -> EvalRun:
+    """``solid eval``: the pipeline's own candidates scored against poses (SPEC §5).
+
+    ``scancontext`` (a :class:`solid.scancontext.ScanContextConfig`) adds the baseline, asked the
+    same questions (the same queries, each with the same places to choose from). ``extra`` is
+    added to ``metrics.json``; ``write_more(folder, result, evaluations)`` writes further files
+    into the output folder before it appears.
+    """
+    if getattr(dataset, "poses", None) is None:
+        raise _solid.ConfigError("evaluation needs poses (give --poses)")
+    sc_desc: list[Any] = []
+    on_scan = None
+    if scancontext is not None:
+        if map_db is not None:
+            raise _solid.ConfigError("the Scan Context baseline cannot be evaluated against a map (a map stores SOLiD only)")
+        from . import scancontext as sc
+
+        def on_scan(i: int, pts: Any) -> None:
+            sc_desc.append(sc.describe(pts, scancontext))
+
+    result = _run(dataset, config, map_db, threads, progress, on_scan)
+    main = result.evaluate()
+    if main.query.size == 0:
+        raise _solid.ConfigError(
+            f"no query: none of the {len(result.frames)} frames has a place to be matched with "
+            f"(exclude {config.detector.exclude_frames} frames leaves none); use fewer --exclude or more frames"
+        )
+    evals = [main]
+    if scancontext is not None:
+        from . import scancontext as sc
+
+        qs = main.query
+        base = sc.evaluate_scancontext(
+            np.stack(sc_desc),
+            np.asarray(result.database.poses),
+            radius=config.radius,
+            queries=qs,
+            eligible=main.eligible,
+            cfg=scancontext,
+        )
+        evals.append(base)
+    metrics = _summary(result, inputs, "eval")
+    metrics.update(main.metrics())
+    f1, best = main.f1_max()
+    if best is not None:
+        metrics["best_threshold"] = best
+    if extra:
+        metrics.update(extra)
+    if len(evals) > 1:
+        metrics["baselines"] = {e.name.lower().replace(" ", ""): e.metrics() for e in evals[1:]}
+    with output_folder(output, "eval", inputs.sequence.name) as out:
+        _write_common(out, result)
+        write_csv(out.work / "queries.csv", QUERY_COLUMNS, main.rows())
+        for e in evals[1:]:
+            write_csv(out.work / f"queries_{e.name.lower().replace(' ', '')}.csv", QUERY_COLUMNS, e.rows())
+        if best is not None and command_hint is not None:
+            metrics["best_threshold_command"] = " ".join(
+                [*map(shlex.quote, command_hint), "--config", shlex.quote(str(out.final / "config.json")), "--threshold", f"{best:.6g}"]
+            )
+        write_json(out.work / "metrics.json", metrics)
+        if plots:
+            _plots(out, result, evals, inputs)
+        if write_more is not None:
+            write_more(out.work, result, evals)
+    return EvalRun(result, evals, out.final, metrics)
+
+
+def _plots(out: Output, result: PipelineResult, evals: list[Evaluation], inputs: Inputs) -> None:
+    from . import plots
+
+    main = evals[0]
+    d = result.config.detector
+    excl = f"exclude {d.exclude_frames} frames"
+    if d.exclude_meters > 0:
+        excl += f", {d.exclude_meters:g} m"
+    if d.exclude_seconds > 0:
+        excl += f", {d.exclude_seconds:g} s"
+    sub = f"{inputs.sequence.name}: {excl}, radius {main.radius:g} m, {main.query.size} queries"
+    plots.plot_pr_roc(out.work, evals, sub)
+    P = np.asarray(result.database.poses, dtype=np.float64)
+    plots.plot_trajectory(out.work / "trajectory.png", main, P, np.asarray(result.database.sessions), sub)
+    plots.plot_distance_matrix(out.work / "distances.png", main, result.database, sub)
+    plots.plot_heading(out.work / "heading.png", main, sub)
+
+
+def build_map(
+    dataset: Any,
+    config: PipelineConfig,
+    output_file: Path,
+    *,
+    threads: int | None = None,
+    progress: Callable[[int], None] | None = None,
+    session_of: Any | None = None,
+) -> tuple[Any, PipelineResult]:
+    """``solid map build``: every scan becomes a place (with its pose and time when known),
+    saved as a database file (written atomically; an existing file is refused)."""
+    out = Path(output_file)
+    if out.exists():
+        raise FileExistsError(f"{out} exists: choose another file name or remove it")
+    result = _run(dataset, config, None, threads, progress)
+    db = result.database
+    db.save(out)
+    return db, result
+
+
+def merge_maps(inputs: AbcSequence[Path], output_file: Path) -> Any:
+    """``solid map merge``: one database from several, each input's sessions renumbered to follow
+    the previous ones (so that runs stay apart)."""
+    out = Path(output_file)
+    if out.exists():
+        raise FileExistsError(f"{out} exists: choose another file name or remove it")
+    if not inputs:
+        raise _solid.ConfigError("give at least one map to merge")
+    db = _solid.Database.load(inputs[0])
+    for p in inputs[1:]:
+        db.merge(_solid.Database.load(p), new_sessions=True)
+    db.save(out)
+    return db
+
+
+def map_info(path: Path) -> dict[str, Any]:
+    """``solid map info``: what a database file holds."""
+    db = _solid.Database.load(path)
+    sessions = np.asarray(db.sessions)
+    times = np.asarray(db.timestamps)
+    poses = np.asarray(db.poses)
+    has_pose = np.isfinite(poses[:, 0, 0]) if len(db) else np.zeros(0, dtype=bool)
+    per = []
+    for s in np.unique(sessions):
+        m = sessions == s
+        t = times[m]
+        t = t[np.isfinite(t)]
+        per.append(
+            {
+                "session": int(s),
+                "places": int(m.sum()),
+                "with_pose": int(has_pose[m].sum()),
+                "time_span_s": [float(t.min()), float(t.max())] if t.size else None,
+            }
+        )
+    return {
+        "file": str(Path(path).absolute()),
+        "bytes": Path(path).stat().st_size,
+        "places": len(db),
+        "config": db.config.to_dict(),
+        "fingerprint": f"{db.config.fingerprint:#018x}",
+        "sessions": per,
+    }
+
+
+def fmt_metric(v: Any) -> str:
+    if v is None or (isinstance(v, float) and math.isnan(v)):
+        return "n/a"
+    return f"{v:d}" if isinstance(v, int) else f"{v:.3f}"
+
+
+def _short(v: float) -> float:
+    """A float32 value as the shortest decimal that reads back to the same float32."""
+    return float(str(np.float32(v)))
+
+
+def describe_scan(path: Path, config: PipelineConfig, format: str | None = None) -> dict[str, Any]:
+    """``solid describe``: one scan's descriptor as a JSON-ready dict."""
+    import time
+
+    from . import io as sio
+
+    pts = sio.read_points(path, format, xyz_only=True)
+    t0 = time.perf_counter()
+    d = _solid.describe(pts, config.descriptor)
+    dt = time.perf_counter() - t0
+    return {
+        "file": str(path),
+        "format": format or sio.detect_format(path),
+        "preset": config.preset_name,
+        "config": config.descriptor.to_dict(),
+        "n_points": int(d.n_points),
+        "n_in_range": int(d.n_in_range),
+        "n_kept": int(d.n_kept),
+        "describe_ms": round(dt * 1e3, 3),
+        "r": [_short(v) for v in np.asarray(d.r)],
+        "a": [_short(v) for v in np.asarray(d.a)],
+    }
+
+
+def bench(
+    sequence: Path,
+    config: PipelineConfig,
+    *,
+    frames: int = 200,
+    db_size: int | None = None,
+    threads: int | None = None,
+    format: str | None = None,
+    topic: str | None = None,
+) -> str:
+    """``solid bench``: reading, describing and searching rates on the user's data, with numpy's
+    brute-force search timed in the same run as the baseline."""
+    import time
+
+    from . import io as sio
+    from .pipeline import _iter_selected
+
+    seq = sio.Sequence(sequence, format=format, topic=topic)
+    n = min(frames, len(seq))
+    t0 = time.perf_counter()
+    scans = [np.ascontiguousarray(p[:, :3]) for p in _iter_selected(seq, list(range(n)))]
+    t_read = time.perf_counter() - t0
+    npts = sum(s.shape[0] for s in scans)
+    cfg = config.descriptor
+    t0 = time.perf_counter()
+    descs = [_solid.describe(s, cfg) for s in scans]
+    t_desc = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    _solid.describe_batch(scans, cfg, threads=threads)
+    t_batch = time.perf_counter() - t0
+    size = db_size or n
+    db = _solid.Database(cfg)
+    t0 = time.perf_counter()
+    for i in range(size):
+        db.add(descs[i % n])
+    t_add = time.perf_counter() - t0
+    nq = min(n, 200)
+    t0 = time.perf_counter()
+    for d in descs[:nq]:
+        db.search(d, k=1)
+    t_s = time.perf_counter() - t0
+    R = np.stack([np.asarray(d.r, dtype=np.float32) for d in descs])
+    Rdb = np.tile(R, (-(-size // n), 1))[:size]
+    U = Rdb / np.maximum(np.linalg.norm(Rdb, axis=1, keepdims=True), 1e-30)
+    t0 = time.perf_counter()
+    for r in R[:nq]:
+        int(np.argmax(U @ (r / max(float(np.linalg.norm(r)), 1e-30))))
+    t_np = time.perf_counter() - t0
+    return "\n".join(
+        [
+            f"sequence   {sequence} ({n} scans, {npts / n:,.0f} points/scan), preset {config.preset_name}",
+            f"read       {n / t_read:10.1f} Hz   ({t_read / n * 1e3:.2f} ms/scan, {npts / t_read / 1e6:.1f} Mpoints/s)",
+            f"describe   {n / t_desc:10.1f} Hz   ({t_desc / n * 1e3:.3f} ms/scan, single thread)",
+            f"batch      {n / t_batch:10.1f} Hz   (describe_batch, threads={threads or 'all'})",
+            f"db add     {size / t_add:10.1f} Hz   ({size} entries)",
+            f"search     {nq / t_s:10.1f} Hz   (solid.Database, top-1 over {size} entries)",
+            f"search     {nq / t_np:10.1f} Hz   (numpy brute force baseline, top-1 over {size} entries, {t_np / t_s:.1f}x solid's time)",
+        ]
+    )
