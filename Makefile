@@ -5,7 +5,7 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 PYTHON ?= python3
 
-.PHONY: demo test venv wheel lint rust-test py-test typecheck bench bench-py clean
+.PHONY: demo test venv wheel lint rust-test py-test typecheck bench bench-py readme-results thresholds clean
 
 $(VENV)/.ready: requirements-dev.txt pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -49,6 +49,14 @@ bench:
 
 bench-py: wheel
 	$(PY) benches/python_baseline.py
+
+## Rewrite the README's hku1 results (SOLiD and Scan Context, 3 m and 5 m) from fresh `solid eval` runs.
+readme-results: wheel
+	$(PY) tools/readme_results.py
+
+## Measure the loop threshold of every preset (the defaults in crates/solid-core/src/config.rs).
+thresholds: wheel
+	$(PY) tools/thresholds.py
 
 clean:
 	rm -rf dist build $(VENV) target
