@@ -48,6 +48,11 @@ mod owned;
 #[doc = include_str!("../../../README.md")]
 pub struct ReadmeDoctests;
 
+/// The crate README's examples (what crates.io shows), compiled as doctests.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct CrateReadmeDoctests;
+
 pub use compare::{aligned_distance, cosine_distance, heading, heading_refined, Heading};
 pub use config::{Config, Preset, LOOP_THRESHOLD_MEASUREMENT, MAX_VOXELS_PER_AXIS, PRESETS};
 pub use describe::{describe, describe_scratch_len, stages, Coord, Points, Scratch, Stats};

@@ -31,6 +31,11 @@ mod sensor;
 mod trajectory;
 mod world;
 
+/// The crate README's examples, compiled as doctests.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;
+
 pub use error::SimError;
 pub use io::{write_scans, write_sequence};
 pub use pose::Pose;
