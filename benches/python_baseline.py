@@ -1,4 +1,4 @@
-"""Times solid.describe against a vectorised numpy implementation of SPEC §2, in one process.
+"""Times solid.describe against a vectorised numpy implementation of docs/spec.md §2, in one process.
 
     python benches/python_baseline.py            # or: make bench-py
 
@@ -26,7 +26,7 @@ F64 = npt.NDArray[np.float64]
 
 
 def describe_numpy(points: npt.NDArray[np.floating], cfg: solid.SolidConfig) -> tuple[F64, F64, int]:
-    """SPEC §2 with numpy, vectorised throughout (no Python loop over points)."""
+    """docs/spec.md §2 with numpy, vectorised throughout (no Python loop over points)."""
     xyz = np.asarray(points[:, :3], dtype=np.float64)
     xyz = xyz[np.isfinite(xyz).all(axis=1)]
     d = np.sqrt((xyz * xyz).sum(axis=1))
@@ -82,7 +82,7 @@ def main() -> int:
     for name, pts in scans.items():
         r_np, a_np, kept = describe_numpy(pts, cfg)
         d = solid.describe(pts, cfg)
-        # Same descriptor (SPEC §7 tolerance): the benchmark compares equal work.
+        # Same descriptor (docs/spec.md §7 tolerance): the benchmark compares equal work.
         assert abs(d.n_kept - kept) <= 1e-3 * kept, (d.n_kept, kept)
         assert np.abs(d.r - r_np).sum() <= 1e-3 * np.abs(r_np).sum()
         assert np.abs(d.a - a_np).sum() <= 1e-3 * np.abs(a_np).sum()

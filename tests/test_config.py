@@ -20,7 +20,7 @@ def test_fields_and_defaults_come_from_the_core() -> None:
     assert cfg.descriptor == solid.SolidConfig.preset("avia")
     assert cfg.detector == solid.DetectorConfig.preset("avia")
     assert cfg.radius == _solid.DEFAULT_RADIUS
-    # the SPEC §1 defaults of SolidConfig() are the core's (those of every preset)
+    # the docs/spec.md §1 defaults of SolidConfig() are the core's (those of every preset)
     bare = solid.SolidConfig(fov_up=2.0, fov_down=-24.8, n_elevation=64)
     assert bare == solid.SolidConfig.preset("hdl64")
     # every preset has its own measured loop threshold, used by a detector made from its config

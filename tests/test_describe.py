@@ -34,7 +34,7 @@ def rotate_z(xyz: npt.NDArray[np.float64], deg: float) -> npt.NDArray[np.float64
     return np.ascontiguousarray(xyz @ rot.T)
 
 
-# --- golden outputs (SPEC §7) ------------------------------------------------------------------
+# --- golden outputs (docs/spec.md §7) ------------------------------------------------------------------
 
 
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
@@ -203,7 +203,7 @@ def test_invalid_config_names_the_parameter(kwargs: dict[str, float], name: str)
 
 def test_config_construction_and_presets() -> None:
     cfg = solid.SolidConfig(fov_up=2.0, fov_down=-24.8, n_elevation=64)
-    assert cfg == HDL64  # defaults of SPEC §1 otherwise
+    assert cfg == HDL64  # defaults of docs/spec.md §1 otherwise
     assert solid.SolidConfig.preset("avia", max_range=40.0).max_range == 40.0
     with pytest.raises(TypeError):
         solid.SolidConfig(fov_up=2.0, fov_down=-24.8)  # type: ignore[call-arg]

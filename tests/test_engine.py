@@ -56,7 +56,7 @@ def test_search_is_exact_and_methods_agree(cfg: solid.SolidConfig, db: solid.Dat
     assert [h.distance for h in hits] == sorted(h.distance for h in hits)
     for method in ("brute", "kdtree", "auto"):
         assert db.search(q, k=5, method=method) == hits
-    # The distances are the SPEC §3 cosine distances.
+    # The distances are the docs/spec.md §3 cosine distances.
     for h in hits:
         assert h.distance == pytest.approx(solid.distance(q, synthetic(cfg, h.id)), abs=1e-5)
     # An R-SOLiD array works as a query too.
@@ -157,7 +157,7 @@ def test_loop_detector_on_hku_matches_exact_search() -> None:
     det = solid.LoopDetector(cfg, exclude_recent=50, threshold=threshold, rerank=False)
     loops = [det.add(sio.read_points(p), timestamp=float(i)) for i, p in enumerate(scans)]
     assert len(det) == len(scans) == 314
-    # Reference: the exact nearest neighbour among frames < q - 50 (SPEC §5), computed in numpy.
+    # Reference: the exact nearest neighbour among frames < q - 50 (docs/spec.md §5), computed in numpy.
     r = det.database.r.astype(np.float64)
     unit = r / np.linalg.norm(r, axis=1, keepdims=True)
     for q, lp in enumerate(loops):

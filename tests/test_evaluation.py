@@ -1,4 +1,4 @@
-"""SPEC §5 scoring (the core's, through solid.evaluation) on hand-made cases and on the pipeline."""
+"""docs/spec.md §5 scoring (the core's, through solid.evaluation) on hand-made cases and on the pipeline."""
 
 from __future__ import annotations
 

@@ -137,7 +137,7 @@ def test_shift_window_is_around_the_sector_key_alignment() -> None:
 
 def test_heading_sign_convention() -> None:
     # A random cloud and the same cloud rotated counter-clockwise by 3 sectors (18°): the rotated
-    # one, as the query, has heading +18° relative to the original (SPEC §3: p_query ≈ Rz(ψ)·p_cand).
+    # one, as the query, has heading +18° relative to the original (docs/spec.md §3: p_query ≈ Rz(ψ)·p_cand).
     rng = np.random.default_rng(3)
     n = 4000
     r = rng.uniform(1, 70, n)
@@ -230,7 +230,7 @@ def test_exclusion_forms_agree() -> None:
 # --------------------------------------------------------------------------------------------
 # against the authors' C++ on hku1-avia
 
-# SPEC §5 metrics of the authors' C++ Scan Context (gisbi-kim/scancontext, cpp/module/Scancontext,
+# docs/spec.md §5 metrics of the authors' C++ Scan Context (gisbi-kim/scancontext, cpp/module/Scancontext,
 # unmodified; 10 candidates from its nanoflann ring-key tree over every frame < q − 50, re-ranked by its
 # distanceBtnScanContext) on hku1-avia, exclude 50, radius 3 m. Produced by a harness kept outside the
 # repository (/work/peers/scancontext; its source and build commands are in the helper note

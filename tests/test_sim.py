@@ -1,6 +1,6 @@
 """The LiDAR simulator (solid.sim): determinism, geometry, sequence files, and two experiments with
 exact ground truth: heading under a limited field of view (the paper's Fig. 6) and revisit
-detection per sensor model (SPEC §5).
+detection per sensor model (docs/spec.md §5).
 
 Run with ``pytest -s tests/test_sim.py`` to see the per-FOV heading table and the Recall@1 per
 sensor. Everything here is seeded, so the measured figures are reproducible bit for bit on one
@@ -224,7 +224,7 @@ def test_heading_error_per_field_of_view(world: sim.World) -> None:
 
 
 # ---------------------------------------------------------------------------------------------
-# revisit detection per sensor model (SPEC §5)
+# revisit detection per sensor model (docs/spec.md §5)
 
 #: Recall@1 floors per sensor on the seed-0 loop below. Measured with the extension: hdl64 0.98,
 #: vlp16 0.99, os1-64 0.99, avia 0.98, aeva 0.99 (seeds 1–3: 0.98–0.99 for every sensor). The
@@ -246,7 +246,7 @@ def revisit_loop(world: sim.World) -> sim.Trajectory:
 
 
 def recall_at_1(seq: sim.Sequence, preset: str) -> tuple[float, int, float]:
-    """SPEC §5 Recall@1 of the shipped pipeline (the preset's detector, excluding EXCLUDE frames)
+    """docs/spec.md §5 Recall@1 of the shipped pipeline (the preset's detector, excluding EXCLUDE frames)
     scored by solid.evaluation; also the number of GT-positive queries and the chance level (the
     expected Recall@1 of a random eligible frame)."""
     cfg = PipelineConfig.preset(preset, detector={"exclude_frames": EXCLUDE})

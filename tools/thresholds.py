@@ -4,7 +4,7 @@ Usage: python tools/thresholds.py [--shared ../shared]
 
 For every preset it runs the shipped pipeline (solid.pipeline.LoopClosurePipeline with the
 preset's descriptor and detector, exclusion 50 frames) on the sequences that exist for that
-sensor, scores it (SPEC §5, radius 5 m) and prints each sequence's F1-max threshold. The chosen
+sensor, scores it (docs/spec.md §5, radius 5 m) and prints each sequence's F1-max threshold. The chosen
 threshold is the one that maximises the mean F1 over the preset's sequences, with real recordings
 weighing as much as all simulated ones together (candidate thresholds: every observed top-1
 score); the table shows the F1 and precision it gives on each.

@@ -60,7 +60,7 @@ class ConfigError(SolidError):
 
 @final
 class SolidConfig:
-    """SOLiD parameters (SPEC §1), immutable; invalid values raise ConfigError naming the parameter."""
+    """SOLiD parameters (docs/spec.md §1), immutable; invalid values raise ConfigError naming the parameter."""
 
     def __new__(
         cls,
@@ -366,13 +366,13 @@ class LoopDetector:
     @property
     def rerank(self) -> bool: ...
 
-# --- SPEC §5 scoring (eval.rs) ---
+# --- docs/spec.md §5 scoring (eval.rs) ---
 
 DEFAULT_RADIUS: float
 
 @final
 class Scores:
-    """Per-query outcomes and summary metrics of one scored run (SPEC §5)."""
+    """Per-query outcomes and summary metrics of one scored run (docs/spec.md §5)."""
     @property
     def radius(self) -> float: ...
     @property

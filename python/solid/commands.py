@@ -151,7 +151,7 @@ def evaluate(
     extra: dict[str, Any] | None = None,
     write_more: Callable[[Path, PipelineResult, list[Evaluation]], None] | None = None,
 ) -> EvalRun:
-    """``solid eval``: the pipeline's own candidates scored against poses (SPEC §5).
+    """``solid eval``: the pipeline's own candidates scored against poses (docs/spec.md §5).
 
     ``scancontext`` (a :class:`solid.scancontext.ScanContextConfig`) adds the baseline, asked the
     same questions (the same queries, each with the same places to choose from). ``extra`` is

@@ -1,4 +1,4 @@
-"""Scoring loop closures against poses (SPEC §5) and writing the results.
+"""Scoring loop closures against poses (docs/spec.md §5) and writing the results.
 
 The scoring itself is the Rust core's (``solid_lidar::eval``, bound as
 ``solid._solid.score_candidates``): this module only gathers what a detector decided — per query
@@ -7,7 +7,7 @@ matched with — hands it over, and formats what comes back (``metrics.json``, `
 :func:`evaluate_detections` scores a :class:`solid.LoopDetector` run (what the pipeline does);
 :func:`evaluate_candidates` scores any method given as arrays (the Scan Context baseline).
 
-Definitions (SPEC §5): a query is GT-positive when some place it could be matched with lies within
+Definitions (docs/spec.md §5): a query is GT-positive when some place it could be matched with lies within
 ``radius`` metres; its top-1 is correct when the best candidate does. Recall@N, the PR curve over
 every observed top-1 score (accept when score ≤ τ), F1 max, AUC (P(correct top-1 scores lower than
 an incorrect one), ties one half), and the rotation error |ψ_est − ψ_true| over correct top-1s.
@@ -102,7 +102,7 @@ class Evaluation:
         return _none_if_nan(float(self.scores.recall_at(n)))
 
     def pr(self) -> tuple[F64, F64, F64]:
-        """(thresholds, precision, recall) of SPEC §5."""
+        """(thresholds, precision, recall) of docs/spec.md §5."""
         t, p, r = self.scores.pr_curve()
         return np.asarray(t), np.asarray(p), np.asarray(r)
 
@@ -210,7 +210,7 @@ def evaluate_candidates(
     entry_sessions: npt.ArrayLike | None = None,
     frame_of: Callable[[int], int | None] | None = None,
 ) -> Evaluation:
-    """Score any method's candidates (SPEC §5).
+    """Score any method's candidates (docs/spec.md §5).
 
     ``query`` (Q,) entry ids; ``eligible`` (Q,) each query may be matched with ids
     ``0..eligible``; ``ids`` (Q, k) ranked candidate ids (−1 where missing); ``distance``,
@@ -265,7 +265,7 @@ def evaluate_detections(
     frame_of: Callable[[int], int | None] | None = None,
 ) -> Evaluation:
     """Score the steps of a :class:`solid.LoopDetector` run (``Detection`` objects) against the
-    poses stored with the database's places; steps with nothing eligible are skipped (SPEC §5)."""
+    poses stored with the database's places; steps with nothing eligible are skipped (docs/spec.md §5)."""
     steps = [d for d in detections if d.eligible > 0]
     k = max((len(d.candidates) for d in steps), default=1)
     ids = np.full((len(steps), max(k, 1)), -1, dtype=np.int64)

@@ -1032,7 +1032,7 @@ def sensor_poses(poses: npt.ArrayLike, T_pose_sensor: npt.ArrayLike) -> F64:
     """Poses of the sensor, ``T_world_sensor = T_world_pose · T_pose_sensor``, as (N, 3, 4).
 
     For KITTI: ``sensor_poses(camera_poses, load_extrinsic("calib.txt"))`` gives the Velodyne
-    poses, whose yaw is the heading SPEC §3 compares against.
+    poses, whose yaw is the heading docs/spec.md §3 compares against.
     """
     P = np.asarray(poses, dtype=np.float64)
     T = np.asarray(T_pose_sensor, dtype=np.float64)
@@ -1246,7 +1246,7 @@ def occlude_sector(points: npt.NDArray[Any], width_deg: float, center_deg: float
 def rotate_z(points: npt.NDArray[Any], degrees: float) -> npt.NDArray[Any]:
     """Rotate points counter-clockwise (seen from above) about +z; extra columns are kept.
 
-    ``rotate_z(p, psi)`` is the query of SPEC §3 whose heading relative to ``p`` is ``psi``.
+    ``rotate_z(p, psi)`` is the query of docs/spec.md §3 whose heading relative to ``p`` is ``psi``.
     """
     t = math.radians(degrees)
     c, s = math.cos(t), math.sin(t)

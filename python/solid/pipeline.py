@@ -5,7 +5,7 @@
 to one :class:`solid.LoopDetector`, keeping every :class:`solid.Detection` (the ranked candidates
 and the accepted loop of each step). Everything downstream uses that record: ``loops.csv`` lists
 the accepted loops, and the evaluation scores the same candidates against poses
-(:mod:`solid.evaluation`, SPEC §5) — there is no second search or heading anywhere::
+(:mod:`solid.evaluation`, docs/spec.md §5) — there is no second search or heading anywhere::
 
     import solid
     from solid.config import PipelineConfig
@@ -152,7 +152,7 @@ class PipelineResult:
     timings: dict[str, float] = field(default_factory=dict)
 
     def queries(self) -> list[Any]:
-        """The steps that had a database to search (SPEC §5 skips the others)."""
+        """The steps that had a database to search (docs/spec.md §5 skips the others)."""
         return [d for d in self.detections if d.eligible > 0]
 
     def loops(self) -> list[Any]:
@@ -171,7 +171,7 @@ class PipelineResult:
         return [loop_row(lp, times, sessions, self.frame_of) for lp in self.loops()]
 
     def evaluate(self, radius: float | None = None, name: str = "SOLiD") -> Any:
-        """SPEC §5 scores of this run's candidates against the poses of every place (the map's
+        """docs/spec.md §5 scores of this run's candidates against the poses of every place (the map's
         stored poses and this recording's), at ``radius`` (default: the config's)."""
         from .evaluation import evaluate_detections
 

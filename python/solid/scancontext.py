@@ -3,7 +3,7 @@
 Written from the paper, with the choices of the authors' C++ implementation (gisbi-kim/scancontext,
 ``cpp/module/Scancontext``) where the paper leaves them open or the C++ differs, so that its results
 match that reference (``tests/test_scancontext.py`` checks this on hku1-avia). This module generates
-candidates; scoring them (SPEC §5) is the caller's job.
+candidates; scoring them (docs/spec.md §5) is the caller's job.
 
 Descriptor (paper §III-A/B): an ``n_ring × n_sector`` (20 × 60) polar grid of the horizontal plane.
 With ``r = √(x² + y²)`` and θ = azimuth counter-clockwise from +x in [0°, 360°), a point with
@@ -31,14 +31,14 @@ Distance between a query Q and a candidate C at column shift n (paper eq. 5 and 
   minimised over all Ns shifts (first minimum); the ring key is the occupancy ratio.
 
 Heading: the best shift n means ``Q[:, j] ≈ C[:, j − n]``, so the query is the candidate rotated
-counter-clockwise by ``ψ = n·360°/Ns``, wrapped into (−180°, 180°]: the convention of SPEC §3
+counter-clockwise by ``ψ = n·360°/Ns``, wrapped into (−180°, 180°]: the convention of docs/spec.md §3
 (``p_query ≈ Rz(ψ)·p_candidate``). (The C++ reports ``n·360°/Ns`` in [0°, 360°).)
 
 Search (the C++'s ``detectLoopClosureID``): the ``n_candidates`` (10) database entries nearest to the
 query by Euclidean distance between ring keys (exact; ties by lower id; the C++ asks a nanoflann
 kd-tree, which is exact too), re-ranked by the distance above. ``n_candidates=None`` compares the
 query with every eligible entry. Which entries are eligible is the caller's choice
-(:data:`Exclusion`): by default every frame ``< q − 50``, the SPEC §5 protocol. The C++'s online loop
+(:data:`Exclusion`): by default every frame ``< q − 50``, the docs/spec.md §5 protocol. The C++'s online loop
 differs in two ways that this module does not copy: its database holds the frames ``≤ q − 50``, and
 it rebuilds its kd-tree only every 50 queries, so most queries search a stale subset.
 """
@@ -74,7 +74,7 @@ F64 = npt.NDArray[np.float64]
 I64 = npt.NDArray[np.int64]
 B = npt.NDArray[np.bool_]
 
-#: Which database entries a query may match. An ``int`` e: the frames ``< q − e`` (SPEC §5). An
+#: Which database entries a query may match. An ``int`` e: the frames ``< q − e`` (docs/spec.md §5). An
 #: (N, N) boolean array: row q marks the eligible entries of query q. A callable ``f(q)``: a boolean
 #: mask of length N or an array of eligible ids (e.g. exclusion by metres travelled or by seconds).
 Exclusion = Union[int, npt.ArrayLike, Callable[[int], npt.ArrayLike]]
@@ -179,7 +179,7 @@ def sector_key(descriptors: npt.ArrayLike) -> F64:
 
 
 def heading_deg(shift: npt.ArrayLike, n_sector: int) -> F64:
-    """Heading of SPEC §3 (degrees in (−180, 180]) for a best column shift."""
+    """Heading of docs/spec.md §3 (degrees in (−180, 180]) for a best column shift."""
     return _wrap180(np.asarray(shift, dtype=np.float64) * 360.0 / n_sector)
 
 
@@ -242,7 +242,7 @@ def distance(
     """Scan Context distance and best column shift between two (n_ring, n_sector) descriptors.
 
     Returns ``(d, n)`` with ``query[:, j] ≈ candidate[:, (j − n) mod n_sector]`` at the best shift n;
-    ``heading_deg(n, n_sector)`` is the query's heading relative to the candidate (SPEC §3).
+    ``heading_deg(n, n_sector)`` is the query's heading relative to the candidate (docs/spec.md §3).
     """
     q = _as_descriptors(query, cfg)
     c = _as_descriptors(candidate, cfg)
@@ -263,7 +263,7 @@ class Candidates:
     queries: I64  # (Q,)
     ids: I64  # (Q, k)
     distances: F64  # (Q, k)
-    headings_deg: F64  # (Q, k), SPEC §3 convention
+    headings_deg: F64  # (Q, k), docs/spec.md §3 convention
 
 
 def _eligibility(exclude: Exclusion, n: int) -> Callable[[int], B]:
@@ -378,11 +378,11 @@ def evaluate_scancontext(
     name: str = "Scan Context",
     progress: Callable[[int], None] | None = None,
 ) -> Evaluation:
-    """SPEC §5 evaluation of Scan Context candidates against poses, by the same scorer as SOLiD.
+    """docs/spec.md §5 evaluation of Scan Context candidates against poses, by the same scorer as SOLiD.
 
     The queries and what each may be matched with are either given (``queries`` and ``eligible``:
     query q sees frames ``< eligible``, e.g. a SOLiD run's own, so both methods face the same
-    questions), or the SPEC §5 default: frames ``< q − exclude``. The one place where this module
+    questions), or the docs/spec.md §5 default: frames ``< q − exclude``. The one place where this module
     hands its candidates to a scorer.
     """
     D = _as_descriptors(descriptors, cfg)
@@ -417,7 +417,7 @@ def evaluate_scancontext(
 
 
 def query_indices(n_frames: int, exclude: int) -> I64:
-    """Frames that are queries under SPEC §5 frame exclusion: those with a non-empty database."""
+    """Frames that are queries under docs/spec.md §5 frame exclusion: those with a non-empty database."""
     if exclude < 0:
         raise ValueError(f"exclude must be >= 0, got {exclude}")
     return np.arange(exclude + 1, n_frames, dtype=np.int64)

@@ -12,7 +12,7 @@ bit-identical scans on every platform.
 >>> seq.write("sim_seq")                                  # KITTI layout: velodyne/*.bin, poses.txt
 
 Frames: the sensor frame is x forward, y left, z up; poses are ``T_world_sensor`` as (3, 4)
-row-major float64 matrices, the KITTI convention in the LiDAR frame. Heading convention of SPEC §3:
+row-major float64 matrices, the KITTI convention in the LiDAR frame. Heading convention of docs/spec.md §3:
 :func:`true_heading` gives ψ with ``p_query ≈ Rz(ψ) · p_candidate``.
 """
 
@@ -455,7 +455,7 @@ def write_sessions(
 
 
 def true_heading(pose_query: npt.ArrayLike, pose_candidate: npt.ArrayLike) -> float:
-    """SPEC §3 ground-truth heading in degrees, (−180, 180]: ψ = yaw(R_queryᵀ · R_candidate), so
+    """docs/spec.md §3 ground-truth heading in degrees, (−180, 180]: ψ = yaw(R_queryᵀ · R_candidate), so
     that ``p_query ≈ Rz(ψ) · p_candidate``."""
     rq = _pose_array(pose_query)[:, :3]
     rc = _pose_array(pose_candidate)[:, :3]

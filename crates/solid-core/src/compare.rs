@@ -1,4 +1,4 @@
-//! Comparing descriptors (SPEC §3): cosine distance of R-SOLiDs and heading from A-SOLiDs.
+//! Comparing descriptors ([spec §3](crate::spec#3-comparing-descriptors)): cosine distance of R-SOLiDs and heading from A-SOLiDs.
 
 use crate::math::sqrt;
 use crate::Error;
@@ -18,7 +18,7 @@ fn same_len(what: &'static str, a: &[f32], b: &[f32]) -> Result<(), Error> {
 }
 
 /// Cosine distance `1 − q·c / (‖q‖‖c‖)` between two R-SOLiDs, in `[0, 1]` for the non-negative
-/// vectors SOLiD produces; `1` when either vector is all zeros (SPEC §3). Accumulates in `f64`.
+/// vectors SOLiD produces; `1` when either vector is all zeros ([spec §3](crate::spec#3-comparing-descriptors)). Accumulates in `f64`.
 ///
 /// # Errors
 /// [`Error::LengthMismatch`] when the lengths differ, [`Error::Empty`] when both are empty.
@@ -39,7 +39,7 @@ pub fn cosine_distance(q: &[f32], c: &[f32]) -> Result<f64, Error> {
     Ok(d.clamp(0.0, 1.0))
 }
 
-/// A heading estimate between two scans (SPEC §3): the query ≈ the candidate rotated by
+/// A heading estimate between two scans ([spec §3](crate::spec#3-comparing-descriptors)): the query ≈ the candidate rotated by
 /// `degrees` about +z (counter-clockwise seen from above).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Heading {
@@ -68,7 +68,7 @@ pub(crate) fn circular_sum(q: &[f32], c: &[f32], s: usize, f: impl Fn(f64, f64) 
     head + tail
 }
 
-/// `cost[s] = Σⱼ (q[j] − c[(j − s) mod n])²` (SPEC §3).
+/// `cost[s] = Σⱼ (q[j] − c[(j − s) mod n])²` ([spec §3](crate::spec#3-comparing-descriptors)).
 fn shift_cost(q: &[f32], c: &[f32], s: usize) -> f64 {
     circular_sum(q, c, s, |a, b| (a - b) * (a - b))
 }
@@ -113,7 +113,7 @@ fn best_shift(q: &[f32], c: &[f32]) -> (usize, f64) {
     best
 }
 
-/// Integer heading (SPEC §3): the first shift that minimises the squared difference of the
+/// Integer heading ([spec §3](crate::spec#3-comparing-descriptors)): the first shift that minimises the squared difference of the
 /// A-SOLiDs, as `s*·360/n` degrees wrapped into `(−180, 180]`.
 ///
 /// # Errors
@@ -127,7 +127,7 @@ pub fn heading(a_query: &[f32], a_candidate: &[f32]) -> Result<Heading, Error> {
     })
 }
 
-/// Refined heading (SPEC §3): the integer heading plus a parabolic sub-bin offset
+/// Refined heading ([spec §3](crate::spec#3-comparing-descriptors)): the integer heading plus a parabolic sub-bin offset
 /// `δ = (c₋ − c₊) / (2(c₋ − 2c₀ + c₊))` in `[−0.5, 0.5]` (0 when the parabola is not convex).
 ///
 /// # Errors

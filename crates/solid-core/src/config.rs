@@ -1,11 +1,11 @@
-//! Descriptor configuration (SPEC §1) and sensor presets (SPEC §4).
+//! Descriptor configuration ([spec §1](crate::spec#1-parameters)) and sensor presets ([spec §4](crate::spec#4-sensor-presets)).
 
 use crate::Error;
 
 /// Bound on `max_range / voxel_size` (voxel keys pack 21 bits per axis, which leaves a margin for rounding).
 pub const MAX_VOXELS_PER_AXIS: f64 = (1u64 << 19) as f64;
 
-/// The parameters of the SOLiD descriptor (SPEC §1).
+/// The parameters of the SOLiD descriptor ([spec §1](crate::spec#1-parameters)).
 ///
 /// Fields are public; [`Config::validate`] checks them and every function that takes a `Config`
 /// validates it first, so an invalid value is an error naming the parameter, never a clamp.
@@ -30,14 +30,14 @@ pub struct Config {
     pub voxel_size: f64,
 }
 
-/// A named sensor preset (SPEC §4).
+/// A named sensor preset ([spec §4](crate::spec#4-sensor-presets)).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Preset {
     /// The preset's name, as accepted by [`Config::preset`].
     pub name: &'static str,
     /// The sensor it describes.
     pub sensor: &'static str,
-    /// Its configuration (SPEC §1 defaults for everything the sensor does not fix).
+    /// Its configuration ([spec §1](crate::spec#1-parameters) defaults for everything the sensor does not fix).
     pub config: Config,
     /// The loop detector's default threshold for this sensor (largest accepted R-SOLiD cosine
     /// distance), chosen from the F1-max thresholds measured on the shared data and the
@@ -65,7 +65,7 @@ const fn sensor(fov_up: f64, fov_down: f64, n_elevation: usize, max_range: f64) 
     }
 }
 
-/// The sensor presets of SPEC §4.
+/// The sensor presets of [spec §4](crate::spec#4-sensor-presets).
 pub const PRESETS: [Preset; 6] = [
     Preset {
         name: "hdl64",
@@ -106,7 +106,7 @@ pub const PRESETS: [Preset; 6] = [
 ];
 
 impl Config {
-    /// A config for a sensor's vertical field of view and channel count, with the SPEC §1
+    /// A config for a sensor's vertical field of view and channel count, with the [spec §1](crate::spec#1-parameters)
     /// defaults for everything else: 40 range bins, 60 azimuth bins, ranges (3, 80) m, voxel
     /// 0.5 m. The one place these defaults are written.
     pub const fn with_defaults(fov_up: f64, fov_down: f64, n_elevation: usize) -> Config {
@@ -134,7 +134,7 @@ impl Config {
             .ok_or(Error::UnknownPreset)
     }
 
-    /// Checks every parameter against SPEC §1.
+    /// Checks every parameter against [spec §1](crate::spec#1-parameters).
     ///
     /// # Errors
     /// [`Error::InvalidParameter`] naming the first invalid parameter.

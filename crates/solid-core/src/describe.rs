@@ -1,4 +1,4 @@
-//! The SOLiD descriptor, step by step as SPEC §2 defines it.
+//! The SOLiD descriptor, step by step as [spec §2](crate::spec#2-the-descriptor) defines it.
 
 use crate::math::{atan2, floor_i64, sqrt};
 use crate::{Config, Error};
@@ -85,7 +85,7 @@ impl<'a, T: Coord> Points<'a, T> {
 pub struct Stats {
     /// Points passed in (before any filtering).
     pub n_points: usize,
-    /// Points left after the finite and range filters (SPEC §2 steps 1–2).
+    /// Points left after the finite and range filters ([spec §2](crate::spec#2-the-descriptor) steps 1–2).
     pub n_in_range: usize,
     /// Points binned: voxel centroids after downsampling (step 3), or `n_in_range` without it.
     pub n_kept: usize,
@@ -117,9 +117,9 @@ pub fn describe_scratch_len(n_points: usize, cfg: &Config) -> usize {
     bins.saturating_add(per_point)
 }
 
-/// Bin geometry derived once per call from a validated config: every division of SPEC §2 step 5
+/// Bin geometry derived once per call from a validated config: every division of [spec §2](crate::spec#2-the-descriptor) step 5
 /// becomes a multiplication by a precomputed factor (a point exactly on a bin edge may land one
-/// bin over, well within SPEC §7's tolerance; the result is still the same bits everywhere).
+/// bin over, well within [spec §7](crate::spec#7-matching-the-golden-outputs)'s tolerance; the result is still the same bits everywhere).
 struct Binner {
     range_scale: f64,
     azimuth_scale: f64,
@@ -145,7 +145,7 @@ impl Binner {
         }
     }
 
-    /// Packed bin indices `i | j << 10 | k << 22` of one point (SPEC §2 steps 4–5).
+    /// Packed bin indices `i | j << 10 | k << 22` of one point ([spec §2](crate::spec#2-the-descriptor) steps 4–5).
     #[inline(always)]
     fn bin(&self, x: f64, y: f64, z: f64) -> u32 {
         use core::f64::consts::TAU;
@@ -182,7 +182,7 @@ fn unpack(b: u32) -> (usize, usize, usize) {
     (b & 0x3ff, (b >> 10) & 0xfff, b >> 22)
 }
 
-/// Computes the SOLiD descriptor of one scan (SPEC §2): R-SOLiD into `r_out[..n_range]` and
+/// Computes the SOLiD descriptor of one scan ([spec §2](crate::spec#2-the-descriptor)): R-SOLiD into `r_out[..n_range]` and
 /// A-SOLiD into `a_out[..n_azimuth]`.
 ///
 /// Non-finite points and points outside `(min_range, max_range)` are dropped; an empty result is
@@ -310,7 +310,7 @@ fn describe_impl<T: Coord>(
         ec[unpack(b).2] += 1;
     }
 
-    // IEV (SPEC §2 step 7): min-max normalised elevation counts; flat counts give all ones.
+    // IEV (spec §2 step 7): min-max normalised elevation counts; flat counts give all ones.
     let (lo, hi) = ec
         .iter()
         .fold((u64::MAX, 0), |(lo, hi), &c| (lo.min(c), hi.max(c)));
@@ -363,7 +363,7 @@ pub mod stages {
         describe_impl(points, cfg, scratch, r_out, a_out)
     }
 
-    /// Number of points that are finite and within `(min_range, max_range)` (SPEC §2 steps 1–2).
+    /// Number of points that are finite and within `(min_range, max_range)` ([spec §2](crate::spec#2-the-descriptor) steps 1–2).
     ///
     /// # Errors
     /// [`Error::InvalidParameter`] when `cfg` is invalid.
@@ -377,7 +377,7 @@ pub mod stages {
             .count())
     }
 
-    /// Voxel downsampling (SPEC §2 steps 1–3): writes the centroid of every occupied voxel as x, y, z
+    /// Voxel downsampling ([spec §2](crate::spec#2-the-descriptor) steps 1–3): writes the centroid of every occupied voxel as x, y, z
     /// rows into `out_xyz`, in order of first occupation, and returns (points in range, voxels).
     ///
     /// # Errors
@@ -429,7 +429,7 @@ pub mod stages {
     }
 }
 
-/// Voxel downsampling on an origin-anchored grid (SPEC §2 step 3): accumulates each occupied
+/// Voxel downsampling on an origin-anchored grid ([spec §2](crate::spec#2-the-descriptor) step 3): accumulates each occupied
 /// voxel's coordinate sums and count into `recs` (in order of first occupation) through an
 /// open-addressing hash table. Returns (points in range, voxels occupied).
 ///
@@ -473,7 +473,7 @@ fn squared_range(cfg: &Config) -> (f64, f64) {
     (cfg.min_range * cfg.min_range, cfg.max_range * cfg.max_range)
 }
 
-/// Whether each point is finite and within `(min_range, max_range)` (SPEC §2 steps 1–2; the
+/// Whether each point is finite and within `(min_range, max_range)` ([spec §2](crate::spec#2-the-descriptor) steps 1–2; the
 /// squared-norm test also rejects NaN and infinities).
 #[inline(always)]
 fn in_range(x: f64, y: f64, z: f64, min2: f64, max2: f64) -> bool {

@@ -8,7 +8,7 @@ use core::fmt;
 #[non_exhaustive]
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Error {
-    /// A configuration parameter is out of its valid range (SPEC §1). Nothing is ever clamped.
+    /// A configuration parameter is out of its valid range ([spec §1](crate::spec#1-parameters)). Nothing is ever clamped.
     InvalidParameter {
         /// The parameter's name, as in the configuration (`n_range`, `fov_up`, ...).
         name: &'static str,

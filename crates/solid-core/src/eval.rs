@@ -1,11 +1,11 @@
-//! Scoring loop-closure candidates against poses: the protocol of SPEC §5 (feature `alloc`).
+//! Scoring loop-closure candidates against poses: the protocol of [spec §5](crate::spec#5-evaluating-loop-closure-against-poses) (feature `alloc`).
 //!
 //! This is the crate's one implementation of the protocol: the Python package's `solid eval`,
 //! the simulator demo and the Rust tests all score through [`score`]. It scores what a detector
 //! (or a baseline) decided — per query its ranked candidate ids, the score of its best candidate
 //! and the heading it estimated — and does no search of its own.
 //!
-//! Definitions (SPEC §5), with `eligible` the entries a query could be matched with (ids
+//! Definitions ([spec §5](crate::spec#5-evaluating-loop-closure-against-poses)), with `eligible` the entries a query could be matched with (ids
 //! `0..eligible`: the prior map plus its own session minus the exclusion window):
 //! - a query is **GT-positive** when some eligible entry lies within `radius` metres;
 //! - its top-1 is **correct** when the best candidate lies within `radius`;
@@ -16,7 +16,7 @@
 //!   GT-positive queries; **F1 max** is the largest 2PR/(P+R) on it;
 //! - **AUC** = P(a correct top-1 scores lower than an incorrect one), ties one half;
 //! - **rotation error** = |ψ_est − ψ_true| wrapped into [0°, 180°] over correct top-1s, with
-//!   ψ_true = yaw(R_queryᵀ·R_candidate) (SPEC §3).
+//!   ψ_true = yaw(R_queryᵀ·R_candidate) ([spec §3](crate::spec#3-comparing-descriptors)).
 //!
 //! ```
 //! use solid_lidar::eval::{score, Queries, NO_CANDIDATE};
@@ -47,7 +47,7 @@ use crate::Error;
 /// Padding of [`Queries::ids`] where a query has fewer than `k` candidates.
 pub const NO_CANDIDATE: u32 = u32::MAX;
 
-/// Default radius (metres) within which a match is correct (SPEC §5).
+/// Default radius (metres) within which a match is correct ([spec §5](crate::spec#5-evaluating-loop-closure-against-poses)).
 pub const DEFAULT_RADIUS: f64 = 5.0;
 
 /// The candidates a detector produced, one row per query (struct of arrays).
@@ -63,11 +63,11 @@ pub struct Queries<'a> {
     pub ids: &'a [u32],
     /// The score of each query's best candidate (lower is better; NaN when it has none).
     pub score: &'a [f64],
-    /// The heading each query's best candidate was given, degrees (SPEC §3).
+    /// The heading each query's best candidate was given, degrees ([spec §3](crate::spec#3-comparing-descriptors)).
     pub heading_deg: &'a [f64],
 }
 
-/// Per-query outcomes and the summary metrics of SPEC §5 (see the module documentation).
+/// Per-query outcomes and the summary metrics of [spec §5](crate::spec#5-evaluating-loop-closure-against-poses) (see the module documentation).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Evaluation {
     /// `radius` of the evaluation, metres.
@@ -155,7 +155,7 @@ pub fn score(q: &Queries<'_>, poses: &[[f64; 12]], radius: f64) -> Result<Evalua
             return Err(bad(
                 "eligible",
                 eligible as f64,
-                "1..=number of poses (queries with no database are skipped, SPEC §5)",
+                "1..=number of poses (queries with no database are skipped, spec §5)",
             ));
         }
         let row = &q.ids[i * q.k..(i + 1) * q.k];
@@ -200,7 +200,7 @@ fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
     libm::sqrt(x * x + y * y + z * z)
 }
 
-/// ψ_true = yaw(R_qᵀ·R_c) in degrees, `(−180, 180]` (SPEC §3).
+/// ψ_true = yaw(R_qᵀ·R_c) in degrees, `(−180, 180]` ([spec §3](crate::spec#3-comparing-descriptors)).
 pub fn true_heading(query: &[f64; 12], candidate: &[f64; 12]) -> f64 {
     // (R_qᵀ R_c)[r][s] = Σ_k R_q[k][r] R_c[k][s]
     let m = |r: usize, s: usize| -> f64 {

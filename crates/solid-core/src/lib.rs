@@ -2,8 +2,9 @@
 //!
 //! SOLiD (Kim et al., IEEE RA-L 2024): a LiDAR place-recognition descriptor made of two short
 //! vectors per scan, R-SOLiD (range, to recognise a place) and A-SOLiD (azimuth, to estimate the
-//! heading between two visits). This crate computes them exactly as the project's SPEC defines,
-//! compares them, and searches databases of them.
+//! heading between two visits). This crate computes them exactly as [the specification](spec)
+//! (the repository's `docs/spec.md`, cited as "spec §n") defines, compares them, and searches
+//! databases of them.
 //!
 //! `#![no_std]` and allocation-free: every function takes caller-owned input, output and scratch
 //! slices. The `alloc` feature adds owning conveniences ([`Describer`], [`Descriptor`]); `std`
@@ -39,6 +40,13 @@ mod error;
 pub mod eval;
 mod math;
 pub mod search;
+
+/// The specification of what this crate computes (the repository's `docs/spec.md`).
+///
+/// Doc comments cite it as "spec §n". It contains no code: it is here so that it ships with the
+/// crate and reads on docs.rs.
+#[doc = include_str!("../spec.md")]
+pub mod spec {}
 
 #[cfg(feature = "alloc")]
 mod owned;

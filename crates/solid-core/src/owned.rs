@@ -22,7 +22,7 @@ pub struct Descriptor {
 }
 
 impl Descriptor {
-    /// Cosine distance of the R-SOLiDs (SPEC §3).
+    /// Cosine distance of the R-SOLiDs ([spec §3](crate::spec#3-comparing-descriptors)).
     ///
     /// # Errors
     /// [`Error::LengthMismatch`] when the descriptors have different lengths.
@@ -30,7 +30,7 @@ impl Descriptor {
         cosine_distance(&self.r, &other.r)
     }
 
-    /// Heading of `self` (query) relative to `candidate` (SPEC §3), refined or integer.
+    /// Heading of `self` (query) relative to `candidate` ([spec §3](crate::spec#3-comparing-descriptors)), refined or integer.
     ///
     /// # Errors
     /// [`Error::LengthMismatch`] when the descriptors have different lengths.

@@ -1,9 +1,9 @@
-//! Exact nearest-neighbour search over R-SOLiD vectors (SPEC §3), allocation-free.
+//! Exact nearest-neighbour search over R-SOLiD vectors ([spec §3](crate::spec#3-comparing-descriptors)), allocation-free.
 //!
 //! Every search works on **L2-normalised** rows (see [`normalize`] and [`normalize_rows`]) stored
-//! row-major in one contiguous `&[f32]`, so that the cosine distance of SPEC §3 is
+//! row-major in one contiguous `&[f32]`, so that the cosine distance of [spec §3](crate::spec#3-comparing-descriptors) is
 //! `1 − q·c` and its order equals the Euclidean order (`‖q − c‖² = 2 − 2 q·c`). An all-zero
-//! vector stays all-zero after normalisation and is at distance 1 from everything, as SPEC §3
+//! vector stays all-zero after normalisation and is at distance 1 from everything, as [spec §3](crate::spec#3-comparing-descriptors)
 //! says. Distances are clamped into `[0, 1]`.
 //!
 //! Three exact searches answer the same question and return the same neighbours in the same
@@ -54,7 +54,7 @@ const SPLIT_SAMPLE: usize = 32;
 pub struct Neighbor {
     /// The entry's id (its row index).
     pub id: u32,
-    /// Cosine distance in `[0, 1]` (SPEC §3): `1 − q·c` of the normalised vectors.
+    /// Cosine distance in `[0, 1]` ([spec §3](crate::spec#3-comparing-descriptors)): `1 − q·c` of the normalised vectors.
     pub distance: f32,
 }
 

@@ -1,4 +1,4 @@
-//! Every case of shared/golden/descriptors.json, compared as SPEC §7 says.
+//! Every case of shared/golden/descriptors.json, compared as docs/spec.md §7 says.
 
 mod common;
 

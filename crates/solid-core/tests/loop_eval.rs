@@ -1,4 +1,4 @@
-//! Loop closure on the HKU Livox Avia sequence (SPEC §5): Recall@1 of the loop detector with and
+//! Loop closure on the HKU Livox Avia sequence (docs/spec.md §5): Recall@1 of the loop detector with and
 //! without A-SOLiD re-ranking, and with places sent in the quantised wire form.
 //!
 //! Prints its figures (`cargo test -p solid-lidar --test loop_eval -- --nocapture`) and asserts
@@ -45,7 +45,7 @@ struct Result1 {
     rot_err_deg: f64,
 }
 
-/// Runs a detector over the sequence and scores its candidates (SPEC §5, `eval::score`) at
+/// Runs a detector over the sequence and scores its candidates (docs/spec.md §5, `eval::score`) at
 /// radii 3 m and 5 m.
 fn run(seq: &Sequence, cfg: &Config, rerank: bool, quantized: bool) -> Result1 {
     let mut det = LoopDetector::new(

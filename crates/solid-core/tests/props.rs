@@ -1,4 +1,4 @@
-//! Property tests of the descriptor's invariants (SPEC §2).
+//! Property tests of the descriptor's invariants (docs/spec.md §2).
 
 use proptest::prelude::*;
 use solid_lidar::{Config, Describer, Descriptor, Points};

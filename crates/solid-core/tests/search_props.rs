@@ -1,4 +1,4 @@
-//! Exactness of the searches: kd-tree and online index against brute force (SPEC §3), on random
+//! Exactness of the searches: kd-tree and online index against brute force (docs/spec.md §3), on random
 //! vectors, adversarial ones (duplicates, all-zero, many equal coordinates, a single entry) and
 //! real descriptors of the HKU Livox Avia sequence.
 
@@ -110,7 +110,7 @@ fn check_all(raw: &[f32], dim: usize, query_raw: &[f32], k: usize, ex: &Exclude<
     all.sort_by(|x, y| x.distance.total_cmp(&y.distance).then(x.id.cmp(&y.id)));
     all.truncate(k);
     assert_eq!(b, all, "brute force is not the sorted k best");
-    // Distances agree with the f64 cosine distance of SPEC §3.
+    // Distances agree with the f64 cosine distance of docs/spec.md §3.
     for nb in &b {
         let i = nb.id as usize;
         let want = cosine_distance(query_raw, &raw[i * dim..(i + 1) * dim]).unwrap();
@@ -256,7 +256,7 @@ fn real_descriptors_kdtree_equals_brute_force() {
     let Some((raw, dim)) = hku_r(1) else { return };
     let n = raw.len() / dim;
     let rows = normed(&raw, dim);
-    // Every scan as the query, SPEC §5 exclusion of the 50 most recent, k = 1 and 10.
+    // Every scan as the query, docs/spec.md §5 exclusion of the 50 most recent, k = 1 and 10.
     for qi in 0..n {
         let q = &rows[qi * dim..(qi + 1) * dim];
         for k in [1, 10] {

@@ -396,7 +396,7 @@ impl PyDetectorConfig {
         Ok(d)
     }
 
-    /// Frames of the own session excluded (SPEC §5 `exclude`).
+    /// Frames of the own session excluded (docs/spec.md §5 `exclude`).
     #[getter]
     fn exclude_frames(&self) -> usize {
         self.inner.exclude_frames

@@ -1,4 +1,4 @@
-//! Binding of `solid_lidar::eval`: SPEC §5 scoring of a detector's candidates against poses.
+//! Binding of `solid_lidar::eval`: docs/spec.md §5 scoring of a detector's candidates against poses.
 
 use numpy::{
     IntoPyArray, PyArray1, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3,
@@ -8,7 +8,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use solid_lidar::eval::{self, Evaluation, Queries, NO_CANDIDATE};
 
-/// The per-query outcomes and the summary metrics of one scored run (SPEC §5).
+/// The per-query outcomes and the summary metrics of one scored run (docs/spec.md §5).
 #[pyclass(name = "Scores", module = "solid", frozen)]
 pub struct PyScores {
     inner: Evaluation,
@@ -110,7 +110,7 @@ impl PyScores {
     }
 }
 
-/// Scores candidates against poses (SPEC §5); see `solid.evaluation` for the friendly form.
+/// Scores candidates against poses (docs/spec.md §5); see `solid.evaluation` for the friendly form.
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
 fn score_candidates(

@@ -149,7 +149,7 @@ impl PyConfig {
         max_range: Option<f64>,
         voxel_size: Option<f64>,
     ) -> PyResult<Self> {
-        // The SPEC §1 defaults come from the core (Config::with_defaults), not from here.
+        // The docs/spec.md §1 defaults come from the core (Config::with_defaults), not from here.
         let d = Config::with_defaults(fov_up, fov_down, 1);
         let count = |name, v: Option<i64>, default| match v {
             Some(v) => count_param(name, v),
@@ -169,7 +169,7 @@ impl PyConfig {
         Ok(PyConfig::new_unchecked(cfg))
     }
 
-    /// A sensor preset (SPEC §4), with optional keyword overrides.
+    /// A sensor preset (docs/spec.md §4), with optional keyword overrides.
     #[staticmethod]
     #[pyo3(signature = (name, **overrides))]
     fn preset(name: &str, overrides: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
@@ -407,12 +407,12 @@ impl PyDescriptor {
         PyConfig::new_unchecked(self.cfg)
     }
 
-    /// Cosine distance to `other` (SPEC §3).
+    /// Cosine distance to `other` (docs/spec.md §3).
     fn distance(&self, other: &PyDescriptor) -> PyResult<f64> {
         distance(self, other)
     }
 
-    /// Heading of this scan relative to `candidate`, degrees in (-180, 180] (SPEC §3).
+    /// Heading of this scan relative to `candidate`, degrees in (-180, 180] (docs/spec.md §3).
     #[pyo3(signature = (candidate, refine=true))]
     fn heading(&self, candidate: &PyDescriptor, refine: bool) -> PyResult<f64> {
         heading(self, candidate, refine)
@@ -658,14 +658,14 @@ fn describe_batch(
         .collect()
 }
 
-/// Cosine distance between two descriptors' R-SOLiDs (SPEC §3), in [0, 1].
+/// Cosine distance between two descriptors' R-SOLiDs (docs/spec.md §3), in [0, 1].
 #[pyfunction]
 fn distance(a: &PyDescriptor, b: &PyDescriptor) -> PyResult<f64> {
     comparable(a, b)?;
     a.inner.distance(&b.inner).map_err(core_err)
 }
 
-/// Heading of `query` relative to `candidate` in degrees, (-180, 180] (SPEC §3): the query scan
+/// Heading of `query` relative to `candidate` in degrees, (-180, 180] (docs/spec.md §3): the query scan
 /// is the candidate rotated by this angle counter-clockwise about +z.
 #[pyfunction]
 #[pyo3(signature = (query, candidate, refine=true))]
@@ -678,7 +678,7 @@ fn heading(query: &PyDescriptor, candidate: &PyDescriptor, refine: bool) -> PyRe
         .degrees)
 }
 
-/// Every sensor preset (SPEC §4) by name.
+/// Every sensor preset (docs/spec.md §4) by name.
 #[pyfunction]
 fn presets<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);

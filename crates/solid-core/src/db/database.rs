@@ -179,7 +179,7 @@ impl Database {
         Ok(())
     }
 
-    /// The `k` nearest entries to the R-SOLiD `query_r` (SPEC §3), nearest first, ties by lower
+    /// The `k` nearest entries to the R-SOLiD `query_r` ([spec §3](crate::spec#3-comparing-descriptors)), nearest first, ties by lower
     /// id, skipping the `exclude_recent` most recent entries.
     ///
     /// # Errors
@@ -267,7 +267,7 @@ impl Database {
         Ok(q)
     }
 
-    /// The cosine distance (SPEC §3) from the R-SOLiD `query_r` to every entry, in id order
+    /// The cosine distance ([spec §3](crate::spec#3-comparing-descriptors)) from the R-SOLiD `query_r` to every entry, in id order
     /// (for plots and analysis; searches use [`Database::search`]).
     ///
     /// # Errors

@@ -1,7 +1,7 @@
 //! [`LoopDetector`]: online loop closure over a [`Database`].
 //!
 //! Each scan is searched against the places added before it, except the most recent ones of its
-//! own session ([`DetectorConfig`]: by frames, by metres travelled and by seconds; SPEC §5), then
+//! own session ([`DetectorConfig`]: by frames, by metres travelled and by seconds; [spec §5](crate::spec#5-evaluating-loop-closure-against-poses)), then
 //! added. Places of other sessions (a prior map, another robot) are never excluded. Every step
 //! returns its ranked [`Candidate`]s, so that an evaluation scores exactly what the detector
 //! decided ([`crate::eval`]).
@@ -17,7 +17,7 @@ use crate::{heading_refined, Config, Descriptor, Error, PRESETS};
 /// Python package reads them from here.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DetectorConfig {
-    /// Skip the places of the own session added in the last `exclude_frames` steps (SPEC §5:
+    /// Skip the places of the own session added in the last `exclude_frames` steps ([spec §5](crate::spec#5-evaluating-loop-closure-against-poses):
     /// query q sees frames `< q − exclude_frames`). Default 50.
     pub exclude_frames: usize,
     /// Also skip places of the own session fewer than this many metres back along the path
@@ -27,7 +27,7 @@ pub struct DetectorConfig {
     /// non-decreasing timestamps); 0 turns it off (the default).
     pub exclude_seconds: f64,
     /// A step's best candidate is a loop when its score is at most this (the score is the
-    /// R-SOLiD cosine distance, SPEC §3). Default: the preset's measured threshold
+    /// R-SOLiD cosine distance, [spec §3](crate::spec#3-comparing-descriptors)). Default: the preset's measured threshold
     /// ([`crate::Preset::loop_threshold`]).
     pub threshold: f64,
     /// Candidates each step returns: the `top_k` nearest by R-SOLiD distance, re-ranked when
@@ -38,7 +38,7 @@ pub struct DetectorConfig {
     pub rerank: bool,
 }
 
-/// Default [`DetectorConfig::exclude_frames`] (SPEC §5).
+/// Default [`DetectorConfig::exclude_frames`] ([spec §5](crate::spec#5-evaluating-loop-closure-against-poses)).
 pub const DEFAULT_EXCLUDE_FRAMES: usize = 50;
 /// Default [`DetectorConfig::top_k`].
 pub const DEFAULT_TOP_K: usize = 10;
@@ -48,7 +48,7 @@ pub const MAX_TOP_K: usize = 1000;
 /// Whether [`LoopDetector`] re-ranks by A-SOLiD alignment by default: no.
 ///
 /// Re-ranking the top 10 by R-SOLiD distance + rotation-aligned A-SOLiD distance was measured
-/// through the pipeline (SPEC §5): on the HKU Livox Avia walk (exclude 50) it changes Recall@1 at
+/// through the pipeline ([spec §5](crate::spec#5-evaluating-loop-closure-against-poses)): on the HKU Livox Avia walk (exclude 50) it changes Recall@1 at
 /// 3 m from 0.621 to 0.621 and at 5 m from 0.490 to 0.535 (`tests/loop_eval.rs`); on the
 /// simulator's same-direction revisits it changes nothing (0.98-0.99 for every sensor); but on a
 /// street driven back the other way with a full 360° HDL-64E (world 0, exclude 25, radius 5 m) it
@@ -134,9 +134,9 @@ impl DetectorConfig {
 pub struct Candidate {
     /// Id of the database entry.
     pub id: u32,
-    /// Cosine distance of the R-SOLiDs (SPEC §3).
+    /// Cosine distance of the R-SOLiDs ([spec §3](crate::spec#3-comparing-descriptors)).
     pub distance: f64,
-    /// Heading of the query relative to this candidate, degrees in `(−180, 180]` (SPEC §3,
+    /// Heading of the query relative to this candidate, degrees in `(−180, 180]` ([spec §3](crate::spec#3-comparing-descriptors),
     /// refined).
     pub heading_deg: f64,
     /// What the detector's threshold is compared with (today the R-SOLiD distance): the value a
@@ -152,9 +152,9 @@ pub struct Loop {
     pub query: u32,
     /// Id of the matched database entry.
     pub candidate: u32,
-    /// Cosine distance of the R-SOLiDs (SPEC §3).
+    /// Cosine distance of the R-SOLiDs ([spec §3](crate::spec#3-comparing-descriptors)).
     pub distance: f64,
-    /// Heading of the query relative to the candidate, degrees in `(−180, 180]` (SPEC §3,
+    /// Heading of the query relative to the candidate, degrees in `(−180, 180]` ([spec §3](crate::spec#3-comparing-descriptors),
     /// refined).
     pub heading_deg: f64,
     /// The score the threshold accepted (see [`Candidate::score`]).
