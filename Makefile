@@ -5,7 +5,7 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 PYTHON ?= python3
 
-.PHONY: demo test venv wheel lint rust-test py-test typecheck bench bench-py readme-results thresholds clean
+.PHONY: demo test venv dist wheel install-test crates docs lint rust-test py-test typecheck bench bench-py readme-results thresholds clean
 
 $(VENV)/.ready: requirements-dev.txt pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -15,11 +15,43 @@ $(VENV)/.ready: requirements-dev.txt pyproject.toml
 
 venv: $(VENV)/.ready
 
-## Build the release wheel with maturin and install it into the virtualenv.
-wheel: venv
+## The release artefacts in dist/: an sdist and one abi3 wheel (CPython >= 3.9) tagged
+## manylinux2014 (glibc >= 2.17: Ubuntu 18.04+, ROS Noetic, Jetson L4T), linked by zig (from the
+## ziglang package) against glibc 2.17 symbols; tools/check_wheel.py checks its tags and, with
+## auditwheel, what the binary really needs. Everything below tests this one wheel.
+dist: venv
 	rm -rf dist
-	$(VENV)/bin/maturin build --release --out dist --interpreter $(PY)
+	$(VENV)/bin/maturin sdist --out dist
+	PATH="$(abspath $(VENV))/bin:$$PATH" $(VENV)/bin/maturin build --release --zig \
+		--compatibility manylinux2014 --out dist --interpreter $(PY)
+	$(PY) tools/check_wheel.py dist/*.whl
+
+## Install the dist wheel into the development virtualenv (pytest, mypy, stubtest, demo use it).
+wheel: dist
 	$(PY) -m pip install --quiet --force-reinstall --no-deps dist/*.whl
+
+## As a user would: the wheel, then the sdist (which compiles), each installed by file into a
+## fresh virtualenv, each running the README's Python examples and the solid command.
+install-test: dist
+	rm -rf build/venv-wheel build/venv-sdist
+	$(PYTHON) -m venv build/venv-wheel
+	build/venv-wheel/bin/python -m pip install --quiet dist/*.whl
+	cd build && venv-wheel/bin/python ../tools/readme_examples.py --run ../README.md
+	build/venv-wheel/bin/solid presets
+	$(PYTHON) -m venv build/venv-sdist
+	CARGO_TARGET_DIR="$(CURDIR)/target/sdist" build/venv-sdist/bin/python -m pip install --quiet dist/*.tar.gz
+	cd build && venv-sdist/bin/python ../tools/readme_examples.py --run ../README.md
+	build/venv-sdist/bin/solid presets >/dev/null
+
+## The publishable crates package and would publish (--allow-dirty: this checks packaging, not
+## whether the work tree is committed).
+crates:
+	cargo publish --dry-run --allow-dirty -p solid-lidar -p solid-lidar-sim
+
+## The documentation: the site (warnings are errors) and the crates' rustdoc (docs.rs).
+docs: venv
+	$(VENV)/bin/mkdocs build --strict --site-dir build/site
+	RUSTDOCFLAGS="-D warnings" cargo doc --no-deps -p solid-lidar -p solid-lidar-sim
 
 demo: wheel
 	$(VENV)/bin/solid demo
@@ -42,7 +74,7 @@ typecheck: wheel
 	$(VENV)/bin/mypy --strict python/solid tests build/readme_blocks.py
 	$(PY) -m mypy.stubtest solid._solid
 
-test: lint rust-test py-test typecheck
+test: lint rust-test crates docs py-test typecheck install-test
 
 bench:
 	cargo bench -p solid-lidar-benches
