@@ -1,4 +1,8 @@
-"""Type stubs of the compiled extension `solid._solid` (checked by mypy.stubtest)."""
+"""Type stubs of the compiled extension `solid._solid` (checked by mypy.stubtest).
+
+Every public function, method and property has a docstring (arguments, returns, raises): the
+API reference of the documentation site is generated from them (tests/test_docs.py checks).
+"""
 
 import os
 from collections.abc import Iterable, Sequence
@@ -53,14 +57,23 @@ __all__ = [
 __version__: str
 
 class SolidError(ValueError):
-    """Base class of the errors raised by solid (a ValueError)."""
+    """Base class of the errors raised by solid (a ValueError).
+
+    Raised as itself for input that cannot be read as asked: a points array of the wrong shape,
+    not C-contiguous or misaligned, descriptors of different configurations, vectors of the wrong
+    length. Every message says what is wrong and how to fix it.
+    """
 
 class ConfigError(SolidError):
-    """An invalid configuration parameter or preset name."""
+    """An invalid parameter (of a configuration, a detector, a pose, ...) or preset name; the message names it."""
 
 @final
 class SolidConfig:
-    """SOLiD parameters (docs/spec.md §1), immutable; invalid values raise ConfigError naming the parameter."""
+    """SOLiD parameters (docs/spec.md §1), immutable and hashable.
+
+    Nothing is clamped: an invalid value raises ConfigError naming the parameter. Usually made
+    from a sensor preset, `SolidConfig.preset("hdl64")`, rather than field by field.
+    """
 
     def __new__(
         cls,
@@ -73,31 +86,95 @@ class SolidConfig:
         min_range: float | None = None,
         max_range: float | None = None,
         voxel_size: float | None = None,
-    ) -> SolidConfig: ...
+    ) -> SolidConfig:
+        """`SolidConfig(...)`: a configuration from explicit values.
+
+        Args:
+            fov_up: Upper edge of the vertical field of view, degrees, in [-90, 90].
+            fov_down: Lower edge of the vertical field of view, degrees, in [-90, 90], below `fov_up`.
+            n_elevation: Elevation bins over [fov_down, fov_up), 1..=1024 (the sensor's channels).
+            n_range: Range bins over [0, max_range), 1..=1024; None: 40.
+            n_azimuth: Azimuth bins over [0°, 360°), 1..=3600; None: 60.
+            min_range: Points at or within this distance (metres, 3-D) are dropped; finite, >= 0;
+                None: 3.
+            max_range: Points at or beyond this distance are dropped; finite, above `min_range`;
+                None: 80.
+            voxel_size: Voxel edge in metres for downsampling, 0 disables it; when > 0,
+                `max_range / voxel_size` must be below 2^19; None: 0.5.
+
+        Raises:
+            ConfigError: A parameter out of its range (named in the message), or a negative count.
+            TypeError: A parameter missing or of the wrong type.
+        """
     @staticmethod
-    def preset(name: str, **overrides: float) -> SolidConfig: ...
-    def replace(self, **overrides: float) -> SolidConfig: ...
+    def preset(name: str, **overrides: float) -> SolidConfig:
+        """The configuration of a sensor preset (docs/spec.md §4), with optional overrides.
+
+        Args:
+            name: One of `solid.presets()`: "hdl64", "hdl32", "vlp16", "os1-64", "avia", "aeva".
+            **overrides: Parameters to change, by name (`max_range=40.0`).
+
+        Returns:
+            The validated configuration; its `base_preset` is `name`.
+
+        Raises:
+            ConfigError: An unknown preset name (the message lists them) or an invalid override.
+            TypeError: An unknown parameter name, or a value of the wrong type.
+        """
+    def replace(self, **overrides: float) -> SolidConfig:
+        """A copy with some parameters changed (this one is immutable); it keeps its base preset.
+
+        Args:
+            **overrides: Parameters to change, by name.
+
+        Returns:
+            The validated new configuration.
+
+        Raises:
+            ConfigError: An invalid value (named in the message).
+            TypeError: An unknown parameter name, or a value of the wrong type.
+        """
     @property
-    def base_preset(self) -> str | None: ...
-    def to_dict(self) -> dict[str, Any]: ...
+    def base_preset(self) -> str | None:
+        """The preset this configuration was made from (`SolidConfig.preset(name, ...)`), or None.
+        It chooses the loop detector's default threshold; it is not part of equality or the fingerprint.
+        """
+    def to_dict(self) -> dict[str, Any]:
+        """The eight parameters by name (and `base_preset` when there is one): what
+        `SolidConfig(**d)` takes back, and what `solid config dump` writes.
+
+        Returns:
+            A new dict.
+        """
     @property
-    def n_range(self) -> int: ...
+    def n_range(self) -> int:
+        """Range bins (Nr): the length of R-SOLiD."""
     @property
-    def n_azimuth(self) -> int: ...
+    def n_azimuth(self) -> int:
+        """Azimuth bins (Na): the length of A-SOLiD."""
     @property
-    def n_elevation(self) -> int: ...
+    def n_elevation(self) -> int:
+        """Elevation bins (Ne)."""
     @property
-    def fov_up(self) -> float: ...
+    def fov_up(self) -> float:
+        """Upper edge of the vertical field of view, degrees."""
     @property
-    def fov_down(self) -> float: ...
+    def fov_down(self) -> float:
+        """Lower edge of the vertical field of view, degrees."""
     @property
-    def min_range(self) -> float: ...
+    def min_range(self) -> float:
+        """Points at or within this distance (metres) are dropped."""
     @property
-    def max_range(self) -> float: ...
+    def max_range(self) -> float:
+        """Points at or beyond this distance (metres) are dropped."""
     @property
-    def voxel_size(self) -> float: ...
+    def voxel_size(self) -> float:
+        """Voxel edge in metres (0: no downsampling)."""
     @property
-    def fingerprint(self) -> int: ...
+    def fingerprint(self) -> int:
+        """64-bit FNV-1a hash of every parameter (docs/spec.md §1): descriptors are comparable
+                only when their configurations' fingerprints are equal.
+        """
     def __eq__(self, value: object, /) -> bool: ...
     def __ne__(self, value: object, /) -> bool: ...
     def __hash__(self) -> int: ...
@@ -115,33 +192,152 @@ class Descriptor:
         n_points: int = 0,
         n_in_range: int = 0,
         n_kept: int = 0,
-    ) -> Descriptor: ...
+    ) -> Descriptor:
+        """`Descriptor(...)`: a descriptor from stored vectors.
+
+                Args:
+                    r: R-SOLiD, `config.n_range` finite non-negative values.
+                    a: A-SOLiD, `config.n_azimuth` finite non-negative values.
+                    config: The configuration the vectors were computed with.
+                    n_points: Points in the scan (informative).
+                    n_in_range: Points left after the range filter (informative).
+                    n_kept: Points binned, after voxel downsampling (informative).
+
+                Raises:
+                    SolidError: A vector of the wrong length, or with a negative or non-finite value.
+                    TypeError: A vector that is not a 1-D sequence of numbers.
+        """
     @property
-    def r(self) -> npt.NDArray[np.float32]: ...
+    def r(self) -> npt.NDArray[np.float32]:
+        """R-SOLiD, shape (n_range,), float32 (a new array on each access)."""
     @property
-    def a(self) -> npt.NDArray[np.float32]: ...
+    def a(self) -> npt.NDArray[np.float32]:
+        """A-SOLiD, shape (n_azimuth,), float32 (a new array on each access)."""
     @property
-    def n_points(self) -> int: ...
+    def n_points(self) -> int:
+        """Points passed in, before any filtering."""
     @property
-    def n_in_range(self) -> int: ...
+    def n_in_range(self) -> int:
+        """Points that were finite and within (min_range, max_range) (docs/spec.md §2 steps 1–2)."""
     @property
-    def n_kept(self) -> int: ...
+    def n_kept(self) -> int:
+        """Points binned: voxel centroids after downsampling, else `n_in_range`."""
     @property
-    def config(self) -> SolidConfig: ...
-    def distance(self, other: Descriptor) -> float: ...
-    def heading(self, candidate: Descriptor, refine: bool = True) -> float: ...
+    def config(self) -> SolidConfig:
+        """The configuration the descriptor was computed with."""
+    def distance(self, other: Descriptor) -> float:
+        """Cosine distance of the R-SOLiDs (docs/spec.md §3); the same as `solid.distance(self, other)`.
+
+                Args:
+                    other: A descriptor made with the same configuration.
+
+                Returns:
+                    The distance in [0, 1]: small for the same place; 1 when either scan was empty.
+
+                Raises:
+                    SolidError: The descriptors come from different configurations.
+        """
+    def heading(self, candidate: Descriptor, refine: bool = True) -> float:
+        """Heading of this scan relative to `candidate` (docs/spec.md §3); the same as
+                `solid.heading(self, candidate, refine)`.
+
+                Args:
+                    candidate: A descriptor of the same place made with the same configuration.
+                    refine: Refine the best shift to a fraction of a bin (parabolic fit); if False the
+                        result is a multiple of 360°/n_azimuth.
+
+                Returns:
+                    ψ in degrees, in (-180, 180]: this scan ≈ the candidate rotated by ψ counter-clockwise
+                    about +z.
+
+                Raises:
+                    SolidError: The descriptors come from different configurations.
+        """
     def __reduce__(self) -> tuple[Any, tuple[Any, ...]]: ...
 
-def describe(points: npt.NDArray[np.float32] | npt.NDArray[np.float64], config: SolidConfig) -> Descriptor: ...
+def describe(points: npt.NDArray[np.float32] | npt.NDArray[np.float64], config: SolidConfig) -> Descriptor:
+    """Computes the SOLiD descriptor of one scan (docs/spec.md §2), with the GIL released.
+
+        The array is read in place, never copied or converted: columns 0, 1, 2 are x, y, z in metres
+        in the sensor frame (x forward, y left, z up); further columns (intensity, time, ...) are
+        ignored. Non-finite points and points outside (min_range, max_range) are dropped; an empty
+        scan is valid and gives all-zero vectors.
+
+        Args:
+            points: A C-contiguous float32 or float64 numpy array of shape (N, >=3).
+            config: The descriptor configuration.
+
+        Returns:
+            The descriptor, with its point counts.
+
+        Raises:
+            TypeError: `points` is not a numpy array, or its dtype is not float32 or float64.
+            SolidError: The shape is not (N, >=3), or the array is Fortran-ordered, a strided view
+                or misaligned (the message says how to convert it).
+    """
 def describe_batch(
     scans: Iterable[npt.NDArray[np.float32] | npt.NDArray[np.float64]],
     config: SolidConfig,
     threads: int | None = None,
-) -> list[Descriptor]: ...
-def distance(a: Descriptor, b: Descriptor) -> float: ...
-def heading(query: Descriptor, candidate: Descriptor, refine: bool = True) -> float: ...
-def presets() -> dict[str, SolidConfig]: ...
-def preset_sensors() -> dict[str, str]: ...
+) -> list[Descriptor]:
+    """Describes many scans in parallel, with the GIL released; the same results as `describe`
+        on each.
+
+        Args:
+            scans: Point arrays, each as `describe` accepts (float32 and float64 may be mixed).
+            config: The descriptor configuration.
+            threads: Worker threads; None uses every core.
+
+        Returns:
+            One descriptor per scan, in order.
+
+        Raises:
+            TypeError: `scans` is not iterable, or an element is not a float32/float64 numpy array.
+            SolidError: An element has the wrong shape or layout (named as `scans[i]`), or
+                `threads` is 0.
+    """
+def distance(a: Descriptor, b: Descriptor) -> float:
+    """Cosine distance between two descriptors' R-SOLiDs (docs/spec.md §3).
+
+        Args:
+            a: One descriptor.
+            b: Another, made with the same configuration.
+
+        Returns:
+            The distance in [0, 1]: small for the same place; 1 when either scan was empty.
+
+        Raises:
+            SolidError: The descriptors come from different configurations.
+    """
+def heading(query: Descriptor, candidate: Descriptor, refine: bool = True) -> float:
+    """Heading of `query` relative to `candidate` from their A-SOLiDs (docs/spec.md §3).
+
+        Args:
+            query: The scan taken now.
+            candidate: An earlier scan of the same place, made with the same configuration.
+            refine: Refine the best circular shift to a fraction of a bin (parabolic fit); if False
+                the result is a multiple of 360°/n_azimuth.
+
+        Returns:
+            ψ in degrees, in (-180, 180]: the query scan ≈ the candidate rotated by ψ
+            counter-clockwise about +z (`p_query ≈ Rz(ψ) · p_candidate`; with poses,
+            ψ = yaw(R_queryᵀ · R_candidate)).
+
+        Raises:
+            SolidError: The descriptors come from different configurations.
+    """
+def presets() -> dict[str, SolidConfig]:
+    """Every sensor preset (docs/spec.md §4).
+
+        Returns:
+            A new dict from preset name to its configuration, in the order of the spec's table.
+    """
+def preset_sensors() -> dict[str, str]:
+    """The sensor each preset describes.
+
+        Returns:
+            A new dict from preset name to the sensor's name ("Velodyne HDL-64E (KITTI)", ...).
+    """
 def _config_from_dict(d: dict[str, Any]) -> SolidConfig: ...
 
 # --- search, database, loop detector, wire form (engine.rs) ---
@@ -154,54 +350,73 @@ class DatabaseError(SolidError):
 class Match:
     """One search result."""
     @property
-    def id(self) -> int: ...
+    def id(self) -> int:
+        """The entry's id in its database (insertion order, from 0)."""
     @property
-    def distance(self) -> float: ...
+    def distance(self) -> float:
+        """Cosine distance of the R-SOLiDs, in [0, 1]."""
     def __eq__(self, other: object, /) -> bool: ...
 
 @final
 class Loop:
-    """A detected loop closure."""
+    """A detected loop closure: the best candidate of a detector step, when its score passes the threshold."""
     @property
-    def query(self) -> int: ...
+    def query(self) -> int:
+        """Id of the query scan (for `LoopDetector.query`, the id it would get)."""
     @property
-    def candidate(self) -> int: ...
+    def candidate(self) -> int:
+        """Id of the matched database entry."""
     @property
-    def distance(self) -> float: ...
+    def distance(self) -> float:
+        """Cosine distance of the R-SOLiDs."""
     @property
-    def heading(self) -> float: ...
+    def heading(self) -> float:
+        """Heading of the query relative to the candidate (refined), degrees in (-180, 180]."""
     @property
-    def score(self) -> float: ...
+    def score(self) -> float:
+        """The score the threshold accepted (today the R-SOLiD distance)."""
     def __eq__(self, other: object, /) -> bool: ...
 
 @final
 class Candidate:
-    """One candidate of a detector step, in the detector's order."""
+    """One candidate of a detector step, in the detector's ranking order."""
     @property
-    def id(self) -> int: ...
+    def id(self) -> int:
+        """Id of the database entry."""
     @property
-    def distance(self) -> float: ...
+    def distance(self) -> float:
+        """Cosine distance of the R-SOLiDs, in [0, 1]."""
     @property
-    def heading(self) -> float: ...
+    def heading(self) -> float:
+        """Heading of the query relative to this candidate (refined), degrees in (-180, 180]."""
     @property
-    def score(self) -> float: ...
+    def score(self) -> float:
+        """What the detector's threshold is compared with (today the R-SOLiD distance): the value a precision-recall curve sweeps."""
     def __eq__(self, other: object, /) -> bool: ...
 
 @final
 class Detection:
-    """Everything one detector step decided."""
+    """Everything one detector step decided (docs/spec.md §8)."""
     @property
-    def query(self) -> int: ...
+    def query(self) -> int:
+        """Id of the query (the entry the step added)."""
     @property
-    def eligible(self) -> int: ...
+    def eligible(self) -> int:
+        """The candidates were drawn from the entries 0..eligible (the others were too recent); 0: nothing to search yet."""
     @property
-    def candidates(self) -> list[Candidate]: ...
+    def candidates(self) -> list[Candidate]:
+        """Up to `top_k` candidates, best first."""
     @property
-    def loop(self) -> Loop | None: ...
+    def loop(self) -> Loop | None:
+        """The loop, when the best candidate's score is at most the threshold; else None."""
 
 @final
 class DetectorConfig:
-    """The loop detector's parameters; defaults come from the core."""
+    """The loop detector's parameters (docs/spec.md §8), immutable.
+
+    The defaults come from the Rust core, the one place they are written; prefer
+    `DetectorConfig.preset(name)`, which takes the loop threshold measured for that sensor.
+    """
     def __new__(
         cls,
         *,
@@ -211,7 +426,24 @@ class DetectorConfig:
         threshold: float = ...,
         top_k: int = ...,
         rerank: bool = ...,
-    ) -> DetectorConfig: ...
+    ) -> DetectorConfig:
+        """`DetectorConfig(...)`: parameters by keyword; those not given take the core's defaults
+        (exclusion 50 frames, top 10, no re-ranking, and the largest of the presets' loop thresholds).
+
+        Args:
+            exclude_frames: Frames of the own session never matched (the robot is still there).
+            exclude_meters: Also skip places of the own session fewer than this many metres back along
+                the path (0: off; needs a pose with every scan).
+            exclude_seconds: Also skip places of the own session fewer than this many seconds back
+                (0: off; needs non-decreasing timestamps).
+            threshold: Largest score (R-SOLiD cosine distance) accepted as a loop, in [0, 1].
+            top_k: Candidates each step returns, 1..=1000.
+            rerank: Re-rank the candidates by R-SOLiD distance plus rotation-aligned A-SOLiD distance.
+
+        Raises:
+            ConfigError: A value out of its range (named in the message).
+            TypeError: A value of the wrong type.
+        """
     @staticmethod
     def preset(
         name: str,
@@ -222,7 +454,27 @@ class DetectorConfig:
         threshold: float = ...,
         top_k: int = ...,
         rerank: bool = ...,
-    ) -> DetectorConfig: ...
+    ) -> DetectorConfig:
+        """The defaults for a sensor preset (its measured loop threshold, docs/spec.md §4), with overrides.
+
+        Args:
+            name: A preset name, as for `SolidConfig.preset`.
+            exclude_frames: Frames of the own session never matched (the robot is still there).
+            exclude_meters: Also skip places of the own session fewer than this many metres back along
+                the path (0: off; needs a pose with every scan).
+            exclude_seconds: Also skip places of the own session fewer than this many seconds back
+                (0: off; needs non-decreasing timestamps).
+            threshold: Largest score (R-SOLiD cosine distance) accepted as a loop, in [0, 1].
+            top_k: Candidates each step returns, 1..=1000.
+            rerank: Re-rank the candidates by R-SOLiD distance plus rotation-aligned A-SOLiD distance.
+
+        Returns:
+            The validated parameters.
+
+        Raises:
+            ConfigError: An unknown preset or a value out of its range.
+            TypeError: A value of the wrong type.
+        """
     def replace(
         self,
         *,
@@ -232,20 +484,50 @@ class DetectorConfig:
         threshold: float = ...,
         top_k: int = ...,
         rerank: bool = ...,
-    ) -> DetectorConfig: ...
-    def to_dict(self) -> dict[str, Any]: ...
+    ) -> DetectorConfig:
+        """A copy with some parameters changed.
+
+        Args:
+            exclude_frames: Frames of the own session never matched (the robot is still there).
+            exclude_meters: Also skip places of the own session fewer than this many metres back along
+                the path (0: off; needs a pose with every scan).
+            exclude_seconds: Also skip places of the own session fewer than this many seconds back
+                (0: off; needs non-decreasing timestamps).
+            threshold: Largest score (R-SOLiD cosine distance) accepted as a loop, in [0, 1].
+            top_k: Candidates each step returns, 1..=1000.
+            rerank: Re-rank the candidates by R-SOLiD distance plus rotation-aligned A-SOLiD distance.
+
+        Returns:
+            The validated parameters.
+
+        Raises:
+            ConfigError: A value out of its range.
+            TypeError: A value of the wrong type.
+        """
+    def to_dict(self) -> dict[str, Any]:
+        """The parameters by name: what `DetectorConfig(**d)` takes back.
+
+        Returns:
+            A new dict.
+        """
     @property
-    def exclude_frames(self) -> int: ...
+    def exclude_frames(self) -> int:
+        """Frames of the own session excluded as too recent (docs/spec.md §5 `exclude`)."""
     @property
-    def exclude_meters(self) -> float: ...
+    def exclude_meters(self) -> float:
+        """Metres of the own path excluded (0: off)."""
     @property
-    def exclude_seconds(self) -> float: ...
+    def exclude_seconds(self) -> float:
+        """Seconds of the own session excluded (0: off)."""
     @property
-    def threshold(self) -> float: ...
+    def threshold(self) -> float:
+        """Largest accepted score (R-SOLiD cosine distance)."""
     @property
-    def top_k(self) -> int: ...
+    def top_k(self) -> int:
+        """Candidates per step."""
     @property
-    def rerank(self) -> bool: ...
+    def rerank(self) -> bool:
+        """Whether candidates are re-ranked by A-SOLiD alignment."""
     def __eq__(self, other: object, /) -> bool: ...
     def __reduce__(self) -> tuple[Any, tuple[dict[str, Any]]]: ...
 
@@ -254,14 +536,35 @@ def _detector_config_from_dict(params: dict[str, Any]) -> DetectorConfig: ...
 @final
 class Database:
     """Places with exact search at every size (online kd-tree index), merge, save and load."""
-    def __new__(cls, cfg: SolidConfig) -> Database: ...
+    def __new__(cls, cfg: SolidConfig) -> Database:
+        """`Database(cfg)`: an empty database.
+
+                Args:
+                    cfg: The configuration of every descriptor the database will hold.
+        """
     def add(
         self,
         descriptor: Descriptor,
         session: int = 0,
         timestamp: float | None = None,
         pose: npt.ArrayLike | None = None,
-    ) -> int: ...
+    ) -> int:
+        """Adds one place, with the GIL released.
+
+                Args:
+                    descriptor: A descriptor made with the database's configuration.
+                    session: The robot or run it comes from (an unsigned 32-bit integer).
+                    timestamp: Seconds, or None for none (stored as NaN).
+                    pose: `T_world_sensor` as a 3×4 array or 12 floats (row-major [R|t]), or None.
+
+                Returns:
+                    The new entry's id.
+
+                Raises:
+                    DatabaseError: The descriptor was made with another configuration.
+                    ConfigError: A non-finite pose value.
+                    ValueError: A pose that is not 12 values or a 3×4 array.
+        """
     def search(
         self,
         descriptor: Descriptor | npt.ArrayLike,
@@ -269,35 +572,133 @@ class Database:
         exclude_recent: int = 0,
         method: str = "auto",
         not_newer_than: float | None = None,
-    ) -> list[Match]: ...
-    def distances(self, descriptor: Descriptor | npt.ArrayLike) -> npt.NDArray[np.float32]: ...
-    def merge(self, other: Database, new_sessions: bool = False) -> None: ...
-    def save(self, path: str | PathLike[str]) -> None: ...
+    ) -> list[Match]:
+        """The `k` nearest entries by cosine distance, exactly (docs/spec.md §3), GIL released.
+
+                Args:
+                    descriptor: A descriptor made with the database's configuration, or an R-SOLiD as a
+                        1-D sequence of `n_range` floats.
+                    k: How many neighbours.
+                    exclude_recent: Leave out the most recently added entries (the last `exclude_recent`
+                        ids), as a loop detector does.
+                    method: "auto" (brute force below 2,048 entries, else the kd-tree), "brute" or
+                        "kdtree": the same neighbours either way.
+                    not_newer_than: Leave out entries whose timestamp is greater (entries without one are
+                        kept).
+
+                Returns:
+                    Up to `k` matches, nearest first, ties by lower id.
+
+                Raises:
+                    DatabaseError: The descriptor was made with another configuration.
+                    SolidError: An R-SOLiD of the wrong length.
+                    ConfigError: An R-SOLiD with non-finite values.
+                    ValueError: An unknown `method`.
+                    TypeError: `descriptor` is neither a Descriptor nor a sequence of floats.
+        """
+    def distances(self, descriptor: Descriptor | npt.ArrayLike) -> npt.NDArray[np.float32]:
+        """The cosine distance from the query to every entry, in id order (for plots and analysis;
+        `search` finds the nearest).
+
+        Args:
+            descriptor: A descriptor made with the database's configuration, or an R-SOLiD as a 1-D
+                sequence of `n_range` floats.
+
+        Returns:
+            float32 array of shape (N,).
+
+        Raises:
+            DatabaseError: The descriptor was made with another configuration.
+            SolidError: An R-SOLiD of the wrong length.
+            TypeError: `descriptor` is neither a Descriptor nor a sequence of floats.
+        """
+    def merge(self, other: Database, new_sessions: bool = False) -> None:
+        """Appends every entry of `other` (another robot's or run's map), keeping their order,
+        timestamps and poses; their ids follow this database's.
+
+        Args:
+            other: A database with the same configuration (it may be this one).
+            new_sessions: Renumber the sessions of `other` to follow this database's, so that maps of
+                separate runs stay apart.
+
+        Raises:
+            DatabaseError: `other` has another configuration.
+        """
+    def save(self, path: str | PathLike[str]) -> None:
+        """Writes the database to `path` (docs/spec.md §9), atomically: a temporary file in the
+                same folder, then a rename.
+
+                Args:
+                    path: The file to write (replaced if it exists).
+
+                Raises:
+                    OSError: The file cannot be written (the subclass matches the cause, with `filename`).
+        """
     @staticmethod
-    def load(path: str | PathLike[str]) -> Database: ...
-    def to_bytes(self) -> bytes: ...
+    def load(path: str | PathLike[str]) -> Database:
+        """Reads a database written by `save`, checking everything (docs/spec.md §9).
+
+                Args:
+                    path: The file to read.
+
+                Returns:
+                    The database.
+
+                Raises:
+                    DatabaseError: Not a solid database, a newer format version, truncated, corrupted
+                        (checksum), or invalid content; the message names the file and the reason.
+                    OSError: The file cannot be read (FileNotFoundError, PermissionError, ...).
+        """
+    def to_bytes(self) -> bytes:
+        """The database in its file format (docs/spec.md §9).
+
+                Returns:
+                    The bytes `save` would write.
+        """
     @staticmethod
-    def from_bytes(data: bytes) -> Database: ...
+    def from_bytes(data: bytes) -> Database:
+        """A database from bytes made by `to_bytes`, checked as `load` checks a file.
+
+                Args:
+                    data: The bytes.
+
+                Returns:
+                    The database.
+
+                Raises:
+                    DatabaseError: The bytes are not a valid database (the message says why).
+        """
     def __len__(self) -> int: ...
     @property
-    def config(self) -> SolidConfig: ...
+    def config(self) -> SolidConfig:
+        """The configuration every entry was described with."""
     @property
-    def r(self) -> npt.NDArray[np.float32]: ...
+    def r(self) -> npt.NDArray[np.float32]:
+        """Every R-SOLiD, shape (N, n_range), float32 (a copy)."""
     @property
-    def a(self) -> npt.NDArray[np.float32]: ...
+    def a(self) -> npt.NDArray[np.float32]:
+        """Every A-SOLiD, shape (N, n_azimuth), float32 (a copy)."""
     @property
-    def ids(self) -> npt.NDArray[np.int64]: ...
+    def ids(self) -> npt.NDArray[np.int64]:
+        """Entry ids 0..N, int64."""
     @property
-    def sessions(self) -> npt.NDArray[np.uint32]: ...
+    def sessions(self) -> npt.NDArray[np.uint32]:
+        """Each entry's session, uint32."""
     @property
-    def timestamps(self) -> npt.NDArray[np.float64]: ...
+    def timestamps(self) -> npt.NDArray[np.float64]:
+        """Each entry's timestamp, float64 (NaN where none was given)."""
     @property
-    def poses(self) -> npt.NDArray[np.float64]: ...
+    def poses(self) -> npt.NDArray[np.float64]:
+        """Each entry's pose, shape (N, 3, 4), float64 (all NaN where none was given)."""
 
 @final
 class LoopDetector:
-    """Online loop closure: each scan is searched against the places it may be matched with (a
-    prior map, and its own session minus the exclusion window), then added."""
+    """Online loop closure (docs/spec.md §8): each scan is searched against the places it may be
+    matched with — a prior map, and its own session minus the exclusion window — then added.
+
+    Safe to share between threads: a step (search, then add) runs alone; `query` and the
+    getters run in parallel.
+    """
     def __new__(
         cls,
         cfg: SolidConfig,
@@ -309,7 +710,31 @@ class LoopDetector:
         exclude_meters: float | None = None,
         exclude_seconds: float | None = None,
         detector: DetectorConfig | None = None,
-    ) -> LoopDetector: ...
+    ) -> LoopDetector:
+        """`LoopDetector(cfg, ...)`: a detector with an empty database.
+
+        Args:
+            cfg: The configuration scans are described with; its base preset chooses the default
+                threshold.
+            exclude_recent: Frames of the own session never matched (the robot is still there);
+                None: 50. The same as `DetectorConfig.exclude_frames`.
+            threshold: Largest score (R-SOLiD cosine distance) accepted as a loop; None: the loop
+                threshold of the configuration's base preset (docs/spec.md §4), else the largest preset
+                threshold.
+            top_k: Candidates each step returns (1..=1000); None: 10.
+            rerank: Re-rank the candidates by R-SOLiD distance plus rotation-aligned A-SOLiD distance;
+                None: off.
+            exclude_meters: Also skip places of the own session fewer than this many metres back along
+                the path (every scan then needs a pose); None or 0: off.
+            exclude_seconds: Also skip places of the own session fewer than this many seconds back
+                (every scan then needs a non-decreasing timestamp); None or 0: off.
+            detector: Parameters to start from instead of the defaults; the other arguments override
+                them.
+
+        Raises:
+            ConfigError: A detector parameter out of its range (named in the message).
+            TypeError: A parameter of the wrong type.
+        """
     @staticmethod
     def from_database(
         database: Database,
@@ -321,50 +746,190 @@ class LoopDetector:
         exclude_meters: float | None = None,
         exclude_seconds: float | None = None,
         detector: DetectorConfig | None = None,
-    ) -> LoopDetector: ...
+    ) -> LoopDetector:
+        """A detector over a copy of an existing database (a prior map, other sessions): its places
+        are candidates from the first scan on and are never excluded as recent; the detector's own
+        scans get the session after the largest one in the database.
+
+        Args:
+            database: The map; its configuration becomes the detector's.
+            exclude_recent: Frames of the own session never matched (the robot is still there);
+                None: 50. The same as `DetectorConfig.exclude_frames`.
+            threshold: Largest score (R-SOLiD cosine distance) accepted as a loop; None: the loop
+                threshold of the configuration's base preset (docs/spec.md §4), else the largest preset
+                threshold.
+            top_k: Candidates each step returns (1..=1000); None: 10.
+            rerank: Re-rank the candidates by R-SOLiD distance plus rotation-aligned A-SOLiD distance;
+                None: off.
+            exclude_meters: Also skip places of the own session fewer than this many metres back along
+                the path (every scan then needs a pose); None or 0: off.
+            exclude_seconds: Also skip places of the own session fewer than this many seconds back
+                (every scan then needs a non-decreasing timestamp); None or 0: off.
+            detector: Parameters to start from instead of the defaults; the other arguments override
+                them.
+
+        Returns:
+            The detector.
+
+        Raises:
+            ConfigError: A detector parameter out of its range.
+            DatabaseError: The database already uses the largest session number.
+            TypeError: A parameter of the wrong type.
+        """
     def add(
         self,
         points_or_descriptor: Descriptor | npt.ArrayLike,
         timestamp: float | None = None,
         pose: npt.ArrayLike | None = None,
-    ) -> Loop | None: ...
+    ) -> Loop | None:
+        """Searches one scan against the eligible places, then adds it (GIL released).
+
+        Args:
+            points_or_descriptor: The scan's points (as `solid.describe` accepts) or its descriptor,
+                made with the detector's configuration.
+            timestamp: Seconds, or None.
+            pose: `T_world_sensor` as a 3×4 array or 12 floats (row-major [R|t]), or None; stored with
+                the place.
+
+        Returns:
+            The loop, or None when the best candidate's score is above the threshold (or there is no
+            candidate yet).
+
+        Raises:
+            DatabaseError: A descriptor made with another configuration.
+            ConfigError: An infinite timestamp, a non-finite pose or one that is not a rotation, a pose
+                or timestamp missing when the exclusion needs it, a timestamp older than the previous
+                one when excluding by seconds. Nothing is added then.
+            SolidError: Points of the wrong shape or layout (as `solid.describe`).
+            TypeError: Points of the wrong type or dtype.
+            ValueError: A pose that is not 12 values or a 3×4 array.
+        """
     def detect(
         self,
         points_or_descriptor: Descriptor | npt.ArrayLike,
         timestamp: float | None = None,
         pose: npt.ArrayLike | None = None,
-    ) -> Detection: ...
+    ) -> Detection:
+        """As `add`, returning everything the step decided.
+
+        Args:
+            points_or_descriptor: The scan's points (as `solid.describe` accepts) or its descriptor,
+                made with the detector's configuration.
+            timestamp: Seconds, or None.
+            pose: `T_world_sensor` as a 3×4 array or 12 floats (row-major [R|t]), or None; stored with
+                the place.
+
+        Returns:
+            The step's query id, eligible entries, ranked candidates and loop.
+
+        Raises:
+            DatabaseError: A descriptor made with another configuration.
+            ConfigError: An infinite timestamp, a non-finite pose or one that is not a rotation, a pose
+                or timestamp missing when the exclusion needs it, a timestamp older than the previous
+                one when excluding by seconds. Nothing is added then.
+            SolidError: Points of the wrong shape or layout (as `solid.describe`).
+            TypeError: Points of the wrong type or dtype.
+            ValueError: A pose that is not 12 values or a 3×4 array.
+        """
     def detect_many(
         self,
         descriptors: Sequence[Descriptor],
         timestamps: Sequence[float | None] | npt.ArrayLike | None = None,
         poses: Sequence[npt.ArrayLike | None] | npt.ArrayLike | None = None,
-    ) -> list[Detection]: ...
+    ) -> list[Detection]:
+        """`detect` for many descriptors in order, in one call (the GIL is released once). Every input
+        is checked before the first is added: on error nothing is added.
+
+        Args:
+            descriptors: Descriptors made with the detector's configuration.
+            timestamps: One per descriptor (None entries: none), or None for none at all.
+            poses: One per descriptor (3×4 or 12 floats; None entries: none), an (N, 3, 4) array,
+                or None for none at all.
+
+        Returns:
+            One Detection per descriptor, in order.
+
+        Raises:
+            DatabaseError: A descriptor made with another configuration.
+            ConfigError: An infinite timestamp, a non-finite pose or one that is not a rotation, a pose
+                or timestamp missing when the exclusion needs it, a timestamp older than the previous
+                one when excluding by seconds. Nothing is added then.
+            SolidError: Points of the wrong shape or layout (as `solid.describe`).
+            TypeError: Points of the wrong type or dtype.
+            ValueError: A pose that is not 12 values or a 3×4 array.
+            SolidError: `timestamps` or `poses` of another length than `descriptors`.
+        """
     def candidates(
         self,
         points_or_descriptor: Descriptor | npt.ArrayLike,
         k: int | None = None,
         timestamp: float | None = None,
         pose: npt.ArrayLike | None = None,
-    ) -> list[Candidate]: ...
-    def query(self, points_or_descriptor: Descriptor | npt.ArrayLike) -> Loop | None: ...
+    ) -> list[Candidate]:
+        """The candidates the scan would get if it were added now (with this timestamp and pose),
+        without adding it.
+
+        Args:
+            points_or_descriptor: The scan's points (as `solid.describe` accepts) or its descriptor,
+                made with the detector's configuration.
+            timestamp: Seconds, or None.
+            pose: `T_world_sensor` as a 3×4 array or 12 floats (row-major [R|t]), or None; stored with
+                the place.
+            k: At most this many; None: the detector's `top_k`.
+
+        Returns:
+            The candidates, best first.
+
+        Raises:
+            DatabaseError: A descriptor made with another configuration.
+            ConfigError: An infinite timestamp, a non-finite pose or one that is not a rotation, a pose
+                or timestamp missing when the exclusion needs it, a timestamp older than the previous
+                one when excluding by seconds. Nothing is added then.
+            SolidError: Points of the wrong shape or layout (as `solid.describe`).
+            TypeError: Points of the wrong type or dtype.
+            ValueError: A pose that is not 12 values or a 3×4 array.
+        """
+    def query(self, points_or_descriptor: Descriptor | npt.ArrayLike) -> Loop | None:
+        """Searches one scan against every place without adding it and without excluding any
+        (localisation in a prior map).
+
+        Args:
+            points_or_descriptor: The scan's points or its descriptor.
+
+        Returns:
+            The best match as a Loop (its `query` is the id the scan would get), or None when its
+            score is above the threshold.
+
+        Raises:
+            DatabaseError: A descriptor made with another configuration.
+            SolidError: Points of the wrong shape or layout.
+            TypeError: Points of the wrong type or dtype.
+        """
     def __len__(self) -> int: ...
     @property
-    def database(self) -> Database: ...
+    def database(self) -> Database:
+        """A copy of the database: the prior map and every scan added so far."""
     @property
-    def config(self) -> DetectorConfig: ...
+    def config(self) -> DetectorConfig:
+        """The detector's parameters."""
     @property
-    def session(self) -> int: ...
+    def session(self) -> int:
+        """The session of the scans this detector adds."""
     @property
-    def session_start(self) -> int: ...
+    def session_start(self) -> int:
+        """Id of the first scan of the own session (the number of prior-map places)."""
     @property
-    def exclude_recent(self) -> int: ...
+    def exclude_recent(self) -> int:
+        """Frames of the own session excluded as too recent."""
     @property
-    def threshold(self) -> float: ...
+    def threshold(self) -> float:
+        """Largest score accepted as a loop."""
     @property
-    def top_k(self) -> int: ...
+    def top_k(self) -> int:
+        """Candidates re-ranked by A-SOLiD alignment."""
     @property
-    def rerank(self) -> bool: ...
+    def rerank(self) -> bool:
+        """Whether re-ranking is on."""
 
 # --- docs/spec.md §5 scoring (eval.rs) ---
 
@@ -372,28 +937,79 @@ DEFAULT_RADIUS: float
 
 @final
 class Scores:
-    """Per-query outcomes and summary metrics of one scored run (docs/spec.md §5)."""
+    """Per-query outcomes and the summary metrics of one scored run (docs/spec.md §5), made by
+    `score_candidates`; `solid.evaluation` builds reports on it.
+    """
     @property
-    def radius(self) -> float: ...
+    def radius(self) -> float:
+        """Radius in metres within which a place counts as the same."""
     @property
-    def gt_positive(self) -> npt.NDArray[np.bool_]: ...
+    def gt_positive(self) -> npt.NDArray[np.bool_]:
+        """Whether some eligible place lies within the radius, per query (bool array)."""
     @property
-    def correct(self) -> npt.NDArray[np.bool_]: ...
+    def correct(self) -> npt.NDArray[np.bool_]:
+        """Whether the best candidate lies within the radius, per query (bool array)."""
     @property
-    def first_hit(self) -> npt.NDArray[np.uint32]: ...
+    def first_hit(self) -> npt.NDArray[np.uint32]:
+        """1-based rank of the first candidate within the radius (0: none), per query."""
     @property
-    def candidate_distance_m(self) -> npt.NDArray[np.float64]: ...
+    def candidate_distance_m(self) -> npt.NDArray[np.float64]:
+        """Metres from each query to its best candidate (NaN: none)."""
     @property
-    def true_heading_deg(self) -> npt.NDArray[np.float64]: ...
+    def true_heading_deg(self) -> npt.NDArray[np.float64]:
+        """True heading between each query and its best candidate, degrees (NaN: none)."""
     @property
-    def n_gt(self) -> int: ...
-    def recall_at(self, n: int) -> float: ...
-    def pr_curve(self) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
-    def roc_curve(self) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
-    def f1_max(self) -> tuple[float, float]: ...
-    def auc(self) -> float: ...
-    def at_threshold(self, threshold: float) -> tuple[int, int, float, float]: ...
-    def rotation_errors(self) -> npt.NDArray[np.float64]: ...
+    def n_gt(self) -> int:
+        """Number of GT-positive queries."""
+    def recall_at(self, n: int) -> float:
+        """Recall@n: GT-positive queries with a correct candidate among their first n, over GT-positive queries.
+
+        Args:
+            n: How many candidates count (>= 1).
+
+        Returns:
+            The recall, NaN without GT-positive queries.
+        """
+    def pr_curve(self) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+        """The precision-recall curve: a query's top-1 is accepted when its score <= τ, for τ over
+        every observed top-1 score.
+
+        Returns:
+            (thresholds, precision, recall), float64 arrays of equal length.
+        """
+    def roc_curve(self) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+        """The ROC curve of correct vs incorrect top-1s.
+
+        Returns:
+            (thresholds, false-positive rate, true-positive rate), float64 arrays.
+        """
+    def f1_max(self) -> tuple[float, float]:
+        """The largest F1 = 2PR/(P+R) on the precision-recall curve.
+
+        Returns:
+            (F1 max, its threshold); (NaN, NaN) for an empty curve.
+        """
+    def auc(self) -> float:
+        """The probability that a correct top-1 scores lower than an incorrect one (ties count one half).
+
+        Returns:
+            The AUC, NaN when either class is empty.
+        """
+    def at_threshold(self, threshold: float) -> tuple[int, int, float, float]:
+        """What accepting the top-1s with score <= `threshold` gives.
+
+        Args:
+            threshold: The largest accepted score.
+
+        Returns:
+            (accepted, correct accepted, precision, recall).
+        """
+    def rotation_errors(self) -> npt.NDArray[np.float64]:
+        """|ψ_est − ψ_true| wrapped into [0°, 180°], over the correct top-1s.
+
+        Returns:
+            float64 array, degrees.
+        """
     def __len__(self) -> int: ...
 
 def score_candidates(
@@ -404,10 +1020,59 @@ def score_candidates(
     heading_deg: npt.NDArray[np.float64],
     poses: npt.NDArray[np.float64],
     radius: float,
-) -> Scores: ...
+) -> Scores:
+    """Scores what a detector (or a baseline) decided against poses (docs/spec.md §5), with the
+    GIL released; `solid.evaluation` wraps it in a friendlier form.
 
-def encode_place(descriptor: Descriptor, quantized: bool = False) -> bytes: ...
-def decode_place(data: bytes, cfg: SolidConfig) -> Descriptor: ...
+    Args:
+        query: Query ids, shape (M,).
+        eligible: Per query, the number of entries it could be matched with (ids 0..eligible).
+        ids: Per query, its ranked candidate ids, shape (M, k); -1 pads missing candidates.
+        score: Per query, its best candidate's score (what a threshold is compared with).
+        heading_deg: Per query, the heading estimated for its best candidate, degrees.
+        poses: Every frame's pose, shape (N, 3, 4), float64.
+        radius: Metres within which a place counts as the same.
+
+    Returns:
+        The per-query outcomes and summary metrics.
+
+    Raises:
+        ValueError: A negative id (other than the -1 padding of `ids`), or `poses` not of shape
+            (N, 3, 4).
+        SolidError: Arrays of inconsistent lengths.
+        ConfigError: A radius that is not finite and positive, an id outside the poses, a
+            candidate that is not eligible, an `eligible` of 0 (skip queries with no database) or
+            beyond the poses, a non-finite position.
+    """
+
+def encode_place(descriptor: Descriptor, quantized: bool = False) -> bytes:
+    """Encodes one place for exchange between robots (docs/spec.md §10).
+
+        Args:
+            descriptor: The place.
+            quantized: One byte per bin (square-root companded) instead of float32.
+
+        Returns:
+            420 bytes as float32 or 128 bytes quantised, for the default 40 + 60 bins.
+
+        Raises:
+            ConfigError: A vector with a non-finite (or, quantised, negative) value, named as
+                r_solid or a_solid.
+    """
+def decode_place(data: bytes, cfg: SolidConfig) -> Descriptor:
+    """Decodes a place made by `encode_place`. Point counts are not transmitted (they read 0).
+
+        Args:
+            data: The encoded place.
+            cfg: The configuration the receiver uses; the place must have been made with it.
+
+        Returns:
+            The descriptor (approximate vectors when the place was quantised).
+
+        Raises:
+            DatabaseError: Not a place, an unknown version, a wrong length, a checksum mismatch, or
+                a place made with another configuration (checked by fingerprint).
+    """
 
 # --- simulator (sim.rs), used by solid.sim ---
 
