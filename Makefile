@@ -5,7 +5,7 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 PYTHON ?= python3
 
-.PHONY: demo test venv dist wheel install-test crates docs lint rust-test py-test typecheck bench bench-py readme-results thresholds clean
+.PHONY: demo test venv dist aarch64 wheel install-test crates docs lint rust-test py-test typecheck bench bench-py readme-results thresholds clean
 
 $(VENV)/.ready: requirements-dev.txt pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -26,6 +26,21 @@ dist: venv
 		--compatibility manylinux2014 --out dist --interpreter $(PY)
 	$(PY) tools/check_wheel.py dist/*.whl
 
+## Optional, not part of make test: the aarch64 wheel (manylinux2014, cross-linked by zig),
+## checked like the x86-64 one, and the core and simulator test suites run under qemu. Needs the
+## aarch64 standard library (rustup target add, which downloads it) and Debian's qemu-user,
+## gcc-aarch64-linux-gnu (the test binaries' linker) and libc6-dev-arm64-cross. See docs/arm.md.
+AARCH64 := aarch64-unknown-linux-gnu
+aarch64: venv
+	rustup target add $(AARCH64)
+	rm -rf dist/aarch64
+	PATH="$(abspath $(VENV))/bin:$$PATH" $(VENV)/bin/maturin build --release --zig \
+		--target $(AARCH64) --compatibility manylinux2014 --out dist/aarch64
+	$(PY) tools/check_wheel.py dist/aarch64/*.whl aarch64
+	CARGO_TARGET_AARCH64_UNKNOWN_LINUX_GNU_LINKER=aarch64-linux-gnu-gcc \
+	CARGO_TARGET_AARCH64_UNKNOWN_LINUX_GNU_RUNNER="qemu-aarch64 -L /usr/aarch64-linux-gnu" \
+		cargo test -p solid-lidar -p solid-lidar-sim --target $(AARCH64)
+
 ## Install the dist wheel into the development virtualenv (pytest, mypy, stubtest, demo use it).
 wheel: dist
 	$(PY) -m pip install --quiet --force-reinstall --no-deps dist/*.whl
@@ -37,6 +52,7 @@ install-test: dist
 	$(PYTHON) -m venv build/venv-wheel
 	build/venv-wheel/bin/python -m pip install --quiet dist/*.whl
 	cd build && venv-wheel/bin/python ../tools/readme_examples.py --run ../README.md
+	cd build && venv-wheel/bin/python ../tools/readme_examples.py --run ../docs/describe.md
 	build/venv-wheel/bin/solid presets
 	$(PYTHON) -m venv build/venv-sdist
 	CARGO_TARGET_DIR="$(CURDIR)/target/sdist" build/venv-sdist/bin/python -m pip install --quiet dist/*.tar.gz
@@ -71,7 +87,8 @@ py-test: wheel
 typecheck: wheel
 	mkdir -p build
 	$(PY) tools/readme_examples.py README.md build/readme_blocks.py
-	$(VENV)/bin/mypy --strict python/solid tests build/readme_blocks.py
+	$(PY) tools/readme_examples.py docs/describe.md build/docs_describe_blocks.py
+	$(VENV)/bin/mypy --strict python/solid tests tools build/readme_blocks.py build/docs_describe_blocks.py
 	$(PY) -m mypy.stubtest solid._solid
 
 test: lint rust-test crates docs py-test typecheck install-test

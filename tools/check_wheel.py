@@ -1,6 +1,7 @@
 """Check that a built wheel is what `make dist` promises: abi3 and manylinux2014 (glibc 2.17).
 
-Usage: python tools/check_wheel.py dist/solid_lidar-*.whl
+Usage: python tools/check_wheel.py dist/solid_lidar-*.whl [ARCH]
+ARCH (uname -m style: x86_64, aarch64) defaults to this machine's.
 
 Two checks, both must pass: the file name's tags (what pip matches against the machine), and
 `auditwheel show` (what the extension module really needs: the newest versioned glibc symbol it
@@ -21,11 +22,11 @@ GLIBC = (2, 17)  # manylinux2014
 
 
 def main(argv: list[str]) -> int:
-    if len(argv) != 2:
+    if len(argv) not in (2, 3):
         print(__doc__, file=sys.stderr)
         return 2
     wheel = Path(argv[1])
-    arch = platform.machine()
+    arch = argv[2] if len(argv) == 3 else platform.machine()
     name, _version, _build, tags = parse_wheel_filename(wheel.name)
     problems = []
     if name != "solid-lidar":
@@ -46,8 +47,8 @@ def main(argv: list[str]) -> int:
     m = re.search(r'consistent with the following platform tag: "manylinux_(\d+)_(\d+)_(\w+)"', text)
     if shown.returncode != 0 or m is None:
         problems.append(f"auditwheel show failed or said something unexpected:\n{shown.stdout}{shown.stderr}")
-    elif (int(m.group(1)), int(m.group(2))) > GLIBC:
-        problems.append(f"the extension needs glibc {m.group(1)}.{m.group(2)} (auditwheel): {text}")
+    elif (int(m.group(1)), int(m.group(2))) > GLIBC or m.group(3) != arch:
+        problems.append(f"auditwheel: the extension needs glibc {m.group(1)}.{m.group(2)} on {m.group(3)}: {text}")
     if problems:
         print(f"{wheel.name}:", *problems, sep="\n  ", file=sys.stderr)
         return 1
