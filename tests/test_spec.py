@@ -179,14 +179,18 @@ def test_the_fingerprint_is_fnv1a_as_specified() -> None:
 
 
 def test_the_presets_table_is_solid_presets() -> None:
-    rows = table(section(4))
+    head = [c.strip() for c in section(4).split("\n|")[1].split("|")[:-1]]
+    rows = [dict(zip(head, r)) for r in table(section(4))]
     presets, sensors = solid.presets(), solid.preset_sensors()
-    assert [r[0].strip("`") for r in rows] == list(presets)
-    for name, fov_up, fov_down, n_el, max_range, min_range, sensor in rows:
-        cfg = presets[name.strip("`")]
-        assert (cfg.fov_up, cfg.fov_down, cfg.n_elevation) == (number(fov_up), number(fov_down), int(n_el))
-        assert (cfg.max_range, cfg.min_range) == (number(max_range), number(min_range))
-        assert sensors[name.strip("`")] == sensor
+    assert [r["name"].strip("`") for r in rows] == list(presets)
+    for r in rows:
+        name = r["name"].strip("`")
+        cfg = presets[name]
+        for field in ("fov_up", "fov_down", "n_elevation", "max_range", "min_range"):
+            assert getattr(cfg, field) == number(r[field]), (name, field)
+        assert solid.DetectorConfig.preset(name).threshold == number(r["loop threshold"]), name
+        assert solid.LoopDetector(cfg).threshold == number(r["loop threshold"]), name
+        assert sensors[name] == r["sensor"]
     common = re.search(r"Every preset uses (.*?)\. ", section(4), flags=re.S).group(1)  # type: ignore[union-attr]
     for field, value in re.findall(r"`(\w+)` = ([\d.]+)", common):
         assert all(getattr(c, field) == float(value) for c in presets.values()), field
@@ -195,13 +199,63 @@ def test_the_presets_table_is_solid_presets() -> None:
 # --- §8 loop detector ---------------------------------------------------------------------------
 
 
+def _detector(**params: Any) -> solid.DetectorConfig:
+    """DetectorConfig with parameters chosen at run time (mypy cannot type them)."""
+    return solid.DetectorConfig(**params)
+
+
+def test_the_detector_parameter_table_is_detector_config() -> None:
+    rows = {r[0].strip("`"): (r[1], r[3]) for r in table(section(8))}
+    assert set(rows) == set(solid.DetectorConfig().to_dict())
+    default = solid.DetectorConfig()
+    largest = max(solid.DetectorConfig.preset(p).threshold for p in solid.presets())
+    assert "Without a preset the default threshold is the largest of the presets'" in section(8)
+    assert default.threshold == largest
+    for name, (value, valid) in rows.items():
+        if name == "threshold":
+            assert value.startswith("the preset's loop threshold")
+        elif name == "rerank":
+            assert value == "off" and default.rerank is False
+        else:
+            assert getattr(default, name) == number(value.split()[0]), name
+        for clause in [c for c in re.split(r", (?!\d)", valid) if c]:
+            if m := re.fullmatch(r"an integer in (\d+)\.\.=(\d+)", clause):
+                lo, hi = int(m.group(1)), int(m.group(2))
+                _detector(**{name: lo})
+                _detector(**{name: hi})
+                for bad in (lo - 1, hi + 1):
+                    with pytest.raises(solid.ConfigError, match=name):
+                        _detector(**{name: bad})
+            elif clause == "an integer ≥ 0":
+                _detector(**{name: 0})
+                with pytest.raises(solid.SolidError, match=name):
+                    _detector(**{name: -1})
+            elif clause == "finite":
+                for nonfinite in (math.nan, math.inf):
+                    with pytest.raises(solid.ConfigError, match=name):
+                        _detector(**{name: nonfinite})
+            elif clause == "≥ 0":
+                _detector(**{name: 0.0})
+                with pytest.raises(solid.ConfigError, match=name):
+                    _detector(**{name: -1e-9})
+            elif m := re.fullmatch(r"in \[(\d), (\d)\]", clause):
+                flo, fhi = float(m.group(1)), float(m.group(2))
+                _detector(**{name: flo})
+                _detector(**{name: fhi})
+                for outside in (flo - 1e-9, fhi + 1e-9):
+                    with pytest.raises(solid.ConfigError, match=name):
+                        _detector(**{name: outside})
+            else:
+                raise AssertionError(f"§8 {name}: rule {clause!r} is not checked by this test: teach it")
+
+
 def test_the_loop_detector_follows_its_rule() -> None:
     text = section(8)
     assert "`distance(d, c) + aligned(d, c)`" in text and "≤ `threshold`" in text
     cfg = solid.SolidConfig.preset("vlp16")
     rng = np.random.default_rng(8)
     exclude, top_k, threshold = 4, 5, 0.35
-    det = solid.LoopDetector(cfg, exclude_recent=exclude, threshold=threshold, top_k=top_k)
+    det = solid.LoopDetector(cfg, exclude_recent=exclude, threshold=threshold, top_k=top_k, rerank=True)
     rs: list[np.ndarray[Any, Any]] = []
     as_: list[np.ndarray[Any, Any]] = []
     found = 0

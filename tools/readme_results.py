@@ -86,7 +86,7 @@ def block(results: dict[float, tuple[dict[str, Any], dict[str, Any]]]) -> str:
     )
     lines.append("")
     lines.append("Both methods answer the same queries (263, exclusion 50 keyframes ≈ 10 m here) and are scored by")
-    lines.append("the same code (docs/spec.md §5, in the Rust core). Regenerate this block with `python tools/readme_results.py`;")
+    lines.append("the same code ([spec §5](docs/spec.md#5-evaluating-loop-closure-against-poses), in the Rust core). Regenerate this block with `python tools/readme_results.py`;")
     lines.append("each row is what " + "`" + COMMAND.format(r="R") + "` prints.")
     return "\n".join(lines)
 
