@@ -85,7 +85,8 @@ pub const fn max_decompressed_len(input_len: usize) -> usize {
 /// The decoder is liblzf's: a control byte below 32 starts a literal run of `ctrl + 1` bytes;
 /// otherwise its top 3 bits (plus a length byte when they are all set) give a copy of 3 to 264
 /// bytes from up to 8 KiB back in the output, overlapping copies allowed. A caller that knows the
-/// decoded size passes an output of exactly that size and checks the returned count.
+/// decoded size passes an output of exactly that size and checks the returned count. Bytes of
+/// `output` past the returned count are unspecified (the decoder copies in fixed-size blocks).
 ///
 /// # Errors
 /// [`LzfError::OutputTooSmall`] as soon as a token would write past `output.len()`,
@@ -103,6 +104,14 @@ pub fn decompress_into(input: &[u8], output: &mut [u8]) -> Result<usize, LzfErro
         ip += 1;
         if ctrl < 32 {
             let len = ctrl + 1;
+            if ip + 32 <= n_in && op + 32 <= cap {
+                // Room on both sides: copy a fixed 32 bytes (two vector moves instead of a
+                // variable-length memcpy); the bytes past `len` are overwritten by what follows.
+                output[op..op + 32].copy_from_slice(&input[ip..ip + 32]);
+                ip += len;
+                op += len;
+                continue;
+            }
             let src = input
                 .get(ip..ip + len)
                 .ok_or(LzfError::Truncated { offset: at })?;
@@ -140,10 +149,23 @@ pub fn decompress_into(input: &[u8], output: &mut [u8]) -> Result<usize, LzfErro
             });
         }
         let from = op - distance;
-        if distance >= len {
-            output.copy_within(from..from + len, op);
+        // Copy in fixed 8-byte (or 4-byte) chunks, in order: with `distance` at least the chunk
+        // size each chunk reads bytes already written, which is exactly LZF's overlapping copy.
+        // Bytes past `len` (at most one chunk) are overwritten by what follows.
+        if distance >= 8 && cap - op >= len + 7 {
+            let mut k = 0;
+            while k < len {
+                output.copy_within(from + k..from + k + 8, op + k);
+                k += 8;
+            }
+        } else if distance >= 4 && cap - op >= len + 3 {
+            let mut k = 0;
+            while k < len {
+                output.copy_within(from + k..from + k + 4, op + k);
+                k += 4;
+            }
         } else {
-            // Overlapping: each byte copies one written `distance` bytes earlier.
+            // Near the end of the output, or a run of 1 to 3 repeated bytes: byte by byte.
             for k in 0..len {
                 output[op + k] = output[from + k];
             }

@@ -19,18 +19,19 @@ def max_decompressed_len(n: int) -> int:
     return int(_solid._lzf_max_decompressed_len(n))
 
 
-def decompress_array(data: bytes, expected_size: int) -> npt.NDArray[np.uint8]:
-    """:func:`lzf_decompress` into a new uint8 array (no copy to ``bytes``)."""
+def decompress_array(data: bytes, expected_size: int, start: int = 0, stop: int | None = None) -> npt.NDArray[np.uint8]:
+    """:func:`lzf_decompress` of ``data[start:stop]`` into a new uint8 array (no copies to ``bytes``)."""
     if expected_size < 0:
         raise ValueError(f"expected size {expected_size} B is negative")
-    bound = max_decompressed_len(len(data))
+    length = (len(data) if stop is None else stop) - start
+    bound = max_decompressed_len(length)
     if expected_size > bound:
         raise ValueError(
-            f"LZF data of {len(data)} B cannot decompress to {expected_size} B (at most {bound} B): "
+            f"LZF data of {length} B cannot decompress to {expected_size} B (at most {bound} B): "
             "the declared size is false"
         )
     out = np.empty(expected_size, dtype=np.uint8)
-    n = _solid._lzf_decompress_into(data, out)
+    n = _solid._lzf_decompress_into(data, out, start, stop)
     if n != expected_size:
         raise ValueError(f"LZF data decompresses to {n} B, expected {expected_size} B")
     return out

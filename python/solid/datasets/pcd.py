@@ -92,6 +92,7 @@ def read(path: PathLike, xyz_only: bool) -> Cloud:
         if counts[lower.index(a)] != 1:
             raise ReadError(path, f"PCD field {a} has COUNT {counts[lower.index(a)]}, expected 1")
     body = memoryview(data)[pos:]
+    start = pos
     xyz = [lower.index(a) for a in "xyz"]
     extra = [] if xyz_only else [i for i in range(nf) if i not in xyz and not uniq[i].startswith("_")]
 
@@ -114,13 +115,14 @@ def read(path: PathLike, xyz_only: bool) -> Cloud:
         rec = np.frombuffer(body, dtype=dt, count=npts)
         return cloud_from_records(path, rec, xyz_only)
     if data_kind == "binary_compressed":
-        return _compressed(path, body, uniq, fmts, counts, npts, xyz, extra)
+        return _compressed(path, data, start, uniq, fmts, counts, npts, xyz, extra)
     raise ReadError(path, f"unknown PCD DATA kind {data_kind!r} (ascii, binary or binary_compressed)")
 
 
 def _compressed(
     path: PathLike,
-    body: memoryview,
+    data: bytes,
+    start: int,
     names: list[str],
     fmts: list[str],
     counts: list[int],
@@ -128,24 +130,28 @@ def _compressed(
     xyz: list[int],
     extra: list[int],
 ) -> Cloud:
-    if len(body) < 8:
+    have = len(data) - start
+    if have < 8:
         raise ReadError(path, "truncated PCD binary_compressed data: no size header")
-    csize, usize = (int(v) for v in np.frombuffer(body, dtype="<u4", count=2))
-    if len(body) < 8 + csize:
-        raise ReadError(path, f"truncated PCD binary_compressed data: {len(body) - 8} B of {csize} compressed B")
+    csize, usize = (int(v) for v in np.frombuffer(data, dtype="<u4", count=2, offset=start))
+    if have < 8 + csize:
+        raise ReadError(path, f"truncated PCD binary_compressed data: {have - 8} B of {csize} compressed B")
     itemsize = sum(np.dtype(f).itemsize * c for f, c in zip(fmts, counts))
     if usize != npts * itemsize:
         raise ReadError(
             path, f"PCD binary_compressed: uncompressed size {usize} B does not match {npts} points × {itemsize} B"
         )
     try:
-        raw = decompress_array(bytes(body[8 : 8 + csize]), usize)
+        raw = decompress_array(data, usize, start + 8, start + 8 + csize)
     except ValueError as e:
         raise ReadError(path, f"corrupt PCD binary_compressed data: {e}") from None
     # Structure of arrays: all values of field 0, then of field 1, ...
     if all(f == "f4" for f in fmts) and all(c == 1 for c in counts):
         soa = raw.view("<f4").reshape(len(fmts), npts)
-        pts = np.ascontiguousarray(soa[xyz + extra].T, dtype=np.float32)
+        order = xyz + extra
+        pts = np.empty((npts, len(order)), dtype=np.float32)
+        for j, i in enumerate(order):  # one strided column copy each: faster than a fancy-indexed transpose
+            pts[:, j] = soa[i]
         return Cloud(pts, tuple(["x", "y", "z"] + [names[i] for i in extra]))
     arrays: list[npt.NDArray[Any]] = []
     off = 0
