@@ -65,8 +65,9 @@ def stack_columns(cols: list[npt.NDArray[Any]], names: list[str]) -> Cloud:
     """Stack 1-D columns (x, y, z first) into a C-contiguous float32 (N, C) array."""
     n = cols[0].shape[0] if cols else 0
     out = np.empty((n, len(cols)), dtype=np.float32)
-    for i, c in enumerate(cols):
-        out[:, i] = c
+    with np.errstate(over="ignore"):  # a float64 beyond float32's range is stored as ±inf
+        for i, c in enumerate(cols):
+            out[:, i] = c
     return Cloud(out, tuple(names))
 
 
