@@ -178,6 +178,9 @@ def seeds_poses() -> list[bytes]:
     return [kitti, odom, tum]
 
 
+LIVOX = "livox_ros_driver/msg/CustomMsg"
+
+
 def _bag_seeds(kind: str) -> list[bytes]:
     from rosbags.rosbag1 import Writer as Writer1
     from rosbags.rosbag2 import StoragePlugin, Writer as Writer2
@@ -198,15 +201,34 @@ def _bag_seeds(kind: str) -> list[bytes]:
             row_step=12 * c.shape[0], data=np.frombuffer(np.ascontiguousarray(c[:, :3]).tobytes(), np.uint8), is_dense=True,
         )
 
+    def livox(ts: Any, sec: int) -> Any:
+        types = ts.types
+        point = types["livox_ros_driver/msg/CustomPoint"]
+        stamp = types["builtin_interfaces/msg/Time"](sec=sec, nanosec=0)
+        hdr = types["std_msgs/msg/Header"](seq=sec, stamp=stamp, frame_id="livox")
+        pts = [point(offset_time=i, x=float(p[0]), y=float(p[1]), z=float(p[2]), reflectivity=1, tag=0, line=i % 6) for i, p in enumerate(c)]
+        return types[LIVOX](header=hdr, timebase=sec, point_num=len(pts), lidar_id=0, rsvd=np.zeros(3, np.uint8), points=pts)
+
     if kind == "ros1":
-        p = WORK / "seed.bag"
-        p.unlink(missing_ok=True)
+        seeds = []
         ts = get_typestore(Stores.ROS1_NOETIC)
-        with Writer1(p) as w:
-            conn = w.add_connection("/points", msgtype, typestore=ts)
-            for i in range(2):
-                w.write(conn, (i + 1) * 10**9, ts.serialize_ros1(message(ts, i + 1), msgtype))
-        return [p.read_bytes()]
+        kinds = [(msgtype, message)]
+        try:
+            from solid.datasets.rosbag import livox_types
+        except ImportError:  # a version without Livox support: PointCloud2 seeds only
+            pass
+        else:
+            ts.register(livox_types())
+            kinds.append((LIVOX, livox))
+        for mt, make in kinds:
+            p = WORK / "seed.bag"
+            p.unlink(missing_ok=True)
+            with Writer1(p) as w:
+                conn = w.add_connection("/points", mt, typestore=ts)
+                for i in range(2):
+                    w.write(conn, (i + 1) * 10**9, ts.serialize_ros1(make(ts, i + 1), mt))
+            seeds.append(p.read_bytes())
+        return seeds
     d = WORK / "seed_mcap"
     if d.exists():
         for f in d.iterdir():

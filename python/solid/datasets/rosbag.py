@@ -15,13 +15,16 @@ truncated chunk, a bad index, an undecodable message) is a :class:`ReadError` na
 
 from __future__ import annotations
 
+import struct
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any, Final
 
 import numpy as np
+import numpy.typing as npt
 
 from ._common import Cloud, F32, ReadError, cloud_from_records, stack_columns
+
 
 HINT: Final = "reading ROS bags and MCAP needs the optional 'rosbags' package: pip install solid-lidar[ros]"
 POINTCLOUD2: Final = "sensor_msgs/msg/PointCloud2"
@@ -118,18 +121,59 @@ def pointcloud2_to_cloud(msg: Any, where: str = "PointCloud2", xyz_only: bool = 
     return cloud_from_records(where, rec, xyz_only)
 
 
-def livox_to_cloud(msg: Any, xyz_only: bool = False) -> Cloud:
-    """Decode a Livox ``CustomMsg`` (rosbags' deserialised form): x y z reflectivity tag line offset_time."""
-    pts = msg.points
-    n = len(pts)
-    xyz = np.fromiter((v for p in pts for v in (p.x, p.y, p.z)), dtype=np.float32, count=3 * n).reshape(n, 3)
-    if xyz_only:
-        return Cloud(xyz, ("x", "y", "z"))
-    extra = np.fromiter(
-        (v for p in pts for v in (p.reflectivity, p.tag, p.line, p.offset_time)), dtype=np.float64, count=4 * n
-    ).reshape(n, 4)
-    names = ["x", "y", "z", "reflectivity", "tag", "line", "offset_time"]
-    return stack_columns([xyz[:, 0], xyz[:, 1], xyz[:, 2], *extra.T], names)
+_LIVOX_NAMES: Final = ("offset_time", "x", "y", "z", "reflectivity", "tag", "line")
+_LIVOX_COLUMNS: Final = ("x", "y", "z", "reflectivity", "tag", "line", "offset_time")
+
+
+def _livox_points(raw: bytes | memoryview, cdr: bool, where: str) -> npt.NDArray[np.void]:
+    """The ``points`` of a serialised Livox ``CustomMsg`` as a structured array, read in place.
+
+    ROS 1: packed 19 B points after the header, timebase, point_num, lidar_id, rsvd and the
+    array length. ROS 2 (CDR, relative alignment): the same fields aligned, points every 20 B.
+    The bytes must end where the array ends (a message of another layout is refused).
+    """
+    raw = bytes(raw)
+    if cdr:
+        if len(raw) < 4:
+            raise ReadError(where, "CustomMsg shorter than its CDR header")
+        endian, base = ("<" if raw[1] == 1 else ">"), 4
+    else:
+        endian, base = "<", 0
+
+    def aligned(pos: int, n: int) -> int:
+        return pos if not cdr else base + -(-(pos - base) // n) * n
+
+    try:
+        pos = base + (8 if cdr else 12)  # stamp (ROS 1: seq too)
+        (n_id,) = struct.unpack_from(endian + "I", raw, pos)
+        pos = aligned(pos + 4 + n_id, 8) + 8  # frame_id, timebase
+        pos = aligned(pos, 4) + 8  # point_num, lidar_id, rsvd[3]
+        pos = aligned(pos, 4)
+        (n,) = struct.unpack_from(endian + "I", raw, pos)
+    except struct.error:
+        raise ReadError(where, f"CustomMsg of {len(raw)} B ends inside its header") from None
+    pos += 4
+    stride = 20 if cdr else 19
+    need = pos + (stride * n - (stride - 19) if n else 0)
+    if not need <= len(raw) <= need + (3 if cdr else 0):
+        raise ReadError(where, f"CustomMsg of {len(raw)} B does not hold its {n} points of {stride} B (need {need} B)")
+    dt = np.dtype(
+        {
+            "names": list(_LIVOX_NAMES),
+            "formats": [endian + "u4", endian + "f4", endian + "f4", endian + "f4", "u1", "u1", "u1"],
+            "offsets": [0, 4, 8, 12, 16, 17, 18],
+            "itemsize": stride,
+        }
+    )
+    body = raw[pos:need] + bytes(stride - 19) if n else b""
+    return np.frombuffer(body, dtype=dt, count=n)
+
+
+def livox_to_cloud(raw: bytes | memoryview, cdr: bool, where: str = "CustomMsg", xyz_only: bool = False) -> Cloud:
+    """Decode a serialised Livox ``CustomMsg``: columns x y z reflectivity tag line offset_time."""
+    rec = _livox_points(raw, cdr, where)
+    names = _LIVOX_COLUMNS[:3] if xyz_only else _LIVOX_COLUMNS
+    return stack_columns([rec[n] for n in names], list(names))
 
 
 class Bag:
@@ -190,11 +234,10 @@ class Bag:
             for conn, t, raw in _guarded(self.path, lambda: reader.messages(connections=conns)):
                 where = f"{self.path} [{conn.topic} @ {t}]"
                 try:
-                    msg = reader.deserialize(raw, conn.msgtype)
                     if conn.msgtype == POINTCLOUD2:
-                        yield pointcloud2_to_cloud(msg, where, xyz_only)
+                        yield pointcloud2_to_cloud(reader.deserialize(raw, conn.msgtype), where, xyz_only)
                     else:
-                        yield livox_to_cloud(msg, xyz_only)
+                        yield livox_to_cloud(raw, reader.is2, where, xyz_only)
                 except ReadError:
                     raise
                 except Exception as e:
