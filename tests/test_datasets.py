@@ -146,6 +146,12 @@ def test_kitti_sequence_subset_uses_frame_numbers(tmp_path: Path) -> None:
     rel_ds = np.linalg.inv(np.vstack([ds.poses[0], [0, 0, 0, 1]])) @ np.vstack([ds.poses[50], [0, 0, 0, 1]])
     rel_io = np.linalg.inv(np.vstack([lidar[0], [0, 0, 0, 1]])) @ np.vstack([lidar[50], [0, 0, 0, 1]])
     assert np.allclose(rel_ds, rel_io, atol=1e-9)
+    # explicit poses take the calibration only when it is given
+    gt = tmp_path / "dataset" / "poses" / "00.txt"
+    explicit = sd.open_dataset(seq, poses=gt, calib="calib.txt")
+    assert explicit.poses is not None and np.array_equal(explicit.poses, ds.poses)
+    raw = sd.open_dataset(seq, poses=gt)
+    assert raw.calib_source is None and raw.poses is not None and np.array_equal(raw.poses, cam[100:200])
     # z is up: KITTI drives in the x-y plane of the Velodyne frame
     assert abs(ds.poses[-1, 2, 3] - ds.poses[0, 2, 3]) < 2.0 < np.linalg.norm(ds.poses[-1, :2, 3] - ds.poses[0, :2, 3])
 
@@ -457,3 +463,16 @@ def test_a_bag_is_not_one_scan(tmp_path: Path) -> None:
     bag.write_bytes(b"#ROSBAG V2.0\n")
     with pytest.raises(sd.ReadError, match="a bag holds many scans"):
         sd.read_points(bag)
+
+
+def test_helipr_names_are_nanosecond_times(tmp_path: Path) -> None:
+    src = data_dir() / "solid-samples/helipr_avia/000010.bin"
+    folder = tmp_path / "Avia"
+    folder.mkdir()
+    stamps = [1692248305025943817, 1692248305125943817]
+    for s in stamps:
+        shutil.copy(src, folder / f"{s}.bin")
+    ds = sd.open_dataset(folder)
+    assert ds.reader == "helipr-avia" and ds.frame_ids.tolist() == stamps
+    assert ds.timestamps is not None and np.allclose(ds.timestamps, [s * 1e-9 for s in stamps], rtol=0, atol=1e-6)
+    assert ds[0].shape == (os.path.getsize(src) // 19, 3)

@@ -214,9 +214,12 @@ def _scan_folder(root: Path) -> Path:
 def _frame_numbers(files: list[Path]) -> I64 | None:
     """The frame numbers in the scans' names (``000100.bin`` → 100), or ``None`` if not all are."""
     stems = [f.stem for f in files]
-    if not stems or not all(s.isdigit() and len(s) <= 18 for s in stems):
+    if not stems or not all(s.isascii() and s.isdigit() for s in stems):
         return None
-    return np.array([int(s) for s in stems], dtype=np.int64)
+    numbers = [int(s) for s in stems]
+    if max(numbers) >= 2**63:
+        return None
+    return np.array(numbers, dtype=np.int64)
 
 
 class Dataset:
@@ -311,13 +314,13 @@ class Dataset:
 
         if poses is not None:
             self.pose_source = resolve(poses, root, "poses")
-            if calib is not None:
-                self.calib_source = resolve(calib, root, "calibration")
         elif "poses" in found:
             self.pose_source = found["poses"]
-            self.calib_source = found.get("calib")
-        elif calib is not None:
-            raise ValueError("calib= needs poses= (the calibration turns the poses into sensor poses)")
+            self.calib_source = found.get("calib")  # KITTI's own poses are the camera's
+        if calib is not None:
+            if self.pose_source is None:
+                raise ValueError("calib= needs poses (the calibration turns the poses into sensor poses)")
+            self.calib_source = resolve(calib, root, "calibration")
         if self.pose_source is not None:
             self.poses = self._load_poses(self.pose_source, numbers)
             if self.calib_source is not None:
