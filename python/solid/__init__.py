@@ -64,3 +64,15 @@ __all__ = [
     "preset_sensors",
     "presets",
 ]
+
+#: The package's submodules, imported on first use (``solid.datasets.open_dataset(...)`` works after
+#: a plain ``import solid``) so that ``import solid`` stays light.
+_SUBMODULES = frozenset({"commands", "config", "datasets", "evaluation", "io", "outputs", "pipeline", "plots", "scancontext", "sim"})
+
+
+def __getattr__(name: str) -> object:
+    if name in _SUBMODULES:
+        import importlib
+
+        return importlib.import_module(f"{__name__}.{name}")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -52,6 +52,8 @@ __all__ = [
     "_sim_spin",
     "_sim_write_sequence",
     "_sim_write_scans",
+    "_lzf_decompress_into",
+    "_lzf_max_decompressed_len",
 ]
 
 __version__: str
@@ -1178,3 +1180,8 @@ def _sim_write_scans(
     poses: npt.NDArray[np.float64],
     times: list[float],
 ) -> int: ...
+def _lzf_decompress_into(data: bytes, out: npt.NDArray[np.uint8], start: int = 0, stop: int | None = None) -> int:
+    """Decode the LZF stream ``data[start:stop]`` into ``out`` (uint8, C-contiguous); returns the bytes written."""
+
+def _lzf_max_decompressed_len(n: int) -> int:
+    """The most bytes an LZF stream of ``n`` bytes can decode to."""

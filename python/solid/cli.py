@@ -105,7 +105,7 @@ def _add_detector_args(p: argparse.ArgumentParser) -> None:
 
 def _add_input_args(p: argparse.ArgumentParser, poses_required: bool = False) -> None:
     g = p.add_argument_group("input")
-    g.add_argument("--format", help="force the scan reader (default: from the files' content and names)")
+    g.add_argument("--format", choices=_formats(), help="force the scan reader (default: chosen from the files' content)")
     g.add_argument("--topic", help="point-cloud topic of a bag (default: the only one)")
     g.add_argument("--poses", type=Path, required=poses_required, help="KITTI 3×4 rows or TUM (t x y z qx qy qz qw)")
     g.add_argument("--timestamps", type=Path, help="timestamps file (one per scan)")
@@ -117,6 +117,12 @@ def _add_input_args(p: argparse.ArgumentParser, poses_required: bool = False) ->
     g.add_argument("--occlude", type=degrees, default=None, metavar="DEG", help="remove a sector this wide from every scan")
     g.add_argument("--occlude-center", type=any_float, default=None, metavar="DEG")
     g.add_argument("--threads", type=pos_int, default=None, help="threads for describing (default: every core)")
+
+
+def _formats() -> list[str]:
+    from .datasets import FORMATS
+
+    return list(FORMATS)
 
 
 def _add_common(p: argparse.ArgumentParser) -> None:
@@ -152,7 +158,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("scan", type=Path, help="a scan file")
     p.add_argument("-o", "--output", type=Path, help="write the JSON here instead of stdout")
-    p.add_argument("--format", help="force the scan reader")
+    p.add_argument("--format", choices=_formats(), help="force the scan reader")
     _add_config_args(p)
     _add_common(p)
 
@@ -269,7 +275,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--frames", dest="n_frames", type=pos_int, default=200, help="scans to load (default 200)")
     p.add_argument("--db-size", type=pos_int, default=None, help="search a database of this many entries (descriptors repeated)")
     p.add_argument("--threads", type=pos_int, default=None, help="threads for the batch describe (default: every core)")
-    p.add_argument("--format", help="force the scan reader")
+    p.add_argument("--format", choices=_formats(), help="force the scan reader")
     p.add_argument("--topic", help="point-cloud topic of a bag")
     _add_config_args(p)
     _add_common(p)

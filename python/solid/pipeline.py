@@ -11,7 +11,7 @@ the accepted loops, and the evaluation scores the same candidates against poses
     from solid.config import PipelineConfig
     from solid.pipeline import LoopClosurePipeline
 
-    ds = solid.io.Sequence("hku1-avia", poses="odom_poses.txt")
+    ds = solid.datasets.open_dataset("hku1-avia", poses="odom_poses.txt")
     result = LoopClosurePipeline(ds, PipelineConfig.preset("avia")).run()
     print(len(result.loops()), "loops")
     ev = result.evaluate(radius=3.0)
@@ -68,7 +68,7 @@ LOOP_COLUMNS = (
 
 
 class Dataset(Protocol):
-    """What the pipeline reads: ``solid.io.Sequence`` and the simulator's sequences are ones."""
+    """What the pipeline reads: ``solid.datasets.open_dataset`` gives one, and so does the simulator."""
 
     timestamps: F64 | None
     poses: F64 | None
@@ -345,29 +345,16 @@ def open_dataset(
     timestamps: Path | str | None = None,
     calib: Path | str | None = None,
 ) -> tuple[Any, dict[str, Any]]:
-    """Opens a recording for the pipeline; returns it and a record of what was read (absolute
-    paths, the reader chosen). Poses become sensor poses when ``calib`` is given."""
-    ds = sio.Sequence(path, poses=poses, timestamps=timestamps, format=format, topic=topic)
-    if calib is not None and ds.poses is not None:
-        ds.poses = sio.sensor_poses(ds.poses, sio.load_extrinsic(calib))
-    if ds.is_bag:
-        reader = "rosbag"
-    else:
-        reader = format or sio.detect_format(ds.files[0])
+    """Opens a recording for the pipeline (:func:`solid.datasets.open_dataset`); returns it and a
+    record of what was read: the reader chosen and the absolute paths of every file used."""
+    from .datasets import open_dataset as _open
 
-    def ab(p: Path | str | None, inside: bool = True) -> Path | None:
-        if p is None:
-            return None
-        q = Path(p)
-        if not q.exists() and not q.is_absolute() and inside and Path(path).is_dir() and (Path(path) / q).exists():
-            q = Path(path) / q
-        return q.absolute()
-
+    ds = _open(path, format=format, topic=topic, poses=poses, timestamps=timestamps, calib=calib)
     info = {
-        "sequence": Path(path).absolute(),
-        "reader": reader,
-        "poses": ab(poses),
-        "timestamps": ab(timestamps),
-        "calib": ab(calib),
+        "sequence": Path(ds.path),
+        "reader": ds.reader,
+        "poses": ds.pose_source,
+        "timestamps": ds.timestamp_source,
+        "calib": ds.calib_source,
     }
     return ds, info

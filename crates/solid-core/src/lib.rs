@@ -38,6 +38,7 @@ mod describe;
 mod error;
 #[cfg(feature = "alloc")]
 pub mod eval;
+pub mod lzf;
 mod math;
 pub mod search;
 

@@ -13,6 +13,7 @@ use solid_lidar::{Config, Describer, Descriptor, Error, Points, Stats, PRESETS};
 
 mod engine;
 mod eval;
+mod io;
 mod sim;
 
 create_exception!(
@@ -722,5 +723,6 @@ fn _solid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     engine::register(m)?;
     eval::register(m)?;
     sim::register(m)?;
+    io::register(m)?;
     Ok(())
 }

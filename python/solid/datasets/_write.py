@@ -1,0 +1,41 @@
+"""What the writers share: the array they store and an atomic file write."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence as AbcSequence
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+
+from ._common import F32
+
+
+def columns_to_write(points: npt.ArrayLike, fields: AbcSequence[str] | None) -> tuple[F32, list[str]]:
+    """The (N, C >= 3) float32 array a writer stores and its field names (x y z, then f3, f4, ...)."""
+    pts = np.asarray(points, dtype=np.float32)
+    if pts.ndim != 2 or pts.shape[1] < 3:
+        raise ValueError(f"points must have shape (N, >=3), got {pts.shape}")
+    c = pts.shape[1]
+    names = list(fields) if fields is not None else ["x", "y", "z"] + [f"f{i}" for i in range(3, c)]
+    if len(names) != c:
+        raise ValueError(f"{len(names)} field names for {c} columns")
+    return pts, names
+
+
+def atomic_write_bytes(path: Path, data: bytes) -> None:
+    """Write ``data`` to a temporary file beside ``path``, then rename it over ``path``."""
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        with open(tmp, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            tmp.unlink()
+        except FileNotFoundError:
+            pass
+        raise
