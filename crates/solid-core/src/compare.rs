@@ -138,17 +138,87 @@ pub fn heading_refined(a_query: &[f32], a_candidate: &[f32]) -> Result<Heading, 
     let (s, c0) = best_shift(a_query, a_candidate);
     let cm = shift_cost(a_query, a_candidate, (s + n - 1) % n);
     let cp = shift_cost(a_query, a_candidate, (s + 1) % n);
+    Ok(refined(s, n, [cm, c0, cp]))
+}
+
+/// The heading at shift `s` of `n` refined by the parabola through the costs `[c₋, c₀, c₊]` at
+/// `s − 1, s, s + 1` (SPEC §3).
+fn refined(s: usize, n: usize, [cm, c0, cp]: [f64; 3]) -> Heading {
     let den = 2.0 * (cm - 2.0 * c0 + cp);
     let delta = if den > 0.0 {
         ((cm - cp) / den).clamp(-0.5, 0.5)
     } else {
         0.0
     };
-    Ok(Heading {
+    Heading {
         shift: s,
         degrees: wrap_degrees((s as f64 + delta) * 360.0 / n as f64),
-    })
+    }
 }
+
+/// The local minima of the SPEC §3 shift cost, lowest cost first (ties by lower shift), each
+/// refined as in [`heading_refined`]: up to `out.len()` of them are written to `out`, and their
+/// number is returned. These are the initial yaws worth trying when the heading is ambiguous
+/// (a narrow field of view, a symmetric place): the first is [`heading_refined`]'s answer.
+///
+/// A shift is a local minimum when its cost is below its left neighbour's and not above its
+/// right neighbour's (circularly), so a flat valley counts once, at its first shift; SPEC's
+/// `s*` always counts (a cost that is flat everywhere, from all-zero vectors, has that one
+/// minimum, shift 0). Allocates nothing.
+///
+/// # Errors
+/// [`Error::LengthMismatch`] when the lengths differ, [`Error::Empty`] when both are empty.
+pub fn heading_minima(
+    a_query: &[f32],
+    a_candidate: &[f32],
+    out: &mut [Heading],
+) -> Result<usize, Error> {
+    same_len("a_solid", a_query, a_candidate)?;
+    if out.is_empty() {
+        return Ok(0);
+    }
+    let n = a_query.len();
+    let cost = |s: usize| shift_cost(a_query, a_candidate, s % n);
+    // Kept sorted by (cost, shift): a bounded insertion into `out` alongside their costs.
+    let mut costs = [0.0f64; MAX_MINIMA];
+    let cap = out.len().min(MAX_MINIMA);
+    let mut m = 0;
+    let (s_star, c_star) = best_shift(a_query, a_candidate);
+    let (c_first, c_second) = (cost(0), cost(1));
+    let mut window = [cost(n - 1), c_first, c_second];
+    for s in 0..n {
+        if s > 0 {
+            let next = if s + 1 == n { c_first } else { cost(s + 1) };
+            window = [window[1], window[2], next];
+        }
+        let [cm, c0, cp] = window;
+        // SPEC's s* always counts; another shift of exactly its cost never does, so that s*
+        // comes first even when its valley wraps around shift 0.
+        let is_min = s == s_star || (c0 < cm && c0 <= cp && c0 != c_star);
+        if !is_min {
+            continue;
+        }
+        let mut at = m;
+        while at > 0 && costs[at - 1] > c0 {
+            at -= 1;
+        }
+        if at >= cap {
+            continue;
+        }
+        let end = m.min(cap - 1);
+        for k in (at..end).rev() {
+            costs[k + 1] = costs[k];
+            out[k + 1] = out[k];
+        }
+        costs[at] = c0;
+        out[at] = refined(s, n, window);
+        m = (m + 1).min(cap);
+    }
+    Ok(m)
+}
+
+/// Most minima [`heading_minima`] returns (their costs are kept on the stack).
+pub const MAX_MINIMA: usize = 64;
 
 #[cfg(test)]
 mod tests {
@@ -198,6 +268,45 @@ mod tests {
         // Exactly half a turn stays +180.
         let q = bump(60, 40.0);
         assert_eq!(heading(&q, &c).unwrap().degrees, 180.0);
+    }
+
+    #[test]
+    fn minima_are_sorted_local_minima_and_start_with_the_heading() {
+        // Two bumps in the query (at bins 15 and 40), one in the candidate (bin 10): shifts 5
+        // and 30 align one bump each; the larger query bump gives the lower cost.
+        let c = bump(60, 10.0);
+        let mut q = bump(60, 15.0);
+        for (x, y) in q.iter_mut().zip(bump(60, 40.0)) {
+            *x += 0.6 * y;
+        }
+        let mut out = [Heading {
+            shift: 0,
+            degrees: 0.0,
+        }; 4];
+        let m = heading_minima(&q, &c, &mut out).unwrap();
+        assert!(m >= 2, "{m}");
+        assert_eq!((out[0].shift, out[1].shift), (5, 30));
+        assert_eq!(out[0], heading_refined(&q, &c).unwrap());
+        let cost = |s: usize| shift_cost(&q, &c, s % 60);
+        for h in &out[..m] {
+            let s = h.shift;
+            assert!(cost(s) < cost(s + 59) && cost(s) <= cost(s + 1));
+        }
+        for w in out[..m].windows(2) {
+            assert!(cost(w[0].shift) <= cost(w[1].shift));
+        }
+        // Capacity 1 keeps the best; a flat cost gives shift 0; no room gives nothing.
+        let mut one = [out[0]; 1];
+        assert_eq!(heading_minima(&q, &c, &mut one).unwrap(), 1);
+        assert_eq!(one[0].shift, 5);
+        let z = [0.0f32; 60];
+        assert_eq!(heading_minima(&z, &z, &mut one).unwrap(), 1);
+        assert_eq!((one[0].shift, one[0].degrees), (0, 0.0));
+        assert_eq!(heading_minima(&q, &c, &mut []).unwrap(), 0);
+        assert!(heading_minima(&q, &c[..59], &mut one).is_err());
+        // Tiny vectors (n = 1, 2) work.
+        assert_eq!(heading_minima(&[1.0], &[2.0], &mut out).unwrap(), 1);
+        assert!(heading_minima(&[1.0, 0.0], &[0.0, 1.0], &mut out).unwrap() >= 1);
     }
 
     #[test]

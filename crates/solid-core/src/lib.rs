@@ -62,7 +62,10 @@ pub struct ReadmeDoctests;
 #[doc = include_str!("../README.md")]
 pub struct CrateReadmeDoctests;
 
-pub use compare::{aligned_distance, cosine_distance, heading, heading_refined, Heading};
+pub use compare::{
+    aligned_distance, cosine_distance, heading, heading_minima, heading_refined, Heading,
+    MAX_MINIMA,
+};
 pub use config::{Config, Preset, LOOP_THRESHOLD_MEASUREMENT, MAX_VOXELS_PER_AXIS, PRESETS};
 pub use describe::{describe, describe_scratch_len, stages, Coord, Points, Scratch, Stats};
 pub use error::Error;
