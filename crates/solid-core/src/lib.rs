@@ -40,6 +40,8 @@ mod error;
 pub mod eval;
 pub mod lzf;
 mod math;
+#[cfg(feature = "alloc")]
+pub mod reg;
 pub mod search;
 
 /// The specification of what this crate computes (the repository's `docs/spec.md`).

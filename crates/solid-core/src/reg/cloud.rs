@@ -1,0 +1,266 @@
+//! A prepared cloud: voxel levels, a kd-tree and local covariances per level, built once per
+//! place and reused for every registration it takes part in.
+
+use alloc::vec;
+use alloc::vec::Vec;
+
+use nalgebra::{Matrix3, SymmetricEigen, Vector3};
+
+use super::kdtree::{KdTree3, Nearest};
+use super::{RegConfig, RegError};
+use crate::describe::stages::voxel_downsample;
+use crate::{describe_scratch_len, Config, Coord, Points};
+
+/// Eigenvalue that replaces the smallest one of a local covariance (the other two become 1):
+/// every neighbourhood is modelled as a plane with this much thickness, in squared units of the
+/// plane's extent (Segal et al.'s plane-to-plane GICP).
+pub const PLANE_EPSILON: f64 = 1e-3;
+
+/// Fewest neighbours (the point included) from which a covariance is estimated; points with
+/// fewer get the identity (no structure, hence little weight) and a zero normal.
+pub const MIN_NEIGHBORS: usize = 5;
+
+/// One voxel level of a prepared cloud.
+#[derive(Debug, Clone, Default)]
+pub struct Level {
+    /// Voxel edge (metres) of this level; 0 for an undownsampled level.
+    pub voxel_size: f64,
+    /// Points (voxel centroids), x, y, z.
+    pub points: Vec<[f64; 3]>,
+    perm: Vec<u32>,
+    axes: Vec<u8>,
+    /// Regularised covariance of each point, `xx, xy, xz, yy, yz, zz`.
+    pub covs: Vec<[f64; 6]>,
+    /// Unit normal of each point's local plane (zero when it has none).
+    pub normals: Vec<[f64; 3]>,
+}
+
+impl Level {
+    /// The kd-tree over this level's points.
+    pub fn tree(&self) -> KdTree3<'_> {
+        KdTree3::from_parts(&self.points, &self.perm, &self.axes)
+    }
+
+    /// Number of points.
+    pub fn len(&self) -> usize {
+        self.points.len()
+    }
+
+    /// `true` when the level holds no point.
+    pub fn is_empty(&self) -> bool {
+        self.points.is_empty()
+    }
+
+    fn new(points: Vec<[f64; 3]>, voxel_size: f64, neighbors: usize) -> Level {
+        let n = points.len();
+        let (mut perm, mut axes) = (vec![0u32; n], vec![0u8; n]);
+        // `n` fits in u32 (the caller checked) and the buffers have length n: cannot fail.
+        let _ = KdTree3::build(&points, &mut perm, &mut axes);
+        // Store the points in tree order (the permutation becomes the identity): a query then
+        // reads each leaf's points from one contiguous run of memory.
+        let points: Vec<[f64; 3]> = perm.iter().map(|&i| points[i as usize]).collect();
+        for (i, p) in perm.iter_mut().enumerate() {
+            *p = i as u32;
+        }
+        let mut level = Level {
+            voxel_size,
+            points,
+            perm,
+            axes,
+            covs: vec![[0.0; 6]; n],
+            normals: vec![[0.0; 3]; n],
+        };
+        let mut nb = vec![Nearest::default(); neighbors];
+        let tree = KdTree3::from_parts(&level.points, &level.perm, &level.axes);
+        for (i, p) in level.points.iter().enumerate() {
+            let k = tree.knn(*p, neighbors, &mut nb).unwrap_or(0);
+            let (cov, normal) = local_plane(&level.points, &nb[..k]);
+            level.covs[i] = cov;
+            level.normals[i] = normal;
+        }
+        level
+    }
+}
+
+/// The regularised covariance and normal of a neighbourhood.
+fn local_plane(points: &[[f64; 3]], nb: &[Nearest]) -> ([f64; 6], [f64; 3]) {
+    if nb.len() < MIN_NEIGHBORS {
+        return ([1.0, 0.0, 0.0, 1.0, 0.0, 1.0], [0.0; 3]);
+    }
+    let k = nb.len() as f64;
+    let mut mean = Vector3::zeros();
+    for n in nb {
+        mean += Vector3::from(points[n.id as usize]);
+    }
+    mean /= k;
+    let mut c = Matrix3::zeros();
+    for n in nb {
+        let d = Vector3::from(points[n.id as usize]) - mean;
+        c += d * d.transpose();
+    }
+    c /= k;
+    let eig = SymmetricEigen::new(c);
+    // Sort the eigenpairs: the smallest eigenvalue's vector is the normal.
+    let mut order = [0usize, 1, 2];
+    order.sort_by(|&a, &b| eig.eigenvalues[a].total_cmp(&eig.eigenvalues[b]));
+    let u = eig.eigenvectors;
+    let n0 = u.column(order[0]).into_owned();
+    let (n1, n2) = (u.column(order[1]), u.column(order[2]));
+    let reg = n0 * n0.transpose() * PLANE_EPSILON + n1 * n1.transpose() + n2 * n2.transpose();
+    if !reg.iter().all(|v| v.is_finite()) {
+        return ([1.0, 0.0, 0.0, 1.0, 0.0, 1.0], [0.0; 3]);
+    }
+    (
+        [
+            reg[(0, 0)],
+            reg[(0, 1)],
+            reg[(0, 2)],
+            reg[(1, 1)],
+            reg[(1, 2)],
+            reg[(2, 2)],
+        ],
+        [n0[0], n0[1], n0[2]],
+    )
+}
+
+/// A cloud prepared for registration: its voxel levels (fine first), each with a kd-tree and
+/// local covariances. Build one per place with [`PreparedCloud::new`] (from raw points) or
+/// [`PreparedCloud::from_downsampled`] (from the fine points alone, for example a decoded
+/// [`super::wire`] cloud), then pass it to [`super::register`] as many times as needed.
+///
+/// Allocates (its own storage); registration over prepared clouds allocates nothing.
+#[derive(Debug, Clone, Default)]
+pub struct PreparedCloud {
+    /// The fine level (the config's `voxel_size`): what registration finishes on, what the
+    /// fitness is measured on, and what [`super::wire::encode_cloud`] sends.
+    pub fine: Level,
+    /// The coarse level (`coarse_voxel_size`, voxelised from the fine points), when enabled.
+    pub coarse: Option<Level>,
+    prep: [u64; 5],
+}
+
+/// Bits of the preparation parameters, to check that two clouds were prepared alike.
+fn prep_key(cfg: &RegConfig) -> [u64; 5] {
+    [
+        cfg.voxel_size.to_bits(),
+        cfg.coarse_voxel_size.to_bits(),
+        cfg.min_range.to_bits(),
+        cfg.max_range.to_bits(),
+        cfg.neighbors as u64,
+    ]
+}
+
+/// A descriptor config that only carries a range filter and a voxel size, to reuse the crate's
+/// voxel downsampling (SPEC §2 steps 1–3) for registration.
+pub(super) fn voxel_config(min_range: f64, max_range: f64, voxel_size: f64) -> Config {
+    Config {
+        n_range: 1,
+        n_azimuth: 1,
+        n_elevation: 1,
+        fov_up: 1.0,
+        fov_down: 0.0,
+        min_range,
+        max_range,
+        voxel_size,
+    }
+}
+
+/// Points of `points` that are finite and within `(min_range, max_range)`, downsampled on an
+/// origin-anchored voxel grid of `voxel_size` (0: not downsampled).
+fn filtered<T: Coord>(
+    points: Points<'_, T>,
+    min_range: f64,
+    max_range: f64,
+    voxel_size: f64,
+) -> Vec<[f64; 3]> {
+    let cfg = voxel_config(min_range, max_range, voxel_size);
+    if voxel_size > 0.0 {
+        let mut scratch = vec![0u64; describe_scratch_len(points.len(), &cfg)];
+        let mut out = vec![0.0f64; 3 * points.len()];
+        // The config was validated by RegConfig::validate and the buffers are sized for it.
+        let m = voxel_downsample(points, &cfg, &mut scratch, &mut out).map_or(0, |(_, m)| m);
+        out[..3 * m]
+            .chunks_exact(3)
+            .map(|c| [c[0], c[1], c[2]])
+            .collect()
+    } else {
+        let (min2, max2) = (min_range * min_range, max_range * max_range);
+        points
+            .as_slice()
+            .chunks_exact(points.stride())
+            .map(|p| [p[0].to_f64(), p[1].to_f64(), p[2].to_f64()])
+            .filter(|p| {
+                let d2 = p[0] * p[0] + p[1] * p[1] + p[2] * p[2];
+                d2 > min2 && d2 < max2
+            })
+            .collect()
+    }
+}
+
+impl PreparedCloud {
+    /// Prepares raw points (sensor frame): drops non-finite points and points outside
+    /// `(min_range, max_range)`, voxel-downsamples to the fine level, voxelises the fine points
+    /// again for the coarse level, and builds each level's kd-tree and covariances.
+    ///
+    /// # Errors
+    /// [`RegError::Core`] when `cfg` is invalid.
+    pub fn new<T: Coord>(
+        points: Points<'_, T>,
+        cfg: &RegConfig,
+    ) -> Result<PreparedCloud, RegError> {
+        cfg.validate()?;
+        let fine = filtered(points, cfg.min_range, cfg.max_range, cfg.voxel_size);
+        Self::build(fine, cfg)
+    }
+
+    /// Prepares a cloud from its fine points alone (already filtered and downsampled, for
+    /// example decoded from the wire form): the fine level keeps them as they are (non-finite
+    /// points and points outside the range are still dropped) and the coarse level is voxelised
+    /// from them, exactly as [`PreparedCloud::new`] does.
+    ///
+    /// # Errors
+    /// [`RegError::Core`] when `cfg` is invalid.
+    pub fn from_downsampled(fine: &[[f64; 3]], cfg: &RegConfig) -> Result<PreparedCloud, RegError> {
+        cfg.validate()?;
+        // Centroids of in-range points can sit a hair inside min_range: no lower bound here,
+        // so that a decoded cloud keeps every point the sender had.
+        let pts = Points::new(fine.as_flattened(), 3)?;
+        Self::build(filtered(pts, 0.0, cfg.max_range, 0.0), cfg)
+    }
+
+    fn build(fine: Vec<[f64; 3]>, cfg: &RegConfig) -> Result<PreparedCloud, RegError> {
+        if fine.len() > u32::MAX as usize {
+            return Err(crate::Error::InvalidParameter {
+                name: "points",
+                value: fine.len() as f64,
+                expected: "at most 2^32 - 1 points after filtering",
+            }
+            .into());
+        }
+        let coarse = if cfg.coarse_voxel_size > 0.0 {
+            // No lower range bound, as in `from_downsampled`.
+            let pts = Points::new(fine.as_flattened(), 3)?;
+            let c = filtered(pts, 0.0, cfg.max_range, cfg.coarse_voxel_size);
+            Some(Level::new(c, cfg.coarse_voxel_size, cfg.neighbors))
+        } else {
+            None
+        };
+        Ok(PreparedCloud {
+            fine: Level::new(fine, cfg.voxel_size, cfg.neighbors),
+            coarse,
+            prep: prep_key(cfg),
+        })
+    }
+
+    /// Whether this cloud was prepared with the preparation parameters of `cfg` (voxel sizes,
+    /// range, neighbours).
+    pub fn prepared_with(&self, cfg: &RegConfig) -> bool {
+        self.prep == prep_key(cfg)
+    }
+
+    /// Bytes of heap memory this cloud holds (points, trees, covariances, normals).
+    pub fn heap_bytes(&self) -> usize {
+        let level = |l: &Level| l.len() * (24 + 4 + 1 + 48 + 24);
+        level(&self.fine) + self.coarse.as_ref().map_or(0, level)
+    }
+}

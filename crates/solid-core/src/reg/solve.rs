@@ -1,0 +1,645 @@
+//! The registration loop: Gauss–Newton on SE(3), coarse to fine, over prepared clouds.
+
+use nalgebra::{Matrix3, Matrix6, SymmetricEigen, UnitQuaternion, Vector3, Vector6};
+
+use super::cloud::{Level, PreparedCloud};
+use super::{Degeneracy, Factor, Kernel, Pose, RegConfig, RegError, Registration};
+use crate::Error;
+
+/// Fewest correspondences for a Gauss–Newton step (six unknowns).
+const MIN_CORRESPONDENCES: usize = 6;
+
+/// Largest `max |RᵀR − I|` of an initial rotation.
+pub const ROTATION_TOLERANCE: f64 = 1e-3;
+
+/// A rigid transform being estimated: `p ↦ rot · p + t`.
+#[derive(Debug, Clone, Copy)]
+struct Rigid {
+    rot: UnitQuaternion<f64>,
+    t: Vector3<f64>,
+}
+
+impl Rigid {
+    /// Reads a row-major pose whose rotation block is a rotation within [`ROTATION_TOLERANCE`]
+    /// (poses written with six digits are not orthonormal to 1e-6); it is orthonormalised.
+    fn from_pose(p: &Pose) -> Result<Rigid, RegError> {
+        let bad = |value: f64| -> RegError {
+            Error::InvalidParameter {
+                name: "init",
+                value,
+                expected: "a finite rigid transform [R | t; 0 0 0 1] with R a rotation",
+            }
+            .into()
+        };
+        if let Some(v) = p.iter().flatten().find(|v| !v.is_finite()) {
+            return Err(bad(*v));
+        }
+        if p[3] != [0.0, 0.0, 0.0, 1.0] {
+            return Err(bad(p[3][3]));
+        }
+        let r = Matrix3::from_fn(|i, j| p[i][j]);
+        let off = (r.transpose() * r - Matrix3::identity()).abs().max();
+        if off > ROTATION_TOLERANCE || r.determinant() < 0.0 {
+            return Err(bad(off));
+        }
+        let rot = UnitQuaternion::from_matrix(&r);
+        Ok(Rigid {
+            rot,
+            t: Vector3::new(p[0][3], p[1][3], p[2][3]),
+        })
+    }
+
+    fn to_pose(self) -> Pose {
+        let r = self.rot.to_rotation_matrix();
+        let m = r.matrix();
+        [
+            [m[(0, 0)], m[(0, 1)], m[(0, 2)], self.t[0]],
+            [m[(1, 0)], m[(1, 1)], m[(1, 2)], self.t[1]],
+            [m[(2, 0)], m[(2, 1)], m[(2, 2)], self.t[2]],
+            [0.0, 0.0, 0.0, 1.0],
+        ]
+    }
+
+    fn inverse(self) -> Rigid {
+        let rot = self.rot.inverse();
+        Rigid {
+            rot,
+            t: -(rot * self.t),
+        }
+    }
+}
+
+#[inline(always)]
+fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
+    Matrix3::new(0.0, -v[2], v[1], v[2], 0.0, -v[0], -v[1], v[0], 0.0)
+}
+
+#[inline(always)]
+fn sym(c: &[f64; 6]) -> Matrix3<f64> {
+    Matrix3::new(c[0], c[1], c[2], c[1], c[3], c[4], c[2], c[4], c[5])
+}
+
+/// The normal equations of one linearisation and the cost there.
+struct Linear {
+    h: Matrix6<f64>,
+    g: Vector6<f64>,
+    /// Correspondences found.
+    n: usize,
+    /// The robust cost `Σᵢ ρ(sᵢ)` over every source point, unmatched points at the kernel's
+    /// ceiling: a function of the pose alone (correspondences are re-found), which the line
+    /// search requires to decrease.
+    cost: f64,
+}
+
+/// The robust kernel on the squared Mahalanobis residual `s = eᵀWe`, with its scale `c²` in
+/// the units of `s`.
+#[derive(Clone, Copy)]
+struct Robust {
+    c2: f64,
+    kernel: Kernel,
+}
+
+impl Robust {
+    /// The kernel of `cfg` at a level with maximum correspondence distance `max_corr`: its
+    /// scale, `kernel_scale × max_corr` metres along a normal, in units of `s` (GICP weighs a
+    /// normal offset `d` as `d² / (2 PLANE_EPSILON)`, point-to-plane as `d²`).
+    fn new(cfg: &RegConfig, max_corr: f64) -> Robust {
+        let c = cfg.kernel_scale * max_corr;
+        let per_m2 = match cfg.factor {
+            Factor::Gicp => 1.0 / (2.0 * super::PLANE_EPSILON),
+            Factor::PointToPlane => 1.0,
+        };
+        Robust {
+            c2: c * c * per_m2,
+            kernel: cfg.kernel,
+        }
+    }
+
+    /// `(ρ(s), ρ'(s))`. Geman–McClure: `ρ = c²s / (c² + s)`, `ρ' = (c² / (c² + s))²`, bounded
+    /// by `c²`. Without a kernel: `ρ = min(s, c²)` (a truncated quadratic).
+    #[inline(always)]
+    fn eval(&self, s: f64) -> (f64, f64) {
+        match self.kernel {
+            Kernel::GemanMcClure => {
+                let k = self.c2 / (self.c2 + s);
+                (k * s, k * k)
+            }
+            Kernel::None => {
+                if s < self.c2 {
+                    (s, 1.0)
+                } else {
+                    (self.c2, 0.0)
+                }
+            }
+        }
+    }
+
+    /// The cost of a source point without a correspondence.
+    fn ceiling(&self) -> f64 {
+        self.c2
+    }
+}
+
+/// Linearises the cost at `x`: every source point transformed by `x` is matched to its nearest
+/// target point within `max_d2`. Allocates nothing.
+fn linearize(
+    target: &Level,
+    source: &Level,
+    x: &Rigid,
+    max_d2: f64,
+    robust: &Robust,
+    factor: Factor,
+) -> Linear {
+    let tree = target.tree();
+    let r = *x.rot.to_rotation_matrix().matrix();
+    let mut h = Matrix6::zeros();
+    let mut g = Vector6::zeros();
+    let mut n = 0;
+    let mut cost = 0.0;
+    for (i, p) in source.points.iter().enumerate() {
+        let y = r * Vector3::from(*p) + x.t;
+        let Some(nb) = tree.nearest([y[0], y[1], y[2]], max_d2) else {
+            cost += robust.ceiling();
+            continue;
+        };
+        let j = nb.id as usize;
+        let e = Vector3::from(target.points[j]) - y;
+        let w_mat = match factor {
+            Factor::Gicp => {
+                let m = sym(&target.covs[j]) + r * sym(&source.covs[i]) * r.transpose();
+                match m.try_inverse() {
+                    Some(w) => w,
+                    None => {
+                        cost += robust.ceiling();
+                        continue;
+                    }
+                }
+            }
+            Factor::PointToPlane => {
+                let nv = Vector3::from(target.normals[j]);
+                nv * nv.transpose()
+            }
+        };
+        let we = w_mat * e;
+        let (rho, w) = robust.eval(e.dot(&we));
+        cost += rho;
+        if w == 0.0 {
+            continue;
+        }
+        let wm = w_mat * w;
+        let we = we * w;
+        let a = skew(&y);
+        let wa = wm * a;
+        // J = [[y]×, −I]: JᵀWJ = [[AᵀWA, −AᵀW], [−WA, W]] with Aᵀ = −A; JᵀWe = [AᵀWe; −We].
+        let rr = -(a * wa);
+        let rt = a * wm;
+        h.fixed_view_mut::<3, 3>(0, 0).add_assign(&rr);
+        h.fixed_view_mut::<3, 3>(0, 3).add_assign(&rt);
+        h.fixed_view_mut::<3, 3>(3, 0).add_assign(&rt.transpose());
+        h.fixed_view_mut::<3, 3>(3, 3).add_assign(&wm);
+        g.fixed_rows_mut::<3>(0).add_assign(&(-(a * we)));
+        g.fixed_rows_mut::<3>(3).add_assign(&(-we));
+        n += 1;
+    }
+    Linear { h, g, n, cost }
+}
+
+use core::ops::AddAssign;
+
+/// The coarse level stops at updates this many times larger than the convergence thresholds:
+/// it only has to bring the pose within the fine level's reach.
+const COARSE_EPS_FACTOR: f64 = 10.0;
+
+/// Smallest step scale: the scale halves each time a step raises the cost, down to this.
+const MIN_STEP_SCALE: f64 = 0.125;
+
+/// Factor by which the step scale grows back after a step that lowered the cost.
+const STEP_RECOVERY: f64 = 1.5;
+
+/// What one level's optimisation reports.
+struct LevelOutcome {
+    iterations: usize,
+    converged: bool,
+    /// The linearisation at the final pose.
+    last: Option<Linear>,
+}
+
+/// Damped Gauss–Newton at one level, from `x` (updated in place).
+///
+/// Every Gauss–Newton step is taken, scaled by a factor that starts at 1 and halves (down to
+/// [`MIN_STEP_SCALE`]) each time a step raised the robust cost (correspondences found anew).
+/// Plain Gauss–Newton can cycle forever between two sets of correspondences a few millimetres
+/// apart; the shrinking scale damps such a cycle until its steps fall below the convergence
+/// thresholds. A stricter line search (reject any step that raises the cost) was measured
+/// first: on hku1 it stopped on bumps of the cost while the Gauss–Newton direction still
+/// pointed a metre away, towards the right pose. A level converges when a (scaled) update is
+/// below both `rotation_eps_deg` and `translation_eps`. Every linearisation counts as an
+/// iteration.
+fn align_level(
+    target: &Level,
+    source: &Level,
+    x: &mut Rigid,
+    max_corr: f64,
+    cfg: &RegConfig,
+    eps_scale: f64,
+) -> LevelOutcome {
+    let robust = Robust::new(cfg, max_corr);
+    let max_d2 = max_corr * max_corr;
+    let rot_eps = cfg.rotation_eps_deg.to_radians() * eps_scale;
+    let trans_eps = cfg.translation_eps * eps_scale;
+    let mut lin = linearize(target, source, x, max_d2, &robust, cfg.factor);
+    let mut out = LevelOutcome {
+        iterations: 1,
+        converged: false,
+        last: None,
+    };
+    let mut scale = 1.0;
+    while out.iterations < cfg.max_iterations {
+        if lin.n < MIN_CORRESPONDENCES {
+            return out;
+        }
+        let Some(chol) = lin.h.cholesky() else {
+            return out;
+        };
+        let delta = -chol.solve(&lin.g) * scale;
+        if !delta.iter().all(|v| v.is_finite()) {
+            return out;
+        }
+        let w = delta.fixed_rows::<3>(0).into_owned();
+        let v = delta.fixed_rows::<3>(3).into_owned();
+        let dr = UnitQuaternion::from_scaled_axis(w);
+        x.rot = dr * x.rot;
+        x.t = dr * x.t + v;
+        let next = linearize(target, source, x, max_d2, &robust, cfg.factor);
+        out.iterations += 1;
+        scale = if next.cost >= lin.cost {
+            (scale * 0.5).max(MIN_STEP_SCALE)
+        } else {
+            (scale * STEP_RECOVERY).min(1.0)
+        };
+        lin = next;
+        if w.norm() < rot_eps && v.norm() < trans_eps {
+            out.converged = true;
+            break;
+        }
+    }
+    if lin.n >= MIN_CORRESPONDENCES {
+        out.last = Some(lin);
+    } else {
+        out.converged = false;
+    }
+    out
+}
+
+/// How much of one cloud overlaps the other.
+struct Overlap {
+    /// Fraction of the points with a match.
+    all: f64,
+    /// Fraction of the structure points (see [`HORIZONTAL`]) with a match.
+    structure: f64,
+    /// Points with a match, and the sum of their squared distances.
+    inliers: usize,
+    sum: f64,
+}
+
+/// A point whose normal (in its own sensor frame) has `|n_z|` above this lies on a horizontal
+/// surface (the ground, mostly; 25° of tilt) and is not counted as structure; nor is a point
+/// without a normal.
+pub const HORIZONTAL: f64 = 0.9;
+
+/// How many of `from`'s points `x` maps within `d` of a point of `to`.
+fn overlap(to: &Level, from: &Level, x: &Rigid, d: f64) -> Overlap {
+    let tree = to.tree();
+    let r = *x.rot.to_rotation_matrix().matrix();
+    let (mut n, mut sum) = (0usize, 0.0);
+    let (mut n_struct, mut hit_struct) = (0usize, 0usize);
+    for (p, nv) in from.points.iter().zip(&from.normals) {
+        let structure = libm::fabs(nv[2]) <= HORIZONTAL && nv != &[0.0; 3];
+        n_struct += usize::from(structure);
+        let y = r * Vector3::from(*p) + x.t;
+        if let Some(nb) = tree.nearest([y[0], y[1], y[2]], d * d) {
+            n += 1;
+            sum += nb.d2;
+            hit_struct += usize::from(structure);
+        }
+    }
+    let frac = |a: usize, b: usize| if b > 0 { a as f64 / b as f64 } else { 0.0 };
+    Overlap {
+        all: frac(n, from.len()),
+        structure: frac(hit_struct, n_struct),
+        inliers: n,
+        sum,
+    }
+}
+
+fn min_eigenvalue(m: Matrix3<f64>) -> f64 {
+    SymmetricEigen::new(m).eigenvalues.min()
+}
+
+/// Registers `candidate` to `query`: estimates `T_query_candidate` (`p_query ≈ T · p_candidate`,
+/// SPEC §3) from the initial guess `init`, first on the coarse levels (when the config has them),
+/// then on the fine levels, and measures the result on the fine levels.
+///
+/// Allocates nothing. Clouds too small to register (fewer than 6 correspondences) give a
+/// [`Registration::failed`]-like result that is not converged; the call never panics.
+///
+/// # Errors
+/// [`RegError::Core`] when `cfg` is invalid or `init` is not a finite rigid transform (name
+/// `init`); [`RegError::NotPreparedWith`] when a cloud was prepared with other preparation
+/// parameters than `cfg`.
+pub fn register(
+    query: &PreparedCloud,
+    candidate: &PreparedCloud,
+    init: &Pose,
+    cfg: &RegConfig,
+) -> Result<Registration, RegError> {
+    cfg.validate()?;
+    if !query.prepared_with(cfg) || !candidate.prepared_with(cfg) {
+        return Err(RegError::NotPreparedWith);
+    }
+    let mut x = Rigid::from_pose(init)?;
+    Ok(register_from(query, candidate, &mut x, cfg))
+}
+
+fn register_from(
+    query: &PreparedCloud,
+    candidate: &PreparedCloud,
+    x: &mut Rigid,
+    cfg: &RegConfig,
+) -> Registration {
+    let mut iterations = 0;
+    if let (Some(qc), Some(cc)) = (&query.coarse, &candidate.coarse) {
+        let o = align_level(
+            qc,
+            cc,
+            x,
+            cfg.coarse_max_correspondence,
+            cfg,
+            COARSE_EPS_FACTOR,
+        );
+        iterations += o.iterations;
+    }
+    fine_from(query, candidate, x, cfg, iterations)
+}
+
+/// The fine level from `x`, then the measures of the result; `iterations` were spent before.
+fn fine_from(
+    query: &PreparedCloud,
+    candidate: &PreparedCloud,
+    x: &mut Rigid,
+    cfg: &RegConfig,
+    mut iterations: usize,
+) -> Registration {
+    let o = align_level(
+        &query.fine,
+        &candidate.fine,
+        x,
+        cfg.max_correspondence,
+        cfg,
+        1.0,
+    );
+    iterations += o.iterations;
+    let oc = overlap(&query.fine, &candidate.fine, x, cfg.inlier_distance);
+    let oq = overlap(
+        &candidate.fine,
+        &query.fine,
+        &x.inverse(),
+        cfg.inlier_distance,
+    );
+    let degeneracy = o.last.as_ref().map_or(Degeneracy::default(), |lin| {
+        let n = lin.n as f64;
+        Degeneracy {
+            rotation: min_eigenvalue(lin.h.fixed_view::<3, 3>(0, 0).into_owned()) / n,
+            translation: min_eigenvalue(lin.h.fixed_view::<3, 3>(3, 3).into_owned()) / n,
+        }
+    });
+    Registration {
+        pose: x.to_pose(),
+        fitness: oq.all.min(oc.all),
+        overlap_query: oq.all,
+        overlap_candidate: oc.all,
+        structure_fitness: oq.structure.min(oc.structure),
+        rmse: if oc.inliers > 0 {
+            libm::sqrt(oc.sum / oc.inliers as f64)
+        } else {
+            0.0
+        },
+        inliers: oc.inliers,
+        iterations,
+        converged: o.converged && o.last.is_some(),
+        degeneracy,
+    }
+}
+
+/// One initial yaw of [`register_hypotheses`] and where the coarse level took it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Hypothesis {
+    /// The initial yaw (degrees) this hypothesis started from.
+    pub yaw_deg: f64,
+    /// The pose after the coarse level (the fine level when the config has no coarse level).
+    pub pose: Pose,
+    /// The robust cost there, normalised to `[0, 1]`: 0 when every candidate point sits on
+    /// its match, 1 when none has one.
+    pub cost: f64,
+    /// Whether that level converged.
+    pub converged: bool,
+    /// Iterations that level took.
+    pub iterations: usize,
+}
+
+impl Default for Hypothesis {
+    fn default() -> Self {
+        Hypothesis {
+            yaw_deg: 0.0,
+            pose: super::IDENTITY,
+            cost: 1.0,
+            converged: false,
+            iterations: 0,
+        }
+    }
+}
+
+/// The outcome of [`register_hypotheses`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Hypotheses {
+    /// Number of hypotheses (their coarse outcomes are in `out[..count]`).
+    pub count: usize,
+    /// Index of the best one: the lowest coarse cost, ties by lower index.
+    pub best: usize,
+    /// The full registration (coarse then fine) from the best hypothesis's initial pose.
+    pub registration: Registration,
+}
+
+/// Registers `candidate` to `query` from several initial yaws and keeps the best.
+///
+/// Each hypothesis `k` starts from `yaw_pose(yaws_deg[k]) · init` and runs the coarse level
+/// only (the cheap one; the fine level when the config has no coarse level); its outcome goes
+/// to `out[k]`. The hypothesis with the lowest normalised cost is then registered in full,
+/// coarse then fine, from its initial pose. Hypotheses that end at the same pose from
+/// different yaws are evidence of a real match (see [`agreement`]); a wrong candidate scatters
+/// them. A verifying detector passes [`hypothesis_yaws`] of the two A-SOLiDs.
+///
+/// Allocates nothing.
+///
+/// # Errors
+/// As [`register`]; [`Error::Empty`] (what `yaws_deg`) for no yaw,
+/// [`Error::InvalidParameter`] (name `yaws_deg`) for a non-finite one, and
+/// [`Error::BufferTooSmall`] (buffer `out`) when `out` is shorter than `yaws_deg`.
+pub fn register_hypotheses(
+    query: &PreparedCloud,
+    candidate: &PreparedCloud,
+    yaws_deg: &[f64],
+    init: &Pose,
+    cfg: &RegConfig,
+    out: &mut [Hypothesis],
+) -> Result<Hypotheses, RegError> {
+    cfg.validate()?;
+    if !query.prepared_with(cfg) || !candidate.prepared_with(cfg) {
+        return Err(RegError::NotPreparedWith);
+    }
+    let base = Rigid::from_pose(init)?;
+    if yaws_deg.is_empty() {
+        return Err(Error::Empty { what: "yaws_deg" }.into());
+    }
+    if let Some(&y) = yaws_deg.iter().find(|y| !y.is_finite()) {
+        return Err(Error::InvalidParameter {
+            name: "yaws_deg",
+            value: y,
+            expected: "finite angles in degrees",
+        }
+        .into());
+    }
+    if out.len() < yaws_deg.len() {
+        return Err(Error::BufferTooSmall {
+            buffer: "out",
+            needed: yaws_deg.len(),
+            got: out.len(),
+        }
+        .into());
+    }
+    let start = |yaw: f64| {
+        let dr = UnitQuaternion::from_euler_angles(0.0, 0.0, yaw.to_radians());
+        Rigid {
+            rot: dr * base.rot,
+            t: dr * base.t,
+        }
+    };
+    let (qc, cc, max_corr) = match (&query.coarse, &candidate.coarse) {
+        (Some(qc), Some(cc)) => (qc, cc, cfg.coarse_max_correspondence),
+        _ => (&query.fine, &candidate.fine, cfg.max_correspondence),
+    };
+    let fine_robust = Robust::new(cfg, cfg.max_correspondence);
+    let fine_ceiling = fine_robust.ceiling() * candidate.fine.len() as f64;
+    let mut best = 0;
+    for (k, &yaw) in yaws_deg.iter().enumerate() {
+        let mut x = start(yaw);
+        let eps = if query.coarse.is_some() && candidate.coarse.is_some() {
+            COARSE_EPS_FACTOR
+        } else {
+            1.0
+        };
+        let o = align_level(qc, cc, &mut x, max_corr, cfg, eps);
+        let fine = linearize(
+            &query.fine,
+            &candidate.fine,
+            &x,
+            cfg.max_correspondence * cfg.max_correspondence,
+            &fine_robust,
+            cfg.factor,
+        );
+        out[k] = Hypothesis {
+            yaw_deg: yaw,
+            pose: x.to_pose(),
+            cost: if fine_ceiling > 0.0 && o.last.is_some() {
+                (fine.cost / fine_ceiling).clamp(0.0, 1.0)
+            } else {
+                1.0
+            },
+            converged: o.converged,
+            iterations: o.iterations,
+        };
+        if out[k].cost < out[best].cost {
+            best = k;
+        }
+    }
+    // The fine level goes on from where the best hypothesis's coarse level stopped.
+    let mut x = Rigid::from_pose(&out[best].pose).unwrap_or(base);
+    Ok(Hypotheses {
+        count: yaws_deg.len(),
+        best,
+        registration: fine_from(query, candidate, &mut x, cfg, out[best].iterations),
+    })
+}
+
+/// Number of `hypotheses` (the best included) whose pose is within `tol_m` metres and
+/// `tol_deg` degrees of `hypotheses[best]`'s; 0 when `best` is out of range.
+pub fn agreement(hypotheses: &[Hypothesis], best: usize, tol_m: f64, tol_deg: f64) -> usize {
+    let Some(b) = hypotheses.get(best) else {
+        return 0;
+    };
+    hypotheses
+        .iter()
+        .filter(|h| {
+            pose_distance(&h.pose, &b.pose).is_some_and(|(m, deg)| m <= tol_m && deg <= tol_deg)
+        })
+        .count()
+}
+
+/// Translation (metres) and rotation angle (degrees) of `inv(a) · b`; `None` for non-finite
+/// input.
+pub fn pose_distance(a: &Pose, b: &Pose) -> Option<(f64, f64)> {
+    let ra = Matrix3::from_fn(|i, j| a[i][j]);
+    let rb = Matrix3::from_fn(|i, j| b[i][j]);
+    let d = ra.transpose() * rb;
+    let ta = Vector3::new(a[0][3], a[1][3], a[2][3]);
+    let tb = Vector3::new(b[0][3], b[1][3], b[2][3]);
+    let m = (tb - ta).norm();
+    let c = ((d.trace() - 1.0) / 2.0).clamp(-1.0, 1.0);
+    let deg = libm::acos(c).to_degrees();
+    (m.is_finite() && deg.is_finite()).then_some((m, deg))
+}
+
+/// The initial yaws to try for a pair of places (degrees): 0° first, then the local minima of
+/// the A-SOLiD shift cost ([`crate::heading_minima`]) lowest cost first, skipping any within one
+/// azimuth bin of a yaw already chosen. Up to `out.len()` (at most [`crate::MAX_MINIMA`] + 1)
+/// yaws are written; their number is returned. Allocates nothing.
+///
+/// # Errors
+/// [`Error::LengthMismatch`] when the A-SOLiDs differ in length, [`Error::Empty`] when they
+/// are empty.
+pub fn hypothesis_yaws(
+    a_query: &[f32],
+    a_candidate: &[f32],
+    out: &mut [f64],
+) -> Result<usize, Error> {
+    let mut minima = [crate::Heading {
+        shift: 0,
+        degrees: 0.0,
+    }; crate::MAX_MINIMA];
+    let room = out.len().min(crate::MAX_MINIMA + 1);
+    let k = crate::heading_minima(
+        a_query,
+        a_candidate,
+        &mut minima[..room.saturating_sub(1).max(1)],
+    )?;
+    if room == 0 {
+        return Ok(0);
+    }
+    let bin = 360.0 / a_query.len() as f64;
+    out[0] = 0.0;
+    let mut m = 1;
+    for h in &minima[..k] {
+        if m >= room {
+            break;
+        }
+        let near = out[..m].iter().any(|&y| {
+            let d = libm::fabs(h.degrees - y) % 360.0;
+            d.min(360.0 - d) < bin
+        });
+        if !near {
+            out[m] = h.degrees;
+            m += 1;
+        }
+    }
+    Ok(m)
+}
