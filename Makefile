@@ -6,7 +6,7 @@ PY := $(VENV)/bin/python
 PYABS = $(abspath $(PY))
 PYTHON ?= python3
 
-.PHONY: demo test venv dist aarch64 wheel install-test crates docs lint rust-test py-test typecheck bench bench-py readme-results thresholds bench-pcd fuzz fuzz-smoke fuzz-deps clean
+.PHONY: demo test venv dist aarch64 wheel install-test crates docs lint rust-test py-test typecheck bench bench-py readme-results thresholds bench-pcd fuzz fuzz-smoke fuzz-deps bench-reg clean
 
 $(VENV)/.ready: requirements-dev.txt pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -154,6 +154,10 @@ fuzz-smoke: wheel
 	  echo "cargo-fuzz smoke skipped: needs the nightly toolchain and cargo-fuzz (make fuzz-deps);"; \
 	  echo "crates/solid-core/tests/lzf.rs checks the same oracle on stable"; \
 	fi
+
+## Registration speed: solid against small-gicp on the same hku1 pairs, single-threaded.
+bench-reg: wheel
+	$(PY) benches/registration.py
 
 clean:
 	rm -rf dist build $(VENV) target

@@ -14,6 +14,7 @@ use solid_lidar::{Config, Describer, Descriptor, Error, Points, Stats, PRESETS};
 mod engine;
 mod eval;
 mod io;
+mod reg;
 mod sim;
 
 create_exception!(
@@ -325,7 +326,7 @@ impl PyDescriptor {
 }
 
 /// Checks that two descriptors can be compared: same config.
-fn comparable(a: &PyDescriptor, b: &PyDescriptor) -> PyResult<()> {
+pub(crate) fn comparable(a: &PyDescriptor, b: &PyDescriptor) -> PyResult<()> {
     if a.cfg != b.cfg {
         return Err(SolidError::new_err(format!(
             "descriptors come from different configs ({:?} vs {:?}); describe both scans with the same SolidConfig",
@@ -722,6 +723,7 @@ fn _solid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(_config_from_dict, m)?)?;
     engine::register(m)?;
     eval::register(m)?;
+    reg::register_module(m)?;
     sim::register(m)?;
     io::register(m)?;
     Ok(())
