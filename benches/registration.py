@@ -8,6 +8,10 @@ Both libraries run single-threaded with the same two levels (1 m voxels / 3 m co
 then 0.5 m / 1 m), from the identity, on clouds preprocessed once per keyframe. Times are CPU
 time (``time.process_time``: the machine may be shared) per candidate; wall-clock medians are
 printed beside them. small-gicp is a benchmark-only dependency (requirements-dev.txt).
+
+Measured (release wheel, shared 2-core machine under load, CPU ms median): true revisits solid
+5.96, small-gicp 6.85, solid with four yaw hypotheses 9.20 (ratio of totals 1.58x); top-5
+candidates 5.65 / 9.30 / 9.98 (1.64x); preprocessing a cloud 2.43 / 2.29.
 """
 
 from __future__ import annotations

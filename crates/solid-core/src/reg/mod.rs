@@ -65,10 +65,11 @@
 //!   a single minimum, near 0°: the fixed ±25° give the other hypotheses.
 //! - **Convergence**: updates below 0.1° and 1 mm (small-gicp's), 10× looser on the coarse
 //!   level, at most 20 iterations per level: the same budget as small-gicp.
-//! - **Speed** (`make bench-reg`, same pairs, same run, single-threaded, CPU time on a shared
-//!   2-core machine): one registration of prepared clouds takes about as long as small-gicp's
-//!   (ratio small-gicp / solid 1.03 on the true revisits, 1.07 on the top-5 candidates);
-//!   preparing a cloud (both levels) 2.7 ms against 2.2 ms.
+//! - **Speed** (`make bench-reg`: same pairs, same run, single-threaded, release wheel, CPU
+//!   time on a shared 2-core machine under load): one registration of prepared clouds takes a
+//!   median 6.0 ms on the hku1 true revisits and 5.7 ms on the top-5 candidates, against
+//!   small-gicp's 6.9 and 9.3 ms (total time ratio small-gicp / solid 1.58 and 1.64); with four
+//!   yaw hypotheses 9.2 and 10.0 ms. Preparing a cloud (both levels): 2.4 ms (small-gicp 2.3).
 //!
 //! # Allocation
 //! [`register`], [`register_hypotheses`], [`hypothesis_yaws`], [`Gate::check`] and the
