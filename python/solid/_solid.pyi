@@ -1089,7 +1089,12 @@ def decode_place(data: bytes, cfg: SolidConfig) -> Descriptor:
 
 @final
 class RegistrationConfig:
-    """Registration parameters, immutable; invalid values raise ConfigError naming the parameter."""
+    """Registration parameters, immutable; invalid values raise ConfigError naming the parameter.
+
+    The defaults were chosen by measurement on hku1-avia (see the Rust documentation of
+    `solid_lidar::reg`): GICP with a Geman-McClure kernel, coarse 1 m voxels with 3 m
+    correspondences, then 0.5 m / 1 m.
+    """
 
     def __new__(
         cls,
@@ -1108,58 +1113,154 @@ class RegistrationConfig:
         kernel: str = "geman-mcclure",
         kernel_scale: float = 0.5,
         inlier_distance: float = 0.5,
-    ) -> RegistrationConfig: ...
-    def replace(self, **overrides: float | int | str) -> RegistrationConfig: ...
-    def to_dict(self) -> dict[str, Any]: ...
+    ) -> RegistrationConfig:
+        """`RegistrationConfig(...)`: the defaults with keyword overrides.
+
+        Args:
+            voxel_size: Voxel edge (metres) of the fine level; 0 keeps every point in range.
+            coarse_voxel_size: Voxel edge of the coarse level, above `voxel_size`; 0: no coarse level.
+            min_range: Points at or within this norm (metres, sensor frame) are dropped.
+            max_range: Points at or beyond this norm are dropped (with non-finite ones).
+            neighbors: Neighbours of each local covariance, 5..=64.
+            max_correspondence: Largest correspondence distance (metres) at the fine level.
+            coarse_max_correspondence: Largest correspondence distance at the coarse level.
+            max_iterations: Largest number of Gauss-Newton iterations per level, 1..=1000.
+            rotation_eps_deg: A level converges when an update rotates by less than this (degrees)
+                and translates by less than `translation_eps`.
+            translation_eps: The translation part of the convergence test (metres).
+            factor: "gicp" or "point-to-plane".
+            kernel: "geman-mcclure" or "none" (a truncated quadratic).
+            kernel_scale: Kernel scale as a fraction of the level's correspondence distance, (0, 10].
+            inlier_distance: Distance (metres) within which a point counts as overlapping.
+
+        Raises:
+            ConfigError: A parameter out of its range (named in the message).
+            TypeError: An unknown parameter name, or a value of the wrong type.
+        """
+    def replace(self, **overrides: float | int | str) -> RegistrationConfig:
+        """A copy with some parameters changed (this one is immutable).
+
+        Args:
+            **overrides: Parameters to change, by name.
+
+        Returns:
+            The validated new configuration.
+
+        Raises:
+            ConfigError: An invalid value.
+            TypeError: An unknown parameter name, or a value of the wrong type.
+        """
+    def to_dict(self) -> dict[str, Any]:
+        """The parameters by name.
+
+        Returns:
+            What `RegistrationConfig(**d)` takes back.
+        """
     @property
-    def voxel_size(self) -> float: ...
+    def voxel_size(self) -> float:
+        """Voxel edge of the fine level, metres."""
     @property
-    def coarse_voxel_size(self) -> float: ...
+    def coarse_voxel_size(self) -> float:
+        """Voxel edge of the coarse level, metres (0: none)."""
     @property
-    def min_range(self) -> float: ...
+    def min_range(self) -> float:
+        """Points at or within this norm are dropped, metres."""
     @property
-    def max_range(self) -> float: ...
+    def max_range(self) -> float:
+        """Points at or beyond this norm are dropped, metres."""
     @property
-    def neighbors(self) -> int: ...
+    def neighbors(self) -> int:
+        """Neighbours of each local covariance."""
     @property
-    def max_correspondence(self) -> float: ...
+    def max_correspondence(self) -> float:
+        """Largest correspondence distance at the fine level, metres."""
     @property
-    def coarse_max_correspondence(self) -> float: ...
+    def coarse_max_correspondence(self) -> float:
+        """Largest correspondence distance at the coarse level, metres."""
     @property
-    def max_iterations(self) -> int: ...
+    def max_iterations(self) -> int:
+        """Largest number of iterations per level."""
     @property
-    def rotation_eps_deg(self) -> float: ...
+    def rotation_eps_deg(self) -> float:
+        """Rotation part of the convergence test, degrees."""
     @property
-    def translation_eps(self) -> float: ...
+    def translation_eps(self) -> float:
+        """Translation part of the convergence test, metres."""
     @property
-    def factor(self) -> str: ...
+    def factor(self) -> str:
+        """The residual: "gicp" or "point-to-plane"."""
     @property
-    def kernel(self) -> str: ...
+    def kernel(self) -> str:
+        """The robust kernel: "geman-mcclure" or "none"."""
     @property
-    def kernel_scale(self) -> float: ...
+    def kernel_scale(self) -> float:
+        """Kernel scale as a fraction of the correspondence distance."""
     @property
-    def inlier_distance(self) -> float: ...
+    def inlier_distance(self) -> float:
+        """Distance within which a point counts as overlapping, metres."""
     def __eq__(self, value: object, /) -> bool: ...
     def __ne__(self, value: object, /) -> bool: ...
 
 @final
 class PreparedCloud:
-    """A cloud prepared once for registration: voxel levels, kd-trees, local covariances."""
+    """A cloud prepared once for registration: voxel levels, kd-trees, local covariances.
+
+    Prepare each place once and pass it to `register` as often as needed; the two clouds of a
+    registration must be prepared with the same configuration.
+    """
 
     def __new__(
         cls,
         points: npt.NDArray[np.float32] | npt.NDArray[np.float64],
         config: RegistrationConfig | None = None,
-    ) -> PreparedCloud: ...
+    ) -> PreparedCloud:
+        """`PreparedCloud(points, config)`: prepares raw points, with the GIL released.
+
+        Args:
+            points: (N, >=3) float32 or float64 array, x, y, z first (sensor frame, metres).
+            config: The registration configuration; None: `RegistrationConfig()`.
+
+        Raises:
+            TypeError: `points` is not a numpy array or has another dtype.
+            SolidError: `points` has the wrong shape or is not C-contiguous.
+        """
     @staticmethod
-    def decode(data: bytes, config: RegistrationConfig | None = None) -> PreparedCloud: ...
-    def encode(self, bits: int = 8) -> bytes: ...
+    def decode(data: bytes, config: RegistrationConfig | None = None) -> PreparedCloud:
+        """Decodes a cloud made by `PreparedCloud.encode` and prepares it.
+
+        Args:
+            data: The encoded cloud.
+            config: The configuration; it must have the sender's voxel sizes, range and neighbours
+                for the two clouds to register. None: `RegistrationConfig()`.
+
+        Returns:
+            The prepared cloud, as the sender would have prepared the same fine points.
+
+        Raises:
+            SolidError: Not a cloud, a checksum mismatch, or a bad length.
+        """
+    def encode(self, bits: int = 8) -> bytes:
+        """The compact wire form of the fine points, for a robot asked to verify a loop.
+
+        Args:
+            bits: Bits per axis for the position within a grid cell (the config's voxel size;
+                0.5 m when it is 0), 1..=16.
+
+        Returns:
+            The encoded cloud (about 4 bytes a point with 8 bits), CRC-checked.
+
+        Raises:
+            ConfigError: `bits` outside 1..=16.
+        """
     @property
-    def points(self) -> npt.NDArray[np.float64]: ...
+    def points(self) -> npt.NDArray[np.float64]:
+        """The fine points, (N, 3) float64."""
     @property
-    def coarse_points(self) -> npt.NDArray[np.float64]: ...
+    def coarse_points(self) -> npt.NDArray[np.float64]:
+        """The coarse points, (M, 3) float64 (empty without a coarse level)."""
     @property
-    def config(self) -> RegistrationConfig: ...
+    def config(self) -> RegistrationConfig:
+        """The configuration it was prepared with."""
     def __len__(self) -> int: ...
 
 @final
@@ -1167,52 +1268,75 @@ class Hypothesis:
     """One initial yaw of a multi-hypothesis registration and where its coarse level ended."""
 
     @property
-    def yaw(self) -> float: ...
+    def yaw(self) -> float:
+        """The initial yaw, degrees."""
     @property
-    def pose(self) -> npt.NDArray[np.float64]: ...
+    def pose(self) -> npt.NDArray[np.float64]:
+        """The pose after the coarse level, (4, 4) float64."""
     @property
-    def cost(self) -> float: ...
+    def cost(self) -> float:
+        """The fine level's robust cost at that pose, normalised to [0, 1] (lower is better)."""
     @property
-    def converged(self) -> bool: ...
+    def converged(self) -> bool:
+        """Whether the coarse level converged."""
     @property
-    def iterations(self) -> int: ...
+    def iterations(self) -> int:
+        """Iterations of the coarse level."""
 
 @final
 class Registration:
-    """T_query_candidate with p_query ≈ pose @ p_candidate (SPEC §3) and the measures of its quality."""
+    """T_query_candidate with p_query ≈ pose @ p_candidate (docs/spec.md §3) and its quality."""
 
     @property
-    def pose(self) -> npt.NDArray[np.float64]: ...
+    def pose(self) -> npt.NDArray[np.float64]:
+        """T_query_candidate, (4, 4) float64: p_query ≈ pose @ p_candidate."""
     @property
-    def fitness(self) -> float: ...
+    def fitness(self) -> float:
+        """min(overlap_query, overlap_candidate): symmetric in the two clouds."""
     @property
-    def overlap_query(self) -> float: ...
+    def overlap_query(self) -> float:
+        """Fraction of the query's fine points within `inlier_distance` of a candidate point."""
     @property
-    def overlap_candidate(self) -> float: ...
+    def overlap_candidate(self) -> float:
+        """Fraction of the candidate's fine points within `inlier_distance` of a query point."""
     @property
-    def structure_fitness(self) -> float: ...
+    def structure_fitness(self) -> float:
+        """The fitness over points off horizontal surfaces (the ground of any two places overlaps)."""
     @property
-    def rmse(self) -> float: ...
+    def rmse(self) -> float:
+        """Root mean square distance of the candidate's inliers, metres."""
     @property
-    def inliers(self) -> int: ...
+    def inliers(self) -> int:
+        """Number of candidate inliers."""
     @property
-    def iterations(self) -> int: ...
+    def iterations(self) -> int:
+        """Gauss-Newton iterations, summed over the levels."""
     @property
-    def converged(self) -> bool: ...
+    def converged(self) -> bool:
+        """Whether the fine level met the convergence test."""
     @property
-    def degeneracy_rotation(self) -> float: ...
+    def degeneracy_rotation(self) -> float:
+        """Smallest eigenvalue of the rotation block of the information matrix, per correspondence."""
     @property
-    def degeneracy_translation(self) -> float: ...
+    def degeneracy_translation(self) -> float:
+        """Smallest eigenvalue of the translation block, per correspondence (low: a corridor)."""
     @property
-    def yaw(self) -> float: ...
+    def yaw(self) -> float:
+        """Yaw of the pose, degrees in (-180, 180]: the heading of docs/spec.md §3."""
     @property
-    def hypotheses(self) -> list[Hypothesis]: ...
+    def hypotheses(self) -> list[Hypothesis]:
+        """Every hypothesis, in the order of `yaws` (empty when no yaws were given)."""
     @property
-    def best_hypothesis(self) -> int | None: ...
+    def best_hypothesis(self) -> int | None:
+        """Index of the best hypothesis (None when no yaws were given)."""
 
 @final
 class AcceptanceGate:
-    """Thresholds a registration must meet to be accepted as a loop (measured defaults)."""
+    """Thresholds a registration must meet to be accepted as a loop (measured defaults).
+
+    Tuned for precision on hku1-avia and the simulator: with the defaults, none of 843 wrong
+    registrations of hku1's top-5 candidates passes, 373 of 462 correct ones do.
+    """
 
     def __new__(
         cls,
@@ -1227,30 +1351,83 @@ class AcceptanceGate:
         max_translation: float | None = None,
         agree_translation: float | None = None,
         agree_rotation_deg: float | None = None,
-    ) -> AcceptanceGate: ...
-    def check(self, registration: Registration) -> str | None: ...
-    def accepts(self, registration: Registration) -> bool: ...
-    def agreement(self, registration: Registration) -> int: ...
+    ) -> AcceptanceGate:
+        """`AcceptanceGate(...)`: the measured defaults with keyword overrides (None: default).
+
+        Args:
+            require_converged: Require `Registration.converged`; default False.
+            min_fitness: Smallest accepted `fitness`; default 0.35.
+            min_structure_fitness: Smallest accepted `structure_fitness`; default 0.35.
+            max_rmse: Largest accepted `rmse`, metres; default 0.30.
+            min_translation_information: Smallest accepted `degeneracy_translation`; default 1.5.
+            min_rotation_information: Smallest accepted `degeneracy_rotation`; default 0.
+            min_agreement: Fewest hypotheses that must reach the best pose; default 1.
+            max_translation: Largest accepted length of the translation, metres; default inf
+                (an evaluation within a radius sets the radius).
+            agree_translation: Two hypotheses agree within this distance, metres; default 0.5.
+            agree_rotation_deg: ... and this angle, degrees; default 2.
+
+        Raises:
+            ConfigError: A NaN or infinite threshold.
+        """
+    def check(self, registration: Registration) -> str | None:
+        """Why `registration` is rejected, if it is.
+
+        Args:
+            registration: A result of `register`.
+
+        Returns:
+            None when it passes every threshold, else the first failed check ("low overlap",
+            "degenerate translation", ...).
+        """
+    def accepts(self, registration: Registration) -> bool:
+        """Whether `registration` passes every threshold.
+
+        Args:
+            registration: A result of `register`.
+
+        Returns:
+            True when `check` finds nothing.
+        """
+    def agreement(self, registration: Registration) -> int:
+        """How many hypotheses reached the best one's pose (within this gate's tolerances).
+
+        Args:
+            registration: A result of `register` with `yaws`.
+
+        Returns:
+            The count, the best included; 0 without hypotheses.
+        """
     @property
-    def require_converged(self) -> bool: ...
+    def require_converged(self) -> bool:
+        """Whether convergence is required."""
     @property
-    def min_fitness(self) -> float: ...
+    def min_fitness(self) -> float:
+        """Smallest accepted fitness."""
     @property
-    def min_structure_fitness(self) -> float: ...
+    def min_structure_fitness(self) -> float:
+        """Smallest accepted structure fitness."""
     @property
-    def max_rmse(self) -> float: ...
+    def max_rmse(self) -> float:
+        """Largest accepted RMSE, metres."""
     @property
-    def min_translation_information(self) -> float: ...
+    def min_translation_information(self) -> float:
+        """Smallest accepted translation eigenvalue."""
     @property
-    def min_rotation_information(self) -> float: ...
+    def min_rotation_information(self) -> float:
+        """Smallest accepted rotation eigenvalue."""
     @property
-    def min_agreement(self) -> int: ...
+    def min_agreement(self) -> int:
+        """Fewest agreeing hypotheses."""
     @property
-    def max_translation(self) -> float: ...
+    def max_translation(self) -> float:
+        """Largest accepted translation, metres."""
     @property
-    def agree_translation(self) -> float: ...
+    def agree_translation(self) -> float:
+        """Agreement tolerance in translation, metres."""
     @property
-    def agree_rotation_deg(self) -> float: ...
+    def agree_rotation_deg(self) -> float:
+        """Agreement tolerance in rotation, degrees."""
 
 def register(
     query: PreparedCloud | npt.NDArray[np.float32] | npt.NDArray[np.float64],
@@ -1259,12 +1436,72 @@ def register(
     *,
     yaws: Iterable[float] | None = None,
     config: RegistrationConfig | None = None,
-) -> Registration: ...
-def hypothesis_yaws(query: Descriptor, candidate: Descriptor, n: int = 4) -> list[float]: ...
+) -> Registration:
+    """Registers `candidate` to `query` (GIL released): the pose with p_query ≈ pose @ p_candidate.
+
+    Args:
+        query: The query place: a PreparedCloud, or (N, >=3) float32/float64 points.
+        candidate: The candidate place, likewise.
+        init: Initial guess, (4, 4) rigid transform; None: the identity.
+        yaws: Initial yaws (degrees) to try, each applied before `init` (see `hypothesis_yaws`);
+            the coarse level runs from each and the fine level continues from the best. None:
+            start from `init` only.
+        config: The configuration; None: `RegistrationConfig()`. PreparedClouds must have been
+            prepared with it.
+
+    Returns:
+        The registration. Clouds too small or too different give a result that is not converged
+        (and that `AcceptanceGate` rejects), never an error.
+
+    Raises:
+        TypeError: Points that are not a numpy array or of another dtype; a malformed `init`.
+        SolidError: Points of the wrong shape or not C-contiguous, `init` not (4, 4), empty
+            `yaws`, or a PreparedCloud prepared with another configuration.
+        ConfigError: `init` is not a finite rigid transform, or a yaw is not finite.
+    """
+def hypothesis_yaws(query: Descriptor, candidate: Descriptor, n: int = 4) -> list[float]:
+    """Initial yaws worth trying for a pair of places: 0° then the A-SOLiD minima.
+
+    Args:
+        query: The query's descriptor.
+        candidate: The candidate's descriptor (same configuration).
+        n: Most yaws to return.
+
+    Returns:
+        Degrees, 0 first, then the local minima of the A-SOLiD shift cost (docs/spec.md §3) lowest
+        first, skipping any within one azimuth bin of one already chosen.
+
+    Raises:
+        SolidError: Descriptors from different configurations.
+    """
 def encode_cloud(
     points: npt.NDArray[np.float32] | npt.NDArray[np.float64], grid: float = 0.5, bits: int = 8
-) -> bytes: ...
-def decode_cloud(data: bytes) -> npt.NDArray[np.float64]: ...
+) -> bytes:
+    """Encodes points compactly: Morton-sorted grid cells plus quantised offsets, CRC-checked.
+
+    Args:
+        points: (N, >=3) float32 or float64 array.
+        grid: Grid edge, metres.
+        bits: Bits per axis for the offset within a cell, 1..=16 (error at most grid / 2^(bits+1)).
+
+    Returns:
+        The encoded points (their order is not kept).
+
+    Raises:
+        ConfigError: A bad `grid` or `bits`, or a non-finite or far-away point.
+    """
+def decode_cloud(data: bytes) -> npt.NDArray[np.float64]:
+    """Decodes points made by `encode_cloud`.
+
+    Args:
+        data: The encoded points.
+
+    Returns:
+        The points, (N, 3) float64.
+
+    Raises:
+        SolidError: Not a cloud, a checksum mismatch, or a bad length.
+    """
 
 # --- simulator (sim.rs), used by solid.sim ---
 
