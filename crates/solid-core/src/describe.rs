@@ -1,6 +1,6 @@
 //! The SOLiD descriptor, step by step as [spec §2](crate::spec#2-the-descriptor) defines it.
 
-use crate::math::{atan2, floor_i64, sqrt};
+use crate::math::{atan2, sqrt, Floor, PortableFloor};
 use crate::{Config, Error};
 
 /// One element of the caller-owned scratch buffer of [`describe`].
@@ -157,7 +157,7 @@ impl Binner {
 
     /// Packed bin indices `i | j << 10 | k << 22` of one point ([spec §2](crate::spec#2-the-descriptor) steps 4–5).
     #[inline(always)]
-    fn bin(&self, x: f64, y: f64, z: f64) -> u32 {
+    fn bin<F: Floor>(&self, x: f64, y: f64, z: f64) -> u32 {
         use core::f64::consts::TAU;
         let r = sqrt(x * x + y * y);
         let theta = atan2(y, x);
@@ -167,9 +167,9 @@ impl Binner {
         // integer n. Range and azimuth quotients are >= 0; the elevation one is clamped at 0, so
         // points on or past the last edge (or above the field of view) join the last bin and
         // points below the field of view the first. Branch-free, so blocks vectorise.
-        let i = floor_i64((r * self.range_scale).min(self.nr_max));
-        let j = floor_i64((theta * self.azimuth_scale).min(self.na_max));
-        let k = floor_i64(
+        let i = F::floor_i64((r * self.range_scale).min(self.nr_max));
+        let j = F::floor_i64((theta * self.azimuth_scale).min(self.na_max));
+        let k = F::floor_i64(
             ((phi - self.fov_down) * self.elevation_scale)
                 .max(0.0)
                 .min(self.ne_max),
@@ -179,9 +179,9 @@ impl Binner {
 
     /// Bins of the first `n` points of `xyz` into `out`.
     #[inline(always)]
-    fn bin_block(&self, xyz: &[[f64; BLOCK]; 3], n: usize, out: &mut [u32; BLOCK]) {
+    fn bin_block<F: Floor>(&self, xyz: &[[f64; BLOCK]; 3], n: usize, out: &mut [u32; BLOCK]) {
         for i in 0..n.min(BLOCK) {
-            out[i] = self.bin(xyz[0][i], xyz[1][i], xyz[2][i]);
+            out[i] = self.bin::<F>(xyz[0][i], xyz[1][i], xyz[2][i]);
         }
     }
 }
@@ -223,7 +223,7 @@ pub fn describe<T: Coord>(
         // function compiled with `#[target_feature(enable = "avx2")]`.
         return unsafe { describe_avx2(points, cfg, scratch, r_out, a_out) };
     }
-    describe_impl(points, cfg, scratch, r_out, a_out)
+    describe_impl::<T, PortableFloor>(points, cfg, scratch, r_out, a_out)
 }
 
 #[cfg(all(feature = "std", target_arch = "x86_64"))]
@@ -235,12 +235,13 @@ fn describe_avx2<T: Coord>(
     r_out: &mut [f32],
     a_out: &mut [f32],
 ) -> Result<Stats, Error> {
-    describe_impl(points, cfg, scratch, r_out, a_out)
+    // AVX2 implies SSE4.1's rounding instructions.
+    describe_impl::<T, crate::math::NativeFloor>(points, cfg, scratch, r_out, a_out)
 }
 
 /// The body of [`describe`], inlined into each of its compiled copies.
 #[inline(always)]
-fn describe_impl<T: Coord>(
+fn describe_impl<T: Coord, F: Floor>(
     points: Points<'_, T>,
     cfg: &Config,
     scratch: &mut [Scratch],
@@ -277,7 +278,7 @@ fn describe_impl<T: Coord>(
     let mut block_bins = [0u32; BLOCK];
     let (n_in_range, bins): (usize, &[u32]) = if cfg.voxel_size > 0.0 {
         let (table, recs) = voxel_scratch(rest, n);
-        let (n_in, m) = voxelize(points, cfg, table, recs);
+        let (n_in, m) = voxelize::<T, F>(points, cfg, table, recs);
         let table: &mut [u32] = bytemuck::cast_slice_mut(table);
         // Centroids block by block, their bins written over the table (no longer needed).
         for (out, recs) in table[..m].chunks_mut(BLOCK).zip(recs[..m].chunks(BLOCK)) {
@@ -288,7 +289,7 @@ fn describe_impl<T: Coord>(
                     xyz[d][i] = c[d];
                 }
             }
-            binner.bin_block(&xyz, nb, &mut block_bins);
+            binner.bin_block::<F>(&xyz, nb, &mut block_bins);
             out.copy_from_slice(&block_bins[..nb]);
         }
         (n_in, &table[..m])
@@ -307,7 +308,7 @@ fn describe_impl<T: Coord>(
                 xyz[2][kept] = z;
                 kept += usize::from(in_range(x, y, z, min2, max2));
             }
-            binner.bin_block(&xyz, kept, &mut block_bins);
+            binner.bin_block::<F>(&xyz, kept, &mut block_bins);
             bins[m..m + kept].copy_from_slice(&block_bins[..kept]);
             m += kept;
         }
@@ -367,7 +368,7 @@ pub mod stages {
         r_out: &mut [f32],
         a_out: &mut [f32],
     ) -> Result<Stats, Error> {
-        describe_impl(points, cfg, scratch, r_out, a_out)
+        describe_impl::<T, PortableFloor>(points, cfg, scratch, r_out, a_out)
     }
 
     /// Number of points that are finite and within `(min_range, max_range)` ([spec §2](crate::spec#2-the-descriptor) steps 1–2).
@@ -417,7 +418,7 @@ pub mod stages {
             });
         }
         let (table, recs) = voxel_scratch(scratch, n);
-        let (n_in, m) = voxelize(points, cfg, table, recs);
+        let (n_in, m) = voxelize::<T, PortableFloor>(points, cfg, table, recs);
         if out_xyz.len() < 3 * m {
             return Err(Error::BufferTooSmall {
                 buffer: "out_xyz",
@@ -451,7 +452,7 @@ pub mod stages {
 /// Sums are integers (offsets in units of `voxel_size / 2^FRAC_BITS`), so a voxel's sum is exact
 /// and does not depend on how its points were split into runs and blocks.
 #[inline(always)]
-fn voxelize<T: Coord>(
+fn voxelize<T: Coord, F: Floor>(
     points: Points<'_, T>,
     cfg: &Config,
     table: &mut [[u64; SLOT]],
@@ -459,9 +460,9 @@ fn voxelize<T: Coord>(
 ) -> (usize, usize) {
     // Constant strides let the key pass use fixed shuffles; others take the general path.
     match points.stride {
-        3 => voxelize_strided::<T, 3>(points, cfg, table, recs),
-        4 => voxelize_strided::<T, 4>(points, cfg, table, recs),
-        _ => voxelize_strided::<T, 0>(points, cfg, table, recs),
+        3 => voxelize_strided::<T, F, 3>(points, cfg, table, recs),
+        4 => voxelize_strided::<T, F, 4>(points, cfg, table, recs),
+        _ => voxelize_strided::<T, F, 0>(points, cfg, table, recs),
     }
 }
 
@@ -543,7 +544,14 @@ impl Block {
     /// Pass 1: keys of the points of `rows` (up to [`BLOCK`]; three 21-bit biased voxel indices)
     /// and their offsets; returns their number. Branch-free, so it vectorises.
     #[inline(always)]
-    fn keys<T: Coord>(&mut self, rows: &[T], s: usize, scale: f64, min2: f64, max2: f64) -> usize {
+    fn keys<T: Coord, F: Floor>(
+        &mut self,
+        rows: &[T],
+        s: usize,
+        scale: f64,
+        min2: f64,
+        max2: f64,
+    ) -> usize {
         let mut n = 0;
         for (i, p) in rows.chunks_exact(s).take(BLOCK).enumerate() {
             let (x, y, z) = (p[0].to_f64(), p[1].to_f64(), p[2].to_f64());
@@ -553,7 +561,7 @@ impl Block {
             // scaling by a power of two rounds nothing) and the offset in its low bits. Out of
             // range the values are garbage and the key is discarded.
             let [ux, uy, uz] =
-                [x, y, z].map(|c| floor_i64(c * scale).wrapping_add(BIAS << FRAC_BITS) as u64);
+                [x, y, z].map(|c| F::floor_i64(c * scale).wrapping_add(BIAS << FRAC_BITS) as u64);
             let key = ux >> FRAC_BITS
                 | (uy >> FRAC_BITS) << AXIS_BITS
                 | (uz >> FRAC_BITS) << (2 * AXIS_BITS);
@@ -646,7 +654,7 @@ impl Block {
 const RUN0: usize = 2;
 
 #[inline(always)]
-fn voxelize_strided<T: Coord, const S: usize>(
+fn voxelize_strided<T: Coord, F: Floor, const S: usize>(
     points: Points<'_, T>,
     cfg: &Config,
     table: &mut [[u64; SLOT]],
@@ -659,7 +667,7 @@ fn voxelize_strided<T: Coord, const S: usize>(
     let mut b = Block::new();
     let mut n_in = 0u64;
     for block in points.data.chunks(BLOCK * s) {
-        let nb = b.keys(block, s, scale, min2, max2);
+        let nb = b.keys::<T, F>(block, s, scale, min2, max2);
         b.runs(nb);
         let runs = b.collect_runs();
         n_in += acc.add_runs(&b, runs);
