@@ -666,7 +666,17 @@ fn voxelize_strided<T: Coord, F: Floor, const S: usize>(
     let mut acc = VoxelTable::new(table, recs, points.len());
     let mut b = Block::new();
     let mut n_in = 0u64;
+    let mut ahead = points.data.chunks(BLOCK * s).skip(1);
     for block in points.data.chunks(BLOCK * s) {
+        // Read one value per cache line of the next block: those reads are independent, so they
+        // fetch the next block from memory while this one is processed.
+        if let Some(next) = ahead.next() {
+            let mut touched = 0;
+            for line in next.iter().step_by(64 / core::mem::size_of::<T>()) {
+                touched ^= line.to_f64().to_bits();
+            }
+            core::hint::black_box(touched);
+        }
         let nb = b.keys::<T, F>(block, s, scale, min2, max2);
         b.runs(nb);
         let runs = b.collect_runs();
