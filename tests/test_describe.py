@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 import json
+import multiprocessing
+import os
 import pickle
 import threading
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -267,6 +270,57 @@ def test_describe_batch_equals_describe(data: Path) -> None:
             np.testing.assert_array_equal(a.a, b.a)
     assert solid.describe_batch([], HDL64) == []
     assert len(solid.describe_batch(iter(scans[:2]), HDL64)) == 2
+
+
+def _describe_workers() -> set[int]:
+    """Thread ids of this process's describe_batch workers (Linux: named in /proc)."""
+    tids: set[int] = set()
+    for tid in os.listdir("/proc/self/task"):
+        try:
+            name = Path(f"/proc/self/task/{tid}/comm").read_text().strip()
+        except OSError:  # ended meanwhile
+            continue
+        if name.startswith("solid-describe"):
+            tids.add(int(tid))
+    return tids
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self/task"), reason="reads thread names from Linux's /proc")
+def test_describe_batch_workers_persist_across_calls(data: Path) -> None:
+    scans = [read_kitti(p) for p in sorted((data / "kitti00" / "velodyne").glob("*.bin"))]
+    solid.describe_batch(scans, HDL64, threads=2)
+    solid.describe_batch(scans, HDL64)  # every core: another pool where there are more than 2
+    workers = _describe_workers()
+    assert workers, "no describe worker outlives a batch"
+    for threads in (2, None, 2, 1, None):
+        solid.describe_batch(scans, HDL64, threads=threads)
+        assert _describe_workers() == workers, "a batch started or ended workers"
+
+
+def _describe_batch_in_child(raw: npt.NDArray[Any], conn: Any) -> None:
+    d = solid.describe_batch([raw, raw], HDL64, threads=2)
+    conn.send([x.r.tolist() for x in d])
+
+
+@pytest.mark.skipif("fork" not in multiprocessing.get_all_start_methods(), reason="needs fork")
+def test_describe_batch_works_in_a_forked_child(data: Path) -> None:
+    # The parent's workers do not exist in a child made by fork: the child must start its own
+    # instead of waiting for them forever.
+    raw = read_kitti(data / "kitti00" / "velodyne" / "000094.bin")
+    want = solid.describe(raw, HDL64).r.tolist()
+    solid.describe_batch([raw, raw], HDL64, threads=2)  # the parent's workers exist
+    ctx = multiprocessing.get_context("fork")
+    ours, theirs = ctx.Pipe()
+    child = ctx.Process(target=_describe_batch_in_child, args=(raw, theirs))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)  # fork of a multi-threaded process
+        child.start()
+    child.join(60)
+    if child.is_alive():
+        child.kill()
+        pytest.fail("describe_batch hung in a forked child")
+    assert child.exitcode == 0
+    assert ours.recv() == [want, want]
 
 
 def test_describe_batch_names_the_bad_scan() -> None:

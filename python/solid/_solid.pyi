@@ -297,7 +297,9 @@ def describe_batch(
         Args:
             scans: Point arrays, each as `describe` accepts (float32 and float64 may be mixed).
             config: The descriptor configuration.
-            threads: Worker threads; None uses every core.
+            threads: Worker threads, at most one per core; None uses every core, 1 the
+                calling thread. The workers persist from one call to the next, each keeping its
+                scratch buffers.
 
         Returns:
             One descriptor per scan, in order.

@@ -77,6 +77,46 @@ pub(crate) fn sqrt(x: f64) -> f64 {
     }
 }
 
+/// How a compiled copy of `describe` takes ⌊v⌋ of an `f64`. Every way is exact, so every copy
+/// gives the same bits; they differ in the instructions available to them.
+pub(crate) trait Floor {
+    /// ⌊v⌋ for |v| < 2^51; other inputs (huge, infinite, NaN) give an unspecified value, never
+    /// a panic.
+    fn floor_i64(v: f64) -> i64;
+}
+
+/// ⌊v⌋ with add, subtract and compare only ([`floor_i64`]): vectorises with any SIMD unit.
+pub(crate) struct MagicFloor;
+
+impl Floor for MagicFloor {
+    #[inline(always)]
+    fn floor_i64(v: f64) -> i64 {
+        floor_i64(v)
+    }
+}
+
+/// ⌊v⌋ with the CPU's rounding instruction (x86 SSE4.1 `roundpd`, AArch64 `frintm`), then the
+/// exact conversion of an integral value by [`ROUND_MAGIC`]: two instructions fewer than
+/// [`MagicFloor`], for the copies compiled where that instruction exists.
+#[cfg(feature = "std")]
+pub(crate) struct NativeFloor;
+
+#[cfg(feature = "std")]
+impl Floor for NativeFloor {
+    #[inline(always)]
+    fn floor_i64(v: f64) -> i64 {
+        let r = v.floor() + ROUND_MAGIC;
+        r.to_bits().wrapping_sub(ROUND_MAGIC.to_bits()) as i64
+    }
+}
+
+/// The floor of the portable copy: the native one where the baseline CPU has it.
+#[cfg(all(feature = "std", target_arch = "aarch64"))]
+pub(crate) type PortableFloor = NativeFloor;
+/// The floor of the portable copy: the native one where the baseline CPU has it.
+#[cfg(not(all(feature = "std", target_arch = "aarch64")))]
+pub(crate) type PortableFloor = MagicFloor;
+
 /// 1.5 · 2^52: adding it to |v| < 2^51 rounds v to an integer held in the low mantissa bits.
 const ROUND_MAGIC: f64 = 6_755_399_441_055_744.0;
 

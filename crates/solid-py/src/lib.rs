@@ -2,7 +2,7 @@
 //! algorithm lives in the core crate.
 
 use std::cell::RefCell;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex, PoisonError};
 
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyUntypedArray, PyUntypedArrayMethods};
 use pyo3::create_exception;
@@ -587,7 +587,45 @@ fn describe(
     Ok(PyDescriptor::new(d, config.inner))
 }
 
-/// Describes many scans in parallel (every core by default), GIL released.
+/// The worker pools of [`describe_batch`], by thread count and process.
+///
+/// A pool is built on first use and kept: a batch starts no thread, and each worker keeps its
+/// scratch buffers from one batch to the next (the thread-local [`Describer`] of
+/// [`describe_slice`]). rayon rather than a pool of our own: its scoped parallel iterators run
+/// closures that borrow the numpy arrays without `unsafe`, it balances uneven scans by work
+/// stealing and hands a worker's panic back to the caller, all of it well tested. Its threads
+/// do not survive `fork` (Python's multiprocessing on Linux), so pools are also keyed by
+/// process id and a child builds its own.
+static POOLS: Mutex<Vec<(u32, usize, Arc<rayon::ThreadPool>)>> = Mutex::new(Vec::new());
+
+/// The persistent pool of `threads` workers of this process.
+fn pool(threads: usize) -> PyResult<Arc<rayon::ThreadPool>> {
+    let pid = std::process::id();
+    let mut pools = POOLS.lock().unwrap_or_else(PoisonError::into_inner);
+    if let Some((_, _, p)) = pools.iter().find(|(id, t, _)| *id == pid && *t == threads) {
+        return Ok(Arc::clone(p));
+    }
+    // Pools made before a fork have no threads here: forget them (dropping one would signal
+    // threads that do not exist).
+    let (here, stale): (Vec<_>, Vec<_>) = std::mem::take(&mut *pools)
+        .into_iter()
+        .partition(|(id, _, _)| *id == pid);
+    *pools = here;
+    for (_, _, p) in stale {
+        std::mem::forget(p);
+    }
+    let p = Arc::new(
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .thread_name(|i| format!("solid-describe-{i}"))
+            .build()
+            .map_err(|e| SolidError::new_err(format!("cannot start describe workers: {e}")))?,
+    );
+    pools.push((pid, threads, Arc::clone(&p)));
+    Ok(p)
+}
+
+/// Describes many scans in parallel (every core by default), GIL released once for the batch.
 #[pyfunction]
 #[pyo3(signature = (scans, config, threads=None))]
 fn describe_batch(
@@ -596,6 +634,7 @@ fn describe_batch(
     config: &PyConfig,
     threads: Option<usize>,
 ) -> PyResult<Vec<PyDescriptor>> {
+    use rayon::prelude::*;
     let items: Vec<Bound<'_, PyAny>> = if let Ok(list) = scans.cast::<PyList>() {
         list.iter().collect()
     } else {
@@ -612,48 +651,35 @@ fn describe_batch(
         .map(|(i, p)| borrow_points(p, &format!("scans[{i}]")))
         .collect::<PyResult<Vec<_>>>()?;
     let slices: Vec<PointSlice<'_>> = borrowed.iter().map(Borrowed::slice).collect();
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    // More threads than cores only adds switching: at most one per core (and per scan).
     let threads = match threads {
         Some(0) => {
             return Err(SolidError::new_err(
                 "threads must be at least 1 (or None for every core)",
             ))
         }
-        Some(t) => t,
-        None => std::thread::available_parallelism().map_or(1, |n| n.get()),
+        Some(t) => t.min(cores),
+        None => cores,
     }
     .min(slices.len().max(1));
     let cfg = config.inner;
-    let results: Vec<Result<Descriptor, Error>> = py.detach(|| {
-        let next = AtomicUsize::new(0);
-        let mut out: Vec<Option<Result<Descriptor, Error>>> =
-            (0..slices.len()).map(|_| None).collect();
-        let chunks: Vec<Vec<(usize, Result<Descriptor, Error>)>> = std::thread::scope(|s| {
-            let workers: Vec<_> = (0..threads)
-                .map(|_| {
-                    s.spawn(|| {
-                        let mut done = Vec::new();
-                        loop {
-                            let i = next.fetch_add(1, Ordering::Relaxed);
-                            if i >= slices.len() {
-                                break done;
-                            }
-                            done.push((i, describe_slice(&slices[i], &cfg)));
-                        }
-                    })
-                })
-                .collect();
-            workers
-                .into_iter()
-                .map(|w| w.join().expect("describe worker panicked"))
-                .collect()
-        });
-        for (i, r) in chunks.into_iter().flatten() {
-            out[i] = Some(r);
-        }
-        out.into_iter()
-            .map(|r| r.expect("every scan described"))
-            .collect()
-    });
+    let describe_all = || -> Vec<Result<Descriptor, Error>> {
+        slices.iter().map(|s| describe_slice(s, &cfg)).collect()
+    };
+    let results = if threads == 1 {
+        py.detach(describe_all)
+    } else {
+        let pool = pool(threads)?;
+        py.detach(|| {
+            pool.install(|| {
+                slices
+                    .par_iter()
+                    .map(|s| describe_slice(s, &cfg))
+                    .collect::<Vec<_>>()
+            })
+        })
+    };
     results
         .into_iter()
         .map(|r| r.map(|d| PyDescriptor::new(d, cfg)).map_err(core_err))
