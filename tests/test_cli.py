@@ -169,7 +169,7 @@ def test_subprocess_exit_codes(tmp_path: Path) -> None:
     assert r.returncode == 1 and "nope.pcd" in r.stderr and "Traceback" not in r.stderr
 
 
-HKU = ["--poses", "odom_poses.txt", "--preset", "avia"]
+HKU = ["--poses", "odom_poses.txt", "--preset", "avia", "--no-verify"]  # verification: its own tests
 
 
 def test_eval_end_to_end_hku(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
@@ -209,23 +209,37 @@ def test_eval_end_to_end_hku(capsys: pytest.CaptureFixture[str], tmp_path: Path)
 
 
 def test_eval_accepted_rows_are_exactly_detects_loops(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
-    """One configuration: the rows of eval's queries.csv with accepted true are detect's loops.csv."""
+    """One configuration (verification on): the rows of eval's queries.csv with accepted true are
+    detect's loops.csv, poses included, and the library's detector made the same decisions."""
     seq = str(data_dir() / "hku1-avia")
-    common = ["--preset", "avia", "--threshold", "0.08", "-q"]
-    code, _, err = run(capsys, "detect", seq, *common, "-o", str(tmp_path / "d"))
+    common = ["--preset", "avia", "--frames", "0:40,260:314", "-q"]
+    code, _, err = run(capsys, "detect", seq, *common, "--max-loop-distance", "3", "-o", str(tmp_path / "d"), "--g2o", str(tmp_path / "loops.g2o"))
     assert code == 0, err
-    code, _, err = run(capsys, "eval", seq, *common, "--poses", "odom_poses.txt", "--no-plots", "-o", str(tmp_path / "e"))
+    # eval's radius also bounds the loops the detector accepts, so both run one configuration
+    code, _, err = run(capsys, "eval", seq, *common, "--radius", "3", "--poses", "odom_poses.txt", "--no-plots", "-o", str(tmp_path / "e"))
     assert code == 0, err
     loops = read_csv(tmp_path / "d" / "loops.csv")
     accepted = [{k: r[k] for k in LOOP_COLUMNS} for r in read_csv(tmp_path / "e" / "queries.csv") if r["accepted"] == "True"]
     assert loops and accepted == loops
+    assert all(r["verified"] == "True" and r["qw"] != "" for r in loops)
     assert read_csv(tmp_path / "e" / "loops.csv") == loops
-    # and the library's detector, run by hand, made the same decisions
-    det = solid.LoopDetector(solid.SolidConfig.preset("avia"), threshold=0.08)
+    m = json.loads((tmp_path / "e" / "metrics.json").read_text())
+    assert m["accepted"] == len(loops) and m["pose_error_m_median"] < 0.1
+    # The g2o file has one EDGE_SE3:QUAT per verified loop, with the same pose.
+    edges = (tmp_path / "loops.g2o").read_text().splitlines()
+    assert len(edges) == len(loops)
+    for e, r in zip(edges, loops):
+        f = e.split()
+        assert f[0] == "EDGE_SE3:QUAT" and (f[1], f[2]) == (r["query"], r["candidate"]) and len(f) == 3 + 7 + 21
+        assert [float(x) for x in f[3:10]] == pytest.approx([float(r[k]) for k in ("x", "y", "z", "qx", "qy", "qz", "qw")], abs=1e-6)
+    # and the library's detector, run by hand on the same frames, made the same decisions
+    cfg = solid.config.PipelineConfig.preset("avia", radius=3.0)
+    det = solid.LoopDetector(cfg.descriptor, detector=cfg.detector)
     ds = sio.Sequence(seq)
-    mine = [lp for p in ds if (lp := det.add(p)) is not None]
-    assert [(lp.query, lp.candidate, f"{lp.distance:.6f}") for lp in mine] == [
-        (int(r["query"]), int(r["candidate"]), r["distance"]) for r in loops
+    frames = list(range(0, 40)) + list(range(260, 314))
+    mine = [lp for i in frames if (lp := det.add(ds[i])) is not None]
+    assert [(lp.query, lp.candidate, f"{lp.distance:.6f}", f"{lp.pose[0, 3]:.6f}") for lp in mine if lp.pose is not None] == [
+        (int(r["query"]), int(r["candidate"]), r["distance"], r["x"]) for r in loops
     ]
 
 
@@ -332,7 +346,7 @@ def test_bench_prints_rates(capsys: pytest.CaptureFixture[str]) -> None:
 def test_detect_writes_loops(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     code, out, err = run(
         capsys, "detect", str(data_dir() / "hku1-avia"), "--preset", "avia", "--exclude", "50",
-        "--threshold", "0.2", "--output", str(tmp_path / "d"), "-q",
+        "--threshold", "0.2", "--no-verify", "--output", str(tmp_path / "d"), "-q",
     )  # fmt: skip
     assert code == 0, err
     rows = read_csv(tmp_path / "d" / "loops.csv")

@@ -131,7 +131,7 @@ def test_merge(cfg: solid.SolidConfig, db: solid.Database) -> None:
 def test_loop_detector_on_kitti_revisit() -> None:
     cfg = solid.SolidConfig.preset("hdl64")
     # KITTI 94/95 and 198/199 are the same places; other pairs are at distance >= 0.08.
-    det = solid.LoopDetector(cfg, exclude_recent=0, threshold=0.03, top_k=10)
+    det = solid.LoopDetector(cfg, exclude_recent=0, threshold=0.03, top_k=10, verify=False)
     assert det.add(kitti("000000")) is None
     assert det.add(kitti("000094"), timestamp=9.4) is None
     assert det.add(kitti("000198")) is None
@@ -154,7 +154,7 @@ def test_loop_detector_on_hku_matches_exact_search() -> None:
     positions = np.loadtxt(root / "odom_poses.txt").reshape(-1, 3, 4)[:, :, 3]
     cfg = solid.SolidConfig.preset("avia")
     threshold = 0.05
-    det = solid.LoopDetector(cfg, exclude_recent=50, threshold=threshold, rerank=False)
+    det = solid.LoopDetector(cfg, exclude_recent=50, threshold=threshold, rerank=False, verify=False)
     loops = [det.add(sio.read_points(p), timestamp=float(i)) for i, p in enumerate(scans)]
     assert len(det) == len(scans) == 314
     # Reference: the exact nearest neighbour among frames < q - 50 (docs/spec.md §5), computed in numpy.
@@ -205,7 +205,7 @@ def test_database_and_detector_are_safe_to_share_between_threads(cfg: solid.Soli
 
     descs = [synthetic(cfg, s) for s in range(40)]
     db = solid.Database(cfg)
-    det = solid.LoopDetector(cfg, exclude_recent=0, threshold=1.0)
+    det = solid.LoopDetector(cfg, exclude_recent=0, threshold=1.0, verify=False)
     other = solid.Database(cfg)
     for d in descs[:10]:
         other.add(d)

@@ -214,8 +214,11 @@ def test_the_detector_parameter_table_is_detector_config() -> None:
     for name, (value, valid) in rows.items():
         if name == "threshold":
             assert value.startswith("the preset's loop threshold")
-        elif name == "rerank":
-            assert value == "off" and default.rerank is False
+        elif name in ("rerank", "verify"):
+            assert value == ("on" if getattr(default, name) else "off"), name
+        elif name in ("registration", "gate"):
+            assert value == "§11" and valid == "§11", name
+            continue
         else:
             assert getattr(default, name) == number(value.split()[0]), name
         for clause in [c for c in re.split(r", (?!\d)", valid) if c]:
@@ -238,7 +241,7 @@ def test_the_detector_parameter_table_is_detector_config() -> None:
                 _detector(**{name: 0.0})
                 with pytest.raises(solid.ConfigError, match=name):
                     _detector(**{name: -1e-9})
-            elif m := re.fullmatch(r"in \[(\d), (\d)\]", clause):
+            elif m := re.fullmatch(r"in \[(\d+), (\d+)\]", clause):
                 flo, fhi = float(m.group(1)), float(m.group(2))
                 _detector(**{name: flo})
                 _detector(**{name: fhi})
@@ -255,7 +258,7 @@ def test_the_loop_detector_follows_its_rule() -> None:
     cfg = solid.SolidConfig.preset("vlp16")
     rng = np.random.default_rng(8)
     exclude, top_k, threshold = 4, 5, 0.35
-    det = solid.LoopDetector(cfg, exclude_recent=exclude, threshold=threshold, top_k=top_k, rerank=True)
+    det = solid.LoopDetector(cfg, exclude_recent=exclude, threshold=threshold, top_k=top_k, rerank=True, verify=False)
     rs: list[np.ndarray[Any, Any]] = []
     as_: list[np.ndarray[Any, Any]] = []
     found = 0
@@ -338,9 +341,11 @@ def test_the_database_file_is_laid_out_as_specified() -> None:
         ("32", "40"),
         ("72", "8"),
         ("80", "8"),
-        ("88", "n × 112"),
-        ("88 + 112n", "n × Nr × 4"),
+        ("88", "8"),
+        ("96", "n × 112"),
+        ("96 + 112n", "n × Nr × 4"),
         ("…", "n × Na × 4"),
+        ("…", "C"),
         ("end − 4", "4"),
     ], "the §9 table changed: update the reader below to the new layout"
     magic = re.search(r"magic `(\w+)\\0`", section(9)).group(1).encode() + b"\0"  # type: ignore[union-attr]
@@ -355,18 +360,18 @@ def test_the_database_file_is_laid_out_as_specified() -> None:
     n, nr, na = len(db), cfg.n_range, cfg.n_azimuth
 
     assert b[0:8] == magic
-    assert struct.unpack_from("<3I", b, 8)[:2] == (1, 0)
+    assert struct.unpack_from("<3I", b, 8)[:2] == (2, 0)
     assert struct.unpack_from("<4I", b, 16) == (nr, na, cfg.n_elevation, 0)
     assert struct.unpack_from("<5d", b, 32) == (cfg.fov_up, cfg.fov_down, cfg.min_range, cfg.max_range, cfg.voxel_size)
-    assert struct.unpack_from("<2Q", b, 72) == (cfg.fingerprint, n)
+    assert struct.unpack_from("<3Q", b, 72) == (cfg.fingerprint, n, 0)  # no clouds
     for i in range(n):
-        session, flags, t, *stored = struct.unpack_from("<2Id12d", b, 88 + 112 * i)
+        session, flags, t, *stored = struct.unpack_from("<2Id12d", b, 96 + 112 * i)
         assert session == db.sessions[i]
         assert flags == (i % 2)
         assert (math.isnan(t) and math.isnan(db.timestamps[i])) or t == db.timestamps[i]
         expected_pose = db.poses[i].ravel() if flags else np.zeros(12)
         assert stored == list(expected_pose)
-    at = 88 + 112 * n
+    at = 96 + 112 * n
     r = np.frombuffer(b, "<f4", n * nr, at).reshape(n, nr)
     a = np.frombuffer(b, "<f4", n * na, at + 4 * n * nr).reshape(n, na)
     np.testing.assert_array_equal(r, db.r)

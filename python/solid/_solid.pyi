@@ -35,6 +35,7 @@ __all__ = [
     "DetectorConfig",
     "_detector_config_from_dict",
     "DEFAULT_RADIUS",
+    "VERIFIED_THRESHOLD",
     "Scores",
     "score_candidates",
     "_SIM_SENSORS",
@@ -387,7 +388,21 @@ class Loop:
         """Heading of the query relative to the candidate (refined), degrees in (-180, 180]."""
     @property
     def score(self) -> float:
-        """The score the threshold accepted (today the R-SOLiD distance)."""
+        """The score the loop was accepted with: the R-SOLiD distance, or with verification
+        1 − fitness."""
+    @property
+    def verified(self) -> bool:
+        """Whether the loop was verified by registration (then it has a pose)."""
+    @property
+    def pose(self) -> npt.NDArray[np.float64] | None:
+        """`T_query_candidate`, (4, 4) float64, of a verified loop: `p_query ≈ pose @ p_candidate`
+        (docs/spec.md §3); its yaw is `heading`. None when the loop was not verified."""
+    @property
+    def fitness(self) -> float | None:
+        """Overlap of the verifying registration (None when not verified)."""
+    @property
+    def rmse(self) -> float | None:
+        """Inlier RMSE of the verifying registration, metres (None when not verified)."""
     def __eq__(self, other: object, /) -> bool: ...
 
 @final
@@ -404,7 +419,36 @@ class Candidate:
         """Heading of the query relative to this candidate (refined), degrees in (-180, 180]."""
     @property
     def score(self) -> float:
-        """What the detector's threshold is compared with (today the R-SOLiD distance): the value a precision-recall curve sweeps."""
+        """What ranks the candidates and what a precision-recall curve sweeps: the R-SOLiD
+        distance, or with verification 1 − fitness for a candidate that passed the gate and
+        1.5 + distance / 2 otherwise."""
+    @property
+    def verified(self) -> bool:
+        """Whether this candidate was registered."""
+    @property
+    def accepted(self) -> bool:
+        """Whether its registration passed the gate."""
+    @property
+    def rejection(self) -> str | None:
+        """Why the gate rejected its registration (None when accepted or not registered)."""
+    @property
+    def pose(self) -> npt.NDArray[np.float64] | None:
+        """`T_query_candidate` (4, 4) of its registration (None when not registered)."""
+    @property
+    def fitness(self) -> float | None:
+        """Overlap of its registration (None when not registered)."""
+    @property
+    def structure_fitness(self) -> float | None:
+        """Overlap of its registration's points off horizontal surfaces (None when not registered)."""
+    @property
+    def rmse(self) -> float | None:
+        """Inlier RMSE of its registration, metres (None when not registered)."""
+    @property
+    def degeneracy_translation(self) -> float | None:
+        """Smallest eigenvalue of the translation block of its registration's information matrix."""
+    @property
+    def agreement(self) -> tuple[int, int] | None:
+        """(initial yaws that reached the best pose, yaws tried), or None when not registered."""
     def __eq__(self, other: object, /) -> bool: ...
 
 @final
@@ -439,6 +483,15 @@ class DetectorConfig:
         threshold: float = ...,
         top_k: int = ...,
         rerank: bool = ...,
+        verify: bool = ...,
+        verify_candidates: int = ...,
+        verify_hypotheses: int = ...,
+        verify_fan_deg: float = ...,
+        cloud_bits: int = ...,
+        cache_bytes: int = ...,
+        verify_threads: int = ...,
+        registration: RegistrationConfig | dict[str, Any] = ...,
+        gate: AcceptanceGate | dict[str, Any] = ...,
     ) -> DetectorConfig:
         """`DetectorConfig(...)`: parameters by keyword; those not given take the core's defaults
         (exclusion 50 frames, top 10, no re-ranking, and the largest of the presets' loop thresholds).
@@ -452,6 +505,20 @@ class DetectorConfig:
             threshold: Largest score (R-SOLiD cosine distance) accepted as a loop, in [0, 1].
             top_k: Candidates each step returns, 1..=1000.
             rerank: Re-rank the candidates by R-SOLiD distance plus rotation-aligned A-SOLiD distance.
+            verify: Verify the best candidates by registering the places' clouds (default on):
+                a loop is then accepted only when the registration passes `gate`, and it carries
+                its metric pose.
+            verify_candidates: Candidates registered per step (default 5).
+            verify_hypotheses: Initial yaws per registration, at most (0°, the A-SOLiD minima,
+                then ±verify_fan_deg; default 4).
+            verify_fan_deg: The fixed ± yaw fan of the hypotheses, degrees (default 25).
+            cloud_bits: Bits per axis of the compact clouds stored with the places (default 8).
+            cache_bytes: Memory for prepared clouds kept between steps (default 256 MiB).
+            verify_threads: Threads registering a step's candidates at once (0: one per core).
+            registration: The registration parameters (a `RegistrationConfig` or a dict of
+                overrides).
+            gate: The acceptance gate (an `AcceptanceGate` or a dict); its `max_translation` is
+                the largest loop in metres (default 5, the evaluation radius of docs/spec.md §5).
 
         Raises:
             ConfigError: A value out of its range (named in the message).
@@ -467,6 +534,15 @@ class DetectorConfig:
         threshold: float = ...,
         top_k: int = ...,
         rerank: bool = ...,
+        verify: bool = ...,
+        verify_candidates: int = ...,
+        verify_hypotheses: int = ...,
+        verify_fan_deg: float = ...,
+        cloud_bits: int = ...,
+        cache_bytes: int = ...,
+        verify_threads: int = ...,
+        registration: RegistrationConfig | dict[str, Any] = ...,
+        gate: AcceptanceGate | dict[str, Any] = ...,
     ) -> DetectorConfig:
         """The defaults for a sensor preset (its measured loop threshold, docs/spec.md §4), with overrides.
 
@@ -480,6 +556,20 @@ class DetectorConfig:
             threshold: Largest score (R-SOLiD cosine distance) accepted as a loop, in [0, 1].
             top_k: Candidates each step returns, 1..=1000.
             rerank: Re-rank the candidates by R-SOLiD distance plus rotation-aligned A-SOLiD distance.
+            verify: Verify the best candidates by registering the places' clouds (default on):
+                a loop is then accepted only when the registration passes `gate`, and it carries
+                its metric pose.
+            verify_candidates: Candidates registered per step (default 5).
+            verify_hypotheses: Initial yaws per registration, at most (0°, the A-SOLiD minima,
+                then ±verify_fan_deg; default 4).
+            verify_fan_deg: The fixed ± yaw fan of the hypotheses, degrees (default 25).
+            cloud_bits: Bits per axis of the compact clouds stored with the places (default 8).
+            cache_bytes: Memory for prepared clouds kept between steps (default 256 MiB).
+            verify_threads: Threads registering a step's candidates at once (0: one per core).
+            registration: The registration parameters (a `RegistrationConfig` or a dict of
+                overrides).
+            gate: The acceptance gate (an `AcceptanceGate` or a dict); its `max_translation` is
+                the largest loop in metres (default 5, the evaluation radius of docs/spec.md §5).
 
         Returns:
             The validated parameters.
@@ -497,6 +587,15 @@ class DetectorConfig:
         threshold: float = ...,
         top_k: int = ...,
         rerank: bool = ...,
+        verify: bool = ...,
+        verify_candidates: int = ...,
+        verify_hypotheses: int = ...,
+        verify_fan_deg: float = ...,
+        cloud_bits: int = ...,
+        cache_bytes: int = ...,
+        verify_threads: int = ...,
+        registration: RegistrationConfig | dict[str, Any] = ...,
+        gate: AcceptanceGate | dict[str, Any] = ...,
     ) -> DetectorConfig:
         """A copy with some parameters changed.
 
@@ -509,6 +608,20 @@ class DetectorConfig:
             threshold: Largest score (R-SOLiD cosine distance) accepted as a loop, in [0, 1].
             top_k: Candidates each step returns, 1..=1000.
             rerank: Re-rank the candidates by R-SOLiD distance plus rotation-aligned A-SOLiD distance.
+            verify: Verify the best candidates by registering the places' clouds (default on):
+                a loop is then accepted only when the registration passes `gate`, and it carries
+                its metric pose.
+            verify_candidates: Candidates registered per step (default 5).
+            verify_hypotheses: Initial yaws per registration, at most (0°, the A-SOLiD minima,
+                then ±verify_fan_deg; default 4).
+            verify_fan_deg: The fixed ± yaw fan of the hypotheses, degrees (default 25).
+            cloud_bits: Bits per axis of the compact clouds stored with the places (default 8).
+            cache_bytes: Memory for prepared clouds kept between steps (default 256 MiB).
+            verify_threads: Threads registering a step's candidates at once (0: one per core).
+            registration: The registration parameters (a `RegistrationConfig` or a dict of
+                overrides).
+            gate: The acceptance gate (an `AcceptanceGate` or a dict); its `max_translation` is
+                the largest loop in metres (default 5, the evaluation radius of docs/spec.md §5).
 
         Returns:
             The validated parameters.
@@ -541,6 +654,33 @@ class DetectorConfig:
     @property
     def rerank(self) -> bool:
         """Whether candidates are re-ranked by A-SOLiD alignment."""
+    @property
+    def verify(self) -> bool:
+        """Whether the best candidates are verified by registration."""
+    @property
+    def verify_candidates(self) -> int:
+        """Candidates registered per step."""
+    @property
+    def verify_hypotheses(self) -> int:
+        """Initial yaws per registration, at most."""
+    @property
+    def verify_fan_deg(self) -> float:
+        """The fixed ± yaw fan added to the hypotheses, degrees."""
+    @property
+    def cloud_bits(self) -> int:
+        """Bits per axis of the stored compact clouds."""
+    @property
+    def cache_bytes(self) -> int:
+        """Memory for prepared clouds kept between steps, bytes."""
+    @property
+    def verify_threads(self) -> int:
+        """Threads registering a step's candidates (0: one per core)."""
+    @property
+    def registration(self) -> RegistrationConfig:
+        """The registration parameters."""
+    @property
+    def gate(self) -> AcceptanceGate:
+        """The acceptance gate; its `max_translation` is the largest loop, metres."""
     def __eq__(self, other: object, /) -> bool: ...
     def __reduce__(self) -> tuple[Any, tuple[dict[str, Any]]]: ...
 
@@ -695,6 +835,24 @@ class Database:
     def ids(self) -> npt.NDArray[np.int64]:
         """Entry ids 0..N, int64."""
     @property
+    def cloud_bytes(self) -> int:
+        """Bytes of the compact clouds stored for verification (0: none)."""
+    @property
+    def clouds_stored(self) -> int:
+        """Number of places that have a stored cloud."""
+    def cloud(self, id: int) -> bytes | None:
+        """The compact cloud stored with a place for verification.
+
+        Args:
+            id: The place's id.
+
+        Returns:
+            Its wire form (decode it with `solid.decode_cloud`), or None when it has none.
+
+        Raises:
+            IndexError: No place has this id.
+        """
+    @property
     def sessions(self) -> npt.NDArray[np.uint32]:
         """Each entry's session, uint32."""
     @property
@@ -722,6 +880,7 @@ class LoopDetector:
         *,
         exclude_meters: float | None = None,
         exclude_seconds: float | None = None,
+        verify: bool | None = None,
         detector: DetectorConfig | None = None,
     ) -> LoopDetector:
         """`LoopDetector(cfg, ...)`: a detector with an empty database.
@@ -741,6 +900,8 @@ class LoopDetector:
                 the path (every scan then needs a pose); None or 0: off.
             exclude_seconds: Also skip places of the own session fewer than this many seconds back
                 (every scan then needs a non-decreasing timestamp); None or 0: off.
+            verify: Verify the best candidates by registration (None: on, the default); with it on,
+                scans must be given as points.
             detector: Parameters to start from instead of the defaults; the other arguments override
                 them.
 
@@ -758,6 +919,7 @@ class LoopDetector:
         *,
         exclude_meters: float | None = None,
         exclude_seconds: float | None = None,
+        verify: bool | None = None,
         detector: DetectorConfig | None = None,
     ) -> LoopDetector:
         """A detector over a copy of an existing database (a prior map, other sessions): its places
@@ -778,6 +940,8 @@ class LoopDetector:
                 the path (every scan then needs a pose); None or 0: off.
             exclude_seconds: Also skip places of the own session fewer than this many seconds back
                 (every scan then needs a non-decreasing timestamp); None or 0: off.
+            verify: Verify the best candidates by registration (None: on, the default); with it on,
+                scans must be given as points.
             detector: Parameters to start from instead of the defaults; the other arguments override
                 them.
 
@@ -823,7 +987,9 @@ class LoopDetector:
         timestamp: float | None = None,
         pose: npt.ArrayLike | None = None,
     ) -> Detection:
-        """As `add`, returning everything the step decided.
+        """As `add`, returning everything the step decided. With verification on (the default) the
+        scan must be given as points: its cloud is prepared, stored with the place and registered
+        with the best candidates'; a Descriptor then raises ConfigError.
 
         Args:
             points_or_descriptor: The scan's points (as `solid.describe` accepts) or its descriptor,
@@ -846,17 +1012,22 @@ class LoopDetector:
         """
     def detect_many(
         self,
-        descriptors: Sequence[Descriptor],
+        scans: Sequence[Descriptor] | Sequence[npt.ArrayLike],
         timestamps: Sequence[float | None] | npt.ArrayLike | None = None,
         poses: Sequence[npt.ArrayLike | None] | npt.ArrayLike | None = None,
+        threads: int | None = None,
     ) -> list[Detection]:
-        """`detect` for many descriptors in order, in one call (the GIL is released once). Every input
-        is checked before the first is added: on error nothing is added.
+        """`detect` for many scans in order, in one call (the GIL is released once): point arrays
+        are described (and, when the detector verifies, their clouds prepared) in parallel, then
+        the steps run in order. Every input is checked before the first is added: on error
+        nothing is added.
 
         Args:
-            descriptors: Descriptors made with the detector's configuration.
-            timestamps: One per descriptor (None entries: none), or None for none at all.
-            poses: One per descriptor (3×4 or 12 floats; None entries: none), an (N, 3, 4) array,
+            scans: Point arrays (as `solid.describe` accepts), or Descriptors made with the
+                detector's configuration (verification off).
+            threads: Workers describing and preparing the scans (None: every core).
+            timestamps: One per scan (None entries: none), or None for none at all.
+            poses: One per scan (3×4 or 12 floats; None entries: none), an (N, 3, 4) array,
                 or None for none at all.
 
         Returns:
@@ -870,7 +1041,7 @@ class LoopDetector:
             SolidError: Points of the wrong shape or layout (as `solid.describe`).
             TypeError: Points of the wrong type or dtype.
             ValueError: A pose that is not 12 values or a 3×4 array.
-            SolidError: `timestamps` or `poses` of another length than `descriptors`.
+            SolidError: `timestamps` or `poses` of another length than `scans`.
         """
     def candidates(
         self,
@@ -904,7 +1075,8 @@ class LoopDetector:
         """
     def query(self, points_or_descriptor: Descriptor | npt.ArrayLike) -> Loop | None:
         """Searches one scan against every place without adding it and without excluding any
-        (localisation in a prior map).
+        (localisation in a prior map); with verification on, its best candidates are registered
+        (then the scan must be given as points).
 
         Args:
             points_or_descriptor: The scan's points or its descriptor.
@@ -947,6 +1119,7 @@ class LoopDetector:
 # --- docs/spec.md §5 scoring (eval.rs) ---
 
 DEFAULT_RADIUS: float
+VERIFIED_THRESHOLD: float
 
 @final
 class Scores:
@@ -971,6 +1144,13 @@ class Scores:
     @property
     def true_heading_deg(self) -> npt.NDArray[np.float64]:
         """True heading between each query and its best candidate, degrees (NaN: none)."""
+    @property
+    def pose_error_m(self) -> npt.NDArray[np.float64]:
+        """Translation error of each query's estimated pose against the true
+        `inv(T_world_query) @ T_world_candidate`, metres (NaN: no pose)."""
+    @property
+    def pose_error_deg(self) -> npt.NDArray[np.float64]:
+        """Rotation error of each query's estimated pose, degrees (NaN: no pose)."""
     @property
     def n_gt(self) -> int:
         """Number of GT-positive queries."""
@@ -1033,6 +1213,7 @@ def score_candidates(
     heading_deg: npt.NDArray[np.float64],
     poses: npt.NDArray[np.float64],
     radius: float,
+    pose: npt.NDArray[np.float64] | None = None,
 ) -> Scores:
     """Scores what a detector (or a baseline) decided against poses (docs/spec.md §5), with the
     GIL released; `solid.evaluation` wraps it in a friendlier form.
@@ -1045,6 +1226,8 @@ def score_candidates(
         heading_deg: Per query, the heading estimated for its best candidate, degrees.
         poses: Every frame's pose, shape (N, 3, 4), float64.
         radius: Metres within which a place counts as the same.
+        pose: Per query, the metric `T_query_candidate` estimated for its best candidate, shape
+            (M, 4, 4), NaN where none; None when no query has one.
 
     Returns:
         The per-query outcomes and summary metrics.
@@ -1371,6 +1554,13 @@ class AcceptanceGate:
 
         Raises:
             ConfigError: A NaN or infinite threshold.
+        """
+    def __eq__(self, other: object, /) -> bool: ...
+    def to_dict(self) -> dict[str, Any]:
+        """The thresholds by name: what `AcceptanceGate(**d)` takes back.
+
+        Returns:
+            A new dict.
         """
     def check(self, registration: Registration) -> str | None:
         """Why `registration` is rejected, if it is.

@@ -100,7 +100,10 @@ def _add_detector_args(p: argparse.ArgumentParser) -> None:
     g.add_argument("--exclude-s", type=nonneg_float, metavar="S", help="also skip places less than S seconds back (needs timestamps)")
     g.add_argument("--threshold", type=unit_float, metavar="X", help="accept a loop when its score (cosine distance) is <= X (default: the preset's)")
     g.add_argument("--top-k", type=pos_int, metavar="K", help="candidates per query (default 10)")
-    g.add_argument("--no-rerank", action="store_true", help="do not re-rank candidates by A-SOLiD alignment")
+    g.add_argument("--rerank", action="store_true", help="re-rank candidates by A-SOLiD alignment (off by default)")
+    g.add_argument("--no-verify", action="store_true", help="accept loops by R-SOLiD distance alone, without registering the clouds")
+    g.add_argument("--verify-candidates", type=pos_int, metavar="K", help="candidates registered per scan (default 5)")
+    g.add_argument("--max-loop-distance", type=pos_float, metavar="M", help="largest loop, metres between the places (default: the evaluation radius, 5)")
 
 
 def _add_input_args(p: argparse.ArgumentParser, poses_required: bool = False) -> None:
@@ -173,6 +176,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("sequence", type=Path)
     p.add_argument("-o", "--output", type=Path, default=None, help="output folder (must not exist or be empty)")
     p.add_argument("--map", type=Path, metavar="FILE", help="a map from `solid map build`: query this recording against it")
+    p.add_argument("--g2o", type=Path, metavar="FILE", help="also write the verified loops as g2o EDGE_SE3:QUAT edges (must not exist)")
     _add_config_args(p)
     _add_detector_args(p)
     _add_input_args(p)
@@ -307,8 +311,17 @@ def make_config(args: argparse.Namespace, base: Any | None = None) -> Any:
         v = getattr(args, flag, None)
         if v is not None:
             det[key] = v
-    if getattr(args, "no_rerank", False):
-        det["rerank"] = False
+    if getattr(args, "rerank", False):
+        det["rerank"] = True
+    if getattr(args, "no_verify", False):
+        det["verify"] = False
+    if getattr(args, "verify_candidates", None) is not None:
+        det["verify_candidates"] = args.verify_candidates
+    max_loop = getattr(args, "max_loop_distance", None)
+    if max_loop is None and getattr(args, "radius", None) is not None:
+        max_loop = args.radius  # a loop joins places within the evaluation radius
+    if max_loop is not None:
+        det["gate"] = {**base.detector.gate.to_dict(), "max_translation": max_loop}
     inp = {}
     for key in ("fov", "fov_center", "occlude", "occlude_center", "frames", "subsample_m"):
         v = getattr(args, key, None)
@@ -404,9 +417,8 @@ def cmd_detect(args: argparse.Namespace, out: TextIO) -> int:
     cfg, map_db = config_and_map(args)
     ds, inputs = _open(args, sys.stderr)
     with _progress(args, len(ds), "detect") as bar:
-        result, folder = commands.detect(ds, cfg, inputs, output=args.output, map_db=map_db, threads=args.threads, progress=bar.update)
-    t = result.timings
-    total = t["describe_s"] + t["detect_s"]
+        result, folder = commands.detect(ds, cfg, inputs, output=args.output, map_db=map_db, threads=args.threads, progress=bar.update, g2o=args.g2o)
+    total = result.timings["detect_s"]
     rate = len(result.frames) / total if total > 0 else math.inf
     d = cfg.detector
     out.write(
@@ -415,7 +427,7 @@ def cmd_detect(args: argparse.Namespace, out: TextIO) -> int:
         + (f" / {d.exclude_seconds:g} s" if d.exclude_seconds else "")
         + f"{', map of ' + str(result.map_size) + ' places' if result.map_size else ''}), {rate:.1f} Hz\n"
     )
-    out.write(f"wrote {folder}\n")
+    out.write(f"wrote {folder}" + (f" and {args.g2o}" if args.g2o else "") + "\n")
     return 0
 
 
@@ -539,6 +551,8 @@ def cmd_map(args: argparse.Namespace, out: TextIO) -> int:
         out.write(json.dumps(info, indent=1) + "\n")
         return 0
     out.write(f"{info['file']}: {info['places']} places, {info['bytes']} bytes, config fingerprint {info['fingerprint']}\n")
+    if info["places_with_cloud"]:
+        out.write(f"clouds for verification: {info['places_with_cloud']} places, {info['cloud_bytes_per_place']:.0f} bytes per place\n")
     out.write("config: " + ", ".join(f"{k}={v}" for k, v in info["config"].items()) + "\n")
     for s in info["sessions"]:
         span = s["time_span_s"]

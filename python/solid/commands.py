@@ -23,7 +23,7 @@ from .evaluation import QUERY_COLUMNS, Evaluation
 from .outputs import Output, output_folder, write_csv, write_json
 from .pipeline import LOOP_COLUMNS, LoopClosurePipeline, PipelineResult
 
-__all__ = ["Inputs", "bench", "build_map", "describe_scan", "detect", "evaluate", "map_info", "merge_maps"]
+__all__ = ["Inputs", "bench", "build_map", "describe_scan", "detect", "evaluate", "map_info", "merge_maps", "write_g2o"]
 
 
 @dataclass(frozen=True)
@@ -68,7 +68,7 @@ def _run(
 def _summary(result: PipelineResult, inputs: Inputs, command: str) -> dict[str, Any]:
     t = result.timings
     n = len(result.frames)
-    total = t.get("describe_s", 0.0) + t.get("detect_s", 0.0)
+    total = t.get("detect_s", 0.0)
     doc: dict[str, Any] = {
         "command": command,
         "solid_version": _solid.__version__,
@@ -80,8 +80,7 @@ def _summary(result: PipelineResult, inputs: Inputs, command: str) -> dict[str, 
         "loops": len(result.loops()),
         "fov_center_deg": result.fov_center,
         "timing": {
-            "describe_s": round(t.get("describe_s", 0.0), 4),
-            "detect_s": round(t.get("detect_s", 0.0), 4),
+            "detect_s": round(total, 4),
             "hz": round(n / total, 1) if total > 0 else None,
         },
     }
@@ -117,13 +116,52 @@ def detect(
     map_db: Any | None = None,
     threads: int | None = None,
     progress: Callable[[int], None] | None = None,
+    g2o: Path | None = None,
 ) -> tuple[PipelineResult, Path]:
-    """``solid detect``: the accepted loops in ``loops.csv``, the run in ``summary.json``."""
+    """``solid detect``: the accepted loops in ``loops.csv``, the run in ``summary.json``; with
+    ``g2o``, the verified loops as pose-graph edges in that file too (:func:`write_g2o`)."""
+    if g2o is not None and Path(g2o).exists():
+        raise FileExistsError(f"{g2o} exists: choose another file name or remove it")
     result = _run(dataset, config, map_db, threads, progress)
     with output_folder(output, "detect", inputs.sequence.name) as out:
         _write_common(out, result)
         write_json(out.work / "summary.json", _summary(result, inputs, "detect"))
+        if g2o is not None:
+            write_g2o(out.work / "loops.g2o", result.loops())
+    if g2o is not None:
+        from .io import _atomic_write_bytes
+
+        _atomic_write_bytes(Path(g2o), (out.final / "loops.g2o").read_bytes())
     return result, out.final
+
+
+def write_g2o(path: Path, loops: AbcSequence[Any]) -> int:
+    """The verified loops as g2o ``EDGE_SE3:QUAT`` lines, ready to add to a pose graph whose
+    vertex ids are the database's place ids: ``EDGE_SE3:QUAT query candidate x y z qx qy qz qw``
+    and the upper triangle of the 6×6 information matrix (translation first). The measurement is
+    ``T_query_candidate`` (docs/spec.md §3). The information is diagonal: ``1/σ²`` with
+    σ = the registration's inlier RMSE (at least 1 cm) for each translation axis and σ = that
+    RMSE over 10 m (the typical lever arm of the points) in radians for each rotation axis —
+    a plain, documented default; scale it to your odometry's weights. Returns the edges written
+    (loops without a pose are skipped)."""
+    from .evaluation import quaternion
+
+    lines = []
+    for lp in loops:
+        if lp.pose is None:
+            continue
+        P = np.asarray(lp.pose, dtype=np.float64)
+        qx, qy, qz, qw = quaternion(P[:3, :3])
+        sig_t = max(float(lp.rmse or 0.0), 0.01)
+        sig_r = sig_t / 10.0
+        info = np.diag([1 / sig_t**2] * 3 + [1 / sig_r**2] * 3)
+        upper = " ".join(f"{info[i, j]:.6g}" for i in range(6) for j in range(i, 6))
+        lines.append(
+            f"EDGE_SE3:QUAT {int(lp.query)} {int(lp.candidate)} {P[0, 3]:.6f} {P[1, 3]:.6f} {P[2, 3]:.6f} "
+            f"{qx:.9f} {qy:.9f} {qz:.9f} {qw:.9f} {upper}"
+        )
+    path.write_text("".join(line + "\n" for line in lines), encoding="utf-8")
+    return len(lines)
 
 
 @dataclass
@@ -294,6 +332,9 @@ def map_info(path: Path) -> dict[str, Any]:
         "file": str(Path(path).absolute()),
         "bytes": Path(path).stat().st_size,
         "places": len(db),
+        "places_with_cloud": int(db.clouds_stored),
+        "cloud_bytes": int(db.cloud_bytes),
+        "cloud_bytes_per_place": round(db.cloud_bytes / db.clouds_stored, 1) if db.clouds_stored else None,
         "config": db.config.to_dict(),
         "fingerprint": f"{db.config.fingerprint:#018x}",
         "sessions": per,

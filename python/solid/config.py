@@ -13,13 +13,16 @@ JSON layout::
 
     {"preset": "avia",
      "descriptor": {"n_range": 40, ...},          # solid.SolidConfig fields
-     "detector": {"exclude_frames": 50, ...},     # solid.DetectorConfig fields
+     "detector": {"exclude_frames": 50, ..., "verify": true, ...,
+                  "registration": {...}, "gate": {...}},   # solid.DetectorConfig fields
      "evaluation": {"radius": 5.0},
      "input": {"fov": null, "fov_center": null, "occlude": null, "occlude_center": 0.0,
                "frames": null, "subsample_m": null}}
 
 Any section or key may be left out (it takes its default); unknown keys are errors that name
 them. ``-0.0`` is written as ``0.0`` so that equal configurations dump, compare and hash equally.
+An evaluation ``radius`` given without the gate's ``max_translation`` also bounds the loops the
+detector accepts (places farther apart would count as false at that radius).
 """
 
 from __future__ import annotations
@@ -54,9 +57,11 @@ def detector_fields() -> dict[str, type]:
 
 
 def _norm(v: Any) -> Any:
-    """-0.0 → 0.0 (and leave everything else alone)."""
+    """-0.0 → 0.0, in nested dicts too (everything else is left alone)."""
     if isinstance(v, float) and v == 0.0:
         return 0.0
+    if isinstance(v, dict):
+        return {k: _norm(x) for k, x in v.items()}
     return v
 
 
@@ -177,6 +182,13 @@ class PipelineConfig:
         except TypeError as e:
             raise _solid.ConfigError(f"{where}: {e}") from None
         radius = sections["evaluation"].get("radius", float(_solid.DEFAULT_RADIUS))
+        if not (isinstance(radius, (int, float)) and not isinstance(radius, bool) and math.isfinite(radius) and radius > 0):
+            raise _solid.ConfigError(f"{where}: invalid evaluation.radius = {radius!r}: expected metres > 0")
+        gate = sections["detector"].get("gate")
+        if "radius" in sections["evaluation"] and not (isinstance(gate, dict) and "max_translation" in gate):
+            # A loop joins places within the evaluation radius unless the gate says otherwise:
+            # farther ones would count as false (docs/spec.md §5).
+            det = det.replace(gate={**det.gate.to_dict(), "max_translation": float(radius)})
         return cls(descriptor=desc, detector=det, radius=radius, input=inp, preset_name=preset)
 
     def to_dict(self) -> dict[str, Any]:

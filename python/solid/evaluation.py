@@ -35,6 +35,9 @@ B = npt.NDArray[np.bool_]
 #: contract; ``accepted`` is at the run's threshold, ``score`` is what the PR curve thresholds.
 #: Rows with ``accepted`` true carry, in their columns shared with ``loops.csv``, exactly the rows
 #: of ``solid detect`` for the same configuration.
+#: The columns of a loop's pose (``loops.csv`` and ``queries.csv``), filled by :func:`pose_columns`.
+POSE_COLUMNS = ("verified", "x", "y", "z", "qx", "qy", "qz", "qw", "fitness", "rmse")
+
 QUERY_COLUMNS = (
     "query",
     "candidate",
@@ -54,6 +57,9 @@ QUERY_COLUMNS = (
     "candidate_session",
     "query_frame",
     "candidate_frame",
+    *POSE_COLUMNS,
+    "pose_error_m",
+    "pose_error_deg",
 )
 
 
@@ -76,6 +82,9 @@ class Evaluation:
     threshold: float | None
     entry_times: F64
     entry_sessions: npt.NDArray[np.uint32]
+    pose: F64 | None = None
+    fitness: F64 | None = None
+    rmse: F64 | None = None
     frame_of: Callable[[int], int | None] = field(repr=False, default=lambda i: None)
     extra: dict[str, Any] = field(default_factory=dict)
 
@@ -135,6 +144,22 @@ class Evaluation:
             "rotation_error_deg_median": float(np.median(err)) if err.size else None,
             "rotation_error_deg_max": float(err.max()) if err.size else None,
         }
+        pe_m = np.asarray(self.scores.pose_error_m)
+        pe_d = np.asarray(self.scores.pose_error_deg)
+        ok = self.accepted & self.correct & np.isfinite(pe_m)
+        if ok.any():
+            m.update(
+                {
+                    "pose_error_m_median": float(np.median(pe_m[ok])),
+                    "pose_error_deg_median": float(np.median(pe_d[ok])),
+                    "pose_error_m_max": float(pe_m[ok].max()),
+                    "pose_error_deg_max": float(pe_d[ok].max()),
+                    "verified_loops_with_pose": int(ok.sum()),
+                }
+            )
+        acc_pose = self.accepted & np.isfinite(pe_m)
+        if acc_pose.any():
+            m["pose_error_m_max_all_accepted"] = float(pe_m[acc_pose].max())
         if self.threshold is not None:
             acc, tp, prec, rec = self.scores.at_threshold(self.threshold)
             m.update(
@@ -160,10 +185,13 @@ class Evaluation:
         cand_m = np.asarray(self.scores.candidate_distance_m)
         truth = np.asarray(self.scores.true_heading_deg)
         accepted = self.accepted
+        pe_m = np.asarray(self.scores.pose_error_m)
+        pe_d = np.asarray(self.scores.pose_error_deg)
         out = []
         for i in range(self.query.size):
             q, c = int(self.query[i]), int(self.ids[i, 0])
             has = c >= 0
+            pose = None if self.pose is None or not np.isfinite(self.pose[i]).all() else self.pose[i]
             out.append(
                 {
                     "query": q,
@@ -184,9 +212,57 @@ class Evaluation:
                     "candidate_session": int(self.entry_sessions[c]) if has else "",
                     "query_frame": _fmt_opt(self.frame_of(q)),
                     "candidate_frame": _fmt_opt(self.frame_of(c)) if has else "",
+                    **pose_columns(pose, None if self.fitness is None else float(self.fitness[i]), None if self.rmse is None else float(self.rmse[i])),
+                    "pose_error_m": _fmt_opt(float(pe_m[i]), ".4f"),
+                    "pose_error_deg": _fmt_opt(float(pe_d[i]), ".4f"),
                 }
             )
         return out
+
+
+def quaternion(R: npt.ArrayLike) -> tuple[float, float, float, float]:
+    """(qx, qy, qz, qw) of a rotation matrix, qw >= 0 (Shepperd's method)."""
+    m = np.asarray(R, dtype=np.float64)
+    tr = m[0, 0] + m[1, 1] + m[2, 2]
+    if tr > 0:
+        s = 2.0 * math.sqrt(1.0 + tr)
+        q = ((m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, 0.25 * s)
+    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
+        s = 2.0 * math.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2])
+        q = (0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s, (m[2, 1] - m[1, 2]) / s)
+    elif m[1, 1] > m[2, 2]:
+        s = 2.0 * math.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2])
+        q = ((m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s, (m[0, 2] - m[2, 0]) / s)
+    else:
+        s = 2.0 * math.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1])
+        q = ((m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s, (m[1, 0] - m[0, 1]) / s)
+    n = math.sqrt(sum(v * v for v in q))
+    sign = -1.0 if q[3] < 0 else 1.0
+    x, y, z, w = (sign * v / n for v in q)
+    return x, y, z, w
+
+
+def pose_columns(pose: npt.ArrayLike | None, fitness: float | None, rmse: float | None) -> dict[str, Any]:
+    """The ``verified,x,y,z,qx,qy,qz,qw,fitness,rmse`` columns of a loop (empty without a pose):
+    the pose ``T_query_candidate`` of a verified loop as translation and unit quaternion."""
+    from .pipeline import _fmt_opt
+
+    if pose is None:
+        return {"verified": False} | {k: "" for k in POSE_COLUMNS[1:]}
+    P = np.asarray(pose, dtype=np.float64)
+    qx, qy, qz, qw = quaternion(P[:3, :3])
+    return {
+        "verified": True,
+        "x": f"{P[0, 3]:.6f}",
+        "y": f"{P[1, 3]:.6f}",
+        "z": f"{P[2, 3]:.6f}",
+        "qx": f"{qx:.9f}",
+        "qy": f"{qy:.9f}",
+        "qz": f"{qz:.9f}",
+        "qw": f"{qw:.9f}",
+        "fitness": _fmt_opt(fitness, ".4f"),
+        "rmse": _fmt_opt(rmse, ".4f"),
+    }
 
 
 def _poses_of(database: Any) -> F64:
@@ -209,13 +285,18 @@ def evaluate_candidates(
     entry_times: npt.ArrayLike | None = None,
     entry_sessions: npt.ArrayLike | None = None,
     frame_of: Callable[[int], int | None] | None = None,
+    pose: npt.ArrayLike | None = None,
+    fitness: npt.ArrayLike | None = None,
+    rmse: npt.ArrayLike | None = None,
 ) -> Evaluation:
     """Score any method's candidates (docs/spec.md §5).
 
     ``query`` (Q,) entry ids; ``eligible`` (Q,) each query may be matched with ids
     ``0..eligible``; ``ids`` (Q, k) ranked candidate ids (−1 where missing); ``distance``,
     ``score`` and ``heading_deg`` (Q,) of each best candidate (the PR curve sweeps ``score``);
-    ``poses`` (N, 3, 4) of every entry id, in one frame.
+    ``poses`` (N, 3, 4) of every entry id, in one frame. ``pose`` (Q, 4, 4), optional: the
+    metric ``T_query_candidate`` estimated for each best candidate (NaN where none), scored
+    against the poses (translation and rotation error).
     """
     P = np.ascontiguousarray(poses, dtype=np.float64)
     if P.ndim != 3 or P.shape[1:] != (3, 4):
@@ -238,7 +319,8 @@ def evaluate_candidates(
         )
     # Entries without poses that no query can reach stay out of the ground truth.
     P = np.where(np.isfinite(P), P, 1e300)
-    scores = _solid.score_candidates(q, el, I, s, h, P, float(radius))
+    est = None if pose is None else np.ascontiguousarray(pose, dtype=np.float64)
+    scores = _solid.score_candidates(q, el, I, s, h, P, float(radius), est)
     return Evaluation(
         name=name,
         scores=scores,
@@ -252,6 +334,9 @@ def evaluate_candidates(
         entry_times=np.full(n, np.nan) if entry_times is None else np.asarray(entry_times, dtype=np.float64),
         entry_sessions=np.zeros(n, np.uint32) if entry_sessions is None else np.asarray(entry_sessions, dtype=np.uint32),
         frame_of=frame_of or (lambda i: None),
+        pose=est,
+        fitness=None if fitness is None else np.asarray(fitness, dtype=np.float64),
+        rmse=None if rmse is None else np.asarray(rmse, dtype=np.float64),
     )
 
 
@@ -272,12 +357,18 @@ def evaluate_detections(
     dist = np.full(len(steps), np.nan)
     score = np.full(len(steps), np.nan)
     head = np.full(len(steps), np.nan)
+    pose = np.full((len(steps), 4, 4), np.nan)
+    fit = np.full(len(steps), np.nan)
+    rms = np.full(len(steps), np.nan)
     for i, d in enumerate(steps):
         for j, c in enumerate(d.candidates):
             ids[i, j] = c.id
         if d.candidates:
             best = d.candidates[0]
             dist[i], score[i], head[i] = best.distance, best.score, best.heading
+            if best.accepted:
+                pose[i] = best.pose
+                fit[i], rms[i] = best.fitness, best.rmse
     return evaluate_candidates(
         name,
         np.array([d.query for d in steps], dtype=np.int64),
@@ -292,4 +383,7 @@ def evaluate_detections(
         entry_times=np.asarray(database.timestamps),
         entry_sessions=np.asarray(database.sessions),
         frame_of=frame_of,
+        pose=pose,
+        fitness=fit,
+        rmse=rms,
     )

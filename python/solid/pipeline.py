@@ -33,6 +33,7 @@ import numpy.typing as npt
 from . import _solid
 from . import io as sio
 from .config import PipelineConfig
+from .evaluation import POSE_COLUMNS
 
 __all__ = [
     "Dataset",
@@ -51,7 +52,10 @@ I64 = npt.NDArray[np.int64]
 
 #: Columns of ``loops.csv`` (one row per accepted loop), in order. ``query``/``candidate`` are ids
 #: in the detector's database (a prior map's places first); ``*_frame`` the frame number in the
-#: query's own recording (empty for a map place); times in seconds (empty when unknown).
+#: query's own recording (empty for a map place); times in seconds (empty when unknown). A verified
+#: loop has its pose ``T_query_candidate`` (``p_query ≈ T·p_candidate``, docs/spec.md §3) as
+#: ``x,y,z`` and the unit quaternion ``qx,qy,qz,qw``, with the registration's ``fitness`` and
+#: ``rmse`` (metres).
 LOOP_COLUMNS = (
     "query",
     "candidate",
@@ -64,6 +68,7 @@ LOOP_COLUMNS = (
     "candidate_session",
     "query_frame",
     "candidate_frame",
+    *POSE_COLUMNS,
 )
 
 
@@ -175,12 +180,14 @@ class PipelineResult:
         stored poses and this recording's), at ``radius`` (default: the config's)."""
         from .evaluation import evaluate_detections
 
+        det = self.config.detector
         return evaluate_detections(
             name,
             self.detections,
             self.database,
             radius=self.config.radius if radius is None else radius,
-            threshold=self.config.detector.threshold,
+            # With verification, the scores of the loops that passed the gate lie in [0, 1].
+            threshold=_solid.VERIFIED_THRESHOLD if det.verify else det.threshold,
             frame_of=self.frame_of,
         )
 
@@ -192,7 +199,9 @@ def _fmt_opt(v: float | int | None, fmt: str = ".6f") -> str:
 
 
 def loop_row(lp: Any, times: F64, sessions: npt.NDArray[np.uint32], frame_of: Callable[[int], int | None]) -> dict[str, Any]:
-    """One ``loops.csv`` row; eval's ``queries.csv`` formats the same fields with this function."""
+    """One ``loops.csv`` row; eval's ``queries.csv`` formats the same fields the same way."""
+    from .evaluation import pose_columns
+
     q, c = int(lp.query), int(lp.candidate)
     return {
         "query": q,
@@ -206,6 +215,7 @@ def loop_row(lp: Any, times: F64, sessions: npt.NDArray[np.uint32], frame_of: Ca
         "candidate_session": int(sessions[c]),
         "query_frame": _fmt_opt(frame_of(q)),
         "candidate_frame": _fmt_opt(frame_of(c)),
+        **pose_columns(lp.pose, lp.fitness, lp.rmse),
     }
 
 
@@ -263,20 +273,19 @@ class LoopClosurePipeline:
         batch: list[F32] = []
         batch_idx: list[int] = []
         fov_center = opts.fov_center
-        t_describe = t_detect = 0.0
+        t_detect = 0.0
 
         def flush() -> None:
-            nonlocal t_describe, t_detect
+            nonlocal t_detect
             if not batch:
                 return
             t0 = time.perf_counter()
-            descs = _solid.describe_batch(batch, self.config.descriptor, threads=self.threads)
-            t1 = time.perf_counter()
             ts = None if times_all is None else [float(times_all[i]) for i in batch_idx]
             ps = None if poses_all is None else [poses_all[i] for i in batch_idx]
-            detections.extend(det.detect_many(descs, ts, ps))
-            t_describe += t1 - t0
-            t_detect += time.perf_counter() - t1
+            # The detector describes (and, when it verifies, prepares the clouds of) the batch on
+            # every core, then runs its steps in order.
+            detections.extend(det.detect_many(batch, ts, ps, threads=self.threads))
+            t_detect += time.perf_counter() - t0
             if self.progress is not None:
                 self.progress(len(batch))
             batch.clear()
@@ -309,7 +318,7 @@ class LoopClosurePipeline:
             map_size=int(det.session_start),
             session=int(det.session),
             fov_center=fov_center,
-            timings={"describe_s": t_describe, "detect_s": t_detect},
+            timings={"detect_s": t_detect},
         )
 
 

@@ -33,6 +33,7 @@
 //!     ids: &[1, 0],
 //!     score: &[0.1],
 //!     heading_deg: &[0.0],
+//!     pose: &[],
 //! };
 //! let e = score(&q, &poses, 1.5).unwrap();
 //! assert!(e.gt_positive[0] && e.correct[0]);
@@ -65,6 +66,9 @@ pub struct Queries<'a> {
     pub score: &'a [f64],
     /// The heading each query's best candidate was given, degrees ([spec §3](crate::spec#3-comparing-descriptors)).
     pub heading_deg: &'a [f64],
+    /// The metric pose `T_query_candidate` estimated for each query's best candidate, row-major
+    /// 4×4 (NaN where there is none); empty when no query has one.
+    pub pose: &'a [[f64; 16]],
 }
 
 /// Per-query outcomes and the summary metrics of [spec §5](crate::spec#5-evaluating-loop-closure-against-poses) (see the module documentation).
@@ -86,6 +90,11 @@ pub struct Evaluation {
     pub score: Vec<f64>,
     /// The estimated headings (copied from the input).
     pub heading_deg: Vec<f64>,
+    /// Translation error (metres) of each query's estimated pose against the true
+    /// `inv(T_world_query)·T_world_candidate` (NaN: no pose).
+    pub pose_error_m: Vec<f64>,
+    /// Rotation error (degrees) of each query's estimated pose (NaN: no pose).
+    pub pose_error_deg: Vec<f64>,
 }
 
 fn bad(name: &'static str, value: f64, expected: &'static str) -> Error {
@@ -116,6 +125,9 @@ pub fn score(q: &Queries<'_>, poses: &[[f64; 12]], radius: f64) -> Result<Evalua
     same("eligible vs queries", q.eligible.len(), nq)?;
     same("score vs queries", q.score.len(), nq)?;
     same("heading_deg vs queries", q.heading_deg.len(), nq)?;
+    if !q.pose.is_empty() {
+        same("pose vs queries", q.pose.len(), nq)?;
+    }
     if q.k == 0 && nq > 0 {
         return Err(bad("k", 0.0, "at least 1"));
     }
@@ -141,6 +153,8 @@ pub fn score(q: &Queries<'_>, poses: &[[f64; 12]], radius: f64) -> Result<Evalua
         true_heading_deg: Vec::new(),
         score: q.score.to_vec(),
         heading_deg: q.heading_deg.to_vec(),
+        pose_error_m: Vec::new(),
+        pose_error_deg: Vec::new(),
     };
     for i in 0..nq {
         let (query, eligible) = (q.query[i] as usize, q.eligible[i] as usize);
@@ -191,8 +205,41 @@ pub fn score(q: &Queries<'_>, poses: &[[f64; 12]], radius: f64) -> Result<Evalua
         e.first_hit.push(first_hit);
         e.candidate_distance_m.push(cand_m);
         e.true_heading_deg.push(truth);
+        let (em, ed) = match q.pose.get(i) {
+            Some(est) if best != NO_CANDIDATE && est.iter().all(|v| v.is_finite()) => {
+                pose_error(est, &poses[query], &poses[best as usize])
+            }
+            _ => (f64::NAN, f64::NAN),
+        };
+        e.pose_error_m.push(em);
+        e.pose_error_deg.push(ed);
     }
     Ok(e)
+}
+
+/// Translation (metres) and rotation (degrees) error of an estimated `T_query_candidate`
+/// (row-major 4×4) against the true `inv(T_world_query)·T_world_candidate` (SPEC §3).
+pub fn pose_error(est: &[f64; 16], query: &[f64; 12], candidate: &[f64; 12]) -> (f64, f64) {
+    // True: R = R_qᵀ R_c, t = R_qᵀ (t_c − t_q).
+    let rq = |i: usize, j: usize| query[4 * i + j];
+    let rc = |i: usize, j: usize| candidate[4 * i + j];
+    let dt = [
+        candidate[3] - query[3],
+        candidate[7] - query[7],
+        candidate[11] - query[11],
+    ];
+    let r_true = |i: usize, j: usize| -> f64 { (0..3).map(|k| rq(k, i) * rc(k, j)).sum() };
+    let t_true = |i: usize| -> f64 { (0..3).map(|k| rq(k, i) * dt[k]).sum() };
+    let r_est = |i: usize, j: usize| est[4 * i + j];
+    let (ex, ey, ez) = (est[3] - t_true(0), est[7] - t_true(1), est[11] - t_true(2));
+    let m = libm::sqrt(ex * ex + ey * ey + ez * ez);
+    // trace(R_estᵀ R_true) = Σ_ij R_est[i][j] R_true[i][j]
+    let tr: f64 = (0..3)
+        .flat_map(|i| (0..3).map(move |j| (i, j)))
+        .map(|(i, j)| r_est(i, j) * r_true(i, j))
+        .sum();
+    let c = ((tr - 1.0) / 2.0).clamp(-1.0, 1.0);
+    (m, libm::acos(c).to_degrees())
 }
 
 fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
@@ -479,6 +526,7 @@ mod tests {
             ids: &ids,
             score: &[0.3, 0.1, 0.2],
             heading_deg: &[0.0, 10.0, 0.0],
+            pose: &[],
         };
         let e = score(&q, &poses, 1.5).unwrap();
         // At 1.5 m no eligible entry is near enough (the nearest are 2 m away); at 2.5 m all are.
@@ -510,6 +558,7 @@ mod tests {
             ids: &[0, 0],
             score: &[0.5, 0.5],
             heading_deg: &[0.0, 0.0],
+            pose: &[],
         };
         let e = score(&q, &poses, 2.5).unwrap();
         assert_eq!(e.correct, vec![true, false]);
@@ -535,5 +584,22 @@ mod tests {
         let cand = [c, -s, 0.0, 0.0, s, c, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0];
         let query = [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0];
         assert!((true_heading(&query, &cand) + 30.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn pose_error_is_zero_for_the_true_pose() {
+        // Query at (1, 2, 0) yawed 90°, candidate at (4, 2, 0) yawed 0°: in the query frame the
+        // candidate sits at (0, -3, 0) and is turned by -90°.
+        let q = [0.0, -1.0, 0.0, 1.0, 1.0, 0.0, 0.0, 2.0, 0.0, 0.0, 1.0, 0.0];
+        let c = [1.0, 0.0, 0.0, 4.0, 0.0, 1.0, 0.0, 2.0, 0.0, 0.0, 1.0, 0.0];
+        let truth = [
+            0.0, 1.0, 0.0, 0.0, -1.0, 0.0, 0.0, -3.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0,
+        ];
+        let (m, d) = pose_error(&truth, &q, &c);
+        assert!(m < 1e-12 && d < 1e-6, "{m} {d}");
+        let mut off = truth;
+        off[3] += 0.3;
+        let (m, _) = pose_error(&off, &q, &c);
+        assert!((m - 0.3).abs() < 1e-12);
     }
 }

@@ -176,9 +176,9 @@ fn foreign_and_newer_files_are_rejected_with_the_reason() {
     assert!(reason.contains("not a SOLiD database"), "{reason}");
     assert!(format_reason(Database::from_bytes(&[]).unwrap_err()).contains("not a SOLiD database"));
     let mut bytes = sample_db(2).to_bytes();
-    bytes[8..12].copy_from_slice(&2u32.to_le_bytes());
+    bytes[8..12].copy_from_slice(&3u32.to_le_bytes());
     let reason = format_reason(Database::from_bytes(&bytes).unwrap_err());
-    assert!(reason.contains("version 2 is newer"), "{reason}");
+    assert!(reason.contains("version 3 is newer"), "{reason}");
     // A header that announces an absurd number of entries.
     let mut bytes = sample_db(2).to_bytes();
     bytes[80..88].copy_from_slice(&u64::MAX.to_le_bytes());
@@ -187,6 +187,51 @@ fn foreign_and_newer_files_are_rejected_with_the_reason() {
         reason.contains("impossible") || reason.contains("truncated"),
         "{reason}"
     );
+}
+
+/// The same database in format version 1 (no cloud-section field, no clouds).
+fn as_version_1(db: &Database) -> Vec<u8> {
+    assert!(!db.has_clouds());
+    let v2 = db.to_bytes();
+    let mut v1 = Vec::new();
+    v1.extend_from_slice(&v2[..8]);
+    v1.extend_from_slice(&1u32.to_le_bytes());
+    v1.extend_from_slice(&v2[12..88]);
+    v1.extend_from_slice(&v2[96..v2.len() - 4]);
+    let crc = solid_lidar::db::crc32(&v1);
+    v1.extend_from_slice(&crc.to_le_bytes());
+    v1
+}
+
+#[test]
+fn version_1_files_still_load_and_clouds_round_trip() {
+    let db = sample_db(7);
+    let old = Database::from_bytes(&as_version_1(&db)).unwrap();
+    same(&db, &old);
+    assert!(!old.has_clouds());
+    // Clouds: some entries with one, some without; they survive bytes and merges.
+    let c = cfg();
+    let mut with = Database::new(c).unwrap();
+    for i in 0..6u32 {
+        let cloud: Vec<u8> = (0..(i * 7) as u8).collect();
+        let cloud = (i % 2 == 1).then_some(&cloud[..]);
+        with.add_with_cloud(&desc(&c, i), 0, f64::from(i), None, cloud)
+            .unwrap();
+    }
+    let back = Database::from_bytes(&with.to_bytes()).unwrap();
+    for i in 0..6u32 {
+        assert_eq!(back.cloud(i), with.cloud(i));
+        assert_eq!(back.cloud(i).is_some(), i % 2 == 1);
+    }
+    assert_eq!(back.cloud_bytes(), 7 + 21 + 35);
+    let mut merged = sample_db(3);
+    merged.merge(&back).unwrap();
+    assert_eq!(merged.cloud(0), None);
+    assert_eq!(merged.cloud(3 + 5), with.cloud(5));
+    // A cloud section that cannot hold its lengths is refused.
+    let mut bytes = with.to_bytes();
+    bytes[88..96].copy_from_slice(&3u64.to_le_bytes());
+    assert!(Database::from_bytes(&bytes).is_err());
 }
 
 #[test]
@@ -258,7 +303,7 @@ fn loop_detector_finds_revisits_after_the_exclusion_window() {
     let det_cfg = DetectorConfig {
         exclude_frames: 5,
         threshold: 0.05,
-        ..DetectorConfig::default()
+        ..unverified()
     };
     let mut det = LoopDetector::new(c, det_cfg).unwrap();
     // Ten distinct places, then place 2 again (rotated A-SOLiD by 3 bins = 18°).
@@ -319,7 +364,7 @@ fn detector_excludes_by_frames_metres_and_seconds_within_its_own_session() {
         exclude_frames: 0,
         threshold: 1.0,
         top_k: 3,
-        ..DetectorConfig::default()
+        ..unverified()
     };
     // Ten scans 0.2 m and 1 s apart.
     let run = |dc: DetectorConfig| -> Vec<u32> {
@@ -400,7 +445,7 @@ fn a_prior_map_is_never_excluded_and_candidates_are_ranked() {
         exclude_frames: 50,
         threshold: 0.01,
         top_k: 4,
-        ..DetectorConfig::default()
+        ..unverified()
     };
     let mut det = LoopDetector::with_database(map, dc).unwrap();
     assert_eq!((det.session(), det.session_start()), (4, 5));
@@ -480,4 +525,11 @@ proptest! {
         let want: Vec<Neighbor> = db.search(&q, k, 0, Method::Brute).unwrap();
         prop_assert_eq!(back.search(&q, k, 0, Method::KdTree).unwrap(), want);
     }
+}
+
+/// The detector defaults without verification (these tests feed descriptors, not points).
+fn unverified() -> DetectorConfig {
+    let mut c = DetectorConfig::default();
+    c.verify.enabled = false;
+    c
 }

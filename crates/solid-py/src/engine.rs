@@ -153,19 +153,60 @@ pub struct PyLoop {
     /// Heading of the query relative to the candidate, degrees in (-180, 180].
     #[pyo3(get)]
     pub heading: f64,
-    /// The score the threshold accepted (today the R-SOLiD distance).
+    /// The score the loop was accepted with (the R-SOLiD distance; with verification
+    /// 1 − fitness).
     #[pyo3(get)]
     pub score: f64,
+    /// Overlap of the verifying registration (None when not verified).
+    #[pyo3(get)]
+    pub fitness: Option<f64>,
+    /// Inlier RMSE of the verifying registration, metres (None when not verified).
+    #[pyo3(get)]
+    pub rmse: Option<f64>,
+    pose_: Option<solid_lidar::reg::Pose>,
 }
 
 #[pymethods]
 impl PyLoop {
+    /// T_query_candidate, (4, 4) float64, of a verified loop (p_query ≈ pose @ p_candidate);
+    /// None when the loop was not verified. Its yaw is `heading`.
+    #[getter]
+    fn pose<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray2<f64>>> {
+        self.pose_.map(|p| pose_array(py, &p))
+    }
+
+    /// Whether the loop was verified by registration.
+    #[getter]
+    fn verified(&self) -> bool {
+        self.pose_.is_some()
+    }
+
     fn __repr__(&self) -> String {
         format!(
-            "Loop(query={}, candidate={}, distance={:.6}, heading={:.3}, score={:.6})",
-            self.query, self.candidate, self.distance, self.heading, self.score
+            "Loop(query={}, candidate={}, distance={:.6}, heading={:.3}, score={:.6}, verified={})",
+            self.query,
+            self.candidate,
+            self.distance,
+            self.heading,
+            self.score,
+            if self.pose_.is_some() {
+                "True"
+            } else {
+                "False"
+            }
         )
     }
+}
+
+/// A (4, 4) float64 array of a pose.
+pub(crate) fn pose_array<'py>(
+    py: Python<'py>,
+    p: &solid_lidar::reg::Pose,
+) -> Bound<'py, PyArray2<f64>> {
+    let flat: Vec<f64> = p.iter().flatten().copied().collect();
+    Array2::from_shape_vec((4, 4), flat)
+        .expect("4 x 4")
+        .into_pyarray(py)
 }
 
 impl From<db::Loop> for PyLoop {
@@ -176,6 +217,9 @@ impl From<db::Loop> for PyLoop {
             distance: l.distance,
             heading: l.heading_deg,
             score: l.score,
+            fitness: l.fitness,
+            rmse: l.rmse,
+            pose_: l.pose,
         }
     }
 }
@@ -193,17 +237,75 @@ pub struct PyCandidate {
     /// Heading of the query relative to this candidate, degrees in (-180, 180].
     #[pyo3(get)]
     pub heading: f64,
-    /// What the threshold is compared with (the value a PR curve sweeps).
+    /// What ranks the candidates (the value a PR curve sweeps): the R-SOLiD distance, or with
+    /// verification 1 − fitness for a candidate that passed the gate and 1.5 + distance / 2
+    /// otherwise.
     #[pyo3(get)]
     pub score: f64,
+    verification: Option<db::Verification>,
 }
 
 #[pymethods]
 impl PyCandidate {
+    /// Whether this candidate was registered.
+    #[getter]
+    fn verified(&self) -> bool {
+        self.verification.is_some()
+    }
+    /// Whether its registration passed the gate (False when not registered).
+    #[getter]
+    fn accepted(&self) -> bool {
+        self.verification.is_some_and(|v| v.accepted)
+    }
+    /// Why the gate rejected it (None when accepted or not registered).
+    #[getter]
+    fn rejection(&self) -> Option<String> {
+        self.verification
+            .and_then(|v| v.rejection)
+            .map(|r| r.to_string())
+    }
+    /// T_query_candidate (4, 4) of its registration (None when not registered).
+    #[getter]
+    fn pose<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray2<f64>>> {
+        self.verification
+            .map(|v| pose_array(py, &v.registration.pose))
+    }
+    /// Overlap of its registration (None when not registered).
+    #[getter]
+    fn fitness(&self) -> Option<f64> {
+        self.verification.map(|v| v.registration.fitness)
+    }
+    /// Overlap of its registration's points off horizontal surfaces (None when not registered).
+    #[getter]
+    fn structure_fitness(&self) -> Option<f64> {
+        self.verification.map(|v| v.registration.structure_fitness)
+    }
+    /// Inlier RMSE of its registration, metres (None when not registered).
+    #[getter]
+    fn rmse(&self) -> Option<f64> {
+        self.verification.map(|v| v.registration.rmse)
+    }
+    /// Smallest eigenvalue of the translation block of its registration's information matrix.
+    #[getter]
+    fn degeneracy_translation(&self) -> Option<f64> {
+        self.verification
+            .map(|v| v.registration.degeneracy.translation)
+    }
+    /// Initial yaws that reached the best pose, of those tried (None when not registered).
+    #[getter]
+    fn agreement(&self) -> Option<(usize, usize)> {
+        self.verification.map(|v| (v.agreement, v.hypotheses))
+    }
+
     fn __repr__(&self) -> String {
         format!(
-            "Candidate(id={}, distance={:.6}, heading={:.3}, score={:.6})",
-            self.id, self.distance, self.heading, self.score
+            "Candidate(id={}, distance={:.6}, heading={:.3}, score={:.6}, verified={}, accepted={})",
+            self.id,
+            self.distance,
+            self.heading,
+            self.score,
+            if self.verified() { "True" } else { "False" },
+            if self.accepted() { "True" } else { "False" }
         )
     }
 }
@@ -215,6 +317,7 @@ impl From<&db::Candidate> for PyCandidate {
             distance: c.distance,
             heading: c.heading_deg,
             score: c.score,
+            verification: c.verification,
         }
     }
 }
@@ -279,13 +382,22 @@ pub struct PyDetectorConfig {
 }
 
 /// Names of the detector parameters, in order.
-const DETECTOR_FIELDS: [&str; 6] = [
+const DETECTOR_FIELDS: [&str; 15] = [
     "exclude_frames",
     "exclude_meters",
     "exclude_seconds",
     "threshold",
     "top_k",
     "rerank",
+    "verify",
+    "verify_candidates",
+    "verify_hypotheses",
+    "verify_fan_deg",
+    "cloud_bits",
+    "cache_bytes",
+    "verify_threads",
+    "registration",
+    "gate",
 ];
 
 fn non_negative(name: &str, v: i64) -> PyResult<usize> {
@@ -326,11 +438,33 @@ fn detector_overrides(
                 "exclude_seconds" => c.exclude_seconds = float()?,
                 "threshold" => c.threshold = float()?,
                 "top_k" => c.top_k = int()?,
-                "rerank" => {
-                    c.rerank = v
-                        .extract::<bool>()
-                        .map_err(|_| PyTypeError::new_err("rerank must be a bool"))?
+                "rerank" | "verify" => {
+                    let b = v
+                        .cast::<pyo3::types::PyBool>()
+                        .map_err(|_| PyTypeError::new_err(format!("{key} must be a bool")))?
+                        .is_true();
+                    if key == "rerank" {
+                        c.rerank = b;
+                    } else {
+                        c.verify.enabled = b;
+                    }
                 }
+                "verify_candidates" => c.verify.candidates = int()?,
+                "verify_hypotheses" => c.verify.hypotheses = int()?,
+                "verify_fan_deg" => c.verify.fan_deg = float()?,
+                "cloud_bits" => {
+                    c.verify.cloud_bits = u8::try_from(int()?).map_err(|_| {
+                        crate::ConfigError::new_err(
+                            "invalid cloud_bits: expected an integer in 1..=16",
+                        )
+                    })?
+                }
+                "cache_bytes" => c.verify.cache_bytes = int()?,
+                "verify_threads" => c.verify.threads = int()?,
+                "registration" => {
+                    c.verify.registration = crate::reg::reg_config_from(&v, c.verify.registration)?
+                }
+                "gate" => c.verify.gate = crate::reg::gate_from(&v)?,
                 other => {
                     return Err(PyTypeError::new_err(format!(
                         "unknown DetectorConfig parameter {other:?}; valid: {}",
@@ -393,7 +527,70 @@ impl PyDetectorConfig {
         d.set_item("threshold", c.threshold + 0.0)?;
         d.set_item("top_k", c.top_k)?;
         d.set_item("rerank", c.rerank)?;
+        let v = &c.verify;
+        d.set_item("verify", v.enabled)?;
+        d.set_item("verify_candidates", v.candidates)?;
+        d.set_item("verify_hypotheses", v.hypotheses)?;
+        d.set_item("verify_fan_deg", v.fan_deg + 0.0)?;
+        d.set_item("cloud_bits", v.cloud_bits)?;
+        d.set_item("cache_bytes", v.cache_bytes)?;
+        d.set_item("verify_threads", v.threads)?;
+        d.set_item(
+            "registration",
+            crate::reg::reg_config_dict(py, &v.registration)?,
+        )?;
+        d.set_item("gate", crate::reg::gate_dict(py, &v.gate)?)?;
         Ok(d)
+    }
+
+    /// Whether the best candidates are verified by registration.
+    #[getter]
+    fn verify(&self) -> bool {
+        self.inner.verify.enabled
+    }
+    /// Candidates registered per step.
+    #[getter]
+    fn verify_candidates(&self) -> usize {
+        self.inner.verify.candidates
+    }
+    /// Initial yaws per registration, at most.
+    #[getter]
+    fn verify_hypotheses(&self) -> usize {
+        self.inner.verify.hypotheses
+    }
+    /// The fixed ± yaw fan added to the hypotheses, degrees.
+    #[getter]
+    fn verify_fan_deg(&self) -> f64 {
+        self.inner.verify.fan_deg
+    }
+    /// Bits per axis of the stored clouds.
+    #[getter]
+    fn cloud_bits(&self) -> u8 {
+        self.inner.verify.cloud_bits
+    }
+    /// Memory for prepared clouds kept between steps, bytes.
+    #[getter]
+    fn cache_bytes(&self) -> usize {
+        self.inner.verify.cache_bytes
+    }
+    /// Threads registering a step's candidates (0: one per core).
+    #[getter]
+    fn verify_threads(&self) -> usize {
+        self.inner.verify.threads
+    }
+    /// The registration parameters.
+    #[getter]
+    fn registration(&self) -> crate::reg::PyRegConfig {
+        crate::reg::PyRegConfig {
+            inner: self.inner.verify.registration,
+        }
+    }
+    /// The acceptance gate (its max_translation is the largest loop, metres).
+    #[getter]
+    fn gate(&self) -> crate::reg::PyGate {
+        crate::reg::PyGate {
+            inner: self.inner.verify.gate,
+        }
     }
 
     /// Frames of the own session excluded (docs/spec.md §5 `exclude`).
@@ -429,10 +626,11 @@ impl PyDetectorConfig {
 
     fn __repr__(&self) -> String {
         let c = &self.inner;
+        let b = |x: bool| if x { "True" } else { "False" };
         format!(
-            "DetectorConfig(exclude_frames={}, exclude_meters={:?}, exclude_seconds={:?}, threshold={:?}, top_k={}, rerank={})",
+            "DetectorConfig(exclude_frames={}, exclude_meters={:?}, exclude_seconds={:?}, threshold={:?}, top_k={}, rerank={}, verify={}, verify_candidates={})",
             c.exclude_frames, c.exclude_meters, c.exclude_seconds, c.threshold, c.top_k,
-            if c.rerank { "True" } else { "False" }
+            b(c.rerank), b(c.verify.enabled), c.verify.candidates
         )
     }
 
@@ -677,6 +875,31 @@ impl PyDatabase {
         Array1::from_iter(0..self.with(py, Database::len) as i64).into_pyarray(py)
     }
 
+    /// Bytes of the compact clouds stored for verification (0: none).
+    #[getter]
+    fn cloud_bytes(&self, py: Python<'_>) -> usize {
+        self.with(py, Database::cloud_bytes)
+    }
+
+    /// Number of places that have a stored cloud.
+    #[getter]
+    fn clouds_stored(&self, py: Python<'_>) -> usize {
+        self.with(py, Database::clouds_stored)
+    }
+
+    /// The compact cloud stored with place `id` (the wire form of `solid.encode_cloud`; decode
+    /// it with `solid.decode_cloud`), or None.
+    fn cloud<'py>(&self, py: Python<'py>, id: u32) -> PyResult<Option<Bound<'py, PyBytes>>> {
+        let n = self.with(py, Database::len);
+        if id as usize >= n {
+            return Err(pyo3::exceptions::PyIndexError::new_err(format!(
+                "place {id} does not exist (the database has {n})"
+            )));
+        }
+        let c = self.with(py, |db| db.cloud(id).map(<[u8]>::to_vec));
+        Ok(c.map(|b| PyBytes::new(py, &b)))
+    }
+
     /// Sessions, uint32.
     #[getter]
     fn sessions<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<u32>> {
@@ -739,6 +962,48 @@ impl PyLoopDetector {
         }
         crate::describe_points(py, x, &self.cfg)
     }
+
+    /// A Descriptor argument as itself, or points described (and their cloud prepared, when the
+    /// detector verifies) with the GIL released.
+    fn input(&self, py: Python<'_>, x: &Bound<'_, PyAny>) -> PyResult<Input> {
+        if x.cast::<PyDescriptor>().is_ok() {
+            return Ok(Input::Descriptor(self.descriptor(py, x)?));
+        }
+        let borrowed = crate::borrow_points(x, "points")?;
+        let slice = borrowed.slice();
+        let cfg = self.cfg;
+        let scan = py
+            .detach(|| prepare_slice(&read(&self.inner), &slice, &cfg))
+            .map_err(|e| db_err(py, e))?;
+        Ok(Input::Scan(Box::new(scan)))
+    }
+}
+
+/// Per-scan timestamps (NaN: none) and poses of a batch (empty: none at all).
+type TimesAndPoses = (Vec<f64>, Vec<Option<[f64; 12]>>);
+
+/// What a detector method was given.
+enum Input {
+    Descriptor(Descriptor),
+    Scan(Box<db::Scan>),
+}
+
+/// Describes points (the thread's reusable describer) and prepares their cloud for `det`.
+fn prepare_slice(
+    det: &LoopDetector,
+    s: &crate::PointSlice<'_>,
+    cfg: &Config,
+) -> Result<db::Scan, DbError> {
+    let descriptor = crate::describe_slice(s, cfg)?;
+    let cloud = match *s {
+        crate::PointSlice::F32(v, stride) => {
+            det.prepare_cloud(solid_lidar::Points::new(v, stride)?)?
+        }
+        crate::PointSlice::F64(v, stride) => {
+            det.prepare_cloud(solid_lidar::Points::new(v, stride)?)?
+        }
+    };
+    Ok(db::Scan { descriptor, cloud })
 }
 
 /// The detector parameters from a base (a DetectorConfig, else the config's preset defaults)
@@ -752,13 +1017,10 @@ fn detector_config(
     detector_overrides(base, overrides)
 }
 
-/// Descriptors and per-scan timestamps/poses of a batch, checked.
-type Batch = (Vec<Descriptor>, Vec<f64>, Vec<Option<[f64; 12]>>);
-
 #[pymethods]
 impl PyLoopDetector {
     #[new]
-    #[pyo3(signature = (cfg, exclude_recent=None, threshold=None, top_k=None, rerank=None, *, exclude_meters=None, exclude_seconds=None, detector=None))]
+    #[pyo3(signature = (cfg, exclude_recent=None, threshold=None, top_k=None, rerank=None, *, exclude_meters=None, exclude_seconds=None, verify=None, detector=None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -769,6 +1031,7 @@ impl PyLoopDetector {
         rerank: Option<&Bound<'_, PyAny>>,
         exclude_meters: Option<&Bound<'_, PyAny>>,
         exclude_seconds: Option<&Bound<'_, PyAny>>,
+        verify: Option<&Bound<'_, PyAny>>,
         detector: Option<PyRef<'_, PyDetectorConfig>>,
     ) -> PyResult<Self> {
         let kw = overrides_dict(
@@ -779,6 +1042,7 @@ impl PyLoopDetector {
             rerank,
             exclude_meters,
             exclude_seconds,
+            verify,
         )?;
         let dc = detector_config(&cfg, detector.as_deref(), Some(&kw))?;
         let inner = LoopDetector::new(cfg.inner, dc).map_err(|e| db_err(py, e))?;
@@ -788,7 +1052,7 @@ impl PyLoopDetector {
     /// A detector over a copy of an existing database (a prior map): its places are candidates
     /// from the first scan on and are never excluded as recent.
     #[staticmethod]
-    #[pyo3(signature = (database, exclude_recent=None, threshold=None, top_k=None, rerank=None, *, exclude_meters=None, exclude_seconds=None, detector=None))]
+    #[pyo3(signature = (database, exclude_recent=None, threshold=None, top_k=None, rerank=None, *, exclude_meters=None, exclude_seconds=None, verify=None, detector=None))]
     #[allow(clippy::too_many_arguments)]
     fn from_database(
         py: Python<'_>,
@@ -799,6 +1063,7 @@ impl PyLoopDetector {
         rerank: Option<&Bound<'_, PyAny>>,
         exclude_meters: Option<&Bound<'_, PyAny>>,
         exclude_seconds: Option<&Bound<'_, PyAny>>,
+        verify: Option<&Bound<'_, PyAny>>,
         detector: Option<PyRef<'_, PyDetectorConfig>>,
     ) -> PyResult<Self> {
         let kw = overrides_dict(
@@ -809,6 +1074,7 @@ impl PyLoopDetector {
             rerank,
             exclude_meters,
             exclude_seconds,
+            verify,
         )?;
         let db = database.snapshot(py);
         let cfg = PyConfig::new_unchecked(*db.config());
@@ -832,7 +1098,10 @@ impl PyLoopDetector {
             .accepted)
     }
 
-    /// As `add`, returning everything the step decided (a `Detection`).
+    /// As `add`, returning everything the step decided (a `Detection`). Points are described
+    /// and, when the detector verifies (the default), their cloud is prepared, stored with the
+    /// place and registered with the best candidates'; a Descriptor can only be used with
+    /// verification off.
     #[pyo3(signature = (points_or_descriptor, timestamp=None, pose=None))]
     fn detect(
         &self,
@@ -841,27 +1110,90 @@ impl PyLoopDetector {
         timestamp: Option<f64>,
         pose: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PyDetection> {
-        let d = self.descriptor(py, points_or_descriptor)?;
+        let input = self.input(py, points_or_descriptor)?;
         let pose = parse_pose(pose)?;
+        let t = self::timestamp(timestamp);
         let found = py
-            .detach(|| write(&self.inner).detect(&d, self::timestamp(timestamp), pose))
+            .detach(|| {
+                let mut det = write(&self.inner);
+                match input {
+                    Input::Descriptor(d) => det.detect(&d, t, pose),
+                    Input::Scan(scan) => det.detect_scan(*scan, t, pose),
+                }
+            })
             .map_err(|e| db_err(py, e))?;
         Ok(PyDetection::from(found))
     }
 
-    /// `detect` for many descriptors in order, in one call (the GIL is released once). Every
-    /// input is checked before the first is added: on error nothing is added.
-    #[pyo3(signature = (descriptors, timestamps=None, poses=None))]
+    /// `detect` for many scans in order, in one call: point arrays (described and prepared in
+    /// parallel, `threads` workers, every core by default) or Descriptors (verification off).
+    /// The GIL is released once. Every input is checked before the first is added: on error
+    /// nothing is added.
+    #[pyo3(signature = (scans, timestamps=None, poses=None, threads=None))]
     fn detect_many(
         &self,
         py: Python<'_>,
-        descriptors: &Bound<'_, PyAny>,
+        scans: &Bound<'_, PyAny>,
         timestamps: Option<&Bound<'_, PyAny>>,
         poses: Option<&Bound<'_, PyAny>>,
+        threads: Option<usize>,
     ) -> PyResult<Vec<PyDetection>> {
-        let (ds, ts, ps): Batch = self.batch(py, descriptors, timestamps, poses)?;
+        let items: Vec<Bound<'_, PyAny>> = scans
+            .try_iter()
+            .map_err(|_| {
+                PyTypeError::new_err("scans must be a sequence of point arrays or Descriptors")
+            })?
+            .collect::<PyResult<_>>()?;
+        let (ts, ps) = self.times_and_poses(timestamps, poses)?;
+        if items.iter().all(|x| x.cast::<PyDescriptor>().is_ok()) {
+            let ds = items
+                .iter()
+                .map(|x| self.descriptor(py, x))
+                .collect::<PyResult<Vec<_>>>()?;
+            let found = py
+                .detach(|| write(&self.inner).detect_many(&ds, &ts, &ps))
+                .map_err(|e| db_err(py, e))?;
+            return Ok(found.into_iter().map(PyDetection::from).collect());
+        }
+        let borrowed = items
+            .iter()
+            .enumerate()
+            .map(|(i, p)| crate::borrow_points(p, &format!("scans[{i}]")))
+            .collect::<PyResult<Vec<_>>>()?;
+        let slices: Vec<crate::PointSlice<'_>> =
+            borrowed.iter().map(crate::Borrowed::slice).collect();
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let threads = match threads {
+            Some(0) => {
+                return Err(crate::ConfigError::new_err(
+                    "threads must be at least 1 (or None for every core)",
+                ))
+            }
+            Some(t) => t.min(cores),
+            None => cores,
+        }
+        .min(slices.len().max(1));
+        let cfg = self.cfg;
+        let pool = if threads > 1 {
+            Some(crate::pool(threads)?)
+        } else {
+            None
+        };
         let found = py
-            .detach(|| write(&self.inner).detect_many(&ds, &ts, &ps))
+            .detach(|| -> Result<Vec<db::Detection>, DbError> {
+                use rayon::prelude::*;
+                let scans: Vec<db::Scan> = {
+                    let det = read(&self.inner);
+                    let prep = |s: &crate::PointSlice<'_>| prepare_slice(&det, s, &cfg);
+                    match &pool {
+                        Some(p) => {
+                            p.install(|| slices.par_iter().map(prep).collect::<Result<_, _>>())?
+                        }
+                        None => slices.iter().map(prep).collect::<Result<_, _>>()?,
+                    }
+                };
+                write(&self.inner).detect_scans(scans, &ts, &ps)
+            })
             .map_err(|e| db_err(py, e))?;
         Ok(found.into_iter().map(PyDetection::from).collect())
     }
@@ -959,25 +1291,11 @@ impl PyLoopDetector {
 }
 
 impl PyLoopDetector {
-    fn batch(
+    fn times_and_poses(
         &self,
-        py: Python<'_>,
-        descriptors: &Bound<'_, PyAny>,
         timestamps: Option<&Bound<'_, PyAny>>,
         poses: Option<&Bound<'_, PyAny>>,
-    ) -> PyResult<Batch> {
-        let mut ds = Vec::new();
-        for item in descriptors.try_iter()? {
-            let item = item?;
-            let d = item.cast::<PyDescriptor>().map_err(|_| {
-                pyo3::exceptions::PyTypeError::new_err(
-                    "detect_many takes a sequence of solid.Descriptor (describe_batch makes them)",
-                )
-            })?;
-            let d = d.borrow();
-            check_fingerprint(py, d.inner.fingerprint, self.cfg.fingerprint())?;
-            ds.push(d.inner.clone());
-        }
+    ) -> PyResult<TimesAndPoses> {
         let ts: Vec<f64> = match timestamps {
             Some(t) if !t.is_none() => t
                 .extract::<Vec<Option<f64>>>()
@@ -999,11 +1317,12 @@ impl PyLoopDetector {
             }
             _ => Vec::new(),
         };
-        Ok((ds, ts, ps))
+        Ok((ts, ps))
     }
 }
 
 /// The positional/keyword detector arguments as a dict of overrides (None: not given).
+#[allow(clippy::too_many_arguments)]
 fn overrides_dict<'py>(
     py: Python<'py>,
     exclude_recent: Option<&Bound<'py, PyAny>>,
@@ -1012,6 +1331,7 @@ fn overrides_dict<'py>(
     rerank: Option<&Bound<'py, PyAny>>,
     exclude_meters: Option<&Bound<'py, PyAny>>,
     exclude_seconds: Option<&Bound<'py, PyAny>>,
+    verify: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let kw = PyDict::new(py);
     for (k, v) in [
@@ -1021,6 +1341,7 @@ fn overrides_dict<'py>(
         ("rerank", rerank),
         ("exclude_meters", exclude_meters),
         ("exclude_seconds", exclude_seconds),
+        ("verify", verify),
     ] {
         if let Some(v) = v {
             kw.set_item(k, v)?;
@@ -1090,6 +1411,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyCandidate>()?;
     m.add_class::<PyDetection>()?;
     m.add_class::<PyDetectorConfig>()?;
+    m.add("VERIFIED_THRESHOLD", db::VERIFIED_THRESHOLD)?;
     m.add_function(wrap_pyfunction!(_detector_config_from_dict, m)?)?;
     m.add_function(wrap_pyfunction!(encode_place, m)?)?;
     m.add_function(wrap_pyfunction!(decode_place, m)?)?;

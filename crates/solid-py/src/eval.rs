@@ -101,6 +101,16 @@ impl PyScores {
     fn at_threshold(&self, threshold: f64) -> (usize, usize, f64, f64) {
         self.inner.at_threshold(threshold)
     }
+    /// Translation error (metres) of each query's estimated pose (NaN: none).
+    #[getter]
+    fn pose_error_m<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        f64s(py, &self.inner.pose_error_m)
+    }
+    /// Rotation error (degrees) of each query's estimated pose (NaN: none).
+    #[getter]
+    fn pose_error_deg<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        f64s(py, &self.inner.pose_error_deg)
+    }
     /// Heading errors of the correct top-1s, degrees in [0, 180].
     fn rotation_errors<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
         self.inner.rotation_errors().into_pyarray(py)
@@ -112,6 +122,7 @@ impl PyScores {
 
 /// Scores candidates against poses (docs/spec.md §5); see `solid.evaluation` for the friendly form.
 #[pyfunction]
+#[pyo3(signature = (query, eligible, ids, score, heading_deg, poses, radius, pose=None))]
 #[allow(clippy::too_many_arguments)]
 fn score_candidates(
     py: Python<'_>,
@@ -122,6 +133,7 @@ fn score_candidates(
     heading_deg: PyReadonlyArray1<'_, f64>,
     poses: PyReadonlyArray3<'_, f64>,
     radius: f64,
+    pose: Option<PyReadonlyArray3<'_, f64>>,
 ) -> PyResult<PyScores> {
     let to_u32 = |name: &str, v: &[i64], allow_missing: bool| -> PyResult<Vec<u32>> {
         v.iter()
@@ -153,7 +165,24 @@ fn score_candidates(
         .chunks_exact(12)
         .map(|c| c.try_into().expect("chunks of 12"))
         .collect();
+    let est: Vec<[f64; 16]> = match &pose {
+        None => Vec::new(),
+        Some(p) => {
+            let sh = p.shape();
+            if sh.len() != 3 || sh[0] != query.len() || sh[1] != 4 || sh[2] != 4 {
+                return Err(PyValueError::new_err(format!(
+                    "pose must have shape ({}, 4, 4), got {sh:?}",
+                    query.len()
+                )));
+            }
+            p.as_slice()?
+                .chunks_exact(16)
+                .map(|c| c.try_into().expect("chunks of 16"))
+                .collect()
+        }
+    };
     let q = Queries {
+        pose: &est,
         query: &query,
         eligible: &eligible,
         k,

@@ -599,7 +599,7 @@ fn describe(
 static POOLS: Mutex<Vec<(u32, usize, Arc<rayon::ThreadPool>)>> = Mutex::new(Vec::new());
 
 /// The persistent pool of `threads` workers of this process.
-fn pool(threads: usize) -> PyResult<Arc<rayon::ThreadPool>> {
+pub(crate) fn pool(threads: usize) -> PyResult<Arc<rayon::ThreadPool>> {
     let pid = std::process::id();
     let mut pools = POOLS.lock().unwrap_or_else(PoisonError::into_inner);
     if let Some((_, _, p)) = pools.iter().find(|(id, t, _)| *id == pid && *t == threads) {

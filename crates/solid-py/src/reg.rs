@@ -48,10 +48,72 @@ fn kernel_name(k: Kernel) -> &'static str {
 }
 
 /// `solid.RegistrationConfig`: the parameters of registration (immutable, validated).
+/// A registration config as a dict (what `RegistrationConfig(**d)` takes back).
+pub(crate) fn reg_config_dict<'py>(py: Python<'py>, c: &RegConfig) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+
+    d.set_item("voxel_size", c.voxel_size)?;
+    d.set_item("coarse_voxel_size", c.coarse_voxel_size)?;
+    d.set_item("min_range", c.min_range)?;
+    d.set_item("max_range", c.max_range)?;
+    d.set_item("neighbors", c.neighbors)?;
+    d.set_item("max_correspondence", c.max_correspondence)?;
+    d.set_item("coarse_max_correspondence", c.coarse_max_correspondence)?;
+    d.set_item("max_iterations", c.max_iterations)?;
+    d.set_item("rotation_eps_deg", c.rotation_eps_deg)?;
+    d.set_item("translation_eps", c.translation_eps)?;
+    d.set_item("factor", factor_name(c.factor))?;
+    d.set_item("kernel", kernel_name(c.kernel))?;
+    d.set_item("kernel_scale", c.kernel_scale)?;
+    d.set_item("inlier_distance", c.inlier_distance)?;
+    Ok(d)
+}
+
+/// A registration config from a `RegistrationConfig` or a dict of overrides of `base`.
+pub(crate) fn reg_config_from(obj: &Bound<'_, PyAny>, base: RegConfig) -> PyResult<RegConfig> {
+    if let Ok(c) = obj.cast::<PyRegConfig>() {
+        return Ok(c.get().inner);
+    }
+    let d = obj.cast::<PyDict>().map_err(|_| {
+        PyTypeError::new_err(
+            "registration must be a solid.RegistrationConfig or a dict of its parameters",
+        )
+    })?;
+    apply(base, Some(d))
+}
+
+/// A gate as a dict (what `AcceptanceGate(**d)` takes back).
+pub(crate) fn gate_dict<'py>(py: Python<'py>, g: &Gate) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("require_converged", g.require_converged)?;
+    d.set_item("min_fitness", g.min_fitness)?;
+    d.set_item("min_structure_fitness", g.min_structure_fitness)?;
+    d.set_item("max_rmse", g.max_rmse)?;
+    d.set_item("min_translation_information", g.min_translation_information)?;
+    d.set_item("min_rotation_information", g.min_rotation_information)?;
+    d.set_item("min_agreement", g.min_agreement)?;
+    d.set_item("max_translation", g.max_translation)?;
+    d.set_item("agree_translation", g.agree_translation)?;
+    d.set_item("agree_rotation_deg", g.agree_rotation_deg)?;
+    Ok(d)
+}
+
+/// A gate from an `AcceptanceGate` or a dict of its parameters (missing ones: the defaults).
+pub(crate) fn gate_from(obj: &Bound<'_, PyAny>) -> PyResult<Gate> {
+    if let Ok(g) = obj.cast::<PyGate>() {
+        return Ok(g.get().inner);
+    }
+    let d = obj.cast::<PyDict>().map_err(|_| {
+        PyTypeError::new_err("gate must be a solid.AcceptanceGate or a dict of its thresholds")
+    })?;
+    let g = obj.py().get_type::<PyGate>().call((), Some(d))?;
+    Ok(g.cast::<PyGate>()?.get().inner)
+}
+
 #[pyclass(name = "RegistrationConfig", module = "solid", frozen, eq)]
 #[derive(Clone, PartialEq)]
 pub struct PyRegConfig {
-    inner: RegConfig,
+    pub(crate) inner: RegConfig,
 }
 
 const REG_FIELDS: [&str; 14] = [
@@ -165,23 +227,7 @@ impl PyRegConfig {
 
     /// The parameters as a dict (what `RegistrationConfig(**d)` takes back).
     fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let c = &self.inner;
-        let d = PyDict::new(py);
-        d.set_item("voxel_size", c.voxel_size)?;
-        d.set_item("coarse_voxel_size", c.coarse_voxel_size)?;
-        d.set_item("min_range", c.min_range)?;
-        d.set_item("max_range", c.max_range)?;
-        d.set_item("neighbors", c.neighbors)?;
-        d.set_item("max_correspondence", c.max_correspondence)?;
-        d.set_item("coarse_max_correspondence", c.coarse_max_correspondence)?;
-        d.set_item("max_iterations", c.max_iterations)?;
-        d.set_item("rotation_eps_deg", c.rotation_eps_deg)?;
-        d.set_item("translation_eps", c.translation_eps)?;
-        d.set_item("factor", factor_name(c.factor))?;
-        d.set_item("kernel", kernel_name(c.kernel))?;
-        d.set_item("kernel_scale", c.kernel_scale)?;
-        d.set_item("inlier_distance", c.inlier_distance)?;
-        Ok(d)
+        reg_config_dict(py, &self.inner)
     }
 
     #[getter]
@@ -636,9 +682,10 @@ fn hypothesis_yaws(query: &PyDescriptor, candidate: &PyDescriptor, n: usize) -> 
 }
 
 /// The acceptance gate, exposed as `solid.AcceptanceGate` (immutable).
-#[pyclass(name = "AcceptanceGate", module = "solid", frozen)]
+#[pyclass(name = "AcceptanceGate", module = "solid", frozen, eq)]
+#[derive(Clone, PartialEq)]
 pub struct PyGate {
-    inner: Gate,
+    pub(crate) inner: Gate,
 }
 
 #[pymethods]
@@ -713,6 +760,11 @@ impl PyGate {
             g.min_agreement = v;
         }
         Ok(PyGate { inner: g })
+    }
+
+    /// The thresholds as a dict (what `AcceptanceGate(**d)` takes back).
+    fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        gate_dict(py, &self.inner)
     }
 
     /// None when `registration` passes, else why it is rejected.

@@ -3,6 +3,7 @@
 use alloc::vec;
 use alloc::vec::Vec;
 
+use super::clouds::Clouds;
 use super::{DbError, Method};
 use crate::search::{self, Exclude, Neighbor};
 use crate::{Config, Descriptor, Error};
@@ -51,6 +52,7 @@ pub struct Database {
     pub(super) normed: Vec<f32>,
     pub(super) perm: Vec<u32>,
     pub(super) splits: Vec<u16>,
+    pub(super) clouds: Clouds,
 }
 
 impl Database {
@@ -71,6 +73,7 @@ impl Database {
             normed: Vec::new(),
             perm: Vec::new(),
             splits: Vec::new(),
+            clouds: Clouds::default(),
         })
     }
 
@@ -106,6 +109,23 @@ impl Database {
         self.add_vectors(&d.r, &d.a, session, timestamp, pose)
     }
 
+    /// [`Database::add`] with the place's compact cloud for verification (the wire form of
+    /// [`crate::reg::encode_cloud`]; see [`super::clouds`]).
+    ///
+    /// # Errors
+    /// As [`Database::add`].
+    pub fn add_with_cloud(
+        &mut self,
+        d: &Descriptor,
+        session: u32,
+        timestamp: f64,
+        pose: Option<[f64; 12]>,
+        cloud: Option<&[u8]>,
+    ) -> Result<u32, DbError> {
+        self.check_fingerprint(d.fingerprint)?;
+        self.add_entry(&d.r, &d.a, session, timestamp, pose, cloud)
+    }
+
     /// Adds raw vectors (the caller vouches that they come from this database's config).
     ///
     /// # Errors
@@ -119,6 +139,18 @@ impl Database {
         session: u32,
         timestamp: f64,
         pose: Option<[f64; 12]>,
+    ) -> Result<u32, DbError> {
+        self.add_entry(r, a, session, timestamp, pose, None)
+    }
+
+    fn add_entry(
+        &mut self,
+        r: &[f32],
+        a: &[f32],
+        session: u32,
+        timestamp: f64,
+        pose: Option<[f64; 12]>,
+        cloud: Option<&[u8]>,
     ) -> Result<u32, DbError> {
         let (nr, na) = (self.config.n_range, self.config.n_azimuth);
         if r.len() != nr {
@@ -157,6 +189,10 @@ impl Database {
         if let Err(e) = search::normalize(r, &mut self.normed[start..]) {
             self.normed.truncate(start);
             return Err(e.into());
+        }
+        if let Err(e) = self.clouds.push(id, cloud) {
+            self.normed.truncate(start);
+            return Err(e);
         }
         self.r.extend_from_slice(r);
         self.a.extend_from_slice(a);
@@ -296,6 +332,7 @@ impl Database {
             return Err(DbError::Full);
         }
         let base = self.len();
+        self.clouds.append(base, &other.clouds, other.len())?;
         self.sessions.extend_from_slice(&other.sessions);
         self.timestamps.extend_from_slice(&other.timestamps);
         self.poses.extend_from_slice(&other.poses);
@@ -362,6 +399,29 @@ impl Database {
     pub fn a(&self, id: u32) -> &[f32] {
         let na = self.config.n_azimuth;
         &self.a[id as usize * na..(id as usize + 1) * na]
+    }
+
+    /// The compact cloud stored with entry `id` for verification (the wire form of
+    /// [`crate::reg::encode_cloud`]), if any.
+    pub fn cloud(&self, id: u32) -> Option<&[u8]> {
+        self.clouds.get(id as usize)
+    }
+
+    /// Whether any entry has a cloud.
+    pub fn has_clouds(&self) -> bool {
+        self.clouds.any()
+    }
+
+    /// Bytes of all stored clouds (their wire forms).
+    pub fn cloud_bytes(&self) -> usize {
+        self.clouds.data_len()
+    }
+
+    /// Number of entries that have a cloud.
+    pub fn clouds_stored(&self) -> usize {
+        (0..self.len())
+            .filter(|&i| self.clouds.get(i).is_some())
+            .count()
     }
 
     /// Per-entry sessions.

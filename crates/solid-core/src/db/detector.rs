@@ -6,12 +6,16 @@
 //! returns its ranked [`Candidate`]s, so that an evaluation scores exactly what the detector
 //! decided ([`crate::eval`]).
 
+use alloc::collections::BTreeMap;
+use alloc::sync::Arc;
 use alloc::vec::Vec;
 
 use super::database::check_pose;
 use super::{Database, DbError, Method, SearchOptions};
 use crate::compare::aligned_distance;
+use crate::reg::{self, Gate, Hypothesis, PreparedCloud, RegConfig, Registration, Rejection};
 use crate::{heading_refined, Config, Descriptor, Error, PRESETS};
+use crate::{Coord, Points};
 
 /// The parameters of a [`LoopDetector`]. This is the only place their defaults are written; the
 /// Python package reads them from here.
@@ -36,6 +40,132 @@ pub struct DetectorConfig {
     /// Re-rank the candidates by R-SOLiD distance plus rotation-aligned A-SOLiD distance
     /// ([`DEFAULT_RERANK`]).
     pub rerank: bool,
+    /// Verification of the best candidates by registering the places' clouds.
+    pub verify: VerifyConfig,
+}
+
+/// How a [`LoopDetector`] verifies its best candidates: it registers the query's cloud with each
+/// candidate's ([`crate::reg`]) from several initial yaws and accepts a loop only when the
+/// registration passes the [`Gate`]. A verified loop carries the metric pose `T_query_candidate`
+/// (SPEC §3) and its heading is that pose's yaw.
+///
+/// With verification on, a candidate's score is `1 − fitness` when it passed the gate (in
+/// `[0, 1]`) and `1.5 + distance / 2` otherwise (in `[1.5, 2]`): candidates are ranked by it, a
+/// step's best candidate is a loop exactly when it passed the gate, and a precision-recall curve
+/// over the scores first sweeps the verified loops by overlap, then the rest by R-SOLiD distance.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VerifyConfig {
+    /// Verify at all (the scans' points must then be given, see [`LoopDetector::detect_points`]).
+    pub enabled: bool,
+    /// How many of the step's best candidates (by R-SOLiD distance) are registered.
+    pub candidates: usize,
+    /// At most this many initial yaws per candidate: 0°, the A-SOLiD minima, then ±`fan_deg`.
+    pub hypotheses: usize,
+    /// The fixed yaw fan added to the hypotheses (degrees; 0: none). On a narrow field of view
+    /// the A-SOLiD cost often has a single minimum near 0°.
+    pub fan_deg: f64,
+    /// Bits per axis of the stored clouds within their voxel ([`crate::reg::encode_cloud`]).
+    pub cloud_bits: u8,
+    /// Memory for prepared clouds kept between steps (bytes); older ones are prepared again
+    /// from the stored compact cloud when needed.
+    pub cache_bytes: usize,
+    /// Threads that register a step's candidates at once (0: one per core; 1: the calling
+    /// thread). Needs the `std` feature; without it, candidates are registered one by one.
+    pub threads: usize,
+    /// The registration parameters (the stored clouds use its `voxel_size`).
+    pub registration: RegConfig,
+    /// What a registration must meet to be a loop; its `max_translation` is the largest loop
+    /// (metres between the places).
+    pub gate: Gate,
+}
+
+/// Default [`Gate::max_translation`] of a detector: a loop joins places at most this many metres
+/// apart (the default radius of SPEC §5).
+pub const DEFAULT_MAX_LOOP_DISTANCE: f64 = crate::eval::DEFAULT_RADIUS;
+
+impl Default for VerifyConfig {
+    fn default() -> Self {
+        VerifyConfig {
+            enabled: true,
+            candidates: DEFAULT_VERIFY_CANDIDATES,
+            hypotheses: 4,
+            fan_deg: 25.0,
+            cloud_bits: 8,
+            cache_bytes: 256 << 20,
+            threads: 0,
+            registration: RegConfig::default(),
+            gate: Gate {
+                max_translation: DEFAULT_MAX_LOOP_DISTANCE,
+                ..Gate::default()
+            },
+        }
+    }
+}
+
+/// Default [`VerifyConfig::candidates`].
+pub const DEFAULT_VERIFY_CANDIDATES: usize = 5;
+
+impl VerifyConfig {
+    /// Checks every parameter.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming the first invalid one.
+    pub fn validate(&self) -> Result<(), Error> {
+        let bad = |name, value, expected| {
+            Err(Error::InvalidParameter {
+                name,
+                value,
+                expected,
+            })
+        };
+        if self.candidates == 0 || self.candidates > MAX_TOP_K {
+            return bad(
+                "verify_candidates",
+                self.candidates as f64,
+                "an integer in 1..=1000",
+            );
+        }
+        if !(1..=16).contains(&self.hypotheses) {
+            return bad(
+                "verify_hypotheses",
+                self.hypotheses as f64,
+                "an integer in 1..=16",
+            );
+        }
+        if !(self.fan_deg.is_finite() && (0.0..=180.0).contains(&self.fan_deg)) {
+            return bad("verify_fan_deg", self.fan_deg, "degrees in [0, 180]");
+        }
+        if !(1..=16).contains(&self.cloud_bits) {
+            return bad(
+                "cloud_bits",
+                f64::from(self.cloud_bits),
+                "an integer in 1..=16",
+            );
+        }
+        if let Err(reg::RegError::Core(e)) = self.registration.validate() {
+            return Err(e);
+        }
+        let g = &self.gate;
+        if g.max_translation.is_nan() || g.max_translation <= 0.0 {
+            return bad(
+                "max_loop_distance",
+                g.max_translation,
+                "metres > 0 (infinity: no limit)",
+            );
+        }
+        for (name, v) in [
+            ("min_fitness", g.min_fitness),
+            ("min_structure_fitness", g.min_structure_fitness),
+            ("max_rmse", g.max_rmse),
+            ("min_translation_information", g.min_translation_information),
+            ("min_rotation_information", g.min_rotation_information),
+        ] {
+            if v.is_nan() {
+                return bad(name, v, "a number");
+            }
+        }
+        Ok(())
+    }
 }
 
 /// Default [`DetectorConfig::exclude_frames`] ([spec §5](crate::spec#5-evaluating-loop-closure-against-poses)).
@@ -67,6 +197,7 @@ impl Default for DetectorConfig {
             threshold: PRESETS.iter().map(|p| p.loop_threshold).fold(0.0, f64::max),
             top_k: DEFAULT_TOP_K,
             rerank: DEFAULT_RERANK,
+            verify: VerifyConfig::default(),
         }
     }
 }
@@ -125,7 +256,7 @@ impl DetectorConfig {
         if self.top_k == 0 || self.top_k > MAX_TOP_K {
             return bad("top_k", self.top_k as f64, "an integer in 1..=1000");
         }
-        Ok(())
+        self.verify.validate()
     }
 }
 
@@ -139,9 +270,26 @@ pub struct Candidate {
     /// Heading of the query relative to this candidate, degrees in `(−180, 180]` ([spec §3](crate::spec#3-comparing-descriptors),
     /// refined).
     pub heading_deg: f64,
-    /// What the detector's threshold is compared with (today the R-SOLiD distance): the value a
-    /// precision-recall curve sweeps.
+    /// What ranks the candidates and what a precision-recall curve sweeps: the R-SOLiD distance,
+    /// or with verification the score of [`VerifyConfig`].
     pub score: f64,
+    /// The registration of this candidate, when it was verified.
+    pub verification: Option<Verification>,
+}
+
+/// The outcome of verifying one candidate.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Verification {
+    /// The best registration over the initial yaws tried.
+    pub registration: Registration,
+    /// Whether it passed the gate.
+    pub accepted: bool,
+    /// Why the gate rejected it.
+    pub rejection: Option<Rejection>,
+    /// Initial yaws tried.
+    pub hypotheses: usize,
+    /// How many of them reached the best pose.
+    pub agreement: usize,
 }
 
 /// One detected loop closure: the best candidate of a step, when its score passes the threshold.
@@ -157,8 +305,15 @@ pub struct Loop {
     /// Heading of the query relative to the candidate, degrees in `(−180, 180]` ([spec §3](crate::spec#3-comparing-descriptors),
     /// refined).
     pub heading_deg: f64,
-    /// The score the threshold accepted (see [`Candidate::score`]).
+    /// The score the loop was accepted with (see [`Candidate::score`]).
     pub score: f64,
+    /// The metric pose `T_query_candidate` (`p_query ≈ T·p_candidate`, SPEC §3) of a verified
+    /// loop; `heading_deg` is its yaw.
+    pub pose: Option<reg::Pose>,
+    /// Overlap of a verified loop's registration ([`Registration::fitness`]).
+    pub fitness: Option<f64>,
+    /// Inlier RMSE (metres) of a verified loop's registration.
+    pub rmse: Option<f64>,
 }
 
 /// Everything one detector step decided.
@@ -189,6 +344,22 @@ pub struct LoopDetector {
     travelled: Vec<f64>,
     /// Position of the own session's last entry, when it had a pose.
     last_position: Option<[f64; 3]>,
+    /// Prepared clouds of recent places, for verification (least recently used evicted).
+    prepared: BTreeMap<u32, (u64, Arc<PreparedCloud>)>,
+    /// Bytes held by `prepared`.
+    prepared_bytes: usize,
+    /// Use counter for `prepared`.
+    clock: u64,
+}
+
+/// One scan ready for a detector step: its descriptor and, for verification, its prepared cloud
+/// ([`LoopDetector::prepare_scan`]).
+#[derive(Debug, Clone)]
+pub struct Scan {
+    /// The descriptor.
+    pub descriptor: Descriptor,
+    /// The prepared cloud (None: the step cannot verify).
+    pub cloud: Option<PreparedCloud>,
 }
 
 /// What a step needs to know about the query before it is added.
@@ -228,6 +399,9 @@ impl LoopDetector {
             session,
             travelled: Vec::new(),
             last_position: None,
+            prepared: BTreeMap::new(),
+            prepared_bytes: 0,
+            clock: 0,
         })
     }
 
@@ -283,8 +457,83 @@ impl LoopDetector {
         pose: Option<[f64; 12]>,
     ) -> Result<Detection, DbError> {
         self.db.check_fingerprint(d.fingerprint)?;
+        self.no_verification("detect")?;
         let step = self.step(timestamp, pose, self.last_position, self.last_travelled())?;
-        self.detect_checked(d, step)
+        self.detect_checked(d, None, step)
+    }
+
+    /// Refuses a descriptor-only call when verification is on (it needs the scan's points).
+    fn no_verification(&self, what: &'static str) -> Result<(), DbError> {
+        if self.config.verify.enabled {
+            return Err(Error::InvalidParameter {
+                name: "verify",
+                value: 1.0,
+                expected: match what {
+                    "query" => "verification off for query() with a descriptor; with verification on, use query_scan() with the scan's points",
+                    _ => "verification off for a descriptor-only step; with verification on, give the scan's points (prepare_scan, then detect_scan / detect_scans)",
+                },
+            }
+            .into());
+        }
+        Ok(())
+    }
+
+    /// Describes a scan and, when verification is on, prepares its cloud: everything a step
+    /// needs from the points. Needs only `&self`, so scans can be prepared in parallel.
+    ///
+    /// # Errors
+    /// As [`crate::describe`] and [`PreparedCloud::new`], as [`DbError::Core`].
+    pub fn prepare_scan<T: Coord>(&self, points: Points<'_, T>) -> Result<Scan, DbError> {
+        let descriptor = crate::Describer::new(*self.db.config())?.describe(points)?;
+        let cloud = self.prepare_cloud(points)?;
+        Ok(Scan { descriptor, cloud })
+    }
+
+    /// The prepared cloud a step needs for verification (None when verification is off).
+    ///
+    /// # Errors
+    /// As [`PreparedCloud::new`], as [`DbError::Core`].
+    pub fn prepare_cloud<T: Coord>(
+        &self,
+        points: Points<'_, T>,
+    ) -> Result<Option<PreparedCloud>, DbError> {
+        if !self.config.verify.enabled {
+            return Ok(None);
+        }
+        PreparedCloud::new(points, &self.config.verify.registration)
+            .map(Some)
+            .map_err(reg_err)
+    }
+
+    /// [`LoopDetector::detect`] for a prepared scan: with verification on, its best candidates
+    /// are registered and its compact cloud is stored with the place.
+    ///
+    /// # Errors
+    /// As [`LoopDetector::detect`].
+    pub fn detect_scan(
+        &mut self,
+        scan: Scan,
+        timestamp: f64,
+        pose: Option<[f64; 12]>,
+    ) -> Result<Detection, DbError> {
+        self.detect_scans(alloc::vec![scan], &[timestamp], &[pose])
+            .map(|mut v| v.remove(0))
+    }
+
+    /// [`LoopDetector::detect_scan`] for many scans in order. Every input is checked before the
+    /// first scan is added, so on error nothing is added.
+    ///
+    /// # Errors
+    /// As [`LoopDetector::detect_many`].
+    pub fn detect_scans(
+        &mut self,
+        scans: Vec<Scan>,
+        timestamps: &[f64],
+        poses: &[Option<[f64; 12]>],
+    ) -> Result<Vec<Detection>, DbError> {
+        let (descriptors, clouds): (Vec<Descriptor>, Vec<Option<PreparedCloud>>) =
+            scans.into_iter().map(|s| (s.descriptor, s.cloud)).unzip();
+        self.detect_all(&descriptors, clouds, timestamps, poses)
     }
 
     /// [`LoopDetector::detect`] for many scans in order, in one call. Every input is checked
@@ -296,6 +545,17 @@ impl LoopDetector {
     pub fn detect_many(
         &mut self,
         descriptors: &[Descriptor],
+        timestamps: &[f64],
+        poses: &[Option<[f64; 12]>],
+    ) -> Result<Vec<Detection>, DbError> {
+        self.no_verification("detect_many")?;
+        self.detect_all(descriptors, Vec::new(), timestamps, poses)
+    }
+
+    fn detect_all(
+        &mut self,
+        descriptors: &[Descriptor],
+        clouds: Vec<Option<PreparedCloud>>,
         timestamps: &[f64],
         poses: &[Option<[f64; 12]>],
     ) -> Result<Vec<Detection>, DbError> {
@@ -333,13 +593,14 @@ impl LoopDetector {
         }
         let mut out = Vec::new();
         out.try_reserve_exact(n).map_err(|_| DbError::OutOfMemory)?;
+        let mut clouds = clouds.into_iter();
         for (d, s) in descriptors.iter().zip(steps) {
-            out.push(self.detect_checked(d, s)?);
+            out.push(self.detect_checked(d, clouds.next().flatten(), s)?);
         }
         Ok(out)
     }
 
-    /// [`LoopDetector::detect`] without the details: the loop, if any.
+    /// [`LoopDetector::detect`] without the details: the loop, if any (verification off).
     ///
     /// # Errors
     /// As [`LoopDetector::detect`].
@@ -372,7 +633,23 @@ impl LoopDetector {
     /// [`DbError::ConfigMismatch`] for a descriptor made with another config.
     pub fn query(&self, d: &Descriptor) -> Result<Option<Loop>, DbError> {
         self.db.check_fingerprint(d.fingerprint)?;
+        self.no_verification("query")?;
         let cands = self.rank(&d.r, &d.a, self.db.len(), self.config.top_k)?;
+        Ok(self.accept(&cands, self.db.len() as u32))
+    }
+
+    /// [`LoopDetector::query`] for a prepared scan, verified when verification is on (without
+    /// adding the scan).
+    ///
+    /// # Errors
+    /// As [`LoopDetector::query`].
+    pub fn query_scan(&mut self, scan: &Scan) -> Result<Option<Loop>, DbError> {
+        let d = &scan.descriptor;
+        self.db.check_fingerprint(d.fingerprint)?;
+        let mut cands = self.rank(&d.r, &d.a, self.db.len(), self.config.top_k)?;
+        if self.config.verify.enabled {
+            self.verify_candidates(&d.a, scan.cloud.as_ref(), &mut cands)?;
+        }
         Ok(self.accept(&cands, self.db.len() as u32))
     }
 
@@ -458,16 +735,39 @@ impl LoopDetector {
         Ok(bound)
     }
 
-    fn detect_checked(&mut self, d: &Descriptor, s: Step) -> Result<Detection, DbError> {
+    fn detect_checked(
+        &mut self,
+        d: &Descriptor,
+        cloud: Option<PreparedCloud>,
+        s: Step,
+    ) -> Result<Detection, DbError> {
         let eligible = self.eligible(&s)?;
-        let candidates = self.rank(&d.r, &d.a, eligible, self.config.top_k)?;
+        let mut candidates = self.rank(&d.r, &d.a, eligible, self.config.top_k)?;
+        let v = self.config.verify;
+        let (cloud, stored) = match cloud {
+            Some(c) if v.enabled => {
+                let bytes =
+                    reg::encode_cloud(&c.fine.points, v.registration.voxel_size, v.cloud_bits)
+                        .map_err(reg_err)?;
+                (Some(Arc::new(c)), Some(bytes))
+            }
+            _ => (None, None),
+        };
+        if v.enabled {
+            self.verify_candidates(&d.a, cloud.as_deref(), &mut candidates)?;
+        }
         self.travelled
             .try_reserve(1)
             .map_err(|_| DbError::OutOfMemory)?;
-        let id = self.db.add(d, self.session, s.timestamp, s.pose)?;
+        let id = self
+            .db
+            .add_with_cloud(d, self.session, s.timestamp, s.pose, stored.as_deref())?;
         self.travelled.push(s.travelled);
         if let Some(p) = s.pose {
             self.last_position = Some([p[3], p[7], p[11]]);
+        }
+        if let Some(c) = cloud {
+            self.remember(id, c);
         }
         Ok(Detection {
             query: id,
@@ -477,14 +777,102 @@ impl LoopDetector {
         })
     }
 
+    /// Registers the query's cloud with its best candidates' and scores every candidate (see
+    /// [`VerifyConfig`]); candidates end sorted by score.
+    fn verify_candidates(
+        &mut self,
+        a_query: &[f32],
+        query: Option<&PreparedCloud>,
+        cands: &mut [Candidate],
+    ) -> Result<(), DbError> {
+        let v = self.config.verify;
+        for c in cands.iter_mut() {
+            c.score = UNVERIFIED_SCORE + c.distance / 2.0;
+        }
+        if let Some(q) = query {
+            // The clouds first (the cache needs `&mut self`), then the registrations, which are
+            // independent of each other: in parallel where threads exist.
+            let mut jobs: Vec<(usize, Arc<PreparedCloud>)> = Vec::new();
+            for (i, c) in cands.iter().enumerate().take(v.candidates) {
+                if let Some(cp) = self.prepared_cloud(c.id) {
+                    jobs.push((i, cp));
+                }
+            }
+            let db = &self.db;
+            let verify_one = |&(i, ref cp): &(usize, Arc<PreparedCloud>)| {
+                verify_pair(&v, a_query, db.a(cands[i].id), q, cp)
+            };
+            let results: Vec<Option<Verification>> = run_jobs(&jobs, v.threads, verify_one)?;
+            for ((i, _), r) in jobs.iter().zip(results) {
+                let c = &mut cands[*i];
+                c.verification = r;
+                if let Some(r) = r.filter(|r| r.accepted) {
+                    c.score = 1.0 - r.registration.fitness;
+                    c.heading_deg = r.registration.yaw_degrees();
+                }
+            }
+        }
+        cands.sort_by(|x, y| x.score.total_cmp(&y.score));
+        Ok(())
+    }
+
+    /// The prepared cloud of place `id`: from the cache, or prepared from its stored compact
+    /// cloud (then cached). None when the place has no usable cloud.
+    fn prepared_cloud(&mut self, id: u32) -> Option<Arc<PreparedCloud>> {
+        self.clock += 1;
+        if let Some((stamp, c)) = self.prepared.get_mut(&id) {
+            *stamp = self.clock;
+            return Some(Arc::clone(c));
+        }
+        let points = reg::decode_cloud(self.db.cloud(id)?).ok()?;
+        let c = Arc::new(
+            PreparedCloud::from_downsampled(&points, &self.config.verify.registration).ok()?,
+        );
+        self.remember(id, Arc::clone(&c));
+        Some(c)
+    }
+
+    /// Caches a prepared cloud, evicting the least recently used ones beyond the budget.
+    fn remember(&mut self, id: u32, c: Arc<PreparedCloud>) {
+        self.clock += 1;
+        self.prepared_bytes += c.heap_bytes();
+        if let Some((_, old)) = self.prepared.insert(id, (self.clock, c)) {
+            self.prepared_bytes -= old.heap_bytes();
+        }
+        while self.prepared_bytes > self.config.verify.cache_bytes && self.prepared.len() > 1 {
+            let oldest = self
+                .prepared
+                .iter()
+                .filter(|(&k, _)| k != id)
+                .min_by_key(|(_, (stamp, _))| *stamp)
+                .map(|(&k, _)| k);
+            let Some(k) = oldest else { break };
+            if let Some((_, old)) = self.prepared.remove(&k) {
+                self.prepared_bytes -= old.heap_bytes();
+            }
+        }
+    }
+
     fn accept(&self, cands: &[Candidate], query: u32) -> Option<Loop> {
         let c = cands.first()?;
-        (c.score <= self.config.threshold).then_some(Loop {
+        let ok = if self.config.verify.enabled {
+            c.verification.is_some_and(|v| v.accepted)
+        } else {
+            c.score <= self.config.threshold
+        };
+        let reg = c
+            .verification
+            .filter(|v| v.accepted)
+            .map(|v| v.registration);
+        ok.then_some(Loop {
             query,
             candidate: c.id,
             distance: c.distance,
             heading_deg: c.heading_deg,
             score: c.score,
+            pose: reg.map(|r| r.pose),
+            fitness: reg.map(|r| r.fitness),
+            rmse: reg.map(|r| r.rmse),
         })
     }
 
@@ -531,6 +919,7 @@ impl LoopDetector {
                 distance,
                 heading_deg: heading_refined(a, ca)?.degrees,
                 score: distance,
+                verification: None,
             };
             ranked.push((key, c));
         }
@@ -547,4 +936,123 @@ fn backwards_time(t: f64, _prev: f64) -> DbError {
         expected: "timestamps that do not decrease within a session (exclude_seconds is set)",
     }
     .into()
+}
+
+/// Score of a candidate that was not verified or failed the gate: above every verified score.
+pub const UNVERIFIED_SCORE: f64 = 1.5;
+
+/// With verification, the scores of candidates that passed the gate lie in `[0, 1]`: accepting
+/// the scores up to this threshold accepts exactly the verified loops.
+pub const VERIFIED_THRESHOLD: f64 = 1.0;
+
+/// The initial yaws for registering a candidate (degrees, at most `max` and 16): 0°, the A-SOLiD
+/// minima ([`reg::hypothesis_yaws`]), then `±fan_deg`, skipping any within one azimuth bin of a
+/// yaw already chosen.
+fn yaw_hypotheses(
+    a_query: &[f32],
+    a_candidate: &[f32],
+    max: usize,
+    fan_deg: f64,
+    out: &mut [f64; 16],
+) -> Result<usize, DbError> {
+    let max = max.min(out.len());
+    let mut m = reg::hypothesis_yaws(a_query, a_candidate, &mut out[..max])?;
+    let bin = 360.0 / a_query.len() as f64;
+    if fan_deg > 0.0 {
+        for y in [fan_deg, -fan_deg] {
+            let near = out[..m].iter().any(|&x| {
+                let d = libm::fabs(x - y) % 360.0;
+                d.min(360.0 - d) < bin
+            });
+            if m < max && !near {
+                out[m] = y;
+                m += 1;
+            }
+        }
+    }
+    Ok(m)
+}
+
+fn reg_err(e: reg::RegError) -> DbError {
+    match e {
+        reg::RegError::Core(c) => DbError::Core(c),
+        other => DbError::Format {
+            file: None,
+            reason: alloc::format!("{other}"),
+        },
+    }
+}
+
+/// Registers one candidate from its yaw hypotheses and checks the gate; None when the clouds
+/// cannot be registered (for example, one of them is empty).
+fn verify_pair(
+    v: &VerifyConfig,
+    a_query: &[f32],
+    a_candidate: &[f32],
+    query: &PreparedCloud,
+    candidate: &PreparedCloud,
+) -> Result<Option<Verification>, DbError> {
+    let mut yaws = [0.0f64; 16];
+    let m = yaw_hypotheses(a_query, a_candidate, v.hypotheses, v.fan_deg, &mut yaws)?;
+    let mut hyps = [Hypothesis::default(); 16];
+    let Ok(h) = reg::register_hypotheses(
+        query,
+        candidate,
+        &yaws[..m],
+        &reg::IDENTITY,
+        &v.registration,
+        &mut hyps[..m],
+    ) else {
+        return Ok(None);
+    };
+    let tried = &hyps[..h.count];
+    let check = v.gate.check(&h.registration, tried, h.best);
+    Ok(Some(Verification {
+        registration: h.registration,
+        accepted: check.is_ok(),
+        rejection: check.err(),
+        hypotheses: h.count,
+        agreement: reg::agreement(
+            tried,
+            h.best,
+            v.gate.agree_translation,
+            v.gate.agree_rotation_deg,
+        ),
+    }))
+}
+
+/// `f` of every job, in order: on up to `threads` scoped threads with `std` (0: one per core),
+/// one after the other without it.
+fn run_jobs<J: Sync, R: Send>(
+    jobs: &[J],
+    threads: usize,
+    f: impl Fn(&J) -> Result<R, DbError> + Sync,
+) -> Result<Vec<R>, DbError> {
+    #[cfg(feature = "std")]
+    {
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let t = if threads == 0 { cores } else { threads }.min(jobs.len());
+        if t > 1 {
+            let chunk = jobs.len().div_ceil(t);
+            let f = &f;
+            let parts: Vec<Result<Vec<R>, DbError>> = std::thread::scope(|scope| {
+                let handles: Vec<_> = jobs
+                    .chunks(chunk)
+                    .map(|part| scope.spawn(move || part.iter().map(f).collect()))
+                    .collect();
+                handles
+                    .into_iter()
+                    // A registration does not panic; should one, the panic goes on in the caller.
+                    .map(|h| h.join().unwrap_or_else(|p| std::panic::resume_unwind(p)))
+                    .collect()
+            });
+            let mut out = Vec::new();
+            for p in parts {
+                out.extend(p?);
+            }
+            return Ok(out);
+        }
+    }
+    let _ = threads;
+    jobs.iter().map(f).collect()
 }

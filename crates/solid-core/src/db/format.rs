@@ -1,28 +1,34 @@
 //! The database file format: checksummed, little-endian, written atomically.
 //!
-//! # Version 1
-//! All numbers little-endian.
+//! # Version 2 (written), version 1 (still read)
+//! All numbers little-endian. Version 1 is version 2 without the field at offset 88 and without
+//! the cloud section (its entries start at offset 88).
 //! ```text
 //! offset  size        field
 //! 0       8           magic  "SOLiDdb\0"
-//! 8       4   u32     format version (1)
+//! 8       4   u32     format version (2)
 //! 12      4   u32     flags (0)
 //! 16      4×u32       n_range, n_azimuth, n_elevation, 0
 //! 32      5×f64       fov_up, fov_down, min_range, max_range, voxel_size
 //! 72      8   u64     config fingerprint (Config::fingerprint)
 //! 80      8   u64     entry count n
-//! 88      n×112       per entry: u32 session, u32 flags (bit 0: has pose), f64 timestamp
+//! 88      8   u64     cloud section length C in bytes (0: no entry has a cloud)
+//! 96      n×112       per entry: u32 session, u32 flags (bit 0: has pose), f64 timestamp
 //!                     (NaN = none), 12×f64 pose (row-major 3×4 [R|t], zeros when absent)
 //! ...     n×Nr×f32    R-SOLiD vectors, entry after entry
 //! ...     n×Na×f32    A-SOLiD vectors
+//! ...     C           when C > 0: n×u32 cloud lengths (0: none), then the clouds back to back,
+//!                     each in the wire form of `reg::encode_cloud` (its own CRC)
 //! end-4   4   u32     CRC-32 (IEEE) of every byte before it
 //! ```
+//! The header alone gives the file's length (checked before anything else is read).
 
 use alloc::format;
 use alloc::string::String;
 use alloc::vec;
 use alloc::vec::Vec;
 
+use super::clouds::Clouds;
 use super::{Database, DbError};
 use crate::search;
 use crate::Config;
@@ -32,8 +38,14 @@ impl Database {
     pub fn to_bytes(&self) -> Vec<u8> {
         let n = self.len();
         let c = &self.config;
-        let mut out =
-            Vec::with_capacity(HEADER_LEN + n * ENTRY_LEN + (self.r.len() + self.a.len()) * 4 + 4);
+        let cloud_section = if self.clouds.any() {
+            4 * n + self.clouds.bytes().len()
+        } else {
+            0
+        };
+        let mut out = Vec::with_capacity(
+            HEADER_LEN + n * ENTRY_LEN + (self.r.len() + self.a.len()) * 4 + cloud_section + 4,
+        );
         out.extend_from_slice(&MAGIC);
         out.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
         out.extend_from_slice(&0u32.to_le_bytes());
@@ -45,6 +57,7 @@ impl Database {
         }
         out.extend_from_slice(&self.fingerprint.to_le_bytes());
         out.extend_from_slice(&(n as u64).to_le_bytes());
+        out.extend_from_slice(&(cloud_section as u64).to_le_bytes());
         for i in 0..n {
             out.extend_from_slice(&self.sessions[i].to_le_bytes());
             let (flags, pose) = match &self.poses[i] {
@@ -59,6 +72,12 @@ impl Database {
         }
         for v in self.r.iter().chain(&self.a) {
             out.extend_from_slice(&v.to_le_bytes());
+        }
+        if cloud_section > 0 {
+            for l in self.clouds.lengths(n) {
+                out.extend_from_slice(&l.to_le_bytes());
+            }
+            out.extend_from_slice(self.clouds.bytes());
         }
         let crc = crc32(&out);
         out.extend_from_slice(&crc.to_le_bytes());
@@ -79,15 +98,22 @@ impl Database {
                 "not a SOLiD database (wrong magic number at the start of the file)",
             )));
         }
-        if bytes.len() < HEADER_LEN + 4 {
+        if bytes.len() < HEADER_LEN_V1 + 4 {
+            return Err(bad(format!(
+                "truncated: {} bytes, shorter than the {}-byte header",
+                bytes.len(),
+                HEADER_LEN_V1 + 4
+            )));
+        }
+        let mut rd = Reader { b: bytes, at: 8 };
+        let version = rd.u32();
+        if version >= 2 && bytes.len() < HEADER_LEN + 4 {
             return Err(bad(format!(
                 "truncated: {} bytes, shorter than the {}-byte header",
                 bytes.len(),
                 HEADER_LEN + 4
             )));
         }
-        let mut rd = Reader { b: bytes, at: 8 };
-        let version = rd.u32();
         if version > FORMAT_VERSION {
             return Err(bad(format!(
                 "format version {version} is newer than this library reads (up to {FORMAT_VERSION}); \
@@ -114,11 +140,17 @@ impl Database {
         };
         let fingerprint = rd.u64();
         let count = rd.u64();
+        let (cloud_section, header_len) = if version >= 2 {
+            (rd.u64(), HEADER_LEN)
+        } else {
+            (0, HEADER_LEN_V1)
+        };
         // Length check before the checksum, so that a truncated file says "truncated".
         let per_entry = (n_range as u64 + n_azimuth as u64) * 4 + ENTRY_LEN as u64;
         let expected = count
             .checked_mul(per_entry)
-            .and_then(|v| v.checked_add((HEADER_LEN + 4) as u64));
+            .and_then(|v| v.checked_add(cloud_section))
+            .and_then(|v| v.checked_add((header_len + 4) as u64));
         let expected = match expected {
             Some(e) if e <= usize::MAX as u64 => e as usize,
             _ => {
@@ -201,6 +233,17 @@ impl Database {
                 "entry {entry}: non-finite value in its {which}"
             )));
         }
+        if cloud_section > 0 {
+            let lengths_len = 4 * n as u64;
+            if cloud_section < lengths_len {
+                return Err(bad(format!(
+                    "corrupted header: a cloud section of {cloud_section} bytes cannot hold {n} lengths"
+                )));
+            }
+            let lengths: Vec<u32> = (0..n).map(|_| rd.u32()).collect();
+            let data = &bytes[rd.at..rd.at + (cloud_section - lengths_len) as usize];
+            db.clouds = Clouds::from_parts(&lengths, data)?;
+        }
         db.normed = vec![0.0; n * nr];
         search::normalize_rows(&db.r, nr, &mut db.normed)?;
         db.perm = (0..n as u32).collect();
@@ -281,8 +324,9 @@ impl Database {
 }
 
 const MAGIC: [u8; 8] = *b"SOLiDdb\0";
-const FORMAT_VERSION: u32 = 1;
-const HEADER_LEN: usize = 88;
+const FORMAT_VERSION: u32 = 2;
+const HEADER_LEN_V1: usize = 88;
+const HEADER_LEN: usize = 96;
 const ENTRY_LEN: usize = 4 + 4 + 8 + 96;
 
 /// A little-endian reader over bytes whose length was checked beforehand.

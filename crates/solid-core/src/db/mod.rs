@@ -34,6 +34,7 @@ use core::fmt;
 
 use crate::Error;
 
+pub mod clouds;
 mod database;
 mod detector;
 pub mod format;
@@ -41,8 +42,9 @@ pub mod wire;
 
 pub use database::{check_pose, Database, SearchOptions, AUTO_KDTREE_MIN};
 pub use detector::{
-    Candidate, Detection, DetectorConfig, Loop, LoopDetector, DEFAULT_EXCLUDE_FRAMES,
-    DEFAULT_RERANK, DEFAULT_TOP_K, MAX_TOP_K,
+    Candidate, Detection, DetectorConfig, Loop, LoopDetector, Scan, Verification, VerifyConfig,
+    DEFAULT_EXCLUDE_FRAMES, DEFAULT_MAX_LOOP_DISTANCE, DEFAULT_RERANK, DEFAULT_TOP_K,
+    DEFAULT_VERIFY_CANDIDATES, MAX_TOP_K, UNVERIFIED_SCORE, VERIFIED_THRESHOLD,
 };
 pub use format::crc32;
 pub use wire::{decode_place, encode_place, Place};
