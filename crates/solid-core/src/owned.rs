@@ -76,10 +76,17 @@ impl Describer {
     /// Describes one scan, growing the scratch buffer when needed.
     ///
     /// # Errors
-    /// None in practice (the config was validated); propagates [`describe`]'s errors.
+    /// [`Error::OutOfMemory`] when the scratch buffer for this many points cannot be allocated
+    /// (the describer is left as it was); otherwise [`describe`]'s errors.
     pub fn describe<T: Coord>(&mut self, points: Points<'_, T>) -> Result<Descriptor, Error> {
         let need = describe_scratch_len(points.len(), &self.cfg);
         if self.scratch.len() < need {
+            self.scratch
+                .try_reserve_exact(need - self.scratch.len())
+                .map_err(|_| Error::OutOfMemory {
+                    what: "describe scratch",
+                    bytes: need.saturating_mul(core::mem::size_of::<Scratch>()),
+                })?;
             self.scratch.resize(need, 0);
         }
         let mut d = Descriptor {
