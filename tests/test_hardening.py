@@ -23,7 +23,7 @@ import pytest
 
 import solid
 import solid.evaluation
-from solid import sim
+from solid import scancontext, sim
 from solid.config import PipelineConfig
 
 linux = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="needs Linux (/proc, RLIMIT_AS)")
@@ -415,6 +415,10 @@ def test_the_documented_error_classes(cfg: solid.SolidConfig) -> None:
             lambda: solid.evaluation.evaluate_candidates("x", [5], [1], [[0]], [0.1], [0.1], [0.0], np.tile(np.eye(3, 4), (2, 1, 1)), radius=5.0),
             solid.SolidError,
         ),
+        (lambda: scancontext.ScanContextConfig(n_ring=0), solid.ConfigError),
+        (lambda: scancontext.ScanContextConfig(n_sector=True), TypeError),
+        (lambda: scancontext.describe(np.zeros((5, 2))), solid.SolidError),
+        (lambda: scancontext.candidates(np.zeros((3, 20, 60)), k=0), solid.ConfigError),
     ]
     for call, expected in cases:
         with pytest.raises(expected):
