@@ -121,6 +121,17 @@ def test_describe_of_40m_points_under_4_gib_is_a_memory_error() -> None:
 
 
 @linux
+def test_preparing_a_40m_point_cloud_under_4_gib_is_a_memory_error() -> None:
+    *_, out = in_child(
+        """
+        limit_as(4)
+        solid.PreparedCloud(np.zeros((40_000_000, 3), np.float32))
+        """
+    )
+    assert out.startswith("raised MemoryError"), out
+
+
+@linux
 def test_loading_a_1m_entry_file_under_1_gib_is_a_memory_error(tmp_path: Path, cfg: solid.SolidConfig) -> None:
     path = tmp_path / "big.soliddb"
     n, chunk = 1_000_000, 50_000
@@ -333,6 +344,11 @@ def test_byte_arguments_take_bytes_bytearray_and_memoryview(cfg: solid.SolidConf
     assert solid.Database.from_bytes(kind(db.to_bytes())).to_bytes() == db.to_bytes()
     with pytest.raises(TypeError, match="bytes, bytearray or memoryview"):
         solid.decode_place("SP", cfg)  # type: ignore[arg-type]
+    pts = np.random.default_rng(1).random((300, 3)) * 20
+    wire = solid.encode_cloud(pts)
+    np.testing.assert_array_equal(solid.decode_cloud(kind(wire)), solid.decode_cloud(wire))
+    cloud = solid.PreparedCloud(pts)
+    assert len(solid.PreparedCloud.decode(kind(cloud.encode()))) == len(cloud)
 
 
 # --- item 8: API edges -------------------------------------------------------------------------
@@ -345,6 +361,7 @@ def _calls(cfg: solid.SolidConfig) -> dict[str, Callable[[Any], object]]:
     world = sim.World(seed=1)
     pose = np.eye(3, 4)
     ev = solid.evaluation.evaluate_candidates("x", [1], [1], [[0]], [0.1], [0.1], [0.0], np.tile(pose, (2, 1, 1)), radius=5.0)
+    cloud = solid.PreparedCloud(np.random.default_rng(0).random((500, 3)) * 20)
     return {
         "Database.search k": lambda v: db.search(d, k=v),
         "Database.search exclude_recent": lambda v: db.search(d, exclude_recent=v),
@@ -366,6 +383,11 @@ def _calls(cfg: solid.SolidConfig) -> dict[str, Callable[[Any], object]]:
         "sim.scan frame": lambda v: sim.scan(world, sim.Sensor("vlp16", h_fov=10.0), pose, frame=v),
         "Sensor.n_rays frame": lambda v: sim.Sensor("vlp16").n_rays(v),
         "Scores.recall_at n": lambda v: ev.recall_at(v),
+        "RegistrationConfig neighbors": lambda v: solid.RegistrationConfig(neighbors=v),
+        "PreparedCloud.encode bits": lambda v: cloud.encode(bits=v),
+        "encode_cloud bits": lambda v: solid.encode_cloud(cloud.points, bits=v),
+        "hypothesis_yaws n": lambda v: solid.hypothesis_yaws(d, d, n=v),
+        "AcceptanceGate min_agreement": lambda v: solid.AcceptanceGate(min_agreement=v),
     }
 
 
@@ -415,6 +437,9 @@ def test_the_documented_error_classes(cfg: solid.SolidConfig) -> None:
             lambda: solid.evaluation.evaluate_candidates("x", [5], [1], [[0]], [0.1], [0.1], [0.0], np.tile(np.eye(3, 4), (2, 1, 1)), radius=5.0),
             solid.SolidError,
         ),
+        (lambda: solid.decode_cloud(b"not a cloud"), solid.DatabaseError),
+        (lambda: solid.RegistrationConfig(voxel_size=True), TypeError),
+        (lambda: solid.AcceptanceGate(min_fitness=True), TypeError),
         (lambda: scancontext.ScanContextConfig(n_ring=0), solid.ConfigError),
         (lambda: scancontext.ScanContextConfig(n_sector=True), TypeError),
         (lambda: scancontext.describe(np.zeros((5, 2))), solid.SolidError),

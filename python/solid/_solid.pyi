@@ -1246,7 +1246,7 @@ class PreparedCloud:
             SolidError: `points` has the wrong shape or is not C-contiguous.
         """
     @staticmethod
-    def decode(data: bytes, config: RegistrationConfig | None = None) -> PreparedCloud:
+    def decode(data: bytes | bytearray | memoryview, config: RegistrationConfig | None = None) -> PreparedCloud:
         """Decodes a cloud made by `PreparedCloud.encode` and prepares it.
 
         Args:
@@ -1258,7 +1258,8 @@ class PreparedCloud:
             The prepared cloud, as the sender would have prepared the same fine points.
 
         Raises:
-            SolidError: Not a cloud, a checksum mismatch, or a bad length.
+            DatabaseError: Not a cloud, a checksum mismatch, or a bad length.
+            TypeError: `data` is not bytes, bytearray or memoryview.
         """
     def encode(self, bits: int = 8) -> bytes:
         """The compact wire form of the fine points, for a robot asked to verify a loop.
@@ -1511,7 +1512,7 @@ def encode_cloud(
     Raises:
         ConfigError: A bad `grid` or `bits`, or a non-finite or far-away point.
     """
-def decode_cloud(data: bytes) -> npt.NDArray[np.float64]:
+def decode_cloud(data: bytes | bytearray | memoryview) -> npt.NDArray[np.float64]:
     """Decodes points made by `encode_cloud`.
 
     Args:
@@ -1521,7 +1522,8 @@ def decode_cloud(data: bytes) -> npt.NDArray[np.float64]:
         The points, (N, 3) float64.
 
     Raises:
-        SolidError: Not a cloud, a checksum mismatch, or a bad length.
+        DatabaseError: Not a cloud, a checksum mismatch, or a bad length.
+        TypeError: `data` is not bytes, bytearray or memoryview.
     """
 
 # --- simulator (sim.rs), used by solid.sim ---

@@ -81,12 +81,7 @@ impl Describer {
     pub fn describe<T: Coord>(&mut self, points: Points<'_, T>) -> Result<Descriptor, Error> {
         let need = describe_scratch_len(points.len(), &self.cfg);
         if self.scratch.len() < need {
-            self.scratch
-                .try_reserve_exact(need - self.scratch.len())
-                .map_err(|_| Error::OutOfMemory {
-                    what: "describe scratch",
-                    bytes: need.saturating_mul(core::mem::size_of::<Scratch>()),
-                })?;
+            reserve(&mut self.scratch, need, "describe scratch")?;
             self.scratch.resize(need, 0);
         }
         let mut d = Descriptor {
@@ -98,4 +93,26 @@ impl Describer {
         d.stats = describe(points, &self.cfg, &mut self.scratch, &mut d.r, &mut d.a)?;
         Ok(d)
     }
+}
+
+/// Makes room in `v` for `n` elements in all, or [`Error::OutOfMemory`] naming `what` (nothing is
+/// changed): the one way the `alloc` conveniences grow a buffer whose size the input decides.
+pub(crate) fn reserve<T>(v: &mut Vec<T>, n: usize, what: &'static str) -> Result<(), Error> {
+    v.try_reserve_exact(n.saturating_sub(v.len()))
+        .map_err(|_| Error::OutOfMemory {
+            what,
+            bytes: n.saturating_mul(core::mem::size_of::<T>()),
+        })
+}
+
+/// `n` copies of `value` in a vector allocated with [`reserve`].
+pub(crate) fn try_filled<T: Clone>(
+    n: usize,
+    value: T,
+    what: &'static str,
+) -> Result<Vec<T>, Error> {
+    let mut v = Vec::new();
+    reserve(&mut v, n, what)?;
+    v.resize(n, value);
+    Ok(v)
 }

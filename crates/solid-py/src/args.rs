@@ -160,6 +160,8 @@ int_args! {
     n: usize = "n" in 0, usize::MAX;
     /// Blocks of a world (the simulator checks the range).
     blocks: usize = "blocks" in 0, usize::MAX;
+    /// Offset bits of the cloud wire form (the core checks the range).
+    bits: u8 = "bits" in 0, u8::MAX;
 }
 
 opt_int_args! {
@@ -169,4 +171,6 @@ opt_int_args! {
     points: usize = "points" in 0, usize::MAX;
     /// Number of candidates (None: the detector's top_k).
     opt_k: usize = "k" in 0, usize::MAX;
+    /// Hypotheses that must agree (None: the gate's default).
+    min_agreement: usize = "min_agreement" in 0, usize::MAX;
 }

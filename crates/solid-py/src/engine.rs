@@ -23,7 +23,7 @@ use crate::{args, PyConfig, PyDescriptor};
 /// module already defines it, else of `ValueError`.
 static DATABASE_ERROR: PyOnceLock<Py<PyType>> = PyOnceLock::new();
 
-fn database_error(py: Python<'_>, msg: String) -> PyErr {
+pub(crate) fn database_error(py: Python<'_>, msg: String) -> PyErr {
     match DATABASE_ERROR.get(py) {
         Some(t) => PyErr::from_type(t.bind(py).clone(), msg),
         None => PyValueError::new_err(msg),

@@ -372,7 +372,7 @@ pub(super) fn is_bin_value(v: f32) -> bool {
 /// An empty vector with room for `n` elements, or [`DbError::OutOfMemory`].
 pub(super) fn try_vec<T>(n: usize) -> Result<Vec<T>, DbError> {
     let mut v = Vec::new();
-    v.try_reserve_exact(n).map_err(|_| DbError::OutOfMemory)?;
+    crate::owned::reserve(&mut v, n, "database").map_err(|_| DbError::OutOfMemory)?;
     Ok(v)
 }
 
