@@ -119,9 +119,10 @@ bench-pcd: wheel
 ## Fuzzing. Atheris harnesses for the Python readers (fuzz/python, one per area) and cargo-fuzz
 ## targets (fuzz/, nightly toolchain, AddressSanitizer) for every parser and decoder of the core:
 ## the LZF decoder (lzf), the database file (db_from_bytes: what it accepts re-encodes, reads back
-## the same and searches alike by brute force and kd-tree) and the wire form (place_decode), plus
-## describe on arbitrary points and configs (describe: the AVX2 and portable copies and float32 and
-## float64 points give the same bits) and the docs/spec.md §5 scorer (score). Corpora are seeded at
+## the same and searches alike by brute force and kd-tree), the place and cloud wire forms
+## (place_decode, reg_decode_cloud), plus describe on arbitrary points and configs (describe: the
+## AVX2 and portable copies and float32 and float64 points give the same bits), the docs/spec.md §5
+## scorer (score) and registration on arbitrary clouds, poses and yaws (register). Corpora are seeded at
 ## run time from ../shared/data into build/fuzz/corpus (fuzz/python/seed_lzf.py, seed_core.py).
 ## `make fuzz` runs each for FUZZ_SECONDS; `make test` runs FUZZ_SMOKE_SECONDS of each, offline
 ## (the cargo part is skipped, saying so, without nightly and cargo-fuzz). A contract violation
@@ -129,7 +130,7 @@ bench-pcd: wheel
 FUZZ_SECONDS ?= 60
 FUZZ_SMOKE_SECONDS ?= 2
 FUZZ_AREAS := pcd ply npy npz bin poses rosbag1 mcap
-CARGO_FUZZ_TARGETS := lzf db_from_bytes place_decode describe score
+CARGO_FUZZ_TARGETS := lzf db_from_bytes place_decode reg_decode_cloud describe score register
 NIGHTLY_FUZZ := cargo +nightly fuzz
 
 fuzz-deps:

@@ -5,9 +5,10 @@ the repository).
 
 Writes CORPUS_ROOT/<target>/seed-* for db_from_bytes (databases of described shared scans, with
 sessions, times and poses), place_decode (their places, float32 and quantised), describe (shared
-scans thinned to a few hundred points, in each input layout of the target) and score (queries and
-candidates over shared ground-truth poses). Without the shared data it writes small synthetic
-seeds and says so.
+scans thinned to a few hundred points, in each input layout of the target), score (queries and
+candidates over shared ground-truth poses), reg_decode_cloud (the wire form of shared scans) and
+register (pairs of thinned shared scans of one place, in each input layout). Without the shared
+data it writes small synthetic seeds and says so.
 """
 
 from __future__ import annotations
@@ -32,10 +33,11 @@ def shared_data() -> Path | None:
 
 
 def scans(data: Path | None) -> list[np.ndarray]:
-    """A few real scans (x, y, z float32), or synthetic rings without the shared data."""
+    """A few real scans (x, y, z float32), or synthetic rings without the shared data. The
+    second and third are the same place (KITTI 94 and 95)."""
     out = []
     if data is not None:
-        for rel in ["kitti00/velodyne/000000.bin", "kitti00/velodyne/000094.bin", "solid-samples/kitti_00_60/000000.bin"]:
+        for rel in ["kitti00/velodyne/000000.bin", "kitti00/velodyne/000094.bin", "kitti00/velodyne/000095.bin", "solid-samples/kitti_00_60/000000.bin"]:
             p = data / rel
             if p.is_file():
                 out.append(np.ascontiguousarray(np.fromfile(p, dtype="<f4").reshape(-1, 4)[:, :3]))
@@ -43,7 +45,8 @@ def scans(data: Path | None) -> list[np.ndarray]:
         rng = np.random.default_rng(0)
         az = rng.uniform(0, 2 * np.pi, 5000)
         rho = rng.uniform(3, 60, 5000)
-        out.append(np.stack([rho * np.cos(az), rho * np.sin(az), rng.uniform(-2, 3, 5000)], 1).astype(np.float32))
+        ring = np.stack([rho * np.cos(az), rho * np.sin(az), rng.uniform(-2, 3, 5000)], 1).astype(np.float32)
+        out += [ring, ring, ring + np.float32(0.2)]
     return out
 
 
@@ -74,7 +77,7 @@ def main() -> int:
     data = shared_data()
     if data is None:
         print("seed_core: no shared data found; writing synthetic seeds", file=sys.stderr)
-    for t in ("db_from_bytes", "place_decode", "describe", "score"):
+    for t in ("db_from_bytes", "place_decode", "describe", "score", "reg_decode_cloud", "register"):
         (root / t).mkdir(parents=True, exist_ok=True)
 
     def put(target: str, name: str, b: bytes) -> None:
@@ -117,6 +120,19 @@ def main() -> int:
             body += struct.pack("<IIdd", qi, qi - 10, rng.uniform(0, 1), rng.uniform(-180, 180))
             body += struct.pack(f"<{k}I", *rng.integers(0, qi - 10, k))
         put("score", f"walk-k{k}", body)
+    # Registration: the wire form of thinned scans, and pairs of one place.
+    for i, c in enumerate(clouds):
+        thin = np.ascontiguousarray(c[:: max(1, len(c) // 2000)], dtype=np.float64)
+        put("reg_decode_cloud", f"scan{i}", solid.encode_cloud(thin))
+        put("reg_decode_cloud", f"scan{i}-4bits", solid.encode_cloud(thin, grid=1.0, bits=4))
+        put("reg_decode_cloud", f"prepared{i}", solid.PreparedCloud(thin).encode())
+    q, c = (x[:: max(1, len(x) // 300)] for x in clouds[1:3])
+    yaws = struct.pack("<4f", 0.0, 25.0, -25.0, 90.0)
+    init = np.eye(3, 4).astype("<f8").tobytes()
+    for flags in (0, 1, 2, 4, 8, 16, 8 | 16):
+        head = struct.pack("<BBBfH", flags, 10, 20, 0.5, len(q))
+        body = (init if flags & 16 else b"") + (yaws if flags & 8 else b"")
+        put("register", f"kitti94-95-flags{flags}", head + body + q.astype("<f4").tobytes() + c.astype("<f4").tobytes())
     return 0
 
 
