@@ -10,13 +10,8 @@
 use libfuzzer_sys::fuzz_target;
 use solid_lidar::{describe, describe_scratch_len, stages, Config, Error, Points, PRESETS};
 
-fn take<const N: usize>(d: &mut &[u8]) -> [u8; N] {
-    let mut v = [0u8; N];
-    let n = d.len().min(N);
-    v[..n].copy_from_slice(&d[..n]);
-    *d = &d[n..];
-    v
-}
+mod common;
+use common::take;
 
 fuzz_target!(|data: &[u8]| {
     let mut d = data;

@@ -16,13 +16,8 @@ use solid_lidar::reg::{
 };
 use solid_lidar::{Error, Points};
 
-fn take<const N: usize>(d: &mut &[u8]) -> [u8; N] {
-    let mut v = [0u8; N];
-    let n = d.len().min(N);
-    v[..n].copy_from_slice(&d[..n]);
-    *d = &d[n..];
-    v
-}
+mod common;
+use common::take;
 
 fuzz_target!(|data: &[u8]| {
     let mut d = data;
