@@ -6,7 +6,7 @@ PY := $(VENV)/bin/python
 PYABS = $(abspath $(PY))
 PYTHON ?= python3
 
-.PHONY: demo test venv dist aarch64 wheel install-test crates docs lint rust-test py-test typecheck bench bench-py readme-results thresholds bench-pcd fuzz fuzz-smoke fuzz-deps bench-reg clean
+.PHONY: demo test venv dist aarch64 wheel install-test crates docs lint rust-test py-test typecheck bench bench-py readme-results thresholds bench-pcd fuzz fuzz-smoke fuzz-deps cargo-fuzz-run bench-reg audit clean
 
 $(VENV)/.ready: requirements-dev.txt pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -116,14 +116,21 @@ thresholds: wheel
 bench-pcd: wheel
 	$(PY) benches/pcd_read.py
 
-## Fuzzing. Atheris harnesses for the Python readers (fuzz/python, one per area) and a cargo-fuzz
-## target for the LZF decoder (fuzz/, nightly toolchain); corpora are seeded at run time from
-## ../shared/data into build/fuzz. `make fuzz` runs each for FUZZ_SECONDS; `make test` runs
-## FUZZ_SMOKE_SECONDS of each. A contract violation stops the run and keeps the input in
-## build/fuzz/artifacts.
+## Fuzzing. Atheris harnesses for the Python readers (fuzz/python, one per area) and cargo-fuzz
+## targets (fuzz/, nightly toolchain, AddressSanitizer) for every parser and decoder of the core:
+## the LZF decoder (lzf), the database file (db_from_bytes: what it accepts re-encodes, reads back
+## the same and searches alike by brute force and kd-tree), the place and cloud wire forms
+## (place_decode, reg_decode_cloud), plus describe on arbitrary points and configs (describe: the
+## AVX2 and portable copies and float32 and float64 points give the same bits), the docs/spec.md §5
+## scorer (score) and registration on arbitrary clouds, poses and yaws (register). Corpora are seeded at
+## run time from ../shared/data into build/fuzz/corpus (fuzz/python/seed_lzf.py, seed_core.py).
+## `make fuzz` runs each for FUZZ_SECONDS; `make test` runs FUZZ_SMOKE_SECONDS of each, offline
+## (the cargo part is skipped, saying so, without nightly and cargo-fuzz). A contract violation
+## stops the run and keeps the input in build/fuzz/artifacts.
 FUZZ_SECONDS ?= 60
 FUZZ_SMOKE_SECONDS ?= 2
 FUZZ_AREAS := pcd ply npy npz bin poses rosbag1 mcap
+CARGO_FUZZ_TARGETS := lzf db_from_bytes place_decode reg_decode_cloud describe score register
 NIGHTLY_FUZZ := cargo +nightly fuzz
 
 fuzz-deps:
@@ -140,16 +147,32 @@ define run_fuzz
 	done
 endef
 
+define run_cargo_fuzz
+	mkdir -p build/fuzz/artifacts
+	(cd fuzz/python && $(PYABS) seed_lzf.py ../../build/fuzz/corpus/lzf)
+	$(PY) fuzz/python/seed_core.py build/fuzz/corpus
+	cd fuzz && CARGO_NET_OFFLINE=true $(NIGHTLY_FUZZ) build
+	for t in $(CARGO_FUZZ_TARGETS); do \
+	  echo "cargo-fuzz $$t: $(1) s"; \
+	  (cd fuzz && CARGO_NET_OFFLINE=true $(NIGHTLY_FUZZ) run $$t ../build/fuzz/corpus/$$t -- -max_total_time=$(1) \
+	    -rss_limit_mb=4096 -artifact_prefix=../build/fuzz/artifacts/$$t- -print_final_stats=1) \
+	    > build/fuzz/$$t.log 2>&1 || { tail -40 build/fuzz/$$t.log; exit 1; }; \
+	  grep -h "stat::number_of_executed_units" build/fuzz/$$t.log || true; \
+	done
+endef
+
 fuzz: wheel fuzz-deps
 	$(call run_fuzz,$(FUZZ_SECONDS))
-	(cd fuzz/python && $(PYABS) seed_lzf.py ../../build/fuzz/corpus/lzf)
-	cd fuzz && $(NIGHTLY_FUZZ) run lzf ../build/fuzz/corpus/lzf -- -max_total_time=$(FUZZ_SECONDS) -artifact_prefix=../build/fuzz/artifacts/
+	$(call run_cargo_fuzz,$(FUZZ_SECONDS))
+
+## The cargo-fuzz targets alone (after `make wheel`, which the seeders import).
+cargo-fuzz-run:
+	$(call run_cargo_fuzz,$(FUZZ_SECONDS))
 
 fuzz-smoke: wheel
 	$(call run_fuzz,$(FUZZ_SMOKE_SECONDS))
 	@if $(NIGHTLY_FUZZ) --version >/dev/null 2>&1; then \
-	  (cd fuzz/python && $(PYABS) seed_lzf.py ../../build/fuzz/corpus/lzf) && \
-	  cd fuzz && $(NIGHTLY_FUZZ) run lzf ../build/fuzz/corpus/lzf -- -max_total_time=$(FUZZ_SMOKE_SECONDS) -artifact_prefix=../build/fuzz/artifacts/; \
+	  $(MAKE) --no-print-directory cargo-fuzz-run FUZZ_SECONDS=$(FUZZ_SMOKE_SECONDS); \
 	else \
 	  echo "cargo-fuzz smoke skipped: needs the nightly toolchain and cargo-fuzz (make fuzz-deps);"; \
 	  echo "crates/solid-core/tests/lzf.rs checks the same oracle on stable"; \
@@ -159,5 +182,10 @@ fuzz-smoke: wheel
 bench-reg: wheel
 	$(PY) benches/registration.py
 
+## The hardening audit of issue 10 (allocation limits, hostile files, API edges; a few minutes):
+## prints area | cases tried | handled cleanly | wrong.
+audit: wheel
+	$(PY) tools/hardening_audit.py
+
 clean:
-	rm -rf dist build $(VENV) target
+	rm -rf dist build $(VENV) target fuzz/target

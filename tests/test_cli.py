@@ -328,7 +328,9 @@ def test_interrupted_eval_leaves_no_folder(tmp_path: Path) -> None:
     time.sleep(2.0)
     p.send_signal(signal.SIGINT)
     _, err = p.communicate(timeout=120)
-    if p.returncode == 0:  # finished before the signal: the folder must then be complete
+    # Finished before the signal, or got it while exiting (the interpreter no longer catches
+    # SIGINT then, so it dies of it): the folder must then be complete.
+    if p.returncode == 0 or (p.returncode == -signal.SIGINT and out.exists()):
         assert (out / "metrics.json").exists()
     else:
         assert p.returncode == 130, err

@@ -74,10 +74,17 @@ class SolidError(ValueError):
     Raised as itself for input that cannot be read as asked: a points array of the wrong shape,
     not C-contiguous or misaligned, descriptors of different configurations, vectors of the wrong
     length. Every message says what is wrong and how to fix it.
+
+    The error contract of the whole API: a value out of range (a negative or too large integer,
+    NaN where a number is needed, an unknown name) raises ConfigError naming the argument, never
+    OverflowError; a bool where a number is expected, or a value of the wrong type, raises
+    TypeError; a corrupt or foreign file or place raises DatabaseError; running out of memory
+    raises MemoryError (nothing is changed), never an abort; I/O failures raise the matching
+    OSError.
     """
 
 class ConfigError(SolidError):
-    """An invalid parameter (of a configuration, a detector, a pose, ...) or preset name; the message names it."""
+    """An invalid parameter (of a configuration, a detector, a pose, ...), argument value or preset name; the message names it."""
 
 @final
 class SolidConfig:
@@ -688,7 +695,13 @@ def _detector_config_from_dict(params: dict[str, Any]) -> DetectorConfig: ...
 
 @final
 class Database:
-    """Places with exact search at every size (online kd-tree index), merge, save and load."""
+    """Places with exact search at every size (online kd-tree index), merge, save and load.
+
+    `save` writes a temporary file of its own next to the target and renames it over the
+    target: concurrent saves to one path all succeed and leave one of them, whole; a save killed
+    midway leaves the old file. `load` reads regular files only (a FIFO or a device is refused
+    before it is opened) and checks the header against the file's size before reading the body.
+    """
     def __new__(cls, cfg: SolidConfig) -> Database:
         """`Database(cfg)`: an empty database.
 
@@ -715,8 +728,10 @@ class Database:
 
                 Raises:
                     DatabaseError: The descriptor was made with another configuration.
-                    ConfigError: A non-finite pose value.
-                    ValueError: A pose that is not 12 values or a 3×4 array.
+                    ConfigError: A session outside 0..2**32-1, an infinite timestamp, or a pose
+                        that is not finite or whose 3×3 part is not a rotation.
+                    SolidError: A pose that is not 12 values or a 3×4 array.
+                    TypeError: A session that is not an integer (a bool included).
         """
     def search(
         self,
@@ -745,8 +760,9 @@ class Database:
                 Raises:
                     DatabaseError: The descriptor was made with another configuration.
                     SolidError: An R-SOLiD of the wrong length.
-                    ConfigError: An R-SOLiD with non-finite values.
-                    ValueError: An unknown `method`.
+                    ConfigError: An R-SOLiD with negative or non-finite values, an unknown
+                        `method`, a negative `k` or `exclude_recent`, a NaN `not_newer_than` (None
+                        means no limit).
                     TypeError: `descriptor` is neither a Descriptor nor a sequence of floats.
         """
     def distances(self, descriptor: Descriptor | npt.ArrayLike) -> npt.NDArray[np.float32]:
@@ -809,17 +825,19 @@ class Database:
                     The bytes `save` would write.
         """
     @staticmethod
-    def from_bytes(data: bytes) -> Database:
+    def from_bytes(data: bytes | bytearray | memoryview) -> Database:
         """A database from bytes made by `to_bytes`, checked as `load` checks a file.
 
                 Args:
-                    data: The bytes.
+                    data: The bytes: bytes, bytearray or memoryview.
 
                 Returns:
                     The database.
 
                 Raises:
                     DatabaseError: The bytes are not a valid database (the message says why).
+                    MemoryError: The entries do not fit in memory.
+                    TypeError: `data` is not bytes, bytearray or memoryview.
         """
     def __len__(self) -> int: ...
     @property
@@ -979,7 +997,7 @@ class LoopDetector:
                 one when excluding by seconds. Nothing is added then.
             SolidError: Points of the wrong shape or layout (as `solid.describe`).
             TypeError: Points of the wrong type or dtype.
-            ValueError: A pose that is not 12 values or a 3×4 array.
+            SolidError: A pose that is not 12 values or a 3×4 array.
         """
     def detect(
         self,
@@ -1008,7 +1026,7 @@ class LoopDetector:
                 one when excluding by seconds. Nothing is added then.
             SolidError: Points of the wrong shape or layout (as `solid.describe`).
             TypeError: Points of the wrong type or dtype.
-            ValueError: A pose that is not 12 values or a 3×4 array.
+            SolidError: A pose that is not 12 values or a 3×4 array.
         """
     def detect_many(
         self,
@@ -1040,7 +1058,7 @@ class LoopDetector:
                 one when excluding by seconds. Nothing is added then.
             SolidError: Points of the wrong shape or layout (as `solid.describe`).
             TypeError: Points of the wrong type or dtype.
-            ValueError: A pose that is not 12 values or a 3×4 array.
+            SolidError: A pose that is not 12 values or a 3×4 array.
             SolidError: `timestamps` or `poses` of another length than `scans`.
         """
     def candidates(
@@ -1071,7 +1089,7 @@ class LoopDetector:
                 one when excluding by seconds. Nothing is added then.
             SolidError: Points of the wrong shape or layout (as `solid.describe`).
             TypeError: Points of the wrong type or dtype.
-            ValueError: A pose that is not 12 values or a 3×4 array.
+            SolidError: A pose that is not 12 values or a 3×4 array.
         """
     def query(self, points_or_descriptor: Descriptor | npt.ArrayLike) -> Loop | None:
         """Searches one scan against every place without adding it and without excluding any
@@ -1233,9 +1251,8 @@ def score_candidates(
         The per-query outcomes and summary metrics.
 
     Raises:
-        ValueError: A negative id (other than the -1 padding of `ids`), or `poses` not of shape
-            (N, 3, 4).
-        SolidError: Arrays of inconsistent lengths.
+        SolidError: A negative id (other than the -1 padding of `ids`), `poses` not of shape
+            (N, 3, 4), or arrays of inconsistent lengths.
         ConfigError: A radius that is not finite and positive, an id outside the poses, a
             candidate that is not eligible, an `eligible` of 0 (skip queries with no database) or
             beyond the poses, a non-finite position.
@@ -1252,22 +1269,24 @@ def encode_place(descriptor: Descriptor, quantized: bool = False) -> bytes:
             420 bytes as float32 or 128 bytes quantised, for the default 40 + 60 bins.
 
         Raises:
-            ConfigError: A vector with a non-finite (or, quantised, negative) value, named as
-                r_solid or a_solid.
+            ConfigError: A vector with a negative or non-finite value (no descriptor holds one),
+                named as r_solid or a_solid.
     """
-def decode_place(data: bytes, cfg: SolidConfig) -> Descriptor:
+def decode_place(data: bytes | bytearray | memoryview, cfg: SolidConfig) -> Descriptor:
     """Decodes a place made by `encode_place`. Point counts are not transmitted (they read 0).
 
         Args:
-            data: The encoded place.
+            data: The encoded place: bytes, bytearray or memoryview.
             cfg: The configuration the receiver uses; the place must have been made with it.
 
         Returns:
             The descriptor (approximate vectors when the place was quantised).
 
         Raises:
-            DatabaseError: Not a place, an unknown version, a wrong length, a checksum mismatch, or
-                a place made with another configuration (checked by fingerprint).
+            DatabaseError: Not a place, an unknown version, a wrong length, a checksum mismatch, a
+                negative or non-finite value, or a place made with another configuration (checked
+                by fingerprint).
+            TypeError: `data` is not bytes, bytearray or memoryview.
     """
 
 # --- registration (reg.rs) ---
@@ -1410,7 +1429,7 @@ class PreparedCloud:
             SolidError: `points` has the wrong shape or is not C-contiguous.
         """
     @staticmethod
-    def decode(data: bytes, config: RegistrationConfig | None = None) -> PreparedCloud:
+    def decode(data: bytes | bytearray | memoryview, config: RegistrationConfig | None = None) -> PreparedCloud:
         """Decodes a cloud made by `PreparedCloud.encode` and prepares it.
 
         Args:
@@ -1422,7 +1441,8 @@ class PreparedCloud:
             The prepared cloud, as the sender would have prepared the same fine points.
 
         Raises:
-            SolidError: Not a cloud, a checksum mismatch, or a bad length.
+            DatabaseError: Not a cloud, a checksum mismatch, or a bad length.
+            TypeError: `data` is not bytes, bytearray or memoryview.
         """
     def encode(self, bits: int = 8) -> bytes:
         """The compact wire form of the fine points, for a robot asked to verify a loop.
@@ -1682,7 +1702,7 @@ def encode_cloud(
     Raises:
         ConfigError: A bad `grid` or `bits`, or a non-finite or far-away point.
     """
-def decode_cloud(data: bytes) -> npt.NDArray[np.float64]:
+def decode_cloud(data: bytes | bytearray | memoryview) -> npt.NDArray[np.float64]:
     """Decodes points made by `encode_cloud`.
 
     Args:
@@ -1692,7 +1712,8 @@ def decode_cloud(data: bytes) -> npt.NDArray[np.float64]:
         The points, (N, 3) float64.
 
     Raises:
-        SolidError: Not a cloud, a checksum mismatch, or a bad length.
+        DatabaseError: Not a cloud, a checksum mismatch, or a bad length.
+        TypeError: `data` is not bytes, bytearray or memoryview.
     """
 
 # --- simulator (sim.rs), used by solid.sim ---

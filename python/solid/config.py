@@ -56,6 +56,11 @@ def detector_fields() -> dict[str, type]:
     return {k: type(v) for k, v in _solid.DetectorConfig().to_dict().items()}
 
 
+def _is_number(v: Any) -> bool:
+    """A real number (int or float), not a bool."""
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
 def _norm(v: Any) -> Any:
     """-0.0 → 0.0, in nested dicts too (everything else is left alone)."""
     if isinstance(v, float) and v == 0.0:
@@ -86,14 +91,14 @@ class InputOptions:
     def __post_init__(self) -> None:
         for name in ("fov", "occlude"):
             v = getattr(self, name)
-            if v is not None and not (isinstance(v, (int, float)) and math.isfinite(v) and 0 < v <= 360):
+            if v is not None and not (_is_number(v) and math.isfinite(v) and 0 < v <= 360):
                 raise _solid.ConfigError(f"invalid input.{name} = {v!r}: expected degrees in (0, 360]")
         for name in ("fov_center", "occlude_center"):
             v = getattr(self, name)
-            if v is not None and not (isinstance(v, (int, float)) and math.isfinite(v)):
+            if v is not None and not (_is_number(v) and math.isfinite(v)):
                 raise _solid.ConfigError(f"invalid input.{name} = {v!r}: expected finite degrees")
         if self.subsample_m is not None and not (
-            isinstance(self.subsample_m, (int, float)) and math.isfinite(self.subsample_m) and self.subsample_m > 0
+            _is_number(self.subsample_m) and math.isfinite(self.subsample_m) and self.subsample_m > 0
         ):
             raise _solid.ConfigError(f"invalid input.subsample_m = {self.subsample_m!r}: expected metres > 0")
         if self.frames is not None and not isinstance(self.frames, str):
@@ -114,7 +119,7 @@ class PipelineConfig:
     preset_name: str | None = None
 
     def __post_init__(self) -> None:
-        if not (isinstance(self.radius, (int, float)) and math.isfinite(self.radius) and self.radius > 0):
+        if not (_is_number(self.radius) and math.isfinite(self.radius) and self.radius > 0):
             raise _solid.ConfigError(f"invalid evaluation.radius = {self.radius!r}: expected metres > 0")
         object.__setattr__(self, "radius", float(self.radius) + 0.0)
 

@@ -300,20 +300,22 @@ def evaluate_candidates(
     """
     P = np.ascontiguousarray(poses, dtype=np.float64)
     if P.ndim != 3 or P.shape[1:] != (3, 4):
-        raise ValueError(f"poses must have shape (N, 3, 4), got {P.shape}")
+        raise _solid.SolidError(f"poses must have shape (N, 3, 4), got {P.shape}")
     n = P.shape[0]
     q = np.ascontiguousarray(query, dtype=np.int64)
     el = np.ascontiguousarray(eligible, dtype=np.int64)
     I = np.ascontiguousarray(ids, dtype=np.int64)
     if I.ndim != 2 or I.shape[0] != q.shape[0]:
-        raise ValueError(f"ids must have shape ({q.shape[0]}, k), got {I.shape}")
+        raise _solid.SolidError(f"ids must have shape ({q.shape[0]}, k), got {I.shape}")
     d = np.ascontiguousarray(distance, dtype=np.float64)
     s = np.ascontiguousarray(score, dtype=np.float64)
     h = np.ascontiguousarray(heading_deg, dtype=np.float64)
     needed = np.unique(np.r_[q, I[I >= 0]])
+    if needed.size and (needed[0] < 0 or needed[-1] >= n):
+        raise _solid.SolidError(f"entry ids must be in [0, {n}) (one pose per entry), got {int(needed[0] if needed[0] < 0 else needed[-1])}")
     bad = needed[~np.isfinite(P[needed, :, 3]).all(axis=1)] if needed.size else needed
     if bad.size:
-        raise ValueError(
+        raise _solid.SolidError(
             f"{bad.size} places have no pose (first: entry {int(bad[0])}): every query and candidate needs one "
             "(give --poses; a map must be built with --poses)"
         )

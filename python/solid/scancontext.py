@@ -53,6 +53,7 @@ from typing import Literal, Union
 import numpy as np
 import numpy.typing as npt
 
+from . import _solid
 from .evaluation import Evaluation, evaluate_candidates
 from .io import _wrap180
 
@@ -99,18 +100,22 @@ class ScanContextConfig:
     variant: Literal["reference", "paper"] = "reference"
 
     def __post_init__(self) -> None:
+        for name in ("n_ring", "n_sector", "n_candidates"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not (isinstance(v, (int, np.integer)) or (v is None and name == "n_candidates")):
+                raise TypeError(f"{name} must be an integer, got {type(v).__name__}")
         if self.n_ring < 1 or self.n_sector < 1:
-            raise ValueError(f"n_ring and n_sector must be >= 1, got {self.n_ring}, {self.n_sector}")
+            raise _solid.ConfigError(f"n_ring and n_sector must be >= 1, got {self.n_ring}, {self.n_sector}")
         if not (math.isfinite(self.max_range) and self.max_range > 0):
-            raise ValueError(f"max_range must be finite and > 0, got {self.max_range}")
+            raise _solid.ConfigError(f"max_range must be finite and > 0, got {self.max_range}")
         if not math.isfinite(self.lidar_height):
-            raise ValueError(f"lidar_height must be finite, got {self.lidar_height}")
+            raise _solid.ConfigError(f"lidar_height must be finite, got {self.lidar_height}")
         if self.n_candidates is not None and self.n_candidates < 1:
-            raise ValueError(f"n_candidates must be >= 1 or None, got {self.n_candidates}")
+            raise _solid.ConfigError(f"n_candidates must be >= 1 or None, got {self.n_candidates}")
         if not (math.isfinite(self.search_ratio) and 0 <= self.search_ratio <= 1):
-            raise ValueError(f"search_ratio must be in [0, 1], got {self.search_ratio}")
+            raise _solid.ConfigError(f"search_ratio must be in [0, 1], got {self.search_ratio}")
         if self.variant not in ("reference", "paper"):
-            raise ValueError(f"variant must be 'reference' or 'paper', got {self.variant!r}")
+            raise _solid.ConfigError(f"variant must be 'reference' or 'paper', got {self.variant!r}")
 
     @property
     def shift_radius(self) -> int:
@@ -124,7 +129,7 @@ def describe(points: npt.ArrayLike, cfg: ScanContextConfig = ScanContextConfig()
     """The (n_ring, n_sector) Scan Context of one scan (x, y, z in the first three columns)."""
     p = np.asarray(points)
     if p.ndim != 2 or p.shape[1] < 3:
-        raise ValueError(f"points must have shape (N, >=3), got {p.shape}")
+        raise _solid.SolidError(f"points must have shape (N, >=3), got {p.shape}")
     x = p[:, 0].astype(np.float64)
     y = p[:, 1].astype(np.float64)
     z = p[:, 2].astype(np.float64)
@@ -161,7 +166,7 @@ def _as_descriptors(descriptors: npt.ArrayLike, cfg: ScanContextConfig) -> F64:
     if D.ndim == 2:
         D = D[None]
     if D.ndim != 3 or D.shape[1:] != (cfg.n_ring, cfg.n_sector):
-        raise ValueError(f"descriptors must be (N, {cfg.n_ring}, {cfg.n_sector}), got {D.shape}")
+        raise _solid.SolidError(f"descriptors must be (N, {cfg.n_ring}, {cfg.n_sector}), got {D.shape}")
     return D
 
 
@@ -247,7 +252,7 @@ def distance(
     q = _as_descriptors(query, cfg)
     c = _as_descriptors(candidate, cfg)
     if q.shape[0] != 1 or c.shape[0] != 1:
-        raise ValueError("distance compares two single descriptors")
+        raise _solid.SolidError("distance compares two single descriptors")
     d, n = _pair_distances(_Prepared.of(np.concatenate([q, c])), np.array([0]), np.array([1]), cfg)
     return float(d[0]), int(n[0])
 
@@ -270,7 +275,7 @@ def _eligibility(exclude: Exclusion, n: int) -> Callable[[int], B]:
     if isinstance(exclude, (int, np.integer)) and not isinstance(exclude, bool):
         e = int(exclude)
         if e < 0:
-            raise ValueError(f"exclude must be >= 0, got {e}")
+            raise _solid.ConfigError(f"exclude must be >= 0, got {e}")
         ids = np.arange(n)
         return lambda q: ids < q - e
     if callable(exclude):
@@ -280,19 +285,19 @@ def _eligibility(exclude: Exclusion, n: int) -> Callable[[int], B]:
             v = np.asarray(f(q))
             if v.dtype == np.bool_:
                 if v.shape != (n,):
-                    raise ValueError(f"exclusion mask for query {q} has shape {v.shape}, expected ({n},)")
+                    raise _solid.SolidError(f"exclusion mask for query {q} has shape {v.shape}, expected ({n},)")
                 return v
             mask = np.zeros(n, dtype=bool)
             idx = v.astype(np.int64).ravel()
             if idx.size and (idx.min() < 0 or idx.max() >= n):
-                raise ValueError(f"eligible ids for query {q} out of range [0, {n})")
+                raise _solid.SolidError(f"eligible ids for query {q} out of range [0, {n})")
             mask[idx] = True
             return mask
 
         return from_callable
     M = np.asarray(exclude)
     if M.dtype != np.bool_ or M.shape != (n, n):
-        raise ValueError(f"an exclusion array must be a boolean ({n}, {n}) mask, got {M.dtype} {M.shape}")
+        raise _solid.SolidError(f"an exclusion array must be a boolean ({n}, {n}) mask, got {M.dtype} {M.shape}")
     return lambda q: np.asarray(M[q], dtype=bool)
 
 
@@ -315,8 +320,10 @@ def candidates(
     """
     D = _as_descriptors(descriptors, cfg)
     n = D.shape[0]
+    if isinstance(k, bool) or not isinstance(k, (int, np.integer)):
+        raise TypeError(f"k must be an integer, got {type(k).__name__}")
     if k < 1:
-        raise ValueError(f"k must be >= 1, got {k}")
+        raise _solid.ConfigError(f"k must be >= 1, got {k}")
     eligible = _eligibility(exclude, n)
     masks: dict[int, B] = {}
     if queries is None:
@@ -330,7 +337,7 @@ def candidates(
     else:
         qs_all = np.asarray(queries, dtype=np.int64).ravel()
         if qs_all.size and (qs_all.min() < 0 or qs_all.max() >= n):
-            raise ValueError(f"query ids out of range [0, {n})")
+            raise _solid.SolidError(f"query ids out of range [0, {n})")
     keys = ring_key(D, cfg)
     prep = _Prepared.of(D)
     nc = n if cfg.n_candidates is None else min(cfg.n_candidates, n)
@@ -394,7 +401,7 @@ def evaluate_scancontext(
         qs = np.asarray(queries, dtype=np.int64)
         el = np.asarray(eligible, dtype=np.int64)
         if el.shape != qs.shape:
-            raise ValueError(f"eligible must have the shape of queries {qs.shape}, got {el.shape}")
+            raise _solid.SolidError(f"eligible must have the shape of queries {qs.shape}, got {el.shape}")
     bound = dict(zip(qs.tolist(), el.tolist()))
     ids_all = np.arange(n)
 
@@ -419,5 +426,5 @@ def evaluate_scancontext(
 def query_indices(n_frames: int, exclude: int) -> I64:
     """Frames that are queries under docs/spec.md §5 frame exclusion: those with a non-empty database."""
     if exclude < 0:
-        raise ValueError(f"exclude must be >= 0, got {exclude}")
+        raise _solid.ConfigError(f"exclude must be >= 0, got {exclude}")
     return np.arange(exclude + 1, n_frames, dtype=np.int64)

@@ -234,9 +234,9 @@ class Trajectory:
         p = np.ascontiguousarray(self.poses, dtype=np.float64)
         t = np.ascontiguousarray(self.times, dtype=np.float64)
         if p.ndim != 3 or p.shape[1:] != (3, 4):
-            raise ValueError(f"poses must have shape (M, 3, 4), got {p.shape}")
+            raise _solid.SolidError(f"poses must have shape (M, 3, 4), got {p.shape}")
         if t.shape != (p.shape[0],):
-            raise ValueError(f"times must have shape ({p.shape[0]},), got {t.shape}")
+            raise _solid.SolidError(f"times must have shape ({p.shape[0]},), got {t.shape}")
         object.__setattr__(self, "poses", p)
         object.__setattr__(self, "times", t)
 
@@ -320,7 +320,7 @@ class Trajectory:
         """Drive along a centreline polyline (K, 2) in metres; 180° reversals become U-turns."""
         wp = np.asarray(waypoints, dtype=np.float64)
         if wp.ndim != 2 or wp.shape[1] != 2:
-            raise ValueError(f"waypoints must have shape (K, 2), got {wp.shape}")
+            raise _solid.SolidError(f"waypoints must have shape (K, 2), got {wp.shape}")
         poses, times = _solid._sim_route(
             world._ext,
             [(float(x), float(y)) for x, y in wp],
@@ -382,7 +382,7 @@ def _pose_array(pose: npt.ArrayLike) -> F64:
     if p.shape == (4, 4):
         p = np.ascontiguousarray(p[:3])
     if p.shape != (3, 4):
-        raise ValueError(f"pose must have shape (3, 4) or (4, 4), got {p.shape}")
+        raise _solid.SolidError(f"pose must have shape (3, 4) or (4, 4), got {p.shape}")
     return p
 
 

@@ -49,6 +49,14 @@ pub enum Error {
     },
     /// A preset name that is not one of [`crate::PRESETS`].
     UnknownPreset,
+    /// Memory for a buffer could not be allocated (only the `alloc` conveniences allocate;
+    /// nothing was changed).
+    OutOfMemory {
+        /// What the memory was for (`describe scratch`, ...).
+        what: &'static str,
+        /// Bytes that were asked for.
+        bytes: usize,
+    },
 }
 
 impl fmt::Display for Error {
@@ -75,6 +83,10 @@ impl fmt::Display for Error {
                 write!(f, "{what} lengths differ: {left} vs {right}")
             }
             Error::Empty { what } => write!(f, "{what} is empty"),
+            Error::OutOfMemory { what, bytes } => write!(
+                f,
+                "out of memory: could not allocate {bytes} bytes for the {what}"
+            ),
             Error::UnknownPreset => write!(
                 f,
                 "unknown preset: expected one of hdl64, hdl32, vlp16, os1-64, avia, aeva"

@@ -472,7 +472,12 @@ impl Grid {
         for dx in -1..=1 {
             for dy in -1..=1 {
                 for dz in -1..=1 {
-                    let key = [c[0] + dx, c[1] + dy, c[2] + dz];
+                    // Saturating: the outermost cells (see `cell`) have no neighbour beyond.
+                    let key = [
+                        c[0].saturating_add(dx),
+                        c[1].saturating_add(dy),
+                        c[2].saturating_add(dz),
+                    ];
                     let lo = self.cells.partition_point(|e| e.0 < key);
                     for &(k, id) in &self.cells[lo..] {
                         if k != key || id as usize >= eligible {
@@ -571,6 +576,32 @@ mod tests {
         let wrong = Queries { ids: &[0, 3], ..q };
         assert!(score(&wrong, &poses, 2.5).is_err());
         assert!(score(&q, &poses, f64::NAN).is_err());
+    }
+
+    #[test]
+    fn positions_in_the_outermost_grid_cells_never_overflow() {
+        // Found by fuzz/fuzz_targets/score.rs: a cell index of i64::MAX (a position 1e300 m out,
+        // or a radius of 1e-300 m) overflowed when its neighbours were visited.
+        let mut poses = line(3);
+        poses[0][3] = 1e300;
+        poses[2][7] = -1e300;
+        let q = Queries {
+            pose: &[],
+            query: &[1, 2],
+            eligible: &[1, 1],
+            k: 1,
+            ids: &[0, 0],
+            score: &[0.1, 0.2],
+            heading_deg: &[0.0, 0.0],
+        };
+        for radius in [1.0, 1e-300] {
+            let e = score(&q, &poses, radius).unwrap();
+            assert_eq!(e.gt_positive, vec![false, false]);
+        }
+        // Two entries together far out share the saturated cell and are still found.
+        poses[1][3] = 1e300;
+        let e = score(&q, &poses, 1.0).unwrap();
+        assert_eq!(e.gt_positive, vec![true, false]);
     }
 
     #[test]

@@ -76,10 +76,12 @@ impl Describer {
     /// Describes one scan, growing the scratch buffer when needed.
     ///
     /// # Errors
-    /// None in practice (the config was validated); propagates [`describe`]'s errors.
+    /// [`Error::OutOfMemory`] when the scratch buffer for this many points cannot be allocated
+    /// (the describer is left as it was); otherwise [`describe`]'s errors.
     pub fn describe<T: Coord>(&mut self, points: Points<'_, T>) -> Result<Descriptor, Error> {
         let need = describe_scratch_len(points.len(), &self.cfg);
         if self.scratch.len() < need {
+            reserve(&mut self.scratch, need, "describe scratch")?;
             self.scratch.resize(need, 0);
         }
         let mut d = Descriptor {
@@ -91,4 +93,26 @@ impl Describer {
         d.stats = describe(points, &self.cfg, &mut self.scratch, &mut d.r, &mut d.a)?;
         Ok(d)
     }
+}
+
+/// Makes room in `v` for `n` elements in all, or [`Error::OutOfMemory`] naming `what` (nothing is
+/// changed): the one way the `alloc` conveniences grow a buffer whose size the input decides.
+pub(crate) fn reserve<T>(v: &mut Vec<T>, n: usize, what: &'static str) -> Result<(), Error> {
+    v.try_reserve_exact(n.saturating_sub(v.len()))
+        .map_err(|_| Error::OutOfMemory {
+            what,
+            bytes: n.saturating_mul(core::mem::size_of::<T>()),
+        })
+}
+
+/// `n` copies of `value` in a vector allocated with [`reserve`].
+pub(crate) fn try_filled<T: Clone>(
+    n: usize,
+    value: T,
+    what: &'static str,
+) -> Result<Vec<T>, Error> {
+    let mut v = Vec::new();
+    reserve(&mut v, n, what)?;
+    v.resize(n, value);
+    Ok(v)
 }

@@ -5,12 +5,10 @@
 use std::path::PathBuf;
 use std::sync::{PoisonError, RwLock, RwLockReadGuard, RwLockWriteGuard};
 
-use numpy::ndarray::{Array1, Array2, Array3};
+use numpy::ndarray::{Array2, Array3};
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3};
 use pyo3::exceptions::PyTypeError;
-use pyo3::exceptions::{
-    PyFileNotFoundError, PyIsADirectoryError, PyOSError, PyPermissionError, PyValueError,
-};
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
 use pyo3::types::{PyBytes, PyDict, PyType};
@@ -19,13 +17,13 @@ use solid_lidar::db::{
 };
 use solid_lidar::{Config, Descriptor, Stats};
 
-use crate::{PyConfig, PyDescriptor};
+use crate::{args, PyConfig, PyDescriptor};
 
 /// `solid.DatabaseError`: created at registration as a subclass of `solid.SolidError` when the
 /// module already defines it, else of `ValueError`.
 static DATABASE_ERROR: PyOnceLock<Py<PyType>> = PyOnceLock::new();
 
-fn database_error(py: Python<'_>, msg: String) -> PyErr {
+pub(crate) fn database_error(py: Python<'_>, msg: String) -> PyErr {
     match DATABASE_ERROR.get(py) {
         Some(t) => PyErr::from_type(t.bind(py).clone(), msg),
         None => PyValueError::new_err(msg),
@@ -37,15 +35,7 @@ fn database_error(py: Python<'_>, msg: String) -> PyErr {
 fn db_err(py: Python<'_>, e: DbError) -> PyErr {
     match e {
         DbError::Core(c) => crate::core_err(c),
-        DbError::Io { file, source } => {
-            let args = (source.raw_os_error().unwrap_or(0), source.to_string(), file);
-            match source.kind() {
-                std::io::ErrorKind::NotFound => PyFileNotFoundError::new_err(args),
-                std::io::ErrorKind::PermissionDenied => PyPermissionError::new_err(args),
-                std::io::ErrorKind::IsADirectory => PyIsADirectoryError::new_err(args),
-                _ => PyOSError::new_err(args),
-            }
-        }
+        DbError::Io { file, source } => crate::io_err(&source, Some(file)),
         DbError::OutOfMemory => pyo3::exceptions::PyMemoryError::new_err(
             "out of memory: the database operation could not allocate (nothing was changed)",
         ),
@@ -55,8 +45,8 @@ fn db_err(py: Python<'_>, e: DbError) -> PyErr {
 
 fn parse_method(method: &str) -> PyResult<Method> {
     Method::parse(method).map_err(|_| {
-        PyValueError::new_err(format!(
-            "method must be \"brute\", \"kdtree\" or \"auto\", got {method:?}"
+        crate::ConfigError::new_err(format!(
+            "invalid method {method:?}: expected \"brute\", \"kdtree\" or \"auto\""
         ))
     })
 }
@@ -90,27 +80,26 @@ fn parse_pose(pose: Option<&Bound<'_, PyAny>>) -> PyResult<Option<[f64; 12]>> {
     }
     let msg =
         "pose must be None, 12 floats, or a 3x4 or 4x4 array (row-major [R|t], T_world_sensor)";
+    let bad = |m: String| crate::SolidError::new_err(m);
     let flat: Vec<f64> = match p.extract::<Vec<Vec<f64>>>() {
         Ok(rows) if rows.len() == 3 && rows.iter().all(|r| r.len() == 4) => {
             rows.into_iter().flatten().collect()
         }
         Ok(rows) if rows.len() == 4 && rows.iter().all(|r| r.len() == 4) => {
             if rows[3] != [0.0, 0.0, 0.0, 1.0] {
-                return Err(PyValueError::new_err(format!(
+                return Err(bad(format!(
                     "a 4x4 pose must end with the row [0, 0, 0, 1], got {:?}",
                     rows[3]
                 )));
             }
             rows.into_iter().take(3).flatten().collect()
         }
-        Ok(_) => return Err(PyValueError::new_err(msg)),
-        Err(_) => p
-            .extract::<Vec<f64>>()
-            .map_err(|_| PyValueError::new_err(msg))?,
+        Ok(_) => return Err(bad(msg.to_string())),
+        Err(_) => p.extract::<Vec<f64>>().map_err(|_| bad(msg.to_string()))?,
     };
     let arr: [f64; 12] = flat
         .try_into()
-        .map_err(|v: Vec<f64>| PyValueError::new_err(format!("{msg}; got {} values", v.len())))?;
+        .map_err(|v: Vec<f64>| bad(format!("{msg}; got {} values", v.len())))?;
     Ok(Some(arr))
 }
 
@@ -400,12 +389,6 @@ const DETECTOR_FIELDS: [&str; 15] = [
     "gate",
 ];
 
-fn non_negative(name: &str, v: i64) -> PyResult<usize> {
-    usize::try_from(v).map_err(|_| {
-        crate::ConfigError::new_err(format!("invalid {name} = {v}: expected an integer >= 0"))
-    })
-}
-
 /// Applies detector overrides given by name; `None` values are skipped. Validates the result.
 fn detector_overrides(
     mut c: DetectorConfig,
@@ -417,21 +400,8 @@ fn detector_overrides(
                 continue;
             }
             let key: String = k.extract()?;
-            let float = || -> PyResult<f64> {
-                v.extract::<f64>()
-                    .map_err(|_| PyTypeError::new_err(format!("{key} must be a number")))
-            };
-            let int = || -> PyResult<usize> {
-                if v.is_instance_of::<pyo3::types::PyBool>() {
-                    return Err(PyTypeError::new_err(format!(
-                        "{key} must be an integer, not a bool"
-                    )));
-                }
-                let i: i64 = v
-                    .extract()
-                    .map_err(|_| PyTypeError::new_err(format!("{key} must be an integer")))?;
-                non_negative(&key, i)
-            };
+            let float = || args::float_param(&v, &key);
+            let int = || args::int_arg(&v, &key, 0, usize::MAX as i128);
             match key.as_str() {
                 "exclude_frames" | "exclude_recent" => c.exclude_frames = int()?,
                 "exclude_meters" => c.exclude_meters = float()?,
@@ -694,6 +664,11 @@ impl PyDatabase {
     }
 }
 
+/// An array shape that does not match its data (cannot happen: the shapes come from the data).
+fn shape_err(e: numpy::ndarray::ShapeError) -> PyErr {
+    crate::SolidError::new_err(e.to_string())
+}
+
 fn to_matches(v: Vec<solid_lidar::search::Neighbor>) -> Vec<PyMatch> {
     v.into_iter()
         .map(|n| PyMatch {
@@ -717,7 +692,7 @@ impl PyDatabase {
         &self,
         py: Python<'_>,
         descriptor: PyRef<'_, PyDescriptor>,
-        session: u32,
+        #[pyo3(from_py_with = args::session)] session: u32,
         timestamp: Option<f64>,
         pose: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<u32> {
@@ -733,8 +708,8 @@ impl PyDatabase {
         &self,
         py: Python<'_>,
         descriptor: &Bound<'_, PyAny>,
-        k: usize,
-        exclude_recent: usize,
+        #[pyo3(from_py_with = args::k)] k: usize,
+        #[pyo3(from_py_with = args::exclude_recent)] exclude_recent: usize,
         method: &str,
         not_newer_than: Option<f64>,
     ) -> PyResult<Vec<PyMatch>> {
@@ -814,15 +789,30 @@ impl PyDatabase {
         Ok(PyDatabase::wrap(inner))
     }
 
-    /// The database in the file format, as bytes.
-    fn to_bytes<'py>(&self, py: Python<'py>) -> Bound<'py, PyBytes> {
-        let b = py.detach(|| read(&self.inner).to_bytes());
-        PyBytes::new(py, &b)
+    /// The database in the file format, as bytes (encoded straight into the bytes object).
+    fn to_bytes<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyBytes>> {
+        loop {
+            let len = self.with(py, Database::encoded_len);
+            let mut whole = false;
+            let bytes = PyBytes::new_with(py, len, |buf| {
+                // An add between measuring and encoding changes the length: measure again.
+                whole = py.detach(|| {
+                    let db = read(&self.inner);
+                    db.encoded_len() == buf.len() && db.encode_into(buf).is_ok()
+                });
+                Ok(())
+            })?;
+            if whole {
+                return Ok(bytes);
+            }
+        }
     }
 
-    /// A database from bytes made by `to_bytes`.
+    /// A database from bytes made by `to_bytes` (`bytes`, `bytearray`, `memoryview`, ...).
     #[staticmethod]
-    fn from_bytes(py: Python<'_>, data: &[u8]) -> PyResult<Self> {
+    fn from_bytes(py: Python<'_>, data: &Bound<'_, PyAny>) -> PyResult<Self> {
+        let data = args::bytes_arg(data, "data")?;
+        let data = data.as_bytes();
         let inner = py
             .detach(|| Database::from_bytes(data))
             .map_err(|e| db_err(py, e))?;
@@ -851,10 +841,10 @@ impl PyDatabase {
     #[getter]
     fn r<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
         let (shape, v) = self.with(py, |db| {
-            ((db.len(), db.config().n_range), db.r_all().to_vec())
+            let v = args::try_copy(db.r_all(), "Database.r");
+            ((db.len(), db.config().n_range), v)
         });
-        let a =
-            Array2::from_shape_vec(shape, v).map_err(|e| PyValueError::new_err(e.to_string()))?;
+        let a = Array2::from_shape_vec(shape, v?).map_err(shape_err)?;
         Ok(a.into_pyarray(py))
     }
 
@@ -862,17 +852,20 @@ impl PyDatabase {
     #[getter]
     fn a<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
         let (shape, v) = self.with(py, |db| {
-            ((db.len(), db.config().n_azimuth), db.a_all().to_vec())
+            let v = args::try_copy(db.a_all(), "Database.a");
+            ((db.len(), db.config().n_azimuth), v)
         });
-        let a =
-            Array2::from_shape_vec(shape, v).map_err(|e| PyValueError::new_err(e.to_string()))?;
+        let a = Array2::from_shape_vec(shape, v?).map_err(shape_err)?;
         Ok(a.into_pyarray(py))
     }
 
     /// Entry ids, 0..N, int64.
     #[getter]
-    fn ids<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<i64>> {
-        Array1::from_iter(0..self.with(py, Database::len) as i64).into_pyarray(py)
+    fn ids<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<i64>>> {
+        let n = self.with(py, Database::len);
+        let mut ids = args::try_vec(n, "Database.ids")?;
+        ids.extend(0..n as i64);
+        Ok(ids.into_pyarray(py))
     }
 
     /// Bytes of the compact clouds stored for verification (0: none).
@@ -902,30 +895,31 @@ impl PyDatabase {
 
     /// Sessions, uint32.
     #[getter]
-    fn sessions<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<u32>> {
-        self.with(py, |db| db.sessions().to_vec()).into_pyarray(py)
+    fn sessions<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<u32>>> {
+        let v = self.with(py, |db| args::try_copy(db.sessions(), "Database.sessions"));
+        Ok(v?.into_pyarray(py))
     }
 
     /// Timestamps, float64 (NaN where none was given).
     #[getter]
-    fn timestamps<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
-        self.with(py, |db| db.timestamps().to_vec())
-            .into_pyarray(py)
+    fn timestamps<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let v = self.with(py, |db| {
+            args::try_copy(db.timestamps(), "Database.timestamps")
+        });
+        Ok(v?.into_pyarray(py))
     }
 
     /// Poses, shape (N, 3, 4), float64 (all NaN where none was given).
     #[getter]
     fn poses<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray3<f64>>> {
         let (n, flat) = self.with(py, |db| {
-            let flat: Vec<f64> = db
-                .poses()
-                .iter()
-                .flat_map(|p| p.unwrap_or([f64::NAN; 12]))
-                .collect();
+            let flat = args::try_vec(db.len().saturating_mul(12), "Database.poses").map(|mut v| {
+                v.extend(db.poses().iter().flat_map(|p| p.unwrap_or([f64::NAN; 12])));
+                v
+            });
             (db.len(), flat)
         });
-        let a = Array3::from_shape_vec((n, 3, 4), flat)
-            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        let a = Array3::from_shape_vec((n, 3, 4), flat?).map_err(shape_err)?;
         Ok(a.into_pyarray(py))
     }
 }
@@ -1136,7 +1130,7 @@ impl PyLoopDetector {
         scans: &Bound<'_, PyAny>,
         timestamps: Option<&Bound<'_, PyAny>>,
         poses: Option<&Bound<'_, PyAny>>,
-        threads: Option<usize>,
+        #[pyo3(from_py_with = args::threads)] threads: Option<usize>,
     ) -> PyResult<Vec<PyDetection>> {
         let items: Vec<Bound<'_, PyAny>> = scans
             .try_iter()
@@ -1204,14 +1198,14 @@ impl PyLoopDetector {
         &self,
         py: Python<'_>,
         points_or_descriptor: &Bound<'_, PyAny>,
-        k: Option<i64>,
+        #[pyo3(from_py_with = args::opt_k)] k: Option<usize>,
         timestamp: Option<f64>,
         pose: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Vec<PyCandidate>> {
         let d = self.descriptor(py, points_or_descriptor)?;
         let pose = parse_pose(pose)?;
         let k = match k {
-            Some(k) => non_negative("k", k)?,
+            Some(k) => k,
             None => self.with(py, |det| det.config().top_k),
         };
         let found = self
@@ -1366,9 +1360,15 @@ fn encode_place<'py>(
 
 /// Decodes a place made with `cfg` (checked by fingerprint: a place from another config is an
 /// error, since its vectors cannot be compared). Point counts are not transmitted (they read 0).
+/// `data` is `bytes`, `bytearray`, `memoryview` or any other buffer of bytes.
 #[pyfunction]
-fn decode_place(py: Python<'_>, data: &[u8], cfg: PyRef<'_, PyConfig>) -> PyResult<PyDescriptor> {
-    let p = db::decode_place(data).map_err(|e| db_err(py, e))?;
+fn decode_place(
+    py: Python<'_>,
+    data: &Bound<'_, PyAny>,
+    cfg: PyRef<'_, PyConfig>,
+) -> PyResult<PyDescriptor> {
+    let p =
+        db::decode_place(args::bytes_arg(data, "data")?.as_bytes()).map_err(|e| db_err(py, e))?;
     check_fingerprint(py, p.fingerprint, cfg.inner.fingerprint())?;
     if p.r.len() != cfg.inner.n_range || p.a.len() != cfg.inner.n_azimuth {
         return Err(database_error(

@@ -4,7 +4,6 @@ use numpy::{
     IntoPyArray, PyArray1, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3,
     PyUntypedArrayMethods,
 };
-use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use solid_lidar::eval::{self, Evaluation, Queries, NO_CANDIDATE};
 
@@ -60,7 +59,7 @@ impl PyScores {
         self.inner.n_gt()
     }
     /// Recall@n (NaN without GT-positive queries).
-    fn recall_at(&self, n: usize) -> f64 {
+    fn recall_at(&self, #[pyo3(from_py_with = crate::args::n)] n: usize) -> f64 {
         opt(self.inner.recall_at(n))
     }
     /// (thresholds, precision, recall) arrays of the PR curve.
@@ -136,21 +135,24 @@ fn score_candidates(
     pose: Option<PyReadonlyArray3<'_, f64>>,
 ) -> PyResult<PyScores> {
     let to_u32 = |name: &str, v: &[i64], allow_missing: bool| -> PyResult<Vec<u32>> {
-        v.iter()
-            .map(|&x| {
-                if allow_missing && x < 0 {
-                    return Ok(NO_CANDIDATE);
-                }
+        let mut out = crate::args::try_vec(v.len(), name)?;
+        for &x in v {
+            out.push(if allow_missing && x < 0 {
+                NO_CANDIDATE
+            } else {
                 u32::try_from(x)
                     .ok()
                     .filter(|&u| u != NO_CANDIDATE)
-                    .ok_or_else(|| PyValueError::new_err(format!("{name}: {x} is not a valid id")))
-            })
-            .collect()
+                    .ok_or_else(|| {
+                        crate::SolidError::new_err(format!("{name}: {x} is not a valid id"))
+                    })?
+            });
+        }
+        Ok(out)
     };
     let shape = poses.shape();
     if shape.len() != 3 || shape[1] != 3 || shape[2] != 4 {
-        return Err(PyValueError::new_err(format!(
+        return Err(crate::SolidError::new_err(format!(
             "poses must have shape (N, 3, 4), got {shape:?}"
         )));
     }
@@ -158,27 +160,32 @@ fn score_candidates(
     let query = to_u32("query", query.as_slice()?, false)?;
     let eligible = to_u32("eligible", eligible.as_slice()?, false)?;
     let ids = to_u32("ids", ids.as_slice()?, true)?;
-    let score = score.as_slice()?.to_vec();
-    let heading = heading_deg.as_slice()?.to_vec();
-    let poses: Vec<[f64; 12]> = poses
-        .as_slice()?
-        .chunks_exact(12)
-        .map(|c| c.try_into().expect("chunks of 12"))
-        .collect();
+    let (score, heading) = (score.as_slice()?, heading_deg.as_slice()?);
+    let flat = poses.as_slice()?;
+    let mut poses: Vec<[f64; 12]> = crate::args::try_vec(flat.len() / 12, "poses")?;
+    for c in flat.chunks_exact(12) {
+        let mut m = [0.0; 12];
+        m.copy_from_slice(c);
+        poses.push(m);
+    }
     let est: Vec<[f64; 16]> = match &pose {
         None => Vec::new(),
         Some(p) => {
             let sh = p.shape();
             if sh.len() != 3 || sh[0] != query.len() || sh[1] != 4 || sh[2] != 4 {
-                return Err(PyValueError::new_err(format!(
+                return Err(crate::SolidError::new_err(format!(
                     "pose must have shape ({}, 4, 4), got {sh:?}",
                     query.len()
                 )));
             }
-            p.as_slice()?
-                .chunks_exact(16)
-                .map(|c| c.try_into().expect("chunks of 16"))
-                .collect()
+            let flat = p.as_slice()?;
+            let mut est: Vec<[f64; 16]> = crate::args::try_vec(flat.len() / 16, "pose")?;
+            for c in flat.chunks_exact(16) {
+                let mut m = [0.0; 16];
+                m.copy_from_slice(c);
+                est.push(m);
+            }
+            est
         }
     };
     let q = Queries {
@@ -187,8 +194,8 @@ fn score_candidates(
         eligible: &eligible,
         k,
         ids: &ids,
-        score: &score,
-        heading_deg: &heading,
+        score,
+        heading_deg: heading,
     };
     let inner = py
         .detach(|| eval::score(&q, &poses, radius))

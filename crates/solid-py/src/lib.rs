@@ -6,11 +6,14 @@ use std::sync::{Arc, Mutex, PoisonError};
 
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyUntypedArray, PyUntypedArrayMethods};
 use pyo3::create_exception;
-use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::exceptions::{PyMemoryError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
 use solid_lidar::{Config, Describer, Descriptor, Error, Points, Stats, PRESETS};
 
+use args::{float_param, int_arg};
+
+mod args;
 mod engine;
 mod eval;
 mod io;
@@ -21,13 +24,13 @@ create_exception!(
     solid,
     SolidError,
     PyValueError,
-    "Base class of the errors raised by solid (a ValueError)."
+    "Base class of the errors raised by solid (a ValueError): ConfigError for invalid parameters and argument values, DatabaseError for corrupt or foreign files and places, SolidError itself for data of the wrong shape."
 );
 create_exception!(
     solid,
     ConfigError,
     SolidError,
-    "An invalid configuration parameter or preset name."
+    "An invalid configuration parameter, argument value or preset name."
 );
 
 /// Maps a core error to the matching Python exception.
@@ -36,7 +39,27 @@ pub fn core_err(e: Error) -> PyErr {
         Error::InvalidParameter { .. } | Error::UnknownPreset => {
             ConfigError::new_err(e.to_string())
         }
+        Error::OutOfMemory { .. } => PyMemoryError::new_err(e.to_string()),
         _ => SolidError::new_err(e.to_string()),
+    }
+}
+
+/// Maps an I/O error to the matching `OSError` subclass, with `errno`, `strerror` and (when
+/// known) `filename` set.
+pub fn io_err(source: &std::io::Error, file: Option<String>) -> PyErr {
+    use pyo3::exceptions::{
+        PyFileExistsError, PyFileNotFoundError, PyIsADirectoryError, PyNotADirectoryError,
+        PyOSError, PyPermissionError,
+    };
+    let args = (source.raw_os_error().unwrap_or(0), source.to_string(), file);
+    match source.kind() {
+        std::io::ErrorKind::NotFound => PyFileNotFoundError::new_err(args),
+        std::io::ErrorKind::PermissionDenied => PyPermissionError::new_err(args),
+        std::io::ErrorKind::IsADirectory => PyIsADirectoryError::new_err(args),
+        std::io::ErrorKind::NotADirectory => PyNotADirectoryError::new_err(args),
+        std::io::ErrorKind::AlreadyExists => PyFileExistsError::new_err(args),
+        std::io::ErrorKind::OutOfMemory => PyMemoryError::new_err(source.to_string()),
+        _ => PyOSError::new_err(args),
     }
 }
 
@@ -68,10 +91,9 @@ const FIELDS: [&str; 8] = [
     "voxel_size",
 ];
 
-fn count_param(name: &str, v: i64) -> PyResult<usize> {
-    usize::try_from(v).map_err(|_| {
-        ConfigError::new_err(format!("invalid {name} = {v}: expected a positive integer"))
-    })
+/// A bin count of the config (`n_range`, ...): an integer; its range is the core's to check.
+fn count_param(v: &Bound<'_, PyAny>, name: &str) -> PyResult<usize> {
+    int_arg(v, name, 0, u32::MAX.into())
 }
 
 /// Applies keyword overrides (by field name) to `cfg`, then validates it.
@@ -79,23 +101,8 @@ fn apply_overrides(mut cfg: Config, overrides: Option<&Bound<'_, PyDict>>) -> Py
     if let Some(kw) = overrides {
         for (k, v) in kw.iter() {
             let key: String = k.extract()?;
-            let float = |v: &Bound<'_, PyAny>| -> PyResult<f64> {
-                v.extract::<f64>().map_err(|_| {
-                    PyTypeError::new_err(format!(
-                        "{key} must be a number, got {}",
-                        v.get_type()
-                            .name()
-                            .map(|n| n.to_string())
-                            .unwrap_or_default()
-                    ))
-                })
-            };
-            let int = |v: &Bound<'_, PyAny>| -> PyResult<usize> {
-                let i: i64 = v
-                    .extract()
-                    .map_err(|_| PyTypeError::new_err(format!("{key} must be an integer")))?;
-                count_param(&key, i)
-            };
+            let float = |v: &Bound<'_, PyAny>| float_param(v, &key);
+            let int = |v: &Bound<'_, PyAny>| count_param(v, &key);
             match key.as_str() {
                 "n_range" => cfg.n_range = int(&v)?,
                 "n_azimuth" => cfg.n_azimuth = int(&v)?,
@@ -142,30 +149,38 @@ impl PyConfig {
     #[pyo3(signature = (*, fov_up, fov_down, n_elevation, n_range=None, n_azimuth=None, min_range=None, max_range=None, voxel_size=None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
-        fov_up: f64,
-        fov_down: f64,
-        n_elevation: i64,
-        n_range: Option<i64>,
-        n_azimuth: Option<i64>,
-        min_range: Option<f64>,
-        max_range: Option<f64>,
-        voxel_size: Option<f64>,
+        fov_up: &Bound<'_, PyAny>,
+        fov_down: &Bound<'_, PyAny>,
+        n_elevation: &Bound<'_, PyAny>,
+        n_range: Option<&Bound<'_, PyAny>>,
+        n_azimuth: Option<&Bound<'_, PyAny>>,
+        min_range: Option<&Bound<'_, PyAny>>,
+        max_range: Option<&Bound<'_, PyAny>>,
+        voxel_size: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
+        let (fov_up, fov_down) = (
+            float_param(fov_up, "fov_up")?,
+            float_param(fov_down, "fov_down")?,
+        );
         // The docs/spec.md §1 defaults come from the core (Config::with_defaults), not from here.
         let d = Config::with_defaults(fov_up, fov_down, 1);
-        let count = |name, v: Option<i64>, default| match v {
-            Some(v) => count_param(name, v),
-            None => Ok(default),
+        let count = |v: Option<&Bound<'_, PyAny>>, name, default| match v {
+            Some(v) if !v.is_none() => count_param(v, name),
+            _ => Ok(default),
+        };
+        let float = |v: Option<&Bound<'_, PyAny>>, name, default| match v {
+            Some(v) if !v.is_none() => float_param(v, name),
+            _ => Ok(default),
         };
         let cfg = Config {
-            n_range: count("n_range", n_range, d.n_range)?,
-            n_azimuth: count("n_azimuth", n_azimuth, d.n_azimuth)?,
-            n_elevation: count_param("n_elevation", n_elevation)?,
+            n_range: count(n_range, "n_range", d.n_range)?,
+            n_azimuth: count(n_azimuth, "n_azimuth", d.n_azimuth)?,
+            n_elevation: count_param(n_elevation, "n_elevation")?,
             fov_up,
             fov_down,
-            min_range: min_range.unwrap_or(d.min_range),
-            max_range: max_range.unwrap_or(d.max_range),
-            voxel_size: voxel_size.unwrap_or(d.voxel_size),
+            min_range: float(min_range, "min_range", d.min_range)?,
+            max_range: float(max_range, "max_range", d.max_range)?,
+            voxel_size: float(voxel_size, "voxel_size", d.voxel_size)?,
         };
         cfg.validate().map_err(core_err)?;
         Ok(PyConfig::new_unchecked(cfg))
@@ -364,9 +379,9 @@ impl PyDescriptor {
         r: &Bound<'_, PyAny>,
         a: &Bound<'_, PyAny>,
         config: &PyConfig,
-        n_points: usize,
-        n_in_range: usize,
-        n_kept: usize,
+        #[pyo3(from_py_with = args::n_points)] n_points: usize,
+        #[pyo3(from_py_with = args::n_in_range)] n_in_range: usize,
+        #[pyo3(from_py_with = args::n_kept)] n_kept: usize,
     ) -> PyResult<Self> {
         let cfg = config.inner;
         let inner = Descriptor {
@@ -632,7 +647,7 @@ fn describe_batch(
     py: Python<'_>,
     scans: &Bound<'_, PyAny>,
     config: &PyConfig,
-    threads: Option<usize>,
+    #[pyo3(from_py_with = args::threads)] threads: Option<usize>,
 ) -> PyResult<Vec<PyDescriptor>> {
     use rayon::prelude::*;
     let items: Vec<Bound<'_, PyAny>> = if let Ok(list) = scans.cast::<PyList>() {
@@ -655,8 +670,8 @@ fn describe_batch(
     // More threads than cores only adds switching: at most one per core (and per scan).
     let threads = match threads {
         Some(0) => {
-            return Err(SolidError::new_err(
-                "threads must be at least 1 (or None for every core)",
+            return Err(ConfigError::new_err(
+                "invalid threads = 0: expected at least 1 (or None for every core)",
             ))
         }
         Some(t) => t.min(cores),

@@ -15,11 +15,15 @@ use solid_lidar::reg::{
 };
 use solid_lidar::Points;
 
-use crate::{borrow_points, core_err, ConfigError, PointSlice, PyDescriptor, SolidError};
+use crate::{args, borrow_points, core_err, ConfigError, PointSlice, PyDescriptor, SolidError};
 
 fn reg_err(e: RegError) -> PyErr {
     match e {
         RegError::Core(c) => core_err(c),
+        // Corrupt or foreign bytes, as for a database or a place.
+        RegError::Format { .. } => {
+            Python::attach(|py| crate::engine::database_error(py, e.to_string()))
+        }
         other => SolidError::new_err(other.to_string()),
     }
 }
@@ -137,20 +141,8 @@ fn apply(mut c: RegConfig, kw: Option<&Bound<'_, PyDict>>) -> PyResult<RegConfig
     if let Some(kw) = kw {
         for (k, v) in kw.iter() {
             let key: String = k.extract()?;
-            let float = || -> PyResult<f64> {
-                v.extract::<f64>()
-                    .map_err(|_| PyTypeError::new_err(format!("{key} must be a number")))
-            };
-            let int = || -> PyResult<usize> {
-                let i: i64 = v
-                    .extract()
-                    .map_err(|_| PyTypeError::new_err(format!("{key} must be an integer")))?;
-                usize::try_from(i).map_err(|_| {
-                    ConfigError::new_err(format!(
-                        "invalid {key} = {i}: expected a positive integer"
-                    ))
-                })
-            };
+            let float = || args::float_param(&v, &key);
+            let int = || args::int_arg(&v, &key, 0, usize::MAX as i128);
             let name = || -> PyResult<String> {
                 v.extract::<String>()
                     .map_err(|_| PyTypeError::new_err(format!("{key} must be a string")))
@@ -331,11 +323,11 @@ fn prepare_slice(s: &PointSlice<'_>, cfg: &RegConfig) -> Result<PreparedCloud, R
     }
 }
 
-fn points_array<'py>(py: Python<'py>, pts: &[[f64; 3]]) -> Bound<'py, PyArray2<f64>> {
-    let flat: Vec<f64> = pts.as_flattened().to_vec();
-    Array2::from_shape_vec((pts.len(), 3), flat)
-        .expect("n x 3 values")
-        .into_pyarray(py)
+fn points_array<'py>(py: Python<'py>, pts: &[[f64; 3]]) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let flat = args::try_copy(pts.as_flattened(), "cloud points")?;
+    let a = Array2::from_shape_vec((pts.len(), 3), flat)
+        .map_err(|e| SolidError::new_err(e.to_string()))?;
+    Ok(a.into_pyarray(py))
 }
 
 fn config_or_default(config: Option<&PyRegConfig>) -> RegConfig {
@@ -366,8 +358,14 @@ impl PyPrepared {
     /// sender's preparation parameters for the two to register).
     #[staticmethod]
     #[pyo3(signature = (data, config=None))]
-    fn decode(py: Python<'_>, data: &[u8], config: Option<&PyRegConfig>) -> PyResult<Self> {
+    fn decode(
+        py: Python<'_>,
+        data: &Bound<'_, PyAny>,
+        config: Option<&PyRegConfig>,
+    ) -> PyResult<Self> {
         let cfg = config_or_default(config);
+        let data = args::bytes_arg(data, "data")?;
+        let data = data.as_bytes();
         let inner = py
             .detach(|| {
                 decode_cloud(data).and_then(|pts| PreparedCloud::from_downsampled(&pts, &cfg))
@@ -382,7 +380,11 @@ impl PyPrepared {
     /// The compact wire form of the fine points (see `solid.encode_cloud`): the grid is the
     /// config's voxel size (0.5 m when it is 0).
     #[pyo3(signature = (bits=8))]
-    fn encode<'py>(&self, py: Python<'py>, bits: u8) -> PyResult<Bound<'py, PyBytes>> {
+    fn encode<'py>(
+        &self,
+        py: Python<'py>,
+        #[pyo3(from_py_with = args::bits)] bits: u8,
+    ) -> PyResult<Bound<'py, PyBytes>> {
         let grid = if self.cfg.voxel_size > 0.0 {
             self.cfg.voxel_size
         } else {
@@ -394,13 +396,13 @@ impl PyPrepared {
 
     /// The fine points, (N, 3) float64.
     #[getter]
-    fn points<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+    fn points<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
         points_array(py, &self.inner.fine.points)
     }
 
     /// The coarse points, (M, 3) float64 (empty without a coarse level).
     #[getter]
-    fn coarse_points<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+    fn coarse_points<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
         points_array(py, self.inner.coarse.as_ref().map_or(&[], |c| &c.points))
     }
 
@@ -673,7 +675,11 @@ fn register(
 /// A-SOLiD shift cost, at most `n` in all.
 #[pyfunction]
 #[pyo3(signature = (query, candidate, n=4))]
-fn hypothesis_yaws(query: &PyDescriptor, candidate: &PyDescriptor, n: usize) -> PyResult<Vec<f64>> {
+fn hypothesis_yaws(
+    query: &PyDescriptor,
+    candidate: &PyDescriptor,
+    #[pyo3(from_py_with = args::n)] n: usize,
+) -> PyResult<Vec<f64>> {
     crate::comparable(query, candidate)?;
     let mut out = vec![0.0; n.min(solid_lidar::MAX_MINIMA + 1)];
     let k = core_yaws(&query.inner.a, &candidate.inner.a, &mut out).map_err(core_err)?;
@@ -696,19 +702,25 @@ impl PyGate {
     #[allow(clippy::too_many_arguments)]
     fn new(
         require_converged: Option<bool>,
-        min_fitness: Option<f64>,
-        min_structure_fitness: Option<f64>,
-        max_rmse: Option<f64>,
-        min_translation_information: Option<f64>,
-        min_rotation_information: Option<f64>,
-        min_agreement: Option<usize>,
-        max_translation: Option<f64>,
-        agree_translation: Option<f64>,
-        agree_rotation_deg: Option<f64>,
+        min_fitness: Option<&Bound<'_, PyAny>>,
+        min_structure_fitness: Option<&Bound<'_, PyAny>>,
+        max_rmse: Option<&Bound<'_, PyAny>>,
+        min_translation_information: Option<&Bound<'_, PyAny>>,
+        min_rotation_information: Option<&Bound<'_, PyAny>>,
+        #[pyo3(from_py_with = args::min_agreement)] min_agreement: Option<usize>,
+        max_translation: Option<&Bound<'_, PyAny>>,
+        agree_translation: Option<&Bound<'_, PyAny>>,
+        agree_rotation_deg: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let mut g = Gate::default();
-        let set = |name: &str, v: Option<f64>, slot: &mut f64| -> PyResult<()> {
-            if let Some(v) = v {
+        let number = |name: &str, v: Option<&Bound<'_, PyAny>>| -> PyResult<Option<f64>> {
+            v.filter(|v| !v.is_none())
+                .map(|v| args::float_param(v, name))
+                .transpose()
+        };
+        let max_translation = number("max_translation", max_translation)?;
+        let set = |name: &str, v: Option<&Bound<'_, PyAny>>, slot: &mut f64| -> PyResult<()> {
+            if let Some(v) = number(name, v)? {
                 if !v.is_finite() {
                     return Err(ConfigError::new_err(format!(
                         "invalid {name} = {v}: expected a finite number"
@@ -857,16 +869,22 @@ fn encode_cloud_py<'py>(
     py: Python<'py>,
     points: &Bound<'py, PyAny>,
     grid: f64,
-    bits: u8,
+    #[pyo3(from_py_with = args::bits)] bits: u8,
 ) -> PyResult<Bound<'py, PyBytes>> {
     let borrowed = borrow_points(points, "points")?;
-    let pts: Vec<[f64; 3]> = match borrowed.slice() {
-        PointSlice::F32(d, s) => d
-            .chunks_exact(s)
-            .map(|p| [f64::from(p[0]), f64::from(p[1]), f64::from(p[2])])
-            .collect(),
-        PointSlice::F64(d, s) => d.chunks_exact(s).map(|p| [p[0], p[1], p[2]]).collect(),
+    let slice = borrowed.slice();
+    let n = match slice {
+        PointSlice::F32(d, s) => d.len() / s,
+        PointSlice::F64(d, s) => d.len() / s,
     };
+    let mut pts: Vec<[f64; 3]> = args::try_vec(n, "points")?;
+    match slice {
+        PointSlice::F32(d, s) => pts.extend(
+            d.chunks_exact(s)
+                .map(|p| [f64::from(p[0]), f64::from(p[1]), f64::from(p[2])]),
+        ),
+        PointSlice::F64(d, s) => pts.extend(d.chunks_exact(s).map(|p| [p[0], p[1], p[2]])),
+    }
     let bytes = py
         .detach(|| encode_cloud(&pts, grid, bits))
         .map_err(reg_err)?;
@@ -876,9 +894,14 @@ fn encode_cloud_py<'py>(
 /// Decodes points encoded by `encode_cloud`, (N, 3) float64.
 #[pyfunction]
 #[pyo3(name = "decode_cloud")]
-fn decode_cloud_py<'py>(py: Python<'py>, data: &[u8]) -> PyResult<Bound<'py, PyArray2<f64>>> {
+fn decode_cloud_py<'py>(
+    py: Python<'py>,
+    data: &Bound<'py, PyAny>,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let data = args::bytes_arg(data, "data")?;
+    let data = data.as_bytes();
     let pts = py.detach(|| decode_cloud(data)).map_err(reg_err)?;
-    Ok(points_array(py, &pts))
+    points_array(py, &pts)
 }
 
 /// Adds the registration classes and functions to the module.

@@ -2,16 +2,26 @@
 //! `_SimWorld` / `_SimSensor` classes; the typed API is `solid.sim` (python/solid/sim.py).
 
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
-use pyo3::exceptions::{PyOSError, PyValueError};
+use pyo3::exceptions::PyMemoryError;
 use pyo3::prelude::*;
 use solid_lidar_sim::{Pose, RouteOptions, Sensor, SimError, Trajectory, World, WorldConfig};
 use std::path::PathBuf;
 
+use crate::{args, ConfigError, SolidError};
+
+/// Maps a simulator error: invalid parameters and unknown names to `solid.ConfigError`, I/O
+/// errors to `OSError`, exhausted memory to `MemoryError`.
 fn sim_err(e: SimError) -> PyErr {
     match e {
-        SimError::Io(io) => PyOSError::new_err(io.to_string()),
-        other => PyValueError::new_err(other.to_string()),
+        SimError::Io(io) => crate::io_err(&io, None),
+        SimError::OutOfMemory { .. } => PyMemoryError::new_err(e.to_string()),
+        other => ConfigError::new_err(other.to_string()),
     }
+}
+
+/// A shape or layout problem of an array argument.
+fn shape_err(msg: impl Into<String>) -> PyErr {
+    SolidError::new_err(msg.into())
 }
 
 /// A generated world (immutable).
@@ -160,7 +170,7 @@ impl PySimSensor {
     }
     /// Rays fired in frame `frame` (after the horizontal window).
     #[pyo3(signature = (frame = 0))]
-    fn n_rays(&self, frame: u64) -> usize {
+    fn n_rays(&self, #[pyo3(from_py_with = args::frame)] frame: u64) -> usize {
         self.inner.ray_directions(frame).len()
     }
     fn __repr__(&self) -> String {
@@ -177,8 +187,8 @@ impl PySimSensor {
 #[allow(clippy::too_many_arguments)]
 fn _sim_world(
     py: Python<'_>,
-    seed: u64,
-    blocks: usize,
+    #[pyo3(from_py_with = args::seed)] seed: u64,
+    #[pyo3(from_py_with = args::blocks)] blocks: usize,
     block_pitch: f64,
     road_half_width: f64,
     slope: (f64, f64),
@@ -209,8 +219,8 @@ fn _sim_sensor(
     max_range: Option<f64>,
     noise: Option<f64>,
     dropout: f64,
-    seed: u64,
-    points: Option<usize>,
+    #[pyo3(from_py_with = args::seed)] seed: u64,
+    #[pyo3(from_py_with = args::points)] points: Option<usize>,
 ) -> PyResult<PySimSensor> {
     let mut s = Sensor::preset(name).map_err(sim_err)?;
     if let Some(w) = h_fov {
@@ -232,7 +242,7 @@ fn _sim_sensor(
         match &mut s.pattern {
             solid_lidar_sim::Pattern::Rosette { points, .. } => *points = n,
             solid_lidar_sim::Pattern::Spinning { .. } => {
-                return Err(PyValueError::new_err(
+                return Err(ConfigError::new_err(
                     "points applies to the rosette (avia) sensor only",
                 ))
             }
@@ -248,17 +258,15 @@ fn read_poses(poses: &PyReadonlyArrayDyn<'_, f64>) -> PyResult<Vec<Pose>> {
     let ok = (shape.len() == 3 && shape[1] == 3 && shape[2] == 4)
         || (shape.len() == 2 && shape == [3, 4]);
     if !ok || !poses.is_c_contiguous() {
-        return Err(PyValueError::new_err(format!(
+        return Err(shape_err(format!(
             "poses must be a C-contiguous float64 array of shape (M, 3, 4) or (3, 4), got shape {shape:?}"
         )));
     }
-    let data = poses
-        .as_slice()
-        .map_err(|e| PyValueError::new_err(e.to_string()))?;
-    let mut out = Vec::with_capacity(data.len() / 12);
+    let data = poses.as_slice().map_err(|e| shape_err(e.to_string()))?;
+    let mut out = args::try_vec(data.len() / 12, "poses")?;
     for chunk in data.chunks_exact(12) {
         if chunk.iter().any(|v| !v.is_finite()) {
-            return Err(PyValueError::new_err("poses must be finite"));
+            return Err(ConfigError::new_err("poses must be finite"));
         }
         let mut m = [0.0; 12];
         m.copy_from_slice(chunk);
@@ -269,7 +277,8 @@ fn read_poses(poses: &PyReadonlyArrayDyn<'_, f64>) -> PyResult<Vec<Pose>> {
 
 fn points_array<'py>(py: Python<'py>, pts: Vec<[f32; 4]>) -> PyResult<Bound<'py, PyAny>> {
     let n = pts.len();
-    let flat: Vec<f32> = pts.into_iter().flatten().collect();
+    let mut flat = args::try_vec(n.saturating_mul(4), "scan points")?;
+    flat.extend(pts.into_iter().flatten());
     Ok(PyArray1::from_vec(py, flat).reshape([n, 4])?.into_any())
 }
 
@@ -278,7 +287,8 @@ fn trajectory_arrays<'py>(
     t: Trajectory,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyArray1<f64>>)> {
     let m = t.poses.len();
-    let flat: Vec<f64> = t.poses.iter().flat_map(|p| p.m).collect();
+    let mut flat = args::try_vec(m.saturating_mul(12), "trajectory poses")?;
+    flat.extend(t.poses.iter().flat_map(|p| p.m));
     let poses = PyArray1::from_vec(py, flat).reshape([m, 3, 4])?.into_any();
     Ok((poses, PyArray1::from_vec(py, t.times)))
 }
@@ -290,11 +300,11 @@ fn _sim_scan<'py>(
     world: &Bound<'py, PySimWorld>,
     sensor: &Bound<'py, PySimSensor>,
     pose: PyReadonlyArrayDyn<'py, f64>,
-    frame: u64,
+    #[pyo3(from_py_with = args::frame)] frame: u64,
 ) -> PyResult<Bound<'py, PyAny>> {
     let poses = read_poses(&pose)?;
     if poses.len() != 1 {
-        return Err(PyValueError::new_err("pose must have shape (3, 4)"));
+        return Err(shape_err("pose must have shape (3, 4)"));
     }
     let (w, s) = (world.get(), sensor.get());
     let pts = py
@@ -310,7 +320,7 @@ fn _sim_scans<'py>(
     world: &Bound<'py, PySimWorld>,
     sensor: &Bound<'py, PySimSensor>,
     poses: PyReadonlyArrayDyn<'py, f64>,
-    first_frame: u64,
+    #[pyo3(from_py_with = args::first_frame)] first_frame: u64,
 ) -> PyResult<Vec<Bound<'py, PyAny>>> {
     let poses = read_poses(&poses)?;
     let (w, s) = (world.get(), sensor.get());
@@ -319,7 +329,10 @@ fn _sim_scans<'py>(
             poses
                 .iter()
                 .enumerate()
-                .map(|(i, p)| s.inner.scan(&w.inner, p, first_frame + i as u64))
+                .map(|(i, p)| {
+                    s.inner
+                        .scan(&w.inner, p, first_frame.wrapping_add(i as u64))
+                })
                 .collect::<Result<Vec<_>, _>>()
         })
         .map_err(sim_err)?;
@@ -390,7 +403,7 @@ fn _sim_spin<'py>(
     if !(x.is_finite() && y.is_finite() && mount_height.is_finite())
         || headings.iter().any(|h| !h.is_finite())
     {
-        return Err(PyValueError::new_err(
+        return Err(ConfigError::new_err(
             "x, y, headings and mount_height must be finite",
         ));
     }
@@ -431,13 +444,11 @@ fn _sim_write_scans<'py>(
     for (i, s) in scans.iter().enumerate() {
         let shape = s.shape();
         if shape.len() != 2 || shape[1] != 4 || !s.is_c_contiguous() {
-            return Err(PyValueError::new_err(format!(
+            return Err(shape_err(format!(
                 "scan {i} must be a C-contiguous float32 array of shape (N, 4), got {shape:?}"
             )));
         }
-        let data = s
-            .as_slice()
-            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        let data = s.as_slice().map_err(|e| shape_err(e.to_string()))?;
         owned.push(
             data.chunks_exact(4)
                 .map(|c| [c[0], c[1], c[2], c[3]])

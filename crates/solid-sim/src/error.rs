@@ -24,6 +24,13 @@ pub enum SimError {
     },
     /// An I/O error while writing a sequence.
     Io(std::io::Error),
+    /// Memory for a result could not be allocated.
+    OutOfMemory {
+        /// What the memory was for.
+        what: &'static str,
+        /// Bytes that were asked for.
+        bytes: usize,
+    },
 }
 
 impl fmt::Display for SimError {
@@ -36,6 +43,10 @@ impl fmt::Display for SimError {
             } => write!(f, "invalid parameter {name} = {value}: expected {expected}"),
             SimError::UnknownName { what, name } => write!(f, "unknown {what} {name:?}"),
             SimError::Io(e) => write!(f, "I/O error: {e}"),
+            SimError::OutOfMemory { what, bytes } => write!(
+                f,
+                "out of memory: could not allocate {bytes} bytes for the {what}"
+            ),
         }
     }
 }
@@ -53,6 +64,16 @@ impl From<std::io::Error> for SimError {
     fn from(e: std::io::Error) -> Self {
         SimError::Io(e)
     }
+}
+
+/// An empty vector with room for `n` elements, or [`SimError::OutOfMemory`] naming `what`.
+pub(crate) fn try_vec<T>(n: usize, what: &'static str) -> Result<Vec<T>, SimError> {
+    let mut v = Vec::new();
+    v.try_reserve_exact(n).map_err(|_| SimError::OutOfMemory {
+        what,
+        bytes: n.saturating_mul(core::mem::size_of::<T>()),
+    })?;
+    Ok(v)
 }
 
 /// Checks `lo <= value <= hi` (and finiteness), naming the parameter on failure.

@@ -1,6 +1,6 @@
 //! Sensor models as data: beam patterns, field-of-view limits, range limits, noise and dropout.
 
-use crate::error::{check, SimError};
+use crate::error::{check, try_vec, SimError};
 use crate::pose::Pose;
 use crate::rng::{mix_seed, Rng};
 use crate::world::World;
@@ -339,13 +339,14 @@ impl Sensor {
     /// returns give no point. The noise stream depends only on (`noise_seed`, `frame`).
     ///
     /// # Errors
-    /// [`SimError::InvalidParameter`] when [`Sensor::validate`] fails.
+    /// [`SimError::InvalidParameter`] when [`Sensor::validate`] fails; [`SimError::OutOfMemory`]
+    /// when the points do not fit in memory.
     pub fn scan(&self, world: &World, pose: &Pose, frame: u64) -> Result<Vec<[f32; 4]>, SimError> {
         self.validate()?;
         let dirs = self.ray_directions(frame);
         let mut rng = Rng::new(mix_seed(&[self.noise_seed, frame]));
         let origin = pose.translation();
-        let mut out = Vec::with_capacity(dirs.len());
+        let mut out = try_vec(dirs.len(), "scan points")?;
         for ds in dirs {
             let dropped = self.dropout > 0.0 && rng.chance(self.dropout);
             let noise = if self.range_noise_sd > 0.0 {

@@ -1,6 +1,6 @@
 //! Trajectories: routes along the world's roads, sampled at a fixed spacing, with exact poses.
 
-use crate::error::{check, SimError};
+use crate::error::{check, try_vec, SimError};
 use crate::pose::Pose;
 use crate::world::World;
 use core::f64::consts::{FRAC_PI_2, PI};
@@ -68,6 +68,10 @@ impl RouteOptions {
         Ok(())
     }
 }
+
+/// The most frames a route may be sampled into (1000 km at the default 1 m spacing): a longer
+/// route or a finer spacing is refused up front rather than exhausting memory.
+pub const MAX_FRAMES: usize = 1_000_000;
 
 /// Names accepted by [`Trajectory::by_name`].
 pub const TRAJECTORY_KINDS: [&str; 4] = ["loop", "figure-eight", "reverse", "crossing"];
@@ -266,7 +270,8 @@ impl Trajectory {
     ///
     /// # Errors
     /// [`SimError::InvalidParameter`] for invalid options, fewer than two distinct waypoints,
-    /// non-finite coordinates, or a U-turn with a lane offset below 0.1 m.
+    /// non-finite coordinates, a U-turn with a lane offset below 0.1 m, or more than
+    /// [`MAX_FRAMES`] frames; [`SimError::OutOfMemory`] when the poses do not fit in memory.
     pub fn from_waypoints(
         world: &World,
         waypoints: &[[f64; 2]],
@@ -284,9 +289,16 @@ impl Trajectory {
         opts.validate()?;
         let pieces = build_path(waypoints, opts)?;
         let total: f64 = pieces.iter().map(Piece::len).sum::<f64>().min(max_len);
-        let n = (total / opts.spacing + 1e-9).floor() as usize + 1;
-        let mut poses = Vec::with_capacity(n);
-        let mut times = Vec::with_capacity(n);
+        let frames = (total / opts.spacing + 1e-9).floor() + 1.0;
+        check(
+            "frames",
+            frames,
+            frames <= MAX_FRAMES as f64,
+            "at most 1000000 frames (route length / spacing + 1): shorten the route or increase the spacing",
+        )?;
+        let n = frames as usize;
+        let mut poses = try_vec(n, "trajectory poses")?;
+        let mut times = try_vec(n, "trajectory times")?;
         let (mut piece, mut piece_start) = (0usize, 0.0f64);
         for k in 0..n {
             let s = k as f64 * opts.spacing;
@@ -477,6 +489,24 @@ mod tests {
     fn dist(a: &Pose, b: &Pose) -> f64 {
         let (p, q) = (a.translation(), b.translation());
         libm::sqrt((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2))
+    }
+
+    #[test]
+    fn routes_of_more_than_max_frames_are_refused_up_front() {
+        let w = world();
+        let opts = RouteOptions {
+            spacing: 0.01,
+            ..RouteOptions::default()
+        };
+        // 1e9 m at 0.01 m would be 1e11 poses (10 TB): an error, not an allocation.
+        match Trajectory::from_waypoints(&w, &[[0.0, 0.0], [1e9, 0.0]], &opts) {
+            Err(SimError::InvalidParameter { name: "frames", .. }) => {}
+            other => panic!("expected a frames error, got {other:?}"),
+        }
+        let just = (MAX_FRAMES - 1) as f64 * 0.01;
+        let t = Trajectory::from_waypoints(&w, &[[0.0, 0.0], [just, 0.0]], &opts).unwrap();
+        assert_eq!(t.poses.len(), MAX_FRAMES);
+        assert!(Trajectory::from_waypoints(&w, &[[0.0, 0.0], [just + 0.011, 0.0]], &opts).is_err());
     }
 
     #[test]

@@ -130,7 +130,8 @@ impl Database {
     ///
     /// # Errors
     /// [`DbError::Core`] with [`Error::LengthMismatch`] for vectors of the wrong length, or with
-    /// [`Error::InvalidParameter`] for non-finite values (in the vectors or the pose);
+    /// [`Error::InvalidParameter`] for negative or non-finite values in the vectors, an infinite
+    /// timestamp, or a pose that is not finite or not a rotation (see [`check_pose`]);
     /// [`DbError::Full`] beyond `u32::MAX` entries.
     pub fn add_vectors(
         &mut self,
@@ -169,11 +170,13 @@ impl Database {
             }
             .into());
         }
-        if let Some(bad) = a.iter().find(|v| !v.is_finite()) {
+        check_bins("r_solid", r)?;
+        check_bins("a_solid", a)?;
+        if timestamp.is_infinite() {
             return Err(Error::InvalidParameter {
-                name: "a_solid",
-                value: f64::from(*bad),
-                expected: "finite values",
+                name: "timestamp",
+                value: timestamp,
+                expected: "a finite time in seconds (NaN for none)",
             }
             .into());
         }
@@ -219,7 +222,7 @@ impl Database {
     /// id, skipping the `exclude_recent` most recent entries.
     ///
     /// # Errors
-    /// [`DbError::Core`] for a query of the wrong length or with non-finite values.
+    /// [`DbError::Core`] for a query of the wrong length or with negative or non-finite values.
     pub fn search(
         &self,
         query_r: &[f32],
@@ -257,13 +260,22 @@ impl Database {
     /// The general search: see [`SearchOptions`].
     ///
     /// # Errors
-    /// [`DbError::Core`] for a query of the wrong length or with non-finite values.
+    /// [`DbError::Core`] for a query of the wrong length or with negative or non-finite values,
+    /// or a NaN `not_newer_than` (it would compare false with every time: no limit is `None`).
     pub fn search_with(
         &self,
         query_r: &[f32],
         opts: &SearchOptions,
     ) -> Result<Vec<Neighbor>, DbError> {
         let nr = self.config.n_range;
+        if let Some(t) = opts.not_newer_than.filter(|t| t.is_nan()) {
+            return Err(Error::InvalidParameter {
+                name: "not_newer_than",
+                value: t,
+                expected: "a time in seconds (or None for no limit), not NaN",
+            }
+            .into());
+        }
         let q = self.normalized_query(query_r)?;
         let n = self.len();
         let exclude = Exclude {
@@ -298,6 +310,7 @@ impl Database {
             }
             .into());
         }
+        check_bins("query r_solid", query_r)?;
         let mut q = vec![0.0f32; nr];
         search::normalize(query_r, &mut q)?;
         Ok(q)
@@ -307,7 +320,7 @@ impl Database {
     /// (for plots and analysis; searches use [`Database::search`]).
     ///
     /// # Errors
-    /// [`DbError::Core`] for a query of the wrong length or with non-finite values;
+    /// [`DbError::Core`] for a query of the wrong length or with negative or non-finite values;
     /// [`DbError::OutOfMemory`] when the output cannot be allocated.
     pub fn distances(&self, query_r: &[f32]) -> Result<Vec<f32>, DbError> {
         let nr = self.config.n_range;
@@ -437,6 +450,19 @@ impl Database {
     /// Per-entry poses (row-major 3×4 `[R|t]`).
     pub fn poses(&self) -> &[Option<[f64; 12]>] {
         &self.poses
+    }
+}
+
+/// Checks that a descriptor vector holds what descriptors hold: finite, non-negative values
+/// (SPEC §3; the cosine distance is in [0, 1] only for those).
+fn check_bins(name: &'static str, v: &[f32]) -> Result<(), Error> {
+    match v.iter().find(|x| !super::format::is_bin_value(**x)) {
+        Some(bad) => Err(Error::InvalidParameter {
+            name,
+            value: f64::from(*bad),
+            expected: "finite, non-negative values",
+        }),
+        None => Ok(()),
     }
 }
 

@@ -34,143 +34,105 @@ use crate::search;
 use crate::Config;
 
 impl Database {
-    /// Serialises the database in the file format above.
+    /// Serialises the database in the file format above (allocates [`Database::encoded_len`]
+    /// bytes; [`Database::encode_into`] writes into a buffer of the caller's).
     pub fn to_bytes(&self) -> Vec<u8> {
-        let n = self.len();
-        let c = &self.config;
-        let cloud_section = if self.clouds.any() {
-            4 * n + self.clouds.bytes().len()
+        let mut out = vec![0u8; self.encoded_len()];
+        let written = self.encode_into(&mut out);
+        debug_assert_eq!(written.ok(), Some(out.len()));
+        out
+    }
+
+    /// Length of the database in the file format, in bytes.
+    pub fn encoded_len(&self) -> usize {
+        HEADER_LEN
+            + self.len() * ENTRY_LEN
+            + (self.r.len() + self.a.len()) * 4
+            + self.cloud_section_len()
+            + 4
+    }
+
+    /// Length of the cloud section (0 when no entry has a cloud).
+    fn cloud_section_len(&self) -> usize {
+        if self.clouds.any() {
+            4 * self.len() + self.clouds.bytes().len()
         } else {
             0
-        };
-        let mut out = Vec::with_capacity(
-            HEADER_LEN + n * ENTRY_LEN + (self.r.len() + self.a.len()) * 4 + cloud_section + 4,
-        );
-        out.extend_from_slice(&MAGIC);
-        out.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
-        out.extend_from_slice(&0u32.to_le_bytes());
+        }
+    }
+
+    /// Writes the database in the file format above into `out`; returns the bytes written
+    /// ([`Database::encoded_len`]).
+    ///
+    /// # Errors
+    /// [`DbError::Core`] with [`crate::Error::BufferTooSmall`] when `out` is shorter than
+    /// [`Database::encoded_len`].
+    pub fn encode_into(&self, out: &mut [u8]) -> Result<usize, DbError> {
+        let len = self.encoded_len();
+        if out.len() < len {
+            return Err(crate::Error::BufferTooSmall {
+                buffer: "out",
+                needed: len,
+                got: out.len(),
+            }
+            .into());
+        }
+        let mut w = Writer { b: out, at: 0 };
+        let n = self.len();
+        let c = &self.config;
+        w.put(&MAGIC);
+        w.put(&FORMAT_VERSION.to_le_bytes());
+        w.put(&0u32.to_le_bytes());
         for v in [c.n_range, c.n_azimuth, c.n_elevation, 0] {
-            out.extend_from_slice(&(v as u32).to_le_bytes());
+            w.put(&(v as u32).to_le_bytes());
         }
         for v in [c.fov_up, c.fov_down, c.min_range, c.max_range, c.voxel_size] {
-            out.extend_from_slice(&v.to_le_bytes());
+            w.put(&v.to_le_bytes());
         }
-        out.extend_from_slice(&self.fingerprint.to_le_bytes());
-        out.extend_from_slice(&(n as u64).to_le_bytes());
-        out.extend_from_slice(&(cloud_section as u64).to_le_bytes());
+        w.put(&self.fingerprint.to_le_bytes());
+        w.put(&(n as u64).to_le_bytes());
+        let cloud_section = self.cloud_section_len();
+        w.put(&(cloud_section as u64).to_le_bytes());
         for i in 0..n {
-            out.extend_from_slice(&self.sessions[i].to_le_bytes());
+            w.put(&self.sessions[i].to_le_bytes());
             let (flags, pose) = match &self.poses[i] {
                 Some(p) => (1u32, *p),
                 None => (0u32, [0.0; 12]),
             };
-            out.extend_from_slice(&flags.to_le_bytes());
-            out.extend_from_slice(&self.timestamps[i].to_le_bytes());
+            w.put(&flags.to_le_bytes());
+            w.put(&self.timestamps[i].to_le_bytes());
             for v in pose {
-                out.extend_from_slice(&v.to_le_bytes());
+                w.put(&v.to_le_bytes());
             }
         }
         for v in self.r.iter().chain(&self.a) {
-            out.extend_from_slice(&v.to_le_bytes());
+            w.put(&v.to_le_bytes());
         }
         if cloud_section > 0 {
             for l in self.clouds.lengths(n) {
-                out.extend_from_slice(&l.to_le_bytes());
+                w.put(&l.to_le_bytes());
             }
-            out.extend_from_slice(self.clouds.bytes());
+            w.put(self.clouds.bytes());
         }
-        let crc = crc32(&out);
-        out.extend_from_slice(&crc.to_le_bytes());
-        out
+        let crc = crc32(&w.b[..w.at]);
+        w.put(&crc.to_le_bytes());
+        Ok(w.at)
     }
 
     /// Reads a database written by [`Database::to_bytes`], checking everything: the magic, the
-    /// version, the length, the checksum, the config and every value.
+    /// version, the reserved header fields, the length, the checksum, the config and every value.
     ///
     /// # Errors
     /// [`DbError::Format`] (with `file: None`) naming what is wrong: not a SOLiD database,
     /// a newer format version, truncated, trailing bytes, checksum mismatch, invalid config,
-    /// non-finite values.
+    /// negative or non-finite vector values, infinite timestamps, non-finite poses;
+    /// [`DbError::OutOfMemory`] when the entries do not fit in
+    /// memory.
     pub fn from_bytes(bytes: &[u8]) -> Result<Database, DbError> {
         let bad = |reason: String| DbError::Format { file: None, reason };
-        if bytes.len() < MAGIC.len() || bytes[..MAGIC.len()] != MAGIC {
-            return Err(bad(String::from(
-                "not a SOLiD database (wrong magic number at the start of the file)",
-            )));
-        }
-        if bytes.len() < HEADER_LEN_V1 + 4 {
-            return Err(bad(format!(
-                "truncated: {} bytes, shorter than the {}-byte header",
-                bytes.len(),
-                HEADER_LEN_V1 + 4
-            )));
-        }
-        let mut rd = Reader { b: bytes, at: 8 };
-        let version = rd.u32();
-        if version >= 2 && bytes.len() < HEADER_LEN + 4 {
-            return Err(bad(format!(
-                "truncated: {} bytes, shorter than the {}-byte header",
-                bytes.len(),
-                HEADER_LEN + 4
-            )));
-        }
-        if version > FORMAT_VERSION {
-            return Err(bad(format!(
-                "format version {version} is newer than this library reads (up to {FORMAT_VERSION}); \
-                 upgrade solid"
-            )));
-        }
-        if version == 0 {
-            return Err(bad(String::from("invalid format version 0")));
-        }
-        let flags = rd.u32();
-        if flags != 0 {
-            return Err(bad(format!("unknown header flags {flags:#x}")));
-        }
-        let (n_range, n_azimuth, n_elevation, _pad) = (rd.u32(), rd.u32(), rd.u32(), rd.u32());
-        let config = Config {
-            n_range: n_range as usize,
-            n_azimuth: n_azimuth as usize,
-            n_elevation: n_elevation as usize,
-            fov_up: rd.f64(),
-            fov_down: rd.f64(),
-            min_range: rd.f64(),
-            max_range: rd.f64(),
-            voxel_size: rd.f64(),
-        };
-        let fingerprint = rd.u64();
-        let count = rd.u64();
-        let (cloud_section, header_len) = if version >= 2 {
-            (rd.u64(), HEADER_LEN)
-        } else {
-            (0, HEADER_LEN_V1)
-        };
-        // Length check before the checksum, so that a truncated file says "truncated".
-        let per_entry = (n_range as u64 + n_azimuth as u64) * 4 + ENTRY_LEN as u64;
-        let expected = count
-            .checked_mul(per_entry)
-            .and_then(|v| v.checked_add(cloud_section))
-            .and_then(|v| v.checked_add((header_len + 4) as u64));
-        let expected = match expected {
-            Some(e) if e <= usize::MAX as u64 => e as usize,
-            _ => {
-                return Err(bad(format!(
-                    "corrupted header: entry count {count} is impossible"
-                )))
-            }
-        };
-        if bytes.len() < expected {
-            return Err(bad(format!(
-                "truncated: the header announces {count} entries ({expected} bytes) but there are only {} bytes",
-                bytes.len()
-            )));
-        }
-        if bytes.len() > expected {
-            return Err(bad(format!(
-                "{} unexpected bytes after the end of the data ({expected} bytes expected)",
-                bytes.len() - expected
-            )));
-        }
+        let header = Header::parse(bytes).map_err(bad)?;
+        header.check_len(bytes.len()).map_err(bad)?;
+        let expected = bytes.len();
         let body = &bytes[..expected - 4];
         let stored = u32::from_le_bytes([
             bytes[expected - 4],
@@ -184,6 +146,7 @@ impl Database {
                 "checksum mismatch (stored {stored:#010x}, computed {actual:#010x}): the file is corrupted"
             )));
         }
+        let (config, fingerprint, count) = (header.config, header.fingerprint, header.count);
         if let Err(e) = config.validate() {
             return Err(bad(format!("invalid config in header: {e}")));
         }
@@ -197,14 +160,28 @@ impl Database {
             return Err(bad(format!("too many entries ({count})")));
         }
         let n = count as usize;
+        let (nr, na) = (config.n_range, config.n_azimuth);
+        let mut rd = Reader {
+            b: bytes,
+            at: header.header_len,
+        };
         let mut db = Database::new(config)?;
-        db.sessions.reserve_exact(n);
-        db.timestamps.reserve_exact(n);
-        db.poses.reserve_exact(n);
+        db.sessions = try_vec(n)?;
+        db.timestamps = try_vec(n)?;
+        db.poses = try_vec(n)?;
+        db.r = try_vec(n * nr)?;
+        db.a = try_vec(n * na)?;
+        db.normed = try_vec(n * nr)?;
+        db.perm = try_vec(n)?;
+        db.splits = try_vec(n)?;
         for i in 0..n {
             db.sessions.push(rd.u32());
             let eflags = rd.u32();
-            db.timestamps.push(rd.f64());
+            let t = rd.f64();
+            if t.is_infinite() {
+                return Err(bad(format!("entry {i}: infinite timestamp")));
+            }
+            db.timestamps.push(t);
             let mut pose = [0.0; 12];
             for v in &mut pose {
                 *v = rd.f64();
@@ -220,19 +197,21 @@ impl Database {
                 _ => return Err(bad(format!("entry {i}: unknown flags {eflags:#x}"))),
             }
         }
-        let (nr, na) = (config.n_range, config.n_azimuth);
-        db.r = (0..n * nr).map(|_| rd.f32()).collect();
-        db.a = (0..n * na).map(|_| rd.f32()).collect();
-        if let Some(p) = db.r.iter().chain(&db.a).position(|v| !v.is_finite()) {
+        db.r.extend((0..n * nr).map(|_| rd.f32()));
+        db.a.extend((0..n * na).map(|_| rd.f32()));
+        // Descriptors are finite and non-negative (SPEC §3): anything else was not written by
+        // `to_bytes`, whatever its checksum says.
+        if let Some(p) = db.r.iter().chain(&db.a).position(|v| !is_bin_value(*v)) {
             let (which, entry) = if p < n * nr {
                 ("R-SOLiD", p / nr)
             } else {
                 ("A-SOLiD", (p - n * nr) / na)
             };
             return Err(bad(format!(
-                "entry {entry}: non-finite value in its {which}"
+                "entry {entry}: negative or non-finite value in its {which}"
             )));
         }
+        let cloud_section = header.cloud_section;
         if cloud_section > 0 {
             let lengths_len = 4 * n as u64;
             if cloud_section < lengths_len {
@@ -240,24 +219,29 @@ impl Database {
                     "corrupted header: a cloud section of {cloud_section} bytes cannot hold {n} lengths"
                 )));
             }
-            let lengths: Vec<u32> = (0..n).map(|_| rd.u32()).collect();
+            let mut lengths = try_vec::<u32>(n)?;
+            lengths.extend((0..n).map(|_| rd.u32()));
             let data = &bytes[rd.at..rd.at + (cloud_section - lengths_len) as usize];
             db.clouds = Clouds::from_parts(&lengths, data)?;
         }
-        db.normed = vec![0.0; n * nr];
+        db.normed.resize(n * nr, 0.0);
         search::normalize_rows(&db.r, nr, &mut db.normed)?;
-        db.perm = (0..n as u32).collect();
-        db.splits = vec![0; n];
+        db.perm.extend(0..n as u32);
+        db.splits.resize(n, 0);
         search::online_rebuild(&db.normed, nr, &mut db.perm, &mut db.splits)?;
         Ok(db)
     }
 
-    /// Writes the database to `path` atomically: into a temporary file in the same directory,
-    /// flushed to disk, then renamed over `path`.
+    /// Writes the database to `path` atomically: into a temporary file of its own in the same
+    /// directory, flushed to disk, then renamed over `path`.
+    ///
+    /// Every call writes its own temporary file (`.<name>.<pid>-<n>.tmp`, created exclusively),
+    /// so concurrent saves to one path never mix: each succeeds and the file ends up whole, as
+    /// one of them wrote it. A temporary file left by a killed process is never reused.
     ///
     /// # Errors
     /// [`DbError::Io`] naming the file when writing or renaming fails (the temporary file is
-    /// removed).
+    /// removed); [`DbError::OutOfMemory`] when the encoded file does not fit in memory.
     #[cfg(feature = "std")]
     pub fn save<P: AsRef<std::path::Path>>(&self, path: P) -> Result<(), DbError> {
         use std::io::Write;
@@ -269,13 +253,11 @@ impl Database {
         let name = path
             .file_name()
             .ok_or_else(|| io(std::io::Error::other("the path names no file")))?;
-        let mut tmp_name = std::ffi::OsString::from(".");
-        tmp_name.push(name);
-        tmp_name.push(format!(".{}.tmp", std::process::id()));
-        let tmp = path.with_file_name(tmp_name);
-        let bytes = self.to_bytes();
+        let mut bytes = try_vec::<u8>(self.encoded_len())?;
+        bytes.resize(self.encoded_len(), 0);
+        self.encode_into(&mut bytes)?;
+        let (mut f, tmp) = create_temp(path, name).map_err(io)?;
         let write = || -> std::io::Result<()> {
-            let mut f = std::fs::File::create(&tmp)?;
             f.write_all(&bytes)?;
             f.sync_all()?;
             drop(f);
@@ -301,25 +283,285 @@ impl Database {
 
     /// Reads a database saved by [`Database::save`].
     ///
+    /// Only regular files are read (a FIFO, a device or a directory is refused before it is
+    /// opened), and the header is checked against the file's size before the body is read: a
+    /// foreign, truncated or padded file is refused after reading at most its header (the first 100 bytes).
+    ///
     /// # Errors
-    /// [`DbError::Io`] naming the file when it cannot be read (for example, it does not exist);
-    /// [`DbError::Format`] naming the file and the reason when its content is not a valid
-    /// database (see [`Database::from_bytes`]).
+    /// [`DbError::Io`] naming the file when it cannot be read (for example, it does not exist,
+    /// or it is a directory); [`DbError::Format`] naming the file and the reason when it is not a
+    /// regular file or its content is not a valid database (see [`Database::from_bytes`]);
+    /// [`DbError::OutOfMemory`] when it does not fit in memory.
     #[cfg(feature = "std")]
     pub fn load<P: AsRef<std::path::Path>>(path: P) -> Result<Database, DbError> {
         let path = path.as_ref();
         let file = path.display().to_string();
-        let bytes = match std::fs::read(path) {
-            Ok(b) => b,
-            Err(source) => return Err(DbError::Io { file, source }),
-        };
-        Database::from_bytes(&bytes).map_err(|e| match e {
+        let named = |e| match e {
             DbError::Format { reason, .. } => DbError::Format {
-                file: Some(file),
+                file: Some(file.clone()),
                 reason,
             },
             other => other,
+        };
+        let bytes = read_checked(path).map_err(|e| match e {
+            ReadError::Io(source) => DbError::Io {
+                file: file.clone(),
+                source,
+            },
+            ReadError::Db(e) => named(e),
+        })?;
+        Database::from_bytes(&bytes).map_err(named)
+    }
+}
+
+/// What the fixed-size header announces.
+struct Header {
+    config: Config,
+    fingerprint: u64,
+    count: u64,
+    /// Length of the cloud section (0 in version 1).
+    cloud_section: u64,
+    /// Where the entries start: the header's length in this version.
+    header_len: usize,
+    /// The length of the whole file it implies, in bytes.
+    len: u64,
+}
+
+impl Header {
+    /// Reads the header at the start of `bytes` and checks what can be checked without the body:
+    /// the magic, the version, the flags and the reserved field. Needs the version's header and
+    /// checksum (fewer is "truncated", or "not a SOLiD database" when even the magic is missing).
+    fn parse(bytes: &[u8]) -> Result<Header, String> {
+        if bytes.len() < MAGIC.len() || bytes[..MAGIC.len()] != MAGIC {
+            return Err(String::from(
+                "not a SOLiD database (wrong magic number at the start of the file)",
+            ));
+        }
+        let truncated = |need: usize| {
+            format!(
+                "truncated: {} bytes, shorter than the {need}-byte header",
+                bytes.len()
+            )
+        };
+        if bytes.len() < HEADER_LEN_V1 + 4 {
+            return Err(truncated(HEADER_LEN_V1 + 4));
+        }
+        let mut rd = Reader { b: bytes, at: 8 };
+        let version = rd.u32();
+        if version > FORMAT_VERSION {
+            return Err(format!(
+                "format version {version} is newer than this library reads (up to {FORMAT_VERSION}); \
+                 upgrade solid"
+            ));
+        }
+        if version == 0 {
+            return Err(String::from("invalid format version 0"));
+        }
+        let header_len = if version >= 2 {
+            HEADER_LEN
+        } else {
+            HEADER_LEN_V1
+        };
+        if bytes.len() < header_len + 4 {
+            return Err(truncated(header_len + 4));
+        }
+        let flags = rd.u32();
+        if flags != 0 {
+            return Err(format!("unknown header flags {flags:#x}"));
+        }
+        let (n_range, n_azimuth, n_elevation, reserved) = (rd.u32(), rd.u32(), rd.u32(), rd.u32());
+        if reserved != 0 {
+            return Err(format!(
+                "corrupted header: reserved field is {reserved:#x}, not 0"
+            ));
+        }
+        let config = Config {
+            n_range: n_range as usize,
+            n_azimuth: n_azimuth as usize,
+            n_elevation: n_elevation as usize,
+            fov_up: rd.f64(),
+            fov_down: rd.f64(),
+            min_range: rd.f64(),
+            max_range: rd.f64(),
+            voxel_size: rd.f64(),
+        };
+        let fingerprint = rd.u64();
+        let count = rd.u64();
+        let cloud_section = if version >= 2 { rd.u64() } else { 0 };
+        let per_entry = (n_range as u64 + n_azimuth as u64) * 4 + ENTRY_LEN as u64;
+        let len = count
+            .checked_mul(per_entry)
+            .and_then(|v| v.checked_add(cloud_section))
+            .and_then(|v| v.checked_add((header_len + 4) as u64))
+            .filter(|&e| e <= usize::MAX as u64)
+            .ok_or_else(|| format!("corrupted header: entry count {count} is impossible"))?;
+        Ok(Header {
+            config,
+            fingerprint,
+            count,
+            cloud_section,
+            header_len,
+            len,
         })
+    }
+
+    /// Checks that `actual` bytes is the length the header announces (before the checksum, so
+    /// that a truncated file says "truncated").
+    fn check_len(&self, actual: usize) -> Result<(), String> {
+        let (count, expected) = (self.count, self.len);
+        match (actual as u64).cmp(&expected) {
+            core::cmp::Ordering::Less => Err(format!(
+                "truncated: the header announces {count} entries ({expected} bytes) but there are only {actual} bytes"
+            )),
+            core::cmp::Ordering::Greater => Err(format!(
+                "{} unexpected bytes after the end of the data ({expected} bytes expected)",
+                actual as u64 - expected
+            )),
+            core::cmp::Ordering::Equal => Ok(()),
+        }
+    }
+}
+
+/// A value a descriptor bin can hold: finite and non-negative (SPEC §3).
+pub(super) fn is_bin_value(v: f32) -> bool {
+    v.is_finite() && v >= 0.0
+}
+
+/// An empty vector with room for `n` elements, or [`DbError::OutOfMemory`].
+pub(super) fn try_vec<T>(n: usize) -> Result<Vec<T>, DbError> {
+    let mut v = Vec::new();
+    crate::owned::reserve(&mut v, n, "database").map_err(|_| DbError::OutOfMemory)?;
+    Ok(v)
+}
+
+/// Why [`read_checked`] failed.
+#[cfg(feature = "std")]
+enum ReadError {
+    Io(std::io::Error),
+    Db(DbError),
+}
+
+#[cfg(feature = "std")]
+impl From<std::io::Error> for ReadError {
+    fn from(e: std::io::Error) -> Self {
+        ReadError::Io(e)
+    }
+}
+
+/// The bytes of the database file at `path`: refuses what is not a regular file before opening
+/// it, reads the header, checks the size it implies against the file's, and only then reads the
+/// body into one buffer allocated once.
+#[cfg(feature = "std")]
+fn read_checked(path: &std::path::Path) -> Result<Vec<u8>, ReadError> {
+    use std::io::Read;
+    let not_regular = |meta: &std::fs::Metadata| -> Option<ReadError> {
+        let kind = meta.file_type();
+        if kind.is_file() {
+            return None;
+        }
+        if kind.is_dir() {
+            return Some(ReadError::Io(std::io::ErrorKind::IsADirectory.into()));
+        }
+        Some(ReadError::Db(DbError::Format {
+            file: None,
+            reason: format!(
+                "not a regular file ({}): refusing to read it",
+                file_kind(&kind)
+            ),
+        }))
+    };
+    // Opening a FIFO blocks until a writer appears: look before opening, then check again what
+    // was opened (the path may have changed in between).
+    if let Some(e) = not_regular(&std::fs::metadata(path)?) {
+        return Err(e);
+    }
+    let mut f = std::fs::File::open(path)?;
+    let meta = f.metadata()?;
+    if let Some(e) = not_regular(&meta) {
+        return Err(e);
+    }
+    let size = meta.len();
+    let db = |reason| ReadError::Db(DbError::Format { file: None, reason });
+    let mut head = [0u8; HEADER_LEN + 4];
+    let got = read_up_to(&mut f, &mut head)?;
+    let header = Header::parse(&head[..got]).map_err(db)?;
+    let len = usize::try_from(size).unwrap_or(usize::MAX);
+    header.check_len(len).map_err(db)?;
+    let mut bytes = try_vec::<u8>(len).map_err(ReadError::Db)?;
+    bytes.extend_from_slice(&head[..got]);
+    // One byte more than announced, to notice a file that grew since it was measured.
+    f.take(size - got as u64 + 1).read_to_end(&mut bytes)?;
+    Ok(bytes)
+}
+
+/// Reads until `buf` is full or the file ends; returns the bytes read.
+#[cfg(feature = "std")]
+fn read_up_to(f: &mut std::fs::File, buf: &mut [u8]) -> std::io::Result<usize> {
+    use std::io::Read;
+    let mut got = 0;
+    while got < buf.len() {
+        match f.read(&mut buf[got..]) {
+            Ok(0) => break,
+            Ok(n) => got += n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(got)
+}
+
+/// A name for a file type that is not a regular file.
+#[cfg(feature = "std")]
+fn file_kind(kind: &std::fs::FileType) -> &'static str {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if kind.is_fifo() {
+            return "a FIFO";
+        }
+        if kind.is_char_device() {
+            return "a character device";
+        }
+        if kind.is_block_device() {
+            return "a block device";
+        }
+        if kind.is_socket() {
+            return "a socket";
+        }
+    }
+    if kind.is_symlink() {
+        return "a symbolic link";
+    }
+    "not a file"
+}
+
+/// Creates a temporary file of its own next to `path`: `.<name>.<pid>-<n>.tmp`, with `n` counting
+/// the calls of this process and the file created exclusively (a name already taken, by another
+/// call or left by a killed process, is skipped).
+#[cfg(feature = "std")]
+fn create_temp(
+    path: &std::path::Path,
+    name: &std::ffi::OsStr,
+) -> std::io::Result<(std::fs::File, std::path::PathBuf)> {
+    use std::sync::atomic::{AtomicU64, Ordering};
+    static CALLS: AtomicU64 = AtomicU64::new(0);
+    let mut tries = 0;
+    loop {
+        let n = CALLS.fetch_add(1, Ordering::Relaxed);
+        tries += 1;
+        let mut tmp_name = std::ffi::OsString::from(".");
+        tmp_name.push(name);
+        tmp_name.push(format!(".{}-{n}.tmp", std::process::id()));
+        let tmp = path.with_file_name(tmp_name);
+        match std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&tmp)
+        {
+            Ok(f) => return Ok((f, tmp)),
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists && tries < 1000 => continue,
+            Err(e) => return Err(e),
+        }
     }
 }
 
@@ -333,6 +575,19 @@ const ENTRY_LEN: usize = 4 + 4 + 8 + 96;
 pub(super) struct Reader<'a> {
     pub(super) b: &'a [u8],
     pub(super) at: usize,
+}
+
+/// A writer into a buffer whose length was checked beforehand.
+struct Writer<'a> {
+    b: &'a mut [u8],
+    at: usize,
+}
+
+impl Writer<'_> {
+    fn put(&mut self, v: &[u8]) {
+        self.b[self.at..self.at + v.len()].copy_from_slice(v);
+        self.at += v.len();
+    }
 }
 
 impl Reader<'_> {

@@ -4,7 +4,7 @@ use alloc::format;
 use alloc::string::String;
 use alloc::vec::Vec;
 
-use super::format::{crc32, Reader};
+use super::format::{crc32, is_bin_value, Reader};
 use super::DbError;
 use crate::Error;
 
@@ -38,8 +38,7 @@ const WIRE_HEADER: usize = 16;
 ///
 /// # Errors
 /// [`Error::InvalidParameter`] when a vector is longer than 65535 values, or holds a negative or
-/// non-finite value and `quantized` is set (or a non-finite one otherwise); [`Error::Empty`]
-/// when a vector is empty.
+/// non-finite value (no descriptor does, SPEC §3); [`Error::Empty`] when a vector is empty.
 pub fn encode_place(
     r: &[f32],
     a: &[f32],
@@ -57,14 +56,11 @@ pub fn encode_place(
                 expected: "at most 65535 values",
             });
         }
-        if let Some(bad) = v
-            .iter()
-            .find(|x| !x.is_finite() || (quantized && **x < 0.0))
-        {
+        if let Some(bad) = v.iter().find(|x| !is_bin_value(**x)) {
             return Err(Error::InvalidParameter {
                 name,
                 value: f64::from(*bad),
-                expected: "finite values (non-negative when quantised)",
+                expected: "finite, non-negative values",
             });
         }
     }
@@ -107,7 +103,7 @@ pub fn encode_place(
 ///
 /// # Errors
 /// [`DbError::Format`] naming the reason: not a place, an unknown version or kind, a wrong
-/// length, a checksum mismatch, non-finite values.
+/// length, a checksum mismatch, negative or non-finite values (which no encoder writes).
 pub fn decode_place(bytes: &[u8]) -> Result<Place, DbError> {
     let bad = |reason: String| DbError::Format { file: None, reason };
     if bytes.len() < WIRE_HEADER + 4 || bytes[..2] != WIRE_MAGIC {
@@ -167,8 +163,10 @@ pub fn decode_place(bytes: &[u8]) -> Result<Place, DbError> {
         let a = dequant(na);
         (r, a)
     };
-    if r.iter().chain(&a).any(|v| !v.is_finite()) {
-        return Err(bad(String::from("non-finite value in the place")));
+    if !r.iter().chain(&a).all(|v| is_bin_value(*v)) {
+        return Err(bad(String::from(
+            "negative or non-finite value in the place",
+        )));
     }
     Ok(Place {
         r,

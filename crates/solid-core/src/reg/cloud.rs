@@ -9,6 +9,7 @@ use nalgebra::{Matrix3, SymmetricEigen, Vector3};
 use super::kdtree::{KdTree3, Nearest};
 use super::{RegConfig, RegError};
 use crate::describe::stages::voxel_downsample;
+use crate::owned::{reserve, try_filled};
 use crate::{describe_scratch_len, Config, Coord, Points};
 
 /// Eigenvalue that replaces the smallest one of a local covariance (the other two become 1):
@@ -51,14 +52,21 @@ impl Level {
         self.points.is_empty()
     }
 
-    fn new(points: Vec<[f64; 3]>, voxel_size: f64, neighbors: usize) -> Level {
+    fn new(points: Vec<[f64; 3]>, voxel_size: f64, neighbors: usize) -> Result<Level, RegError> {
         let n = points.len();
-        let (mut perm, mut axes) = (vec![0u32; n], vec![0u8; n]);
+        let (mut perm, mut axes) = (
+            try_filled(n, 0u32, "kd-tree")?,
+            try_filled(n, 0u8, "kd-tree")?,
+        );
         // `n` fits in u32 (the caller checked) and the buffers have length n: cannot fail.
         let _ = KdTree3::build(&points, &mut perm, &mut axes);
         // Store the points in tree order (the permutation becomes the identity): a query then
         // reads each leaf's points from one contiguous run of memory.
-        let points: Vec<[f64; 3]> = perm.iter().map(|&i| points[i as usize]).collect();
+        let mut ordered = try_filled(n, [0.0; 3], "cloud points")?;
+        for (o, &i) in ordered.iter_mut().zip(&perm) {
+            *o = points[i as usize];
+        }
+        let points = ordered;
         for (i, p) in perm.iter_mut().enumerate() {
             *p = i as u32;
         }
@@ -67,8 +75,8 @@ impl Level {
             points,
             perm,
             axes,
-            covs: vec![[0.0; 6]; n],
-            normals: vec![[0.0; 3]; n],
+            covs: try_filled(n, [0.0; 6], "covariances")?,
+            normals: try_filled(n, [0.0; 3], "normals")?,
         };
         let mut nb = vec![Nearest::default(); neighbors];
         let tree = KdTree3::from_parts(&level.points, &level.perm, &level.axes);
@@ -78,7 +86,7 @@ impl Level {
             level.covs[i] = cov;
             level.normals[i] = normal;
         }
-        level
+        Ok(level)
     }
 }
 
@@ -172,28 +180,33 @@ fn filtered<T: Coord>(
     min_range: f64,
     max_range: f64,
     voxel_size: f64,
-) -> Vec<[f64; 3]> {
+) -> Result<Vec<[f64; 3]>, RegError> {
     let cfg = voxel_config(min_range, max_range, voxel_size);
+    let kept = |m: usize| -> Result<Vec<[f64; 3]>, RegError> {
+        let mut v = Vec::new();
+        reserve(&mut v, m, "cloud points")?;
+        Ok(v)
+    };
     if voxel_size > 0.0 {
-        let mut scratch = vec![0u64; describe_scratch_len(points.len(), &cfg)];
-        let mut out = vec![0.0f64; 3 * points.len()];
+        let n = points.len();
+        let mut scratch = try_filled(describe_scratch_len(n, &cfg), 0u64, "voxel scratch")?;
+        let mut out = try_filled(n.saturating_mul(3), 0.0f64, "voxel centroids")?;
         // The config was validated by RegConfig::validate and the buffers are sized for it.
         let m = voxel_downsample(points, &cfg, &mut scratch, &mut out).map_or(0, |(_, m)| m);
-        out[..3 * m]
-            .chunks_exact(3)
-            .map(|c| [c[0], c[1], c[2]])
-            .collect()
+        let mut v = kept(m)?;
+        v.extend(out[..3 * m].chunks_exact(3).map(|c| [c[0], c[1], c[2]]));
+        Ok(v)
     } else {
         let (min2, max2) = (min_range * min_range, max_range * max_range);
-        points
-            .as_slice()
-            .chunks_exact(points.stride())
-            .map(|p| [p[0].to_f64(), p[1].to_f64(), p[2].to_f64()])
-            .filter(|p| {
-                let d2 = p[0] * p[0] + p[1] * p[1] + p[2] * p[2];
-                d2 > min2 && d2 < max2
-            })
-            .collect()
+        let within = |p: &[f64; 3]| {
+            let d2 = p[0] * p[0] + p[1] * p[1] + p[2] * p[2];
+            d2 > min2 && d2 < max2
+        };
+        let xyz = |p: &[T]| [p[0].to_f64(), p[1].to_f64(), p[2].to_f64()];
+        let rows = || points.as_slice().chunks_exact(points.stride()).map(xyz);
+        let mut v = kept(rows().filter(within).count())?;
+        v.extend(rows().filter(within));
+        Ok(v)
     }
 }
 
@@ -203,13 +216,14 @@ impl PreparedCloud {
     /// again for the coarse level, and builds each level's kd-tree and covariances.
     ///
     /// # Errors
-    /// [`RegError::Core`] when `cfg` is invalid.
+    /// [`RegError::Core`] when `cfg` is invalid, or with [`crate::Error::OutOfMemory`] when the
+    /// cloud does not fit in memory.
     pub fn new<T: Coord>(
         points: Points<'_, T>,
         cfg: &RegConfig,
     ) -> Result<PreparedCloud, RegError> {
         cfg.validate()?;
-        let fine = filtered(points, cfg.min_range, cfg.max_range, cfg.voxel_size);
+        let fine = filtered(points, cfg.min_range, cfg.max_range, cfg.voxel_size)?;
         Self::build(fine, cfg)
     }
 
@@ -219,13 +233,13 @@ impl PreparedCloud {
     /// from them, exactly as [`PreparedCloud::new`] does.
     ///
     /// # Errors
-    /// [`RegError::Core`] when `cfg` is invalid.
+    /// As [`PreparedCloud::new`].
     pub fn from_downsampled(fine: &[[f64; 3]], cfg: &RegConfig) -> Result<PreparedCloud, RegError> {
         cfg.validate()?;
         // Centroids of in-range points can sit a hair inside min_range: no lower bound here,
         // so that a decoded cloud keeps every point the sender had.
         let pts = Points::new(fine.as_flattened(), 3)?;
-        Self::build(filtered(pts, 0.0, cfg.max_range, 0.0), cfg)
+        Self::build(filtered(pts, 0.0, cfg.max_range, 0.0)?, cfg)
     }
 
     fn build(fine: Vec<[f64; 3]>, cfg: &RegConfig) -> Result<PreparedCloud, RegError> {
@@ -240,13 +254,13 @@ impl PreparedCloud {
         let coarse = if cfg.coarse_voxel_size > 0.0 {
             // No lower range bound, as in `from_downsampled`.
             let pts = Points::new(fine.as_flattened(), 3)?;
-            let c = filtered(pts, 0.0, cfg.max_range, cfg.coarse_voxel_size);
-            Some(Level::new(c, cfg.coarse_voxel_size, cfg.neighbors))
+            let c = filtered(pts, 0.0, cfg.max_range, cfg.coarse_voxel_size)?;
+            Some(Level::new(c, cfg.coarse_voxel_size, cfg.neighbors)?)
         } else {
             None
         };
         Ok(PreparedCloud {
-            fine: Level::new(fine, cfg.voxel_size, cfg.neighbors),
+            fine: Level::new(fine, cfg.voxel_size, cfg.neighbors)?,
             coarse,
             prep: prep_key(cfg),
         })

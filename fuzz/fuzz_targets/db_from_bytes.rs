@@ -1,0 +1,44 @@
+//! `Database::from_bytes` on arbitrary bytes: never a panic or an out-of-bounds access (ASan).
+//! What it accepts is a database that behaves: it encodes to its own length, reads back the same,
+//! and its two search methods agree.
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+use solid_lidar::db::{Database, Method};
+
+fuzz_target!(|data: &[u8]| {
+    let Ok(db) = Database::from_bytes(data) else {
+        return;
+    };
+    let bytes = db.to_bytes();
+    assert_eq!(bytes.len(), db.encoded_len());
+    assert_eq!(
+        bytes.len(),
+        data.len(),
+        "a database is exactly its announced length"
+    );
+    let back = Database::from_bytes(&bytes).expect("what to_bytes writes reads back");
+    assert_eq!(back.len(), db.len());
+    assert_eq!(back.r_all(), db.r_all());
+    assert_eq!(back.a_all(), db.a_all());
+    assert_eq!(back.sessions(), db.sessions());
+    assert!(db
+        .r_all()
+        .iter()
+        .chain(db.a_all())
+        .all(|v| v.is_finite() && *v >= 0.0));
+    for id in 0..db.len().min(4) as u32 {
+        let q = db.r(id);
+        let brute = db
+            .search(q, 3, 0, Method::Brute)
+            .expect("a stored vector is a valid query");
+        let tree = db
+            .search(q, 3, 0, Method::KdTree)
+            .expect("a stored vector is a valid query");
+        assert_eq!(brute.len(), tree.len());
+        for (b, t) in brute.iter().zip(&tree) {
+            assert!((b.distance - t.distance).abs() <= 1e-6, "{b:?} vs {t:?}");
+            assert!((0.0..=1.0 + 1e-6).contains(&b.distance), "{b:?}");
+        }
+    }
+});

@@ -1,0 +1,496 @@
+"""Re-runs the hardening audit of issue 10 (items 2, 6 and 8) against the installed ``solid``.
+
+    python tools/hardening_audit.py [--json OUT] [--quick]
+
+Every case runs in a child process (allocation limits through ``RLIMIT_AS``/``RLIMIT_FSIZE``, a
+timeout for blocking reads) and is classed as handled cleanly (the package's error, ``TypeError``,
+``MemoryError`` or ``OSError`` as documented, or the right result) or wrong (an abort, a hang, an
+``OverflowError``, a plain ``ValueError``, a silently accepted bad value, lost data). Prints the
+table ``area | cases tried | handled cleanly | wrong`` and the wrong cases. Point ``PYTHONPATH``
+at another build to audit it. Linux only (``/proc``, tmpfs mounts need root: skipped otherwise).
+Needs about 6 GiB of sparse space in the temporary folder and a few minutes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import random
+import signal
+import subprocess
+import sys
+import tempfile
+import textwrap
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+PRELUDE = textwrap.dedent(
+    """
+    import os, sys, resource, struct, zlib, threading
+    import numpy as np
+    import solid
+    from solid import sim
+    def limit_as(gib):
+        b = int(gib * (1 << 30))
+        resource.setrlimit(resource.RLIMIT_AS, (b, b))
+    cfg = solid.SolidConfig.preset("hdl64")
+    def desc(seed, cfg=cfg):
+        rng = np.random.default_rng(seed)
+        return solid.Descriptor(rng.random(cfg.n_range).astype(np.float32), rng.random(cfg.n_azimuth).astype(np.float32), cfg)
+    def small_db(n, seed=0):
+        db = solid.Database(cfg)
+        for i in range(n):
+            db.add(desc(seed * 100000 + i), session=seed, timestamp=float(i))
+        return db
+    def recrc(b):
+        b = bytearray(b)
+        b[-4:] = struct.pack("<I", zlib.crc32(bytes(b[:-4])))
+        return bytes(b)
+    """
+)
+
+
+@dataclass
+class Outcome:
+    kind: str  # "ok", "exc", "signal", "timeout"
+    detail: str
+
+
+def run(code: str, timeout: float = 120.0) -> Outcome:
+    """Runs PRELUDE + code in a child; the code prints its own verdict line ``RESULT ...``."""
+    wrapped = PRELUDE + "\ntry:\n" + textwrap.indent(textwrap.dedent(code), "    ") + textwrap.dedent(
+        """
+        except BaseException as e:
+            print("RESULT exc", type(e).__module__ + "." + type(e).__qualname__, "|", str(e)[:160].replace("\\n", " "), flush=True)
+        else:
+            print("RESULT ok", flush=True)
+        """
+    )
+    try:
+        p = subprocess.run([sys.executable, "-c", wrapped], capture_output=True, text=True, timeout=timeout)
+    except subprocess.TimeoutExpired:
+        return Outcome("timeout", f"no answer after {timeout:g} s")
+    if p.returncode < 0:
+        return Outcome("signal", f"{signal.Signals(-p.returncode).name}: {p.stderr.strip()[-160:]}")
+    lines = [ln for ln in p.stdout.splitlines() if ln.startswith("RESULT ")]
+    if not lines:
+        return Outcome("exc", f"exit {p.returncode}: {p.stderr.strip()[-200:]}")
+    head, _, rest = lines[-1][7:].partition(" ")
+    return Outcome(head, rest)
+
+
+CLEAN_EXC = ("MemoryError", "OSError", "FileNotFoundError", "IsADirectoryError", "PermissionError", "TypeError")
+
+
+def package_error(o: Outcome) -> bool:
+    """A package error (solid.*Error, all subclasses of ValueError) or TypeError."""
+    if o.kind != "exc":
+        return False
+    name = o.detail.split(" |")[0]
+    return name.startswith("solid.") or name.endswith(("builtins.TypeError", "solid.config.ConfigFileError"))
+
+
+def clean_exc(o: Outcome, *names: str) -> bool:
+    if o.kind != "exc":
+        return False
+    name = o.detail.split(" |")[0].rsplit(".", 1)[-1]
+    return name in names or o.detail.startswith("solid.")
+
+
+Results = dict[str, list[tuple[str, bool, str]]]
+
+
+def record(results: Results, area: str, case: str, ok: bool, o: Outcome | str) -> None:
+    detail = o if isinstance(o, str) else f"{o.kind}: {o.detail}"
+    results.setdefault(area, []).append((case, ok, detail))
+    print(f"  [{'ok' if ok else 'WRONG'}] {area}: {case}: {detail[:150]}", flush=True)
+
+
+# ---------------------------------------------------------------------------------------------
+# Item 2: allocation failure never aborts.
+
+
+def allocation(results: Results, tmp: Path) -> None:
+    area = "allocation (item 2)"
+    big = tmp / "points-4e8.f32"
+    with open(big, "wb") as f:
+        f.truncate(400_000_000 * 3 * 4)
+    cases = {
+        "describe, 4e8-point memory-mapped array (RLIMIT_AS 8 GiB)": f"""
+            limit_as(8)
+            pts = np.memmap({str(big)!r}, dtype=np.float32, mode="r", shape=(400_000_000, 3))
+            solid.describe(pts, cfg)
+        """,
+        "describe, 40M points (RLIMIT_AS 4 GiB)": """
+            limit_as(4)
+            solid.describe(np.zeros((40_000_000, 4), np.float32), cfg)
+        """,
+        "describe_batch, 2 x 40M points, 2 threads (RLIMIT_AS 4 GiB)": """
+            limit_as(4)
+            a = np.zeros((40_000_000, 3), np.float32)
+            solid.describe_batch([a, a], cfg, threads=2)
+        """,
+        "sim.Trajectory.from_waypoints 1e9 m at 0.01 m": """
+            w = sim.World(seed=1)
+            sim.Trajectory.from_waypoints(w, [(0, 0), (1e9, 0)], spacing=0.01)
+        """,
+        "sim.Trajectory.from_waypoints 9e3 m at 0.01 m (RLIMIT_AS 1 GiB)": """
+            w = sim.World(seed=1)
+            limit_as(1)
+            sim.Trajectory.from_waypoints(w, [(0, 0), (9e3, 0)], spacing=0.01)
+        """,
+        "Database.from_bytes, header announcing 2^40 entries": """
+            b = bytearray(small_db(2).to_bytes())
+            b[80:88] = struct.pack("<Q", 1 << 40)
+            solid.Database.from_bytes(recrc(b))
+        """,
+    }
+    # A 1M-entry database file written directly (header + entries + vectors + CRC).
+    path = tmp / "db-1m.soliddb"
+    write_big_db(path, 1_000_000)
+    cases["Database.load of a 1M-entry file (RLIMIT_AS 1 GiB)"] = f"""
+        limit_as(1)
+        db = solid.Database.load({str(path)!r})
+        print("loaded", len(db))
+    """
+    for case, code in cases.items():
+        o = run(code, timeout=300)
+        ok = o.kind == "ok" or clean_exc(o, "MemoryError")
+        record(results, area, case, ok, o)
+    big.unlink()
+    path.unlink()
+
+
+def write_big_db(path: Path, n: int) -> None:
+    """A valid database of n entries for the hdl64 preset, written in chunks (CRC on the way)."""
+    import struct
+    import zlib
+
+    import numpy as np
+    import solid
+
+    cfg = solid.SolidConfig.preset("hdl64")
+    head = bytearray(solid.Database(cfg).to_bytes()[:96])
+    head[80:88] = struct.pack("<Q", n)
+    crc = zlib.crc32(bytes(head))
+    with open(path, "wb") as f:
+        f.write(head)
+        entry = struct.pack("<IId", 0, 0, 0.0) + bytes(96)
+        chunk = 10_000
+        for start in range(0, n, chunk):
+            b = entry * min(chunk, n - start)
+            crc = zlib.crc32(b, crc)
+            f.write(b)
+        for dim in (cfg.n_range, cfg.n_azimuth):
+            row = np.ones(dim, np.float32).tobytes()
+            for start in range(0, n, chunk):
+                b = row * min(chunk, n - start)
+                crc = zlib.crc32(b, crc)
+                f.write(b)
+        f.write(struct.pack("<I", crc))
+
+
+# ---------------------------------------------------------------------------------------------
+# Item 6: files.
+
+
+def files(results: Results, tmp: Path, quick: bool) -> None:
+    area = "files (item 6)"
+    trials = 10 if quick else 40
+    # Two concurrent saves to one path: both succeed, the file is one of them, whole.
+    o = run(
+        f"""
+        a, b = small_db(300, 1), small_db(200, 2)
+        want = {{a.to_bytes(), b.to_bytes()}}
+        path = {str(tmp / "race.soliddb")!r}
+        lost = 0
+        for t in range({trials}):
+            errs = []
+            def save(db):
+                try:
+                    db.save(path)
+                except Exception as e:
+                    errs.append(e)
+            ts = [threading.Thread(target=save, args=(d,)) for d in (a, b)]
+            [x.start() for x in ts]
+            [x.join() for x in ts]
+            try:
+                whole = solid.Database.load(path).to_bytes() in want
+            except Exception:
+                whole = False
+            lost += bool(errs) or not whole
+        left = [p for p in os.listdir(os.path.dirname(path)) if p.endswith(".tmp")]
+        print("RESULT ok", lost, "of", {trials}, "trials lost data;", len(left), "temp files left")
+        sys.stdout.flush(); os._exit(0)
+        """
+    )
+    lost = int(o.detail.split()[0]) if o.kind == "ok" else -1
+    record(results, area, f"two concurrent saves to one path x{trials}", lost == 0, o)
+
+    # kill -9 during save: the old or the new file, whole; what the kill leaves never collides.
+    kdir = tmp / "kill"
+    kdir.mkdir()
+    path = kdir / "map.soliddb"
+    run(f"small_db(10).save({str(path)!r})")
+    writer = PRELUDE + textwrap.dedent(
+        f"""
+        a, b = small_db(2000, 1), small_db(1000, 2)
+        print("ready", flush=True)
+        while True:
+            a.save({str(path)!r}); b.save({str(path)!r})
+        """
+    )
+    bad = 0
+    for t in range(trials):
+        p = subprocess.Popen([sys.executable, "-c", writer], stdout=subprocess.PIPE, text=True)
+        assert p.stdout is not None
+        p.stdout.readline()
+        time.sleep(random.uniform(0.0, 0.3))
+        p.kill()
+        p.wait()
+        o = run(f"n = len(solid.Database.load({str(path)!r})); assert n in (10, 2000, 1000), n")
+        bad += o.kind != "ok"
+    left = sorted(p.name for p in kdir.iterdir() if p.name.endswith(".tmp"))
+    o = run(f"small_db(5).save({str(path)!r}); assert len(solid.Database.load({str(path)!r})) == 5")
+    record(
+        results,
+        area,
+        f"kill -9 during save x{trials}, then save again",
+        bad == 0 and o.kind == "ok",
+        f"{bad} torn files; {len(left)} temp files left by the kills; the next save: {o.kind} {o.detail}",
+    )
+
+    fifo = tmp / "fifo.soliddb"
+    os.mkfifo(fifo)
+    o = run(f"solid.Database.load({str(fifo)!r})", timeout=10)
+    record(results, area, "load of a FIFO", clean_exc(o, "OSError"), o)
+    zero = tmp / "zero.soliddb"
+    zero.symlink_to("/dev/zero")
+    o = run(f"limit_as(2); solid.Database.load({str(zero)!r})", timeout=60)
+    record(results, area, "load of a link to /dev/zero (RLIMIT_AS 2 GiB)", package_error(o), o)
+    o = run(f"solid.Database.load({str(tmp)!r})")
+    record(results, area, "load of a directory", clean_exc(o, "IsADirectoryError"), o)
+
+    sparse = tmp / "foreign-6g.bin"
+    with open(sparse, "wb") as f:
+        f.truncate(6 << 30)
+    check_read = f"""
+        limit_as(2)
+        io0 = int(open("/proc/self/io").read().split("rchar: ")[1].split()[0])
+        try:
+            solid.Database.load(PATH)
+        finally:
+            io1 = int(open("/proc/self/io").read().split("rchar: ")[1].split()[0])
+            print("read", io1 - io0, "bytes", file=sys.stderr)
+            assert io1 - io0 < 1 << 20, f"read {{io1 - io0}} bytes of a file it had to refuse"
+    """
+    o = run(check_read.replace("PATH", repr(str(sparse))), timeout=120)
+    record(results, area, "load of a 6 GiB foreign (sparse) file, < 1 MiB read", package_error(o) and "not a SOLiD" in o.detail, o)
+    valid_head = tmp / "header-6g.soliddb"
+    run(f"open({str(valid_head)!r}, 'wb').write(small_db(1).to_bytes())")
+    with open(valid_head, "r+b") as f:
+        f.truncate(6 << 30)
+    o = run(check_read.replace("PATH", repr(str(valid_head))), timeout=120)
+    record(results, area, "load of a 6 GiB file with a 1-entry header, < 1 MiB read", package_error(o), o)
+    sparse.unlink()
+    valid_head.unlink()
+
+    corrupt = {
+        "reserved header word set (CRC recomputed)": "b = bytearray(small_db(3).to_bytes()); b[28:32] = struct.pack('<I', 7); solid.Database.from_bytes(recrc(b))",
+        "negative R-SOLiD value (CRC recomputed)": "db = small_db(3); b = bytearray(db.to_bytes()); o = 96 + 3 * 112; b[o:o+4] = struct.pack('<f', -1.0); solid.Database.from_bytes(recrc(b))",
+        "negative A-SOLiD value (CRC recomputed)": "db = small_db(3); b = bytearray(db.to_bytes()); o = len(b) - 8; b[o:o+4] = struct.pack('<f', -0.5); solid.Database.from_bytes(recrc(b))",
+        "infinite timestamp (CRC recomputed)": "b = bytearray(small_db(3).to_bytes()); b[104:112] = struct.pack('<d', float('inf')); solid.Database.from_bytes(recrc(b))",
+        "decode_place, negative value (CRC recomputed)": "b = bytearray(solid.encode_place(desc(1))); b[16:20] = struct.pack('<f', -2.0); solid.decode_place(recrc(b), cfg)",
+        "decode_place, negative quantised scale (CRC recomputed)": "b = bytearray(solid.encode_place(desc(1), quantized=True)); b[16:20] = struct.pack('<f', -2.0); solid.decode_place(recrc(b), cfg)",
+    }
+    for case, code in corrupt.items():
+        o = run(code)
+        record(results, area, case, package_error(o), o)
+    accepts = {
+        "decode_place(bytearray)": "d = desc(1); assert solid.decode_place(bytearray(solid.encode_place(d)), cfg).distance(d) < 1e-6",
+        "decode_place(memoryview)": "d = desc(1); assert solid.decode_place(memoryview(solid.encode_place(d)), cfg).distance(d) < 1e-6",
+        "Database.from_bytes(bytearray)": "db = small_db(3); assert len(solid.Database.from_bytes(bytearray(db.to_bytes()))) == 3",
+        "Database.from_bytes(memoryview)": "db = small_db(3); assert len(solid.Database.from_bytes(memoryview(db.to_bytes()))) == 3",
+    }
+    for case, code in accepts.items():
+        o = run(code)
+        record(results, area, case, o.kind == "ok", o)
+
+    # Disks that refuse the write: the old file stays whole, no temporary file is left.
+    limit = tmp / "fsize"
+    limit.mkdir()
+    o = run(
+        f"""
+        path = {str(limit / "map.soliddb")!r}
+        small_db(5).save(path)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (100_000, 100_000))
+        try:
+            small_db(400).save(path)
+        except OSError as e:
+            print("refused:", e)
+        else:
+            raise AssertionError("a 200 kB save under a 100 kB file size limit succeeded")
+        assert len(solid.Database.load(path)) == 5
+        assert os.listdir(os.path.dirname(path)) == ["map.soliddb"], os.listdir(os.path.dirname(path))
+        """
+    )
+    record(results, area, "save under ulimit -f (file size limit)", o.kind == "ok", o)
+    if os.geteuid() == 0:
+        for label, opts, remount in (("full disk (1 MiB tmpfs)", "size=1m", None), ("read-only file system", "size=64m", "remount,ro")):
+            mnt = tmp / f"mnt-{opts}"
+            mnt.mkdir()
+            if subprocess.run(["mount", "-t", "tmpfs", "-o", opts, "tmpfs", str(mnt)]).returncode != 0:
+                continue
+            try:
+                run(f"small_db(5).save({str(mnt / 'map.soliddb')!r})")
+                if remount:
+                    subprocess.run(["mount", "-o", remount, str(mnt)], check=True)
+                o = run(
+                    f"""
+                    path = {str(mnt / "map.soliddb")!r}
+                    try:
+                        small_db(3000).save(path)
+                    except OSError as e:
+                        print("refused:", e)
+                    else:
+                        raise AssertionError("the save succeeded")
+                    assert len(solid.Database.load(path)) == 5
+                    assert os.listdir(os.path.dirname(path)) == ["map.soliddb"], os.listdir(os.path.dirname(path))
+                    """
+                )
+                record(results, area, f"save on a {label}", o.kind == "ok", o)
+            finally:
+                subprocess.run(["umount", str(mnt)])
+
+
+# ---------------------------------------------------------------------------------------------
+# Item 8: API edges. Every case passes one bad value; handled cleanly = TypeError or a package
+# error (solid.SolidError and its subclasses, all ValueErrors); wrong = accepted, OverflowError,
+# plain ValueError, a panic.
+
+API_CASES: list[tuple[str, str]] = []
+
+
+def _api() -> None:
+    ints = {
+        "-1": "-1",
+        "2**64": "2**64",
+        "True": "True",
+    }
+    targets = {
+        "Database.search k={}": "small_db(3).search(desc(9), k={})",
+        "Database.search exclude_recent={}": "small_db(3).search(desc(9), exclude_recent={})",
+        "Database.add session={}": "solid.Database(cfg).add(desc(1), session={})",
+        "describe_batch threads={}": "solid.describe_batch([np.zeros((10, 3), np.float32)], cfg, threads={})",
+        "LoopDetector exclude_recent={}": "solid.LoopDetector(cfg, exclude_recent={})",
+        "LoopDetector top_k={}": "solid.LoopDetector(cfg, top_k={})",
+        "LoopDetector.from_database top_k={}": "solid.LoopDetector.from_database(small_db(2), top_k={})",
+        "LoopDetector.candidates k={}": "solid.LoopDetector(cfg).candidates(desc(1), k={})",
+        "DetectorConfig top_k={}": "solid.DetectorConfig(top_k={})",
+        "DetectorConfig exclude_frames={}": "solid.DetectorConfig(exclude_frames={})",
+        "SolidConfig.preset n_range={}": "solid.SolidConfig.preset('hdl64', n_range={})",
+        "SolidConfig n_elevation={}": "solid.SolidConfig(fov_up=2.0, fov_down=-24.8, n_elevation={})",
+        "Descriptor n_points={}": "d = desc(1); solid.Descriptor(d.r, d.a, cfg, n_points={})",
+        "sim.World seed={}": "sim.World(seed={})",
+        "sim.World blocks={}": "sim.World(blocks={})",
+        "sim.Sensor seed={}": "sim.Sensor('hdl64', seed={})",
+        "sim.Sensor points={}": "sim.Sensor('avia', points={})",
+        "sim.scan frame={}": "w = sim.World(seed=1); s = sim.Sensor('vlp16'); sim.scan(w, s, sim.Trajectory.loop(w).poses[0], frame={})",
+        "Sensor.n_rays frame={}": "sim.Sensor('vlp16').n_rays({})",
+        "Scores.recall_at n={}": "ev = solid.evaluation.evaluate_candidates('x', [1], [1], [[0]], [0.1], [0.1], [0.0], np.tile(np.eye(3, 4), (2, 1, 1)), radius=5.0); ev.scores.recall_at({})",
+    }
+    for name, code in targets.items():
+        for label, v in ints.items():
+            API_CASES.append((name.format(label), code.format(v)))
+    others = {
+        "Database.search not_newer_than=nan": "small_db(3).search(desc(9), not_newer_than=float('nan'))",
+        "Database.search method='x'": "small_db(3).search(desc(9), method='x')",
+        "Database.search with a negative R-SOLiD list": "small_db(3).search([-1.0] * cfg.n_range)",
+        "Database.add timestamp=inf": "solid.Database(cfg).add(desc(1), timestamp=float('inf'))",
+        "sim.World blocks=0": "sim.World(blocks=0)",
+        "sim.World block_pitch=nan": "sim.World(block_pitch=float('nan'))",
+        "sim.Sensor unknown name": "sim.Sensor('nope')",
+        "sim.Trajectory.from_waypoints spacing=0": "sim.Trajectory.from_waypoints(sim.World(seed=1), [(0, 0), (10, 0)], spacing=0.0)",
+        "sim.Trajectory.from_waypoints (K, 3) waypoints": "sim.Trajectory.from_waypoints(sim.World(seed=1), [(0, 0, 0), (10, 0, 0)])",
+        "sim.Trajectory poses of shape (2, 4, 4)": "sim.Trajectory(np.zeros((2, 4, 4)), np.zeros(2))",
+        "sim.scan pose of shape (2, 2)": "w = sim.World(seed=1); sim.scan(w, sim.Sensor('vlp16'), np.eye(2))",
+        "sim.Trajectory.spin heading=nan": "sim.Trajectory.spin(sim.World(seed=1), 0.0, 0.0, [float('nan')])",
+        "LoopDetector.from_database top_k=0": "solid.LoopDetector.from_database(small_db(2), top_k=0)",
+        "LoopDetector threshold=True": "solid.LoopDetector(cfg, threshold=True)",
+        "DetectorConfig threshold=nan": "solid.DetectorConfig(threshold=float('nan'))",
+        "SolidConfig.preset voxel_size=True": "solid.SolidConfig.preset('hdl64', voxel_size=True)",
+        "SolidConfig fov_up=True": "solid.SolidConfig(fov_up=True, fov_down=-24.8, n_elevation=64)",
+        "Database.add pose of 5 values": "solid.Database(cfg).add(desc(1), pose=[1.0] * 5)",
+        "Descriptor with a negative value": "d = desc(1); r = d.r.copy(); r[0] = -1; solid.Descriptor(r, d.a, cfg)",
+        "decode_place of 2 bytes": "solid.decode_place(b'SP', cfg)",
+        "decode_place of a str": "solid.decode_place('SP', cfg)",
+        "evaluate_candidates poses of shape (2, 4, 4)": "solid.evaluation.evaluate_candidates('x', [1], [1], [[0]], [0.1], [0.1], [0.0], np.zeros((2, 4, 4)), radius=5.0)",
+        "PipelineConfig radius=True": "solid.config.PipelineConfig.preset('hdl64', radius=True)",
+        "PipelineConfig input fov=True": "solid.config.PipelineConfig.preset('hdl64', input={'fov': True})",
+        "PipelineConfig detector top_k=-1": "solid.config.PipelineConfig.preset('hdl64', detector={'top_k': -1})",
+        "PipelineConfig descriptor n_range=2**70": "solid.config.PipelineConfig.preset('hdl64', descriptor={'n_range': 2**70})",
+    }
+    API_CASES.extend(others.items())
+
+
+_api()
+
+
+def api(results: Results) -> None:
+    area = "API edges (item 8)"
+    code = "import solid.evaluation, solid.config\nout = []\n"
+    for name, c in API_CASES:
+        code += textwrap.dedent(
+            f"""
+            try:
+                exec({c!r})
+            except BaseException as e:
+                out.append(({name!r}, "exc", type(e).__module__ + "." + type(e).__qualname__ + " | " + str(e)[:120]))
+            else:
+                out.append(({name!r}, "ok", "accepted"))
+            """
+        )
+    code += "import json; print('RESULT ok', json.dumps(out)); sys.stdout.flush(); os._exit(0)\n"
+    o = run(code, timeout=600)
+    if o.kind != "ok":
+        record(results, area, "all cases (the child died)", False, o)
+        return
+    for name, kind, detail in json.loads(o.detail):
+        oc = Outcome(kind, detail)
+        record(results, area, name, package_error(oc), oc)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--json", type=Path, help="write the per-case results here")
+    ap.add_argument("--quick", action="store_true", help="10 trials instead of 40 for the races and kills")
+    ap.add_argument("--only", choices=["allocation", "files", "api"], action="append")
+    a = ap.parse_args()
+    results: Results = {}
+    only = set(a.only or ["allocation", "files", "api"])
+    with tempfile.TemporaryDirectory(prefix="solid-audit-") as d:
+        tmp = Path(d)
+        if "api" in only:
+            api(results)
+        if "files" in only:
+            files(results, tmp, a.quick)
+        if "allocation" in only:
+            allocation(results, tmp)
+    print("\n| area | cases tried | handled cleanly | wrong |\n|---|---|---|---|")
+    for area, rows in results.items():
+        good = sum(ok for _, ok, _ in rows)
+        print(f"| {area} | {len(rows)} | {good} | {len(rows) - good} |")
+    wrong = [(area, c, d) for area, rows in results.items() for c, ok, d in rows if not ok]
+    if wrong:
+        print("\nwrong:")
+        for area, c, d in wrong:
+            print(f"- {area}: {c}: {d[:200]}")
+    if a.json:
+        a.json.write_text(json.dumps(results, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
