@@ -1,11 +1,11 @@
-//! Brute force, kd-tree build and query, and the online index allocate nothing: a counting
-//! global allocator sees zero allocations across them.
+//! Brute force, kd-tree build and query, the online index, the sketch and every plan of the index
+//! allocate nothing: a counting global allocator sees zero allocations across them.
 
 mod common;
 
 use solid_lidar::search::{
-    brute_force, normalize_rows, online_insert, online_rebuild, Exclude, KdTree, Neighbor,
-    OnlineIndex,
+    brute_force, normalize_rows, online_insert, online_rebuild, sketch_encode, sketch_len, Exclude,
+    Index, KdTree, Neighbor, OnlineIndex, Plan, Request,
 };
 
 #[global_allocator]
@@ -23,6 +23,9 @@ fn searches_allocate_nothing() {
     let mut out = vec![Neighbor::default(); 10];
     let mut out2 = vec![Neighbor::default(); 10];
     let times: Vec<f64> = (0..n).map(|i| i as f64).collect();
+    let (nc, np) = sketch_len(n, dim);
+    let (mut codes, mut params) = (vec![0u8; nc], vec![0f32; np]);
+    let mut outs = [[Neighbor::default(); 10]; 4];
 
     let before = common::allocations();
     normalize_rows(&raw, dim, &mut rows).unwrap();
@@ -41,6 +44,22 @@ fn searches_allocate_nothing() {
     let index = OnlineIndex::new(&rows, dim, &operm, &osplits).unwrap();
     let mut out3 = [Neighbor::default(); 10];
     index.search(q, 10, &ex, &mut out3).unwrap();
+    for k in 1..=n {
+        sketch_encode(&rows[..k * dim], dim, k - 1, &mut codes, &mut params).unwrap();
+    }
+    let index = Index::new(&rows, dim, &operm, &osplits, &codes, &params).unwrap();
+    for (plan, o) in [Plan::Brute, Plan::KdTree, Plan::Sketch, Plan::Auto]
+        .into_iter()
+        .zip(&mut outs)
+    {
+        let req = Request {
+            k: 10,
+            exclude: ex,
+            max_distance: 0.5,
+            plan,
+        };
+        index.search(q, &req, o).unwrap();
+    }
     let after = common::allocations();
 
     assert_eq!(after - before, 0, "the searches allocated");
@@ -48,4 +67,7 @@ fn searches_allocate_nothing() {
     assert_eq!(out[0].id, 17);
     assert_eq!(out, out2);
     assert_eq!(&out[..], &out3[..]);
+    for o in &outs {
+        assert_eq!(&out[..], &o[..]);
+    }
 }

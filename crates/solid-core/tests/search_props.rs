@@ -8,7 +8,8 @@ use common::{data_dir, read_xyz_f32};
 use proptest::prelude::*;
 use solid_lidar::search::{
     brute_force, normalize, normalize_rows, normalized_distance, online_insert, online_rebuild,
-    Exclude, KdTree, Neighbor, OnlineIndex,
+    sketch_encode, sketch_len, Cost, Exclude, Index, KdTree, Neighbor, OnlineIndex, Plan, Request,
+    Sketch,
 };
 use solid_lidar::{cosine_distance, Config, Describer, Points};
 
@@ -82,6 +83,70 @@ fn online(rows: &[f32], dim: usize, q: &[f32], k: usize, ex: &Exclude<'_>) -> Ve
     out
 }
 
+/// The sketch of `rows`, encoded in two steps (as a growing database would) when there are
+/// at least two rows.
+fn sketch_of(rows: &[f32], dim: usize) -> (Vec<u8>, Vec<f32>) {
+    let n = rows.len() / dim;
+    let (nc, np) = sketch_len(n, dim);
+    let (mut codes, mut params) = (vec![7u8; nc], vec![f32::NAN; np]);
+    let half = n / 2;
+    sketch_encode(&rows[..half * dim], dim, 0, &mut codes, &mut params).unwrap();
+    sketch_encode(rows, dim, half, &mut codes, &mut params).unwrap();
+    (codes, params)
+}
+
+fn sketch(rows: &[f32], dim: usize, q: &[f32], k: usize, ex: &Exclude<'_>) -> Vec<Neighbor> {
+    let (codes, params) = sketch_of(rows, dim);
+    let mut out = vec![Neighbor::default(); k];
+    let got = Sketch::new(rows, dim, &codes, &params)
+        .unwrap()
+        .search(q, k, ex, &mut out)
+        .unwrap();
+    out.truncate(got);
+    out
+}
+
+/// Every plan of the index, with and without a distance bound, against brute force cut at the
+/// bound; returns the work of the automatic plan without a bound.
+fn check_index(rows: &[f32], dim: usize, q: &[f32], k: usize, ex: &Exclude<'_>) -> Cost {
+    let n = rows.len() / dim;
+    let (mut perm, mut splits) = (vec![0u32; n], vec![0u16; n]);
+    online_rebuild(rows, dim, &mut perm, &mut splits).unwrap();
+    let (codes, params) = sketch_of(rows, dim);
+    let index = Index::new(rows, dim, &perm, &splits, &codes, &params).unwrap();
+    let b = brute(rows, dim, q, k, ex);
+    let mut auto_cost = Cost::default();
+    let mut bounds = vec![f32::INFINITY, 1.0, 0.0];
+    bounds.extend(b.iter().map(|nb| nb.distance));
+    bounds.extend(b.iter().map(|nb| nb.distance - 1e-7));
+    for (i, &max_distance) in bounds.iter().enumerate() {
+        let want: Vec<Neighbor> = b
+            .iter()
+            .copied()
+            .filter(|nb| nb.distance <= max_distance)
+            .collect();
+        for plan in [Plan::Brute, Plan::KdTree, Plan::Sketch, Plan::Auto] {
+            let req = Request {
+                k,
+                exclude: *ex,
+                max_distance,
+                plan,
+            };
+            let mut out = vec![Neighbor::default(); k + 1];
+            let found = index.search(q, &req, &mut out).unwrap();
+            assert_eq!(
+                &out[..found.len],
+                &want[..],
+                "{plan:?} with max_distance {max_distance}"
+            );
+            if plan == Plan::Auto && i == 0 {
+                auto_cost = found.cost;
+            }
+        }
+    }
+    auto_cost
+}
+
 /// Checks that every method agrees with brute force, and that brute force is right: sorted by
 /// (distance, id), the k smallest of all candidates.
 fn check_all(raw: &[f32], dim: usize, query_raw: &[f32], k: usize, ex: &Exclude<'_>) {
@@ -93,6 +158,12 @@ fn check_all(raw: &[f32], dim: usize, query_raw: &[f32], k: usize, ex: &Exclude<
     let o = online(&rows, dim, &q, k, ex);
     assert_eq!(b, t, "kd-tree differs from brute force");
     assert_eq!(b, o, "online index differs from brute force");
+    assert_eq!(
+        b,
+        sketch(&rows, dim, &q, k, ex),
+        "sketch differs from brute force"
+    );
+    check_index(&rows, dim, &q, k, ex);
     // Reference: sort all allowed candidates.
     let n = rows.len() / dim;
     let mut all: Vec<Neighbor> = (0..n)
@@ -312,4 +383,64 @@ proptest! {
         let n = raw.len() / dim;
         check_all(&raw, dim, &q, k, &Exclude::recent(n, recent));
     }
+}
+
+/// A seeded generator for the larger data sets below (splitmix64).
+struct Rng(u64);
+
+impl Rng {
+    fn unit(&mut self) -> f32 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        ((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32
+    }
+}
+
+/// `n` rows of `dim` values: copies of `places` random non-negative vectors, each value scaled by
+/// up to `1 ± noise`.
+fn places(n: usize, dim: usize, places: usize, noise: f32, rng: &mut Rng) -> Vec<f32> {
+    let base: Vec<f32> = (0..places * dim).map(|_| rng.unit()).collect();
+    let mut raw = Vec::with_capacity(n * dim);
+    for i in 0..n {
+        let p = (i * 7919) % places;
+        for d in 0..dim {
+            raw.push(base[p * dim + d] * (1.0 + noise * (2.0 * rng.unit() - 1.0)));
+        }
+    }
+    normed(&raw, dim)
+}
+
+#[test]
+fn auto_takes_each_path_and_stays_exact() {
+    let (n, dim) = (6000, 24);
+    let mut rng = Rng(12);
+    // Revisits: the query is a noisy copy of a stored place; the tree finishes within budget.
+    let rows = places(n, dim, 300, 0.05, &mut Rng(11));
+    let q = places(1, dim, 1, 0.0, &mut Rng(11));
+    for k in [1, 5] {
+        let cost = check_index(&rows, dim, &q, k, &Exclude::NONE);
+        assert!(cost.tree_rows > 0 && cost.sketch_rows == 0, "{cost:?}");
+    }
+    // A novel place among unstructured rows: the tree gives up and the sketch rules out almost
+    // every row from its bytes.
+    let rows = places(n, dim, n, 0.0, &mut rng);
+    let q = places(1, dim, 1, 0.0, &mut rng);
+    for k in [1, 5] {
+        let ex = Exclude::recent(n, 100);
+        let cost = check_index(&rows, dim, &q, k, &ex);
+        assert!(cost.tree_rows > 0, "{cost:?}");
+        assert_eq!(cost.sketch_rows, n - 100, "{cost:?}");
+        assert!(cost.exact_rows < n / 20, "{cost:?}");
+    }
+    // Near-duplicates: one place under 0.1 % noise, a query beside it; the bytes cannot tell the
+    // rows apart, so brute force takes over after the first check.
+    let rows = places(n, dim, 1, 1e-3, &mut Rng(13));
+    let q = places(1, dim, 1, 0.0, &mut Rng(13));
+    let cost = check_index(&rows, dim, &q, 3, &Exclude::NONE);
+    assert!(
+        cost.sketch_rows < n / 2 && cost.exact_rows >= n / 2,
+        "{cost:?}"
+    );
 }
