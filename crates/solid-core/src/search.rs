@@ -1,10 +1,11 @@
 //! Exact nearest-neighbour search over R-SOLiD vectors ([spec §3](crate::spec#3-comparing-descriptors)), allocation-free.
 //!
-//! Every search works on **L2-normalised** rows (see [`normalize`] and [`normalize_rows`]) stored
-//! row-major in one contiguous `&[f32]`, so that the cosine distance of [spec §3](crate::spec#3-comparing-descriptors) is
-//! `1 − q·c` and its order equals the Euclidean order (`‖q − c‖² = 2 − 2 q·c`). An all-zero
-//! vector stays all-zero after normalisation and is at distance 1 from everything, as [spec §3](crate::spec#3-comparing-descriptors)
-//! says. Distances are clamped into `[0, 1]`.
+//! Every search compares an L2-normalised query with **L2-normalised** rows ([`Rows`]: stored
+//! normalised, see [`normalize_rows`], or raw with the scale that normalises each, see
+//! [`inverse_norm`]), so that the cosine distance of [spec §3](crate::spec#3-comparing-descriptors) is `1 − q·c` and its order equals the
+//! Euclidean order (`‖q − c‖² = 2 − 2 q·c`). An all-zero vector stays all-zero after
+//! normalisation and is at distance 1 from everything, as [spec §3](crate::spec#3-comparing-descriptors) says. Distances are clamped
+//! into `[0, 1]`.
 //!
 //! Every search answers the same question and returns the same neighbours with the same
 //! distances, in the same order (ties broken by the lower id), because every distance that is
@@ -33,23 +34,27 @@
 //! lets every method skip more.
 //!
 //! ```
-//! use solid_lidar::search::{brute_force, normalize_rows, Exclude, KdTree, Neighbor};
+//! use solid_lidar::search::{brute_force, inverse_norm, normalize_rows, Exclude, KdTree, Neighbor, Rows};
 //!
 //! let raw = [1.0f32, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0, 0.0];
 //! let dim = 2;
-//! let mut rows = [0.0f32; 8];
-//! normalize_rows(&raw, dim, &mut rows).unwrap();
+//! let mut normed = [0.0f32; 8];
+//! normalize_rows(&raw, dim, &mut normed).unwrap();
+//! let rows = Rows::normalized(&normed, dim).unwrap();
 //! let query = [1.0f32, 0.0];
 //! let mut out = [Neighbor::default(); 2];
-//! let n = brute_force(&rows, dim, &query, 2, &Exclude::NONE, &mut out).unwrap();
+//! let n = brute_force(rows, &query, 2, &Exclude::NONE, &mut out).unwrap();
 //! assert_eq!(n, 2);
 //! assert_eq!((out[0].id, out[1].id), (0, 2)); // exact match, then 45°
 //!
+//! // The same rows kept raw, with a scale per row.
+//! let scale: Vec<f32> = raw.chunks(dim).map(|r| inverse_norm(r).unwrap()).collect();
+//! let raw_rows = Rows::scaled(&raw, dim, &scale).unwrap();
 //! let (mut perm, mut splits) = ([0u32; 4], [0u16; 4]);
-//! let tree = KdTree::build(&rows, dim, &mut perm, &mut splits).unwrap();
+//! let tree = KdTree::build(raw_rows, &mut perm, &mut splits).unwrap();
 //! let mut out2 = [Neighbor::default(); 2];
 //! tree.search(&query, 2, &Exclude::NONE, &mut out2).unwrap();
-//! assert_eq!(out, out2);
+//! assert_eq!((out2[0].id, out2[1].id), (0, 2));
 //! ```
 
 use crate::Error;
@@ -58,8 +63,8 @@ mod index;
 mod kdtree;
 mod sketch;
 
-pub use index::{Cost, Found, Index, Plan, Request};
-pub use kdtree::{online_insert, online_rebuild, KdTree, OnlineIndex, LEAF_SIZE};
+pub use index::{Cost, Found, Index, Observed, Plan, Request, AUTO_MISSES, AUTO_RETRY_EVERY};
+pub use kdtree::{online_extend, online_insert, online_rebuild, KdTree, OnlineIndex, LEAF_SIZE};
 pub use sketch::{sketch_encode, sketch_len, Sketch, SKETCH_BLOCK};
 
 /// One search result: an entry's id and its cosine distance to the query.
@@ -216,16 +221,6 @@ fn dist(q: &[f32], c: &[f32]) -> f32 {
     clamp_distance(1.0 - dot(q, c))
 }
 
-/// The distances of the query to the four consecutive rows of `group` (`4 × dim` values),
-/// each exactly as [`dist`] computes it; four independent dot products in flight at once.
-#[inline(always)]
-fn dist4(q: &[f32], group: &[f32], dim: usize) -> [f32; 4] {
-    let (r0, rest) = group.split_at(dim);
-    let (r1, rest) = rest.split_at(dim);
-    let (r2, r3) = rest.split_at(dim);
-    [dist(q, r0), dist(q, r1), dist(q, r2), dist(q, r3)]
-}
-
 /// Clamps a distance into `[0, 1]`; NaN counts as 1.
 #[inline(always)]
 fn clamp_distance(d: f32) -> f32 {
@@ -276,6 +271,269 @@ fn n_rows(rows: &[f32], dim: usize) -> Result<usize, Error> {
         });
     }
     Ok(n)
+}
+
+/// The vectors a search compares: `n` rows of `dim` values, row-major, id = row index. Either
+/// L2-normalised already ([`Rows::normalized`]) or raw with a scale per row that normalises them
+/// ([`Rows::scaled`], with [`inverse_norm`]): a store that must give back the vectors exactly as
+/// they were added keeps one copy, not a raw and a normalised one.
+///
+/// The distance to a normalised query `q` is `1 − q·c` clamped into `[0, 1]`, with
+/// `q·c = dot(q, row)` for normalised rows and `dot(q, row) × scale` for scaled ones, the dot
+/// product always summed in the same order ([`normalized_distance`]).
+#[derive(Debug, Clone, Copy)]
+pub struct Rows<'a> {
+    data: &'a [f32],
+    dim: usize,
+    n: usize,
+    scale: Option<&'a [f32]>,
+}
+
+impl<'a> Rows<'a> {
+    /// L2-normalised rows (see [`normalize_rows`]).
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] for a `dim` that is 0, above 65535 or does not divide
+    /// `data.len()`, or for more than `u32::MAX` rows.
+    pub fn normalized(data: &'a [f32], dim: usize) -> Result<Rows<'a>, Error> {
+        Ok(Rows {
+            data,
+            dim,
+            n: n_rows(data, dim)?,
+            scale: None,
+        })
+    }
+
+    /// Raw rows, compared as `row × scale[i]` (`scale[i]` = [`inverse_norm`] of row `i`; only the
+    /// first `data.len() / dim` scales are used).
+    ///
+    /// # Errors
+    /// As [`Rows::normalized`]; [`Error::BufferTooSmall`] when `scale` has fewer values than
+    /// there are rows.
+    pub fn scaled(data: &'a [f32], dim: usize, scale: &'a [f32]) -> Result<Rows<'a>, Error> {
+        let n = n_rows(data, dim)?;
+        if scale.len() < n {
+            return Err(Error::BufferTooSmall {
+                buffer: "scale",
+                needed: n,
+                got: scale.len(),
+            });
+        }
+        Ok(Rows {
+            data,
+            dim,
+            n,
+            scale: Some(&scale[..n]),
+        })
+    }
+
+    /// Number of rows.
+    pub fn len(&self) -> usize {
+        self.n
+    }
+
+    /// `true` when there is no row.
+    pub fn is_empty(&self) -> bool {
+        self.n == 0
+    }
+
+    /// Values per row.
+    pub fn dim(&self) -> usize {
+        self.dim
+    }
+
+    /// The first `n` rows (all of them when `n` is larger).
+    pub fn prefix(&self, n: usize) -> Rows<'a> {
+        let n = n.min(self.n);
+        Rows {
+            data: &self.data[..n * self.dim],
+            dim: self.dim,
+            n,
+            scale: self.scale.map(|s| &s[..n]),
+        }
+    }
+
+    /// The distance of the L2-normalised `query` to every row, into `out[..len()]`: the distances
+    /// every search computes.
+    ///
+    /// # Errors
+    /// [`Error::LengthMismatch`] when `query.len()` differs from `dim`;
+    /// [`Error::BufferTooSmall`] when `out` is shorter than the rows.
+    pub fn distances(&self, query: &[f32], out: &mut [f32]) -> Result<(), Error> {
+        check_query(query, self.dim)?;
+        if out.len() < self.n {
+            return Err(Error::BufferTooSmall {
+                buffer: "out",
+                needed: self.n,
+                got: out.len(),
+            });
+        }
+        for (i, o) in out[..self.n].iter_mut().enumerate() {
+            *o = self.dist(query, i);
+        }
+        Ok(())
+    }
+
+    /// Row `i` as stored.
+    #[inline(always)]
+    fn row(&self, i: usize) -> &'a [f32] {
+        &self.data[i * self.dim..(i + 1) * self.dim]
+    }
+
+    /// Value `d` of normalised row `i`.
+    #[inline(always)]
+    fn coord(&self, i: usize, d: usize) -> f32 {
+        let v = self.data[i * self.dim + d];
+        match self.scale {
+            Some(s) => v * s[i],
+            None => v,
+        }
+    }
+
+    /// Value `d` of normalised row `i` without rounding (the product of two `f32` is exact in
+    /// `f64`).
+    #[inline(always)]
+    fn exact_coord(&self, i: usize, d: usize) -> f64 {
+        let v = f64::from(self.data[i * self.dim + d]);
+        match self.scale {
+            Some(s) => v * f64::from(s[i]),
+            None => v,
+        }
+    }
+
+    /// The distance of the normalised query to row `i`.
+    #[inline(always)]
+    fn dist(&self, q: &[f32], i: usize) -> f32 {
+        match self.scale {
+            Some(s) => clamp_distance(1.0 - dot(q, self.row(i)) * s[i]),
+            None => dist(q, self.row(i)),
+        }
+    }
+
+    /// The distances of the normalised query to rows `i..i + 4`, from their dot products as
+    /// `dot4` computes them (summed exactly as [`dot`] sums them), clamped as [`dist`] clamps.
+    #[inline(always)]
+    fn dist4(
+        &self,
+        q: &[f32],
+        i: usize,
+        dist4: impl Fn(&[f32], &[f32], usize, [f32; 4]) -> [f32; 4],
+    ) -> [f32; 4] {
+        let dim = self.dim;
+        let scale = match self.scale {
+            Some(s) => [s[i], s[i + 1], s[i + 2], s[i + 3]],
+            None => [1.0; 4],
+        };
+        dist4(q, &self.data[i * dim..(i + 4) * dim], dim, scale)
+    }
+}
+
+/// The distances of `q` to the four consecutive rows of `group` (`4 × dim` values), the rows
+/// multiplied by `scale`: each exactly `clamp(1 − dot × scale)` (a scale of 1 changes nothing).
+#[inline(always)]
+fn dist4(q: &[f32], group: &[f32], dim: usize, scale: [f32; 4]) -> [f32; 4] {
+    let (r0, rest) = group.split_at(dim);
+    let (r1, rest) = rest.split_at(dim);
+    let (r2, r3) = rest.split_at(dim);
+    let dots = [dot(q, r0), dot(q, r1), dot(q, r2), dot(q, r3)];
+    core::array::from_fn(|j| clamp_distance(1.0 - dots[j] * scale[j]))
+}
+
+/// [`dist4`] with AVX2 registers: each row's eight lanes in one 256-bit register, the four rows'
+/// lanes summed together by shuffles with the same additions in the same order as [`dot`], then
+/// scaled, subtracted and clamped four at a time (so the same bits; `tests/search_props.rs`
+/// compares them). Loads go through `bytemuck`, so nothing here is `unsafe`.
+#[cfg(all(feature = "std", target_arch = "x86_64"))]
+mod avx2 {
+    use core::arch::x86_64::{
+        __m128, __m256, _mm256_add_ps, _mm256_castps256_ps128, _mm256_extractf128_ps,
+        _mm256_mul_ps, _mm256_setzero_ps, _mm_add_ps, _mm_hadd_ps, _mm_max_ps, _mm_min_ps,
+        _mm_mul_ps, _mm_set1_ps, _mm_setzero_ps, _mm_sub_ps,
+    };
+
+    #[inline(always)]
+    fn load(s: &[f32]) -> __m256 {
+        let s: &[f32; 8] = s.try_into().unwrap_or(&[0.0; 8]);
+        bytemuck::cast(*s)
+    }
+
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub(super) fn dist4(q: &[f32], group: &[f32], dim: usize, scale: [f32; 4]) -> [f32; 4] {
+        let whole = dim / 8 * 8;
+        let (r0, rest) = group.split_at(dim);
+        let (r1, rest) = rest.split_at(dim);
+        let (r2, r3) = rest.split_at(dim);
+        let mut acc = [_mm256_setzero_ps(); 4];
+        let chunks = q
+            .chunks_exact(8)
+            .zip(r0.chunks_exact(8))
+            .zip(r1.chunks_exact(8))
+            .zip(r2.chunks_exact(8))
+            .zip(r3.chunks_exact(8));
+        for ((((qq, c0), c1), c2), c3) in chunks {
+            let qq = load(qq);
+            for (a, c) in acc.iter_mut().zip([c0, c1, c2, c3]) {
+                *a = _mm256_add_ps(*a, _mm256_mul_ps(qq, load(c)));
+            }
+        }
+        // Per row: (a0 + a4, a1 + a5, a2 + a6, a3 + a7), then ((x0 + x1) + (x2 + x3)).
+        let halves: [__m128; 4] = core::array::from_fn(|j| {
+            _mm_add_ps(
+                _mm256_castps256_ps128(acc[j]),
+                _mm256_extractf128_ps::<1>(acc[j]),
+            )
+        });
+        let mut dots = _mm_hadd_ps(
+            _mm_hadd_ps(halves[0], halves[1]),
+            _mm_hadd_ps(halves[2], halves[3]),
+        );
+        if whole < dim {
+            let mut tails = [0.0f32; 4];
+            for (j, t) in tails.iter_mut().enumerate() {
+                for d in whole..dim {
+                    *t += q[d] * group[j * dim + d];
+                }
+            }
+            dots = _mm_add_ps(dots, bytemuck::cast(tails));
+        }
+        let one = _mm_set1_ps(1.0);
+        let d = _mm_sub_ps(one, _mm_mul_ps(dots, bytemuck::cast(scale)));
+        // `min` returns its second operand for a NaN (a distance of 1, as `clamp_distance`);
+        // `max(0, x)` returns x for x = ±0 (keeping the sign of a zero, as the scalar clamp).
+        bytemuck::cast(_mm_max_ps(_mm_setzero_ps(), _mm_min_ps(d, one)))
+    }
+}
+
+/// `1 / ‖v‖₂` (computed in `f64`), the scale that normalises `v` in [`Rows::scaled`]; 0 for an
+/// all-zero vector (which is then at distance 1 from everything).
+///
+/// # Errors
+/// [`Error::InvalidParameter`] (name `descriptor`) when `v` holds a NaN or infinite value.
+pub fn inverse_norm(v: &[f32]) -> Result<f32, Error> {
+    let mut sum = 0.0f64;
+    for &x in v {
+        sum += f64::from(x) * f64::from(x);
+    }
+    // Squares of finite `f32` values cannot overflow an `f64` sum: a non-finite sum means a
+    // non-finite value.
+    if !sum.is_finite() {
+        let bad = v
+            .iter()
+            .find(|x| !x.is_finite())
+            .copied()
+            .unwrap_or(f32::NAN);
+        return Err(Error::InvalidParameter {
+            name: "descriptor",
+            value: f64::from(bad),
+            expected: "finite values",
+        });
+    }
+    Ok(if sum == 0.0 {
+        0.0
+    } else {
+        (1.0 / libm::sqrt(sum)) as f32
+    })
 }
 
 fn check_query(query: &[f32], dim: usize) -> Result<(), Error> {
@@ -400,39 +658,33 @@ fn sift_down(h: &mut [Neighbor], mut i: usize, len: usize) {
 
 /// Exact k-NN by one linear pass over all rows.
 ///
-/// `rows` holds L2-normalised vectors of `dim` values, row-major; the id of a row is its index.
-/// `query` must be L2-normalised too (see [`normalize`]). The `min(k, candidates)` nearest
-/// neighbours are written to `out[..]` nearest first (ties by lower id) and their number is
-/// returned.
+/// `query` must be L2-normalised (see [`normalize`]). The `min(k, candidates)` nearest rows
+/// are written to `out[..]` nearest first (ties by lower id) and their number is returned.
 ///
 /// # Errors
-/// [`Error::InvalidParameter`] for a `dim` that is 0, above 65535 or does not divide
-/// `rows.len()`; [`Error::LengthMismatch`] when `query.len() != dim` or the timestamps of
-/// `exclude` are fewer than the rows; [`Error::BufferTooSmall`] when `out.len() < k`.
+/// [`Error::LengthMismatch`] when `query.len()` differs from the rows' dimension or the
+/// timestamps of `exclude` are fewer than the rows; [`Error::BufferTooSmall`] when
+/// `out.len() < k`.
 pub fn brute_force(
-    rows: &[f32],
-    dim: usize,
+    rows: Rows<'_>,
     query: &[f32],
     k: usize,
     exclude: &Exclude<'_>,
     out: &mut [Neighbor],
 ) -> Result<usize, Error> {
-    let n = n_rows(rows, dim)?;
-    check_query(query, dim)?;
+    check_query(query, rows.dim)?;
     check_out(out, k)?;
-    exclude.check(n)?;
+    exclude.check(rows.n)?;
     let mut best = Best::new(&mut out[..k]);
-    scan(rows, dim, 0, n, query, exclude, f32::INFINITY, &mut best);
+    scan(rows, 0, rows.n, query, exclude, f32::INFINITY, &mut best);
     Ok(best.finish())
 }
 
 /// Offers the allowed ids of `lo..hi` whose distance is at most `bound` to `best`, computing
 /// every distance (with AVX2 when `std` detects it: the same operations, so the same bits).
 #[inline]
-#[allow(clippy::too_many_arguments)]
 fn scan(
-    rows: &[f32],
-    dim: usize,
+    rows: Rows<'_>,
     lo: usize,
     hi: usize,
     query: &[f32],
@@ -445,17 +697,15 @@ fn scan(
         #[allow(unsafe_code)]
         // SAFETY: the CPU supports AVX2 (checked just above), the only requirement for calling a
         // function compiled with `#[target_feature(enable = "avx2")]`.
-        return unsafe { scan_avx2(rows, dim, lo, hi, query, exclude, bound, best) };
+        return unsafe { scan_avx2(rows, lo, hi, query, exclude, bound, best) };
     }
-    scan_impl(rows, dim, lo, hi, query, exclude, bound, best)
+    scan_impl(rows, lo, hi, query, exclude, bound, best, dist4)
 }
 
 #[cfg(all(feature = "std", target_arch = "x86_64"))]
 #[target_feature(enable = "avx2")]
-#[allow(clippy::too_many_arguments)]
 fn scan_avx2(
-    rows: &[f32],
-    dim: usize,
+    rows: Rows<'_>,
     lo: usize,
     hi: usize,
     query: &[f32],
@@ -463,27 +713,30 @@ fn scan_avx2(
     bound: f32,
     best: &mut Best<'_>,
 ) {
-    scan_impl(rows, dim, lo, hi, query, exclude, bound, best)
+    scan_impl(rows, lo, hi, query, exclude, bound, best, |q, g, d, s| {
+        avx2::dist4(q, g, d, s)
+    })
 }
 
-/// The body of [`scan`], inlined into each of its compiled copies: four rows at a time, and a
-/// row is offered only when its distance is within the current limit.
+/// The body of [`scan`], inlined into each of its compiled copies: four rows at a time (their
+/// distances from `dist4`), and a row is offered only when its distance is within the current
+/// limit.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn scan_impl(
-    rows: &[f32],
-    dim: usize,
+    rows: Rows<'_>,
     lo: usize,
     hi: usize,
     query: &[f32],
     exclude: &Exclude<'_>,
     bound: f32,
     best: &mut Best<'_>,
+    dist4: impl Fn(&[f32], &[f32], usize, [f32; 4]) -> [f32; 4],
 ) {
     if best.heap.is_empty() {
         return;
     }
-    let hi = hi.min(exclude.before_id);
+    let hi = hi.min(exclude.before_id).min(rows.n);
     if lo >= hi {
         return;
     }
@@ -499,11 +752,9 @@ fn scan_impl(
         });
         *limit = best.limit(bound);
     };
-    let block = &rows[lo * dim..hi * dim];
-    let mut groups = block.chunks_exact(4 * dim);
     let mut id = lo;
-    for g in &mut groups {
-        let d = dist4(query, g, dim);
+    while id + 4 <= hi {
+        let d = rows.dist4(query, id, &dist4);
         if d[0].min(d[1]).min(d[2].min(d[3])) <= limit {
             for (j, &dj) in d.iter().enumerate() {
                 if dj <= limit {
@@ -513,8 +764,8 @@ fn scan_impl(
         }
         id += 4;
     }
-    for row in groups.remainder().chunks_exact(dim) {
-        let d = dist(query, row);
+    while id < hi {
+        let d = rows.dist(query, id);
         if d <= limit {
             offer(id, d, &mut limit);
         }
@@ -549,7 +800,8 @@ mod tests {
     fn zero_vectors_are_at_distance_one() {
         let rows = [0.0f32, 0.0, 1.0, 0.0];
         let mut out = [Neighbor::default(); 2];
-        let n = brute_force(&rows, 2, &[0.0, 0.0], 2, &Exclude::NONE, &mut out).unwrap();
+        let rows = Rows::normalized(&rows, 2).unwrap();
+        let n = brute_force(rows, &[0.0, 0.0], 2, &Exclude::NONE, &mut out).unwrap();
         assert_eq!(n, 2);
         assert_eq!(
             out[0],

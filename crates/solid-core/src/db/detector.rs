@@ -6,6 +6,7 @@
 //! returns its ranked [`Candidate`]s, so that an evaluation scores exactly what the detector
 //! decided ([`crate::eval`]).
 
+use alloc::vec;
 use alloc::vec::Vec;
 
 use super::database::check_pose;
@@ -510,16 +511,18 @@ impl LoopDetector {
             &SearchOptions {
                 k,
                 exclude_recent: self.db.len() - eligible,
-                not_newer_than: None,
                 method: Method::Auto,
+                ..SearchOptions::default()
             },
         )?;
         let mut ranked = Vec::new();
         ranked
             .try_reserve_exact(found.len())
             .map_err(|_| DbError::OutOfMemory)?;
+        let mut ca = vec![0.0f32; na];
         for nb in found {
-            let ca = self.db.a(nb.id);
+            self.db.a_into(nb.id, &mut ca);
+            let ca = &ca[..];
             let distance = f64::from(nb.distance);
             let key = if self.config.rerank {
                 distance + aligned_distance(a, ca)?

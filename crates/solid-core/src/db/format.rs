@@ -20,11 +20,9 @@
 
 use alloc::format;
 use alloc::string::String;
-use alloc::vec;
 use alloc::vec::Vec;
 
 use super::{Database, DbError};
-use crate::search;
 use crate::Config;
 
 impl Database {
@@ -32,8 +30,8 @@ impl Database {
     pub fn to_bytes(&self) -> Vec<u8> {
         let n = self.len();
         let c = &self.config;
-        let mut out =
-            Vec::with_capacity(HEADER_LEN + n * ENTRY_LEN + (self.r.len() + self.a.len()) * 4 + 4);
+        let (nr, na) = (c.n_range, c.n_azimuth);
+        let mut out = Vec::with_capacity(HEADER_LEN + n * ENTRY_LEN + n * (nr + na) * 4 + 4);
         out.extend_from_slice(&MAGIC);
         out.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
         out.extend_from_slice(&0u32.to_le_bytes());
@@ -47,8 +45,8 @@ impl Database {
         out.extend_from_slice(&(n as u64).to_le_bytes());
         for i in 0..n {
             out.extend_from_slice(&self.sessions[i].to_le_bytes());
-            let (flags, pose) = match &self.poses[i] {
-                Some(p) => (1u32, *p),
+            let (flags, pose) = match self.pose(i as u32) {
+                Some(p) => (1u32, p),
                 None => (0u32, [0.0; 12]),
             };
             out.extend_from_slice(&flags.to_le_bytes());
@@ -57,7 +55,7 @@ impl Database {
                 out.extend_from_slice(&v.to_le_bytes());
             }
         }
-        for v in self.r.iter().chain(&self.a) {
+        for v in self.r_all().iter().chain(&self.a_all()) {
             out.extend_from_slice(&v.to_le_bytes());
         }
         let crc = crc32(&out);
@@ -166,32 +164,32 @@ impl Database {
         }
         let n = count as usize;
         let mut db = Database::new(config)?;
-        db.sessions.reserve_exact(n);
-        db.timestamps.reserve_exact(n);
-        db.poses.reserve_exact(n);
+        let (mut sessions, mut timestamps, mut poses) = (Vec::new(), Vec::new(), Vec::new());
+        sessions.reserve_exact(n);
+        timestamps.reserve_exact(n);
         for i in 0..n {
-            db.sessions.push(rd.u32());
+            sessions.push(rd.u32());
             let eflags = rd.u32();
-            db.timestamps.push(rd.f64());
+            timestamps.push(rd.f64());
             let mut pose = [0.0; 12];
             for v in &mut pose {
                 *v = rd.f64();
             }
             match eflags {
-                0 => db.poses.push(None),
+                0 => {}
                 1 => {
                     if pose.iter().any(|v| !v.is_finite()) {
                         return Err(bad(format!("entry {i}: non-finite pose")));
                     }
-                    db.poses.push(Some(pose));
+                    poses.push((i as u32, pose));
                 }
                 _ => return Err(bad(format!("entry {i}: unknown flags {eflags:#x}"))),
             }
         }
         let (nr, na) = (config.n_range, config.n_azimuth);
-        db.r = (0..n * nr).map(|_| rd.f32()).collect();
-        db.a = (0..n * na).map(|_| rd.f32()).collect();
-        if let Some(p) = db.r.iter().chain(&db.a).position(|v| !v.is_finite()) {
+        let r: Vec<f32> = (0..n * nr).map(|_| rd.f32()).collect();
+        let a: Vec<f32> = (0..n * na).map(|_| rd.f32()).collect();
+        if let Some(p) = r.iter().chain(&a).position(|v| !v.is_finite()) {
             let (which, entry) = if p < n * nr {
                 ("R-SOLiD", p / nr)
             } else {
@@ -201,11 +199,7 @@ impl Database {
                 "entry {entry}: non-finite value in its {which}"
             )));
         }
-        db.normed = vec![0.0; n * nr];
-        search::normalize_rows(&db.r, nr, &mut db.normed)?;
-        db.perm = (0..n as u32).collect();
-        db.splits = vec![0; n];
-        search::online_rebuild(&db.normed, nr, &mut db.perm, &mut db.splits)?;
+        db.load_entries(&r, &a, sessions, timestamps, poses)?;
         Ok(db)
     }
 

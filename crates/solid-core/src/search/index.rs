@@ -1,7 +1,9 @@
 //! The index that holds every search over the same rows, and the automatic choice among them.
 
+use core::sync::atomic::{AtomicU32, Ordering::Relaxed};
+
 use super::kdtree::{Walk, MAX_OFFSET_DIM};
-use super::{check_out, check_query, scan, Best, Exclude, Neighbor, OnlineIndex, Sketch};
+use super::{check_out, check_query, scan, Best, Exclude, Neighbor, OnlineIndex, Rows, Sketch};
 use crate::Error;
 
 /// How [`Index::search`] finds the neighbours. Every plan returns the same results.
@@ -33,6 +35,9 @@ pub struct Request<'a> {
     pub max_distance: f32,
     /// How to search.
     pub plan: Plan,
+    /// What [`Plan::Auto`] saw on earlier queries of the same rows (`None`: every query on its
+    /// own).
+    pub observed: Option<&'a Observed>,
 }
 
 impl Request<'_> {
@@ -43,9 +48,65 @@ impl Request<'_> {
             exclude: Exclude::NONE,
             max_distance: f32::INFINITY,
             plan: Plan::Auto,
+            observed: None,
         }
     }
 }
+
+/// What [`Plan::Auto`] has seen on the earlier queries of one set of rows: a step that failed
+/// on [`AUTO_MISSES`] queries in a row (the kd-tree running out of budget, the sketch giving up)
+/// is skipped, and tried again on every [`AUTO_RETRY_EVERY`]th query. Keep one per database;
+/// threads may share it (the counts are loaded and stored, not locked: two threads updating at
+/// once may lose a count, which only delays a skip).
+#[derive(Debug, Default)]
+pub struct Observed {
+    queries: AtomicU32,
+    tree_misses: AtomicU32,
+    sketch_misses: AtomicU32,
+}
+
+impl Observed {
+    /// Nothing observed yet.
+    pub const fn new() -> Self {
+        Observed {
+            queries: AtomicU32::new(0),
+            tree_misses: AtomicU32::new(0),
+            sketch_misses: AtomicU32::new(0),
+        }
+    }
+
+    /// Whether to try the kd-tree and the sketch on the next query (and counts the query).
+    fn plan(&self) -> (bool, bool) {
+        let q = self.queries.load(Relaxed);
+        self.queries.store(q.wrapping_add(1), Relaxed);
+        let retry = q % AUTO_RETRY_EVERY == 0;
+        (
+            retry || self.tree_misses.load(Relaxed) < AUTO_MISSES,
+            retry || self.sketch_misses.load(Relaxed) < AUTO_MISSES,
+        )
+    }
+
+    fn record(count: &AtomicU32, hit: bool) {
+        let v = if hit {
+            0
+        } else {
+            count.load(Relaxed).saturating_add(1)
+        };
+        count.store(v, Relaxed);
+    }
+}
+
+impl Clone for Observed {
+    /// A fresh record: what one set of rows showed says nothing about a copy that changes.
+    fn clone(&self) -> Self {
+        Observed::new()
+    }
+}
+
+/// [`Observed`] skips a step after this many failures in a row...
+pub const AUTO_MISSES: u32 = 4;
+/// ...and tries it again on every this-many-th query.
+pub const AUTO_RETRY_EVERY: u32 = 16;
 
 /// The work a search did, by kind (for benchmarks and for callers that tune their plan).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -73,57 +134,72 @@ const AUTO_BRUTE_BELOW: usize = 256;
 
 /// The kd-tree's budget under [`Plan::Auto`]: it may compute the distances of
 /// `candidates / AUTO_TREE_SHARE + AUTO_TREE_PER_K · k + AUTO_TREE_BASE` rows, and never more than
-/// `candidates / AUTO_TREE_MAX_SHARE`. A distance in the tree costs 10–30 rows of the sketch (a
-/// jump to another row: more as the rows outgrow the caches), so a fruitless walk adds at most
-/// about a quarter to the sketch's pass. Measured on realistic databases
+/// `candidates / AUTO_TREE_MAX_SHARE`. A distance in the tree costs 10–30 rows of the sketch and
+/// 5–10 of brute force (a jump to another row: more as the rows outgrow the caches), so a
+/// fruitless walk adds at most about a quarter to the sketch's pass. Measured on realistic databases
 /// (`benches/benches/search.rs`): queries near stored places need a median of 400–1,000 rows
 /// for k = 1 at 10k to 1M entries, and 2.5 times that for k = 10.
 const AUTO_TREE_SHARE: usize = 128;
 const AUTO_TREE_PER_K: usize = 64;
 const AUTO_TREE_BASE: usize = 256;
-const AUTO_TREE_MAX_SHARE: usize = 16;
+const AUTO_TREE_MAX_SHARE: usize = 32;
 
-/// Every search over one set of L2-normalised rows: brute force, the online kd-tree index and the
-/// sketch, viewing caller-owned buffers (see [`OnlineIndex`] and [`Sketch`]).
+/// Every search over one set of rows: brute force, the online kd-tree index and the sketch,
+/// viewing caller-owned buffers (see [`OnlineIndex`] and [`Sketch`]). The kd-tree may cover only
+/// the first rows (a store that adds many rows at once can build it later): the rows beyond it
+/// are searched through the sketch or by brute force, so every plan stays exact.
 #[derive(Debug, Clone, Copy)]
 pub struct Index<'a> {
     tree: OnlineIndex<'a>,
     sketch: Sketch<'a>,
-    rows: &'a [f32],
-    dim: usize,
+    rows: Rows<'a>,
 }
 
 impl<'a> Index<'a> {
-    /// Views the online index (`perm`, `splits`, as [`online_insert`](super::online_insert)
-    /// maintains them) and the sketch (`codes`, `params`, as
-    /// [`sketch_encode`](super::sketch_encode) fills them) of every row of `rows`.
+    /// Views the online index of the first `perm.len()` rows (`perm`, `splits`, as
+    /// [`online_insert`](super::online_insert) maintains them) and the sketch of every row
+    /// (`codes`, `params`, as [`sketch_encode`](super::sketch_encode) fills them).
     ///
     /// # Errors
-    /// As [`OnlineIndex::new`] and [`Sketch::new`].
+    /// [`Error::LengthMismatch`] when `perm` and `splits` differ in length;
+    /// [`Error::InvalidParameter`] (name `perm`) when they are longer than the rows; as
+    /// [`Sketch::new`] otherwise.
     pub fn new(
-        rows: &'a [f32],
-        dim: usize,
+        rows: Rows<'a>,
         perm: &'a [u32],
         splits: &'a [u16],
         codes: &'a [u8],
         params: &'a [f32],
     ) -> Result<Index<'a>, Error> {
+        if perm.len() != splits.len() {
+            return Err(Error::LengthMismatch {
+                what: "perm vs splits",
+                left: perm.len(),
+                right: splits.len(),
+            });
+        }
+        if perm.len() > rows.len() {
+            return Err(Error::InvalidParameter {
+                name: "perm",
+                value: perm.len() as f64,
+                expected: "an online index of at most the rows",
+            });
+        }
         Ok(Index {
-            tree: OnlineIndex::new(rows, dim, perm, splits)?,
-            sketch: Sketch::new(rows, dim, codes, params)?,
+            tree: OnlineIndex::new(rows.prefix(perm.len()), perm, splits)?,
+            sketch: Sketch::new(rows, codes, params)?,
             rows,
-            dim,
         })
     }
 
     /// Number of entries.
     pub fn len(&self) -> usize {
-        self.sketch.len()
+        self.rows.len()
     }
 
     /// `true` when the index holds no entry.
     pub fn is_empty(&self) -> bool {
-        self.sketch.is_empty()
+        self.rows.is_empty()
     }
 
     /// Exact k-NN of the L2-normalised `query`: the `min(k, candidates)` nearest allowed entries
@@ -132,11 +208,13 @@ impl<'a> Index<'a> {
     ///
     /// [`Plan::Auto`] computes every distance below 256 candidates or when `k` is above an
     /// eighth of them. Otherwise it walks the kd-tree until it has computed about
-    /// `candidates / 128 + 64 k + 256` distances (at most a sixteenth of the candidates): queries
-    /// near stored places end there. If the walk did not finish, the sketch scans every
-    /// candidate, ruling out rows farther than the walk's k-th distance so far; and if a quarter
-    /// of the rows scanned still need their exact distance (rows too alike for the bytes to tell
-    /// apart), brute force takes the rest.
+    /// `candidates / 128 + 64 k + 256` distances (at most a 32nd of the candidates): queries near
+    /// stored places end there. If the walk did not finish, the sketch scans every candidate,
+    /// ruling out rows farther than the walk's k-th distance so far; and if an eighth of the rows
+    /// scanned still need their exact distance (rows too alike for the bytes to tell apart),
+    /// brute force takes the rest. Rows beyond the kd-tree go through the sketch (with the same
+    /// fallback) after a finished walk; [`Plan::KdTree`] computes their distances. With
+    /// [`Request::observed`], a step that keeps failing is skipped ([`Observed`]).
     ///
     /// # Errors
     /// [`Error::LengthMismatch`] when `query.len()` differs from the rows' dimension or the
@@ -148,7 +226,7 @@ impl<'a> Index<'a> {
         req: &Request<'_>,
         out: &mut [Neighbor],
     ) -> Result<Found, Error> {
-        check_query(query, self.dim)?;
+        check_query(query, self.rows.dim())?;
         check_out(out, req.k)?;
         req.exclude.check(self.len())?;
         if req.max_distance.is_nan() {
@@ -162,37 +240,29 @@ impl<'a> Index<'a> {
         let mut best = Best::new(&mut out[..req.k]);
         let mut cost = Cost::default();
         let candidates = self.len().min(exclude.before_id);
-        let all_rows = |best: &mut Best<'_>, cost: &mut Cost, bound: f32| {
-            cost.exact_rows += candidates;
-            scan(
-                self.rows, self.dim, 0, candidates, query, exclude, bound, best,
-            );
+        // Ids `tree_end..` are not in the kd-tree.
+        let tree_end = self.tree.len();
+        let rows = |from: usize, best: &mut Best<'_>, cost: &mut Cost| {
+            cost.exact_rows += candidates.saturating_sub(from);
+            scan(self.rows, from, candidates, query, exclude, bound, best);
         };
         if req.k > 0 && candidates > 0 {
             match req.plan {
-                Plan::Brute => all_rows(&mut best, &mut cost, bound),
-                Plan::Sketch => self
-                    .sketch
-                    .scan(query, exclude, bound, false, &mut best, &mut cost),
+                Plan::Brute => rows(0, &mut best, &mut cost),
+                Plan::Sketch => {
+                    let _ = self
+                        .sketch
+                        .scan(query, 0, exclude, bound, false, &mut best, &mut cost);
+                }
                 Plan::KdTree => {
                     self.walk(query, exclude, bound, usize::MAX, &mut best, &mut cost);
+                    rows(tree_end, &mut best, &mut cost);
                 }
                 Plan::Auto => {
                     if candidates < AUTO_BRUTE_BELOW || req.k > candidates / 8 {
-                        all_rows(&mut best, &mut cost, bound);
+                        rows(0, &mut best, &mut cost);
                     } else {
-                        let budget = (candidates / AUTO_TREE_SHARE
-                            + AUTO_TREE_PER_K * req.k
-                            + AUTO_TREE_BASE)
-                            .min(candidates / AUTO_TREE_MAX_SHARE);
-                        if !self.walk(query, exclude, bound, budget, &mut best, &mut cost) {
-                            // Start again over every row, with the walk's k-th distance as
-                            // the bound: no true neighbour is farther.
-                            let bound = best.limit(bound);
-                            best.clear();
-                            self.sketch
-                                .scan(query, exclude, bound, true, &mut best, &mut cost);
-                        }
+                        self.auto(query, req, candidates, &mut best, &mut cost);
                     }
                 }
             }
@@ -203,7 +273,52 @@ impl<'a> Index<'a> {
         })
     }
 
-    /// Walks the kd-tree within `budget` distances; `true` when it finished (exact results).
+    /// [`Plan::Auto`] over `candidates` rows (see [`Index::search`]).
+    fn auto(
+        &self,
+        query: &[f32],
+        req: &Request<'_>,
+        candidates: usize,
+        best: &mut Best<'_>,
+        cost: &mut Cost,
+    ) {
+        let (exclude, mut bound) = (&req.exclude, req.max_distance);
+        let (try_tree, try_sketch) = req.observed.map_or((true, true), Observed::plan);
+        let mut from = 0;
+        if try_tree {
+            let budget = (candidates / AUTO_TREE_SHARE + AUTO_TREE_PER_K * req.k + AUTO_TREE_BASE)
+                .min(candidates / AUTO_TREE_MAX_SHARE);
+            let finished = self.walk(query, exclude, bound, budget, best, cost);
+            if let Some(o) = req.observed {
+                Observed::record(&o.tree_misses, finished);
+            }
+            if finished {
+                // The tree's rows are done; the others follow.
+                from = self.tree.len();
+            } else {
+                // Start again over every row, with the walk's k-th distance as the bound: no
+                // true neighbour is farther.
+                bound = best.limit(bound);
+                best.clear();
+            }
+        }
+        if try_sketch {
+            let done = self
+                .sketch
+                .scan(query, from, exclude, bound, true, best, cost);
+            if let Some(o) = req.observed {
+                if from < candidates {
+                    Observed::record(&o.sketch_misses, done);
+                }
+            }
+        } else {
+            cost.exact_rows += candidates.saturating_sub(from);
+            scan(self.rows, from, candidates, query, exclude, bound, best);
+        }
+    }
+
+    /// Walks the kd-tree within `budget` distances; `true` when it finished (exact results over
+    /// the tree's rows).
     fn walk(
         &self,
         query: &[f32],
@@ -213,6 +328,9 @@ impl<'a> Index<'a> {
         best: &mut Best<'_>,
         cost: &mut Cost,
     ) -> bool {
+        if self.tree.is_empty() {
+            return true;
+        }
         let mut off = [0f64; MAX_OFFSET_DIM];
         let mut walk = Walk::new(query, exclude, bound, budget, &mut off);
         self.tree.walk(&mut walk, best);

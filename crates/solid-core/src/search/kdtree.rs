@@ -1,6 +1,6 @@
 //! The kd-tree and the online index made of kd-trees (see the parent module).
 
-use super::{check_out, check_query, dist, n_rows, Best, Exclude, Neighbor};
+use super::{check_out, check_query, Best, Exclude, Neighbor, Rows};
 use crate::Error;
 
 /// Largest number of entries a kd-tree node scans linearly instead of splitting.
@@ -17,7 +17,7 @@ fn prune_margin(dim: usize) -> f64 {
     (dim as f64 + 64.0) * 1.2e-7
 }
 
-/// A kd-tree over L2-normalised rows, built in place in caller-owned buffers.
+/// A kd-tree over [`Rows`], built in place in caller-owned buffers.
 ///
 /// The tree is implicit: a node is a range of the permutation; its split entry sits at the middle
 /// of the range, the entries before it have a split coordinate `<=` the split value and those after
@@ -30,8 +30,7 @@ fn prune_margin(dim: usize) -> f64 {
 /// [`brute_force`](super::brute_force).
 #[derive(Debug, Clone, Copy)]
 pub struct KdTree<'a> {
-    rows: &'a [f32],
-    dim: usize,
+    rows: Rows<'a>,
     perm: &'a [u32],
     splits: &'a [u16],
 }
@@ -41,43 +40,34 @@ impl<'a> KdTree<'a> {
     /// arranges them, writing split dimensions into `splits[..n]`. Allocates nothing.
     ///
     /// # Errors
-    /// [`Error::InvalidParameter`] for a bad `dim` (see [`brute_force`](super::brute_force));
     /// [`Error::BufferTooSmall`] when `perm` or `splits` is shorter than the number of rows.
     pub fn build(
-        rows: &'a [f32],
-        dim: usize,
+        rows: Rows<'a>,
         perm: &'a mut [u32],
         splits: &'a mut [u16],
     ) -> Result<KdTree<'a>, Error> {
-        let n = n_rows(rows, dim)?;
+        let n = rows.len();
         check_buffers(n, perm.len(), splits.len())?;
         let (perm, splits) = (&mut perm[..n], &mut splits[..n]);
         for (i, p) in perm.iter_mut().enumerate() {
             *p = i as u32;
         }
-        build_rec(rows, dim, perm, splits);
-        Ok(KdTree {
-            rows,
-            dim,
-            perm,
-            splits,
-        })
+        build_rec(rows, perm, splits);
+        Ok(KdTree { rows, perm, splits })
     }
 
     /// Views buffers that [`KdTree::build`] (or [`online_insert`], for one block) has arranged,
     /// without rebuilding. `perm` and `splits` must be the exact ranges that were built.
     ///
     /// # Errors
-    /// [`Error::InvalidParameter`] for a bad `dim`; [`Error::LengthMismatch`] when `perm` and
-    /// `splits` differ in length; [`Error::InvalidParameter`] (name `perm`) when an id in `perm`
-    /// is not a row of `rows`.
+    /// [`Error::LengthMismatch`] when `perm` and `splits` differ in length;
+    /// [`Error::InvalidParameter`] (name `perm`) when an id in `perm` is not a row of `rows`.
     pub fn from_built(
-        rows: &'a [f32],
-        dim: usize,
+        rows: Rows<'a>,
         perm: &'a [u32],
         splits: &'a [u16],
     ) -> Result<KdTree<'a>, Error> {
-        let n = n_rows(rows, dim)?;
+        let n = rows.len();
         if perm.len() != splits.len() {
             return Err(Error::LengthMismatch {
                 what: "perm vs splits",
@@ -92,12 +82,7 @@ impl<'a> KdTree<'a> {
                 expected: "ids of existing rows",
             });
         }
-        Ok(KdTree {
-            rows,
-            dim,
-            perm,
-            splits,
-        })
+        Ok(KdTree { rows, perm, splits })
     }
 
     /// Number of entries in the tree.
@@ -124,9 +109,9 @@ impl<'a> KdTree<'a> {
         exclude: &Exclude<'_>,
         out: &mut [Neighbor],
     ) -> Result<usize, Error> {
-        check_query(query, self.dim)?;
+        check_query(query, self.rows.dim())?;
         check_out(out, k)?;
-        exclude.check(self.rows.len() / self.dim)?;
+        exclude.check(self.rows.len())?;
         let mut best = Best::new(&mut out[..k]);
         if k > 0 {
             let mut off = [0f64; MAX_OFFSET_DIM];
@@ -143,7 +128,7 @@ impl<'a> KdTree<'a> {
             return;
         }
         walk.rows += 1;
-        let d = dist(walk.query, &self.rows[i * self.dim..(i + 1) * self.dim]);
+        let d = self.rows.dist(walk.query, i);
         if d <= walk.bound {
             best.offer(Neighbor { id, distance: d });
         }
@@ -174,7 +159,7 @@ impl<'a> KdTree<'a> {
         let mid = lo + n / 2;
         let pid = self.perm[mid];
         let d = self.splits[mid] as usize;
-        let s = self.rows[pid as usize * self.dim + d];
+        let s = self.rows.coord(pid as usize, d);
         self.consider(pid, walk, best);
         let diff = walk.query[d] as f64 - s as f64;
         let (near, far) = if diff <= 0.0 {
@@ -279,17 +264,17 @@ fn check_buffers(n: usize, perm: usize, splits: usize) -> Result<(), Error> {
 
 /// Chooses the dimension with the widest spread among up to [`SPLIT_SAMPLE`] evenly spaced
 /// entries of `perm` (ties: the lowest dimension).
-fn widest_dim(rows: &[f32], dim: usize, perm: &[u32]) -> usize {
+fn widest_dim(rows: Rows<'_>, perm: &[u32]) -> usize {
     let n = perm.len();
     let step = (n / SPLIT_SAMPLE).max(1);
     let mut best_d = 0;
     let mut best_spread = -1.0f32;
-    for d in 0..dim {
+    for d in 0..rows.dim() {
         let mut lo = f32::INFINITY;
         let mut hi = f32::NEG_INFINITY;
         let mut i = 0;
         while i < n {
-            let v = rows[perm[i] as usize * dim + d];
+            let v = rows.coord(perm[i] as usize, d);
             lo = lo.min(v);
             hi = hi.max(v);
             i += step;
@@ -303,22 +288,35 @@ fn widest_dim(rows: &[f32], dim: usize, perm: &[u32]) -> usize {
     best_d
 }
 
-fn build_rec(rows: &[f32], dim: usize, perm: &mut [u32], splits: &mut [u16]) {
+fn build_rec(rows: Rows<'_>, perm: &mut [u32], splits: &mut [u16]) {
     let n = perm.len();
     if n <= LEAF_SIZE {
         return;
     }
-    let d = widest_dim(rows, dim, perm);
+    let d = widest_dim(rows, perm);
     let mid = n / 2;
     perm.select_nth_unstable_by(mid, |&a, &b| {
-        rows[a as usize * dim + d].total_cmp(&rows[b as usize * dim + d])
+        rows.coord(a as usize, d)
+            .total_cmp(&rows.coord(b as usize, d))
     });
     splits[mid] = d as u16;
     let (lp, rp) = perm.split_at_mut(mid);
     let (ls, rs) = splits.split_at_mut(mid);
-    build_rec(rows, dim, lp, ls);
-    build_rec(rows, dim, &mut rp[1..], &mut rs[1..]);
+    #[cfg(feature = "parallel")]
+    if n >= PARALLEL_BUILD {
+        rayon::join(
+            || build_rec(rows, lp, ls),
+            || build_rec(rows, &mut rp[1..], &mut rs[1..]),
+        );
+        return;
+    }
+    build_rec(rows, lp, ls);
+    build_rec(rows, &mut rp[1..], &mut rs[1..]);
 }
+
+/// Nodes of at least this many entries build their two halves on two threads (`parallel`).
+#[cfg(feature = "parallel")]
+const PARALLEL_BUILD: usize = 8192;
 
 /// The blocks of the online index over `n` entries: `(start, end)` id ranges, largest first.
 fn blocks(n: usize) -> impl Iterator<Item = (usize, usize)> {
@@ -335,75 +333,74 @@ fn blocks(n: usize) -> impl Iterator<Item = (usize, usize)> {
     })
 }
 
-/// Adds the newest row to an online index.
+/// Adds the newest row to an online index: [`online_extend`] from `rows.len() − 1`.
 ///
-/// The index over the first `n` rows of `rows` (ids `0..n`, where `n = rows.len() / dim` counts
-/// the row just appended) lives in `perm[..n]` and `splits[..n]`; call this once after each row
-/// is appended, in order. It rebuilds the one block that the new entry completes (sizes are
-/// powers of two, so an entry is rebuilt `O(log n)` times in its life). Allocates nothing.
+/// The index over the rows (ids `0..n`, `n` counting the row just appended) lives in
+/// `perm[..n]` and `splits[..n]`; call this once after each row is appended, in order. It
+/// rebuilds the one block that the new entry completes (sizes are powers of two, so an entry is
+/// rebuilt `O(log n)` times in its life). Allocates nothing.
 ///
 /// # Errors
-/// [`Error::InvalidParameter`] for a bad `dim` (see [`brute_force`](super::brute_force)) or when `rows` is empty;
-/// [`Error::BufferTooSmall`] when `perm` or `splits` is shorter than the number of rows.
-pub fn online_insert(
-    rows: &[f32],
-    dim: usize,
-    perm: &mut [u32],
-    splits: &mut [u16],
-) -> Result<(), Error> {
-    let n = n_rows(rows, dim)?;
-    if n == 0 {
+/// [`Error::InvalidParameter`] when `rows` is empty; [`Error::BufferTooSmall`] when `perm` or
+/// `splits` is shorter than the number of rows.
+pub fn online_insert(rows: Rows<'_>, perm: &mut [u32], splits: &mut [u16]) -> Result<(), Error> {
+    if rows.is_empty() {
         return Err(Error::InvalidParameter {
             name: "rows",
             value: 0.0,
             expected: "at least the entry being inserted",
         });
     }
-    check_buffers(n, perm.len(), splits.len())?;
-    let size = 1usize << n.trailing_zeros();
-    rebuild_block(rows, dim, n - size, n, perm, splits);
-    Ok(())
+    online_extend(rows, rows.len() - 1, perm, splits)
 }
 
-/// Builds every block of the online index over all rows from scratch (for example after loading
-/// a database); equivalent to calling [`online_insert`] after each row, but faster.
+/// Brings an online index over the first `from` rows up to all rows: rebuilds the blocks of the
+/// new size that the old size did not have (every block for `from = 0`, for example after
+/// loading a database; the one completed block for one new row). Allocates nothing.
 ///
 /// # Errors
-/// As [`online_insert`], except that zero rows is fine.
-pub fn online_rebuild(
-    rows: &[f32],
-    dim: usize,
+/// [`Error::InvalidParameter`] when `from` is beyond the rows; [`Error::BufferTooSmall`] when
+/// `perm` or `splits` is shorter than the number of rows.
+pub fn online_extend(
+    rows: Rows<'_>,
+    from: usize,
     perm: &mut [u32],
     splits: &mut [u16],
 ) -> Result<(), Error> {
-    let n = n_rows(rows, dim)?;
+    let n = rows.len();
+    if from > n {
+        return Err(Error::InvalidParameter {
+            name: "from",
+            value: from as f64,
+            expected: "at most the number of rows",
+        });
+    }
     check_buffers(n, perm.len(), splits.len())?;
     for (a, b) in blocks(n) {
-        rebuild_block(rows, dim, a, b, perm, splits);
+        if blocks(from).any(|old| old == (a, b)) {
+            continue;
+        }
+        let p = &mut perm[a..b];
+        for (i, v) in p.iter_mut().enumerate() {
+            *v = (a + i) as u32;
+        }
+        build_rec(rows, p, &mut splits[a..b]);
     }
     Ok(())
 }
 
-fn rebuild_block(
-    rows: &[f32],
-    dim: usize,
-    a: usize,
-    b: usize,
-    perm: &mut [u32],
-    splits: &mut [u16],
-) {
-    let p = &mut perm[a..b];
-    for (i, v) in p.iter_mut().enumerate() {
-        *v = (a + i) as u32;
-    }
-    build_rec(rows, dim, p, &mut splits[a..b]);
+/// Builds every block of the online index over all rows from scratch: [`online_extend`] from 0.
+///
+/// # Errors
+/// [`Error::BufferTooSmall`] when `perm` or `splits` is shorter than the number of rows.
+pub fn online_rebuild(rows: Rows<'_>, perm: &mut [u32], splits: &mut [u16]) -> Result<(), Error> {
+    online_extend(rows, 0, perm, splits)
 }
 
 /// A view of an online index (see [`online_insert`]) for searching.
 #[derive(Debug, Clone, Copy)]
 pub struct OnlineIndex<'a> {
-    rows: &'a [f32],
-    dim: usize,
+    rows: Rows<'a>,
     perm: &'a [u32],
     splits: &'a [u16],
 }
@@ -413,19 +410,16 @@ impl<'a> OnlineIndex<'a> {
     /// `splits[..n]` over the `n` rows of `rows`.
     ///
     /// # Errors
-    /// [`Error::InvalidParameter`] for a bad `dim` (see [`brute_force`](super::brute_force));
     /// [`Error::BufferTooSmall`] when `perm` or `splits` is shorter than the number of rows.
     pub fn new(
-        rows: &'a [f32],
-        dim: usize,
+        rows: Rows<'a>,
         perm: &'a [u32],
         splits: &'a [u16],
     ) -> Result<OnlineIndex<'a>, Error> {
-        let n = n_rows(rows, dim)?;
+        let n = rows.len();
         check_buffers(n, perm.len(), splits.len())?;
         Ok(OnlineIndex {
             rows,
-            dim,
             perm: &perm[..n],
             splits: &splits[..n],
         })
@@ -447,7 +441,7 @@ impl<'a> OnlineIndex<'a> {
         out: &mut [Neighbor],
     ) -> Result<usize, Error> {
         let n = self.perm.len();
-        check_query(query, self.dim)?;
+        check_query(query, self.rows.dim())?;
         check_out(out, k)?;
         exclude.check(n)?;
         let mut best = Best::new(&mut out[..k]);
@@ -468,7 +462,6 @@ impl<'a> OnlineIndex<'a> {
             }
             let tree = KdTree {
                 rows: self.rows,
-                dim: self.dim,
                 perm: &self.perm[a..b],
                 splits: &self.splits[a..b],
             };

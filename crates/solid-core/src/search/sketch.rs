@@ -15,7 +15,7 @@
 //!
 //! [`brute_force`]: super::brute_force
 
-use super::{check_out, check_query, dist, n_rows, scan, Best, Cost, Exclude, Neighbor};
+use super::{check_out, check_query, scan, Best, Cost, Exclude, Neighbor, Rows};
 use crate::Error;
 
 /// Rows per block of a [`Sketch`] (the codes of a block are interleaved).
@@ -29,8 +29,11 @@ const U: f32 = f32::EPSILON / 2.0;
 
 /// Blocks scanned before the first check of how many rows the sketch failed to rule out, and
 /// between two later checks.
-const CHECK_FIRST: usize = 16;
+const CHECK_FIRST: usize = 8;
 const CHECK_EVERY: usize = 64;
+
+/// The sketch gives up when more than one row in this many needed its exact distance.
+const GIVE_UP_SHARE: usize = 8;
 
 /// Lengths of the code buffer (bytes) and of the parameter buffer (`f32`s) of a sketch of `n`
 /// rows of `dim` values: whole blocks of [`SKETCH_BLOCK`] rows, `dim` bytes and 12 parameter
@@ -59,22 +62,20 @@ fn check_sketch(n: usize, dim: usize, codes: usize, params: usize) -> Result<(),
     Ok(())
 }
 
-/// Encodes rows `from..n` of `rows` (`n = rows.len() / dim`) into the sketch buffers, which must
-/// be at least [`sketch_len`]`(n, dim)` long; rows before `from` are left as they are, so a
-/// growing database encodes each new row once. Unused lanes of the last block are zeroed.
-/// Allocates nothing.
+/// Encodes rows `from..n` of `rows` into the sketch buffers, which must be at least
+/// [`sketch_len`]`(n, dim)` long; rows before `from` are left as they are, so a growing database
+/// encodes each new row once. Unused lanes of the last block are zeroed. Allocates nothing.
 ///
 /// # Errors
-/// [`Error::InvalidParameter`] for a bad `dim` (see [`brute_force`](super::brute_force)) or a
-/// `from` beyond the rows; [`Error::BufferTooSmall`] when a buffer is too short.
+/// [`Error::InvalidParameter`] for a `from` beyond the rows; [`Error::BufferTooSmall`] when a
+/// buffer is too short.
 pub fn sketch_encode(
-    rows: &[f32],
-    dim: usize,
+    rows: Rows<'_>,
     from: usize,
     codes: &mut [u8],
     params: &mut [f32],
 ) -> Result<(), Error> {
-    let n = n_rows(rows, dim)?;
+    let (n, dim) = (rows.len(), rows.dim());
     if from > n {
         return Err(Error::InvalidParameter {
             name: "from",
@@ -83,41 +84,74 @@ pub fn sketch_encode(
         });
     }
     check_sketch(n, dim, codes.len(), params.len())?;
-    for i in from..n {
-        encode_row(&rows[i * dim..(i + 1) * dim], i, codes, params);
-    }
-    let end = n.div_ceil(SKETCH_BLOCK) * SKETCH_BLOCK;
-    for i in n.max(from)..end {
-        let (b, lane) = (i / SKETCH_BLOCK, i % SKETCH_BLOCK);
-        for d in 0..dim {
-            codes[(b * dim + d) * SKETCH_BLOCK + lane] = 0;
+    let first = from / SKETCH_BLOCK;
+    let blocks = n.div_ceil(SKETCH_BLOCK);
+    let codes = &mut codes[first * dim * SKETCH_BLOCK..blocks * dim * SKETCH_BLOCK];
+    let params = &mut params[first * PARAMS * SKETCH_BLOCK..blocks * PARAMS * SKETCH_BLOCK];
+    let block = |(b, (codes, params)): (usize, (&mut [u8], &mut [f32]))| {
+        let start = (first + b) * SKETCH_BLOCK;
+        for lane in 0..SKETCH_BLOCK {
+            let i = start + lane;
+            if i >= from {
+                encode_row(rows, i, lane, codes, params);
+            }
         }
-        for p in 0..PARAMS {
-            params[(b * PARAMS + p) * SKETCH_BLOCK + lane] = 0.0;
-        }
+    };
+    #[cfg(feature = "parallel")]
+    if blocks - first >= PARALLEL_BLOCKS {
+        use rayon::iter::{IndexedParallelIterator, ParallelIterator};
+        use rayon::slice::ParallelSliceMut;
+        codes
+            .par_chunks_mut(dim * SKETCH_BLOCK)
+            .zip(params.par_chunks_mut(PARAMS * SKETCH_BLOCK))
+            .enumerate()
+            .with_min_len(PARALLEL_BLOCKS / 4)
+            .for_each(block);
+        return Ok(());
     }
+    codes
+        .chunks_mut(dim * SKETCH_BLOCK)
+        .zip(params.chunks_mut(PARAMS * SKETCH_BLOCK))
+        .enumerate()
+        .for_each(block);
     Ok(())
 }
 
-/// Writes the codes and parameters of row `i`.
-fn encode_row(row: &[f32], i: usize, codes: &mut [u8], params: &mut [f32]) {
-    let dim = row.len();
-    let (b, lane) = (i / SKETCH_BLOCK, i % SKETCH_BLOCK);
+/// From this many blocks on, `sketch_encode` shares them among the threads (`parallel`).
+#[cfg(feature = "parallel")]
+const PARALLEL_BLOCKS: usize = 1024;
+
+/// Writes the codes and parameters of row `i` into lane `lane` of its block, from the row's
+/// normalised values taken exactly; rows beyond the end (of a last, partial block) get zeros.
+fn encode_row(rows: Rows<'_>, i: usize, lane: usize, codes: &mut [u8], params: &mut [f32]) {
+    let dim = rows.dim();
+    let at = |p: usize| p * SKETCH_BLOCK + lane;
+    if i >= rows.len() {
+        for d in 0..dim {
+            codes[d * SKETCH_BLOCK + lane] = 0;
+        }
+        for p in 0..PARAMS {
+            params[at(p)] = 0.0;
+        }
+        return;
+    }
     let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-    for &x in row {
+    for d in 0..dim {
+        let x = rows.coord(i, d);
         lo = lo.min(x);
         hi = hi.max(x);
     }
+    // Any `lo`, `step` and codes will do: the error is measured against what is stored, from
+    // the exact normalised values, so the codes may come from rounded ones (the cast rounds half
+    // up and saturates into 0..=255).
     let step = (hi - lo) / 255.0;
+    let inv = if step > 0.0 { 1.0 / step } else { 0.0 };
+    let (lo64, step64) = (f64::from(lo), f64::from(step));
     let mut err2 = 0.0f64;
-    for (d, &x) in row.iter().enumerate() {
-        let k = if step > 0.0 {
-            libm::roundf((x - lo) / step).clamp(0.0, 255.0)
-        } else {
-            0.0
-        };
-        codes[(b * dim + d) * SKETCH_BLOCK + lane] = k as u8;
-        let e = f64::from(x) - (f64::from(lo) + f64::from(step) * f64::from(k));
+    for d in 0..dim {
+        let k = ((rows.coord(i, d) - lo) * inv + 0.5) as u8;
+        codes[d * SKETCH_BLOCK + lane] = k;
+        let e = rows.exact_coord(i, d) - (lo64 + step64 * f64::from(k));
         err2 += e * e;
     }
     // Rounded up, so that `err ≥ ‖e‖₂`; a row with a non-finite value gets an infinite error,
@@ -128,7 +162,6 @@ fn encode_row(row: &[f32], i: usize, codes: &mut [u8], params: &mut [f32]) {
     } else {
         f32::INFINITY
     };
-    let at = |p: usize| (b * PARAMS + p) * SKETCH_BLOCK + lane;
     params[at(0)] = if lo.is_finite() { lo } else { 0.0 };
     params[at(1)] = if step.is_finite() { step } else { 0.0 };
     params[at(2)] = err;
@@ -138,9 +171,7 @@ fn encode_row(row: &[f32], i: usize, codes: &mut [u8], params: &mut [f32]) {
 /// that [`sketch_encode`] filled.
 #[derive(Debug, Clone, Copy)]
 pub struct Sketch<'a> {
-    rows: &'a [f32],
-    dim: usize,
-    n: usize,
+    rows: Rows<'a>,
     codes: &'a [u8],
     params: &'a [f32],
 }
@@ -150,20 +181,11 @@ impl<'a> Sketch<'a> {
     /// them).
     ///
     /// # Errors
-    /// [`Error::InvalidParameter`] for a bad `dim`; [`Error::BufferTooSmall`] when a buffer is
-    /// shorter than [`sketch_len`] says.
-    pub fn new(
-        rows: &'a [f32],
-        dim: usize,
-        codes: &'a [u8],
-        params: &'a [f32],
-    ) -> Result<Sketch<'a>, Error> {
-        let n = n_rows(rows, dim)?;
-        check_sketch(n, dim, codes.len(), params.len())?;
+    /// [`Error::BufferTooSmall`] when a buffer is shorter than [`sketch_len`] says.
+    pub fn new(rows: Rows<'a>, codes: &'a [u8], params: &'a [f32]) -> Result<Sketch<'a>, Error> {
+        check_sketch(rows.len(), rows.dim(), codes.len(), params.len())?;
         Ok(Sketch {
             rows,
-            dim,
-            n,
             codes,
             params,
         })
@@ -171,12 +193,12 @@ impl<'a> Sketch<'a> {
 
     /// Number of rows.
     pub fn len(&self) -> usize {
-        self.n
+        self.rows.len()
     }
 
     /// `true` when the sketch holds no row.
     pub fn is_empty(&self) -> bool {
-        self.n == 0
+        self.rows.is_empty()
     }
 
     /// Exact k-NN: the same contract and the same results as [`brute_force`](super::brute_force)
@@ -193,98 +215,118 @@ impl<'a> Sketch<'a> {
         exclude: &Exclude<'_>,
         out: &mut [Neighbor],
     ) -> Result<usize, Error> {
-        check_query(query, self.dim)?;
+        check_query(query, self.rows.dim())?;
         check_out(out, k)?;
-        exclude.check(self.n)?;
+        exclude.check(self.rows.len())?;
         let mut best = Best::new(&mut out[..k]);
         let mut cost = Cost::default();
-        self.scan(query, exclude, f32::INFINITY, false, &mut best, &mut cost);
+        let _ = self.scan(
+            query,
+            0,
+            exclude,
+            f32::INFINITY,
+            false,
+            &mut best,
+            &mut cost,
+        );
         Ok(best.finish())
     }
 
-    /// Offers every allowed row within `bound` that the bytes cannot rule out to `best`. With
-    /// `give_up`, switches to brute force for the remaining rows once more than a quarter of the
-    /// rows scanned so far needed their exact distance (the bytes do not pay then).
+    /// Offers every allowed row of ids `from..` within `bound` that the bytes cannot rule out to
+    /// `best`. With `give_up`, switches to brute force for the remaining rows once more than an
+    /// eighth of the rows scanned so far needed their exact distance (the bytes do not pay then:
+    /// an exact distance out of order costs a few sequential ones); returns `false` then.
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn scan(
         &self,
         query: &[f32],
+        from: usize,
         exclude: &Exclude<'_>,
         bound: f32,
         give_up: bool,
         best: &mut Best<'_>,
         cost: &mut Cost,
-    ) {
+    ) -> bool {
         #[cfg(all(feature = "std", target_arch = "x86_64"))]
         if std::is_x86_feature_detected!("avx2") {
             #[allow(unsafe_code)]
             // SAFETY: the CPU supports AVX2 (checked just above), the only requirement for
             // calling a function compiled with `#[target_feature(enable = "avx2")]`.
-            return unsafe { self.scan_avx2(query, exclude, bound, give_up, best, cost) };
+            return unsafe { self.scan_avx2(query, from, exclude, bound, give_up, best, cost) };
         }
-        self.scan_impl(query, exclude, bound, give_up, best, cost)
+        self.scan_impl(query, from, exclude, bound, give_up, best, cost)
     }
 
     #[cfg(all(feature = "std", target_arch = "x86_64"))]
     #[target_feature(enable = "avx2")]
+    #[allow(clippy::too_many_arguments)]
     fn scan_avx2(
         &self,
         query: &[f32],
+        from: usize,
         exclude: &Exclude<'_>,
         bound: f32,
         give_up: bool,
         best: &mut Best<'_>,
         cost: &mut Cost,
-    ) {
-        self.scan_impl(query, exclude, bound, give_up, best, cost)
+    ) -> bool {
+        self.scan_impl(query, from, exclude, bound, give_up, best, cost)
     }
 
     /// The body of [`Sketch::scan`], inlined into each of its compiled copies.
     #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
     fn scan_impl(
         &self,
         query: &[f32],
+        from: usize,
         exclude: &Exclude<'_>,
         bound: f32,
         give_up: bool,
         best: &mut Best<'_>,
         cost: &mut Cost,
-    ) {
-        let end = self.n.min(exclude.before_id);
-        if best.heap.is_empty() || end == 0 {
-            return;
+    ) -> bool {
+        let end = self.rows.len().min(exclude.before_id);
+        if best.heap.is_empty() || from >= end {
+            return true;
         }
-        let dim = self.dim;
+        let dim = self.rows.dim();
         let bounds = Bounds::new(query);
         let timed = exclude.not_newer_than.is_some();
-        let blocks = end.div_ceil(SKETCH_BLOCK);
         let mut limit = best.limit(bound);
-        for b in 0..blocks {
-            let check = b == CHECK_FIRST || (b > 0 && b % CHECK_EVERY == 0);
-            if give_up && check && 4 * cost.exact_rows > cost.sketch_rows {
-                let from = b * SKETCH_BLOCK;
-                cost.exact_rows += end - from;
-                scan(self.rows, dim, from, end, query, exclude, bound, best);
-                return;
+        let (mut scanned, mut exact) = (0usize, 0usize);
+        let first_block = from / SKETCH_BLOCK;
+        for b in first_block..end.div_ceil(SKETCH_BLOCK) {
+            let done = b - first_block;
+            let check = done == CHECK_FIRST || (done > 0 && done % CHECK_EVERY == 0);
+            if give_up && check && GIVE_UP_SHARE * exact > scanned {
+                let rest = (b * SKETCH_BLOCK).max(from);
+                cost.sketch_rows += scanned;
+                cost.exact_rows += exact + (end - rest);
+                scan(self.rows, rest, end, query, exclude, bound, best);
+                return false;
             }
             let codes = &self.codes[b * dim * SKETCH_BLOCK..(b + 1) * dim * SKETCH_BLOCK];
             let params = &self.params[b * PARAMS * SKETCH_BLOCK..(b + 1) * PARAMS * SKETCH_BLOCK];
             let lb = bounds.block(query, codes, params);
             let first = b * SKETCH_BLOCK;
-            let lanes = (end - first).min(SKETCH_BLOCK);
-            cost.sketch_rows += lanes;
             let mut hits = 0u32;
             for (lane, &l) in lb.iter().enumerate() {
                 hits |= u32::from(l <= limit) << lane;
             }
-            hits &= (1u32 << lanes) - 1;
+            // Only the lanes of ids `from..end`.
+            let lo = from.saturating_sub(first);
+            let hi = (end - first).min(SKETCH_BLOCK);
+            hits &= ((1u32 << hi) - 1) & !((1u32 << lo) - 1);
+            scanned += hi - lo;
             while hits != 0 {
                 let id = first + hits.trailing_zeros() as usize;
                 hits &= hits - 1;
                 if timed && !exclude.allows(id) {
                     continue;
                 }
-                cost.exact_rows += 1;
-                let d = dist(query, &self.rows[id * dim..(id + 1) * dim]);
+                exact += 1;
+                let d = self.rows.dist(query, id);
                 if d <= limit {
                     best.offer(Neighbor {
                         id: id as u32,
@@ -294,6 +336,9 @@ impl<'a> Sketch<'a> {
                 }
             }
         }
+        cost.sketch_rows += scanned;
+        cost.exact_rows += exact;
+        true
     }
 }
 
