@@ -23,7 +23,7 @@ use criterion::{BenchmarkId, Criterion, Throughput};
 use solid_lidar::db::{Database, DetectorConfig, LoopDetector, Method};
 use solid_lidar::search::{
     normalize_rows, online_insert, online_rebuild, sketch_encode, sketch_len, Index, KdTree,
-    Neighbor, Plan, Request,
+    Neighbor, Plan, Request, Rows,
 };
 use solid_lidar::{Config, Describer, Descriptor, Points};
 use solid_lidar_benches::{kitti, shared_dir};
@@ -270,10 +270,11 @@ impl Db {
     fn new(name: &'static str, rows: Vec<f32>, mixes: Vec<(&'static str, Vec<f32>)>) -> Db {
         let n = rows.len() / DIM;
         let (mut perm, mut splits) = (vec![0u32; n], vec![0u16; n]);
-        online_rebuild(&rows, DIM, &mut perm, &mut splits).unwrap();
+        let r = Rows::normalized(&rows, DIM).unwrap();
+        online_rebuild(r, &mut perm, &mut splits).unwrap();
         let (nc, np) = sketch_len(n, DIM);
         let (mut codes, mut params) = (vec![0u8; nc], vec![0f32; np]);
-        sketch_encode(&rows, DIM, 0, &mut codes, &mut params).unwrap();
+        sketch_encode(r, 0, &mut codes, &mut params).unwrap();
         Db {
             name,
             rows,
@@ -289,10 +290,13 @@ impl Db {
         self.rows.len() / DIM
     }
 
+    fn norm_rows(&self) -> Rows<'_> {
+        Rows::normalized(&self.rows, DIM).unwrap()
+    }
+
     fn index(&self) -> Index<'_> {
         Index::new(
-            &self.rows,
-            DIM,
+            self.norm_rows(),
             &self.perm,
             &self.splits,
             &self.codes,
@@ -372,17 +376,19 @@ fn bench_build(c: &mut Criterion, dbs: &[Db]) {
         g.throughput(Throughput::Elements(n as u64));
         g.bench_with_input(BenchmarkId::new("kdtree_build", n), &n, |b, _| {
             b.iter(|| {
-                KdTree::build(black_box(&db.rows), DIM, &mut perm, &mut splits).unwrap();
+                KdTree::build(black_box(db.norm_rows()), &mut perm, &mut splits).unwrap();
             });
         });
         g.bench_with_input(BenchmarkId::new("sketch_encode", n), &n, |b, _| {
-            b.iter(|| sketch_encode(black_box(&db.rows), DIM, 0, &mut codes, &mut params).unwrap());
+            b.iter(|| {
+                sketch_encode(black_box(db.norm_rows()), 0, &mut codes, &mut params).unwrap()
+            });
         });
         // Online: insert all n entries one by one (the time per entry is this / n).
         g.bench_with_input(BenchmarkId::new("online_insert_all", n), &n, |b, _| {
             b.iter(|| {
                 for k in 1..=n {
-                    online_insert(&db.rows[..k * DIM], DIM, &mut perm, &mut splits).unwrap();
+                    online_insert(db.norm_rows().prefix(k), &mut perm, &mut splits).unwrap();
                 }
             })
         });
