@@ -511,10 +511,18 @@ mod avx2 {
 /// # Errors
 /// [`Error::InvalidParameter`] (name `descriptor`) when `v` holds a NaN or infinite value.
 pub fn inverse_norm(v: &[f32]) -> Result<f32, Error> {
-    let mut sum = 0.0f64;
-    for &x in v {
-        sum += f64::from(x) * f64::from(x);
+    // Four partial sums, so that the compiler vectorises.
+    let mut part = [0.0f64; 4];
+    let chunks = v.chunks_exact(4);
+    for (p, &x) in part.iter_mut().zip(chunks.remainder()) {
+        *p += f64::from(x) * f64::from(x);
     }
+    for c in chunks {
+        for (p, &x) in part.iter_mut().zip(c) {
+            *p += f64::from(x) * f64::from(x);
+        }
+    }
+    let sum = (part[0] + part[1]) + (part[2] + part[3]);
     // Squares of finite `f32` values cannot overflow an `f64` sum: a non-finite sum means a
     // non-finite value.
     if !sum.is_finite() {
@@ -684,6 +692,78 @@ pub fn brute_force(
 /// every distance (with AVX2 when `std` detects it: the same operations, so the same bits).
 #[inline]
 fn scan(
+    rows: Rows<'_>,
+    lo: usize,
+    hi: usize,
+    query: &[f32],
+    exclude: &Exclude<'_>,
+    bound: f32,
+    best: &mut Best<'_>,
+) {
+    #[cfg(feature = "parallel")]
+    {
+        let hi = hi.min(exclude.before_id).min(rows.n);
+        let part = |lo: usize, hi: usize, best: &mut Best<'_>, _: &mut Cost| {
+            scan_part(rows, lo, hi, query, exclude, bound, best);
+            true
+        };
+        if split_scan(lo, hi, 4, best, &mut Cost::default(), part).is_some() {
+            return;
+        }
+    }
+    scan_part(rows, lo, hi, query, exclude, bound, best)
+}
+
+/// Scans of at least this many rows are cut in two halves searched on two threads
+/// (`parallel`): a search over a million rows is bound by memory, which two cores read faster
+/// than one.
+#[cfg(feature = "parallel")]
+const PARALLEL_SCAN: usize = 1 << 16;
+
+/// Largest `k` for which a scan is cut in two (the second half's neighbours live on the stack).
+#[cfg(feature = "parallel")]
+const PARALLEL_SCAN_MAX_K: usize = 64;
+
+/// Runs `part` over `lo..hi` in two halves on two threads (the cut on a multiple of `align`),
+/// the second into a heap of its own whose neighbours then go into `best`; `None` (nothing
+/// done) when the range is short or `k` large. Returns whether both halves finished their
+/// preferred way.
+#[cfg(feature = "parallel")]
+fn split_scan<F>(
+    lo: usize,
+    hi: usize,
+    align: usize,
+    best: &mut Best<'_>,
+    cost: &mut Cost,
+    part: F,
+) -> Option<bool>
+where
+    F: Fn(usize, usize, &mut Best<'_>, &mut Cost) -> bool + Sync,
+{
+    let k = best.heap.len();
+    if hi <= lo || hi - lo < PARALLEL_SCAN || k > PARALLEL_SCAN_MAX_K || best.len > 0 {
+        return None;
+    }
+    let mid = (lo + (hi - lo) / 2) / align * align;
+    let mut other = [Neighbor::default(); PARALLEL_SCAN_MAX_K];
+    let mut other_best = Best::new(&mut other[..k]);
+    let mut other_cost = Cost::default();
+    let (a, b) = rayon::join(
+        || part(lo, mid, best, cost),
+        || part(mid, hi, &mut other_best, &mut other_cost),
+    );
+    for &n in &other_best.heap[..other_best.len] {
+        best.offer(n);
+    }
+    cost.tree_rows += other_cost.tree_rows;
+    cost.sketch_rows += other_cost.sketch_rows;
+    cost.exact_rows += other_cost.exact_rows;
+    Some(a && b)
+}
+
+/// [`scan`] over `lo..hi` on this thread.
+#[inline]
+fn scan_part(
     rows: Rows<'_>,
     lo: usize,
     hi: usize,

@@ -669,3 +669,43 @@ fn entries_take_at_most_300_bytes_and_a_solid_is_kept_to_half_a_step() {
     let bytes = db.to_bytes();
     assert_eq!(Database::from_bytes(&bytes).unwrap().to_bytes(), bytes);
 }
+
+#[test]
+fn a_bad_value_deep_in_a_large_batch_leaves_the_database_as_it_was() {
+    let c = cfg();
+    let (nr, na) = (c.n_range, c.n_azimuth);
+    let (r, a, _, _) = sample_arrays(5000);
+    // Five entries first, so that the batch starts inside a block of the sketch.
+    let mut db = Database::new(c).unwrap();
+    db.add_batch(&r[..5 * nr], &a[..5 * na], 0, None, None, true)
+        .unwrap();
+    let before = db.to_bytes();
+    for (which, at) in [("r", 4000 * nr + 7), ("a", 3000 * na + 1)] {
+        let (mut rb, mut ab) = (r.clone(), a.clone());
+        match which {
+            "r" => rb[at] = f32::INFINITY,
+            _ => ab[at] = f32::NAN,
+        }
+        assert!(
+            db.add_batch(&rb, &ab, 1, None, None, true).is_err(),
+            "{which}"
+        );
+        assert_eq!(db.to_bytes(), before, "{which}");
+    }
+    // The database still works as if the failed batches never happened.
+    db.add_batch(&r[5 * nr..], &a[5 * na..], 0, None, None, false)
+        .unwrap();
+    let mut one = Database::new(c).unwrap();
+    for i in 0..5000 {
+        one.add_vectors(&r[i * nr..][..nr], &a[i * na..][..na], 0, f64::NAN, None)
+            .unwrap();
+    }
+    same(&one, &db);
+    let q = desc(&c, 777);
+    for method in [Method::Brute, Method::Sketch, Method::Auto] {
+        assert_eq!(
+            db.search(&q.r, 5, 0, method).unwrap(),
+            one.search(&q.r, 5, 0, Method::Brute).unwrap()
+        );
+    }
+}

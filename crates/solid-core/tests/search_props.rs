@@ -521,3 +521,51 @@ fn auto_takes_each_path_and_stays_exact() {
         assert_eq!(tried, expected, "query {i}: {:?}", found.cost);
     }
 }
+
+#[test]
+fn long_scans_cut_in_two_halves_stay_exact() {
+    // Enough rows for brute force and the sketch to search two halves on two threads (with the
+    // `parallel` feature), and a k above the limit of that (a single pass).
+    let (n, dim) = (70_000, 8);
+    let mut rng = Rng(70);
+    let rows = places(n, dim, 5_000, 0.01, &mut rng);
+    let rows = Rows::normalized(&rows, dim).unwrap();
+    let (mut perm, mut splits) = (vec![0u32; n], vec![0u16; n]);
+    online_rebuild(rows, &mut perm, &mut splits).unwrap();
+    let (codes, params) = sketch_of(rows);
+    let index = Index::new(rows, &perm, &splits, &codes, &params).unwrap();
+    let mut dists = vec![0.0f32; n];
+    for qi in 0..3 {
+        let q = places(1, dim, 1, 0.0, &mut Rng(100 + qi));
+        rows.distances(&q, &mut dists).unwrap();
+        let mut all: Vec<Neighbor> = (0..n)
+            .map(|i| Neighbor {
+                id: i as u32,
+                distance: dists[i],
+            })
+            .collect();
+        all.sort_by(|x, y| x.distance.total_cmp(&y.distance).then(x.id.cmp(&y.id)));
+        for k in [1, 10, 100] {
+            let ex = Exclude::recent(n, 3);
+            let want: Vec<Neighbor> = all
+                .iter()
+                .filter(|nb| (nb.id as usize) < n - 3)
+                .take(k)
+                .copied()
+                .collect();
+            assert_eq!(brute(rows, &q, k, &ex), want, "brute k {k}");
+            for plan in [Plan::Sketch, Plan::Auto, Plan::KdTree] {
+                let req = Request {
+                    k,
+                    exclude: ex,
+                    max_distance: f32::INFINITY,
+                    plan,
+                    observed: None,
+                };
+                let mut out = vec![Neighbor::default(); k];
+                let found = index.search(&q, &req, &mut out).unwrap();
+                assert_eq!(&out[..found.len], &want[..], "{plan:?} k {k}");
+            }
+        }
+    }
+}

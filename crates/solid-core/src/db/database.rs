@@ -10,7 +10,7 @@ use alloc::vec;
 use alloc::vec::Vec;
 
 use super::{DbError, Method};
-use crate::search::{self, Exclude, Index, Neighbor, Observed, Plan, Request, Rows};
+use crate::search::{self, Exclude, Index, Neighbor, Observed, Plan, Request, Rows, SKETCH_BLOCK};
 use crate::{Config, Descriptor, Error};
 
 /// Options of [`Database::search_with`].
@@ -233,26 +233,16 @@ impl Database {
         if first + m >= u32::MAX as usize {
             return Err(DbError::Full);
         }
-        let mut scales = Vec::new();
-        scales
-            .try_reserve_exact(m)
-            .map_err(|_| DbError::OutOfMemory)?;
-        for row in r.chunks_exact(nr) {
-            scales.push(search::inverse_norm(row)?);
-        }
-        if let Some(bad) = a.iter().find(|v| !v.is_finite()) {
-            return Err(Error::InvalidParameter {
-                name: "a_solid",
-                value: f64::from(*bad),
-                expected: "finite values",
-            }
-            .into());
-        }
         for p in poses.unwrap_or(&[]) {
             check_pose(p)?;
         }
         self.reserve(m, poses.map_or(0, <[_]>::len))?;
-        // Nothing below can fail: the vectors and poses are checked and the memory reserved.
+        // The vectors are checked as they are written; on a bad value everything is cut back.
+        if let Err(e) = self.append_vectors(r, a) {
+            self.truncate_vectors(first);
+            return Err(e.into());
+        }
+        // Nothing below can fail: the memory is reserved.
         self.sessions.extend(core::iter::repeat_n(session, m));
         match timestamps {
             Some(t) => self.timestamps.extend_from_slice(t),
@@ -262,7 +252,6 @@ impl Database {
             self.poses
                 .extend(p.iter().enumerate().map(|(i, p)| ((first + i) as u32, *p)));
         }
-        self.append_vectors(r, &scales, a)?;
         if index {
             self.build_index()?;
         }
@@ -294,37 +283,60 @@ impl Database {
         Ok(())
     }
 
-    /// Appends checked vectors (room reserved): raw R-SOLiDs and their `scales`
-    /// ([`search::inverse_norm`]), quantised A-SOLiDs, and the sketch rows. The kd-tree is left
-    /// to [`Database::build_index`]. The errors of the sketch cannot happen (its buffers are
-    /// sized here).
-    fn append_vectors(&mut self, r: &[f32], scales: &[f32], a: &[f32]) -> Result<(), Error> {
-        let na = self.config.n_azimuth;
+    /// Appends vectors (room reserved), checking them on the way: the raw R-SOLiDs and their
+    /// scales ([`search::inverse_norm`]), the quantised A-SOLiDs and the sketch rows, in one pass
+    /// over blocks of rows (shared among threads with `parallel`). The kd-tree is left to
+    /// [`Database::build_index`]. On an error some rows may have been written: the caller cuts
+    /// them back ([`Database::truncate_vectors`]).
+    fn append_vectors(&mut self, r: &[f32], a: &[f32]) -> Result<(), Error> {
+        let (nr, na) = (self.config.n_range, self.config.n_azimuth);
         let first = self.r_scale.len();
+        let n = first + r.len() / nr;
         self.r.extend_from_slice(r);
-        self.r_scale.extend_from_slice(scales);
-        let start = self.a_codes.len();
-        self.a_codes.resize(start + a.len(), 0);
-        self.a_scale.resize(first + scales.len(), 0.0);
-        let quantize = |((row, codes), scale): ((&[f32], &mut [u8]), &mut f32)| {
-            *scale = quantize_a(row, codes);
-        };
-        #[cfg(feature = "parallel")]
-        {
-            use rayon::iter::{IndexedParallelIterator, IntoParallelIterator, ParallelIterator};
-            use rayon::slice::{ParallelSlice, ParallelSliceMut};
-            a.par_chunks_exact(na)
-                .zip(self.a_codes[start..].par_chunks_exact_mut(na))
-                .zip((&mut self.a_scale[first..]).into_par_iter())
-                .with_min_len(4096)
-                .for_each(quantize);
+        self.r_scale.resize(n, 0.0);
+        self.a_codes.resize(n * na, 0);
+        self.a_scale.resize(n, 0.0);
+        let (nc, np) = search::sketch_len(n, nr);
+        self.codes.resize(nc, 0);
+        self.params.resize(np, 0.0);
+        // The rows up to the first whole block of the sketch, then whole blocks.
+        let head = first.next_multiple_of(SKETCH_BLOCK).min(n);
+        ChunkOut {
+            r: &r[..(head - first) * nr],
+            a: &a[..(head - first) * na],
+            scale: &mut self.r_scale[first..head],
+            a_codes: &mut self.a_codes[first * na..head * na],
+            a_scale: &mut self.a_scale[first..head],
         }
-        #[cfg(not(feature = "parallel"))]
-        a.chunks_exact(na)
-            .zip(self.a_codes[start..].chunks_exact_mut(na))
-            .zip(&mut self.a_scale[first..])
-            .for_each(quantize);
-        self.sketch_from(first)
+        .fill(nr, na)?;
+        let all = Rows::scaled(&self.r[..head * nr], nr, &self.r_scale[..head])?;
+        search::sketch_encode(all, first, &mut self.codes, &mut self.params)?;
+        let block = |(mut out, (codes, params)): (ChunkOut<'_>, (&mut [u8], &mut [f32]))| {
+            out.fill(nr, na)?;
+            // Whole blocks: the chunk's sketch is laid out as a sketch of its own rows.
+            let rows = Rows::scaled(out.r, nr, out.scale)?;
+            search::sketch_encode(rows, 0, codes, params)
+        };
+        let rest = ChunkOut {
+            r: &r[(head - first) * nr..],
+            a: &a[(head - first) * na..],
+            scale: &mut self.r_scale[head..],
+            a_codes: &mut self.a_codes[head * na..],
+            a_scale: &mut self.a_scale[head..],
+        };
+        let codes = &mut self.codes[head / SKETCH_BLOCK * nr * SKETCH_BLOCK..];
+        let params = &mut self.params[head / SKETCH_BLOCK * 3 * SKETCH_BLOCK..];
+        let chunks = rest.split(CHUNK_ROWS, nr, na).zip(
+            codes
+                .chunks_mut(CHUNK_ROWS * nr)
+                .zip(params.chunks_mut(CHUNK_ROWS * 3)),
+        );
+        #[cfg(feature = "parallel")]
+        if n - head >= 2 * CHUNK_ROWS {
+            use rayon::iter::{ParallelBridge, ParallelIterator};
+            return chunks.par_bridge().try_for_each(block);
+        }
+        chunks.into_iter().try_for_each(block)
     }
 
     /// Sizes the sketch for every entry and encodes entries `first..`.
@@ -335,6 +347,23 @@ impl Database {
         self.params.resize(np, 0.0);
         let rows = Rows::scaled(&self.r, nr, &self.r_scale)?;
         search::sketch_encode(rows, first, &mut self.codes, &mut self.params)
+    }
+
+    /// Cuts the vectors and the sketch back to the first `n` entries (after a failed
+    /// [`Database::append_vectors`]).
+    fn truncate_vectors(&mut self, n: usize) {
+        let (nr, na) = (self.config.n_range, self.config.n_azimuth);
+        self.r.truncate(n * nr);
+        self.r_scale.truncate(n);
+        self.a_codes.truncate(n * na);
+        self.a_scale.truncate(n);
+        let (nc, np) = search::sketch_len(n, nr);
+        self.codes.truncate(nc);
+        self.params.truncate(np);
+        // Clears the lanes past the end of the last block (cannot fail: the sizes match).
+        if let Ok(rows) = Rows::scaled(&self.r, nr, &self.r_scale) {
+            let _ = search::sketch_encode(rows, n, &mut self.codes, &mut self.params);
+        }
     }
 
     /// Extends the kd-tree over every entry (after [`Database::add_batch`] without `index`); does
@@ -702,31 +731,89 @@ impl Database {
         self.sessions = sessions;
         self.timestamps = timestamps;
         self.poses = poses;
-        let scales = r
-            .chunks_exact(self.config.n_range)
-            .map(search::inverse_norm)
-            .collect::<Result<Vec<f32>, Error>>()?;
-        self.append_vectors(r, &scales, a)?;
+        self.append_vectors(r, a)?;
         self.build_index()
+    }
+}
+
+/// Rows of a batch added in one task of [`Database::append_vectors`] (a whole number of
+/// sketch blocks, but for the last).
+const CHUNK_ROWS: usize = 64 * SKETCH_BLOCK;
+
+/// The input rows of a chunk and where their scales and A-SOLiD codes go.
+struct ChunkOut<'a> {
+    r: &'a [f32],
+    a: &'a [f32],
+    scale: &'a mut [f32],
+    a_codes: &'a mut [u8],
+    a_scale: &'a mut [f32],
+}
+
+impl<'a> ChunkOut<'a> {
+    /// The R-SOLiD scales and the quantised A-SOLiDs, checking every value.
+    fn fill(&mut self, nr: usize, na: usize) -> Result<(), Error> {
+        for (s, row) in self.scale.iter_mut().zip(self.r.chunks_exact(nr)) {
+            *s = search::inverse_norm(row)?;
+        }
+        for ((row, codes), step) in self
+            .a
+            .chunks_exact(na)
+            .zip(self.a_codes.chunks_exact_mut(na))
+            .zip(self.a_scale.iter_mut())
+        {
+            *step = quantize_a(row, codes).ok_or_else(|| {
+                let bad = row.iter().find(|v| !v.is_finite()).copied();
+                Error::InvalidParameter {
+                    name: "a_solid",
+                    value: f64::from(bad.unwrap_or(f32::NAN)),
+                    expected: "finite values",
+                }
+            })?;
+        }
+        Ok(())
+    }
+
+    /// Consecutive chunks of `rows` rows.
+    fn split(self, rows: usize, nr: usize, na: usize) -> impl Iterator<Item = ChunkOut<'a>> {
+        self.r
+            .chunks(rows * nr)
+            .zip(self.a.chunks(rows * na))
+            .zip(self.scale.chunks_mut(rows))
+            .zip(self.a_codes.chunks_mut(rows * na))
+            .zip(self.a_scale.chunks_mut(rows))
+            .map(|((((r, a), scale), a_codes), a_scale)| ChunkOut {
+                r,
+                a,
+                scale,
+                a_codes,
+                a_scale,
+            })
     }
 }
 
 /// Quantises one A-SOLiD to 8 bits per value into `codes`; returns its step (see
 /// [`Database::a`]): `max / 255` with unsigned codes when no value is negative, else
-/// `−max|a| / 127` with signed codes (two's complement in the byte).
-fn quantize_a(a: &[f32], codes: &mut [u8]) -> f32 {
-    // Eight lanes, so that the compiler vectorises: the largest magnitude, and any sign.
-    let (mut top, mut low) = ([0.0f32; 8], [0.0f32; 8]);
+/// `−max|a| / 127` with signed codes (two's complement in the byte); `None` when a value is not
+/// finite.
+fn quantize_a(a: &[f32], codes: &mut [u8]) -> Option<f32> {
+    // Eight lanes, so that the compiler vectorises: the largest magnitude, any sign, and
+    // `v × 0`, which is ±0 for every finite value and NaN otherwise.
+    let (mut top, mut low, mut finite) = ([0.0f32; 8], [0.0f32; 8], [0.0f32; 8]);
     let chunks = a.chunks_exact(8);
     for &v in chunks.remainder() {
         top[0] = top[0].max(v.abs());
         low[0] = low[0].min(v);
+        finite[0] += v * 0.0;
     }
     for c in chunks {
         for i in 0..8 {
             top[i] = top[i].max(c[i].abs());
             low[i] = low[i].min(c[i]);
+            finite[i] += c[i] * 0.0;
         }
+    }
+    if finite.iter().any(|&f| f != 0.0) {
+        return None;
     }
     let top = top.iter().fold(0.0f32, |m, &v| m.max(v));
     let negative = low.iter().any(|&v| v < 0.0);
@@ -737,13 +824,13 @@ fn quantize_a(a: &[f32], codes: &mut [u8]) -> f32 {
         for (c, &v) in codes.iter_mut().zip(a) {
             *c = libm::roundf(v * inv).clamp(-levels, levels) as i8 as u8;
         }
-        -step
+        Some(-step)
     } else {
         // Round half up; the cast saturates into 0..=255.
         for (c, &v) in codes.iter_mut().zip(a) {
             *c = (v * inv + 0.5) as u8;
         }
-        step
+        Some(step)
     }
 }
 

@@ -27,9 +27,10 @@ const PARAMS: usize = 3;
 /// Unit roundoff of `f32`.
 const U: f32 = f32::EPSILON / 2.0;
 
-/// Blocks scanned before the first check of how many rows the sketch failed to rule out, and
-/// between two later checks.
-const CHECK_FIRST: usize = 8;
+/// The sketch checks how many rows it failed to rule out after 16 blocks, 32, 64, then every 64
+/// blocks, over the blocks since the previous check (the first rows are costly while the k-th
+/// distance is still loose; what counts is whether it stays costly).
+const CHECK_FIRST: usize = 16;
 const CHECK_EVERY: usize = 64;
 
 /// The sketch gives up when more than one row in this many needed its exact distance.
@@ -89,13 +90,7 @@ pub fn sketch_encode(
     let codes = &mut codes[first * dim * SKETCH_BLOCK..blocks * dim * SKETCH_BLOCK];
     let params = &mut params[first * PARAMS * SKETCH_BLOCK..blocks * PARAMS * SKETCH_BLOCK];
     let block = |(b, (codes, params)): (usize, (&mut [u8], &mut [f32]))| {
-        let start = (first + b) * SKETCH_BLOCK;
-        for lane in 0..SKETCH_BLOCK {
-            let i = start + lane;
-            if i >= from {
-                encode_row(rows, i, lane, codes, params);
-            }
-        }
+        encode_block(rows, (first + b) * SKETCH_BLOCK, from, codes, params);
     };
     #[cfg(feature = "parallel")]
     if blocks - first >= PARALLEL_BLOCKS {
@@ -121,8 +116,19 @@ pub fn sketch_encode(
 #[cfg(feature = "parallel")]
 const PARALLEL_BLOCKS: usize = 1024;
 
+/// Encodes the rows of the block starting at row `start` (those from `from` on).
+fn encode_block(rows: Rows<'_>, start: usize, from: usize, codes: &mut [u8], params: &mut [f32]) {
+    for lane in 0..SKETCH_BLOCK {
+        let i = start + lane;
+        if i >= from {
+            encode_row(rows, i, lane, codes, params);
+        }
+    }
+}
+
 /// Writes the codes and parameters of row `i` into lane `lane` of its block, from the row's
 /// normalised values taken exactly; rows beyond the end (of a last, partial block) get zeros.
+#[inline(always)]
 fn encode_row(rows: Rows<'_>, i: usize, lane: usize, codes: &mut [u8], params: &mut [f32]) {
     let dim = rows.dim();
     let at = |p: usize| p * SKETCH_BLOCK + lane;
@@ -135,25 +141,29 @@ fn encode_row(rows: Rows<'_>, i: usize, lane: usize, codes: &mut [u8], params: &
         }
         return;
     }
-    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+    // Lanes of eight (and four below), so that the compiler vectorises.
+    let (mut lo8, mut hi8) = ([f32::INFINITY; 8], [f32::NEG_INFINITY; 8]);
     for d in 0..dim {
         let x = rows.coord(i, d);
-        lo = lo.min(x);
-        hi = hi.max(x);
+        lo8[d % 8] = lo8[d % 8].min(x);
+        hi8[d % 8] = hi8[d % 8].max(x);
     }
+    let lo = lo8.iter().fold(f32::INFINITY, |m, &v| m.min(v));
+    let hi = hi8.iter().fold(f32::NEG_INFINITY, |m, &v| m.max(v));
     // Any `lo`, `step` and codes will do: the error is measured against what is stored, from
     // the exact normalised values, so the codes may come from rounded ones (the cast rounds half
     // up and saturates into 0..=255).
     let step = (hi - lo) / 255.0;
     let inv = if step > 0.0 { 1.0 / step } else { 0.0 };
     let (lo64, step64) = (f64::from(lo), f64::from(step));
-    let mut err2 = 0.0f64;
+    let mut err4 = [0.0f64; 4];
     for d in 0..dim {
         let k = ((rows.coord(i, d) - lo) * inv + 0.5) as u8;
         codes[d * SKETCH_BLOCK + lane] = k;
         let e = rows.exact_coord(i, d) - (lo64 + step64 * f64::from(k));
-        err2 += e * e;
+        err4[d % 4] += e * e;
     }
+    let err2 = (err4[0] + err4[1]) + (err4[2] + err4[3]);
     // Rounded up, so that `err ≥ ‖e‖₂`; a row with a non-finite value gets an infinite error,
     // which no bound can rule out.
     let err = libm::sqrt(err2) * (1.0 + 1e-6);
@@ -234,8 +244,10 @@ impl<'a> Sketch<'a> {
 
     /// Offers every allowed row of ids `from..` within `bound` that the bytes cannot rule out to
     /// `best`. With `give_up`, switches to brute force for the remaining rows once more than an
-    /// eighth of the rows scanned so far needed their exact distance (the bytes do not pay then:
-    /// an exact distance out of order costs a few sequential ones); returns `false` then.
+    /// eighth of the rows scanned since the previous check needed their exact distance (the
+    /// bytes do not pay then: an exact distance out of order costs a few sequential ones);
+    /// returns `false` then. With `parallel`, a long scan is cut in two halves searched on two
+    /// threads, their neighbours merged.
     #[allow(clippy::too_many_arguments)]
     pub(super) fn scan(
         &self,
@@ -247,14 +259,38 @@ impl<'a> Sketch<'a> {
         best: &mut Best<'_>,
         cost: &mut Cost,
     ) -> bool {
+        let end = self.rows.len().min(exclude.before_id);
+        let part = |from: usize, to: usize, best: &mut Best<'_>, cost: &mut Cost| {
+            self.scan_part(query, from, to, exclude, bound, give_up, best, cost)
+        };
+        #[cfg(feature = "parallel")]
+        if let Some(done) = super::split_scan(from, end, SKETCH_BLOCK, best, cost, part) {
+            return done;
+        }
+        part(from, end, best, cost)
+    }
+
+    /// [`Sketch::scan`] over ids `from..to`, on this thread.
+    #[allow(clippy::too_many_arguments)]
+    fn scan_part(
+        &self,
+        query: &[f32],
+        from: usize,
+        to: usize,
+        exclude: &Exclude<'_>,
+        bound: f32,
+        give_up: bool,
+        best: &mut Best<'_>,
+        cost: &mut Cost,
+    ) -> bool {
         #[cfg(all(feature = "std", target_arch = "x86_64"))]
         if std::is_x86_feature_detected!("avx2") {
             #[allow(unsafe_code)]
             // SAFETY: the CPU supports AVX2 (checked just above), the only requirement for
             // calling a function compiled with `#[target_feature(enable = "avx2")]`.
-            return unsafe { self.scan_avx2(query, from, exclude, bound, give_up, best, cost) };
+            return unsafe { self.scan_avx2(query, from, to, exclude, bound, give_up, best, cost) };
         }
-        self.scan_impl(query, from, exclude, bound, give_up, best, cost)
+        self.scan_impl(query, from, to, exclude, bound, give_up, best, cost)
     }
 
     #[cfg(all(feature = "std", target_arch = "x86_64"))]
@@ -264,29 +300,30 @@ impl<'a> Sketch<'a> {
         &self,
         query: &[f32],
         from: usize,
+        to: usize,
         exclude: &Exclude<'_>,
         bound: f32,
         give_up: bool,
         best: &mut Best<'_>,
         cost: &mut Cost,
     ) -> bool {
-        self.scan_impl(query, from, exclude, bound, give_up, best, cost)
+        self.scan_impl(query, from, to, exclude, bound, give_up, best, cost)
     }
 
-    /// The body of [`Sketch::scan`], inlined into each of its compiled copies.
+    /// The body of [`Sketch::scan_part`], inlined into each of its compiled copies.
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
     fn scan_impl(
         &self,
         query: &[f32],
         from: usize,
+        end: usize,
         exclude: &Exclude<'_>,
         bound: f32,
         give_up: bool,
         best: &mut Best<'_>,
         cost: &mut Cost,
     ) -> bool {
-        let end = self.rows.len().min(exclude.before_id);
         if best.heap.is_empty() || from >= end {
             return true;
         }
@@ -295,16 +332,23 @@ impl<'a> Sketch<'a> {
         let timed = exclude.not_newer_than.is_some();
         let mut limit = best.limit(bound);
         let (mut scanned, mut exact) = (0usize, 0usize);
+        // Rows scanned and exact distances at the previous check.
+        let (mut scanned_then, mut exact_then) = (0usize, 0usize);
         let first_block = from / SKETCH_BLOCK;
         for b in first_block..end.div_ceil(SKETCH_BLOCK) {
             let done = b - first_block;
-            let check = done == CHECK_FIRST || (done > 0 && done % CHECK_EVERY == 0);
-            if give_up && check && GIVE_UP_SHARE * exact > scanned {
-                let rest = (b * SKETCH_BLOCK).max(from);
-                cost.sketch_rows += scanned;
-                cost.exact_rows += exact + (end - rest);
-                scan(self.rows, rest, end, query, exclude, bound, best);
-                return false;
+            let check = done == CHECK_FIRST
+                || done == 2 * CHECK_FIRST
+                || (done > 0 && done % CHECK_EVERY == 0);
+            if give_up && check {
+                if GIVE_UP_SHARE * (exact - exact_then) > scanned - scanned_then {
+                    let rest = (b * SKETCH_BLOCK).max(from);
+                    cost.sketch_rows += scanned;
+                    cost.exact_rows += exact + (end - rest);
+                    scan(self.rows, rest, end, query, exclude, bound, best);
+                    return false;
+                }
+                (scanned_then, exact_then) = (scanned, exact);
             }
             let codes = &self.codes[b * dim * SKETCH_BLOCK..(b + 1) * dim * SKETCH_BLOCK];
             let params = &self.params[b * PARAMS * SKETCH_BLOCK..(b + 1) * PARAMS * SKETCH_BLOCK];
