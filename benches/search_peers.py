@@ -204,7 +204,7 @@ def main() -> int:
             t_add = best_of(3, lambda: solid.Database(CFG).add_batch(r, a))
             t_add_flat = best_of(3, lambda: solid.Database(CFG).add_batch(r, a, index=False))
             t_faiss_add = best_of(3, lambda: faiss.IndexFlatIP(CFG.n_range).add(normalised(r)))
-            t_np_add = best_of(3, lambda: r / np.linalg.norm(r, axis=1, keepdims=True))
+            t_np_add = best_of(3, lambda: r / np.maximum(np.linalg.norm(r, axis=1, keepdims=True), 1e-30))
             db = solid.Database(CFG)
             db.add_batch(r, a)
             x = normalised(r)
