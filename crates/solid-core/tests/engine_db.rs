@@ -709,3 +709,46 @@ fn a_bad_value_deep_in_a_large_batch_leaves_the_database_as_it_was() {
         );
     }
 }
+
+#[test]
+fn batch_add_with_a_range_count_that_is_not_a_multiple_of_four() {
+    // The sketch pads each row's codes to groups of four values.
+    let c = Config {
+        n_range: 21,
+        ..cfg()
+    };
+    let (nr, na) = (c.n_range, c.n_azimuth);
+    let n = 3000;
+    let (r, a): (Vec<f32>, Vec<f32>) =
+        (0..n as u32)
+            .map(|i| desc(&c, i))
+            .fold((Vec::new(), Vec::new()), |(mut r, mut a), d| {
+                r.extend_from_slice(&d.r);
+                a.extend_from_slice(&d.a);
+                (r, a)
+            });
+    let mut batch = Database::new(c).unwrap();
+    batch
+        .add_batch(&r[..7 * nr], &a[..7 * na], 0, None, None, true)
+        .unwrap();
+    batch
+        .add_batch(&r[7 * nr..], &a[7 * na..], 0, None, None, true)
+        .unwrap();
+    let mut one = Database::new(c).unwrap();
+    for i in 0..n {
+        one.add_vectors(&r[i * nr..][..nr], &a[i * na..][..na], 0, f64::NAN, None)
+            .unwrap();
+    }
+    for s in [5u32, 6000, 6001] {
+        let q = desc(&c, s);
+        let want = one.search(&q.r, 9, 0, Method::Brute).unwrap();
+        for method in [Method::Brute, Method::KdTree, Method::Sketch, Method::Auto] {
+            assert_eq!(
+                batch.search(&q.r, 9, 0, method).unwrap(),
+                want,
+                "{method:?}"
+            );
+            assert_eq!(one.search(&q.r, 9, 0, method).unwrap(), want, "{method:?}");
+        }
+    }
+}

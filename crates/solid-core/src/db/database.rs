@@ -324,12 +324,17 @@ impl Database {
             a_codes: &mut self.a_codes[head * na..],
             a_scale: &mut self.a_scale[head..],
         };
-        let codes = &mut self.codes[head / SKETCH_BLOCK * nr * SKETCH_BLOCK..];
-        let params = &mut self.params[head / SKETCH_BLOCK * 3 * SKETCH_BLOCK..];
+        // Code bytes and parameters per row of the sketch.
+        let (code_row, param_row) = {
+            let (c, p) = search::sketch_len(SKETCH_BLOCK, nr);
+            (c / SKETCH_BLOCK, p / SKETCH_BLOCK)
+        };
+        let codes = &mut self.codes[head * code_row..];
+        let params = &mut self.params[head * param_row..];
         let chunks = rest.split(CHUNK_ROWS, nr, na).zip(
             codes
-                .chunks_mut(CHUNK_ROWS * nr)
-                .zip(params.chunks_mut(CHUNK_ROWS * 3)),
+                .chunks_mut(CHUNK_ROWS * code_row)
+                .zip(params.chunks_mut(CHUNK_ROWS * param_row)),
         );
         #[cfg(feature = "parallel")]
         if n - head >= 2 * CHUNK_ROWS {

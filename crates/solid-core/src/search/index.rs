@@ -53,11 +53,14 @@ impl Request<'_> {
     }
 }
 
-/// What [`Plan::Auto`] has seen on the earlier queries of one set of rows: a step that failed
-/// on [`AUTO_MISSES`] queries in a row (the kd-tree running out of budget, the sketch giving up)
-/// is skipped, and tried again on every [`AUTO_RETRY_EVERY`]th query. Keep one per database;
-/// threads may share it (the counts are loaded and stored, not locked: two threads updating at
-/// once may lose a count, which only delays a skip).
+/// What [`Plan::Auto`] has seen on the earlier queries of one set of rows. When the sketch gave
+/// up on [`AUTO_MISSES`] queries in a row (rows too alike for its bytes: a database of
+/// near-duplicates), brute force follows the kd-tree directly; when the kd-tree ran out of
+/// budget on as many queries as well, brute force runs alone. Each skipped step is tried again
+/// on every [`AUTO_RETRY_EVERY`]th query. (A kd-tree that runs out of budget is not skipped
+/// while the sketch works: its walk hands the sketch a good k-th distance to start from.) Keep
+/// one per database; threads may share it (the counts are loaded and stored, not locked: two
+/// threads updating at once may lose a count, which only delays a skip).
 #[derive(Debug, Default)]
 pub struct Observed {
     queries: AtomicU32,
@@ -80,14 +83,13 @@ impl Observed {
         let q = self.queries.load(Relaxed);
         self.queries.store(q.wrapping_add(1), Relaxed);
         let retry = q % AUTO_RETRY_EVERY == 0;
-        (
-            retry || self.tree_misses.load(Relaxed) < AUTO_MISSES,
-            retry || self.sketch_misses.load(Relaxed) < AUTO_MISSES,
-        )
+        let sketch = retry || self.sketch_misses.load(Relaxed) < AUTO_MISSES;
+        let tree = sketch || retry || self.tree_misses.load(Relaxed) < AUTO_MISSES;
+        (tree, sketch)
     }
 
-    fn record(count: &AtomicU32, hit: bool) {
-        let v = if hit {
+    fn record(count: &AtomicU32, finished: bool) {
+        let v = if finished {
             0
         } else {
             count.load(Relaxed).saturating_add(1)
@@ -214,7 +216,7 @@ impl<'a> Index<'a> {
     /// scanned still need their exact distance (rows too alike for the bytes to tell apart),
     /// brute force takes the rest. Rows beyond the kd-tree go through the sketch (with the same
     /// fallback) after a finished walk; [`Plan::KdTree`] computes their distances. With
-    /// [`Request::observed`], a step that keeps failing is skipped ([`Observed`]).
+    /// [`Request::observed`], steps that keep failing are skipped ([`Observed`]).
     ///
     /// # Errors
     /// [`Error::LengthMismatch`] when `query.len()` differs from the rows' dimension or the
@@ -302,17 +304,18 @@ impl<'a> Index<'a> {
                 best.clear();
             }
         }
+        if from >= candidates {
+            return;
+        }
         if try_sketch {
             let done = self
                 .sketch
                 .scan(query, from, exclude, bound, true, best, cost);
             if let Some(o) = req.observed {
-                if from < candidates {
-                    Observed::record(&o.sketch_misses, done);
-                }
+                Observed::record(&o.sketch_misses, done);
             }
         } else {
-            cost.exact_rows += candidates.saturating_sub(from);
+            cost.exact_rows += candidates - from;
             scan(self.rows, from, candidates, query, exclude, bound, best);
         }
     }

@@ -2,16 +2,20 @@
 //! computing their distance (see the parent module).
 //!
 //! Row `c` is stored as `lo`, `step` and `dim` codes `k_d` in `0..=255` with
-//! `c_d = lo + step·k_d + e_d`, plus `err ≥ ‖e‖₂`. For a query `q`,
-//! `q·c = lo·Σq + step·(q·k) + q·e` and `|q·e| ≤ ‖q‖₂·err` (Cauchy–Schwarz), so
-//! `1 − lo·Σq − step·(q·k) − ‖q‖₂·err`, less a margin for the `f32` rounding of that expression
-//! and of the exact distance, is a lower bound of the distance that [`brute_force`] computes. A row
-//! whose bound exceeds the current k-th distance cannot be a neighbour; every other row gets its
-//! exact distance, so the results are the brute-force results, bit for bit.
+//! `c_d = lo + step·k_d + e_d`, plus `err ≥ ‖e‖₂`. A query `q` is split once into two 7-bit
+//! integer vectors and a remainder, `q = s₁·p + s₂·p' + r` with `|p_d|, |p'_d| ≤ 64` and
+//! `s₂ = s₁ / 128`, so that `q·k = s₁·(p·k) + s₂·(p'·k) + r·k` takes two integer dot products
+//! (on AVX2, `vpmaddubsw`: bytes times signed bytes, no saturation below 255·64·2). Then
+//! `q·c = lo·Σq + step·(q·k) + q·e`, `|q·e| ≤ ‖q‖₂·err` (Cauchy–Schwarz) and
+//! `step·|r·k| ≤ (255·step)·‖r‖₁`, so `1 − lo·Σq − step·(s₁·(p·k) + s₂·(p'·k))`, less those
+//! two terms and a margin for the `f32` rounding of that expression and of the exact distance,
+//! is a lower bound of the distance that [`brute_force`] computes. A row whose bound exceeds
+//! the current k-th distance cannot be a neighbour; every other row gets its exact distance, so
+//! the results are the brute-force results, bit for bit.
 //!
-//! Layout: rows in blocks of [`SKETCH_BLOCK`]; a block's codes are value-major
-//! (`codes[block][d][lane]`), so that the 16 dot products of a block run side by side in vector
-//! registers; its parameters are `lo[16]`, `step[16]`, `err[16]`.
+//! Layout: rows in blocks of [`SKETCH_BLOCK`]; a block's codes are grouped by four values,
+//! `codes[block][group][lane][4]` (the last group padded with zeros), so that one 256-bit
+//! register holds four values of eight rows; its parameters are `lo[16]`, `step[16]`, `err[16]`.
 //!
 //! [`brute_force`]: super::brute_force
 
@@ -37,11 +41,22 @@ const CHECK_EVERY: usize = 64;
 const GIVE_UP_SHARE: usize = 8;
 
 /// Lengths of the code buffer (bytes) and of the parameter buffer (`f32`s) of a sketch of `n`
-/// rows of `dim` values: whole blocks of [`SKETCH_BLOCK`] rows, `dim` bytes and 12 parameter
-/// bytes per row.
+/// rows of `dim` values: whole blocks of [`SKETCH_BLOCK`] rows, `dim` bytes rounded up to a
+/// multiple of 4 and 12 parameter bytes per row.
 pub fn sketch_len(n: usize, dim: usize) -> (usize, usize) {
     let rows = n.div_ceil(SKETCH_BLOCK) * SKETCH_BLOCK;
-    (rows * dim, rows * PARAMS)
+    (rows * padded(dim), rows * PARAMS)
+}
+
+/// `dim` rounded up to a whole number of groups of four values.
+fn padded(dim: usize) -> usize {
+    dim.next_multiple_of(4)
+}
+
+/// Where value `d` of lane `lane` sits in its block's codes.
+#[inline(always)]
+fn at(d: usize, lane: usize) -> usize {
+    ((d / 4) * SKETCH_BLOCK + lane) * 4 + d % 4
 }
 
 fn check_sketch(n: usize, dim: usize, codes: usize, params: usize) -> Result<(), Error> {
@@ -87,7 +102,8 @@ pub fn sketch_encode(
     check_sketch(n, dim, codes.len(), params.len())?;
     let first = from / SKETCH_BLOCK;
     let blocks = n.div_ceil(SKETCH_BLOCK);
-    let codes = &mut codes[first * dim * SKETCH_BLOCK..blocks * dim * SKETCH_BLOCK];
+    let width = padded(dim) * SKETCH_BLOCK;
+    let codes = &mut codes[first * width..blocks * width];
     let params = &mut params[first * PARAMS * SKETCH_BLOCK..blocks * PARAMS * SKETCH_BLOCK];
     let block = |(b, (codes, params)): (usize, (&mut [u8], &mut [f32]))| {
         encode_block(rows, (first + b) * SKETCH_BLOCK, from, codes, params);
@@ -97,7 +113,7 @@ pub fn sketch_encode(
         use rayon::iter::{IndexedParallelIterator, ParallelIterator};
         use rayon::slice::ParallelSliceMut;
         codes
-            .par_chunks_mut(dim * SKETCH_BLOCK)
+            .par_chunks_mut(width)
             .zip(params.par_chunks_mut(PARAMS * SKETCH_BLOCK))
             .enumerate()
             .with_min_len(PARALLEL_BLOCKS / 4)
@@ -105,7 +121,7 @@ pub fn sketch_encode(
         return Ok(());
     }
     codes
-        .chunks_mut(dim * SKETCH_BLOCK)
+        .chunks_mut(width)
         .zip(params.chunks_mut(PARAMS * SKETCH_BLOCK))
         .enumerate()
         .for_each(block);
@@ -131,13 +147,16 @@ fn encode_block(rows: Rows<'_>, start: usize, from: usize, codes: &mut [u8], par
 #[inline(always)]
 fn encode_row(rows: Rows<'_>, i: usize, lane: usize, codes: &mut [u8], params: &mut [f32]) {
     let dim = rows.dim();
-    let at = |p: usize| p * SKETCH_BLOCK + lane;
+    let param = |p: usize| p * SKETCH_BLOCK + lane;
+    for d in dim..padded(dim) {
+        codes[at(d, lane)] = 0;
+    }
     if i >= rows.len() {
         for d in 0..dim {
-            codes[d * SKETCH_BLOCK + lane] = 0;
+            codes[at(d, lane)] = 0;
         }
         for p in 0..PARAMS {
-            params[at(p)] = 0.0;
+            params[param(p)] = 0.0;
         }
         return;
     }
@@ -159,7 +178,7 @@ fn encode_row(rows: Rows<'_>, i: usize, lane: usize, codes: &mut [u8], params: &
     let mut err4 = [0.0f64; 4];
     for d in 0..dim {
         let k = ((rows.coord(i, d) - lo) * inv + 0.5) as u8;
-        codes[d * SKETCH_BLOCK + lane] = k;
+        codes[at(d, lane)] = k;
         let e = rows.exact_coord(i, d) - (lo64 + step64 * f64::from(k));
         err4[d % 4] += e * e;
     }
@@ -172,9 +191,9 @@ fn encode_row(rows: Rows<'_>, i: usize, lane: usize, codes: &mut [u8], params: &
     } else {
         f32::INFINITY
     };
-    params[at(0)] = if lo.is_finite() { lo } else { 0.0 };
-    params[at(1)] = if step.is_finite() { step } else { 0.0 };
-    params[at(2)] = err;
+    params[param(0)] = if lo.is_finite() { lo } else { 0.0 };
+    params[param(1)] = if step.is_finite() { step } else { 0.0 };
+    params[param(2)] = err;
 }
 
 /// A sketch of L2-normalised rows (see the module documentation), viewing caller-owned buffers
@@ -341,7 +360,9 @@ impl<'a> Sketch<'a> {
                 || done == 2 * CHECK_FIRST
                 || (done > 0 && done % CHECK_EVERY == 0);
             if give_up && check {
-                if GIVE_UP_SHARE * (exact - exact_then) > scanned - scanned_then {
+                // The k rows that fill the heap come free in each interval.
+                let exact_since = (exact - exact_then).saturating_sub(best.heap.len());
+                if GIVE_UP_SHARE * exact_since > scanned - scanned_then {
                     let rest = (b * SKETCH_BLOCK).max(from);
                     cost.sketch_rows += scanned;
                     cost.exact_rows += exact + (end - rest);
@@ -350,9 +371,10 @@ impl<'a> Sketch<'a> {
                 }
                 (scanned_then, exact_then) = (scanned, exact);
             }
-            let codes = &self.codes[b * dim * SKETCH_BLOCK..(b + 1) * dim * SKETCH_BLOCK];
+            let width = padded(dim) * SKETCH_BLOCK;
+            let codes = &self.codes[b * width..(b + 1) * width];
             let params = &self.params[b * PARAMS * SKETCH_BLOCK..(b + 1) * PARAMS * SKETCH_BLOCK];
-            let lb = bounds.block(query, codes, params);
+            let lb = block(&bounds, codes, params);
             let first = b * SKETCH_BLOCK;
             let mut hits = 0u32;
             for (lane, &l) in lb.iter().enumerate() {
@@ -386,53 +408,191 @@ impl<'a> Sketch<'a> {
     }
 }
 
+/// Groups of four values whose query words [`Bounds`] keeps on the stack (dimensions up to 256);
+/// beyond, the words are computed as they are needed (the same words).
+const KEPT_GROUPS: usize = 64;
+
 /// The per-query constants of the lower bound.
-struct Bounds {
+struct Bounds<'q> {
+    q: &'q [f32],
     /// `Σ q_d`.
     sum: f32,
     /// `‖q‖₂`, rounded up.
     norm: f32,
-    /// Rounding margin per unit of a row's magnitude `|lo| + 255·step`.
+    /// The two scales of the integer query vectors.
+    s1: f32,
+    s2: f32,
+    /// The integer query vectors, four bytes per group (for the first [`KEPT_GROUPS`]).
+    hi: [i32; KEPT_GROUPS],
+    lo: [i32; KEPT_GROUPS],
+    /// Per unit of a row's magnitude `|lo| + 255·step`: `‖r‖₁` of the remainder plus a margin
+    /// for rounding.
     per_magnitude: f32,
 }
 
-impl Bounds {
-    fn new(q: &[f32]) -> Self {
-        let (mut sum, mut l1, mut l2) = (0.0f32, 0.0f64, 0.0f64);
+impl<'q> Bounds<'q> {
+    fn new(q: &'q [f32]) -> Self {
+        let (mut sum, mut l1, mut l2, mut top) = (0.0f32, 0.0f64, 0.0f64, 0.0f32);
         for &x in q {
             sum += x;
             l1 += f64::from(x.abs());
             l2 += f64::from(x) * f64::from(x);
+            top = top.max(x.abs());
         }
-        // Rounding of `q·k` (a `dim`-term f32 sum), of `Σq`, of the products by `lo` and
-        // `step` and of the exact distance: each below `(dim + 2)·u` times `‖q‖₁` times the
-        // row's magnitude; counted four times over, plus the subtractions of the bound itself.
-        let per_magnitude = 4.0 * (q.len() as f64 + 4.0) * f64::from(U) * (l1 + 1.0);
-        Bounds {
+        let s1 = top / 64.0;
+        let s2 = s1 / 128.0;
+        let mut b = Bounds {
+            q,
             sum,
             norm: (libm::sqrt(l2) * (1.0 + 1e-6)) as f32,
-            per_magnitude: per_magnitude as f32,
+            s1,
+            s2,
+            hi: [0; KEPT_GROUPS],
+            lo: [0; KEPT_GROUPS],
+            per_magnitude: 0.0,
+        };
+        let mut rest = 0.0f64;
+        for d in 0..q.len() {
+            let (_, _, r) = b.split(d);
+            rest += r.abs();
+        }
+        for g in 0..KEPT_GROUPS.min(q.len().div_ceil(4)) {
+            (b.hi[g], b.lo[g]) = b.words(g);
+        }
+        // Rounding of the few products and sums of the bound, of `Σq` and of the exact
+        // distance: each below `(dim + 2)·u` times `‖q‖₁` times the row's magnitude; counted
+        // four times over.
+        let rounding = 4.0 * (q.len() as f64 + 4.0) * f64::from(U) * (l1 + 1.0);
+        b.per_magnitude = ((rest * (1.0 + 1e-9) + 1e-30) + rounding) as f32;
+        b
+    }
+
+    /// Value `d` of the query as `s₁·p + s₂·p' + r`: `(p, p', r)`, with `r` exact (products of
+    /// an `f32` by a small integer are exact in `f64`).
+    #[inline(always)]
+    fn split(&self, d: usize) -> (i8, i8, f64) {
+        let x = f64::from(self.q[d]);
+        if self.s1 == 0.0 {
+            return (0, 0, x);
+        }
+        let p = libm::round(x / f64::from(self.s1)).clamp(-64.0, 64.0);
+        let r1 = x - f64::from(self.s1) * p;
+        let p2 = libm::round(r1 / f64::from(self.s2)).clamp(-64.0, 64.0);
+        (p as i8, p2 as i8, r1 - f64::from(self.s2) * p2)
+    }
+
+    /// The two integer query words of group `g` (four signed bytes each; zero past the end).
+    #[inline(always)]
+    fn words(&self, g: usize) -> (i32, i32) {
+        let (mut hi, mut lo) = ([0u8; 4], [0u8; 4]);
+        for j in 0..4 {
+            let d = 4 * g + j;
+            if d < self.q.len() {
+                let (p, p2, _) = self.split(d);
+                (hi[j], lo[j]) = (p as u8, p2 as u8);
+            }
+        }
+        (i32::from_le_bytes(hi), i32::from_le_bytes(lo))
+    }
+
+    #[inline(always)]
+    fn word(&self, g: usize) -> (i32, i32) {
+        if g < KEPT_GROUPS {
+            (self.hi[g], self.lo[g])
+        } else {
+            self.words(g)
         }
     }
 
-    /// Lower bounds of the distances of the query to the 16 rows of one block (1 at most).
+    /// Lower bounds of the distances to the 16 rows of a block from their integer dot products
+    /// with the two query vectors (1 at most).
     #[inline(always)]
-    fn block(&self, q: &[f32], codes: &[u8], params: &[f32]) -> [f32; SKETCH_BLOCK] {
-        let mut acc = [0.0f32; SKETCH_BLOCK];
-        for (&qd, c) in q.iter().zip(codes.chunks_exact(SKETCH_BLOCK)) {
-            for (a, &k) in acc.iter_mut().zip(c) {
-                *a += qd * f32::from(k);
-            }
-        }
+    fn finish(&self, dots: [[i32; SKETCH_BLOCK]; 2], params: &[f32]) -> [f32; SKETCH_BLOCK] {
         let (lo, rest) = params.split_at(SKETCH_BLOCK);
         let (step, err) = rest.split_at(SKETCH_BLOCK);
         let mut lb = [0.0f32; SKETCH_BLOCK];
         for r in 0..SKETCH_BLOCK {
-            let approx = lo[r] * self.sum + step[r] * acc[r];
+            let qk = self.s1 * dots[0][r] as f32 + self.s2 * dots[1][r] as f32;
+            let approx = lo[r] * self.sum + step[r] * qk;
             let magnitude = lo[r].abs() + 255.0 * step[r];
             let slack = err[r] * self.norm + self.per_magnitude * magnitude + 64.0 * U;
             lb[r] = (1.0 - approx - slack).min(1.0);
         }
         lb
+    }
+}
+
+/// The lower bounds of one block (16 rows), with AVX2 when `std` detects it (the same integer
+/// dot products either way).
+#[inline(always)]
+fn block(b: &Bounds<'_>, codes: &[u8], params: &[f32]) -> [f32; SKETCH_BLOCK] {
+    #[cfg(all(feature = "std", target_arch = "x86_64"))]
+    if std::is_x86_feature_detected!("avx2") {
+        #[allow(unsafe_code)]
+        // SAFETY: the CPU supports AVX2 (checked just above), the only requirement for calling a
+        // function compiled with `#[target_feature(enable = "avx2")]`.
+        return b.finish(unsafe { avx2::dots(b, codes) }, params);
+    }
+    b.finish(dots(b, codes), params)
+}
+
+/// The integer dot products of the 16 rows of a block with the two query vectors.
+#[inline(always)]
+fn dots(b: &Bounds<'_>, codes: &[u8]) -> [[i32; SKETCH_BLOCK]; 2] {
+    let mut acc = [[0i32; SKETCH_BLOCK]; 2];
+    for (g, group) in codes.chunks_exact(4 * SKETCH_BLOCK).enumerate() {
+        let (hi, lo) = b.word(g);
+        let (hi, lo) = (hi.to_le_bytes(), lo.to_le_bytes());
+        for (lane, k) in group.chunks_exact(4).enumerate() {
+            for j in 0..4 {
+                let k = i32::from(k[j]);
+                acc[0][lane] += k * i32::from(hi[j] as i8);
+                acc[1][lane] += k * i32::from(lo[j] as i8);
+            }
+        }
+    }
+    acc
+}
+
+/// [`dots`] with AVX2: `vpmaddubsw` multiplies the code bytes by the signed query bytes and adds
+/// pairs (at most 255·64·2, no saturation), `vpmaddwd` by ones adds the pairs into one 32-bit
+/// sum per row and group. Loads go through `bytemuck`, so nothing here is `unsafe`.
+#[cfg(all(feature = "std", target_arch = "x86_64"))]
+mod avx2 {
+    use super::{Bounds, SKETCH_BLOCK};
+    use core::arch::x86_64::{
+        __m256i, _mm256_add_epi32, _mm256_madd_epi16, _mm256_maddubs_epi16, _mm256_set1_epi16,
+        _mm256_set1_epi32, _mm256_setzero_si256,
+    };
+
+    #[inline(always)]
+    fn load(s: &[u8]) -> __m256i {
+        let s: &[u8; 32] = s.try_into().unwrap_or(&[0; 32]);
+        bytemuck::cast(*s)
+    }
+
+    #[target_feature(enable = "avx2")]
+    pub(super) fn dots(b: &Bounds<'_>, codes: &[u8]) -> [[i32; SKETCH_BLOCK]; 2] {
+        let ones = _mm256_set1_epi16(1);
+        let mut acc = [_mm256_setzero_si256(); 4];
+        for (g, group) in codes.chunks_exact(4 * SKETCH_BLOCK).enumerate() {
+            let (hi, lo) = b.word(g);
+            let (hi, lo) = (_mm256_set1_epi32(hi), _mm256_set1_epi32(lo));
+            let (c0, c1) = (load(&group[..32]), load(&group[32..]));
+            let sum = |acc: __m256i, c: __m256i, p: __m256i| {
+                _mm256_add_epi32(acc, _mm256_madd_epi16(_mm256_maddubs_epi16(c, p), ones))
+            };
+            acc[0] = sum(acc[0], c0, hi);
+            acc[1] = sum(acc[1], c1, hi);
+            acc[2] = sum(acc[2], c0, lo);
+            acc[3] = sum(acc[3], c1, lo);
+        }
+        let lanes: [[i32; 8]; 4] = bytemuck::cast(acc);
+        let mut out = [[0i32; SKETCH_BLOCK]; 2];
+        out[0][..8].copy_from_slice(&lanes[0]);
+        out[0][8..].copy_from_slice(&lanes[1]);
+        out[1][..8].copy_from_slice(&lanes[2]);
+        out[1][8..].copy_from_slice(&lanes[3]);
+        out
     }
 }
