@@ -162,7 +162,7 @@ def single(db: solid.Database, index: faiss.IndexFlatIP, x: F32, queries: F32, k
     }
     names = list(methods)
     total = dict.fromkeys(names, 0.0)
-    reps = 1 if len(x) >= 1_000_000 else 3
+    reps = 3
     for i in range(len(queries)):
         for j in range(len(names)):
             name = names[(i + j) % len(names)]
