@@ -614,7 +614,11 @@ class Database:
         """Extends the kd-tree over every entry (after `add_batch(..., index=False)`); nothing to do
         when it is up to date."""
     def memory_bytes(self) -> int:
-        """Bytes of memory the database holds (every buffer's capacity)."""
+        """The memory the database holds.
+
+        Returns:
+            Bytes: every buffer's capacity (about 300 a place without a pose, 104 more with one).
+        """
     def search(
         self,
         descriptor: Descriptor | npt.ArrayLike,
