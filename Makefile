@@ -6,7 +6,7 @@ PY := $(VENV)/bin/python
 PYABS = $(abspath $(PY))
 PYTHON ?= python3
 
-.PHONY: demo test venv dist aarch64 wheel install-test crates docs lint rust-test py-test typecheck bench bench-py readme-results thresholds bench-pcd fuzz fuzz-smoke fuzz-deps cargo-fuzz-run bench-reg audit clean
+.PHONY: demo test venv dist aarch64 wheel install-test crates docs lint rust-test py-test typecheck bench bench-py bench-search bench-search-py readme-results thresholds bench-pcd fuzz fuzz-smoke fuzz-deps cargo-fuzz-run bench-reg audit clean
 
 $(VENV)/.ready: requirements-dev.txt pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -103,6 +103,15 @@ bench:
 
 bench-py: wheel
 	$(PY) benches/python_baseline.py
+
+## Search against brute force, the kd-tree and the sketch on realistic databases (10k-1M entries).
+bench-search:
+	cargo bench -p solid-lidar-benches --bench search
+
+## Search, batch search and bulk add against faiss-cpu and numpy (faiss is installed for this only).
+bench-search-py: wheel
+	$(PY) -m pip install --quiet -r benches/requirements-bench.txt
+	$(PY) benches/search_peers.py
 
 ## Rewrite the README's hku1 results (SOLiD and Scan Context, 3 m and 5 m) from fresh `solid eval` runs.
 readme-results: wheel

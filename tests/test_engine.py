@@ -54,8 +54,10 @@ def test_search_is_exact_and_methods_agree(cfg: solid.SolidConfig, db: solid.Dat
     assert [type(h) for h in hits] == [solid.Match] * 5
     assert hits[0].id == 7 and hits[0].distance < 1e-6
     assert [h.distance for h in hits] == sorted(h.distance for h in hits)
-    for method in ("brute", "kdtree", "auto"):
+    for method in ("brute", "kdtree", "sketch", "auto"):
         assert db.search(q, k=5, method=method) == hits
+    # A distance bound keeps the neighbours within it.
+    assert db.search(q, k=5, max_distance=hits[2].distance) == hits[:3]
     # The distances are the docs/spec.md §3 cosine distances.
     for h in hits:
         assert h.distance == pytest.approx(solid.distance(q, synthetic(cfg, h.id)), abs=1e-5)
@@ -67,9 +69,55 @@ def test_search_is_exact_and_methods_agree(cfg: solid.SolidConfig, db: solid.Dat
         db.search(q, method="fast")
 
 
+def test_batch_add_and_search_agree_with_one_at_a_time(cfg: solid.SolidConfig, db: solid.Database) -> None:
+    descs = [synthetic(cfg, i) for i in range(40)]
+    r = np.stack([d.r for d in descs])
+    a = np.stack([d.a for d in descs])
+    poses = np.array([np.hstack([np.eye(3), np.array([[i], [0.0], [0.0]])]) for i in range(40)])
+    times = np.arange(40, dtype=np.float64)
+    batch = solid.Database(cfg)
+    assert batch.add_batch(r, a, session=2, timestamps=times, poses=poses) == 0
+    assert batch.add_batch(r.astype(np.float64), a, index=False) == 40
+    assert len(batch) == 80
+    np.testing.assert_array_equal(batch.r[:40], r)
+    np.testing.assert_array_equal(batch.sessions, [2] * 40 + [0] * 40)
+    np.testing.assert_array_equal(batch.poses[:40], poses)
+    assert np.isnan(batch.poses[40:]).all() and np.isnan(batch.timestamps[40:]).all()
+    # Before and after the kd-tree catches up, every method finds what one search finds.
+    for _ in range(2):
+        ids, dists = batch.search_batch(r[:7], k=3, exclude_recent=10)
+        assert ids.shape == (7, 3) and ids.dtype == np.int64 and dists.dtype == np.float32
+        for i in range(7):
+            hits = batch.search(r[i], k=3, exclude_recent=10)
+            assert list(ids[i]) == [h.id for h in hits]
+            np.testing.assert_array_equal(dists[i], [h.distance for h in hits])
+        batch.build_index()
+    for method in ("brute", "kdtree", "sketch", "auto"):
+        ids_m, _ = batch.search_batch(descs[:5], k=4, method=method, max_distance=0.05)
+        for i in range(5):
+            hits = batch.search(descs[i], k=4, method="brute", max_distance=0.05)
+            assert [h.id for h in hits] == [j for j in ids_m[i] if j >= 0]
+            # Entry 40 + i is a copy of entry i: a tie, broken by the lower id.
+            assert [h.id for h in hits[:2]] == [i, 40 + i] and hits[0].distance == hits[1].distance
+    # Empty slots: -1 and inf.
+    ids, dists = solid.Database(cfg).search_batch(r[:2], k=2)
+    assert (ids == -1).all() and np.isinf(dists).all()
+    with pytest.raises(ValueError, match=r"shape \(N, 40\)"):
+        batch.add_batch(r[:, :5], a)
+    with pytest.raises(ValueError, match="rows"):
+        batch.add_batch(r, a[:3])
+    with pytest.raises(ValueError, match="max_distance"):
+        batch.search_batch(r[:1], max_distance=float("nan"))
+    assert len(batch) == 80
+    assert 0 < batch.memory_bytes() < 400 * 80
+
+
 def test_numpy_export(cfg: solid.SolidConfig, db: solid.Database) -> None:
     assert db.r.shape == (40, cfg.n_range) and db.r.dtype == np.float32
     assert db.a.shape == (40, 60) and db.a.dtype == np.float32
+    # A-SOLiDs are kept at 8 bits: within half a step (max / 255 / 2) of the values added.
+    a = synthetic(cfg, 3).a
+    np.testing.assert_allclose(db.a[3], a, rtol=0, atol=np.abs(a).max() / 510 * 1.001)
     np.testing.assert_array_equal(db.r[3], synthetic(cfg, 3).r)
     np.testing.assert_array_equal(db.ids, np.arange(40))
     np.testing.assert_array_equal(db.sessions, np.arange(40) % 3)

@@ -283,7 +283,8 @@ def test_the_loop_detector_follows_its_rule() -> None:
             assert got.distance == pytest.approx(expected[1], abs=1e-6)
             assert got.heading == pytest.approx(solid.heading(d, _desc(cfg, rs[expected[0]], as_[expected[0]])))
         rs.append(d.r.astype(np.float64))
-        as_.append(d.a.astype(np.float64))
+        # c's A-SOLiD is the one the database holds (8 bits per value, Database.a).
+        as_.append(det.database.a[q].astype(np.float64))
     assert found >= 10, "the test made too few loops to mean anything"
 
 

@@ -695,7 +695,10 @@ def _detector_config_from_dict(params: dict[str, Any]) -> DetectorConfig: ...
 
 @final
 class Database:
-    """Places with exact search at every size (online kd-tree index), merge, save and load.
+    """Places with exact search at every size (a kd-tree, a byte sketch and brute force: `method`
+    "auto" chooses, every method returns the same neighbours), batch add and search, merge, save
+    and load. A-SOLiDs are kept at 8 bits per value (see `a`); about 300 bytes per entry, plus
+    the compact clouds of places stored for verification.
 
     `save` writes a temporary file of its own next to the target and renames it over the
     target: concurrent saves to one path all succeed and leave one of them, whole; a save killed
@@ -733,6 +736,46 @@ class Database:
                     SolidError: A pose that is not 12 values or a 3×4 array.
                     TypeError: A session that is not an integer (a bool included).
         """
+    def add_batch(
+        self,
+        r: npt.NDArray[np.float32] | npt.NDArray[np.float64],
+        a: npt.NDArray[np.float32] | npt.NDArray[np.float64],
+        session: int = 0,
+        timestamps: npt.NDArray[np.float64] | None = None,
+        poses: npt.NDArray[np.float64] | None = None,
+        index: bool = True,
+    ) -> int:
+        """Adds N places at once from arrays, with the GIL released; everything is checked before
+        anything is added.
+
+        Args:
+            r: R-SOLiDs, shape (N, n_range), float32 (read in place) or float64, C-contiguous.
+            a: A-SOLiDs, shape (N, n_azimuth), float32 or float64, C-contiguous.
+            session: The robot or run they come from (an unsigned 32-bit integer).
+            timestamps: Seconds, shape (N,), float64 (NaN: none), or None for none.
+            poses: `T_world_sensor` of each, float64 of shape (N, 3, 4), (N, 4, 4) or (N, 12)
+                (row-major [R|t]), or None.
+            index: Bring the kd-tree up to date; without, searches stay exact (the new entries are
+                scanned through the sketch) until `build_index` or the next `add`.
+
+        Returns:
+            The id of the first new entry (the others follow).
+
+        Raises:
+            SolidError: An array of the wrong shape or layout.
+            ConfigError: A negative or non-finite descriptor value, an infinite timestamp, a
+                session outside 0..2**32-1, or a pose that is not a rotation.
+            TypeError: An argument that is not a float array.
+        """
+    def build_index(self) -> None:
+        """Extends the kd-tree over every entry (after `add_batch(..., index=False)`); nothing to do
+        when it is up to date."""
+    def memory_bytes(self) -> int:
+        """The memory the database holds.
+
+        Returns:
+            Bytes: every buffer's capacity (about 300 a place without a pose, 104 more with one).
+        """
     def search(
         self,
         descriptor: Descriptor | npt.ArrayLike,
@@ -740,6 +783,7 @@ class Database:
         exclude_recent: int = 0,
         method: str = "auto",
         not_newer_than: float | None = None,
+        max_distance: float | None = None,
     ) -> list[Match]:
         """The `k` nearest entries by cosine distance, exactly (docs/spec.md §3), GIL released.
 
@@ -749,10 +793,13 @@ class Database:
                     k: How many neighbours.
                     exclude_recent: Leave out the most recently added entries (the last `exclude_recent`
                         ids), as a loop detector does.
-                    method: "auto" (brute force below 2,048 entries, else the kd-tree), "brute" or
-                        "kdtree": the same neighbours either way.
+                    method: "auto" (the kd-tree under a work budget, then the byte sketch, then brute
+                        force, each from where the previous one stops paying), "brute", "kdtree" or
+                        "sketch": the same neighbours either way.
                     not_newer_than: Leave out entries whose timestamp is greater (entries without one are
                         kept).
+                    max_distance: Return only matches at most this far (a loop threshold), or None; every
+                        method skips more with it.
 
                 Returns:
                     Up to `k` matches, nearest first, ties by lower id.
@@ -762,8 +809,40 @@ class Database:
                     SolidError: An R-SOLiD of the wrong length.
                     ConfigError: An R-SOLiD with negative or non-finite values, an unknown
                         `method`, a negative `k` or `exclude_recent`, a NaN `not_newer_than` (None
-                        means no limit).
+                        means no limit), or a NaN `max_distance`.
                     TypeError: `descriptor` is neither a Descriptor nor a sequence of floats.
+        """
+    def search_batch(
+        self,
+        queries: npt.NDArray[np.float32] | npt.NDArray[np.float64] | Sequence[Descriptor],
+        k: int = 1,
+        exclude_recent: int = 0,
+        method: str = "auto",
+        not_newer_than: float | None = None,
+        max_distance: float | None = None,
+    ) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.float32]]:
+        """`search` for many queries in one call: the GIL released once, the queries shared among
+        every core.
+
+        Args:
+            queries: R-SOLiDs, shape (M, n_range), float32 or float64, or Descriptors made with the
+                database's configuration.
+            k: How many neighbours per query.
+            exclude_recent: As in `search`.
+            method: As in `search`.
+            not_newer_than: As in `search`.
+            max_distance: As in `search`.
+
+        Returns:
+            Ids, shape (M, k), int64 (-1 in empty slots), and distances, shape (M, k), float32 (inf
+            in empty slots); row i holds what `search(queries[i], ...)` returns, nearest first.
+
+        Raises:
+            DatabaseError: A Descriptor made with another configuration.
+            SolidError: An array of the wrong shape.
+            ConfigError: A query with negative or non-finite values, an unknown `method`, a
+                negative `k` or `exclude_recent`, a NaN `not_newer_than` or `max_distance`.
+            TypeError: `queries` is neither an array nor a sequence of Descriptors.
         """
     def distances(self, descriptor: Descriptor | npt.ArrayLike) -> npt.NDArray[np.float32]:
         """The cosine distance from the query to every entry, in id order (for plots and analysis;
@@ -848,7 +927,9 @@ class Database:
         """Every R-SOLiD, shape (N, n_range), float32 (a copy)."""
     @property
     def a(self) -> npt.NDArray[np.float32]:
-        """Every A-SOLiD, shape (N, n_azimuth), float32 (a copy)."""
+        """Every A-SOLiD as kept, shape (N, n_azimuth), float32 (a copy): 8 bits per value with one
+        step per entry, so each value is within half a step (0.2 % of the entry's largest value) of
+        the one added."""
     @property
     def ids(self) -> npt.NDArray[np.int64]:
         """Entry ids 0..N, int64."""

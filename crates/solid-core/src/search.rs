@@ -1,15 +1,17 @@
 //! Exact nearest-neighbour search over R-SOLiD vectors ([spec §3](crate::spec#3-comparing-descriptors)), allocation-free.
 //!
-//! Every search works on **L2-normalised** rows (see [`normalize`] and [`normalize_rows`]) stored
-//! row-major in one contiguous `&[f32]`, so that the cosine distance of [spec §3](crate::spec#3-comparing-descriptors) is
-//! `1 − q·c` and its order equals the Euclidean order (`‖q − c‖² = 2 − 2 q·c`). An all-zero
-//! vector stays all-zero after normalisation and is at distance 1 from everything, as [spec §3](crate::spec#3-comparing-descriptors)
-//! says. Distances are clamped into `[0, 1]`.
+//! Every search compares an L2-normalised query with **L2-normalised** rows ([`Rows`]: stored
+//! normalised, see [`normalize_rows`], or raw with the scale that normalises each, see
+//! [`inverse_norm`]), so that the cosine distance of [spec §3](crate::spec#3-comparing-descriptors) is `1 − q·c` and its order equals the
+//! Euclidean order (`‖q − c‖² = 2 − 2 q·c`). An all-zero vector stays all-zero after
+//! normalisation and is at distance 1 from everything, as [spec §3](crate::spec#3-comparing-descriptors) says. Distances are clamped
+//! into `[0, 1]`.
 //!
-//! Three exact searches answer the same question and return the same neighbours in the same
-//! order (ties broken by the lower id):
-//! - [`brute_force`]: one linear pass over the rows, with dot products accumulated in eight
-//!   independent lanes so that the compiler vectorises them.
+//! Every search answers the same question and returns the same neighbours with the same
+//! distances, in the same order (ties broken by the lower id), because every distance that is
+//! returned is computed by the same function ([`normalized_distance`]); the searches differ only
+//! in which rows they can prove too far without computing their distance:
+//! - [`brute_force`]: one linear pass over the rows (no proof needed).
 //! - [`KdTree`]: a kd-tree built in place over a caller-owned permutation of row ids (plus one
 //!   `u16` per entry for the split dimensions); neither build nor query allocates.
 //! - [`online_insert`] / [`OnlineIndex::search`]: an index that grows one entry at a time and always
@@ -17,37 +19,53 @@
 //!   the ids `0..n` are cut into blocks whose sizes are the powers of two of `n`'s binary
 //!   representation, each block a static [`KdTree`] over its own part of the shared permutation.
 //!   An insert rebuilds only the block the new entry completes (amortised `O(log² n)` work).
+//! - [`Sketch`]: a linear pass over one byte per value instead of four (each row quantised to
+//!   8 bits with its own scale, plus the norm of its quantisation error); a row's distance is
+//!   computed only when the bytes cannot prove it too far.
+//! - [`Index`]: all of the above over the same rows, with [`Plan::Auto`] choosing: the kd-tree
+//!   under a work budget (it answers queries near stored places after a few hundred rows), then
+//!   the sketch from the best distance the tree found (its cost does not depend on the query),
+//!   then brute force from where the sketch stops paying (rows so alike that the bytes cannot
+//!   tell them apart).
 //!
 //! Candidates can be restricted with [`Exclude`]: only ids below a bound (which excludes the most
-//! recent entries of a loop detector) and only entries not newer than a time.
+//! recent entries of a loop detector) and only entries not newer than a time; and, through
+//! [`Request::max_distance`], to those within a distance (a loop detector's threshold), which
+//! lets every method skip more.
 //!
 //! ```
-//! use solid_lidar::search::{brute_force, normalize_rows, Exclude, KdTree, Neighbor};
+//! use solid_lidar::search::{brute_force, inverse_norm, normalize_rows, Exclude, KdTree, Neighbor, Rows};
 //!
 //! let raw = [1.0f32, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0, 0.0];
 //! let dim = 2;
-//! let mut rows = [0.0f32; 8];
-//! normalize_rows(&raw, dim, &mut rows).unwrap();
+//! let mut normed = [0.0f32; 8];
+//! normalize_rows(&raw, dim, &mut normed).unwrap();
+//! let rows = Rows::normalized(&normed, dim).unwrap();
 //! let query = [1.0f32, 0.0];
 //! let mut out = [Neighbor::default(); 2];
-//! let n = brute_force(&rows, dim, &query, 2, &Exclude::NONE, &mut out).unwrap();
+//! let n = brute_force(rows, &query, 2, &Exclude::NONE, &mut out).unwrap();
 //! assert_eq!(n, 2);
 //! assert_eq!((out[0].id, out[1].id), (0, 2)); // exact match, then 45°
 //!
+//! // The same rows kept raw, with a scale per row.
+//! let scale: Vec<f32> = raw.chunks(dim).map(|r| inverse_norm(r).unwrap()).collect();
+//! let raw_rows = Rows::scaled(&raw, dim, &scale).unwrap();
 //! let (mut perm, mut splits) = ([0u32; 4], [0u16; 4]);
-//! let tree = KdTree::build(&rows, dim, &mut perm, &mut splits).unwrap();
+//! let tree = KdTree::build(raw_rows, &mut perm, &mut splits).unwrap();
 //! let mut out2 = [Neighbor::default(); 2];
 //! tree.search(&query, 2, &Exclude::NONE, &mut out2).unwrap();
-//! assert_eq!(out, out2);
+//! assert_eq!((out2[0].id, out2[1].id), (0, 2));
 //! ```
 
 use crate::Error;
 
-/// Largest number of entries a kd-tree node scans linearly instead of splitting.
-pub const LEAF_SIZE: usize = 12;
+mod index;
+mod kdtree;
+mod sketch;
 
-/// Points sampled per node to choose the split dimension (the widest spread among them).
-const SPLIT_SAMPLE: usize = 32;
+pub use index::{Cost, Found, Index, Observed, Plan, Request, AUTO_MISSES, AUTO_RETRY_EVERY};
+pub use kdtree::{online_extend, online_insert, online_rebuild, KdTree, OnlineIndex, LEAF_SIZE};
+pub use sketch::{sketch_encode, sketch_len, Sketch, SKETCH_BLOCK};
 
 /// One search result: an entry's id and its cosine distance to the query.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -179,7 +197,7 @@ pub fn normalize_rows(rows: &[f32], dim: usize, out: &mut [f32]) -> Result<(), E
 }
 
 /// Dot product with eight independent accumulators (vectorisable, fixed summation order).
-#[inline]
+#[inline(always)]
 fn dot(a: &[f32], b: &[f32]) -> f32 {
     let mut acc = [0.0f32; 8];
     let ca = a.chunks_exact(8);
@@ -198,9 +216,14 @@ fn dot(a: &[f32], b: &[f32]) -> f32 {
 }
 
 /// `1 − q·c` clamped into `[0, 1]`; NaN (only from non-finite input) counts as 1.
-#[inline]
+#[inline(always)]
 fn dist(q: &[f32], c: &[f32]) -> f32 {
-    let d = 1.0 - dot(q, c);
+    clamp_distance(1.0 - dot(q, c))
+}
+
+/// Clamps a distance into `[0, 1]`; NaN counts as 1.
+#[inline(always)]
+fn clamp_distance(d: f32) -> f32 {
     if d >= 0.0 {
         if d <= 1.0 {
             d
@@ -250,6 +273,277 @@ fn n_rows(rows: &[f32], dim: usize) -> Result<usize, Error> {
     Ok(n)
 }
 
+/// The vectors a search compares: `n` rows of `dim` values, row-major, id = row index. Either
+/// L2-normalised already ([`Rows::normalized`]) or raw with a scale per row that normalises them
+/// ([`Rows::scaled`], with [`inverse_norm`]): a store that must give back the vectors exactly as
+/// they were added keeps one copy, not a raw and a normalised one.
+///
+/// The distance to a normalised query `q` is `1 − q·c` clamped into `[0, 1]`, with
+/// `q·c = dot(q, row)` for normalised rows and `dot(q, row) × scale` for scaled ones, the dot
+/// product always summed in the same order ([`normalized_distance`]).
+#[derive(Debug, Clone, Copy)]
+pub struct Rows<'a> {
+    data: &'a [f32],
+    dim: usize,
+    n: usize,
+    scale: Option<&'a [f32]>,
+}
+
+impl<'a> Rows<'a> {
+    /// L2-normalised rows (see [`normalize_rows`]).
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] for a `dim` that is 0, above 65535 or does not divide
+    /// `data.len()`, or for more than `u32::MAX` rows.
+    pub fn normalized(data: &'a [f32], dim: usize) -> Result<Rows<'a>, Error> {
+        Ok(Rows {
+            data,
+            dim,
+            n: n_rows(data, dim)?,
+            scale: None,
+        })
+    }
+
+    /// Raw rows, compared as `row × scale[i]` (`scale[i]` = [`inverse_norm`] of row `i`; only the
+    /// first `data.len() / dim` scales are used).
+    ///
+    /// # Errors
+    /// As [`Rows::normalized`]; [`Error::BufferTooSmall`] when `scale` has fewer values than
+    /// there are rows.
+    pub fn scaled(data: &'a [f32], dim: usize, scale: &'a [f32]) -> Result<Rows<'a>, Error> {
+        let n = n_rows(data, dim)?;
+        if scale.len() < n {
+            return Err(Error::BufferTooSmall {
+                buffer: "scale",
+                needed: n,
+                got: scale.len(),
+            });
+        }
+        Ok(Rows {
+            data,
+            dim,
+            n,
+            scale: Some(&scale[..n]),
+        })
+    }
+
+    /// Number of rows.
+    pub fn len(&self) -> usize {
+        self.n
+    }
+
+    /// `true` when there is no row.
+    pub fn is_empty(&self) -> bool {
+        self.n == 0
+    }
+
+    /// Values per row.
+    pub fn dim(&self) -> usize {
+        self.dim
+    }
+
+    /// The first `n` rows (all of them when `n` is larger).
+    pub fn prefix(&self, n: usize) -> Rows<'a> {
+        let n = n.min(self.n);
+        Rows {
+            data: &self.data[..n * self.dim],
+            dim: self.dim,
+            n,
+            scale: self.scale.map(|s| &s[..n]),
+        }
+    }
+
+    /// The distance of the L2-normalised `query` to every row, into `out[..len()]`: the distances
+    /// every search computes.
+    ///
+    /// # Errors
+    /// [`Error::LengthMismatch`] when `query.len()` differs from `dim`;
+    /// [`Error::BufferTooSmall`] when `out` is shorter than the rows.
+    pub fn distances(&self, query: &[f32], out: &mut [f32]) -> Result<(), Error> {
+        check_query(query, self.dim)?;
+        if out.len() < self.n {
+            return Err(Error::BufferTooSmall {
+                buffer: "out",
+                needed: self.n,
+                got: out.len(),
+            });
+        }
+        for (i, o) in out[..self.n].iter_mut().enumerate() {
+            *o = self.dist(query, i);
+        }
+        Ok(())
+    }
+
+    /// Row `i` as stored.
+    #[inline(always)]
+    fn row(&self, i: usize) -> &'a [f32] {
+        &self.data[i * self.dim..(i + 1) * self.dim]
+    }
+
+    /// Value `d` of normalised row `i`.
+    #[inline(always)]
+    fn coord(&self, i: usize, d: usize) -> f32 {
+        let v = self.data[i * self.dim + d];
+        match self.scale {
+            Some(s) => v * s[i],
+            None => v,
+        }
+    }
+
+    /// Value `d` of normalised row `i` without rounding (the product of two `f32` is exact in
+    /// `f64`).
+    #[inline(always)]
+    fn exact_coord(&self, i: usize, d: usize) -> f64 {
+        let v = f64::from(self.data[i * self.dim + d]);
+        match self.scale {
+            Some(s) => v * f64::from(s[i]),
+            None => v,
+        }
+    }
+
+    /// The distance of the normalised query to row `i`.
+    #[inline(always)]
+    fn dist(&self, q: &[f32], i: usize) -> f32 {
+        match self.scale {
+            Some(s) => clamp_distance(1.0 - dot(q, self.row(i)) * s[i]),
+            None => dist(q, self.row(i)),
+        }
+    }
+
+    /// The distances of the normalised query to rows `i..i + 4`, from their dot products as
+    /// `dot4` computes them (summed exactly as [`dot`] sums them), clamped as [`dist`] clamps.
+    #[inline(always)]
+    fn dist4(
+        &self,
+        q: &[f32],
+        i: usize,
+        dist4: impl Fn(&[f32], &[f32], usize, [f32; 4]) -> [f32; 4],
+    ) -> [f32; 4] {
+        let dim = self.dim;
+        let scale = match self.scale {
+            Some(s) => [s[i], s[i + 1], s[i + 2], s[i + 3]],
+            None => [1.0; 4],
+        };
+        dist4(q, &self.data[i * dim..(i + 4) * dim], dim, scale)
+    }
+}
+
+/// The distances of `q` to the four consecutive rows of `group` (`4 × dim` values), the rows
+/// multiplied by `scale`: each exactly `clamp(1 − dot × scale)` (a scale of 1 changes nothing).
+#[inline(always)]
+fn dist4(q: &[f32], group: &[f32], dim: usize, scale: [f32; 4]) -> [f32; 4] {
+    let (r0, rest) = group.split_at(dim);
+    let (r1, rest) = rest.split_at(dim);
+    let (r2, r3) = rest.split_at(dim);
+    let dots = [dot(q, r0), dot(q, r1), dot(q, r2), dot(q, r3)];
+    core::array::from_fn(|j| clamp_distance(1.0 - dots[j] * scale[j]))
+}
+
+/// [`dist4`] with AVX2 registers: each row's eight lanes in one 256-bit register, the four rows'
+/// lanes summed together by shuffles with the same additions in the same order as [`dot`], then
+/// scaled, subtracted and clamped four at a time (so the same bits; `tests/search_props.rs`
+/// compares them). Loads go through `bytemuck`, so nothing here is `unsafe`.
+#[cfg(all(feature = "std", target_arch = "x86_64"))]
+mod avx2 {
+    use core::arch::x86_64::{
+        __m128, __m256, _mm256_add_ps, _mm256_castps256_ps128, _mm256_extractf128_ps,
+        _mm256_mul_ps, _mm256_setzero_ps, _mm_add_ps, _mm_hadd_ps, _mm_max_ps, _mm_min_ps,
+        _mm_mul_ps, _mm_set1_ps, _mm_setzero_ps, _mm_sub_ps,
+    };
+
+    #[inline(always)]
+    fn load(s: &[f32]) -> __m256 {
+        let s: &[f32; 8] = s.try_into().unwrap_or(&[0.0; 8]);
+        bytemuck::cast(*s)
+    }
+
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub(super) fn dist4(q: &[f32], group: &[f32], dim: usize, scale: [f32; 4]) -> [f32; 4] {
+        let whole = dim / 8 * 8;
+        let (r0, rest) = group.split_at(dim);
+        let (r1, rest) = rest.split_at(dim);
+        let (r2, r3) = rest.split_at(dim);
+        let mut acc = [_mm256_setzero_ps(); 4];
+        let chunks = q
+            .chunks_exact(8)
+            .zip(r0.chunks_exact(8))
+            .zip(r1.chunks_exact(8))
+            .zip(r2.chunks_exact(8))
+            .zip(r3.chunks_exact(8));
+        for ((((qq, c0), c1), c2), c3) in chunks {
+            let qq = load(qq);
+            for (a, c) in acc.iter_mut().zip([c0, c1, c2, c3]) {
+                *a = _mm256_add_ps(*a, _mm256_mul_ps(qq, load(c)));
+            }
+        }
+        // Per row: (a0 + a4, a1 + a5, a2 + a6, a3 + a7), then ((x0 + x1) + (x2 + x3)).
+        let halves: [__m128; 4] = core::array::from_fn(|j| {
+            _mm_add_ps(
+                _mm256_castps256_ps128(acc[j]),
+                _mm256_extractf128_ps::<1>(acc[j]),
+            )
+        });
+        let mut dots = _mm_hadd_ps(
+            _mm_hadd_ps(halves[0], halves[1]),
+            _mm_hadd_ps(halves[2], halves[3]),
+        );
+        if whole < dim {
+            let mut tails = [0.0f32; 4];
+            for (j, t) in tails.iter_mut().enumerate() {
+                for d in whole..dim {
+                    *t += q[d] * group[j * dim + d];
+                }
+            }
+            dots = _mm_add_ps(dots, bytemuck::cast(tails));
+        }
+        let one = _mm_set1_ps(1.0);
+        let d = _mm_sub_ps(one, _mm_mul_ps(dots, bytemuck::cast(scale)));
+        // `min` returns its second operand for a NaN (a distance of 1, as `clamp_distance`);
+        // `max(0, x)` returns x for x = ±0 (keeping the sign of a zero, as the scalar clamp).
+        bytemuck::cast(_mm_max_ps(_mm_setzero_ps(), _mm_min_ps(d, one)))
+    }
+}
+
+/// `1 / ‖v‖₂` (computed in `f64`), the scale that normalises `v` in [`Rows::scaled`]; 0 for an
+/// all-zero vector (which is then at distance 1 from everything).
+///
+/// # Errors
+/// [`Error::InvalidParameter`] (name `descriptor`) when `v` holds a NaN or infinite value.
+pub fn inverse_norm(v: &[f32]) -> Result<f32, Error> {
+    // Four partial sums, so that the compiler vectorises.
+    let mut part = [0.0f64; 4];
+    let chunks = v.chunks_exact(4);
+    for (p, &x) in part.iter_mut().zip(chunks.remainder()) {
+        *p += f64::from(x) * f64::from(x);
+    }
+    for c in chunks {
+        for (p, &x) in part.iter_mut().zip(c) {
+            *p += f64::from(x) * f64::from(x);
+        }
+    }
+    let sum = (part[0] + part[1]) + (part[2] + part[3]);
+    // Squares of finite `f32` values cannot overflow an `f64` sum: a non-finite sum means a
+    // non-finite value.
+    if !sum.is_finite() {
+        let bad = v
+            .iter()
+            .find(|x| !x.is_finite())
+            .copied()
+            .unwrap_or(f32::NAN);
+        return Err(Error::InvalidParameter {
+            name: "descriptor",
+            value: f64::from(bad),
+            expected: "finite values",
+        });
+    }
+    Ok(if sum == 0.0 {
+        0.0
+    } else {
+        (1.0 / libm::sqrt(sum)) as f32
+    })
+}
+
 fn check_query(query: &[f32], dim: usize) -> Result<(), Error> {
     if query.len() != dim {
         return Err(Error::LengthMismatch {
@@ -296,6 +590,22 @@ impl<'s> Best<'s> {
         } else {
             None
         }
+    }
+
+    /// The largest distance a candidate may have and still enter: the k-th distance so far when
+    /// the heap is full, and never more than `bound` (a candidate at exactly this distance may
+    /// still enter by its lower id).
+    #[inline]
+    fn limit(&self, bound: f32) -> f32 {
+        match self.worst() {
+            Some(w) if w < bound => w,
+            _ => bound,
+        }
+    }
+
+    /// Empties the heap (keeping its buffer).
+    fn clear(&mut self) {
+        self.len = 0;
     }
 
     #[inline]
@@ -356,521 +666,196 @@ fn sift_down(h: &mut [Neighbor], mut i: usize, len: usize) {
 
 /// Exact k-NN by one linear pass over all rows.
 ///
-/// `rows` holds L2-normalised vectors of `dim` values, row-major; the id of a row is its index.
-/// `query` must be L2-normalised too (see [`normalize`]). The `min(k, candidates)` nearest
-/// neighbours are written to `out[..]` nearest first (ties by lower id) and their number is
-/// returned.
+/// `query` must be L2-normalised (see [`normalize`]). The `min(k, candidates)` nearest rows
+/// are written to `out[..]` nearest first (ties by lower id) and their number is returned.
 ///
 /// # Errors
-/// [`Error::InvalidParameter`] for a `dim` that is 0, above 65535 or does not divide
-/// `rows.len()`; [`Error::LengthMismatch`] when `query.len() != dim` or the timestamps of
-/// `exclude` are fewer than the rows; [`Error::BufferTooSmall`] when `out.len() < k`.
+/// [`Error::LengthMismatch`] when `query.len()` differs from the rows' dimension or the
+/// timestamps of `exclude` are fewer than the rows; [`Error::BufferTooSmall`] when
+/// `out.len() < k`.
 pub fn brute_force(
-    rows: &[f32],
-    dim: usize,
+    rows: Rows<'_>,
     query: &[f32],
     k: usize,
     exclude: &Exclude<'_>,
     out: &mut [Neighbor],
 ) -> Result<usize, Error> {
-    let n = n_rows(rows, dim)?;
-    check_query(query, dim)?;
+    check_query(query, rows.dim)?;
     check_out(out, k)?;
-    exclude.check(n)?;
+    exclude.check(rows.n)?;
     let mut best = Best::new(&mut out[..k]);
-    scan(rows, dim, 0, n, query, exclude, &mut best);
+    scan(rows, 0, rows.n, query, exclude, f32::INFINITY, &mut best);
     Ok(best.finish())
 }
 
-/// Offers ids `lo..hi` to `best`.
+/// Offers the allowed ids of `lo..hi` whose distance is at most `bound` to `best`, computing
+/// every distance (with AVX2 when `std` detects it: the same operations, so the same bits).
 #[inline]
 fn scan(
-    rows: &[f32],
-    dim: usize,
+    rows: Rows<'_>,
     lo: usize,
     hi: usize,
     query: &[f32],
     exclude: &Exclude<'_>,
+    bound: f32,
     best: &mut Best<'_>,
+) {
+    #[cfg(feature = "parallel")]
+    {
+        let hi = hi.min(exclude.before_id).min(rows.n);
+        let part = |lo: usize, hi: usize, best: &mut Best<'_>, _: &mut Cost| {
+            scan_part(rows, lo, hi, query, exclude, bound, best);
+            true
+        };
+        if split_scan(lo, hi, 4, best, &mut Cost::default(), part).is_some() {
+            return;
+        }
+    }
+    scan_part(rows, lo, hi, query, exclude, bound, best)
+}
+
+/// Scans of at least this many rows are cut in two halves searched on two threads
+/// (`parallel`): a search over a million rows is bound by memory, which two cores read faster
+/// than one.
+#[cfg(feature = "parallel")]
+const PARALLEL_SCAN: usize = 1 << 16;
+
+/// Largest `k` for which a scan is cut in two (the second half's neighbours live on the stack).
+#[cfg(feature = "parallel")]
+const PARALLEL_SCAN_MAX_K: usize = 64;
+
+/// Runs `part` over `lo..hi` in two halves on two threads (the cut on a multiple of `align`),
+/// the second into a heap of its own whose neighbours then go into `best`; `None` (nothing
+/// done) when the range is short or `k` large. Returns whether both halves finished their
+/// preferred way.
+#[cfg(feature = "parallel")]
+fn split_scan<F>(
+    lo: usize,
+    hi: usize,
+    align: usize,
+    best: &mut Best<'_>,
+    cost: &mut Cost,
+    part: F,
+) -> Option<bool>
+where
+    F: Fn(usize, usize, &mut Best<'_>, &mut Cost) -> bool + Sync,
+{
+    let k = best.heap.len();
+    if hi <= lo || hi - lo < PARALLEL_SCAN || k > PARALLEL_SCAN_MAX_K || best.len > 0 {
+        return None;
+    }
+    let mid = (lo + (hi - lo) / 2) / align * align;
+    let mut other = [Neighbor::default(); PARALLEL_SCAN_MAX_K];
+    let mut other_best = Best::new(&mut other[..k]);
+    let mut other_cost = Cost::default();
+    let (a, b) = rayon::join(
+        || part(lo, mid, best, cost),
+        || part(mid, hi, &mut other_best, &mut other_cost),
+    );
+    for &n in &other_best.heap[..other_best.len] {
+        best.offer(n);
+    }
+    cost.tree_rows += other_cost.tree_rows;
+    cost.sketch_rows += other_cost.sketch_rows;
+    cost.exact_rows += other_cost.exact_rows;
+    Some(a && b)
+}
+
+/// [`scan`] over `lo..hi` on this thread.
+#[inline]
+fn scan_part(
+    rows: Rows<'_>,
+    lo: usize,
+    hi: usize,
+    query: &[f32],
+    exclude: &Exclude<'_>,
+    bound: f32,
+    best: &mut Best<'_>,
+) {
+    #[cfg(all(feature = "std", target_arch = "x86_64"))]
+    if std::is_x86_feature_detected!("avx2") {
+        #[allow(unsafe_code)]
+        // SAFETY: the CPU supports AVX2 (checked just above), the only requirement for calling a
+        // function compiled with `#[target_feature(enable = "avx2")]`.
+        return unsafe { scan_avx2(rows, lo, hi, query, exclude, bound, best) };
+    }
+    scan_impl(rows, lo, hi, query, exclude, bound, best, dist4)
+}
+
+#[cfg(all(feature = "std", target_arch = "x86_64"))]
+#[target_feature(enable = "avx2")]
+fn scan_avx2(
+    rows: Rows<'_>,
+    lo: usize,
+    hi: usize,
+    query: &[f32],
+    exclude: &Exclude<'_>,
+    bound: f32,
+    best: &mut Best<'_>,
+) {
+    scan_impl(rows, lo, hi, query, exclude, bound, best, |q, g, d, s| {
+        avx2::dist4(q, g, d, s)
+    })
+}
+
+/// The body of [`scan`], inlined into each of its compiled copies: four rows at a time (their
+/// distances from `dist4`), and a row is offered only when its distance is within the current
+/// limit.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn scan_impl(
+    rows: Rows<'_>,
+    lo: usize,
+    hi: usize,
+    query: &[f32],
+    exclude: &Exclude<'_>,
+    bound: f32,
+    best: &mut Best<'_>,
+    dist4: impl Fn(&[f32], &[f32], usize, [f32; 4]) -> [f32; 4],
 ) {
     if best.heap.is_empty() {
         return;
     }
-    let hi = hi.min(exclude.before_id);
+    let hi = hi.min(exclude.before_id).min(rows.n);
     if lo >= hi {
         return;
     }
-    let block = &rows[lo * dim..hi * dim];
     let timed = exclude.not_newer_than.is_some();
-    let mut worst = best.worst();
-    for (i, row) in block.chunks_exact(dim).enumerate() {
-        let d = dist(query, row);
-        if let Some(w) = worst {
-            if d > w {
-                continue;
-            }
-        }
-        let id = lo + i;
+    let mut limit = best.limit(bound);
+    let mut offer = |id: usize, d: f32, limit: &mut f32| {
         if timed && !exclude.allows(id) {
-            continue;
+            return;
         }
         best.offer(Neighbor {
             id: id as u32,
             distance: d,
         });
-        worst = best.worst();
-    }
-}
-
-/// Margin by which the kd-tree's lower bound must exceed the current worst distance before a
-/// subtree is skipped: covers the `f32` rounding of normalisation and of the dot product, so that
-/// pruning never drops a neighbour that [`brute_force`] would return.
-#[inline]
-fn prune_margin(dim: usize) -> f64 {
-    (dim as f64 + 64.0) * 1.2e-7
-}
-
-/// A kd-tree over L2-normalised rows, built in place in caller-owned buffers.
-///
-/// The tree is implicit: a node is a range of the permutation; its split entry sits at the middle
-/// of the range, the entries before it have a split coordinate `<=` the split value and those after
-/// it `>=`. The split dimension of the node whose middle is position `m` is `splits[m]`. Ranges of
-/// at most [`LEAF_SIZE`] entries are scanned linearly.
-///
-/// Queries are exact: a subtree is skipped only when `(q_d − s)² / 2`, a lower bound of the
-/// distance of everything in it, exceeds the current k-th distance by more than the rounding
-/// margin; with equal distances the lower id wins, exactly as in [`brute_force`].
-#[derive(Debug, Clone, Copy)]
-pub struct KdTree<'a> {
-    rows: &'a [f32],
-    dim: usize,
-    perm: &'a [u32],
-    splits: &'a [u16],
-}
-
-impl<'a> KdTree<'a> {
-    /// Builds a tree over every row of `rows` (ids `0..n`): fills `perm[..n]` with the ids and
-    /// arranges them, writing split dimensions into `splits[..n]`. Allocates nothing.
-    ///
-    /// # Errors
-    /// [`Error::InvalidParameter`] for a bad `dim` (see [`brute_force`]);
-    /// [`Error::BufferTooSmall`] when `perm` or `splits` is shorter than the number of rows.
-    pub fn build(
-        rows: &'a [f32],
-        dim: usize,
-        perm: &'a mut [u32],
-        splits: &'a mut [u16],
-    ) -> Result<KdTree<'a>, Error> {
-        let n = n_rows(rows, dim)?;
-        check_buffers(n, perm.len(), splits.len())?;
-        let (perm, splits) = (&mut perm[..n], &mut splits[..n]);
-        for (i, p) in perm.iter_mut().enumerate() {
-            *p = i as u32;
-        }
-        build_rec(rows, dim, perm, splits);
-        Ok(KdTree {
-            rows,
-            dim,
-            perm,
-            splits,
-        })
-    }
-
-    /// Views buffers that [`KdTree::build`] (or [`online_insert`], for one block) has arranged,
-    /// without rebuilding. `perm` and `splits` must be the exact ranges that were built.
-    ///
-    /// # Errors
-    /// [`Error::InvalidParameter`] for a bad `dim`; [`Error::LengthMismatch`] when `perm` and
-    /// `splits` differ in length; [`Error::InvalidParameter`] (name `perm`) when an id in `perm`
-    /// is not a row of `rows`.
-    pub fn from_built(
-        rows: &'a [f32],
-        dim: usize,
-        perm: &'a [u32],
-        splits: &'a [u16],
-    ) -> Result<KdTree<'a>, Error> {
-        let n = n_rows(rows, dim)?;
-        if perm.len() != splits.len() {
-            return Err(Error::LengthMismatch {
-                what: "perm vs splits",
-                left: perm.len(),
-                right: splits.len(),
-            });
-        }
-        if let Some(&bad) = perm.iter().find(|&&p| p as usize >= n) {
-            return Err(Error::InvalidParameter {
-                name: "perm",
-                value: bad as f64,
-                expected: "ids of existing rows",
-            });
-        }
-        Ok(KdTree {
-            rows,
-            dim,
-            perm,
-            splits,
-        })
-    }
-
-    /// Number of entries in the tree.
-    pub fn len(&self) -> usize {
-        self.perm.len()
-    }
-
-    /// `true` when the tree holds no entry.
-    pub fn is_empty(&self) -> bool {
-        self.perm.is_empty()
-    }
-
-    /// Exact k-NN: the same contract and the same results as [`brute_force`] over the tree's
-    /// entries (`query` L2-normalised; `out[..k]` is the heap; nearest first, ties by lower id).
-    ///
-    /// # Errors
-    /// [`Error::LengthMismatch`] when `query.len()` differs from the rows' dimension or the
-    /// timestamps of `exclude` are fewer than the rows; [`Error::BufferTooSmall`] when
-    /// `out.len() < k`.
-    pub fn search(
-        &self,
-        query: &[f32],
-        k: usize,
-        exclude: &Exclude<'_>,
-        out: &mut [Neighbor],
-    ) -> Result<usize, Error> {
-        check_query(query, self.dim)?;
-        check_out(out, k)?;
-        exclude.check(self.rows.len() / self.dim)?;
-        let mut best = Best::new(&mut out[..k]);
-        if k > 0 {
-            self.search_into(query, exclude, &mut best);
-        }
-        Ok(best.finish())
-    }
-
-    fn search_into(&self, query: &[f32], exclude: &Exclude<'_>, best: &mut Best<'_>) {
-        let mut off = [0f64; MAX_OFFSET_DIM];
-        let tracked = if self.dim <= MAX_OFFSET_DIM {
-            self.dim
-        } else {
-            0
-        };
-        let mut walk = Walk {
-            query,
-            exclude,
-            eps: prune_margin(self.dim),
-            off: &mut off[..tracked],
-        };
-        self.rec(0, self.perm.len(), 0.0, &mut walk, best);
-    }
-
-    #[inline]
-    fn consider(&self, id: u32, query: &[f32], exclude: &Exclude<'_>, best: &mut Best<'_>) {
-        let i = id as usize;
-        if !exclude.allows(i) {
-            return;
-        }
-        let d = dist(query, &self.rows[i * self.dim..(i + 1) * self.dim]);
-        best.offer(Neighbor { id, distance: d });
-    }
-
-    /// Visits the node `perm[lo..hi]`, whose cell is at squared Euclidean distance at least
-    /// `rd` from the query (Arya & Mount's incremental bound: `rd = Σ_d off[d]²`).
-    fn rec(&self, lo: usize, hi: usize, rd: f64, walk: &mut Walk<'_>, best: &mut Best<'_>) {
-        let n = hi - lo;
-        if n <= LEAF_SIZE {
-            for &id in &self.perm[lo..hi] {
-                self.consider(id, walk.query, walk.exclude, best);
-            }
-            return;
-        }
-        let mid = lo + n / 2;
-        let pid = self.perm[mid];
-        let d = self.splits[mid] as usize;
-        let s = self.rows[pid as usize * self.dim + d];
-        self.consider(pid, walk.query, walk.exclude, best);
-        let diff = walk.query[d] as f64 - s as f64;
-        let (near, far) = if diff <= 0.0 {
-            ((lo, mid), (mid + 1, hi))
-        } else {
-            ((mid + 1, hi), (lo, mid))
-        };
-        self.rec(near.0, near.1, rd, walk, best);
-        if far.0 < far.1 {
-            // Every entry of the far cell has its coordinate d beyond s: its offset along d is
-            // at least |diff|, which replaces the cell's previous offset along d.
-            let old = walk.off.get(d).copied().unwrap_or(0.0);
-            let far_rd = if walk.off.is_empty() {
-                diff * diff
-            } else {
-                rd - old * old + diff * diff
-            };
-            let skip = match best.worst() {
-                // Distances are at most 1; while the k-th is 1 a tie at 1 with a lower id may
-                // still be ahead, so never skip then. NaN bounds never skip.
-                Some(w) if w < 1.0 => 0.5 * far_rd > w as f64 + walk.eps,
-                _ => false,
-            };
-            if !skip {
-                if let Some(o) = walk.off.get_mut(d) {
-                    *o = diff;
-                }
-                self.rec(far.0, far.1, far_rd, walk, best);
-                if let Some(o) = walk.off.get_mut(d) {
-                    *o = old;
+        *limit = best.limit(bound);
+    };
+    let mut id = lo;
+    while id + 4 <= hi {
+        let d = rows.dist4(query, id, &dist4);
+        if d[0].min(d[1]).min(d[2].min(d[3])) <= limit {
+            for (j, &dj) in d.iter().enumerate() {
+                if dj <= limit {
+                    offer(id + j, dj, &mut limit);
                 }
             }
         }
+        id += 4;
     }
-}
-
-/// Largest dimension for which queries keep per-dimension cell offsets (on the stack) for the
-/// incremental bound; above it they fall back to the single-split bound `(q_d − s)²`.
-const MAX_OFFSET_DIM: usize = 1024;
-
-/// The per-query state of a kd-tree walk.
-struct Walk<'q> {
-    query: &'q [f32],
-    exclude: &'q Exclude<'q>,
-    eps: f64,
-    /// Offsets of the current cell from the query along each dimension (empty: not tracked).
-    off: &'q mut [f64],
-}
-
-fn check_buffers(n: usize, perm: usize, splits: usize) -> Result<(), Error> {
-    if perm < n {
-        return Err(Error::BufferTooSmall {
-            buffer: "perm",
-            needed: n,
-            got: perm,
-        });
-    }
-    if splits < n {
-        return Err(Error::BufferTooSmall {
-            buffer: "splits",
-            needed: n,
-            got: splits,
-        });
-    }
-    Ok(())
-}
-
-/// Chooses the dimension with the widest spread among up to [`SPLIT_SAMPLE`] evenly spaced
-/// entries of `perm` (ties: the lowest dimension).
-fn widest_dim(rows: &[f32], dim: usize, perm: &[u32]) -> usize {
-    let n = perm.len();
-    let step = (n / SPLIT_SAMPLE).max(1);
-    let mut best_d = 0;
-    let mut best_spread = -1.0f32;
-    for d in 0..dim {
-        let mut lo = f32::INFINITY;
-        let mut hi = f32::NEG_INFINITY;
-        let mut i = 0;
-        while i < n {
-            let v = rows[perm[i] as usize * dim + d];
-            lo = lo.min(v);
-            hi = hi.max(v);
-            i += step;
+    while id < hi {
+        let d = rows.dist(query, id);
+        if d <= limit {
+            offer(id, d, &mut limit);
         }
-        let spread = hi - lo;
-        if spread > best_spread {
-            best_spread = spread;
-            best_d = d;
-        }
-    }
-    best_d
-}
-
-fn build_rec(rows: &[f32], dim: usize, perm: &mut [u32], splits: &mut [u16]) {
-    let n = perm.len();
-    if n <= LEAF_SIZE {
-        return;
-    }
-    let d = widest_dim(rows, dim, perm);
-    let mid = n / 2;
-    perm.select_nth_unstable_by(mid, |&a, &b| {
-        rows[a as usize * dim + d].total_cmp(&rows[b as usize * dim + d])
-    });
-    splits[mid] = d as u16;
-    let (lp, rp) = perm.split_at_mut(mid);
-    let (ls, rs) = splits.split_at_mut(mid);
-    build_rec(rows, dim, lp, ls);
-    build_rec(rows, dim, &mut rp[1..], &mut rs[1..]);
-}
-
-/// The blocks of the online index over `n` entries: `(start, end)` id ranges, largest first.
-fn blocks(n: usize) -> impl Iterator<Item = (usize, usize)> {
-    let mut start = 0usize;
-    (0..usize::BITS).rev().filter_map(move |bit| {
-        let size = 1usize << bit;
-        if n & size != 0 {
-            let b = (start, start + size);
-            start += size;
-            Some(b)
-        } else {
-            None
-        }
-    })
-}
-
-/// Adds the newest row to an online index.
-///
-/// The index over the first `n` rows of `rows` (ids `0..n`, where `n = rows.len() / dim` counts
-/// the row just appended) lives in `perm[..n]` and `splits[..n]`; call this once after each row
-/// is appended, in order. It rebuilds the one block that the new entry completes (sizes are
-/// powers of two, so an entry is rebuilt `O(log n)` times in its life). Allocates nothing.
-///
-/// # Errors
-/// [`Error::InvalidParameter`] for a bad `dim` (see [`brute_force`]) or when `rows` is empty;
-/// [`Error::BufferTooSmall`] when `perm` or `splits` is shorter than the number of rows.
-pub fn online_insert(
-    rows: &[f32],
-    dim: usize,
-    perm: &mut [u32],
-    splits: &mut [u16],
-) -> Result<(), Error> {
-    let n = n_rows(rows, dim)?;
-    if n == 0 {
-        return Err(Error::InvalidParameter {
-            name: "rows",
-            value: 0.0,
-            expected: "at least the entry being inserted",
-        });
-    }
-    check_buffers(n, perm.len(), splits.len())?;
-    let size = 1usize << n.trailing_zeros();
-    rebuild_block(rows, dim, n - size, n, perm, splits);
-    Ok(())
-}
-
-/// Builds every block of the online index over all rows from scratch (for example after loading
-/// a database); equivalent to calling [`online_insert`] after each row, but faster.
-///
-/// # Errors
-/// As [`online_insert`], except that zero rows is fine.
-pub fn online_rebuild(
-    rows: &[f32],
-    dim: usize,
-    perm: &mut [u32],
-    splits: &mut [u16],
-) -> Result<(), Error> {
-    let n = n_rows(rows, dim)?;
-    check_buffers(n, perm.len(), splits.len())?;
-    for (a, b) in blocks(n) {
-        rebuild_block(rows, dim, a, b, perm, splits);
-    }
-    Ok(())
-}
-
-fn rebuild_block(
-    rows: &[f32],
-    dim: usize,
-    a: usize,
-    b: usize,
-    perm: &mut [u32],
-    splits: &mut [u16],
-) {
-    let p = &mut perm[a..b];
-    for (i, v) in p.iter_mut().enumerate() {
-        *v = (a + i) as u32;
-    }
-    build_rec(rows, dim, p, &mut splits[a..b]);
-}
-
-/// A view of an online index (see [`online_insert`]) for searching.
-#[derive(Debug, Clone, Copy)]
-pub struct OnlineIndex<'a> {
-    rows: &'a [f32],
-    dim: usize,
-    perm: &'a [u32],
-    splits: &'a [u16],
-}
-
-impl<'a> OnlineIndex<'a> {
-    /// Views the index that [`online_insert`] or [`online_rebuild`] maintains in `perm[..n]` and
-    /// `splits[..n]` over the `n` rows of `rows`.
-    ///
-    /// # Errors
-    /// [`Error::InvalidParameter`] for a bad `dim` (see [`brute_force`]);
-    /// [`Error::BufferTooSmall`] when `perm` or `splits` is shorter than the number of rows.
-    pub fn new(
-        rows: &'a [f32],
-        dim: usize,
-        perm: &'a [u32],
-        splits: &'a [u16],
-    ) -> Result<OnlineIndex<'a>, Error> {
-        let n = n_rows(rows, dim)?;
-        check_buffers(n, perm.len(), splits.len())?;
-        Ok(OnlineIndex {
-            rows,
-            dim,
-            perm: &perm[..n],
-            splits: &splits[..n],
-        })
-    }
-
-    /// Exact k-NN over every entry: the same results as [`brute_force`] over the same rows.
-    /// Blocks that lie entirely at or after `exclude.before_id` are not visited.
-    ///
-    /// # Errors
-    /// [`Error::LengthMismatch`] when `query.len()` differs from the rows' dimension or the
-    /// timestamps of `exclude` are fewer than the rows; [`Error::BufferTooSmall`] when
-    /// `out.len() < k`.
-    pub fn search(
-        &self,
-        query: &[f32],
-        k: usize,
-        exclude: &Exclude<'_>,
-        out: &mut [Neighbor],
-    ) -> Result<usize, Error> {
-        let n = self.perm.len();
-        check_query(query, self.dim)?;
-        check_out(out, k)?;
-        exclude.check(n)?;
-        let mut best = Best::new(&mut out[..k]);
-        if k > 0 {
-            let mut off = [0f64; MAX_OFFSET_DIM];
-            let tracked = if self.dim <= MAX_OFFSET_DIM {
-                self.dim
-            } else {
-                0
-            };
-            let mut walk = Walk {
-                query,
-                exclude,
-                eps: prune_margin(self.dim),
-                off: &mut off[..tracked],
-            };
-            for (a, b) in blocks(n) {
-                if a >= exclude.before_id {
-                    break;
-                }
-                let tree = KdTree {
-                    rows: self.rows,
-                    dim: self.dim,
-                    perm: &self.perm[a..b],
-                    splits: &self.splits[a..b],
-                };
-                tree.rec(0, b - a, 0.0, &mut walk, &mut best);
-            }
-        }
-        Ok(best.finish())
+        id += 1;
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn blocks_follow_binary_representation() {
-        let mut v = [(0usize, 0usize); 4];
-        let mut c = 0;
-        for b in blocks(13) {
-            v[c] = b;
-            c += 1;
-        }
-        assert_eq!(&v[..c], &[(0, 8), (8, 12), (12, 13)]);
-        assert_eq!(blocks(0).count(), 0);
-    }
 
     #[test]
     fn heap_keeps_k_best_sorted() {
@@ -895,7 +880,8 @@ mod tests {
     fn zero_vectors_are_at_distance_one() {
         let rows = [0.0f32, 0.0, 1.0, 0.0];
         let mut out = [Neighbor::default(); 2];
-        let n = brute_force(&rows, 2, &[0.0, 0.0], 2, &Exclude::NONE, &mut out).unwrap();
+        let rows = Rows::normalized(&rows, 2).unwrap();
+        let n = brute_force(rows, &[0.0, 0.0], 2, &Exclude::NONE, &mut out).unwrap();
         assert_eq!(n, 2);
         assert_eq!(
             out[0],

@@ -1,11 +1,11 @@
-//! Brute force, kd-tree build and query, and the online index allocate nothing: a counting
-//! global allocator sees zero allocations across them.
+//! Brute force, kd-tree build and query, the online index, the sketch and every plan of the index
+//! allocate nothing: a counting global allocator sees zero allocations across them.
 
 mod common;
 
 use solid_lidar::search::{
-    brute_force, normalize_rows, online_insert, online_rebuild, Exclude, KdTree, Neighbor,
-    OnlineIndex,
+    brute_force, inverse_norm, normalize_rows, online_insert, online_rebuild, sketch_encode,
+    sketch_len, Exclude, Index, KdTree, Neighbor, OnlineIndex, Plan, Request, Rows,
 };
 
 #[global_allocator]
@@ -23,24 +23,57 @@ fn searches_allocate_nothing() {
     let mut out = vec![Neighbor::default(); 10];
     let mut out2 = vec![Neighbor::default(); 10];
     let times: Vec<f64> = (0..n).map(|i| i as f64).collect();
+    let (nc, np) = sketch_len(n, dim);
+    let (mut codes, mut params) = (vec![0u8; nc], vec![0f32; np]);
+    let mut outs = [[Neighbor::default(); 10]; 4];
+    let mut scaled_outs = [[Neighbor::default(); 10]; 4];
+    let mut scale = vec![0f32; n];
 
     let before = common::allocations();
     normalize_rows(&raw, dim, &mut rows).unwrap();
     let q = &rows[17 * dim..18 * dim];
+    let normed = Rows::normalized(&rows, dim).unwrap();
     let ex = Exclude {
         before_id: n - 50,
         not_newer_than: Some((&times, 4000.0)),
     };
-    let got = brute_force(&rows, dim, q, 10, &ex, &mut out).unwrap();
-    let tree = KdTree::build(&rows, dim, &mut perm, &mut splits).unwrap();
+    let got = brute_force(normed, q, 10, &ex, &mut out).unwrap();
+    let tree = KdTree::build(normed, &mut perm, &mut splits).unwrap();
     tree.search(q, 10, &ex, &mut out2).unwrap();
     for k in 1..=n {
-        online_insert(&rows[..k * dim], dim, &mut operm, &mut osplits).unwrap();
+        online_insert(normed.prefix(k), &mut operm, &mut osplits).unwrap();
     }
-    online_rebuild(&rows, dim, &mut operm, &mut osplits).unwrap();
-    let index = OnlineIndex::new(&rows, dim, &operm, &osplits).unwrap();
+    online_rebuild(normed, &mut operm, &mut osplits).unwrap();
+    let index = OnlineIndex::new(normed, &operm, &osplits).unwrap();
     let mut out3 = [Neighbor::default(); 10];
     index.search(q, 10, &ex, &mut out3).unwrap();
+    for k in 1..=n {
+        sketch_encode(normed.prefix(k), k - 1, &mut codes, &mut params).unwrap();
+    }
+    let every_plan = |index: &Index<'_>, outs: &mut [[Neighbor; 10]; 4]| {
+        let plans = [Plan::Brute, Plan::KdTree, Plan::Sketch, Plan::Auto];
+        for (plan, o) in plans.into_iter().zip(outs) {
+            let req = Request {
+                k: 10,
+                exclude: ex,
+                max_distance: 0.5,
+                plan,
+                observed: None,
+            };
+            index.search(q, &req, o).unwrap();
+        }
+    };
+    let index = Index::new(normed, &operm, &osplits, &codes, &params).unwrap();
+    every_plan(&index, &mut outs);
+    // The raw rows with their scales: the same neighbours.
+    for (s, row) in scale.iter_mut().zip(raw.chunks_exact(dim)) {
+        *s = inverse_norm(row).unwrap();
+    }
+    let scaled = Rows::scaled(&raw, dim, &scale).unwrap();
+    online_rebuild(scaled, &mut operm, &mut osplits).unwrap();
+    sketch_encode(scaled, 0, &mut codes, &mut params).unwrap();
+    let index = Index::new(scaled, &operm, &osplits, &codes, &params).unwrap();
+    every_plan(&index, &mut scaled_outs);
     let after = common::allocations();
 
     assert_eq!(after - before, 0, "the searches allocated");
@@ -48,4 +81,11 @@ fn searches_allocate_nothing() {
     assert_eq!(out[0].id, 17);
     assert_eq!(out, out2);
     assert_eq!(&out[..], &out3[..]);
+    for o in &outs {
+        assert_eq!(&out[..], &o[..]);
+    }
+    for o in &scaled_outs {
+        assert_eq!(o[0].id, 17);
+        assert_eq!(o, &scaled_outs[0]);
+    }
 }

@@ -7,8 +7,9 @@ use common::{data_dir, read_xyz_f32};
 
 use proptest::prelude::*;
 use solid_lidar::search::{
-    brute_force, normalize, normalize_rows, normalized_distance, online_insert, online_rebuild,
-    Exclude, KdTree, Neighbor, OnlineIndex,
+    brute_force, inverse_norm, normalize, normalize_rows, normalized_distance, online_extend,
+    online_insert, online_rebuild, sketch_encode, sketch_len, Cost, Exclude, Index, KdTree,
+    Neighbor, Observed, OnlineIndex, Plan, Request, Rows, Sketch, AUTO_MISSES, AUTO_RETRY_EVERY,
 };
 use solid_lidar::{cosine_distance, Config, Describer, Points};
 
@@ -39,17 +40,23 @@ fn normed(raw: &[f32], dim: usize) -> Vec<f32> {
     out
 }
 
-fn brute(rows: &[f32], dim: usize, q: &[f32], k: usize, ex: &Exclude<'_>) -> Vec<Neighbor> {
+fn scales(raw: &[f32], dim: usize) -> Vec<f32> {
+    raw.chunks_exact(dim)
+        .map(|r| inverse_norm(r).unwrap())
+        .collect()
+}
+
+fn brute(rows: Rows<'_>, q: &[f32], k: usize, ex: &Exclude<'_>) -> Vec<Neighbor> {
     let mut out = vec![Neighbor::default(); k];
-    let n = brute_force(rows, dim, q, k, ex, &mut out).unwrap();
+    let n = brute_force(rows, q, k, ex, &mut out).unwrap();
     out.truncate(n);
     out
 }
 
-fn tree(rows: &[f32], dim: usize, q: &[f32], k: usize, ex: &Exclude<'_>) -> Vec<Neighbor> {
-    let n = rows.len() / dim;
+fn tree(rows: Rows<'_>, q: &[f32], k: usize, ex: &Exclude<'_>) -> Vec<Neighbor> {
+    let n = rows.len();
     let (mut perm, mut splits) = (vec![0u32; n], vec![0u16; n]);
-    let t = KdTree::build(rows, dim, &mut perm, &mut splits).unwrap();
+    let t = KdTree::build(rows, &mut perm, &mut splits).unwrap();
     let mut out = vec![Neighbor::default(); k];
     let got = t.search(q, k, ex, &mut out).unwrap();
     out.truncate(got);
@@ -61,64 +68,157 @@ fn tree(rows: &[f32], dim: usize, q: &[f32], k: usize, ex: &Exclude<'_>) -> Vec<
 }
 
 /// The online index grown one row at a time.
-fn online(rows: &[f32], dim: usize, q: &[f32], k: usize, ex: &Exclude<'_>) -> Vec<Neighbor> {
-    let n = rows.len() / dim;
+fn online(rows: Rows<'_>, q: &[f32], k: usize, ex: &Exclude<'_>) -> Vec<Neighbor> {
+    let n = rows.len();
     let (mut perm, mut splits) = (Vec::new(), Vec::new());
     for i in 0..n {
         perm.push(i as u32);
         splits.push(0);
-        online_insert(&rows[..(i + 1) * dim], dim, &mut perm, &mut splits).unwrap();
+        online_insert(rows.prefix(i + 1), &mut perm, &mut splits).unwrap();
     }
     let mut out = vec![Neighbor::default(); k];
-    let got = OnlineIndex::new(rows, dim, &perm, &splits)
+    let got = OnlineIndex::new(rows, &perm, &splits)
         .unwrap()
         .search(q, k, ex, &mut out)
         .unwrap();
     out.truncate(got);
-    // Rebuilding from scratch gives the same structure.
+    // Rebuilding from scratch, or extending from a third of the rows, gives the same structure.
     let (mut p2, mut s2) = (vec![0u32; n], vec![0u16; n]);
-    online_rebuild(rows, dim, &mut p2, &mut s2).unwrap();
+    online_rebuild(rows, &mut p2, &mut s2).unwrap();
     assert_eq!(p2, perm);
+    let (mut p3, mut s3) = (vec![0u32; n], vec![0u16; n]);
+    online_rebuild(rows.prefix(n / 3), &mut p3, &mut s3).unwrap();
+    online_extend(rows, n / 3, &mut p3, &mut s3).unwrap();
+    assert_eq!(p3, perm);
     out
 }
 
+/// The sketch of `rows`, encoded in two steps (as a growing database would) when there are
+/// at least two rows.
+fn sketch_of(rows: Rows<'_>) -> (Vec<u8>, Vec<f32>) {
+    let n = rows.len();
+    let (nc, np) = sketch_len(n, rows.dim());
+    let (mut codes, mut params) = (vec![7u8; nc], vec![f32::NAN; np]);
+    let half = n / 2;
+    sketch_encode(rows.prefix(half), 0, &mut codes, &mut params).unwrap();
+    sketch_encode(rows, half, &mut codes, &mut params).unwrap();
+    (codes, params)
+}
+
+fn sketch(rows: Rows<'_>, q: &[f32], k: usize, ex: &Exclude<'_>) -> Vec<Neighbor> {
+    let (codes, params) = sketch_of(rows);
+    let mut out = vec![Neighbor::default(); k];
+    let got = Sketch::new(rows, &codes, &params)
+        .unwrap()
+        .search(q, k, ex, &mut out)
+        .unwrap();
+    out.truncate(got);
+    out
+}
+
+/// Every plan of the index, with and without a distance bound, against brute force cut at the
+/// bound, with the kd-tree over all rows and over a prefix only (a database after a bulk add);
+/// returns the work of the automatic plan without a bound.
+fn check_index(rows: Rows<'_>, q: &[f32], k: usize, ex: &Exclude<'_>) -> Cost {
+    let n = rows.len();
+    let (mut perm, mut splits) = (vec![0u32; n], vec![0u16; n]);
+    online_rebuild(rows, &mut perm, &mut splits).unwrap();
+    let (mut pperm, mut psplits) = (vec![0u32; n / 2], vec![0u16; n / 2]);
+    online_rebuild(rows.prefix(n / 2), &mut pperm, &mut psplits).unwrap();
+    let (codes, params) = sketch_of(rows);
+    let full = Index::new(rows, &perm, &splits, &codes, &params).unwrap();
+    let part = Index::new(rows, &pperm, &psplits, &codes, &params).unwrap();
+    let b = brute(rows, q, k, ex);
+    let mut auto_cost = Cost::default();
+    let mut bounds = vec![f32::INFINITY, 1.0, 0.0];
+    bounds.extend(b.iter().map(|nb| nb.distance));
+    bounds.extend(b.iter().map(|nb| nb.distance - 1e-7));
+    for (i, &max_distance) in bounds.iter().enumerate() {
+        let want: Vec<Neighbor> = b
+            .iter()
+            .copied()
+            .filter(|nb| nb.distance <= max_distance)
+            .collect();
+        for plan in [Plan::Brute, Plan::KdTree, Plan::Sketch, Plan::Auto] {
+            let req = Request {
+                k,
+                exclude: *ex,
+                max_distance,
+                plan,
+                observed: None,
+            };
+            for (index, which) in [(&full, "full tree"), (&part, "tree over half")] {
+                let mut out = vec![Neighbor::default(); k + 1];
+                let found = index.search(q, &req, &mut out).unwrap();
+                assert_eq!(
+                    &out[..found.len],
+                    &want[..],
+                    "{plan:?} ({which}) with max_distance {max_distance}"
+                );
+                if plan == Plan::Auto && i == 0 && which == "full tree" {
+                    auto_cost = found.cost;
+                }
+            }
+        }
+    }
+    auto_cost
+}
+
 /// Checks that every method agrees with brute force, and that brute force is right: sorted by
-/// (distance, id), the k smallest of all candidates.
+/// (distance, id), the k smallest of all candidates; for the rows stored normalised and for the
+/// raw rows with their scales.
 fn check_all(raw: &[f32], dim: usize, query_raw: &[f32], k: usize, ex: &Exclude<'_>) {
-    let rows = normed(raw, dim);
+    let (normalised, scale) = (normed(raw, dim), scales(raw, dim));
     let mut q = vec![0.0; dim];
     normalize(query_raw, &mut q).unwrap();
-    let b = brute(&rows, dim, &q, k, ex);
-    let t = tree(&rows, dim, &q, k, ex);
-    let o = online(&rows, dim, &q, k, ex);
-    assert_eq!(b, t, "kd-tree differs from brute force");
-    assert_eq!(b, o, "online index differs from brute force");
-    // Reference: sort all allowed candidates.
-    let n = rows.len() / dim;
-    let mut all: Vec<Neighbor> = (0..n)
-        .filter(|&i| {
-            i < ex.before_id
-                && ex
-                    .not_newer_than
-                    .is_none_or(|(t, m)| t[i].is_nan() || t[i] <= m)
-        })
-        .map(|i| Neighbor {
-            id: i as u32,
-            distance: normalized_distance(&q, &rows[i * dim..(i + 1) * dim]).unwrap(),
-        })
-        .collect();
-    all.sort_by(|x, y| x.distance.total_cmp(&y.distance).then(x.id.cmp(&y.id)));
-    all.truncate(k);
-    assert_eq!(b, all, "brute force is not the sorted k best");
-    // Distances agree with the f64 cosine distance of docs/spec.md §3.
-    for nb in &b {
-        let i = nb.id as usize;
-        let want = cosine_distance(query_raw, &raw[i * dim..(i + 1) * dim]).unwrap();
-        assert!(
-            (f64::from(nb.distance) - want).abs() < 1e-5,
-            "distance {} vs {want}",
-            nb.distance
+    for rows in [
+        Rows::normalized(&normalised, dim).unwrap(),
+        Rows::scaled(raw, dim, &scale).unwrap(),
+    ] {
+        let b = brute(rows, &q, k, ex);
+        assert_eq!(b, tree(rows, &q, k, ex), "kd-tree differs from brute force");
+        assert_eq!(b, online(rows, &q, k, ex), "online index differs");
+        assert_eq!(
+            b,
+            sketch(rows, &q, k, ex),
+            "sketch differs from brute force"
         );
+        check_index(rows, &q, k, ex);
+        // Reference: sort all allowed candidates.
+        let mut dists = vec![0.0f32; rows.len()];
+        rows.distances(&q, &mut dists).unwrap();
+        let mut all: Vec<Neighbor> = (0..rows.len())
+            .filter(|&i| {
+                i < ex.before_id
+                    && ex
+                        .not_newer_than
+                        .is_none_or(|(t, m)| t[i].is_nan() || t[i] <= m)
+            })
+            .map(|i| Neighbor {
+                id: i as u32,
+                distance: dists[i],
+            })
+            .collect();
+        all.sort_by(|x, y| x.distance.total_cmp(&y.distance).then(x.id.cmp(&y.id)));
+        all.truncate(k);
+        assert_eq!(b, all, "brute force is not the sorted k best");
+        // Distances agree with the f64 cosine distance of docs/spec.md §3.
+        for nb in &b {
+            let i = nb.id as usize;
+            let want = cosine_distance(query_raw, &raw[i * dim..(i + 1) * dim]).unwrap();
+            assert!(
+                (f64::from(nb.distance) - want).abs() < 1e-5,
+                "distance {} vs {want}",
+                nb.distance
+            );
+        }
+    }
+    // Normalised rows give the distances `normalized_distance` gives.
+    let rows = Rows::normalized(&normalised, dim).unwrap();
+    for nb in brute(rows, &q, k, ex) {
+        let i = nb.id as usize;
+        let c = &normalised[i * dim..(i + 1) * dim];
+        assert_eq!(nb.distance, normalized_distance(&q, c).unwrap());
     }
 }
 
@@ -193,7 +293,8 @@ fn all_zero_rows_and_query() {
     // Every row zero: all distances are 1 and the order is by id.
     let zeros = vec![0.0f32; 100 * dim];
     let rows = normed(&zeros, dim);
-    let got = tree(&rows, dim, &[0.6, 0.8, 0.0, 0.0, 0.0], 3, &Exclude::NONE);
+    let rows = Rows::normalized(&rows, dim).unwrap();
+    let got = tree(rows, &[0.6, 0.8, 0.0, 0.0, 0.0], 3, &Exclude::NONE);
     assert_eq!(
         got.iter().map(|n| (n.id, n.distance)).collect::<Vec<_>>(),
         [(0, 1.0), (1, 1.0), (2, 1.0)]
@@ -204,10 +305,11 @@ fn all_zero_rows_and_query() {
 fn single_entry_and_empty() {
     check_all(&[3.0, 4.0], 2, &[4.0, 3.0], 1, &Exclude::NONE);
     check_all(&[3.0, 4.0], 2, &[4.0, 3.0], 5, &Exclude::NONE);
-    let empty: [f32; 0] = [];
-    assert!(brute(&empty, 2, &[1.0, 0.0], 3, &Exclude::NONE).is_empty());
-    assert!(tree(&empty, 2, &[1.0, 0.0], 3, &Exclude::NONE).is_empty());
-    assert!(brute(&[1.0, 0.0], 2, &[1.0, 0.0], 0, &Exclude::NONE).is_empty());
+    let empty = Rows::normalized(&[], 2).unwrap();
+    assert!(brute(empty, &[1.0, 0.0], 3, &Exclude::NONE).is_empty());
+    assert!(tree(empty, &[1.0, 0.0], 3, &Exclude::NONE).is_empty());
+    let one = Rows::normalized(&[1.0, 0.0], 2).unwrap();
+    assert!(brute(one, &[1.0, 0.0], 0, &Exclude::NONE).is_empty());
 }
 
 #[test]
@@ -231,24 +333,44 @@ fn many_identical_rows_keep_the_tree_balanced_and_exact() {
 
 #[test]
 fn errors_instead_of_panics() {
-    let rows = [1.0f32, 0.0, 0.0, 1.0];
+    let data = [1.0f32, 0.0, 0.0, 1.0];
+    assert!(Rows::normalized(&data, 3).is_err());
+    assert!(Rows::normalized(&data, 0).is_err());
+    assert!(Rows::scaled(&data, 2, &[1.0]).is_err());
+    let rows = Rows::normalized(&data, 2).unwrap();
     let mut out = [Neighbor::default(); 1];
-    assert!(brute_force(&rows, 3, &[1.0, 0.0, 0.0], 1, &Exclude::NONE, &mut out).is_err());
-    assert!(brute_force(&rows, 2, &[1.0], 1, &Exclude::NONE, &mut out).is_err());
-    assert!(brute_force(&rows, 2, &[1.0, 0.0], 2, &Exclude::NONE, &mut out).is_err());
+    assert!(brute_force(rows, &[1.0], 1, &Exclude::NONE, &mut out).is_err());
+    assert!(brute_force(rows, &[1.0, 0.0], 2, &Exclude::NONE, &mut out).is_err());
     let times = [0.0f64];
     let ex = Exclude {
         before_id: usize::MAX,
         not_newer_than: Some((&times, 1.0)),
     };
-    assert!(brute_force(&rows, 2, &[1.0, 0.0], 1, &ex, &mut out).is_err());
+    assert!(brute_force(rows, &[1.0, 0.0], 1, &ex, &mut out).is_err());
     let (mut perm, mut splits) = ([0u32; 1], [0u16; 2]);
-    assert!(KdTree::build(&rows, 2, &mut perm, &mut splits).is_err());
-    assert!(KdTree::from_built(&rows, 2, &[0, 5], &[0, 0]).is_err());
+    assert!(KdTree::build(rows, &mut perm, &mut splits).is_err());
+    assert!(KdTree::from_built(rows, &[0, 5], &[0, 0]).is_err());
     let mut o = [0.0f32; 2];
     assert!(normalize(&[f32::NAN, 1.0], &mut o).is_err());
     assert!(normalize(&[1.0], &mut o).is_err());
-    assert!(online_insert(&[], 2, &mut [], &mut []).is_err());
+    assert!(inverse_norm(&[1.0, f32::INFINITY]).is_err());
+    let empty = Rows::normalized(&[], 2).unwrap();
+    assert!(online_insert(empty, &mut [], &mut []).is_err());
+    assert!(online_extend(rows, 3, &mut [0; 2], &mut [0; 2]).is_err());
+    let (mut codes, mut params) = ([0u8; 31], [0f32; 48]);
+    assert!(sketch_encode(rows, 0, &mut codes, &mut params).is_err());
+    assert!(sketch_encode(rows, 3, &mut [0; 32], &mut params).is_err());
+    assert!(Sketch::new(rows, &codes, &params).is_err());
+    let req = Request {
+        max_distance: f32::NAN,
+        ..Request::nearest(1)
+    };
+    let (mut p2, mut s2) = ([0u32; 2], [0u16; 2]);
+    online_rebuild(rows, &mut p2, &mut s2).unwrap();
+    let (codes, params) = sketch_of(rows);
+    let index = Index::new(rows, &p2, &s2, &codes, &params).unwrap();
+    assert!(index.search(&[1.0, 0.0], &req, &mut out).is_err());
+    assert!(Index::new(rows, &p2, &s2[..1], &codes, &params).is_err());
 }
 
 #[test]
@@ -257,24 +379,29 @@ fn real_descriptors_kdtree_equals_brute_force() {
     let n = raw.len() / dim;
     let rows = normed(&raw, dim);
     // Every scan as the query, docs/spec.md §5 exclusion of the 50 most recent, k = 1 and 10.
+    let all = Rows::normalized(&rows, dim).unwrap();
     for qi in 0..n {
         let q = &rows[qi * dim..(qi + 1) * dim];
+        let db = all.prefix(qi);
         for k in [1, 10] {
             let ex = Exclude::recent(qi, 50);
-            let b = brute(&rows[..qi * dim], dim, q, k, &ex);
-            assert_eq!(b, tree(&rows[..qi * dim], dim, q, k, &ex), "query {qi}");
-            assert_eq!(b, online(&rows[..qi * dim], dim, q, k, &ex), "query {qi}");
+            let b = brute(db, q, k, &ex);
+            assert_eq!(b, tree(db, q, k, &ex), "query {qi}");
+            assert_eq!(b, online(db, q, k, &ex), "query {qi}");
+            assert_eq!(b, sketch(db, q, k, &ex), "query {qi}");
         }
     }
     // Duplicated database (every scan twice): ties must go to the lower id.
     let mut dup = rows.clone();
     dup.extend_from_slice(&rows);
+    let dup = Rows::normalized(&dup, dim).unwrap();
     for qi in (0..n).step_by(5) {
         let q = &rows[qi * dim..(qi + 1) * dim];
-        let b = brute(&dup, dim, q, 4, &Exclude::NONE);
+        let b = brute(dup, q, 4, &Exclude::NONE);
         assert_eq!(b[0].id as usize, qi);
-        assert_eq!(b, tree(&dup, dim, q, 4, &Exclude::NONE));
-        assert_eq!(b, online(&dup, dim, q, 4, &Exclude::NONE));
+        assert_eq!(b, tree(dup, q, 4, &Exclude::NONE));
+        assert_eq!(b, online(dup, q, 4, &Exclude::NONE));
+        check_index(dup, q, 4, &Exclude::NONE);
     }
 }
 
@@ -311,5 +438,145 @@ proptest! {
         let q: Vec<f32> = all[query * dim..(query + 1) * dim].to_vec();
         let n = raw.len() / dim;
         check_all(&raw, dim, &q, k, &Exclude::recent(n, recent));
+    }
+}
+
+/// A seeded generator for the larger data sets below (splitmix64).
+struct Rng(u64);
+
+impl Rng {
+    fn unit(&mut self) -> f32 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        ((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32
+    }
+}
+
+/// `n` rows of `dim` values: copies of `places` random non-negative vectors, each value scaled by
+/// up to `1 ± noise`.
+fn places(n: usize, dim: usize, places: usize, noise: f32, rng: &mut Rng) -> Vec<f32> {
+    let base: Vec<f32> = (0..places * dim).map(|_| rng.unit()).collect();
+    let mut raw = Vec::with_capacity(n * dim);
+    for i in 0..n {
+        let p = (i * 7919) % places;
+        for d in 0..dim {
+            raw.push(base[p * dim + d] * (1.0 + noise * (2.0 * rng.unit() - 1.0)));
+        }
+    }
+    normed(&raw, dim)
+}
+
+#[test]
+fn auto_takes_each_path_and_stays_exact() {
+    let (n, dim) = (6000, 24);
+    let mut rng = Rng(12);
+    // Revisits: the query is a noisy copy of a stored place; the tree finishes within budget.
+    let rows = places(n, dim, 300, 0.05, &mut Rng(11));
+    let q = places(1, dim, 1, 0.0, &mut Rng(11));
+    for k in [1, 5] {
+        let cost = check_index(Rows::normalized(&rows, dim).unwrap(), &q, k, &Exclude::NONE);
+        assert!(cost.tree_rows > 0 && cost.sketch_rows == 0, "{cost:?}");
+    }
+    // A novel place among unstructured rows: the tree gives up and the sketch rules out almost
+    // every row from its bytes.
+    let rows = places(n, dim, n, 0.0, &mut rng);
+    let q = places(1, dim, 1, 0.0, &mut rng);
+    for k in [1, 5] {
+        let ex = Exclude::recent(n, 100);
+        let cost = check_index(Rows::normalized(&rows, dim).unwrap(), &q, k, &ex);
+        assert!(cost.tree_rows > 0, "{cost:?}");
+        assert_eq!(cost.sketch_rows, n - 100, "{cost:?}");
+        assert!(cost.exact_rows < n / 20, "{cost:?}");
+    }
+    // Near-duplicates: one place under 0.1 % noise, a query beside it; the bytes cannot tell the
+    // rows apart, so brute force takes over after the first check.
+    let rows = places(n, dim, 1, 1e-3, &mut Rng(13));
+    let q = places(1, dim, 1, 0.0, &mut Rng(13));
+    let rows = Rows::normalized(&rows, dim).unwrap();
+    let cost = check_index(rows, &q, 3, &Exclude::NONE);
+    assert!(
+        cost.sketch_rows < n / 2 && cost.exact_rows >= n / 2,
+        "{cost:?}"
+    );
+    // Observed over many queries, the sketch that keeps giving up and then the kd-tree that
+    // keeps running out of budget are skipped, and tried again every AUTO_RETRY_EVERY queries;
+    // the results do not change.
+    let (mut perm, mut splits) = (vec![0u32; n], vec![0u16; n]);
+    online_rebuild(rows, &mut perm, &mut splits).unwrap();
+    let (codes, params) = sketch_of(rows);
+    let index = Index::new(rows, &perm, &splits, &codes, &params).unwrap();
+    let observed = Observed::new();
+    let want = brute(rows, &q, 3, &Exclude::NONE);
+    for i in 0..2 * AUTO_RETRY_EVERY {
+        let req = Request {
+            observed: Some(&observed),
+            ..Request::nearest(3)
+        };
+        let mut out = [Neighbor::default(); 3];
+        let found = index.search(&q, &req, &mut out).unwrap();
+        assert_eq!(&out[..], &want[..]);
+        let expected = i < AUTO_MISSES || i % AUTO_RETRY_EVERY == 0;
+        assert_eq!(
+            found.cost.sketch_rows > 0,
+            expected,
+            "query {i}: {:?}",
+            found.cost
+        );
+        assert_eq!(
+            found.cost.tree_rows > 0,
+            expected,
+            "query {i}: {:?}",
+            found.cost
+        );
+    }
+}
+
+#[test]
+fn long_scans_cut_in_two_halves_stay_exact() {
+    // Enough rows for brute force and the sketch to search two halves on two threads (with the
+    // `parallel` feature), and a k above the limit of that (a single pass).
+    let (n, dim) = (70_000, 8);
+    let mut rng = Rng(70);
+    let rows = places(n, dim, 5_000, 0.01, &mut rng);
+    let rows = Rows::normalized(&rows, dim).unwrap();
+    let (mut perm, mut splits) = (vec![0u32; n], vec![0u16; n]);
+    online_rebuild(rows, &mut perm, &mut splits).unwrap();
+    let (codes, params) = sketch_of(rows);
+    let index = Index::new(rows, &perm, &splits, &codes, &params).unwrap();
+    let mut dists = vec![0.0f32; n];
+    for qi in 0..3 {
+        let q = places(1, dim, 1, 0.0, &mut Rng(100 + qi));
+        rows.distances(&q, &mut dists).unwrap();
+        let mut all: Vec<Neighbor> = (0..n)
+            .map(|i| Neighbor {
+                id: i as u32,
+                distance: dists[i],
+            })
+            .collect();
+        all.sort_by(|x, y| x.distance.total_cmp(&y.distance).then(x.id.cmp(&y.id)));
+        for k in [1, 10, 100] {
+            let ex = Exclude::recent(n, 3);
+            let want: Vec<Neighbor> = all
+                .iter()
+                .filter(|nb| (nb.id as usize) < n - 3)
+                .take(k)
+                .copied()
+                .collect();
+            assert_eq!(brute(rows, &q, k, &ex), want, "brute k {k}");
+            for plan in [Plan::Sketch, Plan::Auto, Plan::KdTree] {
+                let req = Request {
+                    k,
+                    exclude: ex,
+                    max_distance: f32::INFINITY,
+                    plan,
+                    observed: None,
+                };
+                let mut out = vec![Neighbor::default(); k];
+                let found = index.search(&q, &req, &mut out).unwrap();
+                assert_eq!(&out[..found.len], &want[..], "{plan:?} k {k}");
+            }
+        }
     }
 }

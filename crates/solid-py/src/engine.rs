@@ -46,9 +46,89 @@ fn db_err(py: Python<'_>, e: DbError) -> PyErr {
 fn parse_method(method: &str) -> PyResult<Method> {
     Method::parse(method).map_err(|_| {
         crate::ConfigError::new_err(format!(
-            "invalid method {method:?}: expected \"brute\", \"kdtree\" or \"auto\""
+            "invalid method {method:?}: expected \"brute\", \"kdtree\", \"sketch\" or \"auto\""
         ))
     })
+}
+
+/// The search options of the Python keyword arguments.
+fn search_options(
+    k: usize,
+    exclude_recent: usize,
+    method: &str,
+    not_newer_than: Option<f64>,
+    max_distance: Option<f64>,
+) -> PyResult<SearchOptions> {
+    let max_distance = match max_distance {
+        Some(d) if d.is_nan() => {
+            return Err(crate::ConfigError::new_err(
+                "invalid max_distance = nan: expected a distance (or None for no bound)",
+            ))
+        }
+        Some(d) => d as f32,
+        None => f32::INFINITY,
+    };
+    Ok(SearchOptions {
+        k,
+        exclude_recent,
+        not_newer_than,
+        max_distance,
+        method: parse_method(method)?,
+    })
+}
+
+/// Per-entry poses of a batch: `None`, or a float64 array of shape (N, 3, 4), (N, 4, 4) (last
+/// row 0, 0, 0, 1) or (N, 12), row-major `[R|t]`.
+fn parse_poses(poses: Option<&Bound<'_, PyAny>>, n: usize) -> PyResult<Option<Vec<[f64; 12]>>> {
+    let Some(p) = poses.filter(|p| !p.is_none()) else {
+        return Ok(None);
+    };
+    let msg = "poses must be None or a float64 array of shape (N, 3, 4), (N, 4, 4) or (N, 12)";
+    let arr = p
+        .extract::<numpy::PyReadonlyArrayDyn<'_, f64>>()
+        .map_err(|_| PyTypeError::new_err(msg))?;
+    let view = arr.as_array();
+    let shape = view.shape().to_vec();
+    let rows_per = match shape[..] {
+        [m, 3, 4] | [m, 4, 4] | [m, 12] if m == n => shape[1..].iter().product::<usize>(),
+        _ => {
+            return Err(PyValueError::new_err(format!(
+                "{msg}, with N = {n} rows; got shape {shape:?}"
+            )))
+        }
+    };
+    let flat: Vec<f64> = view.iter().copied().collect();
+    let mut out = Vec::with_capacity(n);
+    for (i, p) in flat.chunks_exact(rows_per).enumerate() {
+        if rows_per == 16 && p[12..] != [0.0, 0.0, 0.0, 1.0] {
+            return Err(PyValueError::new_err(format!(
+                "poses[{i}]: a 4x4 pose must end with the row [0, 0, 0, 1]"
+            )));
+        }
+        let mut pose = [0.0; 12];
+        pose.copy_from_slice(&p[..12]);
+        out.push(pose);
+    }
+    Ok(Some(out))
+}
+
+/// Query R-SOLiDs of a batch: an (M, n_range) float array, or a sequence of Descriptors made
+/// with the database's config.
+fn batch_queries(q: &Bound<'_, PyAny>, nr: usize, fingerprint: u64) -> PyResult<Vec<f32>> {
+    if q.cast::<numpy::PyUntypedArray>().is_ok() {
+        let b = crate::borrow_2d(q, "queries", crate::Columns::Exactly(nr))?;
+        return Ok(b.slice().to_f32().into_owned());
+    }
+    let items = q.try_iter().map_err(|_| {
+        PyTypeError::new_err(
+            "queries must be an (M, n_range) float array or a sequence of solid.Descriptor",
+        )
+    })?;
+    let mut out = Vec::new();
+    for item in items {
+        out.extend(query_r(&item?, fingerprint)?);
+    }
+    Ok(out)
 }
 
 /// A descriptor argument, or a 1-D sequence of floats taken as an R-SOLiD.
@@ -702,8 +782,55 @@ impl PyDatabase {
             .map_err(|e| db_err(py, e))
     }
 
+    /// Adds N entries at once: R-SOLiDs `r` (N, n_range) and A-SOLiDs `a` (N, n_azimuth)
+    /// (float32 read in place, float64 converted), one session, optional timestamps (N,) and
+    /// poses; returns the first id (the others follow). Everything is checked first; with
+    /// `index=False` the kd-tree is left for `build_index` (searches stay exact).
+    #[pyo3(signature = (r, a, session=0, timestamps=None, poses=None, index=true))]
+    #[allow(clippy::too_many_arguments)]
+    fn add_batch(
+        &self,
+        py: Python<'_>,
+        r: &Bound<'_, PyAny>,
+        a: &Bound<'_, PyAny>,
+        #[pyo3(from_py_with = args::session)] session: u32,
+        timestamps: Option<numpy::PyReadonlyArray1<'_, f64>>,
+        poses: Option<&Bound<'_, PyAny>>,
+        index: bool,
+    ) -> PyResult<u32> {
+        let cfg = self.with(py, |db| *db.config());
+        let r = crate::borrow_2d(r, "r", crate::Columns::Exactly(cfg.n_range))?;
+        let a = crate::borrow_2d(a, "a", crate::Columns::Exactly(cfg.n_azimuth))?;
+        let n = r.rows();
+        let poses = parse_poses(poses, n)?;
+        let times = match &timestamps {
+            Some(t) => Some(t.as_slice().map_err(|_| {
+                PyValueError::new_err("timestamps must be a contiguous float64 array of shape (N,)")
+            })?),
+            None => None,
+        };
+        let (r, a) = (r.slice(), a.slice());
+        py.detach(|| {
+            let (r, a) = (r.to_f32(), a.to_f32());
+            write(&self.inner).add_batch(&r, &a, session, times, poses.as_deref(), index)
+        })
+        .map_err(|e| db_err(py, e))
+    }
+
+    /// Extends the kd-tree over every entry (after `add_batch(..., index=False)`).
+    fn build_index(&self, py: Python<'_>) -> PyResult<()> {
+        py.detach(|| write(&self.inner).build_index())
+            .map_err(|e| db_err(py, e))
+    }
+
+    /// Bytes of memory the database holds.
+    fn memory_bytes(&self, py: Python<'_>) -> usize {
+        self.with(py, Database::memory_bytes)
+    }
+
     /// The `k` nearest entries, nearest first (ties by lower id).
-    #[pyo3(signature = (descriptor, k=1, exclude_recent=0, method="auto", not_newer_than=None))]
+    #[pyo3(signature = (descriptor, k=1, exclude_recent=0, method="auto", not_newer_than=None, max_distance=None))]
+    #[allow(clippy::too_many_arguments)]
     fn search(
         &self,
         py: Python<'_>,
@@ -712,19 +839,58 @@ impl PyDatabase {
         #[pyo3(from_py_with = args::exclude_recent)] exclude_recent: usize,
         method: &str,
         not_newer_than: Option<f64>,
+        max_distance: Option<f64>,
     ) -> PyResult<Vec<PyMatch>> {
-        let method = parse_method(method)?;
+        let opts = search_options(k, exclude_recent, method, not_newer_than, max_distance)?;
         let r = query_r(descriptor, self.fingerprint(py))?;
-        let opts = SearchOptions {
-            k,
-            exclude_recent,
-            not_newer_than,
-            method,
-        };
         let found = py
             .detach(|| read(&self.inner).search_with(&r, &opts))
             .map_err(|e| db_err(py, e))?;
         Ok(to_matches(found))
+    }
+
+    /// The `k` nearest entries to each query (an (M, n_range) array of R-SOLiDs or a sequence
+    /// of Descriptors), in one call with the GIL released once and every core searching: ids
+    /// (M, k) int64 (-1 in empty slots) and distances (M, k) float32 (inf in empty slots),
+    /// nearest first; row i is `search(queries[i], ...)`.
+    #[pyo3(signature = (queries, k=1, exclude_recent=0, method="auto", not_newer_than=None, max_distance=None))]
+    #[allow(clippy::too_many_arguments)]
+    #[allow(clippy::type_complexity)]
+    fn search_batch<'py>(
+        &self,
+        py: Python<'py>,
+        queries: &Bound<'_, PyAny>,
+        #[pyo3(from_py_with = args::k)] k: usize,
+        #[pyo3(from_py_with = args::exclude_recent)] exclude_recent: usize,
+        method: &str,
+        not_newer_than: Option<f64>,
+        max_distance: Option<f64>,
+    ) -> PyResult<(Bound<'py, PyArray2<i64>>, Bound<'py, PyArray2<f32>>)> {
+        let opts = search_options(k, exclude_recent, method, not_newer_than, max_distance)?;
+        let (nr, fingerprint) =
+            self.with(py, |db| (db.config().n_range, db.config().fingerprint()));
+        let q = batch_queries(queries, nr, fingerprint)?;
+        let m = q.len() / nr;
+        let found = py
+            .detach(|| read(&self.inner).search_batch(&q, &opts))
+            .map_err(|e| db_err(py, e))?;
+        let ids: Vec<i64> = found
+            .ids
+            .iter()
+            .map(|&id| {
+                if id == db::BatchResults::NONE {
+                    -1
+                } else {
+                    i64::from(id)
+                }
+            })
+            .collect();
+        let shape = (m, found.k);
+        let ids =
+            Array2::from_shape_vec(shape, ids).map_err(|e| PyValueError::new_err(e.to_string()))?;
+        let dists = Array2::from_shape_vec(shape, found.distances)
+            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        Ok((ids.into_pyarray(py), dists.into_pyarray(py)))
     }
 
     /// The cosine distance from the query (a Descriptor or an R-SOLiD) to every entry, in id
@@ -848,14 +1014,13 @@ impl PyDatabase {
         Ok(a.into_pyarray(py))
     }
 
-    /// All A-SOLiDs, shape (N, n_azimuth), float32 (a copy).
+    /// All A-SOLiDs as stored, shape (N, n_azimuth), float32 (a copy): 8 bits per value with
+    /// one step per entry, within half a step (0.2 % of the entry's largest value) of the
+    /// values added.
     #[getter]
     fn a<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
-        let (shape, v) = self.with(py, |db| {
-            let v = args::try_copy(db.a_all(), "Database.a");
-            ((db.len(), db.config().n_azimuth), v)
-        });
-        let a = Array2::from_shape_vec(shape, v?).map_err(shape_err)?;
+        let (shape, v) = self.with(py, |db| ((db.len(), db.config().n_azimuth), db.a_all()));
+        let a = Array2::from_shape_vec(shape, v).map_err(shape_err)?;
         Ok(a.into_pyarray(py))
     }
 

@@ -473,6 +473,16 @@ pub enum PointSlice<'a> {
     F64(&'a [f64], usize),
 }
 
+impl<'a> PointSlice<'a> {
+    /// The values as `f32` (float32 read in place, float64 rounded into a copy).
+    pub fn to_f32(&self) -> std::borrow::Cow<'a, [f32]> {
+        match *self {
+            PointSlice::F32(s, _) => std::borrow::Cow::Borrowed(s),
+            PointSlice::F64(s, _) => s.iter().map(|&v| v as f32).collect(),
+        }
+    }
+}
+
 /// Keeps the numpy read-only borrow alive while its slice is used.
 pub enum Borrowed<'py> {
     /// float32 array.
@@ -482,10 +492,18 @@ pub enum Borrowed<'py> {
 }
 
 impl Borrowed<'_> {
+    /// Number of rows.
+    pub fn rows(&self) -> usize {
+        match self {
+            Borrowed::F32(a) => a.shape()[0],
+            Borrowed::F64(a) => a.shape()[0],
+        }
+    }
+
     /// The flat slice and its stride.
     pub fn slice(&self) -> PointSlice<'_> {
         match self {
-            // Contiguity and alignment were checked in `borrow_points`.
+            // Contiguity and alignment were checked in `borrow_2d`.
             Borrowed::F32(a) => {
                 PointSlice::F32(a.as_slice().expect("checked C-contiguous"), a.shape()[1])
             }
@@ -499,16 +517,45 @@ impl Borrowed<'_> {
 /// Checks a points argument (numpy, 2-D, ≥ 3 columns, float32/float64, C-contiguous, aligned)
 /// and borrows it read-only. `what` names the argument in messages.
 pub fn borrow_points<'py>(points: &Bound<'py, PyAny>, what: &str) -> PyResult<Borrowed<'py>> {
+    borrow_2d(points, what, Columns::AtLeast(3))
+}
+
+/// The columns a 2-D array argument must have.
+#[derive(Clone, Copy)]
+pub enum Columns {
+    /// At least this many (points: x, y, z first).
+    AtLeast(usize),
+    /// Exactly this many (descriptor rows).
+    Exactly(usize),
+}
+
+/// Checks a 2-D float32/float64 array argument (columns, C-contiguity, alignment) and borrows
+/// it read-only. `what` names the argument in messages.
+pub fn borrow_2d<'py>(
+    points: &Bound<'py, PyAny>,
+    what: &str,
+    columns: Columns,
+) -> PyResult<Borrowed<'py>> {
+    let want = match columns {
+        Columns::AtLeast(3) => String::from("(N, >=3) with x, y, z first"),
+        Columns::AtLeast(c) => format!("(N, >={c})"),
+        Columns::Exactly(c) => format!("(N, {c})"),
+    };
     let arr = points.cast::<PyUntypedArray>().map_err(|_| {
         let ty = points.get_type().name().map(|n| n.to_string()).unwrap_or_default();
         PyTypeError::new_err(format!(
-            "{what} must be a numpy array of shape (N, >=3), got {ty}; convert with np.asarray({what}, dtype=np.float32)"
+            "{what} must be a numpy array of shape {want}, got {ty}; convert with np.asarray({what}, dtype=np.float32)"
         ))
     })?;
     let shape = arr.shape().to_vec();
-    if shape.len() != 2 || shape[1] < 3 {
+    let fits = shape.len() == 2
+        && match columns {
+            Columns::AtLeast(c) => shape[1] >= c,
+            Columns::Exactly(c) => shape[1] == c,
+        };
+    if !fits {
         return Err(SolidError::new_err(format!(
-            "{what} must have shape (N, >=3) with x, y, z first; got shape {}",
+            "{what} must have shape {want}; got shape {}",
             fmt_shape(&shape)
         )));
     }

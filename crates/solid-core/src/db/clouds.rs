@@ -2,8 +2,9 @@
 //!
 //! Each place may carry its downsampled cloud in the quantised wire form of
 //! [`crate::reg::wire`] (about 4 bytes a point: 5 kB for a Livox Avia keyframe at 0.5 m voxels),
-//! stored back to back in one buffer. A database without clouds pays nothing per entry: the
-//! offsets exist only once the first cloud is stored.
+//! stored back to back in one buffer. Only the entries up to the last one with a cloud have an
+//! offset: a database without clouds pays nothing per entry, nor do entries added after the last
+//! cloud (bulk adds of descriptors alone).
 
 use alloc::vec::Vec;
 
@@ -12,8 +13,8 @@ use super::DbError;
 /// Clouds of the entries, by id (see the module documentation).
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct Clouds {
-    /// `offsets[i]..offsets[i + 1]` is entry `i`'s cloud in `data` (empty: none); empty while no
-    /// entry has a cloud.
+    /// `offsets[i]..offsets[i + 1]` is entry `i`'s cloud in `data` (empty: none), for the entries
+    /// `i < offsets.len() - 1`; the others have none. Empty while no entry has a cloud.
     offsets: Vec<u64>,
     data: Vec<u8>,
 }
@@ -33,6 +34,11 @@ impl Clouds {
         (b > a).then(|| &self.data[a..b])
     }
 
+    /// Number of entries that have a cloud.
+    pub fn count(&self) -> usize {
+        self.offsets.windows(2).filter(|w| w[1] > w[0]).count()
+    }
+
     /// Bytes held (offsets and data).
     pub fn heap_bytes(&self) -> usize {
         self.offsets.capacity() * 8 + self.data.capacity()
@@ -43,67 +49,71 @@ impl Clouds {
         self.data.len()
     }
 
-    /// Records entry `id` (the next one, `id == entries before`) with `cloud` or none.
+    /// Stores `cloud` for entry `id`, which must not be below an entry that has one already
+    /// (`None` or an empty cloud: nothing to store).
     ///
     /// # Errors
     /// [`DbError::OutOfMemory`] when the memory cannot be reserved (nothing changes).
     pub fn push(&mut self, id: usize, cloud: Option<&[u8]>) -> Result<(), DbError> {
-        let bytes = cloud.unwrap_or(&[]);
-        if bytes.is_empty() && self.offsets.is_empty() {
-            return Ok(());
-        }
-        if self.offsets.is_empty() {
-            // The first cloud: entries 0..id had none.
-            self.offsets
-                .try_reserve(id + 2)
-                .map_err(|_| DbError::OutOfMemory)?;
-            self.offsets.resize(id + 1, 0);
-        } else {
-            self.offsets
-                .try_reserve(1)
-                .map_err(|_| DbError::OutOfMemory)?;
-        }
-        if self.data.try_reserve(bytes.len()).is_err() {
-            return Err(DbError::OutOfMemory);
-        }
+        let bytes = match cloud {
+            Some(b) if !b.is_empty() => b,
+            _ => return Ok(()),
+        };
+        debug_assert!(
+            id + 1 >= self.offsets.len(),
+            "clouds are pushed in id order"
+        );
+        let grow = (id + 2).saturating_sub(self.offsets.len());
+        self.offsets
+            .try_reserve(grow)
+            .map_err(|_| DbError::OutOfMemory)?;
+        self.data
+            .try_reserve(bytes.len())
+            .map_err(|_| DbError::OutOfMemory)?;
+        self.pad(id);
         self.data.extend_from_slice(bytes);
         self.offsets.push(self.data.len() as u64);
         Ok(())
     }
 
-    /// Appends the clouds of `other` (with `other_len` entries) after `self_len` entries.
+    /// Gives entries `..id` an offset (none of them gains a cloud); capacity reserved.
+    fn pad(&mut self, id: usize) {
+        let end = self.data.len() as u64;
+        if self.offsets.is_empty() {
+            self.offsets.push(0);
+        }
+        while self.offsets.len() < id + 1 {
+            self.offsets.push(end);
+        }
+    }
+
+    /// Forgets the clouds of entries `n..` (after an add that failed).
+    pub fn truncate(&mut self, n: usize) {
+        if self.offsets.len() > n + 1 {
+            self.offsets.truncate(n + 1);
+            self.data.truncate(self.offsets[n] as usize);
+        }
+        if self.data.is_empty() {
+            self.offsets.clear();
+        }
+    }
+
+    /// Appends the clouds of `other` after `self_len` entries.
     ///
     /// # Errors
     /// [`DbError::OutOfMemory`] when the memory cannot be reserved (nothing changes).
-    pub fn append(
-        &mut self,
-        self_len: usize,
-        other: &Clouds,
-        other_len: usize,
-    ) -> Result<(), DbError> {
+    pub fn append(&mut self, self_len: usize, other: &Clouds) -> Result<(), DbError> {
         if !other.any() {
-            if self.any() {
-                self.offsets
-                    .try_reserve(other_len)
-                    .map_err(|_| DbError::OutOfMemory)?;
-                let end = self.data.len() as u64;
-                self.offsets.extend(core::iter::repeat_n(end, other_len));
-            }
             return Ok(());
         }
-        if self.offsets.is_empty() {
-            self.offsets
-                .try_reserve(self_len + other_len + 1)
-                .map_err(|_| DbError::OutOfMemory)?;
-            self.offsets.resize(self_len + 1, 0);
-        } else {
-            self.offsets
-                .try_reserve(other_len)
-                .map_err(|_| DbError::OutOfMemory)?;
-        }
+        let grow = (self_len + other.offsets.len()).saturating_sub(self.offsets.len());
+        self.offsets
+            .try_reserve(grow)
+            .map_err(|_| DbError::OutOfMemory)?;
         self.data
             .try_reserve(other.data.len())
             .map_err(|_| DbError::OutOfMemory)?;
+        self.pad(self_len);
         let base = self.data.len() as u64;
         self.data.extend_from_slice(&other.data);
         self.offsets
@@ -188,7 +198,8 @@ mod tests {
         );
         let mut d = Clouds::default();
         d.push(0, None).unwrap();
-        d.append(1, &c, 5).unwrap();
+        d.append(1, &c).unwrap();
+        assert_eq!(d.count(), 2);
         assert_eq!(d.get(3), Some(&[1u8, 2, 3][..]));
         assert_eq!(d.get(5), Some(&[4u8][..]));
         let lengths: Vec<u32> = d.lengths(6).collect();
@@ -198,10 +209,23 @@ mod tests {
             Some(&[4u8][..])
         );
         assert!(Clouds::from_parts(&lengths, &[1, 2]).is_err());
-        // Appending clouds-less entries keeps the offsets in step.
-        d.append(6, &Clouds::default(), 2).unwrap();
+        // Entries without clouds after the last one cost nothing and stay in step.
+        d.append(6, &Clouds::default()).unwrap();
         assert_eq!(d.get(7), None);
         d.push(8, Some(&[9])).unwrap();
         assert_eq!(d.get(8), Some(&[9u8][..]));
+        assert_eq!(
+            d.lengths(10).collect::<Vec<_>>(),
+            [0, 0, 0, 3, 0, 1, 0, 0, 1, 0]
+        );
+        // A failed add is cut back; cutting back the only cloud leaves none.
+        d.truncate(8);
+        assert_eq!((d.get(8), d.count(), d.data_len()), (None, 2, 4));
+        let mut e = Clouds::default();
+        e.push(3, Some(&[1])).unwrap();
+        e.truncate(3);
+        assert!(!e.any() && e.get(3).is_none() && e.heap_bytes() > 0);
+        e.push(3, Some(&[2])).unwrap();
+        assert_eq!(e.get(3), Some(&[2u8][..]));
     }
 }

@@ -8,6 +8,7 @@
 
 use alloc::collections::BTreeMap;
 use alloc::sync::Arc;
+use alloc::vec;
 use alloc::vec::Vec;
 
 use super::database::check_pose;
@@ -800,7 +801,7 @@ impl LoopDetector {
             }
             let db = &self.db;
             let verify_one = |&(i, ref cp): &(usize, Arc<PreparedCloud>)| {
-                verify_pair(&v, a_query, db.a(cands[i].id), q, cp)
+                verify_pair(&v, a_query, &db.a(cands[i].id), q, cp)
             };
             let results: Vec<Option<Verification>> = run_jobs(&jobs, v.threads, verify_one)?;
             for ((i, _), r) in jobs.iter().zip(results) {
@@ -898,16 +899,18 @@ impl LoopDetector {
             &SearchOptions {
                 k,
                 exclude_recent: self.db.len() - eligible,
-                not_newer_than: None,
                 method: Method::Auto,
+                ..SearchOptions::default()
             },
         )?;
         let mut ranked = Vec::new();
         ranked
             .try_reserve_exact(found.len())
             .map_err(|_| DbError::OutOfMemory)?;
+        let mut ca = vec![0.0f32; na];
         for nb in found {
-            let ca = self.db.a(nb.id);
+            self.db.a_into(nb.id, &mut ca);
+            let ca = &ca[..];
             let distance = f64::from(nb.distance);
             let key = if self.config.rerank {
                 distance + aligned_distance(a, ca)?

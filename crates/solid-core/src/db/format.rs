@@ -30,7 +30,6 @@ use alloc::vec::Vec;
 
 use super::clouds::Clouds;
 use super::{Database, DbError};
-use crate::search;
 use crate::Config;
 
 impl Database {
@@ -45,9 +44,9 @@ impl Database {
 
     /// Length of the database in the file format, in bytes.
     pub fn encoded_len(&self) -> usize {
+        let c = &self.config;
         HEADER_LEN
-            + self.len() * ENTRY_LEN
-            + (self.r.len() + self.a.len()) * 4
+            + self.len() * (ENTRY_LEN + (c.n_range + c.n_azimuth) * 4)
             + self.cloud_section_len()
             + 4
     }
@@ -94,19 +93,25 @@ impl Database {
         let cloud_section = self.cloud_section_len();
         w.put(&(cloud_section as u64).to_le_bytes());
         for i in 0..n {
-            w.put(&self.sessions[i].to_le_bytes());
-            let (flags, pose) = match &self.poses[i] {
-                Some(p) => (1u32, *p),
+            w.put(&self.sessions()[i].to_le_bytes());
+            let (flags, pose) = match self.pose(i as u32) {
+                Some(p) => (1u32, p),
                 None => (0u32, [0.0; 12]),
             };
             w.put(&flags.to_le_bytes());
-            w.put(&self.timestamps[i].to_le_bytes());
+            w.put(&self.timestamps()[i].to_le_bytes());
             for v in pose {
                 w.put(&v.to_le_bytes());
             }
         }
-        for v in self.r.iter().chain(&self.a) {
+        for v in self.r_all() {
             w.put(&v.to_le_bytes());
+        }
+        // The A-SOLiDs as stored (Database::a), entry after entry.
+        for i in 0..n {
+            for v in self.a_values(i as u32) {
+                w.put(&v.to_le_bytes());
+            }
         }
         if cloud_section > 0 {
             for l in self.clouds.lengths(n) {
@@ -166,42 +171,40 @@ impl Database {
             at: header.header_len,
         };
         let mut db = Database::new(config)?;
-        db.sessions = try_vec(n)?;
-        db.timestamps = try_vec(n)?;
-        db.poses = try_vec(n)?;
-        db.r = try_vec(n * nr)?;
-        db.a = try_vec(n * na)?;
-        db.normed = try_vec(n * nr)?;
-        db.perm = try_vec(n)?;
-        db.splits = try_vec(n)?;
+        let mut sessions = try_vec::<u32>(n)?;
+        let mut timestamps = try_vec::<f64>(n)?;
+        let mut poses = Vec::new();
         for i in 0..n {
-            db.sessions.push(rd.u32());
+            sessions.push(rd.u32());
             let eflags = rd.u32();
             let t = rd.f64();
             if t.is_infinite() {
                 return Err(bad(format!("entry {i}: infinite timestamp")));
             }
-            db.timestamps.push(t);
+            timestamps.push(t);
             let mut pose = [0.0; 12];
             for v in &mut pose {
                 *v = rd.f64();
             }
             match eflags {
-                0 => db.poses.push(None),
+                0 => {}
                 1 => {
                     if pose.iter().any(|v| !v.is_finite()) {
                         return Err(bad(format!("entry {i}: non-finite pose")));
                     }
-                    db.poses.push(Some(pose));
+                    poses.try_reserve(1).map_err(|_| DbError::OutOfMemory)?;
+                    poses.push((i as u32, pose));
                 }
                 _ => return Err(bad(format!("entry {i}: unknown flags {eflags:#x}"))),
             }
         }
-        db.r.extend((0..n * nr).map(|_| rd.f32()));
-        db.a.extend((0..n * na).map(|_| rd.f32()));
+        let mut r = try_vec::<f32>(n * nr)?;
+        let mut a = try_vec::<f32>(n * na)?;
+        r.extend((0..n * nr).map(|_| rd.f32()));
+        a.extend((0..n * na).map(|_| rd.f32()));
         // Descriptors are finite and non-negative (SPEC §3): anything else was not written by
         // `to_bytes`, whatever its checksum says.
-        if let Some(p) = db.r.iter().chain(&db.a).position(|v| !is_bin_value(*v)) {
+        if let Some(p) = r.iter().chain(&a).position(|v| !is_bin_value(*v)) {
             let (which, entry) = if p < n * nr {
                 ("R-SOLiD", p / nr)
             } else {
@@ -212,6 +215,7 @@ impl Database {
             )));
         }
         let cloud_section = header.cloud_section;
+        let mut clouds = Clouds::default();
         if cloud_section > 0 {
             let lengths_len = 4 * n as u64;
             if cloud_section < lengths_len {
@@ -222,13 +226,9 @@ impl Database {
             let mut lengths = try_vec::<u32>(n)?;
             lengths.extend((0..n).map(|_| rd.u32()));
             let data = &bytes[rd.at..rd.at + (cloud_section - lengths_len) as usize];
-            db.clouds = Clouds::from_parts(&lengths, data)?;
+            clouds = Clouds::from_parts(&lengths, data)?;
         }
-        db.normed.resize(n * nr, 0.0);
-        search::normalize_rows(&db.r, nr, &mut db.normed)?;
-        db.perm.extend(0..n as u32);
-        db.splits.resize(n, 0);
-        search::online_rebuild(&db.normed, nr, &mut db.perm, &mut db.splits)?;
+        db.load_entries(&r, &a, sessions, timestamps, poses, clouds)?;
         Ok(db)
     }
 

@@ -1,9 +1,10 @@
 //! A growable, persistent database of places and an online loop detector (feature `alloc`).
 //!
 //! [`Database`] stores, per entry, a session (robot or run), a timestamp, an optional pose, the
-//! R-SOLiD and A-SOLiD vectors, and the normalised R-SOLiD in an online index
-//! ([`crate::search::online_insert`]) so that every search is exact over every entry added so
-//! far. [`Database::to_bytes`] / [`Database::from_bytes`] (and, with `std`, [`Database::save`] /
+//! R-SOLiD and A-SOLiD vectors, and the R-SOLiD in a [`crate::search::Index`] (an online kd-tree
+//! and a byte sketch) so that every search is exact over every entry added so far; entries can
+//! be added and searched one at a time or in batches ([`Database::add_batch`],
+//! [`Database::search_batch`]). [`Database::to_bytes`] / [`Database::from_bytes`] (and, with `std`, [`Database::save`] /
 //! [`Database::load`]) give a checksummed little-endian file format. [`LoopDetector`] wraps a
 //! database for online loop closure, and [`encode_place`] / [`decode_place`] give a compact wire
 //! form for exchanging one place between robots.
@@ -40,7 +41,7 @@ mod detector;
 pub mod format;
 pub mod wire;
 
-pub use database::{check_pose, Database, SearchOptions, AUTO_KDTREE_MIN};
+pub use database::{check_pose, BatchResults, Database, SearchOptions};
 pub use detector::{
     Candidate, Detection, DetectorConfig, Loop, LoopDetector, Scan, Verification, VerifyConfig,
     DEFAULT_EXCLUDE_FRAMES, DEFAULT_MAX_LOOP_DISTANCE, DEFAULT_RERANK, DEFAULT_TOP_K,
@@ -122,19 +123,23 @@ impl std::error::Error for DbError {
     }
 }
 
-/// How [`Database::search`] searches.
+/// How [`Database::search`] searches; every method returns the same results (see
+/// [`crate::search::Plan`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Method {
-    /// One linear pass over every entry ([`crate::search::brute_force`]).
+    /// One linear pass computing every distance ([`crate::search::brute_force`]).
     Brute,
     /// The online kd-tree index ([`crate::search::OnlineIndex`]).
     KdTree,
-    /// The faster of the two for the database's size (see [`AUTO_KDTREE_MIN`]).
+    /// The byte sketch ([`crate::search::Sketch`]).
+    Sketch,
+    /// The kd-tree under a budget, then the sketch, then brute force
+    /// ([`crate::search::Plan::Auto`]).
     Auto,
 }
 
 impl Method {
-    /// Parses `"brute"`, `"kdtree"` or `"auto"`.
+    /// Parses `"brute"`, `"kdtree"`, `"sketch"` or `"auto"`.
     ///
     /// # Errors
     /// [`Error::InvalidParameter`] (name `method`) for any other name.
@@ -142,11 +147,12 @@ impl Method {
         match name {
             "brute" => Ok(Method::Brute),
             "kdtree" => Ok(Method::KdTree),
+            "sketch" => Ok(Method::Sketch),
             "auto" => Ok(Method::Auto),
             _ => Err(Error::InvalidParameter {
                 name: "method",
                 value: f64::NAN,
-                expected: "\"brute\", \"kdtree\" or \"auto\"",
+                expected: "\"brute\", \"kdtree\", \"sketch\" or \"auto\"",
             }),
         }
     }

@@ -1,0 +1,260 @@
+"""Times solid's search against faiss-cpu (IndexFlatIP) and numpy, in one process.
+
+    make bench-search-py        # installs benches/requirements-bench.txt (faiss-cpu) first
+
+On realistic R-SOLiD databases of 10k, 100k and 1M entries (SOLID_BENCH_QUICK=1 stops at 100k):
+`hku` holds the 314 HKU Livox Avia keyframes under a random yaw, a shift of up to 2 m, dropout
+of up to half the points and (half the time) a horizontal FOV clip to 40-70 degrees; its queries
+are other such copies (`near`) and scans of other cities cut to the Avia's FOV (`novel`). `dup`
+holds copies of one scan keeping 50-100 % of its points (near-duplicates); its queries are other
+such copies (`same`) and the `near` queries (`other`). Descriptors are cached under
+target/solid-bench-data/ (the 1M sets take a few minutes the first time).
+
+Prints, with every figure measured in the same run and the ratio peer / solid:
+- single search: mean µs per query, the methods interleaved query by query; solid `auto` and
+  `brute`, faiss `IndexFlatIP.search` of one query, numpy `argmax(X @ q)`;
+- batch search: 1,000 queries (half of each mix) in one call: `Database.search_batch`, faiss,
+  numpy in blocks of 16 queries, and a loop over `Database.search`;
+- bulk add of the N entries from arrays: `Database.add_batch` (with and without the kd-tree),
+  faiss `normalize_L2` + `add`, numpy row normalisation;
+- bytes per entry: `Database.memory_bytes()` / N, faiss and numpy 160.
+Top-1 ids are checked equal to faiss's (ties aside: equal distances) on every query.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+
+import solid
+from python_baseline import shared_data  # benches/, the script's own folder
+from solid import io as sio
+
+try:
+    import faiss  # type: ignore[import-not-found,import-untyped,unused-ignore]
+except ImportError:
+    sys.exit("faiss-cpu is needed: pip install -r benches/requirements-bench.txt (or make bench-search-py)")
+
+F32 = npt.NDArray[np.float32]
+CFG = solid.SolidConfig.preset("avia")
+QUERIES = 48
+DATA_VERSION = 1
+
+
+def cache_dir() -> Path:
+    env = os.environ.get("CARGO_TARGET_DIR")
+    root = Path(env) if env else Path(__file__).resolve().parents[1] / "target"
+    return root / "solid-bench-data"
+
+
+def perturb(xyz: F32, rng: np.random.Generator, fov: float | None) -> F32:
+    """Random yaw, shift of up to 2 m, dropout of up to half the points, half the time a FOV clip."""
+    yaw = rng.uniform(0, 2 * np.pi)
+    radius, angle = 2.0 * np.sqrt(rng.uniform()), rng.uniform(0, 2 * np.pi)
+    keep = rng.uniform() >= rng.uniform(0, 0.5, len(xyz))
+    az = np.arctan2(xyz[:, 1], xyz[:, 0])
+    if fov is not None:
+        keep &= np.abs(az) <= fov
+    if rng.uniform() < 0.5:
+        half = np.radians(40 + 30 * rng.uniform()) / 2
+        centre = (rng.uniform() - 0.5) * np.radians(30)
+        keep &= np.abs(az - centre) <= half
+    p = xyz[keep, :3].astype(np.float64)
+    p[:, 0] += radius * np.cos(angle)
+    p[:, 1] += radius * np.sin(angle)
+    c, s = np.cos(yaw), np.sin(yaw)
+    out = np.empty_like(p)
+    out[:, 0] = c * p[:, 0] - s * p[:, 1]
+    out[:, 1] = s * p[:, 0] + c * p[:, 1]
+    out[:, 2] = p[:, 2]
+    return out.astype(np.float32)
+
+
+def subsample(xyz: F32, rng: np.random.Generator) -> F32:
+    keep = rng.uniform(size=len(xyz)) < rng.uniform(0.5, 1.0)
+    return np.ascontiguousarray(xyz[keep, :3])
+
+
+class Scans:
+    def __init__(self, data: Path) -> None:
+        self.hku = [sio.read_points(data / f"hku1-avia/Scans/{i:06d}.pcd")[:, :3] for i in range(314)]
+        avia = np.radians(35.0)
+        self.novel: list[tuple[F32, float | None]] = []
+        for f in ("000000", "000001", "000010"):
+            self.novel.append((sio.read_points(data / f"solid-samples/helipr_avia/{f}.bin", "helipr-avia")[:, :3], None))
+        for f in ("000000", "000094", "000095", "000198", "000199"):
+            self.novel.append((sio.read_points(data / f"kitti00/velodyne/{f}.bin", "kitti")[:, :3], avia))
+        for f in ("000313", "000314", "000315"):
+            self.novel.append((sio.read_points(data / f"solid-samples/kitti_00_pcd/{f}.pcd")[:, :3], avia))
+        self.novel.append((sio.read_points(data / "misc/naverlabs_vel16.pcd")[:, :3], avia))
+        nclt = "misc/nclt_2012-01-15_1326652795280148_hdl32e.bin"
+        self.novel.append((sio.read_points(data / nclt, "nclt")[:, :3], avia))
+
+    def hku_copy(self, rng: np.random.Generator) -> F32:
+        return perturb(self.hku[rng.integers(len(self.hku))], rng, None)
+
+    def novel_copy(self, rng: np.random.Generator) -> F32:
+        xyz, fov = self.novel[rng.integers(len(self.novel))]
+        return perturb(xyz, rng, fov)
+
+    def dup_copy(self, rng: np.random.Generator) -> F32:
+        return subsample(self.hku[0], rng)
+
+
+def described(name: str, n: int, seed: int, make: Callable[[np.random.Generator], F32]) -> tuple[F32, F32]:
+    """R-SOLiDs (n, 40) and A-SOLiDs (n, 60) of n scans made by `make`; cached (smaller sets
+    are prefixes of larger ones, as each scan has its own seed)."""
+    path = cache_dir() / f"py-{name}-{n}-{seed}-v{DATA_VERSION}.npz"
+    if path.exists():
+        z = np.load(path)
+        return z["r"], z["a"]
+    print(f"describing {n} scans for {name} (cached in {path})", file=sys.stderr, flush=True)
+    r = np.empty((n, CFG.n_range), np.float32)
+    a = np.empty((n, CFG.n_azimuth), np.float32)
+    step = 20_000
+    for start in range(0, n, step):
+        scans = [make(np.random.default_rng([seed, i])) for i in range(start, min(n, start + step))]
+        for j, d in enumerate(solid.describe_batch(scans, CFG)):
+            r[start + j], a[start + j] = d.r, d.a
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savez(path, r=r, a=a)
+    return r, a
+
+
+def normalised(x: F32) -> F32:
+    y = np.array(x, dtype=np.float32)
+    faiss.normalize_L2(y)
+    return y
+
+
+def timed(fn: Callable[[], object]) -> float:
+    t = time.perf_counter()
+    fn()
+    return time.perf_counter() - t
+
+
+def best_of(reps: int, fn: Callable[[], object]) -> float:
+    return min(timed(fn) for _ in range(reps))
+
+
+def top_k_numpy(x: F32, q: F32, k: int) -> npt.NDArray[np.int64]:
+    s = x @ q
+    if k == 1:
+        return np.array([np.argmax(s)])
+    part = np.argpartition(-s, k)[:k]
+    return part[np.argsort(-s[part], kind="stable")]
+
+
+def single(db: solid.Database, index: faiss.IndexFlatIP, x: F32, queries: F32, k: int) -> dict[str, float]:
+    """Mean seconds per query of each method, interleaved query by query (order rotated)."""
+    qn = normalised(queries)
+    methods: dict[str, Callable[[int], object]] = {
+        "auto": lambda i: db.search(queries[i], k=k),
+        "brute": lambda i: db.search(queries[i], k=k, method="brute"),
+        "faiss": lambda i: index.search(qn[i : i + 1], k),
+        "numpy": lambda i: top_k_numpy(x, qn[i], k),
+    }
+    names = list(methods)
+    total = dict.fromkeys(names, 0.0)
+    reps = 3
+    for i in range(len(queries)):
+        for j in range(len(names)):
+            name = names[(i + j) % len(names)]
+            total[name] += best_of(reps, lambda: methods[name](i))
+        if k == 1:
+            hit = db.search(queries[i], k=1)[0]
+            d_faiss, i_faiss = index.search(qn[i : i + 1], 1)
+            assert hit.id == i_faiss[0, 0] or abs(hit.distance - (1 - d_faiss[0, 0])) < 1e-5, (hit, i_faiss)
+    return {name: t / len(queries) for name, t in total.items()}
+
+
+def batches(m: int, size: int) -> Iterator[slice]:
+    for start in range(0, m, size):
+        yield slice(start, min(m, start + size))
+
+
+def main() -> int:
+    quick = os.environ.get("SOLID_BENCH_QUICK") is not None
+    sizes = [10_000, 100_000] if quick else [10_000, 100_000, 1_000_000]
+    scans = Scans(shared_data())
+    near, _ = described("near", 500, 2, scans.hku_copy)
+    novel, _ = described("novel", 500, 3, scans.novel_copy)
+    same, _ = described("dup-same", 500, 5, scans.dup_copy)
+    print(
+        f"solid {solid.__version__}, faiss {faiss.__version__} ({faiss.omp_get_max_threads()} threads), "
+        f"numpy {np.__version__}; {os.cpu_count()} cores; avia preset (40 range bins)"
+    )
+    rows_single: list[str] = []
+    rows_batch: list[str] = []
+    rows_add: list[str] = []
+    rows_mem: list[str] = []
+    for n in sizes:
+        for db_name, make, mixes in (
+            ("hku", scans.hku_copy, {"near": near, "novel": novel}),
+            ("dup", scans.dup_copy, {"same": same, "other": near}),
+        ):
+            r, a = described(db_name, n, 1 if db_name == "hku" else 4, make)
+            # Bulk add: solid with and without the kd-tree, faiss, numpy (best of 3 each).
+            t_add = best_of(3, lambda: solid.Database(CFG).add_batch(r, a))
+            t_add_flat = best_of(3, lambda: solid.Database(CFG).add_batch(r, a, index=False))
+            t_faiss_add = best_of(3, lambda: faiss.IndexFlatIP(CFG.n_range).add(normalised(r)))
+            t_np_add = best_of(3, lambda: r / np.maximum(np.linalg.norm(r, axis=1, keepdims=True), 1e-30))
+            db = solid.Database(CFG)
+            db.add_batch(r, a)
+            x = normalised(r)
+            index = faiss.IndexFlatIP(CFG.n_range)
+            index.add(x)
+            rows_add.append(
+                f"{db_name:4s} {n:>9d} {t_add * 1e3:9.1f} {t_add_flat * 1e3:9.1f} {t_faiss_add * 1e3:9.1f} "
+                f"{t_np_add * 1e3:9.1f} {t_faiss_add / t_add:8.2f} {t_faiss_add / t_add_flat:8.2f}"
+            )
+            if db_name == "hku":
+                rows_mem.append(f"{n:>9d} {db.memory_bytes() / n:8.1f} {index.ntotal * 4 * CFG.n_range / n:8.1f} {x.nbytes / n:8.1f}")
+            for mix, queries in mixes.items():
+                for k in (1, 10):
+                    t = single(db, index, x, queries[:QUERIES], k)
+                    rows_single.append(
+                        f"{db_name + '/' + mix:10s} {n:>9d} {k:3d} {t['auto'] * 1e6:9.1f} {t['brute'] * 1e6:9.1f} "
+                        f"{t['faiss'] * 1e6:9.1f} {t['numpy'] * 1e6:9.1f} {t['faiss'] / t['auto']:8.2f} "
+                        f"{t['numpy'] / t['brute']:8.2f} {t['brute'] / t['auto']:8.2f}"
+                    )
+            # Batch: 1,000 queries, half of each mix.
+            q = np.concatenate([m[:500] for m in mixes.values()])
+            qn = normalised(q)
+            t_batch = best_of(2, lambda: db.search_batch(q, k=1))
+            t_faiss = best_of(2, lambda: index.search(qn, 1))
+            t_np = best_of(1, lambda: [np.argmax(x @ qn[s].T, axis=0) for s in batches(len(qn), 16)])
+            t_loop = best_of(1, lambda: [db.search(v, k=1) for v in q])
+            ids, dists = db.search_batch(q, k=1)
+            d_f, i_f = index.search(qn, 1)
+            agree = np.mean((ids[:, 0] == i_f[:, 0]) | (np.abs(dists[:, 0] - (1 - d_f[:, 0])) < 1e-5))
+            assert agree == 1.0, agree
+            rows_batch.append(
+                f"{db_name:4s} {n:>9d} {t_batch * 1e3:9.1f} {t_faiss * 1e3:9.1f} {t_np * 1e3:9.1f} "
+                f"{t_loop * 1e3:9.1f} {t_faiss / t_batch:8.2f} {t_np / t_batch:8.2f} {t_loop / t_batch:8.2f}"
+            )
+            print(f"  done {db_name} {n}", file=sys.stderr, flush=True)
+
+    print(f"\nsingle search: mean µs per query over {QUERIES} queries, methods interleaved; ratios peer / solid")
+    print(f"{'db/mix':10s} {'n':>9s} {'k':>3s} {'auto':>9s} {'brute':>9s} {'faiss':>9s} {'numpy':>9s} {'faiss/au':>8s} {'np/brute':>8s} {'bf/auto':>8s}")
+    print("\n".join(rows_single))
+    print("\nbatch search: 1,000 queries (500 of each mix), k = 1, ms; ratios peer / solid search_batch")
+    print(f"{'db':4s} {'n':>9s} {'batch':>9s} {'faiss':>9s} {'numpy':>9s} {'loop':>9s} {'faiss/b':>8s} {'numpy/b':>8s} {'loop/b':>8s}")
+    print("\n".join(rows_batch))
+    print("\nbulk add of n entries from arrays, ms (best of 3); ratios faiss / solid (with kd-tree, without)")
+    print(f"{'db':4s} {'n':>9s} {'add':>9s} {'no tree':>9s} {'faiss':>9s} {'numpy':>9s} {'faiss/a':>8s} {'faiss/nt':>8s}")
+    print("\n".join(rows_add))
+    print("\nbytes per entry (hku): solid Database.memory_bytes() / n, faiss IndexFlatIP, numpy float32 rows")
+    print(f"{'n':>9s} {'solid':>8s} {'faiss':>8s} {'numpy':>8s}")
+    print("\n".join(rows_mem))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,343 @@
+//! The index that holds every search over the same rows, and the automatic choice among them.
+
+use core::sync::atomic::{AtomicU32, Ordering::Relaxed};
+
+use super::kdtree::{Walk, MAX_OFFSET_DIM};
+use super::{check_out, check_query, scan, Best, Exclude, Neighbor, OnlineIndex, Rows, Sketch};
+use crate::Error;
+
+/// How [`Index::search`] finds the neighbours. Every plan returns the same results.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[non_exhaustive]
+pub enum Plan {
+    /// One linear pass computing every distance ([`brute_force`](super::brute_force)).
+    Brute,
+    /// The online kd-tree index ([`OnlineIndex`]).
+    KdTree,
+    /// The sketch ([`Sketch`]), without falling back to brute force.
+    Sketch,
+    /// The kd-tree under a work budget, then the sketch, then brute force, each from where the
+    /// previous one stopped paying (see [`Index::search`]).
+    #[default]
+    Auto,
+}
+
+/// What a search should return.
+#[derive(Debug, Clone, Copy)]
+pub struct Request<'a> {
+    /// Number of neighbours.
+    pub k: usize,
+    /// Which entries may be returned.
+    pub exclude: Exclude<'a>,
+    /// Only neighbours at most this far are returned (`f32::INFINITY`: no bound). A caller that
+    /// accepts only matches within a threshold (a loop detector) passes it, so that every plan
+    /// can skip rows beyond it from the start.
+    pub max_distance: f32,
+    /// How to search.
+    pub plan: Plan,
+    /// What [`Plan::Auto`] saw on earlier queries of the same rows (`None`: every query on its
+    /// own).
+    pub observed: Option<&'a Observed>,
+}
+
+impl Request<'_> {
+    /// The `k` nearest of every entry, with [`Plan::Auto`].
+    pub const fn nearest(k: usize) -> Request<'static> {
+        Request {
+            k,
+            exclude: Exclude::NONE,
+            max_distance: f32::INFINITY,
+            plan: Plan::Auto,
+            observed: None,
+        }
+    }
+}
+
+/// What [`Plan::Auto`] has seen on the earlier queries of one set of rows. When the sketch gave
+/// up on [`AUTO_MISSES`] queries in a row (rows too alike for its bytes: a database of
+/// near-duplicates), brute force follows the kd-tree directly; when the kd-tree ran out of
+/// budget on as many queries as well, brute force runs alone. Each skipped step is tried again
+/// on every [`AUTO_RETRY_EVERY`]th query. (A kd-tree that runs out of budget is not skipped
+/// while the sketch works: its walk hands the sketch a good k-th distance to start from.) Keep
+/// one per database; threads may share it (the counts are loaded and stored, not locked: two
+/// threads updating at once may lose a count, which only delays a skip).
+#[derive(Debug, Default)]
+pub struct Observed {
+    queries: AtomicU32,
+    tree_misses: AtomicU32,
+    sketch_misses: AtomicU32,
+}
+
+impl Observed {
+    /// Nothing observed yet.
+    pub const fn new() -> Self {
+        Observed {
+            queries: AtomicU32::new(0),
+            tree_misses: AtomicU32::new(0),
+            sketch_misses: AtomicU32::new(0),
+        }
+    }
+
+    /// Whether to try the kd-tree and the sketch on the next query (and counts the query).
+    fn plan(&self) -> (bool, bool) {
+        let q = self.queries.load(Relaxed);
+        self.queries.store(q.wrapping_add(1), Relaxed);
+        let retry = q % AUTO_RETRY_EVERY == 0;
+        let sketch = retry || self.sketch_misses.load(Relaxed) < AUTO_MISSES;
+        let tree = sketch || retry || self.tree_misses.load(Relaxed) < AUTO_MISSES;
+        (tree, sketch)
+    }
+
+    fn record(count: &AtomicU32, finished: bool) {
+        let v = if finished {
+            0
+        } else {
+            count.load(Relaxed).saturating_add(1)
+        };
+        count.store(v, Relaxed);
+    }
+}
+
+impl Clone for Observed {
+    /// A fresh record: what one set of rows showed says nothing about a copy that changes.
+    fn clone(&self) -> Self {
+        Observed::new()
+    }
+}
+
+/// [`Observed`] skips a step after this many failures in a row...
+pub const AUTO_MISSES: u32 = 4;
+/// ...and tries it again on every this-many-th query.
+pub const AUTO_RETRY_EVERY: u32 = 16;
+
+/// The work a search did, by kind (for benchmarks and for callers that tune their plan).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Cost {
+    /// Distances computed by the kd-tree.
+    pub tree_rows: usize,
+    /// Rows bounded from their sketch bytes.
+    pub sketch_rows: usize,
+    /// Distances computed outside the kd-tree (rows the sketch could not rule out, and brute
+    /// force).
+    pub exact_rows: usize,
+}
+
+/// The answer of [`Index::search`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Found {
+    /// Number of neighbours written to the output, nearest first.
+    pub len: usize,
+    /// The work it took.
+    pub cost: Cost,
+}
+
+/// Below this many candidates [`Plan::Auto`] computes every distance.
+const AUTO_BRUTE_BELOW: usize = 256;
+
+/// The kd-tree's budget under [`Plan::Auto`]: it may compute the distances of
+/// `candidates / AUTO_TREE_SHARE + AUTO_TREE_PER_K · k + AUTO_TREE_BASE` rows, and never more than
+/// `candidates / AUTO_TREE_MAX_SHARE`. A distance in the tree costs 10–30 rows of the sketch and
+/// 5–10 of brute force (a jump to another row: more as the rows outgrow the caches), so a
+/// fruitless walk adds at most about a quarter to the sketch's pass. Measured on realistic databases
+/// (`benches/benches/search.rs`): queries near stored places need a median of 400–1,000 rows
+/// for k = 1 at 10k to 1M entries, and 2.5 times that for k = 10.
+const AUTO_TREE_SHARE: usize = 128;
+const AUTO_TREE_PER_K: usize = 64;
+const AUTO_TREE_BASE: usize = 256;
+const AUTO_TREE_MAX_SHARE: usize = 32;
+
+/// Every search over one set of rows: brute force, the online kd-tree index and the sketch,
+/// viewing caller-owned buffers (see [`OnlineIndex`] and [`Sketch`]). The kd-tree may cover only
+/// the first rows (a store that adds many rows at once can build it later): the rows beyond it
+/// are searched through the sketch or by brute force, so every plan stays exact.
+#[derive(Debug, Clone, Copy)]
+pub struct Index<'a> {
+    tree: OnlineIndex<'a>,
+    sketch: Sketch<'a>,
+    rows: Rows<'a>,
+}
+
+impl<'a> Index<'a> {
+    /// Views the online index of the first `perm.len()` rows (`perm`, `splits`, as
+    /// [`online_insert`](super::online_insert) maintains them) and the sketch of every row
+    /// (`codes`, `params`, as [`sketch_encode`](super::sketch_encode) fills them).
+    ///
+    /// # Errors
+    /// [`Error::LengthMismatch`] when `perm` and `splits` differ in length;
+    /// [`Error::InvalidParameter`] (name `perm`) when they are longer than the rows; as
+    /// [`Sketch::new`] otherwise.
+    pub fn new(
+        rows: Rows<'a>,
+        perm: &'a [u32],
+        splits: &'a [u16],
+        codes: &'a [u8],
+        params: &'a [f32],
+    ) -> Result<Index<'a>, Error> {
+        if perm.len() != splits.len() {
+            return Err(Error::LengthMismatch {
+                what: "perm vs splits",
+                left: perm.len(),
+                right: splits.len(),
+            });
+        }
+        if perm.len() > rows.len() {
+            return Err(Error::InvalidParameter {
+                name: "perm",
+                value: perm.len() as f64,
+                expected: "an online index of at most the rows",
+            });
+        }
+        Ok(Index {
+            tree: OnlineIndex::new(rows.prefix(perm.len()), perm, splits)?,
+            sketch: Sketch::new(rows, codes, params)?,
+            rows,
+        })
+    }
+
+    /// Number of entries.
+    pub fn len(&self) -> usize {
+        self.rows.len()
+    }
+
+    /// `true` when the index holds no entry.
+    pub fn is_empty(&self) -> bool {
+        self.rows.is_empty()
+    }
+
+    /// Exact k-NN of the L2-normalised `query`: the `min(k, candidates)` nearest allowed entries
+    /// within `max_distance`, written to `out` nearest first (ties by lower id): the same results
+    /// as [`brute_force`](super::brute_force) (then cut at `max_distance`) with every plan.
+    ///
+    /// [`Plan::Auto`] computes every distance below 256 candidates or when `k` is above an
+    /// eighth of them. Otherwise it walks the kd-tree until it has computed about
+    /// `candidates / 128 + 64 k + 256` distances (at most a 32nd of the candidates): queries near
+    /// stored places end there. If the walk did not finish, the sketch scans every candidate,
+    /// ruling out rows farther than the walk's k-th distance so far; and if an eighth of the rows
+    /// scanned still need their exact distance (rows too alike for the bytes to tell apart),
+    /// brute force takes the rest. Rows beyond the kd-tree go through the sketch (with the same
+    /// fallback) after a finished walk; [`Plan::KdTree`] computes their distances. With
+    /// [`Request::observed`], steps that keep failing are skipped ([`Observed`]).
+    ///
+    /// # Errors
+    /// [`Error::LengthMismatch`] when `query.len()` differs from the rows' dimension or the
+    /// timestamps of `exclude` are fewer than the rows; [`Error::BufferTooSmall`] when
+    /// `out.len() < k`; [`Error::InvalidParameter`] (name `max_distance`) when it is NaN.
+    pub fn search(
+        &self,
+        query: &[f32],
+        req: &Request<'_>,
+        out: &mut [Neighbor],
+    ) -> Result<Found, Error> {
+        check_query(query, self.rows.dim())?;
+        check_out(out, req.k)?;
+        req.exclude.check(self.len())?;
+        if req.max_distance.is_nan() {
+            return Err(Error::InvalidParameter {
+                name: "max_distance",
+                value: f64::NAN,
+                expected: "a distance (or infinity for no bound)",
+            });
+        }
+        let (exclude, bound) = (&req.exclude, req.max_distance);
+        let mut best = Best::new(&mut out[..req.k]);
+        let mut cost = Cost::default();
+        let candidates = self.len().min(exclude.before_id);
+        // Ids `tree_end..` are not in the kd-tree.
+        let tree_end = self.tree.len();
+        let rows = |from: usize, best: &mut Best<'_>, cost: &mut Cost| {
+            cost.exact_rows += candidates.saturating_sub(from);
+            scan(self.rows, from, candidates, query, exclude, bound, best);
+        };
+        if req.k > 0 && candidates > 0 {
+            match req.plan {
+                Plan::Brute => rows(0, &mut best, &mut cost),
+                Plan::Sketch => {
+                    let _ = self
+                        .sketch
+                        .scan(query, 0, exclude, bound, false, &mut best, &mut cost);
+                }
+                Plan::KdTree => {
+                    self.walk(query, exclude, bound, usize::MAX, &mut best, &mut cost);
+                    rows(tree_end, &mut best, &mut cost);
+                }
+                Plan::Auto => {
+                    if candidates < AUTO_BRUTE_BELOW || req.k > candidates / 8 {
+                        rows(0, &mut best, &mut cost);
+                    } else {
+                        self.auto(query, req, candidates, &mut best, &mut cost);
+                    }
+                }
+            }
+        }
+        Ok(Found {
+            len: best.finish(),
+            cost,
+        })
+    }
+
+    /// [`Plan::Auto`] over `candidates` rows (see [`Index::search`]).
+    fn auto(
+        &self,
+        query: &[f32],
+        req: &Request<'_>,
+        candidates: usize,
+        best: &mut Best<'_>,
+        cost: &mut Cost,
+    ) {
+        let (exclude, mut bound) = (&req.exclude, req.max_distance);
+        let (try_tree, try_sketch) = req.observed.map_or((true, true), Observed::plan);
+        let mut from = 0;
+        if try_tree {
+            let budget = (candidates / AUTO_TREE_SHARE + AUTO_TREE_PER_K * req.k + AUTO_TREE_BASE)
+                .min(candidates / AUTO_TREE_MAX_SHARE);
+            let finished = self.walk(query, exclude, bound, budget, best, cost);
+            if let Some(o) = req.observed {
+                Observed::record(&o.tree_misses, finished);
+            }
+            if finished {
+                // The tree's rows are done; the others follow.
+                from = self.tree.len();
+            } else {
+                // Start again over every row, with the walk's k-th distance as the bound: no
+                // true neighbour is farther.
+                bound = best.limit(bound);
+                best.clear();
+            }
+        }
+        if from >= candidates {
+            return;
+        }
+        if try_sketch {
+            let done = self
+                .sketch
+                .scan(query, from, exclude, bound, true, best, cost);
+            if let Some(o) = req.observed {
+                Observed::record(&o.sketch_misses, done);
+            }
+        } else {
+            cost.exact_rows += candidates - from;
+            scan(self.rows, from, candidates, query, exclude, bound, best);
+        }
+    }
+
+    /// Walks the kd-tree within `budget` distances; `true` when it finished (exact results over
+    /// the tree's rows).
+    fn walk(
+        &self,
+        query: &[f32],
+        exclude: &Exclude<'_>,
+        bound: f32,
+        budget: usize,
+        best: &mut Best<'_>,
+        cost: &mut Cost,
+    ) -> bool {
+        if self.tree.is_empty() {
+            return true;
+        }
+        let mut off = [0f64; MAX_OFFSET_DIM];
+        let mut walk = Walk::new(query, exclude, bound, budget, &mut off);
+        self.tree.walk(&mut walk, best);
+        cost.tree_rows += walk.rows;
+        !walk.stopped()
+    }
+}

@@ -1,0 +1,598 @@
+//! The sketch: every row quantised to one byte per value, scanned to prove rows too far before
+//! computing their distance (see the parent module).
+//!
+//! Row `c` is stored as `lo`, `step` and `dim` codes `k_d` in `0..=255` with
+//! `c_d = lo + step·k_d + e_d`, plus `err ≥ ‖e‖₂`. A query `q` is split once into two 7-bit
+//! integer vectors and a remainder, `q = s₁·p + s₂·p' + r` with `|p_d|, |p'_d| ≤ 64` and
+//! `s₂ = s₁ / 128`, so that `q·k = s₁·(p·k) + s₂·(p'·k) + r·k` takes two integer dot products
+//! (on AVX2, `vpmaddubsw`: bytes times signed bytes, no saturation below 255·64·2). Then
+//! `q·c = lo·Σq + step·(q·k) + q·e`, `|q·e| ≤ ‖q‖₂·err` (Cauchy–Schwarz) and
+//! `step·|r·k| ≤ (255·step)·‖r‖₁`, so `1 − lo·Σq − step·(s₁·(p·k) + s₂·(p'·k))`, less those
+//! two terms and a margin for the `f32` rounding of that expression and of the exact distance,
+//! is a lower bound of the distance that [`brute_force`] computes. A row whose bound exceeds
+//! the current k-th distance cannot be a neighbour; every other row gets its exact distance, so
+//! the results are the brute-force results, bit for bit.
+//!
+//! Layout: rows in blocks of [`SKETCH_BLOCK`]; a block's codes are grouped by four values,
+//! `codes[block][group][lane][4]` (the last group padded with zeros), so that one 256-bit
+//! register holds four values of eight rows; its parameters are `lo[16]`, `step[16]`, `err[16]`.
+//!
+//! [`brute_force`]: super::brute_force
+
+use super::{check_out, check_query, scan, Best, Cost, Exclude, Neighbor, Rows};
+use crate::Error;
+
+/// Rows per block of a [`Sketch`] (the codes of a block are interleaved).
+pub const SKETCH_BLOCK: usize = 16;
+
+/// `f32` parameters per row: `lo`, `step`, `err`.
+const PARAMS: usize = 3;
+
+/// Unit roundoff of `f32`.
+const U: f32 = f32::EPSILON / 2.0;
+
+/// The sketch checks how many rows it failed to rule out after 16 blocks, 32, 64, then every 64
+/// blocks, over the blocks since the previous check (the first rows are costly while the k-th
+/// distance is still loose; what counts is whether it stays costly).
+const CHECK_FIRST: usize = 16;
+const CHECK_EVERY: usize = 64;
+
+/// The sketch gives up when more than one row in this many needed its exact distance.
+const GIVE_UP_SHARE: usize = 8;
+
+/// Lengths of the code buffer (bytes) and of the parameter buffer (`f32`s) of a sketch of `n`
+/// rows of `dim` values: whole blocks of [`SKETCH_BLOCK`] rows, `dim` bytes rounded up to a
+/// multiple of 4 and 12 parameter bytes per row.
+pub fn sketch_len(n: usize, dim: usize) -> (usize, usize) {
+    let rows = n.div_ceil(SKETCH_BLOCK) * SKETCH_BLOCK;
+    (rows * padded(dim), rows * PARAMS)
+}
+
+/// `dim` rounded up to a whole number of groups of four values.
+fn padded(dim: usize) -> usize {
+    dim.next_multiple_of(4)
+}
+
+/// Where value `d` of lane `lane` sits in its block's codes.
+#[inline(always)]
+fn at(d: usize, lane: usize) -> usize {
+    ((d / 4) * SKETCH_BLOCK + lane) * 4 + d % 4
+}
+
+fn check_sketch(n: usize, dim: usize, codes: usize, params: usize) -> Result<(), Error> {
+    let (nc, np) = sketch_len(n, dim);
+    if codes < nc {
+        return Err(Error::BufferTooSmall {
+            buffer: "codes",
+            needed: nc,
+            got: codes,
+        });
+    }
+    if params < np {
+        return Err(Error::BufferTooSmall {
+            buffer: "params",
+            needed: np,
+            got: params,
+        });
+    }
+    Ok(())
+}
+
+/// Encodes rows `from..n` of `rows` into the sketch buffers, which must be at least
+/// [`sketch_len`]`(n, dim)` long; rows before `from` are left as they are, so a growing database
+/// encodes each new row once. Unused lanes of the last block are zeroed. Allocates nothing.
+///
+/// # Errors
+/// [`Error::InvalidParameter`] for a `from` beyond the rows; [`Error::BufferTooSmall`] when a
+/// buffer is too short.
+pub fn sketch_encode(
+    rows: Rows<'_>,
+    from: usize,
+    codes: &mut [u8],
+    params: &mut [f32],
+) -> Result<(), Error> {
+    let (n, dim) = (rows.len(), rows.dim());
+    if from > n {
+        return Err(Error::InvalidParameter {
+            name: "from",
+            value: from as f64,
+            expected: "at most the number of rows",
+        });
+    }
+    check_sketch(n, dim, codes.len(), params.len())?;
+    let first = from / SKETCH_BLOCK;
+    let blocks = n.div_ceil(SKETCH_BLOCK);
+    let width = padded(dim) * SKETCH_BLOCK;
+    let codes = &mut codes[first * width..blocks * width];
+    let params = &mut params[first * PARAMS * SKETCH_BLOCK..blocks * PARAMS * SKETCH_BLOCK];
+    let block = |(b, (codes, params)): (usize, (&mut [u8], &mut [f32]))| {
+        encode_block(rows, (first + b) * SKETCH_BLOCK, from, codes, params);
+    };
+    #[cfg(feature = "parallel")]
+    if blocks - first >= PARALLEL_BLOCKS {
+        use rayon::iter::{IndexedParallelIterator, ParallelIterator};
+        use rayon::slice::ParallelSliceMut;
+        codes
+            .par_chunks_mut(width)
+            .zip(params.par_chunks_mut(PARAMS * SKETCH_BLOCK))
+            .enumerate()
+            .with_min_len(PARALLEL_BLOCKS / 4)
+            .for_each(block);
+        return Ok(());
+    }
+    codes
+        .chunks_mut(width)
+        .zip(params.chunks_mut(PARAMS * SKETCH_BLOCK))
+        .enumerate()
+        .for_each(block);
+    Ok(())
+}
+
+/// From this many blocks on, `sketch_encode` shares them among the threads (`parallel`).
+#[cfg(feature = "parallel")]
+const PARALLEL_BLOCKS: usize = 1024;
+
+/// Encodes the rows of the block starting at row `start` (those from `from` on).
+fn encode_block(rows: Rows<'_>, start: usize, from: usize, codes: &mut [u8], params: &mut [f32]) {
+    for lane in 0..SKETCH_BLOCK {
+        let i = start + lane;
+        if i >= from {
+            encode_row(rows, i, lane, codes, params);
+        }
+    }
+}
+
+/// Writes the codes and parameters of row `i` into lane `lane` of its block, from the row's
+/// normalised values taken exactly; rows beyond the end (of a last, partial block) get zeros.
+#[inline(always)]
+fn encode_row(rows: Rows<'_>, i: usize, lane: usize, codes: &mut [u8], params: &mut [f32]) {
+    let dim = rows.dim();
+    let param = |p: usize| p * SKETCH_BLOCK + lane;
+    for d in dim..padded(dim) {
+        codes[at(d, lane)] = 0;
+    }
+    if i >= rows.len() {
+        for d in 0..dim {
+            codes[at(d, lane)] = 0;
+        }
+        for p in 0..PARAMS {
+            params[param(p)] = 0.0;
+        }
+        return;
+    }
+    // Lanes of eight (and four below), so that the compiler vectorises.
+    let (mut lo8, mut hi8) = ([f32::INFINITY; 8], [f32::NEG_INFINITY; 8]);
+    for d in 0..dim {
+        let x = rows.coord(i, d);
+        lo8[d % 8] = lo8[d % 8].min(x);
+        hi8[d % 8] = hi8[d % 8].max(x);
+    }
+    let lo = lo8.iter().fold(f32::INFINITY, |m, &v| m.min(v));
+    let hi = hi8.iter().fold(f32::NEG_INFINITY, |m, &v| m.max(v));
+    // Any `lo`, `step` and codes will do: the error is measured against what is stored, from
+    // the exact normalised values, so the codes may come from rounded ones (the cast rounds half
+    // up and saturates into 0..=255).
+    let step = (hi - lo) / 255.0;
+    let inv = if step > 0.0 { 1.0 / step } else { 0.0 };
+    let (lo64, step64) = (f64::from(lo), f64::from(step));
+    let mut err4 = [0.0f64; 4];
+    for d in 0..dim {
+        let k = ((rows.coord(i, d) - lo) * inv + 0.5) as u8;
+        codes[at(d, lane)] = k;
+        let e = rows.exact_coord(i, d) - (lo64 + step64 * f64::from(k));
+        err4[d % 4] += e * e;
+    }
+    let err2 = (err4[0] + err4[1]) + (err4[2] + err4[3]);
+    // Rounded up, so that `err ≥ ‖e‖₂`; a row with a non-finite value gets an infinite error,
+    // which no bound can rule out.
+    let err = libm::sqrt(err2) * (1.0 + 1e-6);
+    let err = if err.is_finite() && lo.is_finite() && step.is_finite() {
+        err as f32
+    } else {
+        f32::INFINITY
+    };
+    params[param(0)] = if lo.is_finite() { lo } else { 0.0 };
+    params[param(1)] = if step.is_finite() { step } else { 0.0 };
+    params[param(2)] = err;
+}
+
+/// A sketch of L2-normalised rows (see the module documentation), viewing caller-owned buffers
+/// that [`sketch_encode`] filled.
+#[derive(Debug, Clone, Copy)]
+pub struct Sketch<'a> {
+    rows: Rows<'a>,
+    codes: &'a [u8],
+    params: &'a [f32],
+}
+
+impl<'a> Sketch<'a> {
+    /// Views the sketch of every row of `rows` in `codes` and `params` (as [`sketch_encode`] left
+    /// them).
+    ///
+    /// # Errors
+    /// [`Error::BufferTooSmall`] when a buffer is shorter than [`sketch_len`] says.
+    pub fn new(rows: Rows<'a>, codes: &'a [u8], params: &'a [f32]) -> Result<Sketch<'a>, Error> {
+        check_sketch(rows.len(), rows.dim(), codes.len(), params.len())?;
+        Ok(Sketch {
+            rows,
+            codes,
+            params,
+        })
+    }
+
+    /// Number of rows.
+    pub fn len(&self) -> usize {
+        self.rows.len()
+    }
+
+    /// `true` when the sketch holds no row.
+    pub fn is_empty(&self) -> bool {
+        self.rows.is_empty()
+    }
+
+    /// Exact k-NN: the same contract and the same results as [`brute_force`](super::brute_force)
+    /// over the same rows.
+    ///
+    /// # Errors
+    /// [`Error::LengthMismatch`] when `query.len()` differs from the rows' dimension or the
+    /// timestamps of `exclude` are fewer than the rows; [`Error::BufferTooSmall`] when
+    /// `out.len() < k`.
+    pub fn search(
+        &self,
+        query: &[f32],
+        k: usize,
+        exclude: &Exclude<'_>,
+        out: &mut [Neighbor],
+    ) -> Result<usize, Error> {
+        check_query(query, self.rows.dim())?;
+        check_out(out, k)?;
+        exclude.check(self.rows.len())?;
+        let mut best = Best::new(&mut out[..k]);
+        let mut cost = Cost::default();
+        let _ = self.scan(
+            query,
+            0,
+            exclude,
+            f32::INFINITY,
+            false,
+            &mut best,
+            &mut cost,
+        );
+        Ok(best.finish())
+    }
+
+    /// Offers every allowed row of ids `from..` within `bound` that the bytes cannot rule out to
+    /// `best`. With `give_up`, switches to brute force for the remaining rows once more than an
+    /// eighth of the rows scanned since the previous check needed their exact distance (the
+    /// bytes do not pay then: an exact distance out of order costs a few sequential ones);
+    /// returns `false` then. With `parallel`, a long scan is cut in two halves searched on two
+    /// threads, their neighbours merged.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn scan(
+        &self,
+        query: &[f32],
+        from: usize,
+        exclude: &Exclude<'_>,
+        bound: f32,
+        give_up: bool,
+        best: &mut Best<'_>,
+        cost: &mut Cost,
+    ) -> bool {
+        let end = self.rows.len().min(exclude.before_id);
+        let part = |from: usize, to: usize, best: &mut Best<'_>, cost: &mut Cost| {
+            self.scan_part(query, from, to, exclude, bound, give_up, best, cost)
+        };
+        #[cfg(feature = "parallel")]
+        if let Some(done) = super::split_scan(from, end, SKETCH_BLOCK, best, cost, part) {
+            return done;
+        }
+        part(from, end, best, cost)
+    }
+
+    /// [`Sketch::scan`] over ids `from..to`, on this thread.
+    #[allow(clippy::too_many_arguments)]
+    fn scan_part(
+        &self,
+        query: &[f32],
+        from: usize,
+        to: usize,
+        exclude: &Exclude<'_>,
+        bound: f32,
+        give_up: bool,
+        best: &mut Best<'_>,
+        cost: &mut Cost,
+    ) -> bool {
+        #[cfg(all(feature = "std", target_arch = "x86_64"))]
+        if std::is_x86_feature_detected!("avx2") {
+            #[allow(unsafe_code)]
+            // SAFETY: the CPU supports AVX2 (checked just above), the only requirement for
+            // calling a function compiled with `#[target_feature(enable = "avx2")]`.
+            return unsafe { self.scan_avx2(query, from, to, exclude, bound, give_up, best, cost) };
+        }
+        self.scan_impl(query, from, to, exclude, bound, give_up, best, cost)
+    }
+
+    #[cfg(all(feature = "std", target_arch = "x86_64"))]
+    #[target_feature(enable = "avx2")]
+    #[allow(clippy::too_many_arguments)]
+    fn scan_avx2(
+        &self,
+        query: &[f32],
+        from: usize,
+        to: usize,
+        exclude: &Exclude<'_>,
+        bound: f32,
+        give_up: bool,
+        best: &mut Best<'_>,
+        cost: &mut Cost,
+    ) -> bool {
+        self.scan_impl(query, from, to, exclude, bound, give_up, best, cost)
+    }
+
+    /// The body of [`Sketch::scan_part`], inlined into each of its compiled copies.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn scan_impl(
+        &self,
+        query: &[f32],
+        from: usize,
+        end: usize,
+        exclude: &Exclude<'_>,
+        bound: f32,
+        give_up: bool,
+        best: &mut Best<'_>,
+        cost: &mut Cost,
+    ) -> bool {
+        if best.heap.is_empty() || from >= end {
+            return true;
+        }
+        let dim = self.rows.dim();
+        let bounds = Bounds::new(query);
+        let timed = exclude.not_newer_than.is_some();
+        let mut limit = best.limit(bound);
+        let (mut scanned, mut exact) = (0usize, 0usize);
+        // Rows scanned and exact distances at the previous check.
+        let (mut scanned_then, mut exact_then) = (0usize, 0usize);
+        let first_block = from / SKETCH_BLOCK;
+        for b in first_block..end.div_ceil(SKETCH_BLOCK) {
+            let done = b - first_block;
+            let check = done == CHECK_FIRST
+                || done == 2 * CHECK_FIRST
+                || (done > 0 && done % CHECK_EVERY == 0);
+            if give_up && check {
+                // The k rows that fill the heap come free in each interval.
+                let exact_since = (exact - exact_then).saturating_sub(best.heap.len());
+                if GIVE_UP_SHARE * exact_since > scanned - scanned_then {
+                    let rest = (b * SKETCH_BLOCK).max(from);
+                    cost.sketch_rows += scanned;
+                    cost.exact_rows += exact + (end - rest);
+                    scan(self.rows, rest, end, query, exclude, bound, best);
+                    return false;
+                }
+                (scanned_then, exact_then) = (scanned, exact);
+            }
+            let width = padded(dim) * SKETCH_BLOCK;
+            let codes = &self.codes[b * width..(b + 1) * width];
+            let params = &self.params[b * PARAMS * SKETCH_BLOCK..(b + 1) * PARAMS * SKETCH_BLOCK];
+            let lb = block(&bounds, codes, params);
+            let first = b * SKETCH_BLOCK;
+            let mut hits = 0u32;
+            for (lane, &l) in lb.iter().enumerate() {
+                hits |= u32::from(l <= limit) << lane;
+            }
+            // Only the lanes of ids `from..end`.
+            let lo = from.saturating_sub(first);
+            let hi = (end - first).min(SKETCH_BLOCK);
+            hits &= ((1u32 << hi) - 1) & !((1u32 << lo) - 1);
+            scanned += hi - lo;
+            while hits != 0 {
+                let id = first + hits.trailing_zeros() as usize;
+                hits &= hits - 1;
+                if timed && !exclude.allows(id) {
+                    continue;
+                }
+                exact += 1;
+                let d = self.rows.dist(query, id);
+                if d <= limit {
+                    best.offer(Neighbor {
+                        id: id as u32,
+                        distance: d,
+                    });
+                    limit = best.limit(bound);
+                }
+            }
+        }
+        cost.sketch_rows += scanned;
+        cost.exact_rows += exact;
+        true
+    }
+}
+
+/// Groups of four values whose query words [`Bounds`] keeps on the stack (dimensions up to 256);
+/// beyond, the words are computed as they are needed (the same words).
+const KEPT_GROUPS: usize = 64;
+
+/// The per-query constants of the lower bound.
+struct Bounds<'q> {
+    q: &'q [f32],
+    /// `Σ q_d`.
+    sum: f32,
+    /// `‖q‖₂`, rounded up.
+    norm: f32,
+    /// The two scales of the integer query vectors.
+    s1: f32,
+    s2: f32,
+    /// The integer query vectors, four bytes per group (for the first [`KEPT_GROUPS`]).
+    hi: [i32; KEPT_GROUPS],
+    lo: [i32; KEPT_GROUPS],
+    /// Per unit of a row's magnitude `|lo| + 255·step`: `‖r‖₁` of the remainder plus a margin
+    /// for rounding.
+    per_magnitude: f32,
+}
+
+impl<'q> Bounds<'q> {
+    fn new(q: &'q [f32]) -> Self {
+        let (mut sum, mut l1, mut l2, mut top) = (0.0f32, 0.0f64, 0.0f64, 0.0f32);
+        for &x in q {
+            sum += x;
+            l1 += f64::from(x.abs());
+            l2 += f64::from(x) * f64::from(x);
+            top = top.max(x.abs());
+        }
+        let s1 = top / 64.0;
+        let s2 = s1 / 128.0;
+        let mut b = Bounds {
+            q,
+            sum,
+            norm: (libm::sqrt(l2) * (1.0 + 1e-6)) as f32,
+            s1,
+            s2,
+            hi: [0; KEPT_GROUPS],
+            lo: [0; KEPT_GROUPS],
+            per_magnitude: 0.0,
+        };
+        let mut rest = 0.0f64;
+        for d in 0..q.len() {
+            let (_, _, r) = b.split(d);
+            rest += r.abs();
+        }
+        for g in 0..KEPT_GROUPS.min(q.len().div_ceil(4)) {
+            (b.hi[g], b.lo[g]) = b.words(g);
+        }
+        // Rounding of the few products and sums of the bound, of `Σq` and of the exact
+        // distance: each below `(dim + 2)·u` times `‖q‖₁` times the row's magnitude; counted
+        // four times over.
+        let rounding = 4.0 * (q.len() as f64 + 4.0) * f64::from(U) * (l1 + 1.0);
+        b.per_magnitude = ((rest * (1.0 + 1e-9) + 1e-30) + rounding) as f32;
+        b
+    }
+
+    /// Value `d` of the query as `s₁·p + s₂·p' + r`: `(p, p', r)`, with `r` exact (products of
+    /// an `f32` by a small integer are exact in `f64`).
+    #[inline(always)]
+    fn split(&self, d: usize) -> (i8, i8, f64) {
+        let x = f64::from(self.q[d]);
+        if self.s1 == 0.0 {
+            return (0, 0, x);
+        }
+        let p = libm::round(x / f64::from(self.s1)).clamp(-64.0, 64.0);
+        let r1 = x - f64::from(self.s1) * p;
+        let p2 = libm::round(r1 / f64::from(self.s2)).clamp(-64.0, 64.0);
+        (p as i8, p2 as i8, r1 - f64::from(self.s2) * p2)
+    }
+
+    /// The two integer query words of group `g` (four signed bytes each; zero past the end).
+    #[inline(always)]
+    fn words(&self, g: usize) -> (i32, i32) {
+        let (mut hi, mut lo) = ([0u8; 4], [0u8; 4]);
+        for j in 0..4 {
+            let d = 4 * g + j;
+            if d < self.q.len() {
+                let (p, p2, _) = self.split(d);
+                (hi[j], lo[j]) = (p as u8, p2 as u8);
+            }
+        }
+        (i32::from_le_bytes(hi), i32::from_le_bytes(lo))
+    }
+
+    #[inline(always)]
+    fn word(&self, g: usize) -> (i32, i32) {
+        if g < KEPT_GROUPS {
+            (self.hi[g], self.lo[g])
+        } else {
+            self.words(g)
+        }
+    }
+
+    /// Lower bounds of the distances to the 16 rows of a block from their integer dot products
+    /// with the two query vectors (1 at most).
+    #[inline(always)]
+    fn finish(&self, dots: [[i32; SKETCH_BLOCK]; 2], params: &[f32]) -> [f32; SKETCH_BLOCK] {
+        let (lo, rest) = params.split_at(SKETCH_BLOCK);
+        let (step, err) = rest.split_at(SKETCH_BLOCK);
+        let mut lb = [0.0f32; SKETCH_BLOCK];
+        for r in 0..SKETCH_BLOCK {
+            let qk = self.s1 * dots[0][r] as f32 + self.s2 * dots[1][r] as f32;
+            let approx = lo[r] * self.sum + step[r] * qk;
+            let magnitude = lo[r].abs() + 255.0 * step[r];
+            let slack = err[r] * self.norm + self.per_magnitude * magnitude + 64.0 * U;
+            lb[r] = (1.0 - approx - slack).min(1.0);
+        }
+        lb
+    }
+}
+
+/// The lower bounds of one block (16 rows), with AVX2 when `std` detects it (the same integer
+/// dot products either way).
+#[inline(always)]
+fn block(b: &Bounds<'_>, codes: &[u8], params: &[f32]) -> [f32; SKETCH_BLOCK] {
+    #[cfg(all(feature = "std", target_arch = "x86_64"))]
+    if std::is_x86_feature_detected!("avx2") {
+        #[allow(unsafe_code)]
+        // SAFETY: the CPU supports AVX2 (checked just above), the only requirement for calling a
+        // function compiled with `#[target_feature(enable = "avx2")]`.
+        return b.finish(unsafe { avx2::dots(b, codes) }, params);
+    }
+    b.finish(dots(b, codes), params)
+}
+
+/// The integer dot products of the 16 rows of a block with the two query vectors.
+#[inline(always)]
+fn dots(b: &Bounds<'_>, codes: &[u8]) -> [[i32; SKETCH_BLOCK]; 2] {
+    let mut acc = [[0i32; SKETCH_BLOCK]; 2];
+    for (g, group) in codes.chunks_exact(4 * SKETCH_BLOCK).enumerate() {
+        let (hi, lo) = b.word(g);
+        let (hi, lo) = (hi.to_le_bytes(), lo.to_le_bytes());
+        for (lane, k) in group.chunks_exact(4).enumerate() {
+            for j in 0..4 {
+                let k = i32::from(k[j]);
+                acc[0][lane] += k * i32::from(hi[j] as i8);
+                acc[1][lane] += k * i32::from(lo[j] as i8);
+            }
+        }
+    }
+    acc
+}
+
+/// [`dots`] with AVX2: `vpmaddubsw` multiplies the code bytes by the signed query bytes and adds
+/// pairs (at most 255·64·2, no saturation), `vpmaddwd` by ones adds the pairs into one 32-bit
+/// sum per row and group. Loads go through `bytemuck`, so nothing here is `unsafe`.
+#[cfg(all(feature = "std", target_arch = "x86_64"))]
+mod avx2 {
+    use super::{Bounds, SKETCH_BLOCK};
+    use core::arch::x86_64::{
+        __m256i, _mm256_add_epi32, _mm256_madd_epi16, _mm256_maddubs_epi16, _mm256_set1_epi16,
+        _mm256_set1_epi32, _mm256_setzero_si256,
+    };
+
+    #[inline(always)]
+    fn load(s: &[u8]) -> __m256i {
+        let s: &[u8; 32] = s.try_into().unwrap_or(&[0; 32]);
+        bytemuck::cast(*s)
+    }
+
+    #[target_feature(enable = "avx2")]
+    pub(super) fn dots(b: &Bounds<'_>, codes: &[u8]) -> [[i32; SKETCH_BLOCK]; 2] {
+        let ones = _mm256_set1_epi16(1);
+        let mut acc = [_mm256_setzero_si256(); 4];
+        for (g, group) in codes.chunks_exact(4 * SKETCH_BLOCK).enumerate() {
+            let (hi, lo) = b.word(g);
+            let (hi, lo) = (_mm256_set1_epi32(hi), _mm256_set1_epi32(lo));
+            let (c0, c1) = (load(&group[..32]), load(&group[32..]));
+            let sum = |acc: __m256i, c: __m256i, p: __m256i| {
+                _mm256_add_epi32(acc, _mm256_madd_epi16(_mm256_maddubs_epi16(c, p), ones))
+            };
+            acc[0] = sum(acc[0], c0, hi);
+            acc[1] = sum(acc[1], c1, hi);
+            acc[2] = sum(acc[2], c0, lo);
+            acc[3] = sum(acc[3], c1, lo);
+        }
+        let lanes: [[i32; 8]; 4] = bytemuck::cast(acc);
+        let mut out = [[0i32; SKETCH_BLOCK]; 2];
+        out[0][..8].copy_from_slice(&lanes[0]);
+        out[0][8..].copy_from_slice(&lanes[1]);
+        out[1][..8].copy_from_slice(&lanes[2]);
+        out[1][8..].copy_from_slice(&lanes[3]);
+        out
+    }
+}
