@@ -56,6 +56,7 @@ install-test: dist
 	build/venv-wheel/bin/python -m pip install --quiet dist/*.whl
 	cd build && venv-wheel/bin/python ../tools/readme_examples.py --run ../README.md
 	cd build && venv-wheel/bin/python ../tools/readme_examples.py --run ../docs/describe.md
+	cd build && venv-wheel/bin/python ../tools/readme_examples.py --run ../docs/loops.md
 	build/venv-wheel/bin/solid presets
 	$(PYTHON) -m venv build/venv-sdist
 	CARGO_TARGET_DIR="$(CURDIR)/target/sdist" CARGO_PROFILE_RELEASE_LTO=off CARGO_PROFILE_RELEASE_CODEGEN_UNITS=16 \
@@ -92,7 +93,8 @@ typecheck: wheel
 	mkdir -p build
 	$(PY) tools/readme_examples.py README.md build/readme_blocks.py
 	$(PY) tools/readme_examples.py docs/describe.md build/docs_describe_blocks.py
-	$(VENV)/bin/mypy --strict python/solid tests tools build/readme_blocks.py build/docs_describe_blocks.py
+	$(PY) tools/readme_examples.py docs/loops.md build/docs_loops_blocks.py
+	$(VENV)/bin/mypy --strict python/solid tests tools build/readme_blocks.py build/docs_describe_blocks.py build/docs_loops_blocks.py
 	$(VENV)/bin/mypy --strict fuzz/python
 	$(PY) -m mypy.stubtest solid._solid
 

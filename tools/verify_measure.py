@@ -1,6 +1,6 @@
 """Measure the verifying loop detector: accuracy on the simulator and hku1, speed of a step.
 
-Usage: python tools/verify_measure.py [--shared ../shared] [--only sim|hku|speed]
+Usage: python tools/verify_measure.py [--shared ../shared] [--only sim|hku|speed] [--sensors avia,vlp16]
 
 - sim: for every simulated sensor, full view and 90° ahead, the simulator's looping drive (world 0,
   1.6 laps, frames 2 m apart, exclusion 25) through the shipped pipeline; prints the verified
@@ -9,7 +9,8 @@ Usage: python tools/verify_measure.py [--shared ../shared] [--only sim|hku|speed
 - hku: hku1-avia at 3 m and 5 m (exclusion 50): Recall@1, F1 max, the operating point and the pose
   errors, with verification and without.
 - speed: a full detector step (describe, prepare the cloud, search, verify 5 candidates) on hku1,
-  single-threaded and with one thread per core, as wall time per scan (the CPU's load shows).
+  single-threaded and with one thread per core, as wall time per scan (the CPU's load shows), and
+  the descriptor-only step for comparison.
 """
 
 from __future__ import annotations
@@ -27,11 +28,11 @@ from solid.config import PipelineConfig
 from solid.pipeline import LoopClosurePipeline
 
 
-def sim_table() -> None:
+def sim_table(sensors: list[str] | None = None) -> None:
     world = sim.World(seed=0)
     traj = sim.Trajectory.loop(world, laps=1.6, spacing=2.0)
     print("sensor  view  accepted false  heading err (verified / A-SOLiD) mean  pose err median")
-    for name in sim.SENSORS:
+    for name in sensors or sim.SENSORS:
         for fov in (None, 90.0):
             seq = sim.simulate(world, sim.Sensor(name, h_fov=fov), traj)
             cfg = PipelineConfig.preset(name, detector={"exclude_frames": 25})
@@ -73,15 +74,22 @@ def speed(shared: Path) -> None:
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
         label = "1 thread" if threads == 1 else f"{os.cpu_count()} threads"
         print(f"detector step with verification, {label}: {1e3 * wall / len(scans):.1f} ms wall ({len(scans) / wall:.1f} Hz), {1e3 * cpu / len(scans):.1f} ms CPU per scan")
+    det = solid.LoopDetector(PipelineConfig.preset("avia").descriptor, verify=False)
+    t0 = time.perf_counter()
+    for p in scans:
+        det.detect(p)
+    wall = time.perf_counter() - t0
+    print(f"detector step without verification (describe, search, heading): {1e3 * wall / len(scans):.2f} ms wall ({len(scans) / wall:.0f} Hz)")
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--shared", type=Path, default=Path(os.environ.get("SOLID_SHARED", "../shared")))
     ap.add_argument("--only", choices=["sim", "hku", "speed"])
+    ap.add_argument("--sensors", type=lambda v: v.split(","), default=None, help="simulated sensors (default: every one; about 3 minutes each)")
     args = ap.parse_args()
     if args.only in (None, "sim"):
-        sim_table()
+        sim_table(args.sensors)
     if args.only in (None, "hku"):
         hku_table(args.shared)
     if args.only in (None, "speed"):

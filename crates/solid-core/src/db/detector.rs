@@ -56,7 +56,7 @@ pub struct DetectorConfig {
 /// over the scores first sweeps the verified loops by overlap, then the rest by R-SOLiD distance.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct VerifyConfig {
-    /// Verify at all (the scans' points must then be given, see [`LoopDetector::detect_points`]).
+    /// Verify at all (the scans' points must then be given, see [`LoopDetector::detect_scan`]).
     pub enabled: bool,
     /// How many of the step's best candidates (by R-SOLiD distance) are registered.
     pub candidates: usize,
