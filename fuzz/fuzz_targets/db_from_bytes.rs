@@ -1,6 +1,6 @@
 //! `Database::from_bytes` on arbitrary bytes: never a panic or an out-of-bounds access (ASan).
 //! What it accepts is a database that behaves: it encodes to its own length, reads back the same,
-//! and its two search methods agree.
+//! and its search methods (brute force, kd-tree, sketch, auto) agree.
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
@@ -25,20 +25,22 @@ fuzz_target!(|data: &[u8]| {
     assert!(db
         .r_all()
         .iter()
-        .chain(db.a_all())
+        .chain(db.a_all().iter())
         .all(|v| v.is_finite() && *v >= 0.0));
     for id in 0..db.len().min(4) as u32 {
         let q = db.r(id);
         let brute = db
             .search(q, 3, 0, Method::Brute)
             .expect("a stored vector is a valid query");
-        let tree = db
-            .search(q, 3, 0, Method::KdTree)
-            .expect("a stored vector is a valid query");
-        assert_eq!(brute.len(), tree.len());
-        for (b, t) in brute.iter().zip(&tree) {
-            assert!((b.distance - t.distance).abs() <= 1e-6, "{b:?} vs {t:?}");
-            assert!((0.0..=1.0 + 1e-6).contains(&b.distance), "{b:?}");
+        for method in [Method::KdTree, Method::Sketch, Method::Auto] {
+            let other = db
+                .search(q, 3, 0, method)
+                .expect("a stored vector is a valid query");
+            assert_eq!(brute.len(), other.len());
+            for (b, t) in brute.iter().zip(&other) {
+                assert!((b.distance - t.distance).abs() <= 1e-6, "{method:?}: {b:?} vs {t:?}");
+                assert!((0.0..=1.0 + 1e-6).contains(&b.distance), "{b:?}");
+            }
         }
     }
 });
