@@ -59,6 +59,9 @@ install-test: dist
 	cd build && venv-wheel/bin/python ../tools/readme_examples.py --run ../docs/loops.md
 	build/venv-wheel/bin/solid presets
 	$(PYTHON) -m venv build/venv-sdist
+	@# The sdist's files carry the archive's old mtimes: cargo would take this project's crates
+	@# from an earlier run as fresh. Only the dependencies are reused.
+	cargo clean --quiet --release --target-dir "$(CURDIR)/target/sdist" -p solid-lidar -p solid-lidar-sim -p solid-lidar-py
 	CARGO_TARGET_DIR="$(CURDIR)/target/sdist" CARGO_PROFILE_RELEASE_LTO=off CARGO_PROFILE_RELEASE_CODEGEN_UNITS=16 \
 		build/venv-sdist/bin/python -m pip install --quiet dist/*.tar.gz
 	cd build && venv-sdist/bin/python ../tools/readme_examples.py --run ../README.md
