@@ -154,13 +154,6 @@ impl Config {
             }
             Ok(())
         }
-        fn bad(name: &'static str, value: f64, expected: &'static str) -> Result<(), Error> {
-            Err(Error::InvalidParameter {
-                name,
-                value,
-                expected,
-            })
-        }
         count("n_range", self.n_range, 1024, "an integer in 1..=1024")?;
         count("n_azimuth", self.n_azimuth, 3600, "an integer in 1..=3600")?;
         count(
@@ -171,37 +164,45 @@ impl Config {
         )?;
         let angle = "a finite angle in [-90, 90] degrees";
         if !(self.fov_up.is_finite() && (-90.0..=90.0).contains(&self.fov_up)) {
-            return bad("fov_up", self.fov_up, angle);
+            return Err(Error::invalid("fov_up", self.fov_up, angle));
         }
         if !(self.fov_down.is_finite() && (-90.0..=90.0).contains(&self.fov_down)) {
-            return bad("fov_down", self.fov_down, angle);
+            return Err(Error::invalid("fov_down", self.fov_down, angle));
         }
         if self.fov_down >= self.fov_up {
-            return bad("fov_down", self.fov_down, "a value below fov_up");
+            return Err(Error::invalid(
+                "fov_down",
+                self.fov_down,
+                "a value below fov_up",
+            ));
         }
         if !(self.min_range.is_finite() && self.min_range >= 0.0) {
-            return bad("min_range", self.min_range, "a finite value >= 0 metres");
+            return Err(Error::invalid(
+                "min_range",
+                self.min_range,
+                "a finite value >= 0 metres",
+            ));
         }
         if !(self.max_range.is_finite() && self.max_range > self.min_range) {
-            return bad(
+            return Err(Error::invalid(
                 "max_range",
                 self.max_range,
                 "a finite value above min_range",
-            );
+            ));
         }
         if !(self.voxel_size.is_finite() && self.voxel_size >= 0.0) {
-            return bad(
+            return Err(Error::invalid(
                 "voxel_size",
                 self.voxel_size,
                 "a finite value >= 0 metres (0 disables downsampling)",
-            );
+            ));
         }
         if self.voxel_size > 0.0 && self.max_range / self.voxel_size >= MAX_VOXELS_PER_AXIS {
-            return bad(
+            return Err(Error::invalid(
                 "voxel_size",
                 self.voxel_size,
                 "0, or at least max_range / 2^19 (at most 2^19 voxels per axis within max_range)",
-            );
+            ));
         }
         Ok(())
     }

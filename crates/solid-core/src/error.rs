@@ -59,6 +59,17 @@ pub enum Error {
     },
 }
 
+impl Error {
+    /// [`Error::InvalidParameter`]: parameter `name` has `value`, which is not `expected`.
+    pub const fn invalid(name: &'static str, value: f64, expected: &'static str) -> Error {
+        Error::InvalidParameter {
+            name,
+            value,
+            expected,
+        }
+    }
+}
+
 impl fmt::Display for Error {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match *self {

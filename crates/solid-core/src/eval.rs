@@ -97,14 +97,6 @@ pub struct Evaluation {
     pub pose_error_deg: Vec<f64>,
 }
 
-fn bad(name: &'static str, value: f64, expected: &'static str) -> Error {
-    Error::InvalidParameter {
-        name,
-        value,
-        expected,
-    }
-}
-
 fn same(what: &'static str, left: usize, right: usize) -> Result<(), Error> {
     if left != right {
         return Err(Error::LengthMismatch { what, left, right });
@@ -129,18 +121,26 @@ pub fn score(q: &Queries<'_>, poses: &[[f64; 12]], radius: f64) -> Result<Evalua
         same("pose vs queries", q.pose.len(), nq)?;
     }
     if q.k == 0 && nq > 0 {
-        return Err(bad("k", 0.0, "at least 1"));
+        return Err(Error::invalid("k", 0.0, "at least 1"));
     }
     same("ids vs queries x k", q.ids.len(), nq * q.k)?;
     if !(radius.is_finite() && radius > 0.0) {
-        return Err(bad("radius", radius, "a finite number of metres > 0"));
+        return Err(Error::invalid(
+            "radius",
+            radius,
+            "a finite number of metres > 0",
+        ));
     }
     let n = poses.len();
     if let Some(p) = poses
         .iter()
         .find(|p| !(p[3].is_finite() && p[7].is_finite() && p[11].is_finite()))
     {
-        return Err(bad("poses", p[3] + p[7] + p[11], "finite positions"));
+        return Err(Error::invalid(
+            "poses",
+            p[3] + p[7] + p[11],
+            "finite positions",
+        ));
     }
     let pos = |i: usize| [poses[i][3], poses[i][7], poses[i][11]];
     let grid = Grid::new(poses, radius)?;
@@ -159,14 +159,14 @@ pub fn score(q: &Queries<'_>, poses: &[[f64; 12]], radius: f64) -> Result<Evalua
     for i in 0..nq {
         let (query, eligible) = (q.query[i] as usize, q.eligible[i] as usize);
         if query >= n {
-            return Err(bad(
+            return Err(Error::invalid(
                 "query",
                 query as f64,
                 "an id below the number of poses",
             ));
         }
         if eligible == 0 || eligible > n {
-            return Err(bad(
+            return Err(Error::invalid(
                 "eligible",
                 eligible as f64,
                 "1..=number of poses (queries with no database are skipped, spec §5)",
@@ -179,7 +179,7 @@ pub fn score(q: &Queries<'_>, poses: &[[f64; 12]], radius: f64) -> Result<Evalua
                 continue;
             }
             if c as usize >= eligible {
-                return Err(bad(
+                return Err(Error::invalid(
                     "ids",
                     f64::from(c),
                     "candidate ids below the query's eligible bound",
@@ -450,7 +450,7 @@ impl Grid {
         let positions: Vec<[f64; 3]> = poses.iter().map(|p| [p[3], p[7], p[11]]).collect();
         let mut cells: Vec<([i64; 3], u32)> = Vec::new();
         cells.try_reserve_exact(positions.len()).map_err(|_| {
-            bad(
+            Error::invalid(
                 "poses",
                 positions.len() as f64,
                 "fewer poses (out of memory)",

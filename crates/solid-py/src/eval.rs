@@ -119,6 +119,18 @@ impl PyScores {
     }
 }
 
+/// The rows of `N` values of a flat C-contiguous array, copied (MemoryError naming `what` when
+/// they do not fit).
+fn rows<const N: usize>(flat: &[f64], what: &str) -> PyResult<Vec<[f64; N]>> {
+    let mut out = crate::args::try_vec(flat.len() / N, what)?;
+    out.extend(flat.chunks_exact(N).map(|c| {
+        let mut m = [0.0; N];
+        m.copy_from_slice(c);
+        m
+    }));
+    Ok(out)
+}
+
 /// Scores candidates against poses (docs/spec.md §5); see `solid.evaluation` for the friendly form.
 #[pyfunction]
 #[pyo3(signature = (query, eligible, ids, score, heading_deg, poses, radius, pose=None))]
@@ -161,13 +173,7 @@ fn score_candidates(
     let eligible = to_u32("eligible", eligible.as_slice()?, false)?;
     let ids = to_u32("ids", ids.as_slice()?, true)?;
     let (score, heading) = (score.as_slice()?, heading_deg.as_slice()?);
-    let flat = poses.as_slice()?;
-    let mut poses: Vec<[f64; 12]> = crate::args::try_vec(flat.len() / 12, "poses")?;
-    for c in flat.chunks_exact(12) {
-        let mut m = [0.0; 12];
-        m.copy_from_slice(c);
-        poses.push(m);
-    }
+    let poses: Vec<[f64; 12]> = rows(poses.as_slice()?, "poses")?;
     let est: Vec<[f64; 16]> = match &pose {
         None => Vec::new(),
         Some(p) => {
@@ -178,14 +184,7 @@ fn score_candidates(
                     query.len()
                 )));
             }
-            let flat = p.as_slice()?;
-            let mut est: Vec<[f64; 16]> = crate::args::try_vec(flat.len() / 16, "pose")?;
-            for c in flat.chunks_exact(16) {
-                let mut m = [0.0; 16];
-                m.copy_from_slice(c);
-                est.push(m);
-            }
-            est
+            rows(p.as_slice()?, "pose")?
         }
     };
     let q = Queries {

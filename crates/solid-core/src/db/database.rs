@@ -724,10 +724,7 @@ impl Database {
     pub(super) fn a_values(&self, id: u32) -> impl Iterator<Item = f32> + '_ {
         let na = self.config.n_azimuth;
         let i = id as usize;
-        let step = self.a_scale[i];
-        self.a_codes[i * na..(i + 1) * na]
-            .iter()
-            .map(move |&c| f32::from(c) * step)
+        dequantized(&self.a_codes[i * na..(i + 1) * na], self.a_scale[i])
     }
 
     /// [`Database::a`] into `out` (`n_azimuth` values).
@@ -914,10 +911,14 @@ fn quantize_a(a: &[f32], codes: &mut [u8]) -> Option<f32> {
 
 /// The values of a quantised A-SOLiD (see [`quantize_a`]).
 fn dequantize_a(codes: &[u8], step: f32, out: &mut [f32]) {
-    // The same product as `Database::a_values`.
-    for (o, &c) in out.iter_mut().zip(codes) {
-        *o = f32::from(c) * step;
+    for (o, v) in out.iter_mut().zip(dequantized(codes, step)) {
+        *o = v;
     }
+}
+
+/// The values of quantised A-SOLiD codes, without allocating.
+fn dequantized(codes: &[u8], step: f32) -> impl Iterator<Item = f32> + '_ {
+    codes.iter().map(move |&c| f32::from(c) * step)
 }
 
 /// Checks that a descriptor vector holds what descriptors hold: finite, non-negative values

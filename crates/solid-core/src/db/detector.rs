@@ -112,47 +112,44 @@ impl VerifyConfig {
     /// # Errors
     /// [`Error::InvalidParameter`] naming the first invalid one.
     pub fn validate(&self) -> Result<(), Error> {
-        let bad = |name, value, expected| {
-            Err(Error::InvalidParameter {
-                name,
-                value,
-                expected,
-            })
-        };
         if self.candidates == 0 || self.candidates > MAX_TOP_K {
-            return bad(
+            return Err(Error::invalid(
                 "verify_candidates",
                 self.candidates as f64,
                 "an integer in 1..=1000",
-            );
+            ));
         }
         if !(1..=16).contains(&self.hypotheses) {
-            return bad(
+            return Err(Error::invalid(
                 "verify_hypotheses",
                 self.hypotheses as f64,
                 "an integer in 1..=16",
-            );
+            ));
         }
         if !(self.fan_deg.is_finite() && (0.0..=180.0).contains(&self.fan_deg)) {
-            return bad("verify_fan_deg", self.fan_deg, "degrees in [0, 180]");
+            return Err(Error::invalid(
+                "verify_fan_deg",
+                self.fan_deg,
+                "degrees in [0, 180]",
+            ));
         }
         if !(1..=16).contains(&self.cloud_bits) {
-            return bad(
+            return Err(Error::invalid(
                 "cloud_bits",
                 f64::from(self.cloud_bits),
                 "an integer in 1..=16",
-            );
+            ));
         }
         if let Err(reg::RegError::Core(e)) = self.registration.validate() {
             return Err(e);
         }
         let g = &self.gate;
         if g.max_translation.is_nan() || g.max_translation <= 0.0 {
-            return bad(
+            return Err(Error::invalid(
                 "max_loop_distance",
                 g.max_translation,
                 "metres > 0 (infinity: no limit)",
-            );
+            ));
         }
         for (name, v) in [
             ("min_fitness", g.min_fitness),
@@ -162,7 +159,7 @@ impl VerifyConfig {
             ("min_rotation_information", g.min_rotation_information),
         ] {
             if v.is_nan() {
-                return bad(name, v, "a number");
+                return Err(Error::invalid(name, v, "a number"));
             }
         }
         Ok(())
@@ -226,36 +223,33 @@ impl DetectorConfig {
     /// `exclude_meters` or `exclude_seconds` negative or not finite, `top_k` outside
     /// `1..=1000`.
     pub fn validate(&self) -> Result<(), Error> {
-        let bad = |name, value, expected| {
-            Err(Error::InvalidParameter {
-                name,
-                value,
-                expected,
-            })
-        };
         if !(0.0..=1.0).contains(&self.threshold) {
-            return bad(
+            return Err(Error::invalid(
                 "threshold",
                 self.threshold,
                 "a number in [0, 1] (a cosine distance)",
-            );
+            ));
         }
         if !(self.exclude_meters.is_finite() && self.exclude_meters >= 0.0) {
-            return bad(
+            return Err(Error::invalid(
                 "exclude_meters",
                 self.exclude_meters,
                 "a finite number >= 0",
-            );
+            ));
         }
         if !(self.exclude_seconds.is_finite() && self.exclude_seconds >= 0.0) {
-            return bad(
+            return Err(Error::invalid(
                 "exclude_seconds",
                 self.exclude_seconds,
                 "a finite number >= 0",
-            );
+            ));
         }
         if self.top_k == 0 || self.top_k > MAX_TOP_K {
-            return bad("top_k", self.top_k as f64, "an integer in 1..=1000");
+            return Err(Error::invalid(
+                "top_k",
+                self.top_k as f64,
+                "an integer in 1..=1000",
+            ));
         }
         self.verify.validate()
     }

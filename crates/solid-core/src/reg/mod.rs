@@ -246,14 +246,6 @@ impl RegConfig {
     /// # Errors
     /// [`RegError::Core`] with [`Error::InvalidParameter`] naming the first invalid parameter.
     pub fn validate(&self) -> Result<(), RegError> {
-        fn bad(name: &'static str, value: f64, expected: &'static str) -> Result<(), RegError> {
-            Err(Error::InvalidParameter {
-                name,
-                value,
-                expected,
-            }
-            .into())
-        }
         let pos = |v: f64| v.is_finite() && v > 0.0;
         // The range and the fine voxel size obey the descriptor's rules (SPEC §1), checked by
         // the same code, since the same voxel downsampling applies them.
@@ -263,59 +255,70 @@ impl RegConfig {
         if self.coarse_voxel_size != 0.0
             && (!voxel_ok(self.coarse_voxel_size) || self.coarse_voxel_size <= self.voxel_size)
         {
-            return bad(
+            return Err(Error::invalid(
                 "coarse_voxel_size",
                 self.coarse_voxel_size,
                 "0 (no coarse level), or a finite value above voxel_size and >= max_range / 2^19",
-            );
+            )
+            .into());
         }
         if !(MIN_NEIGHBORS..=64).contains(&self.neighbors) {
-            return bad("neighbors", self.neighbors as f64, "an integer in 5..=64");
+            return Err(
+                Error::invalid("neighbors", self.neighbors as f64, "an integer in 5..=64").into(),
+            );
         }
         if !pos(self.max_correspondence) {
-            return bad(
+            return Err(Error::invalid(
                 "max_correspondence",
                 self.max_correspondence,
                 "a finite value > 0 metres",
-            );
+            )
+            .into());
         }
         if !pos(self.coarse_max_correspondence) {
-            return bad(
+            return Err(Error::invalid(
                 "coarse_max_correspondence",
                 self.coarse_max_correspondence,
                 "a finite value > 0 metres",
-            );
+            )
+            .into());
         }
         if !(1..=1000).contains(&self.max_iterations) {
-            return bad(
+            return Err(Error::invalid(
                 "max_iterations",
                 self.max_iterations as f64,
                 "an integer in 1..=1000",
-            );
+            )
+            .into());
         }
         if !pos(self.rotation_eps_deg) {
-            return bad(
+            return Err(Error::invalid(
                 "rotation_eps_deg",
                 self.rotation_eps_deg,
                 "a finite value > 0 degrees",
-            );
+            )
+            .into());
         }
         if !pos(self.translation_eps) {
-            return bad(
+            return Err(Error::invalid(
                 "translation_eps",
                 self.translation_eps,
                 "a finite value > 0 metres",
-            );
+            )
+            .into());
         }
         if !(pos(self.kernel_scale) && self.kernel_scale <= 10.0) {
-            return bad("kernel_scale", self.kernel_scale, "a value in (0, 10]");
+            return Err(
+                Error::invalid("kernel_scale", self.kernel_scale, "a value in (0, 10]").into(),
+            );
         }
         if !pos(self.inlier_distance) {
-            return bad(
+            return Err(Error::invalid(
                 "inlier_distance",
                 self.inlier_distance,
                 "a finite value > 0 metres",
-            );
+            )
+            .into());
         }
         Ok(())
     }
