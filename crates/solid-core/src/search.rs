@@ -714,20 +714,26 @@ fn scan(
     scan_part(rows, lo, hi, query, exclude, bound, best)
 }
 
-/// Scans of at least this many rows are cut in two halves searched on two threads
-/// (`parallel`): a search over a million rows is bound by memory, which two cores read faster
-/// than one.
+/// Scans of at least this many rows are shared among the threads (`parallel`): a search over a
+/// million rows is bound by memory, which two cores read faster than one.
 #[cfg(feature = "parallel")]
 const PARALLEL_SCAN: usize = 1 << 16;
 
-/// Largest `k` for which a scan is cut in two (the second half's neighbours live on the stack).
+/// A shared scan is cut in halves, recursively, down to parts of at most this many rows (and
+/// at least half as many), which idle threads steal: on a machine whose other cores are busy
+/// with other work, the threads that are free take more parts instead of all waiting for the
+/// slowest half.
+#[cfg(feature = "parallel")]
+const PARALLEL_PART: usize = 1 << 15;
+
+/// Largest `k` for which a scan is shared (each part's neighbours live on the stack).
 #[cfg(feature = "parallel")]
 const PARALLEL_SCAN_MAX_K: usize = 64;
 
-/// Runs `part` over `lo..hi` in two halves on two threads (the cut on a multiple of `align`),
-/// the second into a heap of its own whose neighbours then go into `best`; `None` (nothing
-/// done) when the range is short or `k` large. Returns whether both halves finished their
-/// preferred way.
+/// Runs `part` over `lo..hi` in parts (cut on multiples of `align`) on the threads of the pool,
+/// each part but the first into a heap of its own whose neighbours then go into `best`; `None`
+/// (nothing done) when the range is short, `k` large or `best` already holds neighbours.
+/// Returns whether every part finished its preferred way.
 #[cfg(feature = "parallel")]
 fn split_scan<F>(
     lo: usize,
@@ -744,13 +750,33 @@ where
     if hi <= lo || hi - lo < PARALLEL_SCAN || k > PARALLEL_SCAN_MAX_K || best.len > 0 {
         return None;
     }
+    Some(split_parts(lo, hi, align, best, cost, &part))
+}
+
+/// [`split_scan`]'s recursion: halves until a part is at most [`PARALLEL_PART`] rows.
+#[cfg(feature = "parallel")]
+fn split_parts<F>(
+    lo: usize,
+    hi: usize,
+    align: usize,
+    best: &mut Best<'_>,
+    cost: &mut Cost,
+    part: &F,
+) -> bool
+where
+    F: Fn(usize, usize, &mut Best<'_>, &mut Cost) -> bool + Sync,
+{
     let mid = (lo + (hi - lo) / 2) / align * align;
+    if hi - lo <= PARALLEL_PART || mid <= lo {
+        return part(lo, hi, best, cost);
+    }
+    let k = best.heap.len();
     let mut other = [Neighbor::default(); PARALLEL_SCAN_MAX_K];
     let mut other_best = Best::new(&mut other[..k]);
     let mut other_cost = Cost::default();
     let (a, b) = rayon::join(
-        || part(lo, mid, best, cost),
-        || part(mid, hi, &mut other_best, &mut other_cost),
+        || split_parts(lo, mid, align, best, cost, part),
+        || split_parts(mid, hi, align, &mut other_best, &mut other_cost, part),
     );
     for &n in &other_best.heap[..other_best.len] {
         best.offer(n);
@@ -758,7 +784,7 @@ where
     cost.tree_rows += other_cost.tree_rows;
     cost.sketch_rows += other_cost.sketch_rows;
     cost.exact_rows += other_cost.exact_rows;
-    Some(a && b)
+    a && b
 }
 
 /// [`scan`] over `lo..hi` on this thread.

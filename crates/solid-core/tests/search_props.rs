@@ -500,9 +500,10 @@ fn auto_takes_each_path_and_stays_exact() {
         cost.sketch_rows < n / 2 && cost.exact_rows >= n / 2,
         "{cost:?}"
     );
-    // Observed over many queries, the sketch that keeps giving up and then the kd-tree that
-    // keeps running out of budget are skipped, and tried again every AUTO_RETRY_EVERY queries;
-    // the results do not change.
+    // Observed over many queries: the sketch that keeps giving up is skipped and the kd-tree
+    // walks deeper instead; a deep walk that keeps running out of budget is skipped too (brute
+    // force alone). Each is tried again every AUTO_RETRY_EVERY queries (the deep walk half-way
+    // between the sketch's retries); the results do not change.
     let (mut perm, mut splits) = (vec![0u32; n], vec![0u16; n]);
     online_rebuild(rows, &mut perm, &mut splits).unwrap();
     let (codes, params) = sketch_of(rows);
@@ -517,25 +518,74 @@ fn auto_takes_each_path_and_stays_exact() {
         let mut out = [Neighbor::default(); 3];
         let found = index.search(&q, &req, &mut out).unwrap();
         assert_eq!(&out[..], &want[..]);
-        let expected = i < AUTO_MISSES || i % AUTO_RETRY_EVERY == 0;
+        let sketch = i < AUTO_MISSES || i % AUTO_RETRY_EVERY == 0;
+        let deep = (AUTO_MISSES..2 * AUTO_MISSES).contains(&i)
+            || i % AUTO_RETRY_EVERY == AUTO_RETRY_EVERY / 2;
         assert_eq!(
             found.cost.sketch_rows > 0,
-            expected,
+            sketch,
             "query {i}: {:?}",
             found.cost
         );
         assert_eq!(
             found.cost.tree_rows > 0,
-            expected,
+            sketch || deep,
             "query {i}: {:?}",
             found.cost
         );
+        if deep {
+            // The deep walk computed more distances than the normal budget allows.
+            assert!(found.cost.tree_rows > n / 16, "query {i}: {:?}", found.cost);
+        }
     }
+    // Near-duplicates the kd-tree can still tell apart with a deeper walk: once the sketch is
+    // skipped, the deep walk finishes and brute force is not needed.
+    // (One place moved along two directions: rows that differ in two dimensions only.)
+    let mut rng = Rng(14);
+    let base: Vec<f32> = (0..dim).map(|_| 0.5 + rng.unit()).collect();
+    let dirs: Vec<f32> = (0..2 * dim).map(|_| rng.unit() - 0.5).collect();
+    let moved = |a: f32, b: f32| -> Vec<f32> {
+        (0..dim)
+            .map(|d| base[d] + 0.3 * (a * dirs[d] + b * dirs[dim + d]))
+            .collect()
+    };
+    let raw: Vec<f32> = (0..n).flat_map(|_| moved(rng.unit(), rng.unit())).collect();
+    let rows = normed(&raw, dim);
+    let q = normed(&moved(0.3, 0.6), dim);
+    let rows = Rows::normalized(&rows, dim).unwrap();
+    let (mut perm, mut splits) = (vec![0u32; n], vec![0u16; n]);
+    online_rebuild(rows, &mut perm, &mut splits).unwrap();
+    let (codes, params) = sketch_of(rows);
+    let index = Index::new(rows, &perm, &splits, &codes, &params).unwrap();
+    let observed = Observed::new();
+    let want = brute(rows, &q, 1, &Exclude::NONE);
+    let mut deep_finished = 0;
+    for i in 0..AUTO_RETRY_EVERY {
+        let req = Request {
+            observed: Some(&observed),
+            ..Request::nearest(1)
+        };
+        let mut out = [Neighbor::default(); 1];
+        let found = index.search(&q, &req, &mut out).unwrap();
+        assert_eq!(&out[..], &want[..]);
+        let c = found.cost;
+        if i < AUTO_MISSES {
+            // The normal walk ran out of budget and the sketch gave up.
+            assert!(
+                c.sketch_rows > 0 && c.exact_rows > n / 2,
+                "query {i}: {c:?}"
+            );
+        } else if c.sketch_rows == 0 && c.exact_rows == 0 && c.tree_rows > n / 16 {
+            // Deeper than the normal budget allows, and finished.
+            deep_finished += 1;
+        }
+    }
+    assert_eq!(deep_finished, AUTO_RETRY_EVERY - AUTO_MISSES);
 }
 
 #[test]
-fn long_scans_cut_in_two_halves_stay_exact() {
-    // Enough rows for brute force and the sketch to search two halves on two threads (with the
+fn long_scans_cut_in_parts_stay_exact() {
+    // Enough rows for brute force and the sketch to search parts on two threads (with the
     // `parallel` feature), and a k above the limit of that (a single pass).
     let (n, dim) = (70_000, 8);
     let mut rng = Rng(70);

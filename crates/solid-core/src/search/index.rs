@@ -55,17 +55,30 @@ impl Request<'_> {
 
 /// What [`Plan::Auto`] has seen on the earlier queries of one set of rows. When the sketch gave
 /// up on [`AUTO_MISSES`] queries in a row (rows too alike for its bytes: a database of
-/// near-duplicates), brute force follows the kd-tree directly; when the kd-tree ran out of
-/// budget on as many queries as well, brute force runs alone. Each skipped step is tried again
-/// on every [`AUTO_RETRY_EVERY`]th query. (A kd-tree that runs out of budget is not skipped
-/// while the sketch works: its walk hands the sketch a good k-th distance to start from.) Keep
-/// one per database; threads may share it (the counts are loaded and stored, not locked: two
-/// threads updating at once may lose a count, which only delays a skip).
+/// near-duplicates), the sketch is skipped and the kd-tree walks deeper instead (on such rows
+/// it is the only thing cheaper than brute force), brute force taking what the walk did not
+/// finish; when the deep walk did not finish on as many queries in a row either, brute force
+/// runs alone. Each skipped step is tried again on every [`AUTO_RETRY_EVERY`]th query. (A
+/// kd-tree that runs out of its normal budget is not skipped while the sketch works: its walk
+/// hands the sketch a good k-th distance to start from.) Keep one per database; threads may
+/// share it (the counts are loaded and stored, not locked: two threads updating at once may
+/// lose a count, which only delays a skip).
 #[derive(Debug, Default)]
 pub struct Observed {
     queries: AtomicU32,
-    tree_misses: AtomicU32,
+    deep_misses: AtomicU32,
     sketch_misses: AtomicU32,
+}
+
+/// How far [`Plan::Auto`] walks the kd-tree on one query.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Depth {
+    /// Not at all.
+    Skip,
+    /// Under the normal budget, the sketch following.
+    Normal,
+    /// Under the deep budget, brute force following (the sketch is being skipped).
+    Deep,
 }
 
 impl Observed {
@@ -73,19 +86,26 @@ impl Observed {
     pub const fn new() -> Self {
         Observed {
             queries: AtomicU32::new(0),
-            tree_misses: AtomicU32::new(0),
+            deep_misses: AtomicU32::new(0),
             sketch_misses: AtomicU32::new(0),
         }
     }
 
-    /// Whether to try the kd-tree and the sketch on the next query (and counts the query).
-    fn plan(&self) -> (bool, bool) {
+    /// How to walk the kd-tree on the next query and whether to try the sketch (and counts the
+    /// query).
+    fn plan(&self) -> (Depth, bool) {
         let q = self.queries.load(Relaxed);
         self.queries.store(q.wrapping_add(1), Relaxed);
         let retry = q % AUTO_RETRY_EVERY == 0;
-        let sketch = retry || self.sketch_misses.load(Relaxed) < AUTO_MISSES;
-        let tree = sketch || retry || self.tree_misses.load(Relaxed) < AUTO_MISSES;
-        (tree, sketch)
+        if retry || self.sketch_misses.load(Relaxed) < AUTO_MISSES {
+            (Depth::Normal, true)
+        } else if self.deep_misses.load(Relaxed) < AUTO_MISSES
+            || q % AUTO_RETRY_EVERY == AUTO_RETRY_EVERY / 2
+        {
+            (Depth::Deep, false)
+        } else {
+            (Depth::Skip, false)
+        }
     }
 
     fn record(count: &AtomicU32, finished: bool) {
@@ -134,17 +154,25 @@ pub struct Found {
 /// Below this many candidates [`Plan::Auto`] computes every distance.
 const AUTO_BRUTE_BELOW: usize = 256;
 
-/// The kd-tree's budget under [`Plan::Auto`]: it may compute the distances of
+/// The kd-tree's normal budget under [`Plan::Auto`]: it may compute the distances of
 /// `candidates / AUTO_TREE_SHARE + AUTO_TREE_PER_K · k + AUTO_TREE_BASE` rows, and never more than
-/// `candidates / AUTO_TREE_MAX_SHARE`. A distance in the tree costs 10–30 rows of the sketch and
-/// 5–10 of brute force (a jump to another row: more as the rows outgrow the caches), so a
-/// fruitless walk adds at most about a quarter to the sketch's pass. Measured on realistic databases
-/// (`benches/benches/search.rs`): queries near stored places need a median of 400–1,000 rows
-/// for k = 1 at 10k to 1M entries, and 2.5 times that for k = 10.
-const AUTO_TREE_SHARE: usize = 128;
+/// `candidates / AUTO_TREE_MAX_SHARE`. A distance in the tree costs about 100 rows of the sketch
+/// and 5–15 of brute force (a jump to another row), so a fruitless walk adds at most about 40 %
+/// to the sketch's pass (measured: 0.6 ms before a 1.3 ms sketch over a million rows). Measured
+/// on realistic databases (`benches/benches/search.rs`, `Cost::tree_rows` of `Plan::KdTree`):
+/// queries near stored places need a median of 390 / 480 / 980 rows for k = 1 at 10k / 100k / 1M
+/// entries (largest of 48: 1,251 / 4,814 / 4,082), and 2.5 times that for k = 10.
+const AUTO_TREE_SHARE: usize = 256;
 const AUTO_TREE_PER_K: usize = 64;
-const AUTO_TREE_BASE: usize = 256;
-const AUTO_TREE_MAX_SHARE: usize = 32;
+const AUTO_TREE_BASE: usize = 512;
+const AUTO_TREE_MAX_SHARE: usize = 16;
+
+/// The deep budget, when the sketch is being skipped ([`Observed`]): `candidates /
+/// AUTO_DEEP_SHARE` rows, then brute force. On near-duplicates a walk needs a median of 1,432 /
+/// 6,930 / 26,579 rows at 10k / 100k / 1M entries (at most 3,295 / 15,852 / 72,496 over 48
+/// queries) and takes 0.2–0.7 of brute force's time; a fruitless deep walk costs about as much
+/// as brute force.
+const AUTO_DEEP_SHARE: usize = 6;
 
 /// Every search over one set of rows: brute force, the online kd-tree index and the sketch,
 /// viewing caller-owned buffers (see [`OnlineIndex`] and [`Sketch`]). The kd-tree may cover only
@@ -210,7 +238,7 @@ impl<'a> Index<'a> {
     ///
     /// [`Plan::Auto`] computes every distance below 256 candidates or when `k` is above an
     /// eighth of them. Otherwise it walks the kd-tree until it has computed about
-    /// `candidates / 128 + 64 k + 256` distances (at most a 32nd of the candidates): queries near
+    /// `candidates / 256 + 64 k + 512` distances (at most a 16th of the candidates): queries near
     /// stored places end there. If the walk did not finish, the sketch scans every candidate,
     /// ruling out rows farther than the walk's k-th distance so far; and if an eighth of the rows
     /// scanned still need their exact distance (rows too alike for the bytes to tell apart),
@@ -285,14 +313,20 @@ impl<'a> Index<'a> {
         cost: &mut Cost,
     ) {
         let (exclude, mut bound) = (&req.exclude, req.max_distance);
-        let (try_tree, try_sketch) = req.observed.map_or((true, true), Observed::plan);
+        let (walk, try_sketch) = req.observed.map_or((Depth::Normal, true), Observed::plan);
+        let budget = match walk {
+            Depth::Skip => 0,
+            Depth::Normal => {
+                (candidates / AUTO_TREE_SHARE + AUTO_TREE_PER_K * req.k + AUTO_TREE_BASE)
+                    .min(candidates / AUTO_TREE_MAX_SHARE)
+            }
+            Depth::Deep => candidates / AUTO_DEEP_SHARE,
+        };
         let mut from = 0;
-        if try_tree {
-            let budget = (candidates / AUTO_TREE_SHARE + AUTO_TREE_PER_K * req.k + AUTO_TREE_BASE)
-                .min(candidates / AUTO_TREE_MAX_SHARE);
+        if walk != Depth::Skip {
             let finished = self.walk(query, exclude, bound, budget, best, cost);
-            if let Some(o) = req.observed {
-                Observed::record(&o.tree_misses, finished);
+            if let (Some(o), Depth::Deep) = (req.observed, walk) {
+                Observed::record(&o.deep_misses, finished);
             }
             if finished {
                 // The tree's rows are done; the others follow.

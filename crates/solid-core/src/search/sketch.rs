@@ -265,8 +265,8 @@ impl<'a> Sketch<'a> {
     /// `best`. With `give_up`, switches to brute force for the remaining rows once more than an
     /// eighth of the rows scanned since the previous check needed their exact distance (the
     /// bytes do not pay then: an exact distance out of order costs a few sequential ones);
-    /// returns `false` then. With `parallel`, a long scan is cut in two halves searched on two
-    /// threads, their neighbours merged.
+    /// returns `false` then. With `parallel`, a long scan is cut into parts that the pool's
+    /// threads share, their neighbours merged.
     #[allow(clippy::too_many_arguments)]
     pub(super) fn scan(
         &self,
