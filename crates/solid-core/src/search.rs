@@ -819,10 +819,21 @@ fn scan_avx2(
     bound: f32,
     best: &mut Best<'_>,
 ) {
+    if rows.dim == COMMON_DIM {
+        // The same function with the dimension a constant: its loop unrolled.
+        return scan_impl(rows, lo, hi, query, exclude, bound, best, |q, g, _, s| {
+            avx2::dist4(q, g, COMMON_DIM, s)
+        });
+    }
     scan_impl(rows, lo, hi, query, exclude, bound, best, |q, g, d, s| {
         avx2::dist4(q, g, d, s)
     })
 }
+
+/// The R-SOLiD length of every preset (`n_range` = 40), for which the AVX2 scan has a copy of its
+/// own.
+#[cfg(all(feature = "std", target_arch = "x86_64"))]
+const COMMON_DIM: usize = 40;
 
 /// The body of [`scan`], inlined into each of its compiled copies: four rows at a time (their
 /// distances from `dist4`), and a row is offered only when its distance is within the current
@@ -861,7 +872,8 @@ fn scan_impl(
     let mut id = lo;
     while id + 4 <= hi {
         let d = rows.dist4(query, id, &dist4);
-        if d[0].min(d[1]).min(d[2].min(d[3])) <= limit {
+        // Distances are clamped, never NaN: plain comparisons, no `min` (which checks for NaN).
+        if (d[0] <= limit) | (d[1] <= limit) | (d[2] <= limit) | (d[3] <= limit) {
             for (j, &dj) in d.iter().enumerate() {
                 if dj <= limit {
                     offer(id + j, dj, &mut limit);

@@ -274,6 +274,20 @@ proptest! {
         check_all(&raw, dim, &q, k, &Exclude::recent(n, recent));
     }
 
+    /// The length of every preset's R-SOLiD, which the AVX2 scan compiles a copy of its own for:
+    /// the same bits as the scalar distance (`check_all` compares brute force with
+    /// `Rows::distances`).
+    #[test]
+    fn preset_length_rows((raw, q, k) in (1usize..300, 1usize..8).prop_flat_map(|(n, k)| (
+        prop::collection::vec(descriptor_like(40), n).prop_map(|r| r.into_iter().flatten().collect::<Vec<f32>>()),
+        descriptor_like(40),
+        Just(k),
+    ))) {
+        check_all(&raw, 40, &q, k, &Exclude::NONE);
+        let n = raw.len() / 40;
+        check_all(&raw, 40, &q, k, &Exclude::recent(n, n / 3));
+    }
+
     #[test]
     fn gaussian_vectors_with_signs(seed_rows in prop::collection::vec(prop::collection::vec(-1.0f32..1.0, 16), 1..200), q in prop::collection::vec(-1.0f32..1.0, 16), k in 1usize..10) {
         let raw: Vec<f32> = seed_rows.into_iter().flatten().collect();
