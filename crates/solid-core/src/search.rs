@@ -380,23 +380,18 @@ impl<'a> Rows<'a> {
         &self.data[i * self.dim..(i + 1) * self.dim]
     }
 
+    /// Row `i` as stored and the scale that normalises it (1 for normalised rows).
+    #[inline(always)]
+    fn raw_row(&self, i: usize) -> (&'a [f32], f32) {
+        (self.row(i), self.scale.map_or(1.0, |s| s[i]))
+    }
+
     /// Value `d` of normalised row `i`.
     #[inline(always)]
     fn coord(&self, i: usize, d: usize) -> f32 {
         let v = self.data[i * self.dim + d];
         match self.scale {
             Some(s) => v * s[i],
-            None => v,
-        }
-    }
-
-    /// Value `d` of normalised row `i` without rounding (the product of two `f32` is exact in
-    /// `f64`).
-    #[inline(always)]
-    fn exact_coord(&self, i: usize, d: usize) -> f64 {
-        let v = f64::from(self.data[i * self.dim + d]);
-        match self.scale {
-            Some(s) => v * f64::from(s[i]),
             None => v,
         }
     }

@@ -842,8 +842,13 @@ impl<'a> ChunkOut<'a> {
     /// The R-SOLiD scales and the quantised A-SOLiDs, checking every value.
     fn fill(&mut self, nr: usize, na: usize) -> Result<(), Error> {
         for (s, row) in self.scale.iter_mut().zip(self.r.chunks_exact(nr)) {
-            check_bins("r_solid", row)?;
-            *s = search::inverse_norm(row)?;
+            // `inverse_norm` refuses non-finite values; negative ones are looked for without a
+            // branch per value. Either way `check_bins` names the value.
+            let inv = search::inverse_norm(row);
+            if inv.is_err() || row.iter().fold(false, |neg, &x| neg | (x < 0.0)) {
+                check_bins("r_solid", row)?;
+            }
+            *s = inv?;
         }
         for ((row, codes), step) in self
             .a

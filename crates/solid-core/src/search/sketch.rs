@@ -160,12 +160,22 @@ fn encode_row(rows: Rows<'_>, i: usize, lane: usize, codes: &mut [u8], params: &
         }
         return;
     }
-    // Lanes of eight (and four below), so that the compiler vectorises.
+    // Lanes of eight (and four below), so that the compiler vectorises; the row's values are
+    // `raw × scale` (normalised), taken in whole groups of four as the codes are laid out.
+    let (raw, scale) = rows.raw_row(i);
     let (mut lo8, mut hi8) = ([f32::INFINITY; 8], [f32::NEG_INFINITY; 8]);
-    for d in 0..dim {
-        let x = rows.coord(i, d);
-        lo8[d % 8] = lo8[d % 8].min(x);
-        hi8[d % 8] = hi8[d % 8].max(x);
+    let eights = raw.chunks_exact(8);
+    for (j, &v) in eights.remainder().iter().enumerate() {
+        let x = v * scale;
+        lo8[j] = lo8[j].min(x);
+        hi8[j] = hi8[j].max(x);
+    }
+    for c in eights {
+        for j in 0..8 {
+            let x = c[j] * scale;
+            lo8[j] = lo8[j].min(x);
+            hi8[j] = hi8[j].max(x);
+        }
     }
     let lo = lo8.iter().fold(f32::INFINITY, |m, &v| m.min(v));
     let hi = hi8.iter().fold(f32::NEG_INFINITY, |m, &v| m.max(v));
@@ -174,13 +184,17 @@ fn encode_row(rows: Rows<'_>, i: usize, lane: usize, codes: &mut [u8], params: &
     // up and saturates into 0..=255).
     let step = (hi - lo) / 255.0;
     let inv = if step > 0.0 { 1.0 / step } else { 0.0 };
-    let (lo64, step64) = (f64::from(lo), f64::from(step));
+    let (lo64, step64, scale64) = (f64::from(lo), f64::from(step), f64::from(scale));
     let mut err4 = [0.0f64; 4];
-    for d in 0..dim {
-        let k = ((rows.coord(i, d) - lo) * inv + 0.5) as u8;
-        codes[at(d, lane)] = k;
-        let e = rows.exact_coord(i, d) - (lo64 + step64 * f64::from(k));
-        err4[d % 4] += e * e;
+    for (g, four) in raw.chunks(4).enumerate() {
+        let at = (g * SKETCH_BLOCK + lane) * 4;
+        for (j, &v) in four.iter().enumerate() {
+            let k = ((v * scale - lo) * inv + 0.5) as u8;
+            codes[at + j] = k;
+            // The exact normalised value (the product of two `f32` is exact in `f64`).
+            let e = f64::from(v) * scale64 - (lo64 + step64 * f64::from(k));
+            err4[j] += e * e;
+        }
     }
     let err2 = (err4[0] + err4[1]) + (err4[2] + err4[3]);
     // Rounded up, so that `err ≥ ‖e‖₂`; a row with a non-finite value gets an infinite error,
