@@ -549,7 +549,15 @@ impl Database {
         distances.try_reserve_exact(m * k).map_err(oom)?;
         ids.resize(m * k, BatchResults::NONE);
         distances.resize(m * k, f32::INFINITY);
-        let one = |q: &[f32], ids: &mut [u32], dists: &mut [f32], scratch: &mut [Neighbor]| {
+        let one = |q: &[f32],
+                   ids: &mut [u32],
+                   dists: &mut [f32],
+                   scratch: &mut [Neighbor],
+                   observed: &Observed| {
+            let req = Request {
+                observed: Some(observed),
+                ..req
+            };
             let found = index.search(q, &req, scratch)?;
             for (j, nb) in scratch[..found.len].iter().enumerate() {
                 ids[j] = nb.id;
@@ -941,13 +949,15 @@ fn check_bins(name: &'static str, v: &[f32]) -> Result<(), Error> {
 
 /// The worker side of [`Database::search_batch`].
 mod batch {
-    use super::{Error, Neighbor};
+    use super::{Error, Neighbor, Observed};
     use alloc::vec;
 
     /// Queries handed to a worker at a time (small enough to balance, large enough to amortise).
     const CHUNK: usize = 16;
 
-    /// Runs `one` for every query (`queries`: rows of `dim`), writing `k` slots per query.
+    /// Runs `one` for every query (`queries`: rows of `dim`), writing `k` slots per query. Each
+    /// worker keeps its own [`Observed`] for the queries it takes (runs of consecutive queries):
+    /// shared, the record of two workers on queries of different kinds would undo each other.
     pub(super) fn run<F>(
         queries: &[f32],
         dim: usize,
@@ -957,16 +967,18 @@ mod batch {
         one: F,
     ) -> Result<(), Error>
     where
-        F: Fn(&[f32], &mut [u32], &mut [f32], &mut [Neighbor]) -> Result<(), Error> + Sync,
+        F: Fn(&[f32], &mut [u32], &mut [f32], &mut [Neighbor], &Observed) -> Result<(), Error>
+            + Sync,
     {
-        let chunk = |(q, (ids, dists)): (&[f32], (&mut [u32], &mut [f32]))| {
+        let chunk = |observed: &mut Observed,
+                     (q, (ids, dists)): (&[f32], (&mut [u32], &mut [f32]))| {
             let mut scratch = vec![Neighbor::default(); k];
             for ((q, ids), dists) in q
                 .chunks_exact(dim)
                 .zip(ids.chunks_exact_mut(k))
                 .zip(dists.chunks_exact_mut(k))
             {
-                one(q, ids, dists, &mut scratch)?;
+                one(q, ids, dists, &mut scratch, observed)?;
             }
             Ok(())
         };
@@ -977,11 +989,12 @@ mod batch {
         {
             use rayon::prelude::*;
             let parts: alloc::vec::Vec<_> = parts.collect();
-            parts.into_par_iter().try_for_each(chunk)
+            parts.into_par_iter().try_for_each_init(Observed::new, chunk)
         }
         #[cfg(not(feature = "parallel"))]
         {
-            parts.into_iter().try_for_each(chunk)
+            let mut observed = Observed::new();
+            parts.into_iter().try_for_each(|part| chunk(&mut observed, part))
         }
     }
 }
