@@ -989,12 +989,16 @@ mod batch {
         {
             use rayon::prelude::*;
             let parts: alloc::vec::Vec<_> = parts.collect();
-            parts.into_par_iter().try_for_each_init(Observed::new, chunk)
+            parts
+                .into_par_iter()
+                .try_for_each_init(Observed::new, chunk)
         }
         #[cfg(not(feature = "parallel"))]
         {
             let mut observed = Observed::new();
-            parts.into_iter().try_for_each(|part| chunk(&mut observed, part))
+            parts
+                .into_iter()
+                .try_for_each(|part| chunk(&mut observed, part))
         }
     }
 }
