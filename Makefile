@@ -6,7 +6,7 @@ PY := $(VENV)/bin/python
 PYABS = $(abspath $(PY))
 PYTHON ?= python3
 
-.PHONY: demo test venv dist aarch64 wheel install-test crates docs lint rust-test py-test typecheck bench bench-py bench-search bench-search-py readme-results thresholds bench-pcd fuzz fuzz-smoke fuzz-deps cargo-fuzz-run bench-reg audit clean
+.PHONY: demo test venv dist aarch64 wheel install-test crates docs lint rust-test py-test typecheck bench bench-py bench-search bench-search-py readme-speed readme-results thresholds bench-pcd fuzz fuzz-smoke fuzz-deps cargo-fuzz-run bench-reg audit clean
 
 $(VENV)/.ready: requirements-dev.txt pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -117,6 +117,16 @@ bench-search:
 bench-search-py: wheel
 	$(PY) -m pip install --quiet -r benches/requirements-bench.txt
 	$(PY) benches/search_peers.py
+
+## Rewrite the README's speed tables: both Python benchmarks write what they print to
+## benches/results/*.json, and tools/readme_speed.py turns that into the README block (run it on a
+## quiet machine: every figure is a ratio to a peer timed in the same run, but a busy core still
+## skews them).
+readme-speed: wheel
+	$(PY) -m pip install --quiet -r benches/requirements-bench.txt
+	$(PY) benches/python_baseline.py --json benches/results/describe.json
+	$(PY) benches/search_peers.py --json benches/results/search.json
+	$(PY) tools/readme_speed.py
 
 ## Rewrite the README's hku1 results (SOLiD and Scan Context, 3 m and 5 m) from fresh `solid eval` runs.
 readme-results: wheel

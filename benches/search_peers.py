@@ -1,6 +1,9 @@
 """Times solid's search against faiss-cpu (IndexFlatIP) and numpy, in one process.
 
     make bench-search-py        # installs benches/requirements-bench.txt (faiss-cpu) first
+    python benches/search_peers.py --json benches/results/search.json   # also writes the figures
+
+The JSON file is what tools/readme_speed.py turns into the README's search table.
 
 On realistic R-SOLiD databases of 10k, 100k and 1M entries (SOLID_BENCH_QUICK=1 stops at 100k):
 `hku` holds the 314 HKU Livox Avia keyframes under a random yaw, a shift of up to 2 m, dropout
@@ -24,6 +27,17 @@ Top-1 ids are checked equal to faiss's (ties aside: equal distances) on every qu
 from __future__ import annotations
 
 import os
+
+# Idle thread pools of the peers wait without spinning, before numpy (OpenBLAS) and faiss (OpenMP)
+# start them: by default their threads spin for a while after every call, taking the cores from
+# whatever is timed next (the methods are interleaved query by query), which on a 2-core machine
+# slowed the next library's parallel scan up to 8x. Each library still uses every core.
+os.environ.setdefault("OPENBLAS_THREAD_TIMEOUT", "4")
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
+import argparse
+import json
+import platform
 import sys
 import time
 from collections.abc import Callable, Iterator
@@ -180,6 +194,9 @@ def batches(m: int, size: int) -> Iterator[slice]:
 
 
 def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--json", type=Path, help="also write every figure to this JSON file")
+    args = ap.parse_args()
     quick = os.environ.get("SOLID_BENCH_QUICK") is not None
     sizes = [10_000, 100_000] if quick else [10_000, 100_000, 1_000_000]
     scans = Scans(shared_data())
@@ -194,6 +211,20 @@ def main() -> int:
     rows_batch: list[str] = []
     rows_add: list[str] = []
     rows_mem: list[str] = []
+    doc: dict[str, object] = {
+        "command": "python benches/search_peers.py --json benches/results/search.json",
+        "solid": solid.__version__,
+        "faiss": faiss.__version__,
+        "faiss_threads": faiss.omp_get_max_threads(),
+        "numpy": np.__version__,
+        "cores": os.cpu_count(),
+        "cpu": platform.processor() or platform.machine(),
+        "queries": QUERIES,
+    }
+    js_single: list[dict[str, object]] = []
+    js_batch: list[dict[str, object]] = []
+    js_add: list[dict[str, object]] = []
+    js_mem: list[dict[str, object]] = []
     for n in sizes:
         for db_name, make, mixes in (
             ("hku", scans.hku_copy, {"near": near, "novel": novel}),
@@ -214,11 +245,14 @@ def main() -> int:
                 f"{db_name:4s} {n:>9d} {t_add * 1e3:9.1f} {t_add_flat * 1e3:9.1f} {t_faiss_add * 1e3:9.1f} "
                 f"{t_np_add * 1e3:9.1f} {t_faiss_add / t_add:8.2f} {t_faiss_add / t_add_flat:8.2f}"
             )
+            js_add.append({"db": db_name, "n": n, "add_s": t_add, "add_no_tree_s": t_add_flat, "faiss_s": t_faiss_add, "numpy_s": t_np_add})
             if db_name == "hku":
+                js_mem.append({"n": n, "solid": db.memory_bytes() / n, "faiss": index.ntotal * 4 * CFG.n_range / n})
                 rows_mem.append(f"{n:>9d} {db.memory_bytes() / n:8.1f} {index.ntotal * 4 * CFG.n_range / n:8.1f} {x.nbytes / n:8.1f}")
             for mix, queries in mixes.items():
                 for k in (1, 10):
                     t = single(db, index, x, queries[:QUERIES], k)
+                    js_single.append({"db": db_name, "mix": mix, "n": n, "k": k, **{f"{m}_s": v for m, v in t.items()}})
                     rows_single.append(
                         f"{db_name + '/' + mix:10s} {n:>9d} {k:3d} {t['auto'] * 1e6:9.1f} {t['brute'] * 1e6:9.1f} "
                         f"{t['faiss'] * 1e6:9.1f} {t['numpy'] * 1e6:9.1f} {t['faiss'] / t['auto']:8.2f} "
@@ -235,6 +269,7 @@ def main() -> int:
             d_f, i_f = index.search(qn, 1)
             agree = np.mean((ids[:, 0] == i_f[:, 0]) | (np.abs(dists[:, 0] - (1 - d_f[:, 0])) < 1e-5))
             assert agree == 1.0, agree
+            js_batch.append({"db": db_name, "n": n, "queries": len(q), "batch_s": t_batch, "faiss_s": t_faiss, "numpy_s": t_np, "loop_s": t_loop})
             rows_batch.append(
                 f"{db_name:4s} {n:>9d} {t_batch * 1e3:9.1f} {t_faiss * 1e3:9.1f} {t_np * 1e3:9.1f} "
                 f"{t_loop * 1e3:9.1f} {t_faiss / t_batch:8.2f} {t_np / t_batch:8.2f} {t_loop / t_batch:8.2f}"
@@ -253,6 +288,11 @@ def main() -> int:
     print("\nbytes per entry (hku): solid Database.memory_bytes() / n, faiss IndexFlatIP, numpy float32 rows")
     print(f"{'n':>9s} {'solid':>8s} {'faiss':>8s} {'numpy':>8s}")
     print("\n".join(rows_mem))
+    if args.json is not None:
+        doc.update(single=js_single, batch=js_batch, add=js_add, memory=js_mem)
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps(doc, indent=1) + "\n")
+        print(f"\nwrote {args.json}")
     return 0
 
 

@@ -62,6 +62,15 @@ def test_results_block_is_what_a_fresh_run_gives() -> None:
     assert r.returncode == 0, r.stderr
 
 
+def test_speed_block_is_what_the_benchmarks_wrote() -> None:
+    """The README's speed tables are rendered by tools/readme_speed.py from the JSON that the
+    benchmarks wrote (make readme-speed), never typed in."""
+    import subprocess
+
+    r = subprocess.run([sys.executable, str(REPO / "tools" / "readme_speed.py"), "--check"], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+
+
 def test_presets_table_matches_the_core() -> None:
     import solid
 

@@ -17,10 +17,11 @@ from __future__ import annotations
 import argparse
 import os
 import shutil
-import sys
 import tempfile
 from pathlib import Path
 from typing import Any
+
+import readme_block  # tools/, the script's own folder
 
 REPO = Path(__file__).resolve().parent.parent
 START, END = "<!-- results:hku1:start -->", "<!-- results:hku1:end -->"
@@ -106,26 +107,16 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--check", action="store_true", help="only compare with README.md (exit 1 when it differs)")
     args = ap.parse_args()
-    readme = REPO / "README.md"
-    text = readme.read_text(encoding="utf-8")
-    if START not in text or END not in text:
-        raise SystemExit(f"README.md has no {START} … {END} block")
     with tempfile.TemporaryDirectory() as tmp:
         results: Rows = {}
         for r in (3.0, 5.0):
             verified = run(r, Path(tmp) / f"r{r:g}", "--baseline", "scancontext")
             plain = run(r, Path(tmp) / f"plain{r:g}", "--no-verify", "--no-plots")
             results[r] = (verified, plain, verified["baselines"]["scancontext"])
-        new = block(results)
-        head, rest = text.split(START, 1)
-        _, tail = rest.split(END, 1)
-        updated = f"{head}{START}\n{new}\n{END}{tail}"
+        if not readme_block.update(START, END, block(results), args.check, "tools/readme_results.py"):
+            return 1
         if args.check:
-            if updated != text:
-                print("README.md results differ from a fresh run; run python tools/readme_results.py", file=sys.stderr)
-                return 1
             return 0
-        readme.write_text(updated, encoding="utf-8")
         shutil.copyfile(Path(tmp) / "r3" / "pr.png", REPO / "docs" / "pr_hku1_avia.png")
     print("README.md and docs/pr_hku1_avia.png updated")
     return 0

@@ -794,8 +794,9 @@ class Database:
                     exclude_recent: Leave out the most recently added entries (the last `exclude_recent`
                         ids), as a loop detector does.
                     method: "auto" (the kd-tree under a work budget, then the byte sketch, then brute
-                        force, each from where the previous one stops paying), "brute", "kdtree" or
-                        "sketch": the same neighbours either way.
+                        force, each from where the previous one stops paying; on a database whose
+                        sketch keeps failing, rows too alike for its bytes, a deeper kd-tree walk
+                        replaces it), "brute", "kdtree" or "sketch": the same neighbours either way.
                     not_newer_than: Leave out entries whose timestamp is greater (entries without one are
                         kept).
                     max_distance: Return only matches at most this far (a loop threshold), or None; every
