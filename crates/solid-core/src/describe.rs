@@ -167,13 +167,12 @@ impl Binner {
         // integer n. Range and azimuth quotients are >= 0; the elevation one is clamped at 0, so
         // points on or past the last edge (or above the field of view) join the last bin and
         // points below the field of view the first. Branch-free, so blocks vectorise.
-        let i = F::floor_i64((r * self.range_scale).min(self.nr_max));
-        let j = F::floor_i64((theta * self.azimuth_scale).min(self.na_max));
-        let k = F::floor_i64(
-            ((phi - self.fov_down) * self.elevation_scale)
-                .max(0.0)
-                .min(self.ne_max),
-        );
+        let i = F::floor_i64(below(r * self.range_scale, self.nr_max));
+        let j = F::floor_i64(below(theta * self.azimuth_scale, self.na_max));
+        let k = F::floor_i64(below(
+            above((phi - self.fov_down) * self.elevation_scale, 0.0),
+            self.ne_max,
+        ));
         (i | (j << 10) | (k << 22)) as u32
     }
 
@@ -183,6 +182,26 @@ impl Binner {
         for i in 0..n.min(BLOCK) {
             out[i] = self.bin::<F>(xyz[0][i], xyz[1][i], xyz[2][i]);
         }
+    }
+}
+
+/// `min(v, hi)`, and `hi` when `v` is NaN: one instruction, unlike [`f64::min`].
+#[inline(always)]
+fn below(v: f64, hi: f64) -> f64 {
+    if v < hi {
+        v
+    } else {
+        hi
+    }
+}
+
+/// `max(v, lo)`, and `lo` when `v` is NaN: one instruction, unlike [`f64::max`].
+#[inline(always)]
+fn above(v: f64, lo: f64) -> f64 {
+    if v > lo {
+        v
+    } else {
+        lo
     }
 }
 
@@ -694,12 +713,13 @@ fn voxelize_strided<T: Coord, F: Floor, const S: usize>(
 #[inline(always)]
 fn centroid(rec: &[u64], voxel_size: f64) -> [f64; 3] {
     const UNIT: f64 = 1.0 / (1u64 << FRAC_BITS) as f64;
-    let cnt = rec[4] as f64;
+    // One division per voxel, not one per coordinate: divisions are the slow part here.
+    let unit_per_point = UNIT / rec[4] as f64;
     let mut c = [0.0; 3];
     for (d, c) in c.iter_mut().enumerate() {
         let index = ((rec[0] >> (d as u32 * AXIS_BITS)) & AXIS_MASK) as i64 - BIAS;
         // Offsets were floored: add half a unit so the mean is not biased.
-        *c = (index as f64 + (rec[1 + d] as f64 / cnt + 0.5) * UNIT) * voxel_size;
+        *c = (index as f64 + rec[1 + d] as f64 * unit_per_point + 0.5 * UNIT) * voxel_size;
     }
     c
 }

@@ -46,15 +46,17 @@ fn atan_poly(u: f64) -> f64 {
 pub(crate) fn atan2(y: f64, x: f64) -> f64 {
     let ax = x.abs();
     let ay = y.abs();
-    let mx = ax.max(ay);
-    let mn = ax.min(ay);
+    // Selects, not `f64::max`/`min`: those also order NaN, which costs a compare and a blend.
+    let swap = ay > ax;
+    let mx = if swap { ay } else { ax };
+    let mn = if swap { ax } else { ay };
     let big = mn > TAN_PI_8 * mx;
     let k = if big { 1.0 } else { 0.0 };
     let den = mx + k * mn;
     // den == 0 only at the origin, where mn == 0 too: divide by 1 to get 0.
     let u = (mn - k * mx) / if den == 0.0 { 1.0 } else { den };
     let mut a = k * FRAC_PI_4 + atan_poly(u);
-    a = if ay > ax { FRAC_PI_2 - a } else { a };
+    a = if swap { FRAC_PI_2 - a } else { a };
     a = if x < 0.0 { PI - a } else { a };
     if y < 0.0 {
         -a
