@@ -106,8 +106,9 @@ test: lint rust-test crates docs py-test typecheck fuzz-smoke install-test
 bench:
 	cargo bench -p solid-lidar-benches
 
+## BENCH_JSON=path also writes the figures as JSON (for the README's speed table).
 bench-py: wheel
-	$(PY) benches/python_baseline.py
+	$(PY) benches/python_baseline.py $(if $(BENCH_JSON),--json $(BENCH_JSON))
 
 ## Search against brute force, the kd-tree and the sketch on realistic databases (10k-1M entries).
 bench-search:

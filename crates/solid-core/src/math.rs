@@ -3,14 +3,15 @@
 //! Only IEEE-754 basic operations (`+ - * /`, `sqrt`) are used, which are correctly rounded on every
 //! platform, so results are the same bits on x86-64 and AArch64, with or without `std`.
 
-use core::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI};
+use core::f32::consts::{FRAC_PI_2, FRAC_PI_4, PI};
 
 /// tan(π/8): the polynomial below covers `|u| <= TAN_PI_8`.
-const TAN_PI_8: f64 = 0.414_213_562_373_095_1;
+const TAN_PI_8: f32 = 0.414_213_57;
 
 /// Coefficients of `atan(u) ≈ u · P(u²)` on `|u| <= tan(π/8)`, fitted by least squares on Chebyshev
-/// nodes against a 40-digit reference (max abs error 2.9e-13 rad, far below any bin width).
-const ATAN_COEFFS: [f64; 8] = [
+/// nodes against a 40-digit reference (max abs error 2.9e-13 rad in `f64`), rounded to `f32`:
+/// the error is then that of `f32` arithmetic, a few 1e-7 rad, far below any bin width.
+const ATAN_FIT: [f64; 8] = [
     0.999_999_999_999_270_9,
     -0.333_333_332_783_842_14,
     0.199_999_931_888_795_25,
@@ -21,9 +22,20 @@ const ATAN_COEFFS: [f64; 8] = [
     -0.037_701_746_387_426_04,
 ];
 
+/// [`ATAN_FIT`] in `f32`.
+const ATAN_COEFFS: [f32; 8] = {
+    let mut c = [0.0; 8];
+    let mut i = 0;
+    while i < 8 {
+        c[i] = ATAN_FIT[i] as f32;
+        i += 1;
+    }
+    c
+};
+
 /// `u · P(u²)`, with `P` evaluated by Estrin's scheme (a shorter dependency chain than Horner's).
 #[inline(always)]
-fn atan_poly(u: f64) -> f64 {
+fn atan_poly(u: f32) -> f32 {
     let c = &ATAN_COEFFS;
     let s = u * u;
     let s2 = s * s;
@@ -37,24 +49,28 @@ fn atan_poly(u: f64) -> f64 {
     u * (p03 + s4 * p47)
 }
 
-/// `atan2(y, x)` in radians, in `[-π, π]`; `atan2(0, 0) = 0`. Absolute error below 3e-13.
+/// `atan2(y, x)` in radians, in `[-π, π]`; `atan2(0, 0) = 0`. Absolute error below 5e-7, in
+/// `f32`: eight lanes to a 256-bit vector, and `f32` division and square root are about twice as
+/// fast as `f64`'s ([spec §7](crate::spec#7-matching-the-golden-outputs) allows `f32`).
 ///
 /// Branch-free (selects only) with one division: with `mn <= mx` the absolute values, the octant
 /// angle is `atan(mn/mx)`, reduced when `mn/mx > tan(π/8)` by `atan(t) = π/4 + atan((t−1)/(t+1))`,
 /// and `(t−k)/(1+kt)` with `t = mn/mx` is `(mn − k·mx)/(mx + k·mn)` for `k` in {0, 1}.
 #[inline(always)]
-pub(crate) fn atan2(y: f64, x: f64) -> f64 {
+pub(crate) fn atan2(y: f32, x: f32) -> f32 {
     let ax = x.abs();
     let ay = y.abs();
-    let mx = ax.max(ay);
-    let mn = ax.min(ay);
+    // Selects, not `f32::max`/`min`: those also order NaN, which costs a compare and a blend.
+    let swap = ay > ax;
+    let mx = if swap { ay } else { ax };
+    let mn = if swap { ax } else { ay };
     let big = mn > TAN_PI_8 * mx;
     let k = if big { 1.0 } else { 0.0 };
     let den = mx + k * mn;
     // den == 0 only at the origin, where mn == 0 too: divide by 1 to get 0.
     let u = (mn - k * mx) / if den == 0.0 { 1.0 } else { den };
     let mut a = k * FRAC_PI_4 + atan_poly(u);
-    a = if ay > ax { FRAC_PI_2 - a } else { a };
+    a = if swap { FRAC_PI_2 - a } else { a };
     a = if x < 0.0 { PI - a } else { a };
     if y < 0.0 {
         -a
@@ -77,12 +93,27 @@ pub(crate) fn sqrt(x: f64) -> f64 {
     }
 }
 
+/// [`sqrt`] of an `f32` (also correctly rounded).
+#[inline(always)]
+pub(crate) fn sqrtf(x: f32) -> f32 {
+    #[cfg(feature = "std")]
+    {
+        x.sqrt()
+    }
+    #[cfg(not(feature = "std"))]
+    {
+        libm::sqrtf(x)
+    }
+}
+
 /// How a compiled copy of `describe` takes ⌊v⌋ of an `f64`. Every way is exact, so every copy
 /// gives the same bits; they differ in the instructions available to them.
 pub(crate) trait Floor {
     /// ⌊v⌋ for |v| < 2^51; other inputs (huge, infinite, NaN) give an unspecified value, never
     /// a panic.
     fn floor_i64(v: f64) -> i64;
+    /// ⌊v⌋ of an `f32` for 0 <= v < 2^22; other inputs give an unspecified value, never a panic.
+    fn floor_u32(v: f32) -> u32;
 }
 
 /// ⌊v⌋ with add, subtract and compare only ([`floor_i64`]): vectorises with any SIMD unit.
@@ -92,6 +123,14 @@ impl Floor for MagicFloor {
     #[inline(always)]
     fn floor_i64(v: f64) -> i64 {
         floor_i64(v)
+    }
+    #[inline(always)]
+    fn floor_u32(v: f32) -> u32 {
+        // As floor_i64, in 32-bit lanes.
+        let r = v + ROUND_MAGIC_F32;
+        let nearest = r.to_bits().wrapping_sub(ROUND_MAGIC_F32.to_bits());
+        let back = r - ROUND_MAGIC_F32;
+        nearest.wrapping_sub(u32::from(back > v))
     }
 }
 
@@ -108,6 +147,11 @@ impl Floor for NativeFloor {
         let r = v.floor() + ROUND_MAGIC;
         r.to_bits().wrapping_sub(ROUND_MAGIC.to_bits()) as i64
     }
+    #[inline(always)]
+    fn floor_u32(v: f32) -> u32 {
+        let r = v.floor() + ROUND_MAGIC_F32;
+        r.to_bits().wrapping_sub(ROUND_MAGIC_F32.to_bits())
+    }
 }
 
 /// The floor of the portable copy: the native one where the baseline CPU has it.
@@ -119,6 +163,8 @@ pub(crate) type PortableFloor = MagicFloor;
 
 /// 1.5 · 2^52: adding it to |v| < 2^51 rounds v to an integer held in the low mantissa bits.
 const ROUND_MAGIC: f64 = 6_755_399_441_055_744.0;
+/// 1.5 · 2^23, the same for `f32` and |v| < 2^22.
+const ROUND_MAGIC_F32: f32 = 12_582_912.0;
 
 /// ⌊v⌋ for |v| < 2^51, with only add, subtract and compare in 64-bit lanes (vectorisable, unlike
 /// the saturating `as` cast): `v + 1.5·2^52` lies in [2^52, 2^53), where its bits are those of
@@ -172,23 +218,46 @@ mod tests {
     }
 
     #[test]
+    fn floor_u32_is_floor() {
+        let mut v = 0.0f32;
+        while v < 5000.0 {
+            assert_eq!(MagicFloor::floor_u32(v), libm::floorf(v) as u32, "{v}");
+            #[cfg(feature = "std")]
+            assert_eq!(NativeFloor::floor_u32(v), libm::floorf(v) as u32, "{v}");
+            v += 0.0625 * 1.01;
+        }
+        for v in [
+            0.0f32,
+            1.0,
+            0.999_999_94,
+            39.0,
+            38.999_996,
+            4_194_303.5,
+            4_194_303.0,
+        ] {
+            assert_eq!(MagicFloor::floor_u32(v), libm::floorf(v) as u32, "{v}");
+        }
+    }
+
+    #[test]
     fn atan2_matches_libm_everywhere() {
+        use core::f64::consts::PI as PI64;
         let mut worst: f64 = 0.0;
         let n = 2000;
         for i in 0..n {
-            let ang = -PI + 2.0 * PI * (i as f64 + 0.37) / n as f64;
+            let ang = -PI64 + 2.0 * PI64 * (i as f64 + 0.37) / n as f64;
             for &rad in &[1e-30, 1e-3, 1.0, 37.5, 1e30] {
-                let (y, x) = (rad * libm::sin(ang), rad * libm::cos(ang));
-                let err = (atan2(y, x) - libm::atan2(y, x)).abs();
+                let (y, x) = ((rad * libm::sin(ang)) as f32, (rad * libm::cos(ang)) as f32);
+                let err = (f64::from(atan2(y, x)) - libm::atan2(f64::from(y), f64::from(x))).abs();
                 worst = worst.max(err);
             }
         }
-        assert!(worst < 5e-13, "worst error {worst}");
+        assert!(worst < 5e-7, "worst error {worst}");
         // Axes and the degenerate origin.
         assert_eq!(atan2(0.0, 1.0), 0.0);
-        assert!((atan2(1.0, 0.0) - FRAC_PI_2).abs() < 1e-15);
-        assert!((atan2(0.0, -1.0) - PI).abs() < 1e-15);
-        assert!((atan2(-1.0, 0.0) + FRAC_PI_2).abs() < 1e-15);
+        assert_eq!(atan2(1.0, 0.0), FRAC_PI_2);
+        assert_eq!(atan2(0.0, -1.0), PI);
+        assert_eq!(atan2(-1.0, 0.0), -FRAC_PI_2);
         assert_eq!(atan2(0.0, 0.0), 0.0);
     }
 }
