@@ -125,6 +125,7 @@ bench-search-py: wheel
 ## skews them).
 readme-speed: wheel
 	$(PY) -m pip install --quiet -r benches/requirements-bench.txt
+	mkdir -p benches/results
 	$(PY) benches/python_baseline.py --json benches/results/describe.json
 	$(PY) benches/search_peers.py --json benches/results/search.json
 	$(PY) tools/readme_speed.py

@@ -37,7 +37,6 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 import argparse
 import json
-import platform
 import sys
 import time
 from collections.abc import Callable, Iterator
@@ -47,7 +46,7 @@ import numpy as np
 import numpy.typing as npt
 
 import solid
-from python_baseline import shared_data  # benches/, the script's own folder
+from python_baseline import cpu_jiffies, cpu_model, other_busy_cores, shared_data  # benches/, the script's own folder
 from solid import io as sio
 
 try:
@@ -198,6 +197,7 @@ def main() -> int:
     ap.add_argument("--json", type=Path, help="also write every figure to this JSON file")
     args = ap.parse_args()
     quick = os.environ.get("SOLID_BENCH_QUICK") is not None
+    busy0, wall0, cpu0 = cpu_jiffies(), time.perf_counter(), time.process_time()
     sizes = [10_000, 100_000] if quick else [10_000, 100_000, 1_000_000]
     scans = Scans(shared_data())
     near, _ = described("near", 500, 2, scans.hku_copy)
@@ -218,7 +218,7 @@ def main() -> int:
         "faiss_threads": faiss.omp_get_max_threads(),
         "numpy": np.__version__,
         "cores": os.cpu_count(),
-        "cpu": platform.processor() or platform.machine(),
+        "cpu": cpu_model(),
         "queries": QUERIES,
     }
     js_single: list[dict[str, object]] = []
@@ -288,8 +288,11 @@ def main() -> int:
     print("\nbytes per entry (hku): solid Database.memory_bytes() / n, faiss IndexFlatIP, numpy float32 rows")
     print(f"{'n':>9s} {'solid':>8s} {'faiss':>8s} {'numpy':>8s}")
     print("\n".join(rows_mem))
+    others = other_busy_cores(busy0, wall0, cpu0)
+    if others is not None:
+        print(f"\nother processes kept {others:.2f} of {os.cpu_count()} cores busy during the run")
     if args.json is not None:
-        doc.update(single=js_single, batch=js_batch, add=js_add, memory=js_mem)
+        doc.update(other_processes_busy_cores=others, single=js_single, batch=js_batch, add=js_add, memory=js_mem)
         args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps(doc, indent=1) + "\n")
         print(f"\nwrote {args.json}")

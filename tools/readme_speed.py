@@ -71,10 +71,17 @@ CONTEXT = (
 )
 
 
+def busy(others: float | None, cores: int) -> str:
+    """How busy the machine was with other work during a run."""
+    return "" if others is None else f"; other processes kept {others:.2f} of its {cores} cores busy"
+
+
 def describe_block(doc: dict[str, Any]) -> list[str]:
+    m = doc["machine"]
     lines = [
         f"Describe, from `python benches/python_baseline.py --json benches/results/describe.json` (solid "
-        f"{doc['solid_version']}, preset `{doc['preset']}`, voxel {doc['voxel_size']:g} m, {doc['machine']['cores']} cores; "
+        f"{doc['solid_version']}, preset `{doc['preset']}`, voxel {doc['voxel_size']:g} m; {m['cpu']}, "
+        f"{m['cores']} cores{busy(doc.get('other_processes_busy_cores'), m['cores'])}; "
         "medians of repeated runs; the numpy baseline is this repository's vectorised implementation of the same "
         "specification, checked to give the same descriptor, timed in the same run):",
         "",
@@ -105,8 +112,8 @@ def search_block(doc: dict[str, Any]) -> list[str]:
     single = [r for r in doc["single"] if r["k"] == 1]
     lines = [
         f"Search, from `{doc['command']}` (solid {doc['solid']}'s release wheel beside faiss-cpu "
-        f"{doc['faiss']} `IndexFlatIP` with {doc['faiss_threads']} threads and numpy {doc['numpy']}, "
-        f"{doc['cores']} cores): databases of R-SOLiDs of the HKU Avia scans under random yaw, shifts, dropout "
+        f"{doc['faiss']} `IndexFlatIP` with {doc['faiss_threads']} threads and numpy {doc['numpy']}; {doc['cpu']}, "
+        f"{doc['cores']} cores{busy(doc.get('other_processes_busy_cores'), doc['cores'])}): databases of R-SOLiDs of the HKU Avia scans under random yaw, shifts, dropout "
         "and FOV clips (a revisit query is another such copy, a novel one a scan of another city), or of "
         "near-duplicates (copies of one scan keeping 50–100 % of its points). Mean per query over "
         f"{doc['queries']} queries, k = 1, the methods interleaved query by query; every top-1 is checked equal "

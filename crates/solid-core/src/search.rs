@@ -719,7 +719,7 @@ const PARALLEL_SCAN: usize = 1 << 16;
 /// with other work, the threads that are free take more parts instead of all waiting for the
 /// slowest half.
 #[cfg(feature = "parallel")]
-const PARALLEL_PART: usize = 1 << 15;
+const PARALLEL_PART: usize = 1 << 13;
 
 /// Largest `k` for which a scan is shared (each part's neighbours live on the stack).
 #[cfg(feature = "parallel")]
