@@ -44,11 +44,11 @@ def load(name: str) -> dict[str, Any]:
 
 
 def us(seconds: float) -> str:
-    """Microseconds below 10 ms, milliseconds above."""
+    """Microseconds below 1 ms, milliseconds above."""
     v = seconds * 1e6
-    if v >= 10_000:
-        return f"{v / 1e3:,.1f} ms"
-    return f"{v:,.0f} µs" if v >= 100 else f"{v:,.1f} µs"
+    if v >= 1000:
+        return f"{v / 1e3:.2f} ms" if v < 10_000 else f"{v / 1e3:.1f} ms"
+    return f"{v:.0f} µs" if v >= 100 else f"{v:.1f} µs"
 
 
 def ms(seconds: float) -> str:
