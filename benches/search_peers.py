@@ -30,8 +30,9 @@ import os
 
 # Idle thread pools of the peers wait without spinning, before numpy (OpenBLAS) and faiss (OpenMP)
 # start them: by default their threads spin for a while after every call, taking the cores from
-# whatever is timed next (the methods are interleaved query by query), which on a 2-core machine
-# slowed the next library's parallel scan up to 8x. Each library still uses every core.
+# whatever is timed next (the methods are interleaved query by query; perf of a loop of solid
+# searches in a process that had used numpy showed OpenBLAS's blas_thread_server in 13-18 % of the
+# samples on this 2-core machine). Each library still uses every core.
 os.environ.setdefault("OPENBLAS_THREAD_TIMEOUT", "4")
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
