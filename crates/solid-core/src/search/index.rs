@@ -75,7 +75,7 @@ pub struct Observed {
 enum Depth {
     /// Not at all.
     Skip,
-    /// Under the normal budget, the sketch following.
+    /// Under the normal budget, the sketch following (the only depth that tries the sketch).
     Normal,
     /// Under the deep budget, brute force following (the sketch is being skipped).
     Deep,
@@ -91,20 +91,19 @@ impl Observed {
         }
     }
 
-    /// How to walk the kd-tree on the next query and whether to try the sketch (and counts the
-    /// query).
-    fn plan(&self) -> (Depth, bool) {
+    /// How to walk the kd-tree on the next query (and counts the query).
+    fn plan(&self) -> Depth {
         let q = self.queries.load(Relaxed);
         self.queries.store(q.wrapping_add(1), Relaxed);
         let retry = q % AUTO_RETRY_EVERY == 0;
         if retry || self.sketch_misses.load(Relaxed) < AUTO_MISSES {
-            (Depth::Normal, true)
+            Depth::Normal
         } else if self.deep_misses.load(Relaxed) < AUTO_MISSES
             || q % AUTO_RETRY_EVERY == AUTO_RETRY_EVERY / 2
         {
-            (Depth::Deep, false)
+            Depth::Deep
         } else {
-            (Depth::Skip, false)
+            Depth::Skip
         }
     }
 
@@ -313,7 +312,7 @@ impl<'a> Index<'a> {
         cost: &mut Cost,
     ) {
         let (exclude, mut bound) = (&req.exclude, req.max_distance);
-        let (walk, try_sketch) = req.observed.map_or((Depth::Normal, true), Observed::plan);
+        let walk = req.observed.map_or(Depth::Normal, Observed::plan);
         let budget = match walk {
             Depth::Skip => 0,
             Depth::Normal => {
@@ -341,7 +340,7 @@ impl<'a> Index<'a> {
         if from >= candidates {
             return;
         }
-        if try_sketch {
+        if walk == Depth::Normal {
             let done = self
                 .sketch
                 .scan(query, from, exclude, bound, true, best, cost);
