@@ -60,12 +60,12 @@ def ratio(peer: float, ours: float) -> str:
     return f"{peer / ours:.2f}×"
 
 
-# Context from issue 11 (measured on this project's machine in round 1, against solid's 1.20 ms of
+# Context from issue 11 (measured on the project's round-1 machine, against solid's 1.20 ms of
 # then on the same KITTI frame with the same parameters; the peers were built outside the
 # repository, so no command here re-runs them): peer time / solid time.
 CONTEXT = (
-    "For context (measured once on this machine in round 1 against solid's 1.20 ms of then, same frame "
-    "and parameters; the peers are built outside the repository, so these commands do not re-run them): "
+    "For context (measured once in round 1, on the project's machine of then, against solid's 1.20 ms of "
+    "then, same frame and parameters; the peers are built outside the repository, so these commands do not re-run them): "
     "the authors' C++ at -O3 took 8.0× as long (9.6 ms, of which its PCL voxel grid alone 6.6 ms), "
     "Open3D's voxel grid plus numpy 14.6× (17.5 ms) and the authors' Python 165× (0.2 s)."
 )
