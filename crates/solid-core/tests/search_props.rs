@@ -8,8 +8,9 @@ use common::{data_dir, read_xyz_f32};
 use proptest::prelude::*;
 use solid_lidar::search::{
     brute_force, inverse_norm, normalize, normalize_rows, normalized_distance, online_extend,
-    online_insert, online_rebuild, sketch_encode, sketch_len, Cost, Exclude, Index, KdTree,
-    Neighbor, Observed, OnlineIndex, Plan, Request, Rows, Sketch, AUTO_MISSES, AUTO_RETRY_EVERY,
+    online_extend_scratch_len, online_extend_with, online_insert, online_rebuild, sketch_encode,
+    sketch_len, Cost, Exclude, Index, KdTree, Neighbor, Observed, OnlineIndex, Plan, Request, Rows,
+    Sketch, AUTO_MISSES, AUTO_RETRY_EVERY,
 };
 use solid_lidar::{cosine_distance, Config, Describer, Points};
 
@@ -312,6 +313,56 @@ fn all_zero_rows_and_query() {
     assert_eq!(
         got.iter().map(|n| (n.id, n.distance)).collect::<Vec<_>>(),
         [(0, 1.0), (1, 1.0), (2, 1.0)]
+    );
+}
+
+/// The build that gathers split values into scratch keys (nodes of 1,024 entries and more)
+/// gives an index as exact as brute force, on rows with few distinct values (many ties in the
+/// selections), grown in steps and from scratch, with scratch too short for some blocks.
+#[test]
+fn keyed_build_equals_brute_force() {
+    let mut x = 0x9e37_79b9u32;
+    let mut next = move || {
+        x ^= x << 13;
+        x ^= x >> 17;
+        x ^= x << 5;
+        x
+    };
+    for (n, dim, levels) in [(3000usize, 40usize, 4u32), (2500, 16, 1000), (1024, 8, 2)] {
+        let raw: Vec<f32> = (0..n * dim).map(|_| (next() % levels) as f32).collect();
+        let scale = scales(&raw, dim);
+        let rows = Rows::scaled(&raw, dim, &scale).unwrap();
+        for (from, keys_len) in [(0, usize::MAX), (n / 3, usize::MAX), (0, 1024)] {
+            let (mut perm, mut splits) = (vec![0u32; n], vec![0u16; n]);
+            online_rebuild(rows.prefix(from), &mut perm, &mut splits).unwrap();
+            let need = online_extend_scratch_len(n, from);
+            assert!(
+                need >= 1024,
+                "n {n} from {from}: no block to build with keys"
+            );
+            let mut keys = vec![7u64; need.min(keys_len)];
+            online_extend_with(rows, from, &mut perm, &mut splits, &mut keys).unwrap();
+            let mut sorted = perm.clone();
+            sorted.sort_unstable();
+            assert!(sorted.iter().enumerate().all(|(i, &p)| p as usize == i));
+            let index = OnlineIndex::new(rows, &perm, &splits).unwrap();
+            for _ in 0..20 {
+                let q_raw: Vec<f32> = (0..dim).map(|_| (next() % levels) as f32 + 0.5).collect();
+                let mut q = vec![0.0; dim];
+                normalize(&q_raw, &mut q).unwrap();
+                for k in [1, 7] {
+                    let mut out = vec![Neighbor::default(); k];
+                    let got = index.search(&q, k, &Exclude::NONE, &mut out).unwrap();
+                    out.truncate(got);
+                    assert_eq!(out, brute(rows, &q, k, &Exclude::NONE), "n {n} dim {dim}");
+                }
+            }
+        }
+    }
+    assert_eq!(
+        online_extend_scratch_len(5000, 4999),
+        0,
+        "one new row: nothing large to build"
     );
 }
 
