@@ -8,8 +8,10 @@
 
 use alloc::vec;
 use alloc::vec::Vec;
+use core::mem::MaybeUninit;
 
 use super::clouds::Clouds;
+use super::room;
 use super::{DbError, Method};
 use crate::search::{self, Exclude, Index, Neighbor, Observed, Plan, Request, Rows, SKETCH_BLOCK};
 use crate::{Config, Descriptor, Error};
@@ -299,83 +301,111 @@ impl Database {
         let n = self.len() + m;
         let (nc, np) = search::sketch_len(n, nr);
         let oom = |_| DbError::OutOfMemory;
-        self.sessions.try_reserve(m).map_err(oom)?;
-        self.timestamps.try_reserve(m).map_err(oom)?;
+        room::reserve(&mut self.sessions, m).map_err(oom)?;
+        room::reserve(&mut self.timestamps, m).map_err(oom)?;
         self.poses.try_reserve(with_pose).map_err(oom)?;
-        self.r.try_reserve(m * nr).map_err(oom)?;
-        self.r_scale.try_reserve(m).map_err(oom)?;
-        self.a_codes.try_reserve(m * na).map_err(oom)?;
-        self.a_scale.try_reserve(m).map_err(oom)?;
-        self.perm.try_reserve(n - self.perm.len()).map_err(oom)?;
-        self.splits
-            .try_reserve(n - self.splits.len())
-            .map_err(oom)?;
-        self.codes.try_reserve(nc - self.codes.len()).map_err(oom)?;
-        self.params
-            .try_reserve(np - self.params.len())
-            .map_err(oom)?;
+        room::reserve(&mut self.r, m * nr).map_err(oom)?;
+        room::reserve(&mut self.r_scale, m).map_err(oom)?;
+        room::reserve(&mut self.a_codes, m * na).map_err(oom)?;
+        room::reserve(&mut self.a_scale, m).map_err(oom)?;
+        let extra = n.saturating_sub(self.perm.len());
+        room::reserve(&mut self.perm, extra).map_err(oom)?;
+        let extra = n.saturating_sub(self.splits.len());
+        room::reserve(&mut self.splits, extra).map_err(oom)?;
+        let extra = nc.saturating_sub(self.codes.len());
+        room::reserve(&mut self.codes, extra).map_err(oom)?;
+        let extra = np.saturating_sub(self.params.len());
+        room::reserve(&mut self.params, extra).map_err(oom)?;
         Ok(())
     }
 
     /// Appends vectors (room reserved), checking them on the way: the raw R-SOLiDs and their
     /// scales ([`search::inverse_norm`]), the quantised A-SOLiDs and the sketch rows, in one pass
     /// over blocks of rows (shared among threads with `parallel`). The kd-tree is left to
-    /// [`Database::build_index`]. On an error some rows may have been written: the caller cuts
+    /// [`Database::build_index`]. On an error some rows may have been added: the caller cuts
     /// them back ([`Database::truncate_vectors`]).
     fn append_vectors(&mut self, r: &[f32], a: &[f32]) -> Result<(), Error> {
         let (nr, na) = (self.config.n_range, self.config.n_azimuth);
         let first = self.r_scale.len();
         let n = first + r.len() / nr;
-        self.r.extend_from_slice(r);
-        self.r_scale.resize(n, 0.0);
-        self.a_codes.resize(n * na, 0);
-        self.a_scale.resize(n, 0.0);
-        let (nc, np) = search::sketch_len(n, nr);
+        // The rows up to the first whole block of the sketch, into the columns as they are.
+        let head = first.next_multiple_of(SKETCH_BLOCK).min(n);
+        let (head_r, rest_r) = r.split_at((head - first) * nr);
+        let (head_a, rest_a) = a.split_at((head - first) * na);
+        self.r.extend_from_slice(head_r);
+        self.r_scale.resize(head, 0.0);
+        self.a_codes.resize(head * na, 0);
+        self.a_scale.resize(head, 0.0);
+        let (nc, np) = search::sketch_len(head, nr);
         self.codes.resize(nc, 0);
         self.params.resize(np, 0.0);
-        // The rows up to the first whole block of the sketch, then whole blocks.
-        let head = first.next_multiple_of(SKETCH_BLOCK).min(n);
         ChunkOut {
-            r: &r[..(head - first) * nr],
-            a: &a[..(head - first) * na],
+            r: head_r,
+            a: head_a,
             scale: &mut self.r_scale[first..head],
             a_codes: &mut self.a_codes[first * na..head * na],
             a_scale: &mut self.a_scale[first..head],
         }
         .fill(nr, na)?;
-        let all = Rows::scaled(&self.r[..head * nr], nr, &self.r_scale[..head])?;
+        let all = Rows::scaled(&self.r, nr, &self.r_scale)?;
         search::sketch_encode(all, first, &mut self.codes, &mut self.params)?;
-        let block = |(mut out, (codes, params)): (ChunkOut<'_>, (&mut [u8], &mut [f32]))| {
-            out.fill(nr, na)?;
-            // Whole blocks: the chunk's sketch is laid out as a sketch of its own rows.
-            let rows = Rows::scaled(out.r, nr, out.scale)?;
-            search::sketch_encode(rows, 0, codes, params)
-        };
-        let rest = ChunkOut {
-            r: &r[(head - first) * nr..],
-            a: &a[(head - first) * na..],
-            scale: &mut self.r_scale[head..],
-            a_codes: &mut self.a_codes[head * na..],
-            a_scale: &mut self.a_scale[head..],
-        };
+        // Whole blocks, written in place into the reserved room by the threads that compute
+        // them (see [`room`]); added to the columns only when every one is written.
+        let m = n - head;
+        let (nc, np) = search::sketch_len(n, nr);
+        let (code_len, param_len) = (nc - self.codes.len(), np - self.params.len());
         // Code bytes and parameters per row of the sketch.
         let (code_row, param_row) = {
             let (c, p) = search::sketch_len(SKETCH_BLOCK, nr);
             (c / SKETCH_BLOCK, p / SKETCH_BLOCK)
         };
-        let codes = &mut self.codes[head * code_row..];
-        let params = &mut self.params[head * param_row..];
-        let chunks = rest.split(CHUNK_ROWS, nr, na).zip(
-            codes
-                .chunks_mut(CHUNK_ROWS * code_row)
-                .zip(params.chunks_mut(CHUNK_ROWS * param_row)),
-        );
+        let chunks = rest_r
+            .chunks(CHUNK_ROWS * nr)
+            .zip(rest_a.chunks(CHUNK_ROWS * na))
+            .zip(room::spare(&mut self.r, m * nr).chunks_mut(CHUNK_ROWS * nr))
+            .zip(room::spare(&mut self.r_scale, m).chunks_mut(CHUNK_ROWS))
+            .zip(room::spare(&mut self.a_codes, m * na).chunks_mut(CHUNK_ROWS * na))
+            .zip(room::spare(&mut self.a_scale, m).chunks_mut(CHUNK_ROWS))
+            .zip(room::spare(&mut self.codes, code_len).chunks_mut(CHUNK_ROWS * code_row))
+            .zip(room::spare(&mut self.params, param_len).chunks_mut(CHUNK_ROWS * param_row));
+        let block =
+            |(((((((r, a), r_out), scale), a_codes), a_scale), codes), params): Chunk<'_>| {
+                room::copied(r_out, r);
+                let scale = room::zeroed(scale);
+                let mut out = ChunkOut {
+                    r,
+                    a,
+                    scale,
+                    a_codes: room::zeroed(a_codes),
+                    a_scale: room::zeroed(a_scale),
+                };
+                out.fill(nr, na)?;
+                // Whole blocks: the chunk's sketch is laid out as a sketch of its own rows.
+                let rows = Rows::scaled(r, nr, out.scale)?;
+                search::sketch_encode(rows, 0, room::zeroed(codes), room::zeroed(params))
+            };
         #[cfg(feature = "parallel")]
-        if n - head >= 2 * CHUNK_ROWS {
+        let written = if m >= 2 * CHUNK_ROWS {
             use rayon::iter::{ParallelBridge, ParallelIterator};
-            return chunks.par_bridge().try_for_each(block);
+            chunks.par_bridge().try_for_each(block)
+        } else {
+            chunks.into_iter().try_for_each(block)
+        };
+        #[cfg(not(feature = "parallel"))]
+        let written = chunks.into_iter().try_for_each(block);
+        written?;
+        #[allow(unsafe_code)]
+        // SAFETY: the chunks cover every slot of each `room::spare` above, and each chunk
+        // wrote all of its slots (`room::copied`, `room::zeroed`) before any could fail.
+        unsafe {
+            room::commit(&mut self.r, m * nr);
+            room::commit(&mut self.r_scale, m);
+            room::commit(&mut self.a_codes, m * na);
+            room::commit(&mut self.a_scale, m);
+            room::commit(&mut self.codes, code_len);
+            room::commit(&mut self.params, param_len);
         }
-        chunks.into_iter().try_for_each(block)
+        Ok(())
     }
 
     /// Sizes the sketch for every entry and encodes entries `first..`.
@@ -421,7 +451,15 @@ impl Database {
         self.perm.resize(n, 0);
         self.splits.resize(n, 0);
         let rows = Rows::scaled(&self.r, self.config.n_range, &self.r_scale)?;
-        search::online_extend(rows, from, &mut self.perm, &mut self.splits)?;
+        // Scratch for the faster build of large blocks; without memory for it, the slower build.
+        let mut keys = Vec::new();
+        if keys
+            .try_reserve_exact(search::online_extend_scratch_len(n, from))
+            .is_ok()
+        {
+            keys.resize(keys.capacity(), 0);
+        }
+        search::online_extend_with(rows, from, &mut self.perm, &mut self.splits, &mut keys)?;
         Ok(())
     }
 
@@ -837,6 +875,26 @@ impl Database {
 /// sketch blocks, but for the last).
 const CHUNK_ROWS: usize = 64 * SKETCH_BLOCK;
 
+/// What one task of [`Database::append_vectors`] reads and fills: input R-SOLiDs and
+/// A-SOLiDs, then the room for the stored R-SOLiDs, their scales, the A-SOLiD codes and steps,
+/// the sketch codes and parameters.
+type Chunk<'a> = (
+    (
+        (
+            (
+                (
+                    ((&'a [f32], &'a [f32]), &'a mut [MaybeUninit<f32>]),
+                    &'a mut [MaybeUninit<f32>],
+                ),
+                &'a mut [MaybeUninit<u8>],
+            ),
+            &'a mut [MaybeUninit<f32>],
+        ),
+        &'a mut [MaybeUninit<u8>],
+    ),
+    &'a mut [MaybeUninit<f32>],
+);
+
 /// The input rows of a chunk and where their scales and A-SOLiD codes go.
 struct ChunkOut<'a> {
     r: &'a [f32],
@@ -847,8 +905,27 @@ struct ChunkOut<'a> {
 }
 
 impl<'a> ChunkOut<'a> {
-    /// The R-SOLiD scales and the quantised A-SOLiDs, checking every value.
+    /// The R-SOLiD scales and the quantised A-SOLiDs, checking every value (compiled for AVX2
+    /// as well, which `std` picks when the CPU has it: the same operations, so the same bits).
     fn fill(&mut self, nr: usize, na: usize) -> Result<(), Error> {
+        #[cfg(all(feature = "std", target_arch = "x86_64"))]
+        if std::is_x86_feature_detected!("avx2") {
+            #[allow(unsafe_code)]
+            // SAFETY: the CPU supports AVX2 (checked just above), the only requirement for
+            // calling a function compiled with `#[target_feature(enable = "avx2")]`.
+            return unsafe { self.fill_avx2(nr, na) };
+        }
+        self.fill_impl(nr, na)
+    }
+
+    #[cfg(all(feature = "std", target_arch = "x86_64"))]
+    #[target_feature(enable = "avx2")]
+    fn fill_avx2(&mut self, nr: usize, na: usize) -> Result<(), Error> {
+        self.fill_impl(nr, na)
+    }
+
+    #[inline(always)]
+    fn fill_impl(&mut self, nr: usize, na: usize) -> Result<(), Error> {
         for (s, row) in self.scale.iter_mut().zip(self.r.chunks_exact(nr)) {
             // `inverse_norm` refuses non-finite values; negative ones are looked for without a
             // branch per value. Either way `check_bins` names the value.
@@ -870,43 +947,30 @@ impl<'a> ChunkOut<'a> {
         }
         Ok(())
     }
-
-    /// Consecutive chunks of `rows` rows.
-    fn split(self, rows: usize, nr: usize, na: usize) -> impl Iterator<Item = ChunkOut<'a>> {
-        self.r
-            .chunks(rows * nr)
-            .zip(self.a.chunks(rows * na))
-            .zip(self.scale.chunks_mut(rows))
-            .zip(self.a_codes.chunks_mut(rows * na))
-            .zip(self.a_scale.chunks_mut(rows))
-            .map(|((((r, a), scale), a_codes), a_scale)| ChunkOut {
-                r,
-                a,
-                scale,
-                a_codes,
-                a_scale,
-            })
-    }
 }
 
 /// Quantises one A-SOLiD to 8 bits per value into `codes`; returns its step (see
 /// [`Database::a`]): `max / 255`, codes rounded half up; `None` when a value is negative or not
 /// finite (what descriptors never hold, SPEC §3).
+#[inline(always)]
 fn quantize_a(a: &[f32], codes: &mut [u8]) -> Option<f32> {
     // Eight lanes, so that the compiler vectorises: the largest value, the smallest, and
     // `v × 0`, which is ±0 for every finite value and NaN otherwise.
     let (mut top, mut low, mut finite) = ([0.0f32; 8], [0.0f32; 8], [0.0f32; 8]);
     let chunks = a.chunks_exact(8);
+    // Plain comparisons, which compile to single min/max instructions (a NaN is caught by
+    // `finite`, whatever they make of it).
+    let mut take = |i: usize, v: f32| {
+        top[i] = if v > top[i] { v } else { top[i] };
+        low[i] = if v < low[i] { v } else { low[i] };
+        finite[i] += v * 0.0;
+    };
     for &v in chunks.remainder() {
-        top[0] = top[0].max(v);
-        low[0] = low[0].min(v);
-        finite[0] += v * 0.0;
+        take(0, v);
     }
     for c in chunks {
-        for i in 0..8 {
-            top[i] = top[i].max(c[i]);
-            low[i] = low[i].min(c[i]);
-            finite[i] += c[i] * 0.0;
+        for (i, &v) in c.iter().enumerate() {
+            take(i, v);
         }
     }
     if finite.iter().any(|&f| f != 0.0) || low.iter().any(|&v| v < 0.0) {
@@ -915,9 +979,10 @@ fn quantize_a(a: &[f32], codes: &mut [u8]) -> Option<f32> {
     let top = top.iter().fold(0.0f32, |m, &v| m.max(v));
     let step = top / 255.0;
     let inv = if step > 0.0 { 1.0 / step } else { 0.0 };
-    // Round half up; the cast saturates into 0..=255.
+    // Round half up, saturating into 0..=255 as `as u8` does, but through `i32`, which
+    // vectorises.
     for (c, &v) in codes.iter_mut().zip(a) {
-        *c = (v * inv + 0.5) as u8;
+        *c = (v * inv + 0.5).clamp(0.0, 255.0) as i32 as u8;
     }
     Some(step)
 }
@@ -1041,6 +1106,58 @@ pub fn check_pose(p: &[f64; 12]) -> Result<(), Error> {
 #[cfg(test)]
 mod tests {
     use super::{dequantize_a, quantize_a};
+
+    /// The AVX2 copy of the checks and quantisation of a bulk add gives the portable copy's
+    /// bits (scales, A-SOLiD codes and steps), and the same error for a bad value.
+    #[cfg(all(feature = "std", target_arch = "x86_64"))]
+    #[test]
+    fn avx2_fill_gives_the_portable_bits() {
+        use super::ChunkOut;
+        if !std::is_x86_feature_detected!("avx2") {
+            eprintln!("no AVX2 on this CPU: nothing to compare");
+            return;
+        }
+        let (nr, na, n) = (40, 60, 37);
+        let mut x = 0x2545_f491u32;
+        let mut next = move || {
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            (x % 100_000) as f32 * 1e-2
+        };
+        let mut r: Vec<f32> = (0..n * nr).map(|_| next()).collect();
+        let mut a: Vec<f32> = (0..n * na).map(|_| next()).collect();
+        r[3 * nr..4 * nr].fill(0.0);
+        a[5 * na..6 * na].fill(0.0);
+        a[7 * na + 2] = 1e-40;
+        let run = |r: &[f32], a: &[f32], avx2: bool| {
+            let (mut scale, mut codes, mut step) = (vec![9.0; n], vec![9u8; n * na], vec![9.0; n]);
+            let mut out = ChunkOut {
+                r,
+                a,
+                scale: &mut scale,
+                a_codes: &mut codes,
+                a_scale: &mut step,
+            };
+            let res = if avx2 {
+                out.fill(nr, na)
+            } else {
+                out.fill_impl(nr, na)
+            };
+            let bits = |v: &[f32]| v.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            (
+                res.map_err(|e| e.to_string()),
+                bits(&scale),
+                codes,
+                bits(&step),
+            )
+        };
+        assert_eq!(run(&r, &a, true), run(&r, &a, false));
+        r[9 * nr + 1] = -1.0;
+        let bad = run(&r, &a, true);
+        assert!(bad.0.is_err());
+        assert_eq!(bad.0, run(&r, &a, false).0);
+    }
 
     #[test]
     fn quantising_what_was_dequantised_gives_the_same_codes_and_step() {

@@ -39,6 +39,7 @@ pub mod clouds;
 mod database;
 mod detector;
 pub mod format;
+mod room;
 pub mod wire;
 
 pub use database::{check_pose, BatchResults, Database, SearchOptions};
