@@ -359,6 +359,13 @@ impl Database {
             let (c, p) = search::sketch_len(SKETCH_BLOCK, nr);
             (c / SKETCH_BLOCK, p / SKETCH_BLOCK)
         };
+        // Every column's room splits into as many chunks as the input (what `commit` relies on).
+        let parts = m.div_ceil(CHUNK_ROWS);
+        assert!(
+            code_len.div_ceil(CHUNK_ROWS * code_row) == parts
+                && param_len.div_ceil(CHUNK_ROWS * param_row) == parts,
+            "append_vectors: the sketch's room does not match the rows"
+        );
         let chunks = rest_r
             .chunks(CHUNK_ROWS * nr)
             .zip(rest_a.chunks(CHUNK_ROWS * na))
