@@ -178,9 +178,64 @@ pub(crate) fn floor_i64(v: f64) -> i64 {
     nearest.wrapping_sub(i64::from(back > v))
 }
 
+/// `y as u8` (toward zero, saturating into 0..=255, NaN to 0) in operations that vectorise:
+/// the cast itself compiles to a conversion with a scalar fix-up per value (perf: 41 % of the
+/// bulk add's quantisation loop). Clamped first, then floored by rounding to an integer with
+/// 2²³ (exact below 2²³) and stepping back when that rounded up; the integer is then the low
+/// byte of `f + 2²³`'s bits.
+#[inline(always)]
+pub(crate) fn floor_to_u8(y: f32) -> u8 {
+    const MAGIC: f32 = 8_388_608.0;
+    // A NaN compares false: to 0, as the cast.
+    let c = if y > 0.0 { y } else { 0.0 };
+    let c = if c < 255.0 { c } else { 255.0 };
+    let r = (c + MAGIC) - MAGIC;
+    let f = if r > c { r - 1.0 } else { r };
+    (f + MAGIC).to_bits() as u8
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn floor_to_u8_is_the_cast() {
+        for y in [
+            f32::NAN,
+            -f32::NAN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            -0.0,
+            0.0,
+            f32::MIN_POSITIVE,
+            1e-45,
+            0.5,
+            0.999_999_94,
+            1.0,
+            1.5,
+            2.5,
+            254.5,
+            254.999_98,
+            255.0,
+            255.5,
+            256.0,
+            1e30,
+            -1.0,
+            -0.5,
+        ] {
+            assert_eq!(floor_to_u8(y), y as u8, "{y}");
+        }
+        // Every 257th bit pattern (every sign, exponent and mantissa region), and every value
+        // from -2 to 258 in steps of 1/1024.
+        for bits in (0..=u32::MAX).step_by(257) {
+            let y = f32::from_bits(bits);
+            assert_eq!(floor_to_u8(y), y as u8, "{y} ({bits:#x})");
+        }
+        for i in -2048..=258 * 1024 {
+            let y = i as f32 / 1024.0;
+            assert_eq!(floor_to_u8(y), y as u8, "{y}");
+        }
+    }
 
     #[test]
     fn floor_i64_is_floor() {

@@ -986,10 +986,9 @@ fn quantize_a(a: &[f32], codes: &mut [u8]) -> Option<f32> {
     let top = top.iter().fold(0.0f32, |m, &v| m.max(v));
     let step = top / 255.0;
     let inv = if step > 0.0 { 1.0 / step } else { 0.0 };
-    // Round half up, saturating into 0..=255 as `as u8` does, but through `i32`, which
-    // vectorises.
+    // Round half up, saturating into 0..=255.
     for (c, &v) in codes.iter_mut().zip(a) {
-        *c = (v * inv + 0.5).clamp(0.0, 255.0) as i32 as u8;
+        *c = crate::math::floor_to_u8(v * inv + 0.5);
     }
     Some(step)
 }

@@ -217,9 +217,8 @@ fn encode_row(rows: Rows<'_>, i: usize, lane: usize, codes: &mut [u8], params: &
     let mut err4 = [0.0f64; 4];
     // Value `v` of row slot `j` in its group: its code, and its squared error into `err4`.
     let mut value = |v: f32, j: usize| {
-        // Round half up, saturating into 0..=255 (NaN to 0) as `as u8` does, but through
-        // `i32`, which vectorises.
-        let k = ((v * scale - lo) * inv + 0.5).clamp(0.0, 255.0) as i32 as u8;
+        // Round half up, saturating into 0..=255 (NaN to 0).
+        let k = crate::math::floor_to_u8((v * scale - lo) * inv + 0.5);
         // The exact normalised value (the product of two `f32` is exact in `f64`).
         let e = f64::from(v) * scale64 - (lo64 + step64 * f64::from(k));
         err4[j] += e * e;
