@@ -159,7 +159,44 @@ def search_block(doc: dict[str, Any]) -> list[str]:
         f"| memory per entry | {mem['solid']:.0f} B (A-SOLiD at 8 bits included) | {mem['faiss']:.0f} B "
         "(R-SOLiD only) | |"
     )
-    return lines
+    return lines + ["", slower(doc)]
+
+
+def slower(doc: dict[str, Any]) -> str:
+    """Every comparison of the run in which solid took longer than its peer, in one sentence."""
+
+    def where(rows: list[dict[str, Any]], key: str) -> str:
+        return ", ".join(sorted({f"{r['n']:,}" for r in rows}, key=lambda n: int(n.replace(",", "")))) + f" entries{key}"
+
+    cases = []
+    single = doc["single"]
+    brute = [r for r in single if r["numpy_s"] < r["brute_s"]]
+    if brute:
+        w = min(brute, key=lambda r: r["numpy_s"] / r["brute_s"])
+        cases.append(
+            f"brute force against numpy's matrix-vector product in {len(brute)} of {len(single)} cases "
+            f"(at {where(brute, '')}; at worst {ratio(w['numpy_s'], w['brute_s'])}: "
+            f"{MIXES[(w['db'], w['mix'])].lower()}, {w['n']:,} entries, k = {w['k']})"
+        )
+    auto = [r for r in single if r["faiss_s"] < r["auto_s"]]
+    if auto:
+        cases.append(f"`auto` against faiss in {len(auto)} of {len(single)} cases (at {where(auto, '')})")
+    batch = [r for r in doc["batch"] if r["faiss_s"] < r["batch_s"]]
+    if batch:
+        cases.append(f"`search_batch` against faiss at {where(batch, '')}")
+    add = [r for r in doc["add"] if r["faiss_s"] < r["add_s"]]
+    add_flat = [r for r in doc["add"] if r["faiss_s"] < r["add_no_tree_s"]]
+    if add:
+        cases.append(
+            f"bulk add with the kd-tree at {where(add, '')}"
+            + (f" and without it at {where(add_flat, '')}" if add_flat else " (without it, at no size)")
+            + ": besides copying and normalising the R-SOLiDs as faiss does, it checks every value, quantises "
+            "the A-SOLiDs, builds the sketch and, by default, the kd-tree, and keeps "
+            f"{doc['memory'][-1]['solid']:.0f} bytes an entry against faiss's {doc['memory'][-1]['faiss']:.0f}"
+        )
+    if not cases:
+        return "In this run solid was faster than its peer in every comparison above."
+    return "Where solid was slower than its peer in this run: " + "; ".join(cases) + "."
 
 
 def block() -> str:
