@@ -467,7 +467,8 @@ pub mod stages {
 ///    scan make 23,000 runs in 11,000 voxels): a vectorised comparison of neighbouring keys
 ///    marks where runs end, and prefix sums of the offsets give every run's sums;
 /// 3. the runs, with the flicker of a scan line along a voxel boundary merged;
-/// 4. table: one hash-table update per run, without a branch on whether the voxel is new.
+/// 4. table: one hash-table lookup per run (an insertion for a new voxel, without a branch on
+///    whether it is new), then the runs' sums are added to their voxels' records.
 ///
 /// Branches on the data (is this point in the same voxel as the last one, is this voxel new)
 /// mispredict often on real scans and were most of the time of the previous version.
@@ -549,6 +550,8 @@ struct Block {
     run_key: [u64; RUN0 + BLOCK + 1],
     run_xy: [u64; RUN0 + BLOCK + 1],
     run_zc: [u64; RUN0 + BLOCK + 1],
+    /// The voxel (record index) of each run.
+    run_voxel: [usize; BLOCK],
 }
 
 impl Block {
@@ -561,6 +564,7 @@ impl Block {
             run_key: [OUTSIDE; RUN0 + BLOCK + 1],
             run_xy: [0; RUN0 + BLOCK + 1],
             run_zc: [0; RUN0 + BLOCK + 1],
+            run_voxel: [0; BLOCK],
         }
     }
 
@@ -708,7 +712,7 @@ fn voxelize_strided<T: Coord, F: Floor, const S: usize>(
         let nb = b.keys::<T, F>(block, s, scale, min2, max2);
         b.runs(nb);
         let runs = b.collect_runs();
-        n_in += acc.add_runs(&b, runs);
+        n_in += acc.add_runs(&mut b, runs);
     }
     (n_in as usize, acc.m)
 }
@@ -762,16 +766,17 @@ impl<'a> VoxelTable<'a> {
     /// Pass 4: adds the runs of `b` to their voxels; returns the number of points added.
     /// Whether a voxel is new is data, not a branch.
     #[inline(never)]
-    fn add_runs(&mut self, b: &Block, runs: usize) -> u64 {
+    fn add_runs(&mut self, b: &mut Block, runs: usize) -> u64 {
         self.reserve(BLOCK);
         // Locals, not fields, so that they stay in registers.
-        let (mask, shift, mut m) = (self.cap - 1, self.shift, self.m);
+        let (mask, shift, m0) = (self.cap - 1, self.shift, self.m);
+        let mut m = m0;
         let table = &mut self.table[..self.cap];
-        let recs = &mut *self.recs;
-        let mut n_in = 0u64;
-        let (keys, xys, zcs) = (&b.run_key[RUN0..], &b.run_xy[RUN0..], &b.run_zc[RUN0..]);
-        for ((&key, &xy), &zc) in keys[..runs].iter().zip(xys).zip(zcs) {
-            n_in += zc >> 32;
+        let keys = &b.run_key[RUN0..RUN0 + runs];
+        let voxel = &mut b.run_voxel[..runs];
+        // First every run's voxel (a lookup, and an insertion for a new one), then the sums:
+        // the loads of the records no longer wait behind the probes of the runs before them.
+        for (&key, v_out) in keys.iter().zip(voxel.iter_mut()) {
             // Stop at the key or at a free slot in one comparison: keys are below 2^63 and a
             // free slot holds 2^64 - 1, so `k ^ key` is 0 for the key, negative for a free slot
             // and positive for another key. (Two comparisons become two branches, one of which,
@@ -787,15 +792,22 @@ impl<'a> VoxelTable<'a> {
                 slot = (slot + 1) & mask;
                 k = table[slot][0];
             }
-            let fresh = k != key;
             // A free slot holds index 2^64 - 1, so this is the stored index of a voxel seen
             // before and `m` for a new one (a minimum, not a branch).
             let v = (table[slot][1] as usize).min(m);
             table[slot] = [key, v as u64];
-            // A new voxel takes the next record, cleared beforehand: adding to it is the same
-            // operation as adding to an existing one. (m < number of points: it has room.)
-            recs[m] = [0; REC];
-            m += usize::from(fresh);
+            m += usize::from(k != key);
+            *v_out = v;
+        }
+        // New voxels take the next records, cleared: adding to them is the same operation as
+        // adding to an existing one. (m < number of points: there is room.)
+        self.recs[m0..m].fill([0; REC]);
+        self.m = m;
+        let recs = &mut *self.recs;
+        let mut n_in = 0u64;
+        let (xys, zcs) = (&b.run_xy[RUN0..], &b.run_zc[RUN0..]);
+        for (((&key, &xy), &zc), &v) in keys.iter().zip(xys).zip(zcs).zip(voxel.iter()) {
+            n_in += zc >> 32;
             let rec = &mut recs[v];
             rec[0] = key;
             rec[1] += xy & HALF;
@@ -803,7 +815,6 @@ impl<'a> VoxelTable<'a> {
             rec[3] += zc & HALF;
             rec[4] += zc >> 32;
         }
-        self.m = m;
         n_in
     }
 
