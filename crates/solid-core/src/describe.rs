@@ -225,9 +225,11 @@ fn unpack(b: u32) -> (usize, usize, usize) {
 /// - [`Error::BufferTooSmall`] when `scratch` is shorter than [`describe_scratch_len`] or an output
 ///   is shorter than its vector.
 ///
-/// With `std` on x86-64, a copy of the same code compiled for AVX2 runs when the CPU has it
-/// (without FMA, so every operation rounds as in the portable copy: the same bits either way,
-/// which the tests check on every shared scan); [`stages::describe_portable`] is the other copy.
+/// With `std` on x86-64, a copy of the same code compiled for AVX-512 (F, DQ, VL, BW) or else
+/// AVX2 runs when the CPU has it (no FMA is asked for, and Rust never fuses a multiply and an add
+/// by itself, so every operation rounds as in the portable copy: the same bits either way, which
+/// the tests check on every shared scan and on random clouds); [`stages::describe_portable`] is
+/// the portable copy.
 ///
 /// # Panics
 /// Never.
@@ -238,6 +240,13 @@ pub fn describe<T: Coord>(
     r_out: &mut [f32],
     a_out: &mut [f32],
 ) -> Result<Stats, Error> {
+    #[cfg(all(feature = "std", target_arch = "x86_64", solid_avx512))]
+    if has_avx512() {
+        #[allow(unsafe_code)]
+        // SAFETY: the CPU supports the features `describe_avx512` is compiled for (checked just
+        // above), the only requirement for calling it.
+        return unsafe { describe_avx512(points, cfg, scratch, r_out, a_out) };
+    }
     #[cfg(all(feature = "std", target_arch = "x86_64"))]
     if std::is_x86_feature_detected!("avx2") {
         #[allow(unsafe_code)]
@@ -248,18 +257,43 @@ pub fn describe<T: Coord>(
     describe_impl::<T, PortableFloor>(points, cfg, scratch, r_out, a_out)
 }
 
-#[cfg(all(feature = "std", target_arch = "x86_64"))]
-#[target_feature(enable = "avx2")]
-fn describe_avx2<T: Coord>(
-    points: Points<'_, T>,
-    cfg: &Config,
-    scratch: &mut [Scratch],
-    r_out: &mut [f32],
-    a_out: &mut [f32],
-) -> Result<Stats, Error> {
-    // AVX2 implies SSE4.1's rounding instructions.
-    describe_impl::<T, crate::math::NativeFloor>(points, cfg, scratch, r_out, a_out)
+/// Whether the CPU has the AVX-512 subsets [`describe_avx512`] is compiled for.
+#[cfg(all(feature = "std", target_arch = "x86_64", solid_avx512))]
+fn has_avx512() -> bool {
+    std::is_x86_feature_detected!("avx512f")
+        && std::is_x86_feature_detected!("avx512dq")
+        && std::is_x86_feature_detected!("avx512vl")
+        && std::is_x86_feature_detected!("avx512bw")
 }
+
+/// Defines a copy of [`describe`]'s body compiled for the target features `$features` (which
+/// imply SSE4.1's rounding instructions, hence `NativeFloor`). Calling it is `unsafe`: the CPU
+/// must have those features.
+macro_rules! cpu_copy {
+    ($(#[$attr:meta])* $describe:ident, $features:literal) => {
+        $(#[$attr])*
+        #[cfg(all(feature = "std", target_arch = "x86_64"))]
+        #[target_feature(enable = $features)]
+        fn $describe<T: Coord>(
+            points: Points<'_, T>,
+            cfg: &Config,
+            scratch: &mut [Scratch],
+            r_out: &mut [f32],
+            a_out: &mut [f32],
+        ) -> Result<Stats, Error> {
+            describe_impl::<T, crate::math::NativeFloor>(points, cfg, scratch, r_out, a_out)
+        }
+    };
+}
+
+cpu_copy!(
+    /// The AVX-512 copy: twice the lanes of the AVX2 one in the key and binning passes.
+    /// (Compiled where the compiler has these target features, Rust 1.89 on; see build.rs.)
+    #[cfg(solid_avx512)]
+    describe_avx512,
+    "avx512f,avx512dq,avx512vl,avx512bw"
+);
+cpu_copy!(describe_avx2, "avx2");
 
 /// The body of [`describe`], inlined into each of its compiled copies.
 #[inline(always)]
@@ -1076,6 +1110,109 @@ mod tests {
                     (a[i] - b[i]).abs() < 0.5 / (1u64 << 24) as f64 + 1e-12,
                     "{a:?} vs {b:?}"
                 );
+            }
+        }
+    }
+
+    /// The output of one compiled copy of [`describe`] (`None` when this CPU cannot run it):
+    /// stats and the bits of R-SOLiD and A-SOLiD.
+    #[allow(unsafe_code)]
+    fn run_copy<T: Coord>(
+        copy: &str,
+        pts: Points<'_, T>,
+        c: &Config,
+    ) -> Option<(Stats, Vec<u32>, Vec<u32>)> {
+        let mut scratch = vec![0; describe_scratch_len(pts.len(), c)];
+        let (mut r, mut a) = (vec![0f32; c.n_range], vec![0f32; c.n_azimuth]);
+        let (s, r_, a_) = (&mut scratch, &mut r, &mut a);
+        let stats = match copy {
+            "portable" => stages::describe_portable(pts, c, s, r_, a_),
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: only where the CPU has AVX2.
+            "avx2" if std::is_x86_feature_detected!("avx2") => unsafe {
+                describe_avx2(pts, c, s, r_, a_)
+            },
+            #[cfg(all(target_arch = "x86_64", solid_avx512))]
+            // SAFETY: only where the CPU has the AVX-512 subsets of the copy.
+            "avx512" if has_avx512() => unsafe { describe_avx512(pts, c, s, r_, a_) },
+            _ => return None,
+        }
+        .unwrap();
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect();
+        Some((stats, bits(&r), bits(&a)))
+    }
+
+    /// A synthetic spinning-LiDAR scan: rings of points in scan order (so runs, voxel-boundary
+    /// flicker and revisited voxels occur as on a real scan), then scattered points, with
+    /// points out of range and not finite mixed in. Three values a point, plus `extra` columns.
+    fn ring_scan() -> impl proptest::strategy::Strategy<Value = (Vec<f64>, usize)> {
+        use proptest::prelude::*;
+        let ring = (3.0f64..70.0, -3.0f64..3.0, 16usize..900, 0.0f64..0.2);
+        let scattered = (-90.0f64..90.0, -90.0f64..90.0, -5.0f64..5.0);
+        (
+            prop::collection::vec(ring, 1..6),
+            prop::collection::vec(scattered, 0..200),
+            0usize..3,
+            any::<u64>(),
+        )
+            .prop_map(|(rings, scattered, extra, seed)| {
+                let mut state = seed | 1;
+                let mut next = move || {
+                    state ^= state << 13;
+                    state ^= state >> 7;
+                    state ^= state << 17;
+                    (state >> 11) as f64 / (1u64 << 53) as f64
+                };
+                let mut xyz = Vec::new();
+                let push = |p: [f64; 3], xyz: &mut Vec<f64>| {
+                    xyz.extend(p);
+                    xyz.extend((0..extra).map(|e| e as f64));
+                };
+                for (rho, z, n, noise) in rings {
+                    for i in 0..n {
+                        let t = core::f64::consts::TAU * i as f64 / n as f64;
+                        let rho = rho + noise * (next() - 0.5);
+                        let p = match (next() * 40.0) as u32 {
+                            0 => [f64::NAN, 1.0, 0.0],
+                            1 => [0.1, 0.2, 0.3],
+                            2 => [90.0, 0.0, 0.0],
+                            _ => [rho * libm::cos(t), rho * libm::sin(t), z],
+                        };
+                        push(p, &mut xyz);
+                    }
+                }
+                for (x, y, z) in scattered {
+                    push([x, y, z], &mut xyz);
+                }
+                (xyz, 3 + extra)
+            })
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::test_runner::Config::with_cases(64))]
+
+        /// Every compiled copy of `describe` this CPU runs gives the bits of the portable one, for
+        /// `f64` and `f32` points, any stride, with and without voxels.
+        #[test]
+        fn every_copy_gives_the_portable_bits(
+            (xyz, stride) in ring_scan(),
+            voxel in proptest::sample::select(vec![0.0, 0.1, 0.25, 0.5, 1.3]),
+        ) {
+            let c = Config { voxel_size: voxel, ..cfg() };
+            let f32s: Vec<f32> = xyz.iter().map(|&v| v as f32).collect();
+            let wide = Points::new(&xyz, stride).unwrap();
+            let narrow = Points::new(&f32s, stride).unwrap();
+            let (want64, want32) = (
+                run_copy("portable", wide, &c).unwrap(),
+                run_copy("portable", narrow, &c).unwrap(),
+            );
+            for copy in ["avx2", "avx512"] {
+                if let Some(got) = run_copy(copy, wide, &c) {
+                    proptest::prop_assert_eq!(&got, &want64, "{} on f64", copy);
+                }
+                if let Some(got) = run_copy(copy, narrow, &c) {
+                    proptest::prop_assert_eq!(&got, &want32, "{} on f32", copy);
+                }
             }
         }
     }
