@@ -500,7 +500,7 @@ pub mod stages {
 /// 2. runs: consecutive points of a scan line often share a voxel (124,668 points of a KITTI
 ///    scan make 23,000 runs in 11,000 voxels): a vectorised comparison of neighbouring keys
 ///    marks where runs end, and prefix sums of the offsets give every run's sums;
-/// 3. the runs, with the flicker of a scan line along a voxel boundary merged;
+/// 3. the runs of points in range and their sums;
 /// 4. table: one hash-table lookup per run (an insertion for a new voxel, without a branch on
 ///    whether it is new), then the runs' sums are added to their voxels' records.
 ///
@@ -579,11 +579,10 @@ struct Block {
     zc: [u64; BLOCK],
     /// Bit `i % 64` of word `i / 64` is set when point `i` ends a run (the next key differs).
     ends: [u64; BLOCK / 64],
-    /// The runs of points in range from index [`RUN0`]: key and sums (halves as in `xy` and
-    /// `zc`). Index 0 collects the points out of range and index 1 stays free.
-    run_key: [u64; RUN0 + BLOCK + 1],
-    run_xy: [u64; RUN0 + BLOCK + 1],
-    run_zc: [u64; RUN0 + BLOCK + 1],
+    /// The runs of points in range: key and sums (halves as in `xy` and `zc`).
+    run_key: [u64; BLOCK],
+    run_xy: [u64; BLOCK],
+    run_zc: [u64; BLOCK],
     /// The voxel (record index) of each run.
     run_voxel: [usize; BLOCK],
 }
@@ -595,9 +594,9 @@ impl Block {
             xy: [0; BLOCK],
             zc: [0; BLOCK],
             ends: [0; BLOCK / 64],
-            run_key: [OUTSIDE; RUN0 + BLOCK + 1],
-            run_xy: [0; RUN0 + BLOCK + 1],
-            run_zc: [0; RUN0 + BLOCK + 1],
+            run_key: [OUTSIDE; BLOCK],
+            run_xy: [0; BLOCK],
+            run_zc: [0; BLOCK],
             run_voxel: [0; BLOCK],
         }
     }
@@ -669,42 +668,25 @@ impl Block {
     /// at a run's last point and at the previous run's, half by half (each half only grows
     /// within the block, so nothing borrows across halves). Returns their number.
     ///
-    /// Where a scan line grazes a voxel boundary its points alternate between two voxels
-    /// (A B A B): a run whose key is that of one of the last two runs is added to it instead of
-    /// making a new one. This spares an eighth of the hash-table updates on a KITTI scan, and
-    /// the updates it spares are those that would read what the one before last just wrote.
+    /// Branch-free. (Where a scan line grazes a voxel boundary its points alternate between
+    /// two voxels, A B A B; merging such runs here, as before, cost more than the table updates
+    /// it spared.)
     #[inline(always)]
     fn collect_runs(&mut self) -> usize {
         let (mut r, mut xy0, mut zc0) = (0, 0u64, 0u64);
-        // Keys of the last two runs (none yet: OUTSIDE matches no run in range).
-        let (mut last, mut before) = (OUTSIDE, OUTSIDE);
-        self.run_xy[RUN0] = 0;
-        self.run_zc[RUN0] = 0;
         for (w, &end) in self.ends.iter().enumerate() {
             let mut bits = end;
             while bits != 0 {
                 let i = (w * 64 + bits.trailing_zeros() as usize) & (BLOCK - 1);
                 bits &= bits - 1;
                 let (key, xy, zc) = (self.keys[i], self.xy[i], self.zc[i]);
-                let (dxy, dzc) = (xy - xy0, zc - zc0);
+                // A run out of range is written, then overwritten by the next one. (r < i + 1:
+                // the mask only spares a bounds check.)
+                self.run_key[r & (BLOCK - 1)] = key;
+                self.run_xy[r & (BLOCK - 1)] = xy - xy0;
+                self.run_zc[r & (BLOCK - 1)] = zc - zc0;
                 (xy0, zc0) = (xy, zc);
-                let outside = key == OUTSIDE;
-                let (same1, same2) = (key == last, key == before);
-                let fresh = !(outside | same1 | same2);
-                // Where the run goes: index 0 (out of range), the last run, the one before, or
-                // the next free index, whose sums are kept at zero.
-                let back = usize::from(same1) + 2 * usize::from(same2 & !same1);
-                let at = if outside { 0 } else { RUN0 + r - back };
-                // (Wrapping: index 0 sums the garbage offsets of points out of range. The sums
-                // of points in range stay below 2^32 per half: a block's offsets do.)
-                self.run_key[at] = key;
-                self.run_xy[at] = self.run_xy[at].wrapping_add(dxy);
-                self.run_zc[at] = self.run_zc[at].wrapping_add(dzc);
-                r += usize::from(fresh);
-                self.run_xy[RUN0 + r] = 0;
-                self.run_zc[RUN0 + r] = 0;
-                before = if fresh { last } else { before };
-                last = if fresh { key } else { last };
+                r += usize::from(key != OUTSIDE);
             }
         }
         r
@@ -713,9 +695,6 @@ impl Block {
 
 /// Bytes between two reads ahead of the current block (a page).
 const PAGE: usize = 4096;
-
-/// Index of the first run in [`Block`]'s run arrays.
-const RUN0: usize = 2;
 
 #[inline(always)]
 fn voxelize_strided<T: Coord, F: Floor, const S: usize>(
@@ -806,7 +785,7 @@ impl<'a> VoxelTable<'a> {
         let (mask, shift, m0) = (self.cap - 1, self.shift, self.m);
         let mut m = m0;
         let table = &mut self.table[..self.cap];
-        let keys = &b.run_key[RUN0..RUN0 + runs];
+        let keys = &b.run_key[..runs];
         let voxel = &mut b.run_voxel[..runs];
         // First every run's voxel (a lookup, and an insertion for a new one), then the sums:
         // the loads of the records no longer wait behind the probes of the runs before them.
@@ -839,8 +818,8 @@ impl<'a> VoxelTable<'a> {
         self.m = m;
         let recs = &mut *self.recs;
         let mut n_in = 0u64;
-        let (xys, zcs) = (&b.run_xy[RUN0..], &b.run_zc[RUN0..]);
-        for (((&key, &xy), &zc), &v) in keys.iter().zip(xys).zip(zcs).zip(voxel.iter()) {
+        for (((&key, &xy), &zc), &v) in keys.iter().zip(&b.run_xy).zip(&b.run_zc).zip(voxel.iter())
+        {
             n_in += zc >> 32;
             let rec = &mut recs[v];
             rec[0] = key;
