@@ -573,16 +573,15 @@ fn in_range(x: f64, y: f64, z: f64, min2: f64, max2: f64) -> bool {
 struct Block {
     /// Voxel key of each point ([`OUTSIDE`] when out of range), then an [`OUTSIDE`] sentinel.
     keys: [u64; BLOCK + 1],
-    /// Offsets inside the voxel: x in the low half, y in the high half; then their prefix sums.
-    xy: [u64; BLOCK],
-    /// z offset in the low half, 1 (the point) in the high half; then their prefix sums.
-    zc: [u64; BLOCK],
+    /// Offsets inside the voxel in two words, then their prefix sums: x in the low half and y
+    /// in the high half of the first; z in the low half and 1 (the point) in the high half of
+    /// the second. (Side by side, the prefix sums take one 128-bit add and store a point.)
+    xy_zc: [[u64; 2]; BLOCK],
     /// Bit `i % 64` of word `i / 64` is set when point `i` ends a run (the next key differs).
     ends: [u64; BLOCK / 64],
-    /// The runs of points in range: key and sums (halves as in `xy` and `zc`).
+    /// The runs of points in range: key and sums (words as in `xy_zc`).
     run_key: [u64; BLOCK],
-    run_xy: [u64; BLOCK],
-    run_zc: [u64; BLOCK],
+    run_sums: [[u64; 2]; BLOCK],
     /// The voxel (record index) of each run.
     run_voxel: [usize; BLOCK],
 }
@@ -591,12 +590,10 @@ impl Block {
     fn new() -> Self {
         Block {
             keys: [OUTSIDE; BLOCK + 1],
-            xy: [0; BLOCK],
-            zc: [0; BLOCK],
+            xy_zc: [[0; 2]; BLOCK],
             ends: [0; BLOCK / 64],
             run_key: [OUTSIDE; BLOCK],
-            run_xy: [0; BLOCK],
-            run_zc: [0; BLOCK],
+            run_sums: [[0; 2]; BLOCK],
             run_voxel: [0; BLOCK],
         }
     }
@@ -630,8 +627,10 @@ impl Block {
             } else {
                 OUTSIDE
             };
-            self.xy[i] = (ux & FRAC_MASK) | (uy & FRAC_MASK) << 32;
-            self.zc[i] = (uz & FRAC_MASK) | 1 << 32;
+            self.xy_zc[i] = [
+                (ux & FRAC_MASK) | (uy & FRAC_MASK) << 32,
+                (uz & FRAC_MASK) | 1 << 32,
+            ];
         }
         self.keys[n] = OUTSIDE;
         n
@@ -656,11 +655,10 @@ impl Block {
                 bits & ((1u64 << valid) - 1)
             };
         }
-        let (mut xy, mut zc) = (0u64, 0u64);
-        for (a, b) in self.xy[..n].iter_mut().zip(&mut self.zc[..n]) {
-            xy += *a;
-            zc += *b;
-            (*a, *b) = (xy, zc);
+        let mut sum = [0u64; 2];
+        for v in &mut self.xy_zc[..n] {
+            sum = [sum[0] + v[0], sum[1] + v[1]];
+            *v = sum;
         }
     }
 
@@ -673,19 +671,18 @@ impl Block {
     /// it spared.)
     #[inline(always)]
     fn collect_runs(&mut self) -> usize {
-        let (mut r, mut xy0, mut zc0) = (0, 0u64, 0u64);
+        let (mut r, mut before) = (0, [0u64; 2]);
         for (w, &end) in self.ends.iter().enumerate() {
             let mut bits = end;
             while bits != 0 {
                 let i = (w * 64 + bits.trailing_zeros() as usize) & (BLOCK - 1);
                 bits &= bits - 1;
-                let (key, xy, zc) = (self.keys[i], self.xy[i], self.zc[i]);
+                let (key, sums) = (self.keys[i], self.xy_zc[i]);
                 // A run out of range is written, then overwritten by the next one. (r < i + 1:
                 // the mask only spares a bounds check.)
                 self.run_key[r & (BLOCK - 1)] = key;
-                self.run_xy[r & (BLOCK - 1)] = xy - xy0;
-                self.run_zc[r & (BLOCK - 1)] = zc - zc0;
-                (xy0, zc0) = (xy, zc);
+                self.run_sums[r & (BLOCK - 1)] = [sums[0] - before[0], sums[1] - before[1]];
+                before = sums;
                 r += usize::from(key != OUTSIDE);
             }
         }
@@ -818,8 +815,7 @@ impl<'a> VoxelTable<'a> {
         self.m = m;
         let recs = &mut *self.recs;
         let mut n_in = 0u64;
-        for (((&key, &xy), &zc), &v) in keys.iter().zip(&b.run_xy).zip(&b.run_zc).zip(voxel.iter())
-        {
+        for ((&key, &[xy, zc]), &v) in keys.iter().zip(&b.run_sums).zip(voxel.iter()) {
             n_in += zc >> 32;
             let rec = &mut recs[v];
             rec[0] = key;
