@@ -240,60 +240,134 @@ pub fn describe<T: Coord>(
     r_out: &mut [f32],
     a_out: &mut [f32],
 ) -> Result<Stats, Error> {
-    #[cfg(all(feature = "std", target_arch = "x86_64", solid_avx512))]
-    if has_avx512() {
-        #[allow(unsafe_code)]
-        // SAFETY: the CPU supports the features `describe_avx512` is compiled for (checked just
-        // above), the only requirement for calling it.
-        return unsafe { describe_avx512(points, cfg, scratch, r_out, a_out) };
-    }
-    #[cfg(all(feature = "std", target_arch = "x86_64"))]
-    if std::is_x86_feature_detected!("avx2") {
-        #[allow(unsafe_code)]
-        // SAFETY: the CPU supports AVX2 (checked just above), the only requirement for calling a
-        // function compiled with `#[target_feature(enable = "avx2")]`.
-        return unsafe { describe_avx2(points, cfg, scratch, r_out, a_out) };
-    }
-    describe_impl::<T, PortableFloor>(points, cfg, scratch, r_out, a_out)
+    describe_on(Isa::best(), points, cfg, scratch, r_out, a_out)
 }
 
-/// Whether the CPU has the AVX-512 subsets [`describe_avx512`] is compiled for.
-#[cfg(all(feature = "std", target_arch = "x86_64", solid_avx512))]
-fn has_avx512() -> bool {
-    std::is_x86_feature_detected!("avx512f")
-        && std::is_x86_feature_detected!("avx512dq")
-        && std::is_x86_feature_detected!("avx512vl")
-        && std::is_x86_feature_detected!("avx512bw")
+/// The compiled copies of [`describe`]'s pipeline.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Isa {
+    /// The code compiled for the baseline CPU of the target.
+    Portable,
+    /// x86-64 with AVX2.
+    Avx2,
+    /// x86-64 with AVX-512 F, DQ, VL and BW: twice the lanes of AVX2 in the key and binning
+    /// passes. (Compiled where the compiler has these target features, Rust 1.89 on; see
+    /// build.rs.)
+    Avx512,
 }
 
-/// Defines a copy of [`describe`]'s body compiled for the target features `$features` (which
-/// imply SSE4.1's rounding instructions, hence `NativeFloor`). Calling it is `unsafe`: the CPU
-/// must have those features.
-macro_rules! cpu_copy {
-    ($(#[$attr:meta])* $describe:ident, $features:literal) => {
-        $(#[$attr])*
-        #[cfg(all(feature = "std", target_arch = "x86_64"))]
-        #[target_feature(enable = $features)]
-        fn $describe<T: Coord>(
+impl Isa {
+    /// The copies this CPU runs, fastest first; the portable one always.
+    fn available() -> impl Iterator<Item = Isa> {
+        [Isa::Avx512, Isa::Avx2, Isa::Portable]
+            .into_iter()
+            .filter(|isa| isa.runs_here())
+    }
+
+    /// The fastest copy this CPU runs.
+    fn best() -> Isa {
+        Isa::available().next().unwrap_or(Isa::Portable)
+    }
+
+    /// Whether this build has the copy and this CPU the features it is compiled for.
+    fn runs_here(self) -> bool {
+        match self {
+            Isa::Portable => true,
+            #[cfg(all(feature = "std", target_arch = "x86_64", solid_avx512))]
+            Isa::Avx512 => {
+                std::is_x86_feature_detected!("avx512f")
+                    && std::is_x86_feature_detected!("avx512dq")
+                    && std::is_x86_feature_detected!("avx512vl")
+                    && std::is_x86_feature_detected!("avx512bw")
+            }
+            #[cfg(all(feature = "std", target_arch = "x86_64"))]
+            Isa::Avx2 => std::is_x86_feature_detected!("avx2"),
+            #[allow(unreachable_patterns)]
+            _ => false,
+        }
+    }
+}
+
+/// Defines the copies of [`describe_impl`] and [`voxelize`] compiled for the target features
+/// `$features` (which imply SSE4.1's rounding instructions, hence `NativeFloor`), and the
+/// functions that run a given [`Isa`]'s copy: that copy where [`Isa::runs_here`], else the
+/// portable code. Every copy is the same source: no FMA is asked for, and Rust never fuses a
+/// multiply and an add by itself, so every operation rounds as in the portable copy.
+macro_rules! cpu_copies {
+    ($($isa:ident: $describe:ident, $voxelize:ident, $features:literal, [$($cfg:meta),*];)*) => {
+        $(
+            #[cfg(all(feature = "std", target_arch = "x86_64", $($cfg),*))]
+            #[target_feature(enable = $features)]
+            fn $describe<T: Coord>(
+                points: Points<'_, T>,
+                cfg: &Config,
+                scratch: &mut [Scratch],
+                r_out: &mut [f32],
+                a_out: &mut [f32],
+            ) -> Result<Stats, Error> {
+                describe_impl::<T, crate::math::NativeFloor>(points, cfg, scratch, r_out, a_out)
+            }
+
+            #[cfg(all(feature = "std", target_arch = "x86_64", $($cfg),*))]
+            #[target_feature(enable = $features)]
+            fn $voxelize<T: Coord>(
+                points: Points<'_, T>,
+                cfg: &Config,
+                table: &mut [[u64; SLOT]],
+                recs: &mut [[u64; REC]],
+            ) -> (usize, usize) {
+                voxelize::<T, crate::math::NativeFloor>(points, cfg, table, recs)
+            }
+        )*
+
+        /// [`describe_impl`] in the copy `isa`, or the portable one where `isa` does not run.
+        fn describe_on<T: Coord>(
+            isa: Isa,
             points: Points<'_, T>,
             cfg: &Config,
             scratch: &mut [Scratch],
             r_out: &mut [f32],
             a_out: &mut [f32],
         ) -> Result<Stats, Error> {
-            describe_impl::<T, crate::math::NativeFloor>(points, cfg, scratch, r_out, a_out)
+            match isa {
+                $(
+                    #[cfg(all(feature = "std", target_arch = "x86_64", $($cfg),*))]
+                    #[allow(unsafe_code)]
+                    // SAFETY: the CPU has the copy's target features (checked by the guard), the
+                    // only requirement for calling it.
+                    Isa::$isa if isa.runs_here() => unsafe {
+                        $describe(points, cfg, scratch, r_out, a_out)
+                    },
+                )*
+                _ => describe_impl::<T, PortableFloor>(points, cfg, scratch, r_out, a_out),
+            }
+        }
+
+        /// [`voxelize`] in the copy `isa`, or the portable one where `isa` does not run.
+        fn voxelize_on<T: Coord>(
+            isa: Isa,
+            points: Points<'_, T>,
+            cfg: &Config,
+            table: &mut [[u64; SLOT]],
+            recs: &mut [[u64; REC]],
+        ) -> (usize, usize) {
+            match isa {
+                $(
+                    #[cfg(all(feature = "std", target_arch = "x86_64", $($cfg),*))]
+                    #[allow(unsafe_code)]
+                    // SAFETY: as in `describe_on`.
+                    Isa::$isa if isa.runs_here() => unsafe { $voxelize(points, cfg, table, recs) },
+                )*
+                _ => voxelize::<T, PortableFloor>(points, cfg, table, recs),
+            }
         }
     };
 }
 
-cpu_copy!(
-    /// The AVX-512 copy: twice the lanes of the AVX2 one in the key and binning passes.
-    /// (Compiled where the compiler has these target features, Rust 1.89 on; see build.rs.)
-    #[cfg(solid_avx512)]
-    describe_avx512,
-    "avx512f,avx512dq,avx512vl,avx512bw"
-);
-cpu_copy!(describe_avx2, "avx2");
+cpu_copies! {
+    Avx512: describe_avx512, voxelize_avx512, "avx512f,avx512dq,avx512vl,avx512bw", [solid_avx512];
+    Avx2: describe_avx2, voxelize_avx2, "avx2", [];
+}
 
 /// The body of [`describe`], inlined into each of its compiled copies.
 #[inline(always)]
@@ -425,7 +499,7 @@ pub mod stages {
         r_out: &mut [f32],
         a_out: &mut [f32],
     ) -> Result<Stats, Error> {
-        describe_impl::<T, PortableFloor>(points, cfg, scratch, r_out, a_out)
+        describe_on(Isa::Portable, points, cfg, scratch, r_out, a_out)
     }
 
     /// Number of points that are finite and within `(min_range, max_range)` ([spec §2](crate::spec#2-the-descriptor) steps 1–2).
@@ -445,7 +519,8 @@ pub mod stages {
     /// Voxel downsampling ([spec §2](crate::spec#2-the-descriptor) steps 1–3): writes the centroid of every occupied voxel as x, y, z
     /// rows into `out_xyz`, in order of first occupation, and returns (points in range, voxels).
     /// A centroid is the mean of its points to within `voxel_size / 2^24` (their offsets inside
-    /// the voxel are summed exactly, in fixed point).
+    /// the voxel are summed exactly, in fixed point). Runs the same CPU-specific copy as
+    /// [`describe`].
     ///
     /// # Errors
     /// [`Error::InvalidParameter`] when `cfg` is invalid or its `voxel_size` is 0;
@@ -475,7 +550,7 @@ pub mod stages {
             });
         }
         let (table, recs) = voxel_scratch(scratch, n);
-        let (n_in, m) = voxelize::<T, PortableFloor>(points, cfg, table, recs);
+        let (n_in, m) = voxelize_on(Isa::best(), points, cfg, table, recs);
         if out_xyz.len() < 3 * m {
             return Err(Error::BufferTooSmall {
                 buffer: "out_xyz",
@@ -1089,32 +1164,22 @@ mod tests {
         }
     }
 
-    /// The output of one compiled copy of [`describe`] (`None` when this CPU cannot run it):
-    /// stats and the bits of R-SOLiD and A-SOLiD.
-    #[allow(unsafe_code)]
-    fn run_copy<T: Coord>(
-        copy: &str,
-        pts: Points<'_, T>,
-        c: &Config,
-    ) -> Option<(Stats, Vec<u32>, Vec<u32>)> {
+    /// The output of one compiled copy of [`describe`] (stats and the bits of R-SOLiD and
+    /// A-SOLiD), and of [`stages::voxel_downsample`]'s voxelisation (points in range, then every
+    /// voxel record).
+    fn run_copy<T: Coord>(isa: Isa, pts: Points<'_, T>, c: &Config) -> (Stats, Vec<u32>, Vec<u64>) {
         let mut scratch = vec![0; describe_scratch_len(pts.len(), c)];
         let (mut r, mut a) = (vec![0f32; c.n_range], vec![0f32; c.n_azimuth]);
-        let (s, r_, a_) = (&mut scratch, &mut r, &mut a);
-        let stats = match copy {
-            "portable" => stages::describe_portable(pts, c, s, r_, a_),
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: only where the CPU has AVX2.
-            "avx2" if std::is_x86_feature_detected!("avx2") => unsafe {
-                describe_avx2(pts, c, s, r_, a_)
-            },
-            #[cfg(all(target_arch = "x86_64", solid_avx512))]
-            // SAFETY: only where the CPU has the AVX-512 subsets of the copy.
-            "avx512" if has_avx512() => unsafe { describe_avx512(pts, c, s, r_, a_) },
-            _ => return None,
+        let stats = describe_on(isa, pts, c, &mut scratch, &mut r, &mut a).unwrap();
+        let bits = r.iter().chain(&a).map(|x| x.to_bits()).collect();
+        let mut voxels = Vec::new();
+        if c.voxel_size > 0.0 {
+            let (table, recs) = voxel_scratch(&mut scratch, pts.len());
+            let (n_in, m) = voxelize_on(isa, pts, c, table, recs);
+            voxels.push(n_in as u64);
+            voxels.extend(recs[..m].iter().flatten());
         }
-        .unwrap();
-        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect();
-        Some((stats, bits(&r), bits(&a)))
+        (stats, bits, voxels)
     }
 
     /// A synthetic spinning-LiDAR scan: rings of points in scan order (so runs, voxel-boundary
@@ -1178,16 +1243,12 @@ mod tests {
             let wide = Points::new(&xyz, stride).unwrap();
             let narrow = Points::new(&f32s, stride).unwrap();
             let (want64, want32) = (
-                run_copy("portable", wide, &c).unwrap(),
-                run_copy("portable", narrow, &c).unwrap(),
+                run_copy(Isa::Portable, wide, &c),
+                run_copy(Isa::Portable, narrow, &c),
             );
-            for copy in ["avx2", "avx512"] {
-                if let Some(got) = run_copy(copy, wide, &c) {
-                    proptest::prop_assert_eq!(&got, &want64, "{} on f64", copy);
-                }
-                if let Some(got) = run_copy(copy, narrow, &c) {
-                    proptest::prop_assert_eq!(&got, &want32, "{} on f32", copy);
-                }
+            for isa in Isa::available() {
+                proptest::prop_assert_eq!(&run_copy(isa, wide, &c), &want64, "{:?} on f64", isa);
+                proptest::prop_assert_eq!(&run_copy(isa, narrow, &c), &want32, "{:?} on f32", isa);
             }
         }
     }
