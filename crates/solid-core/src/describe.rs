@@ -730,9 +730,20 @@ impl Block {
                 bits & ((1u64 << valid) - 1)
             };
         }
+        // Four points at a time: their own prefix sums first, off the chain of the running sum,
+        // which then takes one add per four points instead of one per point.
+        let add = |a: [u64; 2], b: [u64; 2]| [a[0] + b[0], a[1] + b[1]];
         let mut sum = [0u64; 2];
-        for v in &mut self.xy_zc[..n] {
-            sum = [sum[0] + v[0], sum[1] + v[1]];
+        let mut quads = self.xy_zc[..n].chunks_exact_mut(4);
+        for q in &mut quads {
+            let p1 = add(q[0], q[1]);
+            let p2 = add(p1, q[2]);
+            let p3 = add(p2, q[3]);
+            (q[0], q[1], q[2], q[3]) = (add(sum, q[0]), add(sum, p1), add(sum, p2), add(sum, p3));
+            sum = q[3];
+        }
+        for v in quads.into_remainder() {
+            sum = add(sum, *v);
             *v = sum;
         }
     }
