@@ -225,9 +225,11 @@ fn unpack(b: u32) -> (usize, usize, usize) {
 /// - [`Error::BufferTooSmall`] when `scratch` is shorter than [`describe_scratch_len`] or an output
 ///   is shorter than its vector.
 ///
-/// With `std` on x86-64, a copy of the same code compiled for AVX2 runs when the CPU has it
-/// (without FMA, so every operation rounds as in the portable copy: the same bits either way,
-/// which the tests check on every shared scan); [`stages::describe_portable`] is the other copy.
+/// With `std` on x86-64, a copy of the same code compiled for AVX-512 (F, DQ, VL, BW) or else
+/// AVX2 runs when the CPU has it (no FMA is asked for, and Rust never fuses a multiply and an add
+/// by itself, so every operation rounds as in the portable copy: the same bits either way, which
+/// the tests check on every shared scan and on random clouds); [`stages::describe_portable`] is
+/// the portable copy.
 ///
 /// # Panics
 /// Never.
@@ -238,27 +240,133 @@ pub fn describe<T: Coord>(
     r_out: &mut [f32],
     a_out: &mut [f32],
 ) -> Result<Stats, Error> {
-    #[cfg(all(feature = "std", target_arch = "x86_64"))]
-    if std::is_x86_feature_detected!("avx2") {
-        #[allow(unsafe_code)]
-        // SAFETY: the CPU supports AVX2 (checked just above), the only requirement for calling a
-        // function compiled with `#[target_feature(enable = "avx2")]`.
-        return unsafe { describe_avx2(points, cfg, scratch, r_out, a_out) };
-    }
-    describe_impl::<T, PortableFloor>(points, cfg, scratch, r_out, a_out)
+    describe_on(Isa::best(), points, cfg, scratch, r_out, a_out)
 }
 
-#[cfg(all(feature = "std", target_arch = "x86_64"))]
-#[target_feature(enable = "avx2")]
-fn describe_avx2<T: Coord>(
-    points: Points<'_, T>,
-    cfg: &Config,
-    scratch: &mut [Scratch],
-    r_out: &mut [f32],
-    a_out: &mut [f32],
-) -> Result<Stats, Error> {
-    // AVX2 implies SSE4.1's rounding instructions.
-    describe_impl::<T, crate::math::NativeFloor>(points, cfg, scratch, r_out, a_out)
+/// The compiled copies of [`describe`]'s pipeline.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Isa {
+    /// The code compiled for the baseline CPU of the target.
+    Portable,
+    /// x86-64 with AVX2.
+    Avx2,
+    /// x86-64 with AVX-512 F, DQ, VL and BW: twice the lanes of AVX2 in the key and binning
+    /// passes. (Compiled where the compiler has these target features, Rust 1.89 on; see
+    /// build.rs.)
+    Avx512,
+}
+
+impl Isa {
+    /// The copies this CPU runs, fastest first; the portable one always.
+    fn available() -> impl Iterator<Item = Isa> {
+        [Isa::Avx512, Isa::Avx2, Isa::Portable]
+            .into_iter()
+            .filter(|isa| isa.runs_here())
+    }
+
+    /// The fastest copy this CPU runs.
+    fn best() -> Isa {
+        Isa::available().next().unwrap_or(Isa::Portable)
+    }
+
+    /// Whether this build has the copy and this CPU the features it is compiled for.
+    fn runs_here(self) -> bool {
+        match self {
+            Isa::Portable => true,
+            #[cfg(all(feature = "std", target_arch = "x86_64", solid_avx512))]
+            Isa::Avx512 => {
+                std::is_x86_feature_detected!("avx512f")
+                    && std::is_x86_feature_detected!("avx512dq")
+                    && std::is_x86_feature_detected!("avx512vl")
+                    && std::is_x86_feature_detected!("avx512bw")
+            }
+            #[cfg(all(feature = "std", target_arch = "x86_64"))]
+            Isa::Avx2 => std::is_x86_feature_detected!("avx2"),
+            #[allow(unreachable_patterns)]
+            _ => false,
+        }
+    }
+}
+
+/// Defines the copies of [`describe_impl`] and [`voxelize`] compiled for the target features
+/// `$features` (which imply SSE4.1's rounding instructions, hence `NativeFloor`), and the
+/// functions that run a given [`Isa`]'s copy: that copy where [`Isa::runs_here`], else the
+/// portable code. Every copy is the same source: no FMA is asked for, and Rust never fuses a
+/// multiply and an add by itself, so every operation rounds as in the portable copy.
+macro_rules! cpu_copies {
+    ($($isa:ident: $describe:ident, $voxelize:ident, $features:literal, [$($cfg:meta),*];)*) => {
+        $(
+            #[cfg(all(feature = "std", target_arch = "x86_64", $($cfg),*))]
+            #[target_feature(enable = $features)]
+            fn $describe<T: Coord>(
+                points: Points<'_, T>,
+                cfg: &Config,
+                scratch: &mut [Scratch],
+                r_out: &mut [f32],
+                a_out: &mut [f32],
+            ) -> Result<Stats, Error> {
+                describe_impl::<T, crate::math::NativeFloor>(points, cfg, scratch, r_out, a_out)
+            }
+
+            #[cfg(all(feature = "std", target_arch = "x86_64", $($cfg),*))]
+            #[target_feature(enable = $features)]
+            fn $voxelize<T: Coord>(
+                points: Points<'_, T>,
+                cfg: &Config,
+                table: &mut [[u64; SLOT]],
+                recs: &mut [[u64; REC]],
+            ) -> (usize, usize) {
+                voxelize::<T, crate::math::NativeFloor>(points, cfg, table, recs)
+            }
+        )*
+
+        /// [`describe_impl`] in the copy `isa`, or the portable one where `isa` does not run.
+        fn describe_on<T: Coord>(
+            isa: Isa,
+            points: Points<'_, T>,
+            cfg: &Config,
+            scratch: &mut [Scratch],
+            r_out: &mut [f32],
+            a_out: &mut [f32],
+        ) -> Result<Stats, Error> {
+            match isa {
+                $(
+                    #[cfg(all(feature = "std", target_arch = "x86_64", $($cfg),*))]
+                    #[allow(unsafe_code)]
+                    // SAFETY: the CPU has the copy's target features (checked by the guard), the
+                    // only requirement for calling it.
+                    Isa::$isa if isa.runs_here() => unsafe {
+                        $describe(points, cfg, scratch, r_out, a_out)
+                    },
+                )*
+                _ => describe_impl::<T, PortableFloor>(points, cfg, scratch, r_out, a_out),
+            }
+        }
+
+        /// [`voxelize`] in the copy `isa`, or the portable one where `isa` does not run.
+        fn voxelize_on<T: Coord>(
+            isa: Isa,
+            points: Points<'_, T>,
+            cfg: &Config,
+            table: &mut [[u64; SLOT]],
+            recs: &mut [[u64; REC]],
+        ) -> (usize, usize) {
+            match isa {
+                $(
+                    #[cfg(all(feature = "std", target_arch = "x86_64", $($cfg),*))]
+                    #[allow(unsafe_code)]
+                    // SAFETY: as in `describe_on`.
+                    Isa::$isa if isa.runs_here() => unsafe { $voxelize(points, cfg, table, recs) },
+                )*
+                _ => voxelize::<T, PortableFloor>(points, cfg, table, recs),
+            }
+        }
+    };
+}
+
+cpu_copies! {
+    Avx512: describe_avx512, voxelize_avx512, "avx512f,avx512dq,avx512vl,avx512bw", [solid_avx512];
+    Avx2: describe_avx2, voxelize_avx2, "avx2", [];
 }
 
 /// The body of [`describe`], inlined into each of its compiled copies.
@@ -391,7 +499,7 @@ pub mod stages {
         r_out: &mut [f32],
         a_out: &mut [f32],
     ) -> Result<Stats, Error> {
-        describe_impl::<T, PortableFloor>(points, cfg, scratch, r_out, a_out)
+        describe_on(Isa::Portable, points, cfg, scratch, r_out, a_out)
     }
 
     /// Number of points that are finite and within `(min_range, max_range)` ([spec §2](crate::spec#2-the-descriptor) steps 1–2).
@@ -411,7 +519,8 @@ pub mod stages {
     /// Voxel downsampling ([spec §2](crate::spec#2-the-descriptor) steps 1–3): writes the centroid of every occupied voxel as x, y, z
     /// rows into `out_xyz`, in order of first occupation, and returns (points in range, voxels).
     /// A centroid is the mean of its points to within `voxel_size / 2^24` (their offsets inside
-    /// the voxel are summed exactly, in fixed point).
+    /// the voxel are summed exactly, in fixed point). Runs the same CPU-specific copy as
+    /// [`describe`].
     ///
     /// # Errors
     /// [`Error::InvalidParameter`] when `cfg` is invalid or its `voxel_size` is 0;
@@ -441,7 +550,7 @@ pub mod stages {
             });
         }
         let (table, recs) = voxel_scratch(scratch, n);
-        let (n_in, m) = voxelize::<T, PortableFloor>(points, cfg, table, recs);
+        let (n_in, m) = voxelize_on(Isa::best(), points, cfg, table, recs);
         if out_xyz.len() < 3 * m {
             return Err(Error::BufferTooSmall {
                 buffer: "out_xyz",
@@ -466,8 +575,9 @@ pub mod stages {
 /// 2. runs: consecutive points of a scan line often share a voxel (124,668 points of a KITTI
 ///    scan make 23,000 runs in 11,000 voxels): a vectorised comparison of neighbouring keys
 ///    marks where runs end, and prefix sums of the offsets give every run's sums;
-/// 3. the runs, with the flicker of a scan line along a voxel boundary merged;
-/// 4. table: one hash-table update per run, without a branch on whether the voxel is new.
+/// 3. the runs of points in range and their sums;
+/// 4. table: one hash-table lookup per run (an insertion for a new voxel, without a branch on
+///    whether it is new), then the runs' sums are added to their voxels' records.
 ///
 /// Branches on the data (is this point in the same voxel as the last one, is this voxel new)
 /// mispredict often on real scans and were most of the time of the previous version.
@@ -538,29 +648,28 @@ fn in_range(x: f64, y: f64, z: f64, min2: f64, max2: f64) -> bool {
 struct Block {
     /// Voxel key of each point ([`OUTSIDE`] when out of range), then an [`OUTSIDE`] sentinel.
     keys: [u64; BLOCK + 1],
-    /// Offsets inside the voxel: x in the low half, y in the high half; then their prefix sums.
-    xy: [u64; BLOCK],
-    /// z offset in the low half, 1 (the point) in the high half; then their prefix sums.
-    zc: [u64; BLOCK],
+    /// Offsets inside the voxel in two words, then their prefix sums: x in the low half and y
+    /// in the high half of the first; z in the low half and 1 (the point) in the high half of
+    /// the second. (Side by side, the prefix sums take one 128-bit add and store a point.)
+    xy_zc: [[u64; 2]; BLOCK],
     /// Bit `i % 64` of word `i / 64` is set when point `i` ends a run (the next key differs).
     ends: [u64; BLOCK / 64],
-    /// The runs of points in range from index [`RUN0`]: key and sums (halves as in `xy` and
-    /// `zc`). Index 0 collects the points out of range and index 1 stays free.
-    run_key: [u64; RUN0 + BLOCK + 1],
-    run_xy: [u64; RUN0 + BLOCK + 1],
-    run_zc: [u64; RUN0 + BLOCK + 1],
+    /// The runs of points in range: key and sums (words as in `xy_zc`).
+    run_key: [u64; BLOCK],
+    run_sums: [[u64; 2]; BLOCK],
+    /// The voxel (record index) of each run.
+    run_voxel: [usize; BLOCK],
 }
 
 impl Block {
     fn new() -> Self {
         Block {
             keys: [OUTSIDE; BLOCK + 1],
-            xy: [0; BLOCK],
-            zc: [0; BLOCK],
+            xy_zc: [[0; 2]; BLOCK],
             ends: [0; BLOCK / 64],
-            run_key: [OUTSIDE; RUN0 + BLOCK + 1],
-            run_xy: [0; RUN0 + BLOCK + 1],
-            run_zc: [0; RUN0 + BLOCK + 1],
+            run_key: [OUTSIDE; BLOCK],
+            run_sums: [[0; 2]; BLOCK],
+            run_voxel: [0; BLOCK],
         }
     }
 
@@ -593,8 +702,10 @@ impl Block {
             } else {
                 OUTSIDE
             };
-            self.xy[i] = (ux & FRAC_MASK) | (uy & FRAC_MASK) << 32;
-            self.zc[i] = (uz & FRAC_MASK) | 1 << 32;
+            self.xy_zc[i] = [
+                (ux & FRAC_MASK) | (uy & FRAC_MASK) << 32,
+                (uz & FRAC_MASK) | 1 << 32,
+            ];
         }
         self.keys[n] = OUTSIDE;
         n
@@ -619,11 +730,21 @@ impl Block {
                 bits & ((1u64 << valid) - 1)
             };
         }
-        let (mut xy, mut zc) = (0u64, 0u64);
-        for (a, b) in self.xy[..n].iter_mut().zip(&mut self.zc[..n]) {
-            xy += *a;
-            zc += *b;
-            (*a, *b) = (xy, zc);
+        // Four points at a time: their own prefix sums first, off the chain of the running sum,
+        // which then takes one add per four points instead of one per point.
+        let add = |a: [u64; 2], b: [u64; 2]| [a[0] + b[0], a[1] + b[1]];
+        let mut sum = [0u64; 2];
+        let mut quads = self.xy_zc[..n].chunks_exact_mut(4);
+        for q in &mut quads {
+            let p1 = add(q[0], q[1]);
+            let p2 = add(p1, q[2]);
+            let p3 = add(p2, q[3]);
+            (q[0], q[1], q[2], q[3]) = (add(sum, q[0]), add(sum, p1), add(sum, p2), add(sum, p3));
+            sum = q[3];
+        }
+        for v in quads.into_remainder() {
+            sum = add(sum, *v);
+            *v = sum;
         }
     }
 
@@ -631,42 +752,24 @@ impl Block {
     /// at a run's last point and at the previous run's, half by half (each half only grows
     /// within the block, so nothing borrows across halves). Returns their number.
     ///
-    /// Where a scan line grazes a voxel boundary its points alternate between two voxels
-    /// (A B A B): a run whose key is that of one of the last two runs is added to it instead of
-    /// making a new one. This spares an eighth of the hash-table updates on a KITTI scan, and
-    /// the updates it spares are those that would read what the one before last just wrote.
+    /// Branch-free. (Where a scan line grazes a voxel boundary its points alternate between
+    /// two voxels, A B A B; merging such runs here, as before, cost more than the table updates
+    /// it spared.)
     #[inline(always)]
     fn collect_runs(&mut self) -> usize {
-        let (mut r, mut xy0, mut zc0) = (0, 0u64, 0u64);
-        // Keys of the last two runs (none yet: OUTSIDE matches no run in range).
-        let (mut last, mut before) = (OUTSIDE, OUTSIDE);
-        self.run_xy[RUN0] = 0;
-        self.run_zc[RUN0] = 0;
+        let (mut r, mut before) = (0, [0u64; 2]);
         for (w, &end) in self.ends.iter().enumerate() {
             let mut bits = end;
             while bits != 0 {
                 let i = (w * 64 + bits.trailing_zeros() as usize) & (BLOCK - 1);
                 bits &= bits - 1;
-                let (key, xy, zc) = (self.keys[i], self.xy[i], self.zc[i]);
-                let (dxy, dzc) = (xy - xy0, zc - zc0);
-                (xy0, zc0) = (xy, zc);
-                let outside = key == OUTSIDE;
-                let (same1, same2) = (key == last, key == before);
-                let fresh = !(outside | same1 | same2);
-                // Where the run goes: index 0 (out of range), the last run, the one before, or
-                // the next free index, whose sums are kept at zero.
-                let back = usize::from(same1) + 2 * usize::from(same2 & !same1);
-                let at = if outside { 0 } else { RUN0 + r - back };
-                // (Wrapping: index 0 sums the garbage offsets of points out of range. The sums
-                // of points in range stay below 2^32 per half: a block's offsets do.)
-                self.run_key[at] = key;
-                self.run_xy[at] = self.run_xy[at].wrapping_add(dxy);
-                self.run_zc[at] = self.run_zc[at].wrapping_add(dzc);
-                r += usize::from(fresh);
-                self.run_xy[RUN0 + r] = 0;
-                self.run_zc[RUN0 + r] = 0;
-                before = if fresh { last } else { before };
-                last = if fresh { key } else { last };
+                let (key, sums) = (self.keys[i], self.xy_zc[i]);
+                // A run out of range is written, then overwritten by the next one. (r < i + 1:
+                // the mask only spares a bounds check.)
+                self.run_key[r & (BLOCK - 1)] = key;
+                self.run_sums[r & (BLOCK - 1)] = [sums[0] - before[0], sums[1] - before[1]];
+                before = sums;
+                r += usize::from(key != OUTSIDE);
             }
         }
         r
@@ -675,9 +778,6 @@ impl Block {
 
 /// Bytes between two reads ahead of the current block (a page).
 const PAGE: usize = 4096;
-
-/// Index of the first run in [`Block`]'s run arrays.
-const RUN0: usize = 2;
 
 #[inline(always)]
 fn voxelize_strided<T: Coord, F: Floor, const S: usize>(
@@ -708,7 +808,7 @@ fn voxelize_strided<T: Coord, F: Floor, const S: usize>(
         let nb = b.keys::<T, F>(block, s, scale, min2, max2);
         b.runs(nb);
         let runs = b.collect_runs();
-        n_in += acc.add_runs(&b, runs);
+        n_in += acc.add_runs(&mut b, runs);
     }
     (n_in as usize, acc.m)
 }
@@ -762,16 +862,17 @@ impl<'a> VoxelTable<'a> {
     /// Pass 4: adds the runs of `b` to their voxels; returns the number of points added.
     /// Whether a voxel is new is data, not a branch.
     #[inline(never)]
-    fn add_runs(&mut self, b: &Block, runs: usize) -> u64 {
+    fn add_runs(&mut self, b: &mut Block, runs: usize) -> u64 {
         self.reserve(BLOCK);
         // Locals, not fields, so that they stay in registers.
-        let (mask, shift, mut m) = (self.cap - 1, self.shift, self.m);
+        let (mask, shift, m0) = (self.cap - 1, self.shift, self.m);
+        let mut m = m0;
         let table = &mut self.table[..self.cap];
-        let recs = &mut *self.recs;
-        let mut n_in = 0u64;
-        let (keys, xys, zcs) = (&b.run_key[RUN0..], &b.run_xy[RUN0..], &b.run_zc[RUN0..]);
-        for ((&key, &xy), &zc) in keys[..runs].iter().zip(xys).zip(zcs) {
-            n_in += zc >> 32;
+        let keys = &b.run_key[..runs];
+        let voxel = &mut b.run_voxel[..runs];
+        // First every run's voxel (a lookup, and an insertion for a new one), then the sums:
+        // the loads of the records no longer wait behind the probes of the runs before them.
+        for (&key, v_out) in keys.iter().zip(voxel.iter_mut()) {
             // Stop at the key or at a free slot in one comparison: keys are below 2^63 and a
             // free slot holds 2^64 - 1, so `k ^ key` is 0 for the key, negative for a free slot
             // and positive for another key. (Two comparisons become two branches, one of which,
@@ -787,15 +888,21 @@ impl<'a> VoxelTable<'a> {
                 slot = (slot + 1) & mask;
                 k = table[slot][0];
             }
-            let fresh = k != key;
             // A free slot holds index 2^64 - 1, so this is the stored index of a voxel seen
             // before and `m` for a new one (a minimum, not a branch).
             let v = (table[slot][1] as usize).min(m);
             table[slot] = [key, v as u64];
-            // A new voxel takes the next record, cleared beforehand: adding to it is the same
-            // operation as adding to an existing one. (m < number of points: it has room.)
-            recs[m] = [0; REC];
-            m += usize::from(fresh);
+            m += usize::from(k != key);
+            *v_out = v;
+        }
+        // New voxels take the next records, cleared: adding to them is the same operation as
+        // adding to an existing one. (m < number of points: there is room.)
+        self.recs[m0..m].fill([0; REC]);
+        self.m = m;
+        let recs = &mut *self.recs;
+        let mut n_in = 0u64;
+        for ((&key, &[xy, zc]), &v) in keys.iter().zip(&b.run_sums).zip(voxel.iter()) {
+            n_in += zc >> 32;
             let rec = &mut recs[v];
             rec[0] = key;
             rec[1] += xy & HALF;
@@ -803,7 +910,6 @@ impl<'a> VoxelTable<'a> {
             rec[3] += zc & HALF;
             rec[4] += zc >> 32;
         }
-        self.m = m;
         n_in
     }
 
@@ -1065,6 +1171,95 @@ mod tests {
                     (a[i] - b[i]).abs() < 0.5 / (1u64 << 24) as f64 + 1e-12,
                     "{a:?} vs {b:?}"
                 );
+            }
+        }
+    }
+
+    /// The output of one compiled copy of [`describe`] (stats and the bits of R-SOLiD and
+    /// A-SOLiD), and of [`stages::voxel_downsample`]'s voxelisation (points in range, then every
+    /// voxel record).
+    fn run_copy<T: Coord>(isa: Isa, pts: Points<'_, T>, c: &Config) -> (Stats, Vec<u32>, Vec<u64>) {
+        let mut scratch = vec![0; describe_scratch_len(pts.len(), c)];
+        let (mut r, mut a) = (vec![0f32; c.n_range], vec![0f32; c.n_azimuth]);
+        let stats = describe_on(isa, pts, c, &mut scratch, &mut r, &mut a).unwrap();
+        let bits = r.iter().chain(&a).map(|x| x.to_bits()).collect();
+        let mut voxels = Vec::new();
+        if c.voxel_size > 0.0 {
+            let (table, recs) = voxel_scratch(&mut scratch, pts.len());
+            let (n_in, m) = voxelize_on(isa, pts, c, table, recs);
+            voxels.push(n_in as u64);
+            voxels.extend(recs[..m].iter().flatten());
+        }
+        (stats, bits, voxels)
+    }
+
+    /// A synthetic spinning-LiDAR scan: rings of points in scan order (so runs, voxel-boundary
+    /// flicker and revisited voxels occur as on a real scan), then scattered points, with
+    /// points out of range and not finite mixed in. Three values a point, plus `extra` columns.
+    fn ring_scan() -> impl proptest::strategy::Strategy<Value = (Vec<f64>, usize)> {
+        use proptest::prelude::*;
+        let ring = (3.0f64..70.0, -3.0f64..3.0, 16usize..900, 0.0f64..0.2);
+        let scattered = (-90.0f64..90.0, -90.0f64..90.0, -5.0f64..5.0);
+        (
+            prop::collection::vec(ring, 1..6),
+            prop::collection::vec(scattered, 0..200),
+            0usize..3,
+            any::<u64>(),
+        )
+            .prop_map(|(rings, scattered, extra, seed)| {
+                let mut state = seed | 1;
+                let mut next = move || {
+                    state ^= state << 13;
+                    state ^= state >> 7;
+                    state ^= state << 17;
+                    (state >> 11) as f64 / (1u64 << 53) as f64
+                };
+                let mut xyz = Vec::new();
+                let push = |p: [f64; 3], xyz: &mut Vec<f64>| {
+                    xyz.extend(p);
+                    xyz.extend((0..extra).map(|e| e as f64));
+                };
+                for (rho, z, n, noise) in rings {
+                    for i in 0..n {
+                        let t = core::f64::consts::TAU * i as f64 / n as f64;
+                        let rho = rho + noise * (next() - 0.5);
+                        let p = match (next() * 40.0) as u32 {
+                            0 => [f64::NAN, 1.0, 0.0],
+                            1 => [0.1, 0.2, 0.3],
+                            2 => [90.0, 0.0, 0.0],
+                            _ => [rho * libm::cos(t), rho * libm::sin(t), z],
+                        };
+                        push(p, &mut xyz);
+                    }
+                }
+                for (x, y, z) in scattered {
+                    push([x, y, z], &mut xyz);
+                }
+                (xyz, 3 + extra)
+            })
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::test_runner::Config::with_cases(64))]
+
+        /// Every compiled copy of `describe` this CPU runs gives the bits of the portable one, for
+        /// `f64` and `f32` points, any stride, with and without voxels.
+        #[test]
+        fn every_copy_gives_the_portable_bits(
+            (xyz, stride) in ring_scan(),
+            voxel in proptest::sample::select(vec![0.0, 0.1, 0.25, 0.5, 1.3]),
+        ) {
+            let c = Config { voxel_size: voxel, ..cfg() };
+            let f32s: Vec<f32> = xyz.iter().map(|&v| v as f32).collect();
+            let wide = Points::new(&xyz, stride).unwrap();
+            let narrow = Points::new(&f32s, stride).unwrap();
+            let (want64, want32) = (
+                run_copy(Isa::Portable, wide, &c),
+                run_copy(Isa::Portable, narrow, &c),
+            );
+            for isa in Isa::available() {
+                proptest::prop_assert_eq!(&run_copy(isa, wide, &c), &want64, "{:?} on f64", isa);
+                proptest::prop_assert_eq!(&run_copy(isa, narrow, &c), &want32, "{:?} on f32", isa);
             }
         }
     }

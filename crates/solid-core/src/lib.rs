@@ -25,7 +25,7 @@
 //! ```
 #![cfg_attr(not(feature = "std"), no_std)]
 #![deny(missing_docs)]
-#![deny(unsafe_code)] // one exception: calling the AVX2 copy of `describe` after detecting AVX2
+#![deny(unsafe_code)] // exceptions: calling a CPU-specific copy of a function after detecting its features
 
 #[cfg(feature = "alloc")]
 extern crate alloc;
