@@ -188,6 +188,10 @@ def single(db: solid.Database, index: faiss.IndexFlatIP, x: F32, queries: F32, k
     return {name: t / len(queries) for name, t in total.items()}
 
 
+#: Runs of each bulk add, best taken, by number of entries.
+ADD_REPS = {10_000: 15, 100_000: 7, 1_000_000: 3}
+
+
 def batches(m: int, size: int) -> Iterator[slice]:
     for start in range(0, m, size):
         yield slice(start, min(m, start + size))
@@ -232,11 +236,13 @@ def main() -> int:
             ("dup", scans.dup_copy, {"same": same, "other": near}),
         ):
             r, a = described(db_name, n, 1 if db_name == "hku" else 4, make)
-            # Bulk add: solid with and without the kd-tree, faiss, numpy (best of 3 each).
-            t_add = best_of(3, lambda: solid.Database(CFG).add_batch(r, a))
-            t_add_flat = best_of(3, lambda: solid.Database(CFG).add_batch(r, a, index=False))
-            t_faiss_add = best_of(3, lambda: faiss.IndexFlatIP(CFG.n_range).add(normalised(r)))
-            t_np_add = best_of(3, lambda: r / np.maximum(np.linalg.norm(r, axis=1, keepdims=True), 1e-30))
+            # Bulk add: solid with and without the kd-tree, faiss, numpy (best of 15 runs at 10k
+            # entries, where one run takes about a millisecond, down to 3 at 1M).
+            reps = ADD_REPS[n]
+            t_add = best_of(reps, lambda: solid.Database(CFG).add_batch(r, a))
+            t_add_flat = best_of(reps, lambda: solid.Database(CFG).add_batch(r, a, index=False))
+            t_faiss_add = best_of(reps, lambda: faiss.IndexFlatIP(CFG.n_range).add(normalised(r)))
+            t_np_add = best_of(reps, lambda: r / np.maximum(np.linalg.norm(r, axis=1, keepdims=True), 1e-30))
             db = solid.Database(CFG)
             db.add_batch(r, a)
             x = normalised(r)
@@ -283,7 +289,7 @@ def main() -> int:
     print("\nbatch search: 1,000 queries (500 of each mix), k = 1, ms; ratios peer / solid search_batch")
     print(f"{'db':4s} {'n':>9s} {'batch':>9s} {'faiss':>9s} {'numpy':>9s} {'loop':>9s} {'faiss/b':>8s} {'numpy/b':>8s} {'loop/b':>8s}")
     print("\n".join(rows_batch))
-    print("\nbulk add of n entries from arrays, ms (best of 3); ratios faiss / solid (with kd-tree, without)")
+    print("\nbulk add of n entries from arrays, ms (best of 15 / 7 / 3 runs at 10k / 100k / 1M); ratios faiss / solid (with kd-tree, without)")
     print(f"{'db':4s} {'n':>9s} {'add':>9s} {'no tree':>9s} {'faiss':>9s} {'numpy':>9s} {'faiss/a':>8s} {'faiss/nt':>8s}")
     print("\n".join(rows_add))
     print("\nbytes per entry (hku): solid Database.memory_bytes() / n, faiss IndexFlatIP, numpy float32 rows")
