@@ -536,7 +536,9 @@ mod avx2 {
 }
 
 /// `1 / ‖v‖₂` (computed in `f64`), the scale that normalises `v` in [`Rows::scaled`]; 0 for an
-/// all-zero vector (which is then at distance 1 from everything).
+/// all-zero vector (which is then at distance 1 from everything), and for a vector so small
+/// (‖v‖ below about 2.9e-39, subnormal values) that its scale would overflow `f32`: it is
+/// treated as all-zero rather than given infinite or NaN values.
 ///
 /// # Errors
 /// [`Error::InvalidParameter`] (name `descriptor`) when `v` holds a NaN or infinite value.
@@ -568,11 +570,12 @@ pub fn inverse_norm(v: &[f32]) -> Result<f32, Error> {
             expected: "finite values",
         });
     }
-    Ok(if sum == 0.0 {
+    let scale = if sum == 0.0 {
         0.0
     } else {
         (1.0 / crate::math::sqrt(sum)) as f32
-    })
+    };
+    Ok(if scale.is_finite() { scale } else { 0.0 })
 }
 
 fn check_query(query: &[f32], dim: usize) -> Result<(), Error> {

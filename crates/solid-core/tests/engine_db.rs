@@ -805,3 +805,35 @@ fn batch_add_with_a_range_count_that_is_not_a_multiple_of_four() {
         }
     }
 }
+
+/// A stored R-SOLiD so small that `1 / ‖r‖` overflows `f32` (subnormal values: nothing a scan
+/// gives, but nothing refuses it either) is treated as all-zero: at distance 1 from every query,
+/// never NaN, the same for every method.
+#[test]
+fn a_vanishingly_small_descriptor_is_at_distance_one() {
+    let c = cfg();
+    let na = c.n_azimuth;
+    let mut db = Database::new(c).unwrap();
+    for i in 0..3000u32 {
+        let d = desc(&c, i);
+        let mut r = d.r.clone();
+        if i % 1000 == 7 {
+            // ‖r‖ ≈ 6e-40: its products with a query's values are subnormal, not zero.
+            r.fill(1e-40);
+        }
+        db.add_vectors(&r, &d.a[..na], 0, f64::NAN, None).unwrap();
+    }
+    for s in [5u32, 1007, 9000] {
+        let q = desc(&c, s);
+        let all = db.search(&q.r, 3000, 0, Method::Brute).unwrap();
+        assert!(all.iter().all(|n| n.distance.is_finite()));
+        assert!(all
+            .iter()
+            .filter(|n| n.id % 1000 == 7)
+            .all(|n| n.distance == 1.0));
+        let want = db.search(&q.r, 9, 0, Method::Brute).unwrap();
+        for method in [Method::KdTree, Method::Sketch, Method::Auto] {
+            assert_eq!(db.search(&q.r, 9, 0, method).unwrap(), want, "{method:?}");
+        }
+    }
+}

@@ -361,7 +361,12 @@ impl Database {
             let (c, p) = search::sketch_len(SKETCH_BLOCK, nr);
             (c / SKETCH_BLOCK, p / SKETCH_BLOCK)
         };
-        // Every column's room splits into as many chunks as the input (what `commit` relies on).
+        // Every column's room splits into as many chunks as the input (what `commit` relies on;
+        // the callers checked the lengths).
+        assert!(
+            r.len() == (n - first) * nr && a.len() == (n - first) * na,
+            "append_vectors: the vectors do not match the rows"
+        );
         let parts = m.div_ceil(CHUNK_ROWS);
         assert!(
             code_len.div_ceil(CHUNK_ROWS * code_row) == parts
