@@ -399,17 +399,6 @@ impl<'a> Rows<'a> {
         }
     }
 
-    /// A value `v` of a row as stored, normalised with the row's `scale` from
-    /// [`Rows::raw_row`]: the same bits as [`Rows::coord`].
-    #[inline(always)]
-    fn scaled_value(&self, v: f32, scale: f32) -> f32 {
-        if self.scale.is_some() {
-            v * scale
-        } else {
-            v
-        }
-    }
-
     /// The distance of the normalised query to row `i`.
     #[inline(always)]
     fn dist(&self, q: &[f32], i: usize) -> f32 {

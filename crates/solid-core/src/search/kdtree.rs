@@ -278,9 +278,8 @@ fn widest_dim(rows: Rows<'_>, perm: &[u32]) -> usize {
         let mut i = 0;
         while i < n {
             let (raw, scale) = rows.raw_row(perm[i] as usize);
-            let values = raw[d0..d0 + width]
-                .iter()
-                .map(|&v| rows.scaled_value(v, scale));
+            // `raw × scale` is `Rows::coord` (the scale is 1 for normalised rows).
+            let values = raw[d0..d0 + width].iter().map(|&v| v * scale);
             for ((lo, hi), v) in lo.iter_mut().zip(hi.iter_mut()).zip(values) {
                 *lo = lo.min(v);
                 *hi = hi.max(v);
@@ -382,6 +381,12 @@ fn blocks(n: usize) -> impl Iterator<Item = (usize, usize)> {
     })
 }
 
+/// The blocks over `n` entries that the blocks over `from` entries did not have: what growing
+/// from `from` to `n` rebuilds.
+fn rebuilt(n: usize, from: usize) -> impl Iterator<Item = (usize, usize)> {
+    blocks(n).filter(move |b| !blocks(from).any(|old| old == *b))
+}
+
 /// Adds the newest row to an online index: [`online_extend`] from `rows.len() − 1`.
 ///
 /// The index over the rows (ids `0..n`, `n` counting the row just appended) lives in
@@ -444,10 +449,7 @@ pub fn online_extend_with(
         });
     }
     check_buffers(n, perm.len(), splits.len())?;
-    for (a, b) in blocks(n) {
-        if blocks(from).any(|old| old == (a, b)) {
-            continue;
-        }
+    for (a, b) in rebuilt(n, from) {
         let p = &mut perm[a..b];
         for (i, v) in p.iter_mut().enumerate() {
             *v = (a + i) as u32;
@@ -465,8 +467,7 @@ pub fn online_extend_with(
 /// The scratch [`online_extend_with`] uses from `from` rows to `n`: the largest block it
 /// rebuilds, or 0 when every block is too small to gain from it.
 pub fn online_extend_scratch_len(n: usize, from: usize) -> usize {
-    blocks(n)
-        .filter(|b| !blocks(from.min(n)).any(|old| old == *b))
+    rebuilt(n, from.min(n))
         .map(|(a, b)| b - a)
         .filter(|&len| len >= KEYED_FROM)
         .max()
