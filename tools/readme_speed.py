@@ -165,8 +165,8 @@ def search_block(doc: dict[str, Any]) -> list[str]:
 def slower(doc: dict[str, Any]) -> str:
     """Every comparison of the run in which solid took longer than its peer, in one sentence."""
 
-    def where(rows: list[dict[str, Any]], key: str) -> str:
-        return ", ".join(sorted({f"{r['n']:,}" for r in rows}, key=lambda n: int(n.replace(",", "")))) + f" entries{key}"
+    def where(rows: list[dict[str, Any]]) -> str:
+        return ", ".join(f"{n:,}" for n in sorted({r["n"] for r in rows})) + " entries"
 
     cases = []
     single = doc["single"]
@@ -175,21 +175,21 @@ def slower(doc: dict[str, Any]) -> str:
         w = min(brute, key=lambda r: r["numpy_s"] / r["brute_s"])
         cases.append(
             f"brute force against numpy's matrix-vector product in {len(brute)} of {len(single)} cases "
-            f"(at {where(brute, '')}; at worst {ratio(w['numpy_s'], w['brute_s'])}: "
+            f"(at {where(brute)}; at worst {ratio(w['numpy_s'], w['brute_s'])}: "
             f"{MIXES[(w['db'], w['mix'])].lower()}, {w['n']:,} entries, k = {w['k']})"
         )
     auto = [r for r in single if r["faiss_s"] < r["auto_s"]]
     if auto:
-        cases.append(f"`auto` against faiss in {len(auto)} of {len(single)} cases (at {where(auto, '')})")
+        cases.append(f"`auto` against faiss in {len(auto)} of {len(single)} cases (at {where(auto)})")
     batch = [r for r in doc["batch"] if r["faiss_s"] < r["batch_s"]]
     if batch:
-        cases.append(f"`search_batch` against faiss at {where(batch, '')}")
+        cases.append(f"`search_batch` against faiss at {where(batch)}")
     add = [r for r in doc["add"] if r["faiss_s"] < r["add_s"]]
     add_flat = [r for r in doc["add"] if r["faiss_s"] < r["add_no_tree_s"]]
     if add:
         cases.append(
-            f"bulk add with the kd-tree at {where(add, '')}"
-            + (f" and without it at {where(add_flat, '')}" if add_flat else " (without it, at no size)")
+            f"bulk add with the kd-tree at {where(add)}"
+            + (f" and without it at {where(add_flat)}" if add_flat else " (without it, at no size)")
             + ": besides copying and normalising the R-SOLiDs as faiss does, it checks every value, quantises "
             "the A-SOLiDs, builds the sketch and, by default, the kd-tree, and keeps "
             f"{doc['memory'][-1]['solid']:.0f} bytes an entry against faiss's {doc['memory'][-1]['faiss']:.0f}"
