@@ -252,7 +252,7 @@ def main() -> int:
                 f"{db_name:4s} {n:>9d} {t_add * 1e3:9.1f} {t_add_flat * 1e3:9.1f} {t_faiss_add * 1e3:9.1f} "
                 f"{t_np_add * 1e3:9.1f} {t_faiss_add / t_add:8.2f} {t_faiss_add / t_add_flat:8.2f}"
             )
-            js_add.append({"db": db_name, "n": n, "add_s": t_add, "add_no_tree_s": t_add_flat, "faiss_s": t_faiss_add, "numpy_s": t_np_add})
+            js_add.append({"db": db_name, "n": n, "add_s": t_add, "add_flat_s": t_add_flat, "faiss_s": t_faiss_add, "numpy_s": t_np_add})
             if db_name == "hku":
                 js_mem.append({"n": n, "solid": db.memory_bytes() / n, "faiss": index.ntotal * 4 * CFG.n_range / n})
                 rows_mem.append(f"{n:>9d} {db.memory_bytes() / n:8.1f} {index.ntotal * 4 * CFG.n_range / n:8.1f} {x.nbytes / n:8.1f}")
@@ -290,7 +290,7 @@ def main() -> int:
     print(f"{'db':4s} {'n':>9s} {'batch':>9s} {'faiss':>9s} {'numpy':>9s} {'loop':>9s} {'faiss/b':>8s} {'numpy/b':>8s} {'loop/b':>8s}")
     print("\n".join(rows_batch))
     print("\nbulk add of n entries from arrays, ms (best of 15 / 7 / 3 runs at 10k / 100k / 1M); ratios faiss / solid (with kd-tree, without)")
-    print(f"{'db':4s} {'n':>9s} {'add':>9s} {'no tree':>9s} {'faiss':>9s} {'numpy':>9s} {'faiss/a':>8s} {'faiss/nt':>8s}")
+    print(f"{'db':4s} {'n':>9s} {'add':>9s} {'stored':>9s} {'faiss':>9s} {'numpy':>9s} {'faiss/a':>8s} {'faiss/st':>8s}")
     print("\n".join(rows_add))
     print("\nbytes per entry (hku): solid Database.memory_bytes() / n, faiss IndexFlatIP, numpy float32 rows")
     print(f"{'n':>9s} {'solid':>8s} {'faiss':>8s} {'numpy':>8s}")

@@ -755,8 +755,10 @@ class Database:
             timestamps: Seconds, shape (N,), float64 (NaN: none), or None for none.
             poses: `T_world_sensor` of each, float64 of shape (N, 3, 4), (N, 4, 4) or (N, 12)
                 (row-major [R|t]), or None.
-            index: Bring the kd-tree up to date; without, searches stay exact (the new entries are
-                scanned through the sketch) until `build_index` or the next `add`.
+            index: Bring the search sketch and the kd-tree up to date. With False the entries are
+                only stored (checked, normalised, A-SOLiDs quantised: the fastest way to load many)
+                and searches stay exact, computing the distance of every entry beyond the index,
+                until `build_index` or the next `add`.
 
         Returns:
             The id of the first new entry (the others follow).
@@ -768,8 +770,8 @@ class Database:
             TypeError: An argument that is not a float array.
         """
     def build_index(self) -> None:
-        """Extends the kd-tree over every entry (after `add_batch(..., index=False)`); nothing to do
-        when it is up to date."""
+        """Extends the search sketch and the kd-tree over every entry (after
+        `add_batch(..., index=False)`); nothing to do when they are up to date."""
     def memory_bytes(self) -> int:
         """The memory the database holds.
 

@@ -50,7 +50,7 @@ impl<'a, T: Coord> Points<'a, T> {
     /// # Errors
     /// [`Error::BadPointLayout`] when `stride < 3` or `data.len()` is not a multiple of `stride`.
     pub fn new(data: &'a [T], stride: usize) -> Result<Self, Error> {
-        if stride < 3 || data.len() % stride != 0 {
+        if stride < 3 || !data.len().is_multiple_of(stride) {
             return Err(Error::BadPointLayout {
                 len: data.len(),
                 stride,

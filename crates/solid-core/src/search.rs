@@ -68,7 +68,7 @@ pub use kdtree::{
     online_extend, online_extend_scratch_len, online_extend_with, online_insert, online_rebuild,
     KdTree, OnlineIndex, LEAF_SIZE,
 };
-pub use sketch::{sketch_encode, sketch_len, Sketch, SKETCH_BLOCK};
+pub use sketch::{sketch_encode, sketch_len, sketch_rows, Sketch, SKETCH_BLOCK};
 
 /// One search result: an entry's id and its cosine distance to the query.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -258,7 +258,7 @@ pub fn normalized_distance(q: &[f32], c: &[f32]) -> Result<f32, Error> {
 
 /// Number of rows of `rows` with `dim` columns, checking the layout.
 fn n_rows(rows: &[f32], dim: usize) -> Result<usize, Error> {
-    if dim == 0 || dim > u16::MAX as usize || rows.len() % dim != 0 {
+    if dim == 0 || dim > u16::MAX as usize || !rows.len().is_multiple_of(dim) {
         return Err(Error::InvalidParameter {
             name: "dim",
             value: dim as f64,
@@ -531,7 +531,7 @@ mod avx2 {
 ///
 /// # Errors
 /// [`Error::InvalidParameter`] (name `descriptor`) when `v` holds a NaN or infinite value.
-#[inline]
+#[inline(always)]
 pub fn inverse_norm(v: &[f32]) -> Result<f32, Error> {
     // Four partial sums, so that the compiler vectorises.
     let mut part = [0.0f64; 4];

@@ -280,7 +280,7 @@ fn search_options_exclude_recent_and_newer_entries() {
     };
     let hits = db.search_with(&q.r, &opts).unwrap();
     // Ids with time <= 5.0 (i * 0.1) or without time (every third id).
-    let ok = |i: u32| i % 3 == 0 || f64::from(i) * 0.1 <= 5.0;
+    let ok = |i: u32| i.is_multiple_of(3) || f64::from(i) * 0.1 <= 5.0;
     assert_eq!(hits.len(), (0..100).filter(|&i| ok(i)).count());
     assert!(hits.iter().all(|h| ok(h.id)));
     assert_eq!(
@@ -836,4 +836,42 @@ fn a_vanishingly_small_descriptor_is_at_distance_one() {
             assert_eq!(db.search(&q.r, 9, 0, method).unwrap(), want, "{method:?}");
         }
     }
+}
+
+#[test]
+fn every_way_of_growing_a_database_searches_as_brute_force() {
+    // 20 entries leave the sketch's second block partly filled; whatever follows (a merge, a
+    // bulk add that only stores, then the index built) must not take the block's empty lanes
+    // for entries.
+    let c = cfg();
+    let (nr, na) = (c.n_range, c.n_azimuth);
+    let check = |db: &Database, what: &str| {
+        for s in [3u32, 21, 40, 1000] {
+            let q = desc(&c, s);
+            let want = db.search(&q.r, 7, 0, Method::Brute).unwrap();
+            for method in [Method::Sketch, Method::KdTree, Method::Auto] {
+                assert_eq!(
+                    db.search(&q.r, 7, 0, method).unwrap(),
+                    want,
+                    "{what}, {method:?}"
+                );
+            }
+        }
+    };
+    let mut merged = sample_db(20);
+    merged.merge(&sample_db(13)).unwrap();
+    check(&merged, "merged");
+
+    let (r, a, _, _) = sample_arrays(90);
+    let mut db = Database::new(c).unwrap();
+    db.add_batch(&r[..20 * nr], &a[..20 * na], 0, None, None, true)
+        .unwrap();
+    db.add_batch(&r[20 * nr..], &a[20 * na..], 0, None, None, false)
+        .unwrap();
+    check(&db, "stored only");
+    let stored = db.memory_bytes();
+    db.build_index().unwrap();
+    check(&db, "index built");
+    // Storing only held no room for the index of the new entries: building it takes more.
+    assert!(db.memory_bytes() > stored);
 }

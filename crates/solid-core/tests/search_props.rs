@@ -10,7 +10,7 @@ use solid_lidar::search::{
     brute_force, inverse_norm, normalize, normalize_rows, normalized_distance, online_extend,
     online_extend_scratch_len, online_extend_with, online_insert, online_rebuild, sketch_encode,
     sketch_len, Cost, Exclude, Index, KdTree, Neighbor, Observed, OnlineIndex, Plan, Request, Rows,
-    Sketch, AUTO_MISSES, AUTO_RETRY_EVERY,
+    Sketch, AUTO_MISSES, AUTO_RETRY_EVERY, SKETCH_BLOCK,
 };
 use solid_lidar::{cosine_distance, Config, Describer, Points};
 
@@ -118,7 +118,8 @@ fn sketch(rows: Rows<'_>, q: &[f32], k: usize, ex: &Exclude<'_>) -> Vec<Neighbor
 }
 
 /// Every plan of the index, with and without a distance bound, against brute force cut at the
-/// bound, with the kd-tree over all rows and over a prefix only (a database after a bulk add);
+/// bound, with the kd-tree over all rows and over a prefix only, and the sketch over all rows,
+/// over the whole blocks of the first third and over none (a database after a bulk add);
 /// returns the work of the automatic plan without a bound.
 fn check_index(rows: Rows<'_>, q: &[f32], k: usize, ex: &Exclude<'_>) -> Cost {
     let n = rows.len();
@@ -129,6 +130,9 @@ fn check_index(rows: Rows<'_>, q: &[f32], k: usize, ex: &Exclude<'_>) -> Cost {
     let (codes, params) = sketch_of(rows);
     let full = Index::new(rows, &perm, &splits, &codes, &params).unwrap();
     let part = Index::new(rows, &pperm, &psplits, &codes, &params).unwrap();
+    let (sc, sp) = sketch_len(n / 3 / SKETCH_BLOCK * SKETCH_BLOCK, rows.dim());
+    let part_sketch = Index::new(rows, &pperm, &psplits, &codes[..sc], &params[..sp]).unwrap();
+    let no_sketch = Index::new(rows, &perm, &splits, &[], &[]).unwrap();
     let b = brute(rows, q, k, ex);
     let mut auto_cost = Cost::default();
     let mut bounds = vec![f32::INFINITY, 1.0, 0.0];
@@ -148,7 +152,12 @@ fn check_index(rows: Rows<'_>, q: &[f32], k: usize, ex: &Exclude<'_>) -> Cost {
                 plan,
                 observed: None,
             };
-            for (index, which) in [(&full, "full tree"), (&part, "tree over half")] {
+            for (index, which) in [
+                (&full, "full tree"),
+                (&part, "tree over half"),
+                (&part_sketch, "tree over half, sketch over a third"),
+                (&no_sketch, "full tree, no sketch"),
+            ] {
                 let mut out = vec![Neighbor::default(); k + 1];
                 let found = index.search(q, &req, &mut out).unwrap();
                 assert_eq!(

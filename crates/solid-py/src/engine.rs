@@ -785,7 +785,8 @@ impl PyDatabase {
     /// Adds N entries at once: R-SOLiDs `r` (N, n_range) and A-SOLiDs `a` (N, n_azimuth)
     /// (float32 read in place, float64 converted), one session, optional timestamps (N,) and
     /// poses; returns the first id (the others follow). Everything is checked first; with
-    /// `index=False` the kd-tree is left for `build_index` (searches stay exact).
+    /// `index=False` the search sketch and the kd-tree are left for `build_index` (searches stay
+    /// exact).
     #[pyo3(signature = (r, a, session=0, timestamps=None, poses=None, index=true))]
     #[allow(clippy::too_many_arguments)]
     fn add_batch(
@@ -817,7 +818,8 @@ impl PyDatabase {
         .map_err(|e| db_err(py, e))
     }
 
-    /// Extends the kd-tree over every entry (after `add_batch(..., index=False)`).
+    /// Extends the search sketch and the kd-tree over every entry (after
+    /// `add_batch(..., index=False)`).
     fn build_index(&self, py: Python<'_>) -> PyResult<()> {
         py.detach(|| write(&self.inner).build_index())
             .map_err(|e| db_err(py, e))

@@ -10,7 +10,6 @@
 
 use alloc::vec;
 use alloc::vec::Vec;
-use core::mem::MaybeUninit;
 
 use super::clouds::Clouds;
 use super::room;
@@ -94,10 +93,11 @@ pub struct Database {
     /// Per entry, the A-SOLiD's step (see [`Database::a`]).
     a_scale: Vec<f32>,
     /// The online kd-tree over ids `0..perm.len()` (a prefix: a bulk add may leave it behind
-    /// until [`Database::build_index`]; the sketch covers every entry).
+    /// until [`Database::build_index`]).
     perm: Vec<u32>,
     splits: Vec<u16>,
-    /// The search sketch of every entry ([`search::Sketch`]).
+    /// The search sketch of the entries `0..sketched()` ([`search::Sketch`]; a prefix of whole
+    /// blocks, or every entry, as [`Index::new`] reads it).
     codes: Vec<u8>,
     params: Vec<f32>,
     /// What the automatic search has seen on this database's queries.
@@ -223,9 +223,10 @@ impl Database {
     /// Adds `N` entries at once from `r` (`N × n_range`, row-major) and `a` (`N × n_azimuth`),
     /// all in `session`, with `timestamps` (`N`, NaN: none; `None`: none for all) and `poses`
     /// (`N` row-major 3×4 `[R|t]`; `None`: none). Returns the id of the first (the others
-    /// follow). Everything is checked before anything is added. With `index`, the kd-tree is
-    /// brought up to date; without, searches stay exact (the entries beyond the tree are scanned
-    /// through the sketch) until [`Database::build_index`] or the next single add builds it: the
+    /// follow). Everything is checked before anything is added. With `index`, the search sketch
+    /// and the kd-tree are brought up to date; without, the entries are only stored (checked,
+    /// normalised and quantised) and searches stay exact, computing the distances of the entries
+    /// beyond the sketch, until [`Database::build_index`] or the next single add builds them: the
     /// fastest way to load many entries.
     ///
     /// # Errors
@@ -274,11 +275,12 @@ impl Database {
         for p in poses.unwrap_or(&[]) {
             check_pose(p)?;
         }
-        self.reserve(m, poses.map_or(0, <[_]>::len))?;
-        // The vectors are checked as they are written; on a bad value everything is cut back.
-        if let Err(e) = self.append_vectors(r, a) {
-            self.truncate_vectors(first);
-            return Err(e.into());
+        self.reserve(m, poses.map_or(0, <[_]>::len), index)?;
+        // The vectors are checked as they are written; on a bad value nothing is added.
+        let sketched = self.sketched();
+        self.append_vectors(r, a)?;
+        if !index {
+            self.cut_sketch(sketched);
         }
         // Nothing below can fail: the memory is reserved.
         self.sessions.extend(core::iter::repeat_n(session, m));
@@ -291,17 +293,15 @@ impl Database {
                 .extend(p.iter().enumerate().map(|(i, p)| ((first + i) as u32, *p)));
         }
         if index {
-            self.build_index()?;
+            self.index_from(sketched)?;
         }
         Ok(first as u32)
     }
 
-    /// Reserves room for `m` more entries (`with_pose` of them with a pose), so that adding them
-    /// cannot fail half-way.
-    fn reserve(&mut self, m: usize, with_pose: usize) -> Result<(), DbError> {
+    /// Reserves room for `m` more entries (`with_pose` of them with a pose, and with `index` the
+    /// room of their sketch and kd-tree), so that adding them cannot fail half-way.
+    fn reserve(&mut self, m: usize, with_pose: usize, index: bool) -> Result<(), DbError> {
         let (nr, na) = (self.config.n_range, self.config.n_azimuth);
-        let n = self.len() + m;
-        let (nc, np) = search::sketch_len(n, nr);
         let oom = |_| DbError::OutOfMemory;
         room::reserve(&mut self.sessions, m).map_err(oom)?;
         room::reserve(&mut self.timestamps, m).map_err(oom)?;
@@ -310,6 +310,16 @@ impl Database {
         room::reserve(&mut self.r_scale, m).map_err(oom)?;
         room::reserve(&mut self.a_codes, m * na).map_err(oom)?;
         room::reserve(&mut self.a_scale, m).map_err(oom)?;
+        if index {
+            self.reserve_index(self.len() + m)?;
+        }
+        Ok(())
+    }
+
+    /// Reserves the room of the sketch and the kd-tree of `n` entries.
+    fn reserve_index(&mut self, n: usize) -> Result<(), DbError> {
+        let oom = |_| DbError::OutOfMemory;
+        let (nc, np) = search::sketch_len(n, self.config.n_range);
         let extra = n.saturating_sub(self.perm.len());
         room::reserve(&mut self.perm, extra).map_err(oom)?;
         let extra = n.saturating_sub(self.splits.len());
@@ -322,92 +332,42 @@ impl Database {
     }
 
     /// Appends vectors (room reserved), checking them on the way: the raw R-SOLiDs and their
-    /// scales ([`search::inverse_norm`]), the quantised A-SOLiDs and the sketch rows, in one pass
-    /// over blocks of rows (shared among threads with `parallel`). The kd-tree is left to
-    /// [`Database::build_index`]. On an error some rows may have been added: the caller cuts
-    /// them back ([`Database::truncate_vectors`]).
+    /// scales ([`search::inverse_norm`]) and the quantised A-SOLiDs, written in place into the
+    /// reserved room by the tasks that compute them (chunks of rows shared among threads with
+    /// `parallel`; see [`room`]) and added to the columns only when every chunk is written. The
+    /// sketch and the kd-tree are left to [`Database::build_index`]. On an error nothing is
+    /// added.
     fn append_vectors(&mut self, r: &[f32], a: &[f32]) -> Result<(), Error> {
         let (nr, na) = (self.config.n_range, self.config.n_azimuth);
-        let first = self.r_scale.len();
-        let n = first + r.len() / nr;
-        // The rows up to the first whole block of the sketch, into the columns as they are.
-        let head = first.next_multiple_of(SKETCH_BLOCK).min(n);
-        let (head_r, rest_r) = r.split_at((head - first) * nr);
-        let (head_a, rest_a) = a.split_at((head - first) * na);
-        self.r.extend_from_slice(head_r);
-        self.r_scale.resize(head, 0.0);
-        self.a_codes.resize(head * na, 0);
-        self.a_scale.resize(head, 0.0);
-        let (nc, np) = search::sketch_len(head, nr);
-        self.codes.resize(nc, 0);
-        self.params.resize(np, 0.0);
-        ChunkOut {
-            r: head_r,
-            a: head_a,
-            scale: &mut self.r_scale[first..head],
-            a_codes: &mut self.a_codes[first * na..head * na],
-            a_scale: &mut self.a_scale[first..head],
-        }
-        .fill(nr, na)?;
-        let all = Rows::scaled(&self.r, nr, &self.r_scale)?;
-        search::sketch_encode(all, first, &mut self.codes, &mut self.params)?;
-        // Whole blocks, written in place into the reserved room by the threads that compute
-        // them (see [`room`]); added to the columns only when every one is written.
-        let m = n - head;
-        let (nc, np) = search::sketch_len(n, nr);
-        let (code_len, param_len) = (nc - self.codes.len(), np - self.params.len());
-        // Code bytes and parameters per row of the sketch.
-        let (code_row, param_row) = {
-            let (c, p) = search::sketch_len(SKETCH_BLOCK, nr);
-            (c / SKETCH_BLOCK, p / SKETCH_BLOCK)
-        };
+        let m = r.len() / nr;
         // Every column's room splits into as many chunks as the input (what `commit` relies on;
         // the callers checked the lengths).
         assert!(
-            r.len() == (n - first) * nr && a.len() == (n - first) * na,
+            r.len() == m * nr && a.len() == m * na,
             "append_vectors: the vectors do not match the rows"
         );
-        let parts = m.div_ceil(CHUNK_ROWS);
-        assert!(
-            code_len.div_ceil(CHUNK_ROWS * code_row) == parts
-                && param_len.div_ceil(CHUNK_ROWS * param_row) == parts,
-            "append_vectors: the sketch's room does not match the rows"
-        );
-        let chunks = rest_r
+        let chunks = r
             .chunks(CHUNK_ROWS * nr)
-            .zip(rest_a.chunks(CHUNK_ROWS * na))
+            .zip(a.chunks(CHUNK_ROWS * na))
             .zip(room::spare(&mut self.r, m * nr).chunks_mut(CHUNK_ROWS * nr))
             .zip(room::spare(&mut self.r_scale, m).chunks_mut(CHUNK_ROWS))
             .zip(room::spare(&mut self.a_codes, m * na).chunks_mut(CHUNK_ROWS * na))
-            .zip(room::spare(&mut self.a_scale, m).chunks_mut(CHUNK_ROWS))
-            .zip(room::spare(&mut self.codes, code_len).chunks_mut(CHUNK_ROWS * code_row))
-            .zip(room::spare(&mut self.params, param_len).chunks_mut(CHUNK_ROWS * param_row));
-        let block =
-            |(((((((r, a), r_out), scale), a_codes), a_scale), codes), params): Chunk<'_>| {
+            .zip(room::spare(&mut self.a_scale, m).chunks_mut(CHUNK_ROWS));
+        in_chunks(
+            chunks,
+            m,
+            |(((((r, a), r_out), scale), a_codes), a_scale)| {
                 room::copied(r_out, r);
-                let scale = room::zeroed(scale);
-                let mut out = ChunkOut {
+                ChunkOut {
                     r,
                     a,
-                    scale,
+                    scale: room::zeroed(scale),
                     a_codes: room::zeroed(a_codes),
                     a_scale: room::zeroed(a_scale),
-                };
-                out.fill(nr, na)?;
-                // Whole blocks: the chunk's sketch is laid out as a sketch of its own rows.
-                let rows = Rows::scaled(r, nr, out.scale)?;
-                search::sketch_encode(rows, 0, room::zeroed(codes), room::zeroed(params))
-            };
-        #[cfg(feature = "parallel")]
-        let written = if m >= 2 * CHUNK_ROWS {
-            use rayon::iter::{ParallelBridge, ParallelIterator};
-            chunks.par_bridge().try_for_each(block)
-        } else {
-            chunks.into_iter().try_for_each(block)
-        };
-        #[cfg(not(feature = "parallel"))]
-        let written = chunks.into_iter().try_for_each(block);
-        written?;
+                }
+                .fill(nr, na)
+            },
+        )?;
         #[allow(unsafe_code)]
         // SAFETY: the chunks cover every slot of each `room::spare` above, and each chunk
         // wrote all of its slots (`room::copied`, `room::zeroed`) before any could fail.
@@ -416,52 +376,93 @@ impl Database {
             room::commit(&mut self.r_scale, m);
             room::commit(&mut self.a_codes, m * na);
             room::commit(&mut self.a_scale, m);
+        }
+        Ok(())
+    }
+
+    /// Entries the sketch covers (a prefix; see [`Index::new`]): true between calls, where the
+    /// sketch is cut back to whole blocks whenever entries are added without their sketch.
+    fn sketched(&self) -> usize {
+        search::sketch_rows(self.params.len()).min(self.len())
+    }
+
+    /// Cuts the sketch back to the whole blocks of its first `rows` entries: what entries added
+    /// without their sketch need (the sketch's length says how many entries it covers, and the
+    /// lanes past the end of its last block are zeros, not their sketch).
+    fn cut_sketch(&mut self, rows: usize) {
+        let (nc, np) = search::sketch_len(rows / SKETCH_BLOCK * SKETCH_BLOCK, self.config.n_range);
+        self.codes.truncate(nc);
+        self.params.truncate(np);
+    }
+
+    /// Encodes the sketch of the entries beyond it (room reserved). A few rows (a single add) are
+    /// encoded where they go; many are written in place as [`Database::append_vectors`] writes
+    /// (chunks of whole blocks, each laid out as a sketch of its own rows, a last block that is
+    /// partly encoded being encoded again).
+    fn extend_sketch(&mut self, sketched: usize) -> Result<(), Error> {
+        let nr = self.config.n_range;
+        let n = self.len();
+        if n - sketched < CHUNK_ROWS {
+            let (nc, np) = search::sketch_len(n, nr);
+            self.codes.resize(nc, 0);
+            self.params.resize(np, 0.0);
+            let rows = Rows::scaled(&self.r, nr, &self.r_scale)?;
+            return search::sketch_encode(rows, sketched, &mut self.codes, &mut self.params);
+        }
+        self.cut_sketch(sketched);
+        let from = self.sketched();
+        let (nc, np) = search::sketch_len(n, nr);
+        let (code_len, param_len) = (nc - self.codes.len(), np - self.params.len());
+        let (code_chunk, param_chunk) = search::sketch_len(CHUNK_ROWS, nr);
+        let m = n - from;
+        let chunks = self.r[from * nr..]
+            .chunks(CHUNK_ROWS * nr)
+            .zip(self.r_scale[from..].chunks(CHUNK_ROWS))
+            .zip(room::spare(&mut self.codes, code_len).chunks_mut(code_chunk))
+            .zip(room::spare(&mut self.params, param_len).chunks_mut(param_chunk));
+        // `CHUNK_ROWS` is a whole number of blocks: the room splits as the rows do.
+        assert!(
+            code_len.div_ceil(code_chunk) == m.div_ceil(CHUNK_ROWS)
+                && param_len.div_ceil(param_chunk) == m.div_ceil(CHUNK_ROWS),
+            "extend_sketch: the sketch's room does not match the rows"
+        );
+        in_chunks(chunks, m, |(((r, scale), codes), params)| {
+            let rows = Rows::scaled(r, nr, scale)?;
+            search::sketch_encode(rows, 0, room::zeroed(codes), room::zeroed(params))
+        })?;
+        #[allow(unsafe_code)]
+        // SAFETY: the chunks cover every slot of each `room::spare` above, and each chunk
+        // zeroed all of its slots before any could fail.
+        unsafe {
             room::commit(&mut self.codes, code_len);
             room::commit(&mut self.params, param_len);
         }
         Ok(())
     }
 
-    /// Sizes the sketch for every entry and encodes entries `first..`.
-    fn sketch_from(&mut self, first: usize) -> Result<(), Error> {
-        let nr = self.config.n_range;
-        let (nc, np) = search::sketch_len(self.r_scale.len(), nr);
-        self.codes.resize(nc, 0);
-        self.params.resize(np, 0.0);
-        let rows = Rows::scaled(&self.r, nr, &self.r_scale)?;
-        search::sketch_encode(rows, first, &mut self.codes, &mut self.params)
-    }
-
-    /// Cuts the vectors and the sketch back to the first `n` entries (after a failed
-    /// [`Database::append_vectors`]).
-    fn truncate_vectors(&mut self, n: usize) {
-        let (nr, na) = (self.config.n_range, self.config.n_azimuth);
-        self.r.truncate(n * nr);
-        self.r_scale.truncate(n);
-        self.a_codes.truncate(n * na);
-        self.a_scale.truncate(n);
-        let (nc, np) = search::sketch_len(n, nr);
-        self.codes.truncate(nc);
-        self.params.truncate(np);
-        // Clears the lanes past the end of the last block (cannot fail: the sizes match).
-        if let Ok(rows) = Rows::scaled(&self.r, nr, &self.r_scale) {
-            let _ = search::sketch_encode(rows, n, &mut self.codes, &mut self.params);
-        }
-    }
-
-    /// Extends the kd-tree over every entry (after [`Database::add_batch`] without `index`); does
-    /// nothing when it is up to date.
+    /// Brings the search sketch and the kd-tree up to every entry (after
+    /// [`Database::add_batch`] without `index`); does nothing when they are up to date.
     ///
     /// # Errors
     /// [`DbError::OutOfMemory`].
     pub fn build_index(&mut self) -> Result<(), DbError> {
+        self.index_from(self.sketched())
+    }
+
+    /// [`Database::build_index`] when the sketch holds the first `sketched` entries (which
+    /// [`Database::sketched`] would overstate while entries added since share its last block).
+    fn index_from(&mut self, sketched: usize) -> Result<(), DbError> {
         let (n, from) = (self.len(), self.perm.len());
+        if from == n && sketched == n {
+            return Ok(());
+        }
+        self.reserve_index(n)?;
+        if sketched < n {
+            self.extend_sketch(sketched)?;
+        }
         if from == n {
             return Ok(());
         }
-        let oom = |_| DbError::OutOfMemory;
-        self.perm.try_reserve(n - from).map_err(oom)?;
-        self.splits.try_reserve(n - from).map_err(oom)?;
         self.perm.resize(n, 0);
         self.splits.resize(n, 0);
         let rows = Rows::scaled(&self.r, self.config.n_range, &self.r_scale)?;
@@ -701,21 +702,21 @@ impl Database {
         }
         let base = self.len();
         self.clouds.append(base, &other.clouds)?;
-        if let Err(e) = self.reserve(other.len(), other.poses.len()) {
+        if let Err(e) = self.reserve(other.len(), other.poses.len(), true) {
             self.clouds.truncate(base);
             return Err(e);
         }
+        let sketched = self.sketched();
         self.sessions.extend_from_slice(&other.sessions);
         self.timestamps.extend_from_slice(&other.timestamps);
         self.poses
             .extend(other.poses.iter().map(|(id, p)| (id + base as u32, *p)));
-        // The A-SOLiDs are copied as stored (already quantised), the R-SOLiDs re-sketched.
+        // The A-SOLiDs are copied as stored (already quantised), the R-SOLiDs sketched again.
         self.a_codes.extend_from_slice(&other.a_codes);
         self.a_scale.extend_from_slice(&other.a_scale);
         self.r.extend_from_slice(&other.r);
         self.r_scale.extend_from_slice(&other.r_scale);
-        self.sketch_from(base)?;
-        self.build_index()
+        self.index_from(sketched)
     }
 
     /// [`Database::merge`], with the sessions of `other` renumbered to follow this database's
@@ -875,7 +876,7 @@ impl Database {
         poses: Vec<(u32, [f64; 12])>,
         clouds: Clouds,
     ) -> Result<(), DbError> {
-        self.reserve(sessions.len(), 0)?;
+        self.reserve(sessions.len(), 0, true)?;
         self.sessions = sessions;
         self.timestamps = timestamps;
         self.poses = poses;
@@ -885,29 +886,26 @@ impl Database {
     }
 }
 
-/// Rows of a batch added in one task of [`Database::append_vectors`] (a whole number of
-/// sketch blocks, but for the last).
+/// Rows of a chunk that one task of [`Database::append_vectors`] or
+/// [`Database::extend_sketch`] writes (a whole number of sketch blocks).
 const CHUNK_ROWS: usize = 64 * SKETCH_BLOCK;
 
-/// What one task of [`Database::append_vectors`] reads and fills: input R-SOLiDs and
-/// A-SOLiDs, then the room for the stored R-SOLiDs, their scales, the A-SOLiD codes and steps,
-/// the sketch codes and parameters.
-type Chunk<'a> = (
-    (
-        (
-            (
-                (
-                    ((&'a [f32], &'a [f32]), &'a mut [MaybeUninit<f32>]),
-                    &'a mut [MaybeUninit<f32>],
-                ),
-                &'a mut [MaybeUninit<u8>],
-            ),
-            &'a mut [MaybeUninit<f32>],
-        ),
-        &'a mut [MaybeUninit<u8>],
-    ),
-    &'a mut [MaybeUninit<f32>],
-);
+/// Runs `fill` on every chunk of a batch of `m` rows: shared among the pool's threads (with
+/// `parallel`) from two chunks on, stopping at the first error.
+fn in_chunks<I, F>(chunks: I, m: usize, fill: F) -> Result<(), Error>
+where
+    I: Iterator + Send,
+    I::Item: Send,
+    F: Fn(I::Item) -> Result<(), Error> + Sync + Send,
+{
+    #[cfg(feature = "parallel")]
+    if m >= 2 * CHUNK_ROWS {
+        use rayon::iter::{ParallelBridge, ParallelIterator};
+        return chunks.par_bridge().try_for_each(fill);
+    }
+    let _ = m;
+    chunks.into_iter().try_for_each(fill)
+}
 
 /// The input rows of a chunk and where their scales and A-SOLiD codes go.
 struct ChunkOut<'a> {

@@ -3,7 +3,9 @@
 use core::sync::atomic::{AtomicU32, Ordering::Relaxed};
 
 use super::kdtree::{Walk, MAX_OFFSET_DIM};
-use super::{check_out, check_query, scan, Best, Exclude, Neighbor, OnlineIndex, Rows, Sketch};
+use super::{
+    check_out, check_query, scan, sketch_rows, Best, Exclude, Neighbor, OnlineIndex, Rows, Sketch,
+};
 use crate::Error;
 
 /// How [`Index::search`] finds the neighbours. Every plan returns the same results.
@@ -95,7 +97,7 @@ impl Observed {
     fn plan(&self) -> Depth {
         let q = self.queries.load(Relaxed);
         self.queries.store(q.wrapping_add(1), Relaxed);
-        let retry = q % AUTO_RETRY_EVERY == 0;
+        let retry = q.is_multiple_of(AUTO_RETRY_EVERY);
         if retry || self.sketch_misses.load(Relaxed) < AUTO_MISSES {
             Depth::Normal
         } else if self.deep_misses.load(Relaxed) < AUTO_MISSES
@@ -174,9 +176,10 @@ const AUTO_TREE_MAX_SHARE: usize = 16;
 const AUTO_DEEP_SHARE: usize = 6;
 
 /// Every search over one set of rows: brute force, the online kd-tree index and the sketch,
-/// viewing caller-owned buffers (see [`OnlineIndex`] and [`Sketch`]). The kd-tree may cover only
-/// the first rows (a store that adds many rows at once can build it later): the rows beyond it
-/// are searched through the sketch or by brute force, so every plan stays exact.
+/// viewing caller-owned buffers (see [`OnlineIndex`] and [`Sketch`]). The kd-tree and the sketch
+/// may each cover only the first rows (a store that adds many rows at once can build them
+/// later): the rows beyond the kd-tree are searched through the sketch, those beyond the sketch
+/// by brute force, so every plan stays exact.
 #[derive(Debug, Clone, Copy)]
 pub struct Index<'a> {
     tree: OnlineIndex<'a>,
@@ -186,13 +189,16 @@ pub struct Index<'a> {
 
 impl<'a> Index<'a> {
     /// Views the online index of the first `perm.len()` rows (`perm`, `splits`, as
-    /// [`online_insert`](super::online_insert) maintains them) and the sketch of every row
-    /// (`codes`, `params`, as [`sketch_encode`](super::sketch_encode) fills them).
+    /// [`online_insert`](super::online_insert) maintains them) and the sketch of the first rows
+    /// that `params` holds, `min(rows, params.len() / 3)` (`codes`, `params`, as
+    /// [`sketch_encode`](super::sketch_encode) fills them for those rows: a sketch cut back to
+    /// whole blocks of [`SKETCH_BLOCK`](super::SKETCH_BLOCK) rows leaves the rows beyond to
+    /// brute force).
     ///
     /// # Errors
     /// [`Error::LengthMismatch`] when `perm` and `splits` differ in length;
     /// [`Error::InvalidParameter`] (name `perm`) when they are longer than the rows; as
-    /// [`Sketch::new`] otherwise.
+    /// [`Sketch::new`] otherwise (`codes` too short for the rows that `params` holds).
     pub fn new(
         rows: Rows<'a>,
         perm: &'a [u32],
@@ -216,7 +222,7 @@ impl<'a> Index<'a> {
         }
         Ok(Index {
             tree: OnlineIndex::new(rows.prefix(perm.len()), perm, splits)?,
-            sketch: Sketch::new(rows, codes, params)?,
+            sketch: Sketch::new(rows.prefix(sketch_rows(params.len())), codes, params)?,
             rows,
         })
     }
@@ -282,6 +288,7 @@ impl<'a> Index<'a> {
                     let _ = self
                         .sketch
                         .scan(query, 0, exclude, bound, false, &mut best, &mut cost);
+                    rows(self.sketch.len(), &mut best, &mut cost);
                 }
                 Plan::KdTree => {
                     self.walk(query, exclude, bound, usize::MAX, &mut best, &mut cost);
@@ -340,14 +347,17 @@ impl<'a> Index<'a> {
         if from >= candidates {
             return;
         }
-        if walk == Depth::Normal {
+        if walk == Depth::Normal && from < self.sketch.len() {
             let done = self
                 .sketch
                 .scan(query, from, exclude, bound, true, best, cost);
             if let Some(o) = req.observed {
                 Observed::record(&o.sketch_misses, done);
             }
-        } else {
+            // The rows beyond the sketch (`scan` stops at its end).
+            from = self.sketch.len();
+        }
+        if from < candidates {
             cost.exact_rows += candidates - from;
             scan(self.rows, from, candidates, query, exclude, bound, best);
         }

@@ -48,6 +48,12 @@ pub fn sketch_len(n: usize, dim: usize) -> (usize, usize) {
     (rows * padded(dim), rows * PARAMS)
 }
 
+/// Rows whose parameters a sketch's `params` values hold (whole blocks): the sketch covers that
+/// many rows, or all of them when there are fewer (see [`Index::new`](super::Index::new)).
+pub fn sketch_rows(params: usize) -> usize {
+    params / PARAMS
+}
+
 /// `dim` rounded up to a whole number of groups of four values.
 fn padded(dim: usize) -> usize {
     dim.next_multiple_of(4)
@@ -144,8 +150,7 @@ pub fn sketch_encode(
 const PARALLEL_BLOCKS: usize = 1024;
 
 /// [`encode_block`] compiled for AVX2: the same operations in the same order (no FMA), so the
-/// same bits, with four `f64` error sums per instruction (1M rows: measured below in the
-/// commit that added it).
+/// same bits, with eight `f32` values per instruction.
 #[cfg(all(feature = "std", target_arch = "x86_64"))]
 #[target_feature(enable = "avx2")]
 fn encode_block_avx2(
@@ -213,47 +218,82 @@ fn encode_row(rows: Rows<'_>, i: usize, lane: usize, codes: &mut [u8], params: &
     // up and saturates into 0..=255).
     let step = (hi - lo) / 255.0;
     let inv = if step > 0.0 { 1.0 / step } else { 0.0 };
-    let (lo64, step64, scale64) = (f64::from(lo), f64::from(step), f64::from(scale));
-    let mut err4 = [0.0f64; 4];
-    // Value `v` of row slot `j` in its group: its code, and its squared error into `err4`.
-    let mut value = |v: f32, j: usize| {
+    // Each value's code, and the square of its error as `f32` computes it into eight lanes (see
+    // [`error_bound`] for how far that may be from the exact error).
+    let mut sq = [0.0f32; 8];
+    let code = |v: f32| {
+        let x = v * scale;
         // Round half up, saturating into 0..=255 (NaN to 0).
-        let k = crate::math::floor_to_u8((v * scale - lo) * inv + 0.5);
-        // The exact normalised value (the product of two `f32` is exact in `f64`).
-        let e = f64::from(v) * scale64 - (lo64 + step64 * f64::from(k));
-        err4[j] += e * e;
-        k
+        let k = crate::math::floor_to_u8((x - lo) * inv + 0.5);
+        (k, x - (lo + step * f32::from(k)))
     };
-    // Whole groups of four (so that the compiler vectorises), then the last, partial one (its
-    // padding codes were zeroed above).
-    let groups = raw.chunks_exact(4);
-    let tail = groups.remainder();
-    for (g, four) in groups.enumerate() {
-        let at = (g * SKETCH_BLOCK + lane) * 4;
-        let k = [
-            value(four[0], 0),
-            value(four[1], 1),
-            value(four[2], 2),
-            value(four[3], 3),
-        ];
-        codes[at..at + 4].copy_from_slice(&k);
+    // Eight values (two groups of four) at a time, so that the compiler vectorises, then the
+    // last ones (the padding codes of a partial group were zeroed above).
+    let eights = raw.chunks_exact(8);
+    let rest = eights.remainder();
+    for (h, eight) in eights.enumerate() {
+        let mut k = [0u8; 8];
+        for (j, &v) in eight.iter().enumerate() {
+            let (kj, e) = code(v);
+            k[j] = kj;
+            sq[j] += e * e;
+        }
+        let at = (2 * h * SKETCH_BLOCK + lane) * 4;
+        codes[at..at + 4].copy_from_slice(&k[..4]);
+        let at = at + SKETCH_BLOCK * 4;
+        codes[at..at + 4].copy_from_slice(&k[4..]);
     }
-    let at = (raw.len() / 4 * SKETCH_BLOCK + lane) * 4;
-    for (j, &v) in tail.iter().enumerate() {
-        codes[at + j] = value(v, j);
+    let base = raw.len() - rest.len();
+    for (j, &v) in rest.iter().enumerate() {
+        let (kj, e) = code(v);
+        codes[at(base + j, lane)] = kj;
+        sq[j] += e * e;
     }
-    let err2 = (err4[0] + err4[1]) + (err4[2] + err4[3]);
-    // Rounded up, so that `err ≥ ‖e‖₂`; a row with a non-finite value gets an infinite error,
-    // which no bound can rule out.
-    let err = crate::math::sqrt(err2) * (1.0 + 1e-6);
-    let err = if err.is_finite() && lo.is_finite() && step.is_finite() {
-        err as f32
-    } else {
-        f32::INFINITY
-    };
+    let sum = ((sq[0] + sq[4]) + (sq[1] + sq[5])) + ((sq[2] + sq[6]) + (sq[3] + sq[7]));
     params[param(0)] = if lo.is_finite() { lo } else { 0.0 };
     params[param(1)] = if step.is_finite() { step } else { 0.0 };
-    params[param(2)] = err;
+    params[param(2)] = error_bound(sum, lo, hi, step, dim);
+}
+
+/// Rows of more than this many values get an infinite error (are never ruled out): the bound of
+/// [`error_bound`] holds while `(dim + 8)·u ≤ 0.01`.
+const MAX_BOUNDED_DIM: usize = 1 << 16;
+
+/// An upper bound of the exact `‖e‖₂` of a row (`e_d = c_d − (lo + step·k_d)`, with
+/// `c_d = v_d·scale` the exact normalised value), from `sum`, the `f32` sum of the squares of
+/// the errors as [`encode_row`] computes them in `f32`, and the row's `lo` and `hi` (the least
+/// and largest `x_d = fl(v_d·scale)`); infinite for a row with a non-finite value.
+///
+/// Proof. With `u = 2⁻²⁴` and round-to-nearest, write `m = max(|lo|, |hi|)`, so `|x_d| ≤ m`; then
+/// `255·step ≤ 2m(1+3u)` and `k_d ≤ 255`. The computed error is `ẽ = fl(x − s)`,
+/// `s = fl(lo + p)`, `p = fl(step·k)`, `x = fl(c)`; unfolding the four roundings,
+/// `e − ẽ = −(x − c) + (p − step·k) + (s − lo − p) − (ẽ − (x − s))`, whose terms are at most
+/// `u|c| ≤ 1.0001·u·m`, `u·255·step ≤ 2.0001·u·m`, `u(|lo| + p) ≤ 3.0001·u·m` and `u|ẽ|`. So
+/// `‖e‖ ≤ (1+u)‖ẽ‖ + 6.0003·u·m·√dim` (the triangle inequality over the vector). Each square
+/// of `sum` goes through at most `t = dim + 8` roundings (its product, the adds of its lane, the
+/// three that join the lanes), so `‖ẽ‖² ≤ sum / (1 − γ_t)` with `γ_t = t·u/(1 − t·u)`; for
+/// `t·u ≤ 0.01`, `(1+u)/√(1−γ_t) ≤ 1 + (0.53·t + 2.1)·u < 1 + 2·t·u`, the factor below. Values
+/// that underflow add at most `2⁻¹⁵⁰` a rounding: with `dim ≤ 2¹⁶`, far less than the `2⁻⁶⁰`
+/// added. The few `f64` operations here round by `2⁻⁵³` each, well inside the slack of both
+/// terms, and the last product by `1 + 2⁻²²` keeps the cast to `f32` (to nearest) above the
+/// `f64` bound.
+fn error_bound(sum: f32, lo: f32, hi: f32, step: f32, dim: usize) -> f32 {
+    if !(sum.is_finite() && lo.is_finite() && hi.is_finite() && step.is_finite())
+        || dim > MAX_BOUNDED_DIM
+    {
+        return f32::INFINITY;
+    }
+    let (u, t, n) = (f64::from(U), (dim + 8) as f64, dim as f64);
+    let m = f64::from(lo.abs().max(hi.abs()));
+    let bound = crate::math::sqrt(f64::from(sum)) * (1.0 + 2.0 * t * u)
+        + 6.5 * u * m * crate::math::sqrt(n)
+        + 1.0 / (1u64 << 60) as f64;
+    let err = (bound * (1.0 + 1.0 / f64::from(1u32 << 22))) as f32;
+    if err.is_finite() {
+        err
+    } else {
+        f32::INFINITY
+    }
 }
 
 /// A sketch of L2-normalised rows (see the module documentation), viewing caller-owned buffers
@@ -418,7 +458,7 @@ impl<'a> Sketch<'a> {
             let done = b - first_block;
             let check = done == CHECK_FIRST
                 || done == 2 * CHECK_FIRST
-                || (done > 0 && done % CHECK_EVERY == 0);
+                || (done > 0 && done.is_multiple_of(CHECK_EVERY));
             if give_up && check {
                 // The k rows that fill the heap come free in each interval.
                 let exact_since = (exact - exact_then).saturating_sub(best.heap.len());
@@ -709,5 +749,90 @@ mod tests {
             let bits = |p: &[f32]| p.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
             assert_eq!(bits(&p1), bits(&p2), "parameters, dim {dim}");
         }
+    }
+}
+
+#[cfg(test)]
+mod bound_tests {
+    use super::{at, encode_block, sketch_len, Rows, PARAMS, SKETCH_BLOCK};
+
+    /// The stored error bounds the exact error of every row, and closely: normalised rows,
+    /// rows whose values differ by a few units in their last place (where the `f32` rounding is
+    /// as large as the quantisation error), rows not normalised, lengths from 1 to 1,024.
+    #[test]
+    fn the_stored_error_bounds_the_exact_one_closely() {
+        let mut x = 0x9e37_79b9u32;
+        let mut next = move || {
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            f64::from(x % 1_000_000) / 1e6
+        };
+        let n = 3 * SKETCH_BLOCK;
+        let mut worst = 0.0f64;
+        for dim in [1usize, 3, 8, 40, 61, 1024] {
+            for kind in 0..4 {
+                let raw: Vec<f32> = (0..n * dim)
+                    .map(|_| match kind {
+                        0 => (next() * 10.0) as f32,
+                        // 1000 plus a few units in the last place.
+                        1 => 1000.0 + (next() * 4.0).floor() as f32 * 6.103_515_6e-5,
+                        _ => (next() * 2.0 - 0.5) as f32,
+                    })
+                    .collect();
+                let scale: Vec<f32> = raw
+                    .chunks_exact(dim)
+                    .map(|row| {
+                        let norm = row
+                            .iter()
+                            .map(|&v| f64::from(v).powi(2))
+                            .sum::<f64>()
+                            .sqrt();
+                        match kind {
+                            2 => 1e3,
+                            3 => 1e-3,
+                            _ => (1.0 / norm) as f32,
+                        }
+                    })
+                    .collect();
+                let rows = Rows::scaled(&raw, dim, &scale).unwrap();
+                let (nc, np) = sketch_len(n, dim);
+                let (mut codes, mut params) = (vec![0u8; nc], vec![0.0f32; np]);
+                let (cw, pw) = (nc / (n / SKETCH_BLOCK), PARAMS * SKETCH_BLOCK);
+                for b in 0..n / SKETCH_BLOCK {
+                    let (c, p) = (&mut codes[b * cw..][..cw], &mut params[b * pw..][..pw]);
+                    encode_block(rows, b * SKETCH_BLOCK, 0, c, p);
+                }
+                for i in 0..n {
+                    let (b, lane) = (i / SKETCH_BLOCK, i % SKETCH_BLOCK);
+                    let p = |j: usize| f64::from(params[b * pw + j * SKETCH_BLOCK + lane]);
+                    let (lo, step, err) = (p(0), p(1), p(2));
+                    let row = &raw[i * dim..][..dim];
+                    let s = f64::from(scale[i]);
+                    let (mut e2, mut m) = (0.0f64, 0.0f64);
+                    for (d, &v) in row.iter().enumerate() {
+                        let k = f64::from(codes[b * cw + at(d, lane)]);
+                        // Exact in `f64` but for the last subtraction (2⁻⁵³ of the values).
+                        let e = f64::from(v) * s - (lo + step * k);
+                        e2 += e * e;
+                        m = m.max((f64::from(v) * s).abs());
+                    }
+                    let exact = e2.sqrt();
+                    let slack = 1e-15 * m * (dim as f64).sqrt();
+                    assert!(
+                        err >= exact * (1.0 - 1e-12) - slack,
+                        "dim {dim}, kind {kind}, row {i}: {err} < {exact}"
+                    );
+                    // At most 6.5·u·m·√dim and a relative 2(dim + 8)·u above (1e-4 at 1,024).
+                    let over = (err - exact) / (exact + m * (dim as f64).sqrt());
+                    assert!(
+                        over < 1.2e-4,
+                        "dim {dim}, kind {kind}, row {i}: {err} vs {exact}"
+                    );
+                    worst = worst.max(over);
+                }
+            }
+        }
+        assert!(worst > 0.0);
     }
 }
