@@ -88,6 +88,8 @@ rust-test:
 	cargo test --workspace
 	cargo build -p solid-lidar --no-default-features
 	cargo build -p solid-lidar --no-default-features --features alloc
+	# The unit tests without threads or std (the serial paths of the database, among others).
+	cargo test -p solid-lidar --no-default-features --features alloc --lib
 
 py-test: wheel
 	$(PY) -m pytest

@@ -23,7 +23,9 @@
 //! let stats = describe(points, &cfg, &mut scratch, &mut r, &mut a).unwrap();
 //! assert_eq!(stats.n_kept, 3);
 //! ```
-#![cfg_attr(not(feature = "std"), no_std)]
+// Unit tests run under the test harness, which needs `std` anyway: they keep its prelude (`vec!`,
+// `Vec`) under every feature set.
+#![cfg_attr(not(any(feature = "std", test)), no_std)]
 #![deny(missing_docs)]
 #![deny(unsafe_code)] // exceptions: calling a CPU-specific copy of a function after detecting its features
 
