@@ -1,6 +1,8 @@
 //! The database, its file format, the loop detector and the wire form.
 #![cfg(feature = "std")]
 
+mod common;
+use common::Xorshift;
 use proptest::prelude::*;
 use solid_lidar::db::{
     decode_place, encode_place, Database, DbError, DetectorConfig, LoopDetector, Method,
@@ -874,4 +876,116 @@ fn every_way_of_growing_a_database_searches_as_brute_force() {
     check(&db, "index built");
     // Storing only held no room for the index of the new entries: building it takes more.
     assert!(db.memory_bytes() > stored);
+}
+
+fn growth_cfg() -> Config {
+    Config::preset("hdl64").unwrap()
+}
+
+/// Clustered rows: 8 centres, small noise.
+fn clustered_arrays(n: usize, seed: u64) -> (Vec<f32>, Vec<f32>) {
+    let c = growth_cfg();
+    let mut g = Xorshift(seed | 1);
+    let centres: Vec<Vec<f32>> = (0..8)
+        .map(|_| (0..c.n_range).map(|_| (g.next() * 100.0) as f32).collect())
+        .collect();
+    let mut r = Vec::new();
+    let mut a = Vec::new();
+    for i in 0..n {
+        let ce = &centres[i % 8];
+        r.extend(ce.iter().map(|&v| v + (g.next() * 3.0) as f32));
+        a.extend((0..c.n_azimuth).map(|_| (g.next() * 10.0) as f32));
+    }
+    (r, a)
+}
+
+/// Sketch, kd-tree and auto give brute force's neighbours for queries next to every 7th entry
+/// and to those around the first block boundaries.
+fn check_methods(db: &Database, what: &str) {
+    let nr = db.config().n_range;
+    let n = db.len();
+    let mut ids: Vec<usize> = (0..n).step_by(7).collect();
+    ids.extend([n.saturating_sub(1), n / 2, 16, 17, 20, 31, 32, 33]);
+    for &i in ids.iter().filter(|&&i| i < n) {
+        let q: Vec<f32> = db.r(i as u32)[..nr].iter().map(|v| v * 1.001).collect();
+        for k in [1usize, 5, 40] {
+            for ex in [0usize, 3] {
+                let want = db.search(&q, k, ex, Method::Brute).unwrap();
+                for m in [Method::Sketch, Method::KdTree, Method::Auto] {
+                    assert_eq!(
+                        db.search(&q, k, ex, m).unwrap(),
+                        want,
+                        "{what}: q{i} k{k} ex{ex} {m:?}"
+                    );
+                }
+            }
+        }
+    }
+}
+
+/// (From a second read of the stored-only add.) Stored-only adds of partial blocks, single and
+/// failed adds after them, an empty batch, a large indexed add from a partial block (the chunked
+/// path on several threads), merges and a load of databases with a stored-only tail.
+#[test]
+fn growth_through_every_path_and_block_boundary_searches_as_brute_force() {
+    let c = growth_cfg();
+    let (nr, na) = (c.n_range, c.n_azimuth);
+    let (r, a) = clustered_arrays(5000, 7);
+    let rows = |x: usize, y: usize| (&r[x * nr..y * nr], &a[x * na..y * na]);
+
+    // indexed 20, stored 13, single add, stored 2100, single add
+    let mut db = Database::new(c).unwrap();
+    let (rr, aa) = rows(0, 20);
+    db.add_batch(rr, aa, 0, None, None, true).unwrap();
+    let (rr, aa) = rows(20, 33);
+    db.add_batch(rr, aa, 0, None, None, false).unwrap();
+    check_methods(&db, "20+13 stored");
+    let (rr, aa) = rows(33, 34);
+    db.add_vectors(rr, aa, 0, f64::NAN, None).unwrap();
+    check_methods(&db, "20+13 stored + single");
+    let (rr, aa) = rows(34, 2134);
+    db.add_batch(rr, aa, 0, None, None, false).unwrap();
+    check_methods(&db, "+2100 stored");
+    // a failing add (bad value) after a stored-only add
+    let mut bad = r[2134 * nr..2136 * nr].to_vec();
+    bad[nr + 1] = f32::NAN;
+    assert!(db
+        .add_batch(&bad, &a[2134 * na..2136 * na], 0, None, None, true)
+        .is_err());
+    assert!(db
+        .add_batch(&bad, &a[2134 * na..2136 * na], 0, None, None, false)
+        .is_err());
+    check_methods(&db, "after failed adds");
+    let (rr, aa) = rows(2134, 2135);
+    db.add_vectors(rr, aa, 0, f64::NAN, None).unwrap();
+    check_methods(&db, "+single after 2100 stored");
+    // empty stored-only batch
+    db.add_batch(&[], &[], 0, None, None, false).unwrap();
+    check_methods(&db, "empty stored");
+    db.build_index().unwrap();
+    check_methods(&db, "built");
+
+    // indexed 20 then a big indexed add (large extend path from an unaligned sketch)
+    let mut big = Database::new(c).unwrap();
+    let (rr, aa) = rows(0, 20);
+    big.add_batch(rr, aa, 0, None, None, true).unwrap();
+    let (rr, aa) = rows(20, 2500);
+    big.add_batch(rr, aa, 0, None, None, true).unwrap();
+    check_methods(&big, "20 + 2480 indexed");
+    // merge of a db with a stored-only tail into one with a partial block
+    let mut tail = Database::new(c).unwrap();
+    let (rr, aa) = rows(2500, 2530);
+    tail.add_batch(rr, aa, 0, None, None, true).unwrap();
+    let (rr, aa) = rows(2530, 4700);
+    tail.add_batch(rr, aa, 0, None, None, false).unwrap();
+    check_methods(&tail, "tail stored");
+    let mut m = Database::new(c).unwrap();
+    let (rr, aa) = rows(4700, 4721);
+    m.add_batch(rr, aa, 0, None, None, true).unwrap();
+    m.merge(&tail).unwrap();
+    check_methods(&m, "merged");
+    let back = Database::from_bytes(&tail.to_bytes()).unwrap();
+    check_methods(&back, "from bytes");
+    m.merge_as_new_sessions(&back).unwrap();
+    check_methods(&m, "merged as new sessions");
 }

@@ -3,7 +3,7 @@
 //! real descriptors of the HKU Livox Avia sequence.
 
 mod common;
-use common::{data_dir, read_xyz_f32};
+use common::{data_dir, read_xyz_f32, Xorshift};
 
 use proptest::prelude::*;
 use solid_lidar::search::{
@@ -325,7 +325,7 @@ fn all_zero_rows_and_query() {
     );
 }
 
-/// The build that gathers split values into scratch keys (nodes of 1,024 entries and more)
+/// The build that gathers split values into scratch keys (nodes of 64 entries and more)
 /// gives an index as exact as brute force, on rows with few distinct values (many ties in the
 /// selections), grown in steps and from scratch, with scratch too short for some blocks.
 #[test]
@@ -703,4 +703,104 @@ fn long_scans_cut_in_parts_stay_exact() {
             }
         }
     }
+}
+
+/// The stored error bounds the exact error (TwoSum in `f64`), through the public encoder, on rows
+/// meant to break it: values a few ulps apart, spread over 140 binades, rounding ties, 1e30 with
+/// scale 1e-30, normalised values among the subnormals, constant rows; lengths 1 to 65,535.
+#[test]
+fn the_sketch_error_bounds_the_exact_one_on_adversarial_rows() {
+    let mut g = Xorshift(0x1234_5678_9abc_def1);
+    let mut worst = f64::INFINITY;
+    for dim in [
+        1usize, 2, 3, 5, 7, 8, 9, 15, 16, 17, 40, 255, 1024, 4099, 65535,
+    ] {
+        for kind in 0..9 {
+            let n = if dim > 5000 {
+                SKETCH_BLOCK
+            } else {
+                3 * SKETCH_BLOCK
+            };
+            let mut raw = Vec::with_capacity(n * dim);
+            let mut scale = Vec::with_capacity(n);
+            for _ in 0..n {
+                let base = (g.next() * 10.0 + 0.1) as f32;
+                for d in 0..dim {
+                    let x = g.next();
+                    let v = match kind {
+                        0 => x as f32,
+                        1 => base + (x * 8.0).floor() as f32 * f32::EPSILON * base,
+                        2 => {
+                            // many magnitudes
+                            (x * 2.0f64.powi(-((d % 140) as i32))) as f32
+                        }
+                        3 => {
+                            if d % 2 == 0 {
+                                1.0
+                            } else {
+                                1.0 + f32::EPSILON
+                            }
+                        }
+                        4 => (x * 255.0).floor() as f32 + 0.5,
+                        5 => 1e30 * x as f32,
+                        6 => (x * 1e-3) as f32,
+                        7 => {
+                            if d == 0 {
+                                1.0
+                            } else {
+                                (x * 1e-20) as f32
+                            }
+                        }
+                        _ => base,
+                    };
+                    raw.push(v);
+                }
+                scale.push(match kind {
+                    2 => 1.0,
+                    5 => 1e-30,
+                    6 => 1e-38, // values into subnormals
+                    7 => 3.0e-39,
+                    8 => 1.0 / 3.0,
+                    _ => (g.next() * 4.0) as f32 + 1e-3,
+                });
+            }
+            let rows = Rows::scaled(&raw, dim, &scale).unwrap();
+            let (nc, np) = sketch_len(n, dim);
+            let (mut codes, mut params) = (vec![0u8; nc], vec![0f32; np]);
+            sketch_encode(rows, 0, &mut codes, &mut params).unwrap();
+            let pd = dim.next_multiple_of(4);
+            let width = pd * SKETCH_BLOCK;
+            for i in 0..n {
+                let (b, lane) = (i / SKETCH_BLOCK, i % SKETCH_BLOCK);
+                let p = |j: usize| params[b * 3 * SKETCH_BLOCK + j * SKETCH_BLOCK + lane];
+                let (lo, step, err) = (p(0) as f64, p(1) as f64, p(2) as f64);
+                let s = scale[i] as f64;
+                let mut e2 = 0.0f64;
+                for d in 0..dim {
+                    let k = codes[b * width + ((d / 4) * SKETCH_BLOCK + lane) * 4 + d % 4] as f64;
+                    let cval = raw[i * dim + d] as f64 * s; // exact
+                    let sk = step * k; // exact
+                                       // two-sum lo + sk
+                    let a1 = lo + sk;
+                    let bb = a1 - lo;
+                    let a2 = (lo - (a1 - bb)) + (sk - bb);
+                    // cval - a1 two-sum
+                    let d1 = cval - a1;
+                    let bb = d1 - cval;
+                    let d2 = (cval - (d1 - bb)) + (-a1 - bb);
+                    let e = d1 + (d2 - a2);
+                    e2 += e * e;
+                }
+                let exact = e2.sqrt();
+                assert!(
+                    err >= exact * (1.0 - 1e-13),
+                    "dim {dim} kind {kind} row {i}: err {err:e} < exact {exact:e}"
+                );
+                if exact > 0.0 {
+                    worst = worst.min(err / exact - 1.0);
+                }
+            }
+        }
+    }
+    assert!(worst.is_finite(), "no row with an error");
 }

@@ -279,7 +279,7 @@ impl Database {
         // The vectors are checked as they are written; on a bad value nothing is added.
         let sketched = self.sketched();
         self.append_vectors(r, a)?;
-        if !index {
+        if !index && m > 0 {
             self.cut_sketch(sketched);
         }
         // Nothing below can fail: the memory is reserved.
@@ -403,11 +403,16 @@ impl Database {
         let nr = self.config.n_range;
         let n = self.len();
         if n - sketched < CHUNK_ROWS {
+            let rows = Rows::scaled(&self.r, nr, &self.r_scale)?;
             let (nc, np) = search::sketch_len(n, nr);
             self.codes.resize(nc, 0);
             self.params.resize(np, 0.0);
-            let rows = Rows::scaled(&self.r, nr, &self.r_scale)?;
-            return search::sketch_encode(rows, sketched, &mut self.codes, &mut self.params);
+            let done = search::sketch_encode(rows, sketched, &mut self.codes, &mut self.params);
+            if done.is_err() {
+                // The new lanes hold zeros, not sketches.
+                self.cut_sketch(sketched);
+            }
+            return done;
         }
         self.cut_sketch(sketched);
         let from = self.sketched();
@@ -427,12 +432,13 @@ impl Database {
             "extend_sketch: the sketch's room does not match the rows"
         );
         in_chunks(chunks, m, |(((r, scale), codes), params)| {
-            let rows = Rows::scaled(r, nr, scale)?;
-            search::sketch_encode(rows, 0, room::zeroed(codes), room::zeroed(params))
+            let (codes, params) = (room::zeroed(codes), room::zeroed(params));
+            search::sketch_encode(Rows::scaled(r, nr, scale)?, 0, codes, params)
         })?;
         #[allow(unsafe_code)]
         // SAFETY: the chunks cover every slot of each `room::spare` above, and each chunk
-        // zeroed all of its slots before any could fail.
+        // zeroed all of its slots before anything could fail (and nothing is committed unless
+        // every chunk succeeded).
         unsafe {
             room::commit(&mut self.codes, code_len);
             room::commit(&mut self.params, param_len);

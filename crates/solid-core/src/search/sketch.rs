@@ -256,7 +256,8 @@ fn encode_row(rows: Rows<'_>, i: usize, lane: usize, codes: &mut [u8], params: &
 }
 
 /// Rows of more than this many values get an infinite error (are never ruled out): the bound of
-/// [`error_bound`] holds while `(dim + 8)·u ≤ 0.01`.
+/// [`error_bound`] holds while `(dim + 8)·u ≤ 0.01`. ([`Rows`] refuses rows of more than 65,535
+/// values, so no row reaches it today: it keeps the proof true should that limit grow.)
 const MAX_BOUNDED_DIM: usize = 1 << 16;
 
 /// An upper bound of the exact `‖e‖₂` of a row (`e_d = c_d − (lo + step·k_d)`, with
@@ -272,11 +273,15 @@ const MAX_BOUNDED_DIM: usize = 1 << 16;
 /// `‖e‖ ≤ (1+u)‖ẽ‖ + 6.0003·u·m·√dim` (the triangle inequality over the vector). Each square
 /// of `sum` goes through at most `t = dim + 8` roundings (its product, the adds of its lane, the
 /// three that join the lanes), so `‖ẽ‖² ≤ sum / (1 − γ_t)` with `γ_t = t·u/(1 − t·u)`; for
-/// `t·u ≤ 0.01`, `(1+u)/√(1−γ_t) ≤ 1 + (0.53·t + 2.1)·u < 1 + 2·t·u`, the factor below. Values
-/// that underflow add at most `2⁻¹⁵⁰` a rounding: with `dim ≤ 2¹⁶`, far less than the `2⁻⁶⁰`
-/// added. The few `f64` operations here round by `2⁻⁵³` each, well inside the slack of both
-/// terms, and the last product by `1 + 2⁻²²` keeps the cast to `f32` (to nearest) above the
-/// `f64` bound.
+/// `t·u ≤ 0.01`, `(1+u)/√(1−γ_t) ≤ 1 + (0.53·t + 2.1)·u < 1 + 2·t·u`, the factor below.
+/// Underflow adds at most `2⁻¹⁵⁰` to a rounding's error: in `x`, `p`, `s`, `ẽ` (and a subnormal
+/// `step`, whose `255·step` is then within `255·2⁻¹⁵⁰` of `2m(1+3u)`) at most `√dim·2⁻¹⁴⁸` to the
+/// error's norm, and in the squares `dim·2⁻¹⁵⁰` to `sum`, so at most `√(dim·2⁻¹⁵⁰) ≤ 2⁻⁶⁷` to its
+/// square root (`dim ≤ 2¹⁶`): both below the `2⁻⁶⁰` added. The few `f64` operations here round
+/// by `2⁻⁵³` each, well inside the slack of both terms, and the last product by `1 + 2⁻²²` keeps
+/// the cast to `f32` (to nearest) above the `f64` bound. The proof assumes the default
+/// floating-point modes (a process that treats subnormal inputs as zero could break it for rows
+/// with subnormal values, which descriptors never hold).
 fn error_bound(sum: f32, lo: f32, hi: f32, step: f32, dim: usize) -> f32 {
     if !(sum.is_finite() && lo.is_finite() && hi.is_finite() && step.is_finite())
         || dim > MAX_BOUNDED_DIM
