@@ -776,7 +776,8 @@ class Database:
         """The memory the database holds.
 
         Returns:
-            Bytes: every buffer's capacity (about 300 a place without a pose, 104 more with one).
+            Bytes: every buffer's capacity (about 300 a place without a pose, 104 more with one;
+                about 240 for places added with `add_batch(..., index=False)` until `build_index`).
         """
     def search(
         self,

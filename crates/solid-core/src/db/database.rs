@@ -3,8 +3,9 @@
 //! Per entry without a pose the database holds 298 bytes (`memory_bytes` counts them; the issue
 //! that set the budget measured 682 before): the R-SOLiD as added (`4·n_range`) and the scale
 //! that normalises it (4), the search sketch (`n_range` bytes and 12), the kd-tree (6), the
-//! session (4), the timestamp (8) and the A-SOLiD at 8 bits with its scale (`n_azimuth` + 4). A
-//! pose costs 104 bytes for the entries that have one. On Linux with `std`, columns of 4 MiB and
+//! session (4), the timestamp (8) and the A-SOLiD at 8 bits with its scale (`n_azimuth` + 4);
+//! entries added by [`Database::add_batch`] without `index` hold no sketch or kd-tree (240 bytes)
+//! until [`Database::build_index`]. A pose costs 104 bytes for the entries that have one. On Linux with `std`, columns of 4 MiB and
 //! more ask the kernel for transparent huge pages (`madvise`, as numpy does for its large
 //! arrays): faster bulk adds and scans, memory taken in steps of 2 MiB.
 
