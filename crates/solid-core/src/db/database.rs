@@ -5,8 +5,8 @@
 //! that normalises it (4), the search sketch (`n_range` bytes and 12), the kd-tree (6), the
 //! session (4), the timestamp (8) and the A-SOLiD at 8 bits with its scale (`n_azimuth` + 4);
 //! entries added by [`Database::add_batch`] without `index` hold no sketch or kd-tree (240 bytes)
-//! until [`Database::build_index`]. A pose costs 104 bytes for the entries that have one. On Linux with `std`, columns of 4 MiB and
-//! more ask the kernel for transparent huge pages (`madvise`, as numpy does for its large
+//! until [`Database::build_index`]. A pose costs 104 bytes for the entries that have one. On
+//! Linux with `std`, columns of 4 MiB and more ask the kernel for transparent huge pages (`madvise`, as numpy does for its large
 //! arrays): faster bulk adds and scans, memory taken in steps of 2 MiB.
 
 use alloc::vec;
@@ -280,7 +280,7 @@ impl Database {
         // The vectors are checked as they are written; on a bad value nothing is added.
         let sketched = self.sketched();
         self.append_vectors(r, a)?;
-        if !index && m > 0 {
+        if m > 0 {
             self.cut_sketch(sketched);
         }
         // Nothing below can fail: the memory is reserved.
@@ -294,7 +294,7 @@ impl Database {
                 .extend(p.iter().enumerate().map(|(i, p)| ((first + i) as u32, *p)));
         }
         if index {
-            self.index_from(sketched)?;
+            self.build_index()?;
         }
         Ok(first as u32)
     }
@@ -381,14 +381,14 @@ impl Database {
         Ok(())
     }
 
-    /// Entries the sketch covers (a prefix; see [`Index::new`]): true between calls, where the
-    /// sketch is cut back to whole blocks whenever entries are added without their sketch.
+    /// Entries the sketch covers (a prefix; see [`Index::new`]): true because the sketch is cut
+    /// back to whole blocks whenever entries are added ([`Database::cut_sketch`]).
     fn sketched(&self) -> usize {
         search::sketch_rows(self.params.len()).min(self.len())
     }
 
-    /// Cuts the sketch back to the whole blocks of its first `rows` entries: what entries added
-    /// without their sketch need (the sketch's length says how many entries it covers, and the
+    /// Cuts the sketch back to the whole blocks of its first `rows` entries: what new entries need
+    /// until they are sketched (the sketch's length says how many entries it covers, and the
     /// lanes past the end of its last block are zeros, not their sketch).
     fn cut_sketch(&mut self, rows: usize) {
         let (nc, np) = search::sketch_len(rows / SKETCH_BLOCK * SKETCH_BLOCK, self.config.n_range);
@@ -396,27 +396,17 @@ impl Database {
         self.params.truncate(np);
     }
 
-    /// Encodes the sketch of the entries beyond it (room reserved). A few rows (a single add) are
-    /// encoded where they go; many are written in place as [`Database::append_vectors`] writes
-    /// (chunks of whole blocks, each laid out as a sketch of its own rows, a last block that is
-    /// partly encoded being encoded again).
-    fn extend_sketch(&mut self, sketched: usize) -> Result<(), Error> {
+    /// Encodes the sketch of the entries beyond it (room reserved; it ends on a whole block, see
+    /// [`Database::cut_sketch`]), written in place as [`Database::append_vectors`] writes: chunks
+    /// of whole blocks, each laid out as a sketch of its own rows.
+    fn extend_sketch(&mut self) -> Result<(), Error> {
         let nr = self.config.n_range;
         let n = self.len();
-        if n - sketched < CHUNK_ROWS {
-            let rows = Rows::scaled(&self.r, nr, &self.r_scale)?;
-            let (nc, np) = search::sketch_len(n, nr);
-            self.codes.resize(nc, 0);
-            self.params.resize(np, 0.0);
-            let done = search::sketch_encode(rows, sketched, &mut self.codes, &mut self.params);
-            if done.is_err() {
-                // The new lanes hold zeros, not sketches.
-                self.cut_sketch(sketched);
-            }
-            return done;
-        }
-        self.cut_sketch(sketched);
         let from = self.sketched();
+        debug_assert!(
+            from.is_multiple_of(SKETCH_BLOCK),
+            "the sketch ends inside a block"
+        );
         let (nc, np) = search::sketch_len(n, nr);
         let (code_len, param_len) = (nc - self.codes.len(), np - self.params.len());
         let (code_chunk, param_chunk) = search::sketch_len(CHUNK_ROWS, nr);
@@ -453,19 +443,13 @@ impl Database {
     /// # Errors
     /// [`DbError::OutOfMemory`].
     pub fn build_index(&mut self) -> Result<(), DbError> {
-        self.index_from(self.sketched())
-    }
-
-    /// [`Database::build_index`] when the sketch holds the first `sketched` entries (which
-    /// [`Database::sketched`] would overstate while entries added since share its last block).
-    fn index_from(&mut self, sketched: usize) -> Result<(), DbError> {
         let (n, from) = (self.len(), self.perm.len());
-        if from == n && sketched == n {
+        if from == n && self.sketched() == n {
             return Ok(());
         }
         self.reserve_index(n)?;
-        if sketched < n {
-            self.extend_sketch(sketched)?;
+        if self.sketched() < n {
+            self.extend_sketch()?;
         }
         if from == n {
             return Ok(());
@@ -713,7 +697,7 @@ impl Database {
             self.clouds.truncate(base);
             return Err(e);
         }
-        let sketched = self.sketched();
+        self.cut_sketch(self.sketched());
         self.sessions.extend_from_slice(&other.sessions);
         self.timestamps.extend_from_slice(&other.timestamps);
         self.poses
@@ -723,7 +707,7 @@ impl Database {
         self.a_scale.extend_from_slice(&other.a_scale);
         self.r.extend_from_slice(&other.r);
         self.r_scale.extend_from_slice(&other.r_scale);
-        self.index_from(sketched)
+        self.build_index()
     }
 
     /// [`Database::merge`], with the sessions of `other` renumbered to follow this database's
