@@ -18,7 +18,7 @@ Prints, with every figure measured in the same run and the ratio peer / solid:
   `brute`, faiss `IndexFlatIP.search` of one query, numpy `argmax(X @ q)`;
 - batch search: 1,000 queries (half of each mix) in one call: `Database.search_batch`, faiss,
   numpy in blocks of 16 queries, and a loop over `Database.search`;
-- bulk add of the N entries from arrays: `Database.add_batch` (with and without the kd-tree),
+- bulk add of the N entries from arrays: `Database.add_batch` (indexed, and stored only),
   faiss `normalize_L2` + `add`, numpy row normalisation;
 - bytes per entry: `Database.memory_bytes()` / N, faiss and numpy 160.
 Top-1 ids are checked equal to faiss's (ties aside: equal distances) on every query.
@@ -236,8 +236,8 @@ def main() -> int:
             ("dup", scans.dup_copy, {"same": same, "other": near}),
         ):
             r, a = described(db_name, n, 1 if db_name == "hku" else 4, make)
-            # Bulk add: solid with and without the kd-tree, faiss, numpy (best of 15 runs at 10k
-            # entries, where one run takes about a millisecond, down to 3 at 1M).
+            # Bulk add: solid indexed (the default) and stored only (index=False), faiss, numpy (best
+            # of 15 runs at 10k entries, where one run takes about a millisecond, down to 3 at 1M).
             reps = ADD_REPS[n]
             t_add = best_of(reps, lambda: solid.Database(CFG).add_batch(r, a))
             t_add_flat = best_of(reps, lambda: solid.Database(CFG).add_batch(r, a, index=False))
@@ -289,7 +289,7 @@ def main() -> int:
     print("\nbatch search: 1,000 queries (500 of each mix), k = 1, ms; ratios peer / solid search_batch")
     print(f"{'db':4s} {'n':>9s} {'batch':>9s} {'faiss':>9s} {'numpy':>9s} {'loop':>9s} {'faiss/b':>8s} {'numpy/b':>8s} {'loop/b':>8s}")
     print("\n".join(rows_batch))
-    print("\nbulk add of n entries from arrays, ms (best of 15 / 7 / 3 runs at 10k / 100k / 1M); ratios faiss / solid (with kd-tree, without)")
+    print("\nbulk add of n entries from arrays, ms (best of 15 / 7 / 3 runs at 10k / 100k / 1M); ratios faiss / solid (indexed, stored only)")
     print(f"{'db':4s} {'n':>9s} {'add':>9s} {'stored':>9s} {'faiss':>9s} {'numpy':>9s} {'faiss/a':>8s} {'faiss/st':>8s}")
     print("\n".join(rows_add))
     print("\nbytes per entry (hku): solid Database.memory_bytes() / n, faiss IndexFlatIP, numpy float32 rows")

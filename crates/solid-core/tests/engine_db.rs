@@ -931,20 +931,24 @@ fn growth_through_every_path_and_block_boundary_searches_as_brute_force() {
     let c = growth_cfg();
     let (nr, na) = (c.n_range, c.n_azimuth);
     let (r, a) = clustered_arrays(5000, 7);
-    let rows = |x: usize, y: usize| (&r[x * nr..y * nr], &a[x * na..y * na]);
+    // Adds entries `x..y` in one batch, with or without the index.
+    let add = |db: &mut Database, x: usize, y: usize, index: bool| {
+        db.add_batch(&r[x * nr..y * nr], &a[x * na..y * na], 0, None, None, index)
+            .unwrap()
+    };
+    let add_one = |db: &mut Database, x: usize| {
+        db.add_vectors(&r[x * nr..][..nr], &a[x * na..][..na], 0, f64::NAN, None)
+            .unwrap()
+    };
 
     // indexed 20, stored 13, single add, stored 2100, single add
     let mut db = Database::new(c).unwrap();
-    let (rr, aa) = rows(0, 20);
-    db.add_batch(rr, aa, 0, None, None, true).unwrap();
-    let (rr, aa) = rows(20, 33);
-    db.add_batch(rr, aa, 0, None, None, false).unwrap();
+    add(&mut db, 0, 20, true);
+    add(&mut db, 20, 33, false);
     check_methods(&db, "20+13 stored");
-    let (rr, aa) = rows(33, 34);
-    db.add_vectors(rr, aa, 0, f64::NAN, None).unwrap();
+    add_one(&mut db, 33);
     check_methods(&db, "20+13 stored + single");
-    let (rr, aa) = rows(34, 2134);
-    db.add_batch(rr, aa, 0, None, None, false).unwrap();
+    add(&mut db, 34, 2134, false);
     check_methods(&db, "+2100 stored");
     // a failing add (bad value) after a stored-only add
     let mut bad = r[2134 * nr..2136 * nr].to_vec();
@@ -956,8 +960,7 @@ fn growth_through_every_path_and_block_boundary_searches_as_brute_force() {
         .add_batch(&bad, &a[2134 * na..2136 * na], 0, None, None, false)
         .is_err());
     check_methods(&db, "after failed adds");
-    let (rr, aa) = rows(2134, 2135);
-    db.add_vectors(rr, aa, 0, f64::NAN, None).unwrap();
+    add_one(&mut db, 2134);
     check_methods(&db, "+single after 2100 stored");
     // empty stored-only batch
     db.add_batch(&[], &[], 0, None, None, false).unwrap();
@@ -967,21 +970,16 @@ fn growth_through_every_path_and_block_boundary_searches_as_brute_force() {
 
     // indexed 20 then a big indexed add (large extend path from an unaligned sketch)
     let mut big = Database::new(c).unwrap();
-    let (rr, aa) = rows(0, 20);
-    big.add_batch(rr, aa, 0, None, None, true).unwrap();
-    let (rr, aa) = rows(20, 2500);
-    big.add_batch(rr, aa, 0, None, None, true).unwrap();
+    add(&mut big, 0, 20, true);
+    add(&mut big, 20, 2500, true);
     check_methods(&big, "20 + 2480 indexed");
     // merge of a db with a stored-only tail into one with a partial block
     let mut tail = Database::new(c).unwrap();
-    let (rr, aa) = rows(2500, 2530);
-    tail.add_batch(rr, aa, 0, None, None, true).unwrap();
-    let (rr, aa) = rows(2530, 4700);
-    tail.add_batch(rr, aa, 0, None, None, false).unwrap();
+    add(&mut tail, 2500, 2530, true);
+    add(&mut tail, 2530, 4700, false);
     check_methods(&tail, "tail stored");
     let mut m = Database::new(c).unwrap();
-    let (rr, aa) = rows(4700, 4721);
-    m.add_batch(rr, aa, 0, None, None, true).unwrap();
+    add(&mut m, 4700, 4721, true);
     m.merge(&tail).unwrap();
     check_methods(&m, "merged");
     let back = Database::from_bytes(&tail.to_bytes()).unwrap();
