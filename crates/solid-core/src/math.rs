@@ -180,9 +180,25 @@ pub(crate) fn floor_i64(v: f64) -> i64 {
 
 /// `y as u8` (toward zero, saturating into 0..=255, NaN to 0) in operations that vectorise:
 /// the cast itself compiles to a conversion with a scalar fix-up per value (perf: 41 % of the
-/// bulk add's quantisation loop). Clamped first, then floored by rounding to an integer with
-/// 2²³ (exact below 2²³) and stepping back when that rounded up; the integer is then the low
-/// byte of `f + 2²³`'s bits.
+/// bulk add's quantisation loop). Clamped first (a NaN compares false), then converted toward
+/// zero without the fix-up, which a value in 0..=255 never needs: 0.71 → 0.57 ms for the
+/// stored-only add of 10,000 rows on one thread (release probe). For a caller that needs the
+/// code as an `f32` as well, [`floor_to_u8`] compiles better.
+#[inline(always)]
+pub(crate) fn to_u8(y: f32) -> u8 {
+    let c = if y > 0.0 { y } else { 0.0 };
+    let c = if c < 255.0 { c } else { 255.0 };
+    #[allow(unsafe_code)]
+    // SAFETY: `c` is finite and in [0, 255], so it converts into an `i32`.
+    let i: i32 = unsafe { c.to_int_unchecked() };
+    i as u8
+}
+
+/// [`to_u8`] in float operations: clamped, then floored by rounding to an integer with 2²³
+/// (exact below 2²³) and stepping back when that rounded up; the integer is then the low byte
+/// of `f + 2²³`'s bits. Where the code is needed as an `f32` too (the sketch's error), the
+/// compiler keeps this in eight lanes (75 ns a sketch row), while [`to_u8`] there assembles the
+/// bytes one by one (84 ns).
 #[inline(always)]
 pub(crate) fn floor_to_u8(y: f32) -> u8 {
     const MAGIC: f32 = 8_388_608.0;
@@ -199,7 +215,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn floor_to_u8_is_the_cast() {
+    fn to_u8_and_floor_to_u8_are_the_cast() {
         for y in [
             f32::NAN,
             -f32::NAN,
@@ -223,17 +239,21 @@ mod tests {
             -1.0,
             -0.5,
         ] {
-            assert_eq!(floor_to_u8(y), y as u8, "{y}");
+            assert_eq!((to_u8(y), floor_to_u8(y)), (y as u8, y as u8), "{y}");
         }
         // Every 257th bit pattern (every sign, exponent and mantissa region), and every value
         // from -2 to 258 in steps of 1/1024.
         for bits in (0..=u32::MAX).step_by(257) {
             let y = f32::from_bits(bits);
-            assert_eq!(floor_to_u8(y), y as u8, "{y} ({bits:#x})");
+            assert_eq!(
+                (to_u8(y), floor_to_u8(y)),
+                (y as u8, y as u8),
+                "{y} ({bits:#x})"
+            );
         }
         for i in -2048..=258 * 1024 {
             let y = i as f32 / 1024.0;
-            assert_eq!(floor_to_u8(y), y as u8, "{y}");
+            assert_eq!((to_u8(y), floor_to_u8(y)), (y as u8, y as u8), "{y}");
         }
     }
 

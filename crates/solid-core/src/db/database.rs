@@ -984,7 +984,7 @@ fn quantize_a(a: &[f32], codes: &mut [u8]) -> Option<f32> {
     let inv = if step > 0.0 { 1.0 / step } else { 0.0 };
     // Round half up, saturating into 0..=255.
     for (c, &v) in codes.iter_mut().zip(a) {
-        *c = crate::math::floor_to_u8(v * inv + 0.5);
+        *c = crate::math::to_u8(v * inv + 0.5);
     }
     Some(step)
 }
