@@ -726,6 +726,9 @@ fn scan(
     #[cfg(feature = "parallel")]
     {
         let hi = hi.min(exclude.before_id).min(rows.n);
+        // The parts after the first start from empty heaps: the neighbours `best` holds already
+        // (a finished kd-tree walk before the rows past the tree) bound them all the same.
+        let bound = best.limit(bound);
         let part = |lo: usize, hi: usize, best: &mut Best<'_>, _: &mut Cost| {
             scan_part(rows, lo, hi, query, exclude, bound, best);
             true
@@ -754,9 +757,9 @@ const PARALLEL_PART: usize = 1 << 13;
 const PARALLEL_SCAN_MAX_K: usize = 64;
 
 /// Runs `part` over `lo..hi` in parts (cut on multiples of `align`) on the threads of the pool,
-/// each part but the first into a heap of its own whose neighbours then go into `best`; `None`
-/// (nothing done) when the range is short, `k` large or `best` already holds neighbours.
-/// Returns whether every part finished its preferred way.
+/// each part but the first into a heap of its own whose neighbours then go into `best` (which
+/// may hold neighbours of other ids already); `None` (nothing done) when the range is short or
+/// `k` large. Returns whether every part finished its preferred way.
 #[cfg(feature = "parallel")]
 fn split_scan<F>(
     lo: usize,
@@ -770,7 +773,7 @@ where
     F: Fn(usize, usize, &mut Best<'_>, &mut Cost) -> bool + Sync,
 {
     let k = best.heap.len();
-    if hi <= lo || hi - lo < PARALLEL_SCAN || k > PARALLEL_SCAN_MAX_K || best.len > 0 {
+    if hi <= lo || hi - lo < PARALLEL_SCAN || k > PARALLEL_SCAN_MAX_K {
         return None;
     }
     Some(split_parts(lo, hi, align, best, cost, &part))

@@ -705,6 +705,70 @@ fn long_scans_cut_in_parts_stay_exact() {
     }
 }
 
+#[test]
+fn rows_past_the_tree_cut_in_parts_stay_exact() {
+    // A kd-tree and a sketch over the first rows only, as in a database after a stored-only add:
+    // a finished walk fills the heap, then the rows past the tree are searched in parts on two
+    // threads (`parallel`), each part after the first into a heap of its own, bounded by the
+    // walk's k-th distance. Every 7th row past the tree repeats a row of the tree, so that equal
+    // distances (lower id first) meet across the tree, the cut and the parts.
+    let (head, n, dim) = (4_096, 4_096 + 70_000, 8);
+    let mut rng = Rng(71);
+    let mut data = places(n, dim, 3_000, 0.01, &mut rng);
+    for i in (head..n).step_by(7) {
+        let from = (i * 13) % head;
+        data.copy_within(from * dim..(from + 1) * dim, i * dim);
+    }
+    let rows = Rows::normalized(&data, dim).unwrap();
+    let (mut perm, mut splits) = (vec![0u32; head], vec![0u16; head]);
+    online_rebuild(rows.prefix(head), &mut perm, &mut splits).unwrap();
+    let (codes, params) = sketch_of(rows.prefix(head));
+    let index = Index::new(rows, &perm, &splits, &codes, &params).unwrap();
+    let mut dists = vec![0.0f32; n];
+    for qi in 0..4 {
+        // Queries on repeated rows (ties at every distance of their copies) and one elsewhere.
+        let q: Vec<f32> = if qi < 3 {
+            data[qi * 1_000 * dim..][..dim].to_vec()
+        } else {
+            places(1, dim, 1, 0.0, &mut Rng(200))
+        };
+        rows.distances(&q, &mut dists).unwrap();
+        let mut all: Vec<Neighbor> = (0..n)
+            .map(|i| Neighbor {
+                id: i as u32,
+                distance: dists[i],
+            })
+            .collect();
+        all.sort_by(|x, y| x.distance.total_cmp(&y.distance).then(x.id.cmp(&y.id)));
+        for k in [1, 5, 40] {
+            for ex in [
+                Exclude::recent(n, 3),
+                Exclude::recent(n, 1_000),
+                Exclude::recent(n, n - head / 2),
+            ] {
+                let want: Vec<Neighbor> = all
+                    .iter()
+                    .filter(|nb| (nb.id as usize) < ex.before_id)
+                    .take(k)
+                    .copied()
+                    .collect();
+                for plan in [Plan::KdTree, Plan::Auto, Plan::Sketch, Plan::Brute] {
+                    let req = Request {
+                        k,
+                        exclude: ex,
+                        max_distance: f32::INFINITY,
+                        plan,
+                        observed: None,
+                    };
+                    let mut out = vec![Neighbor::default(); k];
+                    let found = index.search(&q, &req, &mut out).unwrap();
+                    assert_eq!(&out[..found.len], &want[..], "query {qi} {plan:?} k {k}");
+                }
+            }
+        }
+    }
+}
+
 /// The stored error bounds the exact error (TwoSum in `f64`), through the public encoder, on rows
 /// meant to break it: values a few ulps apart, spread over 140 binades, rounding ties, 1e30 with
 /// scale 1e-30, normalised values among the subnormals, constant rows; lengths 1 to 65,535.
