@@ -657,6 +657,52 @@ fn auto_takes_each_path_and_stays_exact() {
     assert_eq!(deep_finished, AUTO_RETRY_EVERY - AUTO_MISSES);
 }
 
+/// Checks that brute force and every plan of `index` (over `rows`) find, for each `k` and
+/// exclusion of recent ids, the neighbours that sorting every allowed row by distance, then id,
+/// gives.
+fn assert_every_plan_exact(
+    index: &Index<'_>,
+    rows: Rows<'_>,
+    q: &[f32],
+    ks: &[usize],
+    exclusions: &[Exclude<'_>],
+) {
+    let mut dists = vec![0.0f32; rows.len()];
+    rows.distances(q, &mut dists).unwrap();
+    let mut all: Vec<Neighbor> = dists
+        .iter()
+        .enumerate()
+        .map(|(i, &distance)| Neighbor {
+            id: i as u32,
+            distance,
+        })
+        .collect();
+    all.sort_by(|x, y| x.distance.total_cmp(&y.distance).then(x.id.cmp(&y.id)));
+    for &k in ks {
+        for ex in exclusions {
+            let want: Vec<Neighbor> = all
+                .iter()
+                .filter(|nb| (nb.id as usize) < ex.before_id)
+                .take(k)
+                .copied()
+                .collect();
+            assert_eq!(brute(rows, q, k, ex), want, "brute k {k}");
+            for plan in [Plan::Sketch, Plan::Auto, Plan::KdTree, Plan::Brute] {
+                let req = Request {
+                    k,
+                    exclude: *ex,
+                    max_distance: f32::INFINITY,
+                    plan,
+                    observed: None,
+                };
+                let mut out = vec![Neighbor::default(); k];
+                let found = index.search(q, &req, &mut out).unwrap();
+                assert_eq!(&out[..found.len], &want[..], "{plan:?} k {k} {ex:?}");
+            }
+        }
+    }
+}
+
 #[test]
 fn long_scans_cut_in_parts_stay_exact() {
     // Enough rows for brute force and the sketch to search parts on two threads (with the
@@ -669,39 +715,9 @@ fn long_scans_cut_in_parts_stay_exact() {
     online_rebuild(rows, &mut perm, &mut splits).unwrap();
     let (codes, params) = sketch_of(rows);
     let index = Index::new(rows, &perm, &splits, &codes, &params).unwrap();
-    let mut dists = vec![0.0f32; n];
     for qi in 0..3 {
         let q = places(1, dim, 1, 0.0, &mut Rng(100 + qi));
-        rows.distances(&q, &mut dists).unwrap();
-        let mut all: Vec<Neighbor> = (0..n)
-            .map(|i| Neighbor {
-                id: i as u32,
-                distance: dists[i],
-            })
-            .collect();
-        all.sort_by(|x, y| x.distance.total_cmp(&y.distance).then(x.id.cmp(&y.id)));
-        for k in [1, 10, 100] {
-            let ex = Exclude::recent(n, 3);
-            let want: Vec<Neighbor> = all
-                .iter()
-                .filter(|nb| (nb.id as usize) < n - 3)
-                .take(k)
-                .copied()
-                .collect();
-            assert_eq!(brute(rows, &q, k, &ex), want, "brute k {k}");
-            for plan in [Plan::Sketch, Plan::Auto, Plan::KdTree] {
-                let req = Request {
-                    k,
-                    exclude: ex,
-                    max_distance: f32::INFINITY,
-                    plan,
-                    observed: None,
-                };
-                let mut out = vec![Neighbor::default(); k];
-                let found = index.search(&q, &req, &mut out).unwrap();
-                assert_eq!(&out[..found.len], &want[..], "{plan:?} k {k}");
-            }
-        }
+        assert_every_plan_exact(&index, rows, &q, &[1, 10, 100], &[Exclude::recent(n, 3)]);
     }
 }
 
@@ -724,7 +740,6 @@ fn rows_past_the_tree_cut_in_parts_stay_exact() {
     online_rebuild(rows.prefix(head), &mut perm, &mut splits).unwrap();
     let (codes, params) = sketch_of(rows.prefix(head));
     let index = Index::new(rows, &perm, &splits, &codes, &params).unwrap();
-    let mut dists = vec![0.0f32; n];
     for qi in 0..4 {
         // Queries on repeated rows (ties at every distance of their copies) and one elsewhere.
         let q: Vec<f32> = if qi < 3 {
@@ -732,40 +747,12 @@ fn rows_past_the_tree_cut_in_parts_stay_exact() {
         } else {
             places(1, dim, 1, 0.0, &mut Rng(200))
         };
-        rows.distances(&q, &mut dists).unwrap();
-        let mut all: Vec<Neighbor> = (0..n)
-            .map(|i| Neighbor {
-                id: i as u32,
-                distance: dists[i],
-            })
-            .collect();
-        all.sort_by(|x, y| x.distance.total_cmp(&y.distance).then(x.id.cmp(&y.id)));
-        for k in [1, 5, 40] {
-            for ex in [
-                Exclude::recent(n, 3),
-                Exclude::recent(n, 1_000),
-                Exclude::recent(n, n - head / 2),
-            ] {
-                let want: Vec<Neighbor> = all
-                    .iter()
-                    .filter(|nb| (nb.id as usize) < ex.before_id)
-                    .take(k)
-                    .copied()
-                    .collect();
-                for plan in [Plan::KdTree, Plan::Auto, Plan::Sketch, Plan::Brute] {
-                    let req = Request {
-                        k,
-                        exclude: ex,
-                        max_distance: f32::INFINITY,
-                        plan,
-                        observed: None,
-                    };
-                    let mut out = vec![Neighbor::default(); k];
-                    let found = index.search(&q, &req, &mut out).unwrap();
-                    assert_eq!(&out[..found.len], &want[..], "query {qi} {plan:?} k {k}");
-                }
-            }
-        }
+        let exclusions = [
+            Exclude::recent(n, 3),
+            Exclude::recent(n, 1_000),
+            Exclude::recent(n, n - head / 2),
+        ];
+        assert_every_plan_exact(&index, rows, &q, &[1, 5, 40], &exclusions);
     }
 }
 
