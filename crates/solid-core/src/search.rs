@@ -63,7 +63,10 @@ mod index;
 mod kdtree;
 mod sketch;
 
-pub use index::{Cost, Found, Index, Observed, Plan, Request, AUTO_MISSES, AUTO_RETRY_EVERY};
+pub use index::{
+    Cost, Found, Index, Observed, Plan, Request, AUTO_MISSES, AUTO_PRIME_BASE, AUTO_PRIME_PER_K,
+    AUTO_RETRY_EVERY,
+};
 pub use kdtree::{
     online_extend, online_extend_scratch_len, online_extend_with, online_insert, online_rebuild,
     KdTree, OnlineIndex, LEAF_SIZE,

@@ -10,7 +10,7 @@ use solid_lidar::search::{
     brute_force, inverse_norm, normalize, normalize_rows, normalized_distance, online_extend,
     online_extend_scratch_len, online_extend_with, online_insert, online_rebuild, sketch_encode,
     sketch_len, Cost, Exclude, Index, KdTree, Neighbor, Observed, OnlineIndex, Plan, Request, Rows,
-    Sketch, AUTO_MISSES, AUTO_RETRY_EVERY, SKETCH_BLOCK,
+    Sketch, AUTO_MISSES, AUTO_PRIME_BASE, AUTO_PRIME_PER_K, AUTO_RETRY_EVERY, SKETCH_BLOCK,
 };
 use solid_lidar::{cosine_distance, Config, Describer, Points};
 
@@ -104,6 +104,33 @@ fn sketch_of(rows: Rows<'_>) -> (Vec<u8>, Vec<f32>) {
     sketch_encode(rows.prefix(half), 0, &mut codes, &mut params).unwrap();
     sketch_encode(rows, half, &mut codes, &mut params).unwrap();
     (codes, params)
+}
+
+/// The online kd-tree and the sketch of every row, owned, for [`Index::new`].
+struct Built {
+    perm: Vec<u32>,
+    splits: Vec<u16>,
+    codes: Vec<u8>,
+    params: Vec<f32>,
+}
+
+impl Built {
+    fn of(rows: Rows<'_>) -> Built {
+        let n = rows.len();
+        let (mut perm, mut splits) = (vec![0u32; n], vec![0u16; n]);
+        online_rebuild(rows, &mut perm, &mut splits).unwrap();
+        let (codes, params) = sketch_of(rows);
+        Built {
+            perm,
+            splits,
+            codes,
+            params,
+        }
+    }
+
+    fn index<'a>(&'a self, rows: Rows<'a>) -> Index<'a> {
+        Index::new(rows, &self.perm, &self.splits, &self.codes, &self.params).unwrap()
+    }
 }
 
 fn sketch(rows: Rows<'_>, q: &[f32], k: usize, ex: &Exclude<'_>) -> Vec<Neighbor> {
@@ -578,10 +605,8 @@ fn auto_takes_each_path_and_stays_exact() {
     // walks deeper instead; a deep walk that keeps running out of budget is skipped too (brute
     // force alone). Each is tried again every AUTO_RETRY_EVERY queries (the deep walk half-way
     // between the sketch's retries); the results do not change.
-    let (mut perm, mut splits) = (vec![0u32; n], vec![0u16; n]);
-    online_rebuild(rows, &mut perm, &mut splits).unwrap();
-    let (codes, params) = sketch_of(rows);
-    let index = Index::new(rows, &perm, &splits, &codes, &params).unwrap();
+    let built = Built::of(rows);
+    let index = built.index(rows);
     let observed = Observed::new();
     let want = brute(rows, &q, 3, &Exclude::NONE);
     for i in 0..2 * AUTO_RETRY_EVERY {
@@ -627,10 +652,8 @@ fn auto_takes_each_path_and_stays_exact() {
     let rows = normed(&raw, dim);
     let q = normed(&moved(0.3, 0.6), dim);
     let rows = Rows::normalized(&rows, dim).unwrap();
-    let (mut perm, mut splits) = (vec![0u32; n], vec![0u16; n]);
-    online_rebuild(rows, &mut perm, &mut splits).unwrap();
-    let (codes, params) = sketch_of(rows);
-    let index = Index::new(rows, &perm, &splits, &codes, &params).unwrap();
+    let built = Built::of(rows);
+    let index = built.index(rows);
     let observed = Observed::new();
     let want = brute(rows, &q, 1, &Exclude::NONE);
     let mut deep_finished = 0;
@@ -655,6 +678,58 @@ fn auto_takes_each_path_and_stays_exact() {
         }
     }
     assert_eq!(deep_finished, AUTO_RETRY_EVERY - AUTO_MISSES);
+}
+
+#[test]
+fn auto_shortens_a_walk_that_keeps_running_out() {
+    // Queries from places the rows do not hold: the normal walk runs out of its budget without
+    // finishing while the sketch rules rows out. After AUTO_MISSES such walks the walk shrinks to
+    // the leaves nearest the query (AUTO_PRIME_BASE + AUTO_PRIME_PER_K·k distances), the normal
+    // walk being tried again every AUTO_RETRY_EVERY queries; a query near a stored place at such
+    // a retry finishes the walk and brings the normal walk back. The results never change.
+    let (n, dim, k) = (20_000, 40, 3);
+    let mut rng = Rng(90);
+    let data = places(n, dim, 2_000, 0.05, &mut rng);
+    let rows = Rows::normalized(&data, dim).unwrap();
+    let built = Built::of(rows);
+    let index = built.index(rows);
+    let observed = Observed::new();
+    let short = AUTO_PRIME_BASE + AUTO_PRIME_PER_K * k;
+    let retry = AUTO_RETRY_EVERY as usize;
+    let search = |q: &[f32]| {
+        let req = Request {
+            observed: Some(&observed),
+            ..Request::nearest(k)
+        };
+        let mut out = [Neighbor::default(); 3];
+        let found = index.search(q, &req, &mut out).unwrap();
+        assert_eq!(&out[..], &brute(rows, q, k, &Exclude::NONE)[..]);
+        found.cost
+    };
+    // Novel queries: the normal walk (at the first AUTO_MISSES and at every retry) stops on its
+    // budget, the sketch scans every row; in between, the short walk.
+    let novel = 2 * retry + 5;
+    for i in 0..novel {
+        let c = search(&places(1, dim, 1, 0.0, &mut Rng(1_000 + i as u64)));
+        let normal = i < AUTO_MISSES as usize || i % retry == 0;
+        assert_eq!(c.sketch_rows, n, "query {i}: {c:?}");
+        assert_eq!(c.tree_rows > 2 * short, normal, "query {i}: {c:?}");
+    }
+    // Stored places: the short walk and the sketch until the next retry, whose walk finishes;
+    // the normal walk from then on (finished, or stopped on its budget).
+    for i in novel..novel + 2 * retry {
+        let c = search(&data[(i * 997 % n) * dim..][..dim]);
+        let finished = c.sketch_rows == 0 && c.exact_rows == 0;
+        if i < 3 * retry {
+            assert!(
+                (short..2 * short).contains(&c.tree_rows) && c.sketch_rows == n,
+                "query {i}: {c:?}"
+            );
+        } else {
+            assert!(finished || c.tree_rows > 2 * short, "query {i}: {c:?}");
+            assert!(finished || i > 3 * retry, "query {i}: {c:?}");
+        }
+    }
 }
 
 /// Checks that brute force and every plan of `index` (over `rows`) find, for each `k` and
@@ -711,10 +786,8 @@ fn long_scans_cut_in_parts_stay_exact() {
     let mut rng = Rng(70);
     let rows = places(n, dim, 5_000, 0.01, &mut rng);
     let rows = Rows::normalized(&rows, dim).unwrap();
-    let (mut perm, mut splits) = (vec![0u32; n], vec![0u16; n]);
-    online_rebuild(rows, &mut perm, &mut splits).unwrap();
-    let (codes, params) = sketch_of(rows);
-    let index = Index::new(rows, &perm, &splits, &codes, &params).unwrap();
+    let built = Built::of(rows);
+    let index = built.index(rows);
     for qi in 0..3 {
         let q = places(1, dim, 1, 0.0, &mut Rng(100 + qi));
         assert_every_plan_exact(&index, rows, &q, &[1, 10, 100], &[Exclude::recent(n, 3)]);

@@ -55,19 +55,21 @@ impl Request<'_> {
     }
 }
 
-/// What [`Plan::Auto`] has seen on the earlier queries of one set of rows. When the sketch gave
-/// up on [`AUTO_MISSES`] queries in a row (rows too alike for its bytes: a database of
-/// near-duplicates), the sketch is skipped and the kd-tree walks deeper instead (on such rows
-/// it is the only thing cheaper than brute force), brute force taking what the walk did not
-/// finish; when the deep walk did not finish on as many queries in a row either, brute force
-/// runs alone. Each skipped step is tried again on every [`AUTO_RETRY_EVERY`]th query. (A
-/// kd-tree that runs out of its normal budget is not skipped while the sketch works: its walk
-/// hands the sketch a good k-th distance to start from.) Keep one per database; threads may
-/// share it (the counts are loaded and stored, not locked: two threads updating at once may
-/// lose a count, which only delays a skip).
+/// What [`Plan::Auto`] has seen on the earlier queries of one set of rows. When the kd-tree's
+/// walk ran out of its normal budget on [`AUTO_MISSES`] queries in a row (queries from places
+/// the rows do not hold, whose walk only delays the sketch), the walk shrinks to the few leaves
+/// nearest the query ([`AUTO_PRIME_BASE`]), enough to hand the sketch a first k-th distance. When the sketch gave up on as many queries in a row (rows too alike for its
+/// bytes: a database of near-duplicates), the sketch is skipped and the kd-tree walks deeper
+/// instead (on such rows it is the only thing cheaper than brute force), brute force taking
+/// what the walk did not finish; when the deep walk did not finish on as many queries in a row
+/// either, brute force runs alone. Each skipped step is tried again on every
+/// [`AUTO_RETRY_EVERY`]th query. Keep one per database; threads may share it (the counts are
+/// loaded and stored, not locked: two threads updating at once may lose a count, which only
+/// delays a skip).
 #[derive(Debug, Default)]
 pub struct Observed {
     queries: AtomicU32,
+    walk_misses: AtomicU32,
     deep_misses: AtomicU32,
     sketch_misses: AtomicU32,
 }
@@ -75,9 +77,12 @@ pub struct Observed {
 /// How far [`Plan::Auto`] walks the kd-tree on one query.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Depth {
-    /// Not at all.
+    /// Not at all: brute force alone.
     Skip,
-    /// Under the normal budget, the sketch following (the only depth that tries the sketch).
+    /// Over the few leaves nearest the query ([`AUTO_PRIME_BASE`]), the sketch following (the
+    /// normal walk is being skipped).
+    Short,
+    /// Under the normal budget, the sketch following.
     Normal,
     /// Under the deep budget, brute force following (the sketch is being skipped).
     Deep,
@@ -88,6 +93,7 @@ impl Observed {
     pub const fn new() -> Self {
         Observed {
             queries: AtomicU32::new(0),
+            walk_misses: AtomicU32::new(0),
             deep_misses: AtomicU32::new(0),
             sketch_misses: AtomicU32::new(0),
         }
@@ -99,7 +105,11 @@ impl Observed {
         self.queries.store(q.wrapping_add(1), Relaxed);
         let retry = q.is_multiple_of(AUTO_RETRY_EVERY);
         if retry || self.sketch_misses.load(Relaxed) < AUTO_MISSES {
-            Depth::Normal
+            if retry || self.walk_misses.load(Relaxed) < AUTO_MISSES {
+                Depth::Normal
+            } else {
+                Depth::Short
+            }
         } else if self.deep_misses.load(Relaxed) < AUTO_MISSES
             || q % AUTO_RETRY_EVERY == AUTO_RETRY_EVERY / 2
         {
@@ -159,14 +169,26 @@ const AUTO_BRUTE_BELOW: usize = 256;
 /// `candidates / AUTO_TREE_SHARE + AUTO_TREE_PER_K · k + AUTO_TREE_BASE` rows, and never more than
 /// `candidates / AUTO_TREE_MAX_SHARE`. A distance in the tree costs about 100 rows of the sketch
 /// and 5–15 of brute force (a jump to another row), so a fruitless walk adds at most about 40 %
-/// to the sketch's pass (measured: 0.6 ms before a 1.3 ms sketch over a million rows). Measured
-/// on realistic databases (`benches/benches/search.rs`, `Cost::tree_rows` of `Plan::KdTree`):
-/// queries near stored places need a median of 390 / 480 / 980 rows for k = 1 at 10k / 100k / 1M
-/// entries (largest of 48: 1,251 / 4,814 / 4,082), and 2.5 times that for k = 10.
+/// to the sketch's pass (measured: 0.6 ms before a 1.3 ms sketch over a million rows), more at
+/// 10k entries, where the cap lets it take as long as the sketch; [`Observed`] skips a walk that
+/// keeps running out. Measured on realistic databases (`benches/benches/search.rs`,
+/// `Cost::tree_rows` of `Plan::KdTree`): queries near stored places need a median of 390 / 480 /
+/// 980 rows for k = 1 at 10k / 100k / 1M entries (largest of 48: 1,251 / 4,814 / 4,082), and 2.5
+/// times that for k = 10.
 const AUTO_TREE_SHARE: usize = 256;
 const AUTO_TREE_PER_K: usize = 64;
 const AUTO_TREE_BASE: usize = 512;
 const AUTO_TREE_MAX_SHARE: usize = 16;
+
+/// The short walk before the sketch while the normal walk is being skipped ([`Observed`]) computes
+/// `AUTO_PRIME_BASE + AUTO_PRIME_PER_K · k` distances, the leaves nearest the query, whose k-th
+/// distance lets the sketch rule rows out from its first block. Without it the sketch starts from
+/// an empty heap and, on near-duplicates at 10k entries, gave up at its first check. Measured
+/// (release probe, 48 queries of another city, k = 1): 1M entries 2.7 ms with the normal walk,
+/// 2.2 ms with this one; 10k near-duplicates, queries of another place, 35 → 22 µs.
+pub const AUTO_PRIME_BASE: usize = 64;
+/// See [`AUTO_PRIME_BASE`].
+pub const AUTO_PRIME_PER_K: usize = 4;
 
 /// The deep budget, when the sketch is being skipped ([`Observed`]): `candidates /
 /// AUTO_DEEP_SHARE` rows, then brute force. On near-duplicates a walk needs a median of 1,432 /
@@ -249,7 +271,9 @@ impl<'a> Index<'a> {
     /// scanned still need their exact distance (rows too alike for the bytes to tell apart),
     /// brute force takes the rest. Rows beyond the kd-tree go through the sketch (with the same
     /// fallback) after a finished walk; [`Plan::KdTree`] computes their distances. With
-    /// [`Request::observed`], steps that keep failing are skipped ([`Observed`]).
+    /// [`Request::observed`], steps that keep failing are skipped ([`Observed`]): a walk that
+    /// keeps running out of budget (queries from places the rows do not hold) shrinks to the
+    /// few leaves nearest the query, which hand the sketch its first k-th distance.
     ///
     /// # Errors
     /// [`Error::LengthMismatch`] when `query.len()` differs from the rows' dimension or the
@@ -322,6 +346,7 @@ impl<'a> Index<'a> {
         let walk = req.observed.map_or(Depth::Normal, Observed::plan);
         let budget = match walk {
             Depth::Skip => 0,
+            Depth::Short => AUTO_PRIME_BASE + AUTO_PRIME_PER_K * req.k,
             Depth::Normal => {
                 (candidates / AUTO_TREE_SHARE + AUTO_TREE_PER_K * req.k + AUTO_TREE_BASE)
                     .min(candidates / AUTO_TREE_MAX_SHARE)
@@ -331,8 +356,13 @@ impl<'a> Index<'a> {
         let mut from = 0;
         if walk != Depth::Skip {
             let finished = self.walk(query, exclude, bound, budget, best, cost);
-            if let (Some(o), Depth::Deep) = (req.observed, walk) {
-                Observed::record(&o.deep_misses, finished);
+            if let (Some(o), Depth::Normal | Depth::Deep) = (req.observed, walk) {
+                let misses = if walk == Depth::Deep {
+                    &o.deep_misses
+                } else {
+                    &o.walk_misses
+                };
+                Observed::record(misses, finished);
             }
             if finished {
                 // The tree's rows are done; the others follow.
@@ -347,7 +377,7 @@ impl<'a> Index<'a> {
         if from >= candidates {
             return;
         }
-        if walk == Depth::Normal && from < self.sketch.len() {
+        if matches!(walk, Depth::Normal | Depth::Short) && from < self.sketch.len() {
             let done = self
                 .sketch
                 .scan(query, from, exclude, bound, true, best, cost);
