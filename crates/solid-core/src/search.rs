@@ -65,7 +65,7 @@ mod sketch;
 
 pub use index::{
     Cost, Found, Index, Observed, Plan, Request, AUTO_MISSES, AUTO_PRIME_BASE, AUTO_PRIME_PER_K,
-    AUTO_RETRY_EVERY,
+    AUTO_RETRY_EVERY, AUTO_TREE_ROW_COST,
 };
 pub use kdtree::{
     online_extend, online_extend_scratch_len, online_extend_with, online_insert, online_rebuild,
@@ -758,6 +758,16 @@ const PARALLEL_PART: usize = 1 << 13;
 /// Largest `k` for which a scan is shared (each part's neighbours live on the stack).
 #[cfg(feature = "parallel")]
 const PARALLEL_SCAN_MAX_K: usize = 64;
+
+/// The threads a scan of `rows` rows for `k` neighbours runs on ([`split_scan`]'s rule).
+pub(crate) fn scan_threads(rows: usize, k: usize) -> usize {
+    #[cfg(feature = "parallel")]
+    if rows >= PARALLEL_SCAN && k <= PARALLEL_SCAN_MAX_K {
+        return rayon::current_num_threads().max(1);
+    }
+    let _ = (rows, k);
+    1
+}
 
 /// Runs `part` over `lo..hi` in parts (cut on multiples of `align`) on the threads of the pool,
 /// each part but the first into a heap of its own whose neighbours then go into `best` (which

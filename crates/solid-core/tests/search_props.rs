@@ -10,7 +10,8 @@ use solid_lidar::search::{
     brute_force, inverse_norm, normalize, normalize_rows, normalized_distance, online_extend,
     online_extend_scratch_len, online_extend_with, online_insert, online_rebuild, sketch_encode,
     sketch_len, Cost, Exclude, Index, KdTree, Neighbor, Observed, OnlineIndex, Plan, Request, Rows,
-    Sketch, AUTO_MISSES, AUTO_PRIME_BASE, AUTO_PRIME_PER_K, AUTO_RETRY_EVERY, SKETCH_BLOCK,
+    Sketch, AUTO_MISSES, AUTO_PRIME_BASE, AUTO_PRIME_PER_K, AUTO_RETRY_EVERY, AUTO_TREE_ROW_COST,
+    SKETCH_BLOCK,
 };
 use solid_lidar::{cosine_distance, Config, Describer, Points};
 
@@ -131,6 +132,27 @@ impl Built {
     fn index<'a>(&'a self, rows: Rows<'a>) -> Index<'a> {
         Index::new(rows, &self.perm, &self.splits, &self.codes, &self.params).unwrap()
     }
+}
+
+/// The costs of `queries` searches of `q` with [`Plan::Auto`] sharing one [`Observed`], each
+/// checked equal to brute force.
+fn observed_costs(rows: Rows<'_>, q: &[f32], k: usize, queries: u32) -> Vec<Cost> {
+    let built = Built::of(rows);
+    let index = built.index(rows);
+    let observed = Observed::new();
+    let want = brute(rows, q, k, &Exclude::NONE);
+    (0..queries)
+        .map(|i| {
+            let req = Request {
+                observed: Some(&observed),
+                ..Request::nearest(k)
+            };
+            let mut out = vec![Neighbor::default(); k];
+            let found = index.search(q, &req, &mut out).unwrap();
+            assert_eq!(out, want, "query {i}");
+            found.cost
+        })
+        .collect()
 }
 
 fn sketch(rows: Rows<'_>, q: &[f32], k: usize, ex: &Exclude<'_>) -> Vec<Neighbor> {
@@ -602,70 +624,39 @@ fn auto_takes_each_path_and_stays_exact() {
         "{cost:?}"
     );
     // Observed over many queries: the sketch that keeps giving up is skipped and the kd-tree
-    // walks deeper instead; a deep walk that keeps running out of budget is skipped too (brute
-    // force alone). Each is tried again every AUTO_RETRY_EVERY queries (the deep walk half-way
-    // between the sketch's retries); the results do not change.
-    let built = Built::of(rows);
-    let index = built.index(rows);
-    let observed = Observed::new();
-    let want = brute(rows, &q, 3, &Exclude::NONE);
-    for i in 0..2 * AUTO_RETRY_EVERY {
-        let req = Request {
-            observed: Some(&observed),
-            ..Request::nearest(3)
-        };
-        let mut out = [Neighbor::default(); 3];
-        let found = index.search(&q, &req, &mut out).unwrap();
-        assert_eq!(&out[..], &want[..]);
+    // walks deeper instead; a deep walk that keeps running out of budget (each then costs its
+    // budget, two passes of brute force, and the pass that follows) is skipped too, within a
+    // few queries (brute force alone). Each is tried again every AUTO_RETRY_EVERY queries (the
+    // deep walk half-way between the sketch's retries); the results do not change.
+    let retry_deep = |i: u32| i % AUTO_RETRY_EVERY == AUTO_RETRY_EVERY / 2;
+    for (i, c) in (0..).zip(observed_costs(rows, &q, 3, 3 * AUTO_RETRY_EVERY)) {
         let sketch = i < AUTO_MISSES || i % AUTO_RETRY_EVERY == 0;
-        let deep = (AUTO_MISSES..2 * AUTO_MISSES).contains(&i)
-            || i % AUTO_RETRY_EVERY == AUTO_RETRY_EVERY / 2;
-        assert_eq!(
-            found.cost.sketch_rows > 0,
-            sketch,
-            "query {i}: {:?}",
-            found.cost
-        );
-        assert_eq!(
-            found.cost.tree_rows > 0,
-            sketch || deep,
-            "query {i}: {:?}",
-            found.cost
-        );
+        assert_eq!(c.sketch_rows > 0, sketch, "query {i}: {c:?}");
+        let deep = !sketch && c.tree_rows > 0;
+        if i == AUTO_MISSES || retry_deep(i) {
+            assert!(deep, "query {i}: {c:?}");
+        }
+        if i >= 2 * AUTO_MISSES && !retry_deep(i) && !sketch {
+            assert!(!deep, "query {i}: {c:?}");
+        }
         if deep {
-            // The deep walk computed more distances than the normal budget allows.
-            assert!(found.cost.tree_rows > n / 16, "query {i}: {:?}", found.cost);
+            // Deeper than the normal budget allows, out of budget, then brute force.
+            assert!(
+                c.tree_rows > n / 16 && c.exact_rows == n,
+                "query {i}: {c:?}"
+            );
         }
     }
     // Near-duplicates the kd-tree can still tell apart with a deeper walk: once the sketch is
-    // skipped, the deep walk finishes and brute force is not needed.
+    // skipped, the deep walk finishes, cheaper than brute force, which is not needed.
     // (One place moved along two directions: rows that differ in two dimensions only.)
     let mut rng = Rng(14);
-    let base: Vec<f32> = (0..dim).map(|_| 0.5 + rng.unit()).collect();
-    let dirs: Vec<f32> = (0..2 * dim).map(|_| rng.unit() - 0.5).collect();
-    let moved = |a: f32, b: f32| -> Vec<f32> {
-        (0..dim)
-            .map(|d| base[d] + 0.3 * (a * dirs[d] + b * dirs[dim + d]))
-            .collect()
-    };
-    let raw: Vec<f32> = (0..n).flat_map(|_| moved(rng.unit(), rng.unit())).collect();
-    let rows = normed(&raw, dim);
-    let q = normed(&moved(0.3, 0.6), dim);
+    let moved = Moved::new(dim, 2, &mut rng);
+    let rows = moved.rows(n, &mut rng);
+    let q = moved.at(&[0.3, 0.6]);
     let rows = Rows::normalized(&rows, dim).unwrap();
-    let built = Built::of(rows);
-    let index = built.index(rows);
-    let observed = Observed::new();
-    let want = brute(rows, &q, 1, &Exclude::NONE);
     let mut deep_finished = 0;
-    for i in 0..AUTO_RETRY_EVERY {
-        let req = Request {
-            observed: Some(&observed),
-            ..Request::nearest(1)
-        };
-        let mut out = [Neighbor::default(); 1];
-        let found = index.search(&q, &req, &mut out).unwrap();
-        assert_eq!(&out[..], &want[..]);
-        let c = found.cost;
+    for (i, c) in (0..).zip(observed_costs(rows, &q, 1, AUTO_RETRY_EVERY)) {
         if i < AUTO_MISSES {
             // The normal walk ran out of budget and the sketch gave up.
             assert!(
@@ -927,4 +918,81 @@ fn the_sketch_error_bounds_the_exact_one_on_adversarial_rows() {
         }
     }
     assert!(worst.is_finite(), "no row with an error");
+}
+
+/// One place moved along `m` random directions: rows that differ in `m` dimensions only.
+struct Moved {
+    dim: usize,
+    base: Vec<f32>,
+    dirs: Vec<Vec<f32>>,
+}
+
+impl Moved {
+    fn new(dim: usize, m: usize, rng: &mut Rng) -> Moved {
+        let base = (0..dim).map(|_| 0.5 + rng.unit()).collect();
+        let dirs = (0..m)
+            .map(|_| (0..dim).map(|_| rng.unit() - 0.5).collect())
+            .collect();
+        Moved { dim, base, dirs }
+    }
+
+    /// The place moved by `c[j]` along direction `j`, normalised.
+    fn at(&self, c: &[f32]) -> Vec<f32> {
+        normed(&self.raw(c), self.dim)
+    }
+
+    fn raw(&self, c: &[f32]) -> Vec<f32> {
+        (0..self.dim)
+            .map(|d| {
+                let shift: f32 = self.dirs.iter().zip(c).map(|(dir, c)| c * dir[d]).sum();
+                self.base[d] + 0.3 * shift
+            })
+            .collect()
+    }
+
+    /// `n` rows moved at random, normalised.
+    fn rows(&self, n: usize, rng: &mut Rng) -> Vec<f32> {
+        let raw: Vec<f32> = (0..n)
+            .flat_map(|_| {
+                let c: Vec<f32> = self.dirs.iter().map(|_| rng.unit()).collect();
+                self.raw(&c)
+            })
+            .collect();
+        normed(&raw, self.dim)
+    }
+}
+
+#[test]
+fn auto_skips_a_deep_walk_that_finishes_slower_than_brute_force() {
+    // Near-duplicates moved along six directions: the sketch gives up, and the deep walk
+    // finishes but computes more distances than a brute-force pass costs (AUTO_TREE_ROW_COST
+    // each, 6,000 rows: one thread). After a few such walks brute force runs alone; the walk is
+    // tried again half-way between the sketch's retries. The results do not change.
+    let (n, dim) = (6000, 24);
+    let mut rng = Rng(14);
+    let moved = Moved::new(dim, 6, &mut rng);
+    let rows = moved.rows(n, &mut rng);
+    let q = moved.at(&[0.8, 0.1, 0.4, 0.7, 0.0, 0.3]);
+    let rows = Rows::normalized(&rows, dim).unwrap();
+    let pass = n / AUTO_TREE_ROW_COST;
+    let mut deep = 0;
+    for (i, c) in (0..).zip(observed_costs(rows, &q, 1, 3 * AUTO_RETRY_EVERY)) {
+        let sketch = i < AUTO_MISSES || i % AUTO_RETRY_EVERY == 0;
+        assert_eq!(c.sketch_rows > 0, sketch, "query {i}: {c:?}");
+        if sketch {
+            continue;
+        }
+        if c.tree_rows > 0 {
+            // Finished, and dearer than a pass of brute force.
+            assert!(c.exact_rows == 0 && c.tree_rows > pass, "query {i}: {c:?}");
+            deep += 1;
+            assert!(
+                i < 2 * AUTO_MISSES || i % AUTO_RETRY_EVERY == AUTO_RETRY_EVERY / 2,
+                "query {i}: the deep walk went on: {c:?}"
+            );
+        } else {
+            assert_eq!(c.exact_rows, n, "query {i}: {c:?}");
+        }
+    }
+    assert!(deep >= 3, "{deep} deep walks");
 }

@@ -4,7 +4,8 @@ use core::sync::atomic::{AtomicU32, Ordering::Relaxed};
 
 use super::kdtree::{Walk, MAX_OFFSET_DIM};
 use super::{
-    check_out, check_query, scan, sketch_rows, Best, Exclude, Neighbor, OnlineIndex, Rows, Sketch,
+    check_out, check_query, scan, scan_threads, sketch_rows, Best, Exclude, Neighbor, OnlineIndex,
+    Rows, Sketch,
 };
 use crate::Error;
 
@@ -58,21 +59,28 @@ impl Request<'_> {
 /// What [`Plan::Auto`] has seen on the earlier queries of one set of rows. When the kd-tree's
 /// walk ran out of its normal budget on [`AUTO_MISSES`] queries in a row (queries from places
 /// the rows do not hold, whose walk only delays the sketch), the walk shrinks to the few leaves
-/// nearest the query ([`AUTO_PRIME_BASE`]), enough to hand the sketch a first k-th distance. When the sketch gave up on as many queries in a row (rows too alike for its
-/// bytes: a database of near-duplicates), the sketch is skipped and the kd-tree walks deeper
-/// instead (on such rows it is the only thing cheaper than brute force), brute force taking
-/// what the walk did not finish; when the deep walk did not finish on as many queries in a row
-/// either, brute force runs alone. Each skipped step is tried again on every
-/// [`AUTO_RETRY_EVERY`]th query. Keep one per database; threads may share it (the counts are
-/// loaded and stored, not locked: two threads updating at once may lose a count, which only
-/// delays a skip).
+/// nearest the query ([`AUTO_PRIME_BASE`]), enough to hand the sketch a first k-th distance.
+/// When the sketch gave up on as many queries in a row (rows too alike for its bytes: a
+/// database of near-duplicates), the sketch is skipped and the kd-tree walks deeper instead (on
+/// such rows it is the only thing that can beat brute force), brute force taking what the walk
+/// did not finish; the deep walk goes on while its recent cost, counted in brute-force passes
+/// ([`AUTO_TREE_ROW_COST`]; a walk that did not finish also costs the pass that follows it),
+/// averages less than one pass, and brute force runs alone otherwise. Each skipped step is
+/// tried again on every [`AUTO_RETRY_EVERY`]th query. Keep one per database; threads may share
+/// it (the counts are loaded and stored, not locked: two threads updating at once may lose a
+/// count, which only delays a change of plan).
 #[derive(Debug, Default)]
 pub struct Observed {
     queries: AtomicU32,
     walk_misses: AtomicU32,
-    deep_misses: AtomicU32,
+    /// The recent cost of the deep walk in [`DEEP_PASS`]ths of a brute-force pass (a moving
+    /// average over about the last four walks).
+    deep_cost: AtomicU32,
     sketch_misses: AtomicU32,
 }
+
+/// One brute-force pass in [`Observed::deep_cost`]'s unit.
+const DEEP_PASS: u32 = 1024;
 
 /// How far [`Plan::Auto`] walks the kd-tree on one query.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -94,7 +102,7 @@ impl Observed {
         Observed {
             queries: AtomicU32::new(0),
             walk_misses: AtomicU32::new(0),
-            deep_misses: AtomicU32::new(0),
+            deep_cost: AtomicU32::new(0),
             sketch_misses: AtomicU32::new(0),
         }
     }
@@ -110,7 +118,7 @@ impl Observed {
             } else {
                 Depth::Short
             }
-        } else if self.deep_misses.load(Relaxed) < AUTO_MISSES
+        } else if self.deep_cost.load(Relaxed) < DEEP_PASS
             || q % AUTO_RETRY_EVERY == AUTO_RETRY_EVERY / 2
         {
             Depth::Deep
@@ -126,6 +134,14 @@ impl Observed {
             count.load(Relaxed).saturating_add(1)
         };
         count.store(v, Relaxed);
+    }
+
+    /// Adds a deep walk that cost `passes` brute-force passes to the moving average (each walk
+    /// weighs a quarter).
+    fn record_deep(&self, passes: f64) {
+        let sample = (passes * f64::from(DEEP_PASS)).min(f64::from(16 * DEEP_PASS)) as u32;
+        let old = self.deep_cost.load(Relaxed);
+        self.deep_cost.store(old - old / 4 + sample / 4, Relaxed);
     }
 }
 
@@ -190,12 +206,22 @@ pub const AUTO_PRIME_BASE: usize = 64;
 /// See [`AUTO_PRIME_BASE`].
 pub const AUTO_PRIME_PER_K: usize = 4;
 
-/// The deep budget, when the sketch is being skipped ([`Observed`]): `candidates /
-/// AUTO_DEEP_SHARE` rows, then brute force. On near-duplicates a walk needs a median of 1,432 /
-/// 6,930 / 26,579 rows at 10k / 100k / 1M entries (at most 3,295 / 15,852 / 72,496 over 48
-/// queries) and takes 0.2–0.7 of brute force's time; a fruitless deep walk costs about as much
-/// as brute force.
-const AUTO_DEEP_SHARE: usize = 6;
+/// A distance the kd-tree computes costs about as much as this many rows of brute force on one
+/// thread (a jump to another row, and the walk itself); against brute force over `t` threads
+/// (the scans of 65,536 rows and more), `t` times as many. Measured (release probe,
+/// near-duplicate databases, 48 queries of another copy of the scan: the walk's time ÷ its
+/// distances against brute force's time ÷ its rows, median, k = 1 / 10): 6.4 / 5.8 at 10k
+/// entries (brute force on one thread), 13.5 / 13.0 at 100k and 17.3 / 15.4 at 1M (on two);
+/// the one-thread figure errs on the side of walking.
+///
+/// When the sketch is being skipped ([`Observed`]), the deep walk may compute as many distances
+/// as two brute-force passes cost, and goes on while its walks average less than one pass. On
+/// near-duplicates a walk needs a median of 1,432 / 6,930 / 26,579 distances at 10k / 100k / 1M
+/// entries for k = 1 (at most 3,295 / 15,852 / 72,496 over 48 queries) and 1.5–2 times as many
+/// for k = 10: far less than a pass at 1M entries, about one at 10k and 100k. With the walk
+/// stopped only when it ran out of a budget of a sixth of the rows, `auto` took 1.08–1.23× brute
+/// force's time at 100k entries, k = 10; with this rule 0.96–1.02× (k = 1 unchanged).
+pub const AUTO_TREE_ROW_COST: usize = 6;
 
 /// Every search over one set of rows: brute force, the online kd-tree index and the sketch,
 /// viewing caller-owned buffers (see [`OnlineIndex`] and [`Sketch`]). The kd-tree and the sketch
@@ -344,6 +370,8 @@ impl<'a> Index<'a> {
     ) {
         let (exclude, mut bound) = (&req.exclude, req.max_distance);
         let walk = req.observed.map_or(Depth::Normal, Observed::plan);
+        // What one kd-tree distance costs in rows of brute force over these candidates.
+        let tree_row = AUTO_TREE_ROW_COST * scan_threads(candidates, req.k);
         let budget = match walk {
             Depth::Skip => 0,
             Depth::Short => AUTO_PRIME_BASE + AUTO_PRIME_PER_K * req.k,
@@ -351,18 +379,18 @@ impl<'a> Index<'a> {
                 (candidates / AUTO_TREE_SHARE + AUTO_TREE_PER_K * req.k + AUTO_TREE_BASE)
                     .min(candidates / AUTO_TREE_MAX_SHARE)
             }
-            Depth::Deep => candidates / AUTO_DEEP_SHARE,
+            Depth::Deep => 2 * candidates / tree_row,
         };
         let mut from = 0;
         if walk != Depth::Skip {
             let finished = self.walk(query, exclude, bound, budget, best, cost);
-            if let (Some(o), Depth::Normal | Depth::Deep) = (req.observed, walk) {
-                let misses = if walk == Depth::Deep {
-                    &o.deep_misses
-                } else {
-                    &o.walk_misses
-                };
-                Observed::record(misses, finished);
+            match (req.observed, walk) {
+                (Some(o), Depth::Normal) => Observed::record(&o.walk_misses, finished),
+                (Some(o), Depth::Deep) => {
+                    let walked = (cost.tree_rows * tree_row) as f64 / candidates as f64;
+                    o.record_deep(walked + if finished { 0.0 } else { 1.0 });
+                }
+                _ => {}
             }
             if finished {
                 // The tree's rows are done; the others follow.
