@@ -27,7 +27,7 @@
 // `Vec`) under every feature set.
 #![cfg_attr(not(any(feature = "std", test)), no_std)]
 #![deny(missing_docs)]
-#![deny(unsafe_code)] // exceptions: calling a CPU-specific copy of a function after detecting its features
+#![deny(unsafe_code)] // exceptions: each marked `#[allow(unsafe_code)]` with a SAFETY note
 
 #[cfg(feature = "alloc")]
 extern crate alloc;

@@ -692,7 +692,7 @@ fn auto_shortens_a_walk_that_keeps_running_out() {
             observed: Some(&observed),
             ..Request::nearest(k)
         };
-        let mut out = [Neighbor::default(); 3];
+        let mut out = vec![Neighbor::default(); k];
         let found = index.search(q, &req, &mut out).unwrap();
         assert_eq!(&out[..], &brute(rows, q, k, &Exclude::NONE)[..]);
         found.cost
@@ -748,7 +748,14 @@ fn assert_every_plan_exact(
         for ex in exclusions {
             let want: Vec<Neighbor> = all
                 .iter()
-                .filter(|nb| (nb.id as usize) < ex.before_id)
+                .filter(|nb| {
+                    let id = nb.id as usize;
+                    // A timestamp past the bound leaves the entry out; NaN (no time) keeps it.
+                    id < ex.before_id
+                        && ex
+                            .not_newer_than
+                            .is_none_or(|(t, bound)| t[id].is_nan() || t[id] <= bound)
+                })
                 .take(k)
                 .copied()
                 .collect();
@@ -804,6 +811,14 @@ fn rows_past_the_tree_cut_in_parts_stay_exact() {
     online_rebuild(rows.prefix(head), &mut perm, &mut splits).unwrap();
     let (codes, params) = sketch_of(rows.prefix(head));
     let index = Index::new(rows, &perm, &splits, &codes, &params).unwrap();
+    // Timestamps that leave out every third row, in the tree and past it (NaN: no time, kept).
+    let times: Vec<f64> = (0..n)
+        .map(|i| match i % 3 {
+            0 => 1e9,
+            1 => f64::NAN,
+            _ => i as f64,
+        })
+        .collect();
     for qi in 0..4 {
         // Queries on repeated rows (ties at every distance of their copies) and one elsewhere.
         let q: Vec<f32> = if qi < 3 {
@@ -815,6 +830,10 @@ fn rows_past_the_tree_cut_in_parts_stay_exact() {
             Exclude::recent(n, 3),
             Exclude::recent(n, 1_000),
             Exclude::recent(n, n - head / 2),
+            Exclude {
+                before_id: n - 500,
+                not_newer_than: Some((&times, 1e8)),
+            },
         ];
         assert_every_plan_exact(&index, rows, &q, &[1, 5, 40], &exclusions);
     }

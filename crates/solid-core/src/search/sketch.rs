@@ -380,6 +380,9 @@ impl<'a> Sketch<'a> {
         cost: &mut Cost,
     ) -> bool {
         let end = self.rows.len().min(exclude.before_id);
+        // The parts after the first start from empty heaps: the neighbours `best` holds already
+        // bound them all the same.
+        let bound = best.limit(bound);
         let part = |from: usize, to: usize, best: &mut Best<'_>, cost: &mut Cost| {
             self.scan_part(query, from, to, exclude, bound, give_up, best, cost)
         };
