@@ -14,8 +14,11 @@ such copies (`same`) and the `near` queries (`other`). Descriptors are cached un
 target/solid-bench-data/ (the 1M sets take a few minutes the first time).
 
 Prints, with every figure measured in the same run and the ratio peer / solid:
-- single search: mean µs per query, the methods interleaved query by query; solid `auto` and
-  `brute`, faiss `IndexFlatIP.search` of one query, numpy `argmax(X @ q)`;
+- single search: mean µs per query over 144 queries, each method run once on each query, the
+  methods interleaved query by query; solid `auto` and `brute`, faiss `IndexFlatIP.search` of one
+  query (on 1 thread or on every core, whichever was faster on the first 16 queries of that
+  database: one query at 10k entries takes faiss 0.05 ms on 1 thread, 0.25-0.34 ms on 2), numpy
+  `argmax(X @ q)`;
 - batch search: 1,000 queries (half of each mix) in one call: `Database.search_batch`, faiss,
   numpy in blocks of 16 queries, and a loop over `Database.search`;
 - bulk add of the N entries from arrays: `Database.add_batch` (indexed, and stored only),
@@ -57,8 +60,11 @@ except ImportError:
     sys.exit("faiss-cpu is needed: pip install -r benches/requirements-bench.txt (or make bench-search-py)")
 
 F32 = npt.NDArray[np.float32]
+#: faiss's threads by default (every core): batches always run on them.
+FAISS_THREADS = faiss.omp_get_max_threads()
 CFG = solid.SolidConfig.preset("avia")
-QUERIES = 48
+#: Queries of each mix for single search: 6 times the 24 orders of the 4 methods.
+QUERIES = 144
 DATA_VERSION = 1
 
 
@@ -162,11 +168,13 @@ def best_interleaved(reps: int, fns: dict[str, Callable[[], object]]) -> dict[st
     """The best of `reps` runs of each function, the functions taking turns in every round, so
     that each meets the same state of the machine (the allocator's free memory above all: a bulk
     add into memory the allocator kept from an earlier one skips the page faults of fresh memory,
-    faiss's add of 100,000 entries took 3.5 to 7.7 ms over two runs of this script)."""
+    faiss's add of 100,000 entries took 3.5 to 7.7 ms over two runs of this script); each round
+    takes the next order of the functions, so that none always follows the same one."""
     best = dict.fromkeys(fns, float("inf"))
-    for _ in range(reps):
-        for name, fn in fns.items():
-            best[name] = min(best[name], timed(fn))
+    orders = list(itertools.permutations(fns))
+    for round_ in range(reps):
+        for name in orders[round_ % len(orders)]:
+            best[name] = min(best[name], timed(fns[name]))
     return best
 
 
@@ -178,12 +186,29 @@ def top_k_numpy(x: F32, q: F32, k: int) -> npt.NDArray[np.int64]:
     return part[np.argsort(-s[part], kind="stable")]
 
 
-def single(db: solid.Database, index: faiss.IndexFlatIP, x: F32, queries: F32, k: int) -> dict[str, float]:
-    """Mean seconds per query of each method, interleaved query by query, each query taking the
-    next of every order of the methods: each method then follows each other one equally often.
-    (With the order only rotated, a method always ran right after the same one, `auto` after
-    numpy and brute force after `auto`: on near-duplicates at 10,000 entries, k = 1, `auto` took
-    1.15× brute force's time that way and 1.02–1.04× this way, in one process.)"""
+def faiss_single_threads(index: faiss.IndexFlatIP, qn: F32) -> int:
+    """faiss's faster thread count for one query on this index, 1 or every core, from the first 16
+    queries run both ways in turn (best of 3 each). One query is a short job: on few entries the
+    threads cost more than they save (10k entries: 0.05 ms on 1 thread, 0.25-0.34 ms on 2, with
+    the passive wait policy above), on 1M they pay."""
+    total = {1: 0.0, FAISS_THREADS: 0.0}
+    for i in range(min(16, len(qn))):
+        for threads in total:
+            faiss.omp_set_num_threads(threads)
+            total[threads] += best_of(3, lambda: index.search(qn[i : i + 1], 1))
+    faiss.omp_set_num_threads(FAISS_THREADS)
+    return min(total, key=lambda t: total[t])
+
+
+def single(db: solid.Database, index: faiss.IndexFlatIP, x: F32, queries: F32, k: int, faiss_threads: int) -> dict[str, float]:
+    """Mean seconds per query of each method over the queries, each method run once on each query
+    (a repeat of one query would hide what `auto` learns across queries: it counts every call,
+    and its periodic retries fall on the repeats), interleaved query by query, each query taking
+    the next of every order of the methods: each method then follows each other one equally
+    often. (With the order only rotated, a method always ran right after the same one, `auto`
+    after numpy and brute force after `auto`: on near-duplicates at 10,000 entries, k = 1, `auto`
+    took 1.15× brute force's time that way and 1.02–1.04× this way, in one process.) faiss runs
+    on `faiss_threads` threads."""
     qn = normalised(queries)
     methods: dict[str, Callable[[int], object]] = {
         "auto": lambda i: db.search(queries[i], k=k),
@@ -193,11 +218,15 @@ def single(db: solid.Database, index: faiss.IndexFlatIP, x: F32, queries: F32, k
     }
     orders = list(itertools.permutations(methods))
     total = dict.fromkeys(methods, 0.0)
-    reps = 3
-    for i in range(len(queries)):
-        for name in orders[i % len(orders)]:
-            total[name] += best_of(reps, lambda: methods[name](i))
-        if k == 1:
+    faiss.omp_set_num_threads(faiss_threads)
+    try:
+        for i in range(len(queries)):
+            for name in orders[i % len(orders)]:
+                total[name] += timed(lambda: methods[name](i))
+    finally:
+        faiss.omp_set_num_threads(FAISS_THREADS)
+    if k == 1:
+        for i in range(len(queries)):
             hit = db.search(queries[i], k=1)[0]
             d_faiss, i_faiss = index.search(qn[i : i + 1], 1)
             assert hit.id == i_faiss[0, 0] or abs(hit.distance - (1 - d_faiss[0, 0])) < 1e-5, (hit, i_faiss)
@@ -225,7 +254,7 @@ def main() -> int:
     novel, _ = described("novel", 500, 3, scans.novel_copy)
     same, _ = described("dup-same", 500, 5, scans.dup_copy)
     print(
-        f"solid {solid.__version__}, faiss {faiss.__version__} ({faiss.omp_get_max_threads()} threads), "
+        f"solid {solid.__version__}, faiss {faiss.__version__} ({FAISS_THREADS} threads), "
         f"numpy {np.__version__}; {os.cpu_count()} cores; avia preset (40 range bins)"
     )
     rows_single: list[str] = []
@@ -236,7 +265,7 @@ def main() -> int:
         "command": "python benches/search_peers.py --json benches/results/search.json",
         "solid": solid.__version__,
         "faiss": faiss.__version__,
-        "faiss_threads": faiss.omp_get_max_threads(),
+        "faiss_threads": FAISS_THREADS,
         "numpy": np.__version__,
         "cores": os.cpu_count(),
         "cpu": cpu_model(),
@@ -253,8 +282,8 @@ def main() -> int:
         ):
             r, a = described(db_name, n, 1 if db_name == "hku" else 4, make)
             # Bulk add: solid indexed (the default) and stored only (index=False), faiss, numpy, taking
-            # turns (best of 31 rounds at 10k entries, where one run takes about a millisecond, down
-            # to 5 at 1M).
+            # turns (best of ADD_REPS rounds: more at 10k entries, where one run takes about a
+            # millisecond).
             reps = ADD_REPS[n]
             adds = best_interleaved(
                 reps,
@@ -280,12 +309,15 @@ def main() -> int:
                 js_mem.append({"n": n, "solid": db.memory_bytes() / n, "faiss": index.ntotal * 4 * CFG.n_range / n})
                 rows_mem.append(f"{n:>9d} {db.memory_bytes() / n:8.1f} {index.ntotal * 4 * CFG.n_range / n:8.1f} {x.nbytes / n:8.1f}")
             for mix, queries in mixes.items():
+                threads = faiss_single_threads(index, normalised(queries[:QUERIES]))
                 for k in (1, 10):
-                    t = single(db, index, x, queries[:QUERIES], k)
-                    js_single.append({"db": db_name, "mix": mix, "n": n, "k": k, **{f"{m}_s": v for m, v in t.items()}})
+                    t = single(db, index, x, queries[:QUERIES], k, threads)
+                    js_single.append(
+                        {"db": db_name, "mix": mix, "n": n, "k": k, "faiss_threads": threads, **{f"{m}_s": v for m, v in t.items()}}
+                    )
                     rows_single.append(
                         f"{db_name + '/' + mix:10s} {n:>9d} {k:3d} {t['auto'] * 1e6:9.1f} {t['brute'] * 1e6:9.1f} "
-                        f"{t['faiss'] * 1e6:9.1f} {t['numpy'] * 1e6:9.1f} {t['faiss'] / t['auto']:8.2f} "
+                        f"{t['faiss'] * 1e6:9.1f} {threads:2d} {t['numpy'] * 1e6:9.1f} {t['faiss'] / t['auto']:8.2f} "
                         f"{t['numpy'] / t['brute']:8.2f} {t['brute'] / t['auto']:8.2f}"
                     )
             # Batch: 1,000 queries, half of each mix.
@@ -306,13 +338,15 @@ def main() -> int:
             )
             print(f"  done {db_name} {n}", file=sys.stderr, flush=True)
 
-    print(f"\nsingle search: mean µs per query over {QUERIES} queries, methods interleaved; ratios peer / solid")
-    print(f"{'db/mix':10s} {'n':>9s} {'k':>3s} {'auto':>9s} {'brute':>9s} {'faiss':>9s} {'numpy':>9s} {'faiss/au':>8s} {'np/brute':>8s} {'bf/auto':>8s}")
+    print(f"\nsingle search: mean µs per query over {QUERIES} queries, methods interleaved; faiss on th threads; ratios peer / solid")
+    print(f"{'db/mix':10s} {'n':>9s} {'k':>3s} {'auto':>9s} {'brute':>9s} {'faiss':>9s} {'th':>2s} {'numpy':>9s} {'faiss/au':>8s} {'np/brute':>8s} {'bf/auto':>8s}")
     print("\n".join(rows_single))
     print("\nbatch search: 1,000 queries (500 of each mix), k = 1, ms; ratios peer / solid search_batch")
     print(f"{'db':4s} {'n':>9s} {'batch':>9s} {'faiss':>9s} {'numpy':>9s} {'loop':>9s} {'faiss/b':>8s} {'numpy/b':>8s} {'loop/b':>8s}")
     print("\n".join(rows_batch))
-    print("\nbulk add of n entries from arrays, ms (best of 15 / 7 / 3 runs at 10k / 100k / 1M); ratios faiss / solid (indexed, stored only)")
+    reps_text = " / ".join(str(ADD_REPS[n]) for n in sizes)
+    sizes_text = " / ".join(f"{n // 1000:,}k" for n in sizes)
+    print(f"\nbulk add of n entries from arrays, ms (best of {reps_text} runs at {sizes_text}); ratios faiss / solid (indexed, stored only)")
     print(f"{'db':4s} {'n':>9s} {'add':>9s} {'stored':>9s} {'faiss':>9s} {'numpy':>9s} {'faiss/a':>8s} {'faiss/st':>8s}")
     print("\n".join(rows_add))
     print("\nbytes per entry (hku): solid Database.memory_bytes() / n, faiss IndexFlatIP, numpy float32 rows")
