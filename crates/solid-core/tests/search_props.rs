@@ -7,10 +7,10 @@ use common::{data_dir, read_xyz_f32, Xorshift};
 
 use proptest::prelude::*;
 use solid_lidar::search::{
-    brute_force, inverse_norm, normalize, normalize_rows, normalized_distance, online_extend,
-    online_extend_scratch_len, online_extend_with, online_insert, online_rebuild, sketch_encode,
-    sketch_len, Cost, Exclude, Index, KdTree, Neighbor, Observed, OnlineIndex, Plan, Request, Rows,
-    Sketch, AUTO_MISSES, AUTO_PRIME_BASE, AUTO_PRIME_PER_K, AUTO_RETRY_EVERY, AUTO_TREE_ROW_COST,
+    auto_tree_row_cost, brute_force, inverse_norm, normalize, normalize_rows, normalized_distance,
+    online_extend, online_extend_scratch_len, online_extend_with, online_insert, online_rebuild,
+    sketch_encode, sketch_len, Cost, Exclude, Index, KdTree, Neighbor, Observed, OnlineIndex, Plan,
+    Request, Rows, Sketch, AUTO_MISSES, AUTO_PRIME_BASE, AUTO_PRIME_PER_K, AUTO_RETRY_EVERY,
     SKETCH_BLOCK,
 };
 use solid_lidar::{cosine_distance, Config, Describer, Points};
@@ -984,17 +984,17 @@ impl Moved {
 #[test]
 fn auto_skips_a_deep_walk_that_finishes_slower_than_brute_force() {
     // Near-duplicates moved along six directions: the sketch gives up, and the deep walk
-    // finishes but computes more distances than a brute-force pass costs (AUTO_TREE_ROW_COST
-    // each, 6,000 rows: one thread). After a few such walks brute force runs alone; the walk is
+    // finishes but computes more distances than a brute-force pass costs (auto_tree_row_cost
+    // each, 8,000 rows: one thread). After a few such walks brute force runs alone; the walk is
     // tried again half-way between the sketch's retries. The results do not change.
-    let (n, dim) = (6000, 24);
+    let (n, dim) = (8000, 24);
     let mut rng = Rng(14);
     let moved = Moved::new(dim, 6, &mut rng);
     let rows = moved.rows(n, &mut rng);
     let q = moved.at(&[0.8, 0.1, 0.4, 0.7, 0.0, 0.3]);
     let rows = Rows::normalized(&rows, dim).unwrap();
-    let pass = n / AUTO_TREE_ROW_COST;
-    let mut deep = 0;
+    let pass = n / auto_tree_row_cost(n, 1);
+    let (mut deep, mut skipped) = (0, false);
     for (i, c) in (0..).zip(observed_costs(rows, &q, 1, 3 * AUTO_RETRY_EVERY)) {
         let sketch = i < AUTO_MISSES || i % AUTO_RETRY_EVERY == 0;
         assert_eq!(c.sketch_rows > 0, sketch, "query {i}: {c:?}");
@@ -1005,13 +1005,17 @@ fn auto_skips_a_deep_walk_that_finishes_slower_than_brute_force() {
             // Finished, and dearer than a pass of brute force.
             assert!(c.exact_rows == 0 && c.tree_rows > pass, "query {i}: {c:?}");
             deep += 1;
+            // Once skipped, only tried again half-way between the sketch's retries.
             assert!(
-                i < 2 * AUTO_MISSES || i % AUTO_RETRY_EVERY == AUTO_RETRY_EVERY / 2,
+                !skipped || i % AUTO_RETRY_EVERY == AUTO_RETRY_EVERY / 2,
                 "query {i}: the deep walk went on: {c:?}"
             );
         } else {
             assert_eq!(c.exact_rows, n, "query {i}: {c:?}");
+            // The moving average (an eighth a walk) passes one pass within a few walks.
+            assert!(skipped || i < AUTO_MISSES + 8, "query {i}: skipped late");
+            skipped = true;
         }
     }
-    assert!(deep >= 3, "{deep} deep walks");
+    assert!(skipped && deep >= 3, "{deep} deep walks");
 }

@@ -74,7 +74,7 @@ pub struct Observed {
     queries: AtomicU32,
     walk_misses: AtomicU32,
     /// The recent cost of the deep walk in [`DEEP_PASS`]ths of a brute-force pass (a moving
-    /// average over about the last four walks).
+    /// average over about the last eight walks).
     deep_cost: AtomicU32,
     sketch_misses: AtomicU32,
 }
@@ -137,11 +137,14 @@ impl Observed {
     }
 
     /// Adds a deep walk that cost `passes` brute-force passes to the moving average (each walk
-    /// weighs a quarter).
+    /// weighs an eighth: walks on near-duplicates vary, 0.3 to 1.9 passes at 1M entries around
+    /// a mean of 0.78, and with a quarter a few dear walks in a row turned the walk off for long
+    /// stretches: `auto` took 0.98–1.02× brute force's time there for k = 1, with an eighth
+    /// 0.86×).
     fn record_deep(&self, passes: f64) {
         let sample = (passes * f64::from(DEEP_PASS)).min(f64::from(16 * DEEP_PASS)) as u32;
         let old = self.deep_cost.load(Relaxed);
-        self.deep_cost.store(old - old / 4 + sample / 4, Relaxed);
+        self.deep_cost.store(old - old / 8 + sample / 8, Relaxed);
     }
 }
 
@@ -207,21 +210,34 @@ pub const AUTO_PRIME_BASE: usize = 64;
 pub const AUTO_PRIME_PER_K: usize = 4;
 
 /// A distance the kd-tree computes costs about as much as this many rows of brute force on one
-/// thread (a jump to another row, and the walk itself); against brute force over `t` threads
-/// (the scans of 65,536 rows and more), `t` times as many. Measured (release probe,
-/// near-duplicate databases, 48 queries of another copy of the scan: the walk's time ÷ its
-/// distances against brute force's time ÷ its rows, median, k = 1 / 10): 6.4 / 5.8 at 10k
-/// entries (brute force on one thread), 13.5 / 13.0 at 100k and 17.3 / 15.4 at 1M (on two);
-/// the one-thread figure errs on the side of walking.
+/// thread (a jump to another row, and the walk itself) over fewer than 32,768 rows, one more for
+/// every doubling of the rows from there (the rows the walk jumps among outgrow the core's caches);
+/// against brute force over `t` threads (the scans of 65,536 rows and more), `t` times as many:
+/// [`auto_tree_row_cost`]. Measured on near-duplicate databases (release probe, 48 queries of
+/// another copy of the scan, each walk and each scan run once after 32 MB of other memory was
+/// written, as between a detector's queries: the walk's time ÷ its distances against brute
+/// force's time ÷ its rows, median, k = 1 / 10): 8.1 / 6.9 at 10k entries (brute force on one
+/// thread), 19.6 / 17.0 at 100k and 27.4 / 25.8 at 1M (on two), where the rule gives 8, 20 and
+/// 26. (Run back to back on the same query, with warm caches, the walk looks cheaper: 6.4 / 5.8,
+/// 16.3 / 15.1 and 14.2 / 12.7.)
 ///
 /// When the sketch is being skipped ([`Observed`]), the deep walk may compute as many distances
 /// as two brute-force passes cost, and goes on while its walks average less than one pass. On
-/// near-duplicates a walk needs a median of 1,432 / 6,930 / 26,579 distances at 10k / 100k / 1M
-/// entries for k = 1 (at most 3,295 / 15,852 / 72,496 over 48 queries) and 1.5–2 times as many
-/// for k = 10: far less than a pass at 1M entries, about one at 10k and 100k. With the walk
-/// stopped only when it ran out of a budget of a sixth of the rows, `auto` took 1.08–1.23× brute
-/// force's time at 100k entries, k = 10; with this rule 0.96–1.02× (k = 1 unchanged).
-pub const AUTO_TREE_ROW_COST: usize = 6;
+/// near-duplicates a walk computes a mean of 15.5 % / 7.0 % / 3.0 % of the rows at 10k / 100k /
+/// 1M entries for k = 1 and 23.5 % / 10.7 % / 4.8 % for k = 10: 1.24 / 1.41 / 0.78 and 1.88 /
+/// 2.15 / 1.23 passes by this rule, against 1.36 / 1.31 / 0.79 and 1.90 / 1.94 / 1.23 measured
+/// (the walk's total time ÷ brute force's, caches cold as above). With 6 for every size, the
+/// deep walk went on at 1M entries for k = 10, and `auto` took 1.20× brute force's time there;
+/// with this rule 1.03× (and 1.05–1.07× at 10k and 100k, where the walk and the sketch are
+/// tried again every 16th query).
+pub const AUTO_TREE_ROW_COST: usize = 8;
+
+/// What one distance of a kd-tree walk over `candidates` rows costs in rows of brute force over
+/// them, for `k` neighbours (see [`AUTO_TREE_ROW_COST`]).
+pub fn auto_tree_row_cost(candidates: usize, k: usize) -> usize {
+    let past_cache = candidates.max(1).ilog2().saturating_sub(14) as usize;
+    (AUTO_TREE_ROW_COST + past_cache) * scan_threads(candidates, k)
+}
 
 /// Every search over one set of rows: brute force, the online kd-tree index and the sketch,
 /// viewing caller-owned buffers (see [`OnlineIndex`] and [`Sketch`]). The kd-tree and the sketch
@@ -371,7 +387,7 @@ impl<'a> Index<'a> {
         let (exclude, mut bound) = (&req.exclude, req.max_distance);
         let walk = req.observed.map_or(Depth::Normal, Observed::plan);
         // What one kd-tree distance costs in rows of brute force over these candidates.
-        let tree_row = AUTO_TREE_ROW_COST * scan_threads(candidates, req.k);
+        let tree_row = auto_tree_row_cost(candidates, req.k);
         let budget = match walk {
             Depth::Skip => 0,
             Depth::Short => AUTO_PRIME_BASE + AUTO_PRIME_PER_K * req.k,
