@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+import multiprocessing
 import os
+import warnings
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -39,3 +43,23 @@ def shared() -> Path:
 @pytest.fixture(scope="session")
 def data(shared: Path) -> Path:
     return shared / "data"
+
+
+def in_forked_child(target: Callable[..., None], *args: Any, what: str, timeout: float = 60.0) -> Any:
+    """Runs `target(*args, conn)` in a child made by fork and returns what it sent through
+    `conn`; fails the test when the child hangs (the parent's worker threads do not exist there:
+    code that waits for them never returns) or dies. Skips where fork does not exist."""
+    if "fork" not in multiprocessing.get_all_start_methods():
+        pytest.skip("needs fork")
+    ctx = multiprocessing.get_context("fork")
+    ours, theirs = ctx.Pipe()
+    child = ctx.Process(target=target, args=(*args, theirs))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)  # fork of a multi-threaded process
+        child.start()
+    child.join(timeout)
+    if child.is_alive():
+        child.kill()
+        pytest.fail(f"{what} hung in a forked child")
+    assert child.exitcode == 0
+    return ours.recv()

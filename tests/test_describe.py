@@ -3,11 +3,9 @@
 from __future__ import annotations
 
 import json
-import multiprocessing
 import os
 import pickle
 import threading
-import warnings
 from pathlib import Path
 from typing import Any
 
@@ -16,6 +14,7 @@ import numpy.typing as npt
 import pytest
 
 import solid
+from conftest import in_forked_child
 from scans import read_kitti, read_xyz
 
 HDL64 = solid.SolidConfig.preset("hdl64")
@@ -302,25 +301,13 @@ def _describe_batch_in_child(raw: npt.NDArray[Any], conn: Any) -> None:
     conn.send([x.r.tolist() for x in d])
 
 
-@pytest.mark.skipif("fork" not in multiprocessing.get_all_start_methods(), reason="needs fork")
 def test_describe_batch_works_in_a_forked_child(data: Path) -> None:
     # The parent's workers do not exist in a child made by fork: the child must start its own
     # instead of waiting for them forever.
     raw = read_kitti(data / "kitti00" / "velodyne" / "000094.bin")
     want = solid.describe(raw, HDL64).r.tolist()
     solid.describe_batch([raw, raw], HDL64, threads=2)  # the parent's workers exist
-    ctx = multiprocessing.get_context("fork")
-    ours, theirs = ctx.Pipe()
-    child = ctx.Process(target=_describe_batch_in_child, args=(raw, theirs))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", DeprecationWarning)  # fork of a multi-threaded process
-        child.start()
-    child.join(60)
-    if child.is_alive():
-        child.kill()
-        pytest.fail("describe_batch hung in a forked child")
-    assert child.exitcode == 0
-    assert ours.recv() == [want, want]
+    assert in_forked_child(_describe_batch_in_child, raw, what="describe_batch") == [want, want]
 
 
 def test_describe_batch_names_the_bad_scan() -> None:

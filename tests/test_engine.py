@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 import pytest
-from conftest import data_dir
+from conftest import data_dir, in_forked_child
 from scans import read_kitti
 
 import solid
@@ -301,3 +302,29 @@ def test_database_and_detector_are_safe_to_share_between_threads(cfg: solid.Soli
     n = len(db)
     db.merge(db)
     assert len(db) == 2 * n
+
+
+def _search_in_child(r: npt.NDArray[np.float32], a: npt.NDArray[np.float32], conn: Any) -> None:
+    db = solid.Database(solid.SolidConfig.preset("avia"))
+    db.add_batch(r, a)  # the kd-tree and the sketch built on several threads
+    hits = [db.search(r[i], k=2, method=m) for i in (5, 70_000) for m in ("brute", "auto", "sketch")]
+    ids, _ = db.search_batch(r[:8], k=1)
+    conn.send(([[h.id for h in x] for x in hits], ids[:, 0].tolist()))
+
+
+def test_database_works_in_a_forked_child() -> None:
+    # Scans of 65,536 rows and more, index builds and batches run on worker threads, which do
+    # not exist in a child made by fork: the child must start its own instead of waiting for
+    # them forever (it did, with rayon's global pool).
+    cfg = solid.SolidConfig.preset("avia")
+    rng = np.random.default_rng(3)
+    n = 80_000
+    r = rng.uniform(0.0, 1.0, (n, cfg.n_range)).astype(np.float32)
+    a = rng.uniform(0.0, 1.0, (n, cfg.n_azimuth)).astype(np.float32)
+    r[70_001] = r[70_000]  # a tie: the lower id first
+    parent = solid.Database(cfg)
+    parent.add_batch(r, a)
+    assert parent.search(r[5], k=1, method="brute")[0].id == 5  # the parent's workers exist
+    hits, batch = in_forked_child(_search_in_child, r, a, what="a Database")
+    assert all(h[0] == 5 for h in hits[:3]) and all(h == [70_000, 70_001] for h in hits[3:])
+    assert batch == list(range(8))

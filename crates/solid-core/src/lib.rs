@@ -42,6 +42,8 @@ mod error;
 pub mod eval;
 pub mod lzf;
 mod math;
+#[cfg(feature = "parallel")]
+mod pool;
 #[cfg(feature = "alloc")]
 pub mod reg;
 pub mod search;

@@ -769,7 +769,7 @@ const PARALLEL_SCAN_MAX_K: usize = 64;
 pub(crate) fn scan_threads(rows: usize, k: usize) -> usize {
     #[cfg(feature = "parallel")]
     if rows >= PARALLEL_SCAN && k <= PARALLEL_SCAN_MAX_K {
-        return rayon::current_num_threads().clamp(1, PARALLEL_HELPERS + 1);
+        return crate::pool::scan_threads().clamp(1, PARALLEL_HELPERS + 1);
     }
     let _ = (rows, k);
     1
@@ -842,7 +842,7 @@ where
         cost: Cost::default(),
     });
     let helpers = &mut helpers[..threads - 1];
-    rayon::in_place_scope(|scope| {
+    crate::pool::in_place_scope(|scope| {
         for h in helpers.iter_mut() {
             let work = &work;
             scope.spawn(move |_| {

@@ -890,9 +890,9 @@ where
     F: Fn(I::Item) -> Result<(), Error> + Sync + Send,
 {
     #[cfg(feature = "parallel")]
-    if m >= 2 * CHUNK_ROWS {
+    if m >= 2 * CHUNK_ROWS && crate::pool::threads() > 1 {
         use rayon::iter::{ParallelBridge, ParallelIterator};
-        return chunks.par_bridge().try_for_each(fill);
+        return crate::pool::install(|| chunks.par_bridge().try_for_each(fill));
     }
     let _ = m;
     chunks.into_iter().try_for_each(fill)
@@ -1056,9 +1056,11 @@ mod batch {
         {
             use rayon::prelude::*;
             let parts: alloc::vec::Vec<_> = parts.collect();
-            parts
-                .into_par_iter()
-                .try_for_each_init(Observed::new, chunk)
+            crate::pool::install(|| {
+                parts
+                    .into_par_iter()
+                    .try_for_each_init(Observed::new, chunk)
+            })
         }
         #[cfg(not(feature = "parallel"))]
         {

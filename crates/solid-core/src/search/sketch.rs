@@ -126,15 +126,17 @@ pub fn sketch_encode(
         encode_block(rows, start, from, codes, params);
     };
     #[cfg(feature = "parallel")]
-    if blocks - first >= PARALLEL_BLOCKS {
+    if blocks - first >= PARALLEL_BLOCKS && crate::pool::threads() > 1 {
         use rayon::iter::{IndexedParallelIterator, ParallelIterator};
         use rayon::slice::ParallelSliceMut;
-        codes
-            .par_chunks_mut(width)
-            .zip(params.par_chunks_mut(PARAMS * SKETCH_BLOCK))
-            .enumerate()
-            .with_min_len(PARALLEL_BLOCKS / 4)
-            .for_each(block);
+        crate::pool::install(|| {
+            codes
+                .par_chunks_mut(width)
+                .zip(params.par_chunks_mut(PARAMS * SKETCH_BLOCK))
+                .enumerate()
+                .with_min_len(PARALLEL_BLOCKS / 4)
+                .for_each(block)
+        });
         return Ok(());
     }
     codes
