@@ -820,16 +820,24 @@ where
     let done = AtomicUsize::new(0);
     let all_preferred = AtomicBool::new(true);
     // Takes parts until none is left; returns when every part this thread took is done.
+    // Counts a part done when dropped: also when the part panics, so that the spin below ends
+    // and the scope hands the panic to this thread instead of spinning forever.
+    struct Done<'a>(&'a AtomicUsize);
+    impl Drop for Done<'_> {
+        fn drop(&mut self) {
+            self.0.fetch_add(1, Ordering::Release);
+        }
+    }
     let work = |best: &mut Best<'_>, cost: &mut Cost| loop {
         let i = next.fetch_add(1, Ordering::Relaxed);
         if i >= parts {
             break;
         }
         let (a, b) = range(i);
+        let _done = Done(&done);
         if !part(a, b, best, cost) {
             all_preferred.store(false, Ordering::Relaxed);
         }
-        done.fetch_add(1, Ordering::Release);
     };
     struct Helper {
         heap: [Neighbor; PARALLEL_SCAN_MAX_K],
@@ -1027,5 +1035,36 @@ mod tests {
                 distance: 1.0
             }
         );
+    }
+
+    /// A part that panics on a helper thread reaches the searching thread as a panic instead of
+    /// leaving it waiting for that part forever.
+    #[cfg(feature = "parallel")]
+    #[test]
+    fn a_panicking_part_reaches_the_searching_thread() {
+        use std::sync::atomic::{AtomicBool, Ordering};
+        let n = 1 << 18;
+        if scan_threads(n, 1) < 2 {
+            return; // one thread: nothing is shared
+        }
+        let searching = std::thread::current().id();
+        let panicked = AtomicBool::new(false);
+        let mut buf = [Neighbor::default(); 1];
+        let mut best = Best::new(&mut buf);
+        let mut cost = Cost::default();
+        let got = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            split_scan(0, n, 4, &mut best, &mut cost, |_, _, _, _| {
+                // Slow parts, so that a helper wakes and takes some; its first one panics.
+                std::thread::sleep(std::time::Duration::from_millis(2));
+                let helper = std::thread::current().id() != searching;
+                assert!(
+                    !helper || panicked.swap(true, Ordering::Relaxed),
+                    "a helper's part"
+                );
+                true
+            })
+        }));
+        assert!(panicked.load(Ordering::Relaxed), "no helper took a part");
+        assert!(got.is_err());
     }
 }
