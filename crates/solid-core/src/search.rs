@@ -65,7 +65,7 @@ mod sketch;
 
 pub use index::{
     auto_tree_row_cost, Cost, Found, Index, Observed, Plan, Request, AUTO_MISSES, AUTO_PRIME_BASE,
-    AUTO_PRIME_PER_K, AUTO_RETRY_EVERY, AUTO_TREE_ROW_COST,
+    AUTO_PRIME_PER_K, AUTO_RETRY_EVERY, AUTO_RETRY_MAX, AUTO_TREE_ROW_COST,
 };
 pub use kdtree::{
     online_extend, online_extend_scratch_len, online_extend_with, online_insert, online_rebuild,

@@ -11,7 +11,7 @@ use solid_lidar::search::{
     online_extend, online_extend_scratch_len, online_extend_with, online_insert, online_rebuild,
     sketch_encode, sketch_len, Cost, Exclude, Index, KdTree, Neighbor, Observed, OnlineIndex, Plan,
     Request, Rows, Sketch, AUTO_MISSES, AUTO_PRIME_BASE, AUTO_PRIME_PER_K, AUTO_RETRY_EVERY,
-    SKETCH_BLOCK,
+    AUTO_RETRY_MAX, SKETCH_BLOCK,
 };
 use solid_lidar::{cosine_distance, Config, Describer, Points};
 
@@ -132,6 +132,55 @@ impl Built {
     fn index<'a>(&'a self, rows: Rows<'a>) -> Index<'a> {
         Index::new(rows, &self.perm, &self.splits, &self.codes, &self.params).unwrap()
     }
+}
+
+/// Whether [`Observed`] tries a skipped sketch again on query `i` when it failed on the first
+/// [`AUTO_MISSES`] queries and fails on every retry: its documented schedule, written out here on
+/// its own (16, 32, 64, 128, 256, then every 256th).
+fn retried(i: u32) -> bool {
+    if i < AUTO_RETRY_MAX {
+        i >= AUTO_RETRY_EVERY && i.is_power_of_two()
+    } else {
+        i.is_multiple_of(AUTO_RETRY_MAX)
+    }
+}
+
+/// Whether [`Observed`] tries a skipped deep walk again on query `i` while the sketch keeps
+/// failing: three quarters of the way between the sketch's retries (12, 24, 48, 96, 192, then
+/// 256 later each time).
+fn deep_retried(i: u32) -> bool {
+    let last = AUTO_RETRY_MAX / 4 * 3;
+    if i < last {
+        i >= AUTO_RETRY_EVERY / 4 * 3 && i.is_multiple_of(3) && (i / 3).is_power_of_two()
+    } else {
+        i % AUTO_RETRY_MAX == last
+    }
+}
+
+#[test]
+fn auto_tries_a_failing_step_again_less_and_less_often() {
+    // Near-duplicates (one place under 0.1 % noise): the normal walk runs out and the sketch
+    // gives up on every query, and the deep walk runs out too. Over 1,100 queries the sketch
+    // runs on the first AUTO_MISSES and on its retries, the deep walk on a few queries until its
+    // cost is known and then on its retries: the schedules `retried` and `deep_retried` spell out.
+    let (n, dim) = (2_000, 24);
+    let rows = places(n, dim, 1, 1e-3, &mut Rng(21));
+    let q = places(1, dim, 1, 0.0, &mut Rng(21));
+    let rows = Rows::normalized(&rows, dim).unwrap();
+    let costs = observed_costs(rows, &q, 1, 1_100);
+    let (mut sketched, mut deep) = (vec![], vec![]);
+    for (i, c) in (0..).zip(&costs) {
+        if c.sketch_rows > 0 {
+            sketched.push(i);
+        } else if c.tree_rows > 0 && i >= 2 * AUTO_MISSES {
+            deep.push(i);
+        }
+    }
+    assert_eq!(sketched, [0, 1, 2, 3, 16, 32, 64, 128, 256, 512, 768, 1024]);
+    assert_eq!(deep, [12, 24, 48, 96, 192, 448, 704, 960]);
+    let upto = |f: fn(u32) -> bool| (0..1_100).filter(|&i| f(i)).collect::<Vec<u32>>();
+    assert_eq!(upto(retried), sketched[AUTO_MISSES as usize..]);
+    assert_eq!(upto(deep_retried), deep);
 }
 
 /// The costs of `queries` searches of `q` with [`Plan::Auto`] sharing one [`Observed`], each
@@ -626,17 +675,16 @@ fn auto_takes_each_path_and_stays_exact() {
     // Observed over many queries: the sketch that keeps giving up is skipped and the kd-tree
     // walks deeper instead; a deep walk that keeps running out of budget (each then costs its
     // budget, two passes of brute force, and the pass that follows) is skipped too, within a
-    // few queries (brute force alone). Each is tried again every AUTO_RETRY_EVERY queries (the
-    // deep walk half-way between the sketch's retries); the results do not change.
-    let retry_deep = |i: u32| i % AUTO_RETRY_EVERY == AUTO_RETRY_EVERY / 2;
-    for (i, c) in (0..).zip(observed_costs(rows, &q, 3, 3 * AUTO_RETRY_EVERY)) {
-        let sketch = i < AUTO_MISSES || i % AUTO_RETRY_EVERY == 0;
+    // few queries (brute force alone). Each is tried again less and less often while it keeps
+    // failing (retried, deep_retried); the results do not change.
+    for (i, c) in (0..).zip(observed_costs(rows, &q, 3, 100)) {
+        let sketch = i < AUTO_MISSES || retried(i);
         assert_eq!(c.sketch_rows > 0, sketch, "query {i}: {c:?}");
         let deep = !sketch && c.tree_rows > 0;
-        if i == AUTO_MISSES || retry_deep(i) {
+        if i == AUTO_MISSES || deep_retried(i) {
             assert!(deep, "query {i}: {c:?}");
         }
-        if i >= 2 * AUTO_MISSES && !retry_deep(i) && !sketch {
+        if i >= 2 * AUTO_MISSES && !deep_retried(i) && !sketch {
             assert!(!deep, "query {i}: {c:?}");
         }
         if deep {
@@ -676,8 +724,9 @@ fn auto_shortens_a_walk_that_keeps_running_out() {
     // Queries from places the rows do not hold: the normal walk runs out of its budget without
     // finishing while the sketch rules rows out. After AUTO_MISSES such walks the walk shrinks to
     // the leaves nearest the query (AUTO_PRIME_BASE + AUTO_PRIME_PER_K·k distances), the normal
-    // walk being tried again every AUTO_RETRY_EVERY queries; a query near a stored place at such
-    // a retry finishes the walk and brings the normal walk back. The results never change.
+    // walk being tried again every AUTO_RETRY_EVERY queries (it costs little); a query near a
+    // stored place at such a retry finishes the walk and brings the normal walk back. The
+    // results never change.
     let (n, dim, k) = (20_000, 40, 3);
     let mut rng = Rng(90);
     let data = places(n, dim, 2_000, 0.05, &mut rng);
@@ -686,7 +735,6 @@ fn auto_shortens_a_walk_that_keeps_running_out() {
     let index = built.index(rows);
     let observed = Observed::new();
     let short = AUTO_PRIME_BASE + AUTO_PRIME_PER_K * k;
-    let retry = AUTO_RETRY_EVERY as usize;
     let search = |q: &[f32]| {
         let req = Request {
             observed: Some(&observed),
@@ -699,26 +747,27 @@ fn auto_shortens_a_walk_that_keeps_running_out() {
     };
     // Novel queries: the normal walk (at the first AUTO_MISSES and at every retry) stops on its
     // budget, the sketch scans every row; in between, the short walk.
-    let novel = 2 * retry + 5;
+    let novel = 2 * AUTO_RETRY_EVERY + 5;
     for i in 0..novel {
-        let c = search(&places(1, dim, 1, 0.0, &mut Rng(1_000 + i as u64)));
-        let normal = i < AUTO_MISSES as usize || i % retry == 0;
+        let c = search(&places(1, dim, 1, 0.0, &mut Rng(1_000 + u64::from(i))));
+        let normal = i < AUTO_MISSES || i.is_multiple_of(AUTO_RETRY_EVERY);
         assert_eq!(c.sketch_rows, n, "query {i}: {c:?}");
         assert_eq!(c.tree_rows > 2 * short, normal, "query {i}: {c:?}");
     }
     // Stored places: the short walk and the sketch until the next retry, whose walk finishes;
     // the normal walk from then on (finished, or stopped on its budget).
-    for i in novel..novel + 2 * retry {
-        let c = search(&data[(i * 997 % n) * dim..][..dim]);
+    let back = novel.next_multiple_of(AUTO_RETRY_EVERY);
+    for i in novel..back + AUTO_RETRY_EVERY {
+        let c = search(&data[(i as usize * 997 % n) * dim..][..dim]);
         let finished = c.sketch_rows == 0 && c.exact_rows == 0;
-        if i < 3 * retry {
+        if i < back {
             assert!(
                 (short..2 * short).contains(&c.tree_rows) && c.sketch_rows == n,
                 "query {i}: {c:?}"
             );
         } else {
             assert!(finished || c.tree_rows > 2 * short, "query {i}: {c:?}");
-            assert!(finished || i > 3 * retry, "query {i}: {c:?}");
+            assert!(finished || i > back, "query {i}: {c:?}");
         }
     }
 }
@@ -986,7 +1035,7 @@ fn auto_skips_a_deep_walk_that_finishes_slower_than_brute_force() {
     // Near-duplicates moved along six directions: the sketch gives up, and the deep walk
     // finishes but computes more distances than a brute-force pass costs (auto_tree_row_cost
     // each, 8,000 rows: one thread). After a few such walks brute force runs alone; the walk is
-    // tried again half-way between the sketch's retries. The results do not change.
+    // tried again on its own retries (deep_retried). The results do not change.
     let (n, dim) = (8000, 24);
     let mut rng = Rng(14);
     let moved = Moved::new(dim, 6, &mut rng);
@@ -996,7 +1045,7 @@ fn auto_skips_a_deep_walk_that_finishes_slower_than_brute_force() {
     let pass = n / auto_tree_row_cost(n, 1);
     let (mut deep, mut skipped) = (0, false);
     for (i, c) in (0..).zip(observed_costs(rows, &q, 1, 3 * AUTO_RETRY_EVERY)) {
-        let sketch = i < AUTO_MISSES || i % AUTO_RETRY_EVERY == 0;
+        let sketch = i < AUTO_MISSES || retried(i);
         assert_eq!(c.sketch_rows > 0, sketch, "query {i}: {c:?}");
         if sketch {
             continue;
@@ -1005,9 +1054,9 @@ fn auto_skips_a_deep_walk_that_finishes_slower_than_brute_force() {
             // Finished, and dearer than a pass of brute force.
             assert!(c.exact_rows == 0 && c.tree_rows > pass, "query {i}: {c:?}");
             deep += 1;
-            // Once skipped, only tried again half-way between the sketch's retries.
+            // Once skipped, only tried again on the deep walk's retries.
             assert!(
-                !skipped || i % AUTO_RETRY_EVERY == AUTO_RETRY_EVERY / 2,
+                !skipped || deep_retried(i),
                 "query {i}: the deep walk went on: {c:?}"
             );
         } else {

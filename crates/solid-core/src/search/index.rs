@@ -65,8 +65,17 @@ impl Request<'_> {
 /// such rows it is the only thing that can beat brute force), brute force taking what the walk
 /// did not finish; the deep walk goes on while its recent cost, counted in brute-force passes
 /// ([`AUTO_TREE_ROW_COST`]; a walk that did not finish also costs the pass that follows it),
-/// averages less than one pass, and brute force runs alone otherwise. Each skipped step is
-/// tried again on every [`AUTO_RETRY_EVERY`]th query. Keep one per database; threads may share
+/// averages less than one pass, and brute force runs alone otherwise. The normal walk is tried
+/// again on every [`AUTO_RETRY_EVERY`]th query (a walk that runs out costs a tenth of a pass or
+/// less). A skipped sketch is tried again on the next query whose number is a multiple of
+/// [`AUTO_RETRY_EVERY`], and each time it fails again the interval doubles, up to
+/// [`AUTO_RETRY_MAX`] (queries 16, 32, 64, 128, 256, 512, 768, …); a skipped deep walk three
+/// quarters of the way between the sketch's tries (queries 12, 24, 48, 96, 192, 448, …). Such a
+/// retry that fails costs one or two brute-force passes: tried every 16th query on
+/// near-duplicates, they made `auto` 1.06–1.21× as slow as brute force over 500 queries at 10k
+/// and 100k entries, doubling 1.01–1.07× (`benches` probe, interleaved, k = 1 and 10). The price:
+/// on rows that change (a database that grows), a sketch skipped for long comes back up to 256
+/// queries late, brute force running meanwhile. Keep one per database; threads may share
 /// it (the counts are loaded and stored, not locked: two threads updating at once may lose a
 /// count, which only delays a change of plan).
 #[derive(Debug, Default)]
@@ -111,16 +120,14 @@ impl Observed {
     fn plan(&self) -> Depth {
         let q = self.queries.load(Relaxed);
         self.queries.store(q.wrapping_add(1), Relaxed);
-        let retry = q.is_multiple_of(AUTO_RETRY_EVERY);
-        if retry || self.sketch_misses.load(Relaxed) < AUTO_MISSES {
-            if retry || self.walk_misses.load(Relaxed) < AUTO_MISSES {
+        let sketch = retry_every(self.sketch_misses.load(Relaxed));
+        if q.is_multiple_of(sketch) {
+            if self.walk_misses.load(Relaxed) < AUTO_MISSES || q.is_multiple_of(AUTO_RETRY_EVERY) {
                 Depth::Normal
             } else {
                 Depth::Short
             }
-        } else if self.deep_cost.load(Relaxed) < DEEP_PASS
-            || q % AUTO_RETRY_EVERY == AUTO_RETRY_EVERY / 2
-        {
+        } else if self.deep_cost.load(Relaxed) < DEEP_PASS || q % sketch == sketch / 4 * 3 {
             Depth::Deep
         } else {
             Depth::Skip
@@ -157,8 +164,22 @@ impl Clone for Observed {
 
 /// [`Observed`] skips a step after this many failures in a row...
 pub const AUTO_MISSES: u32 = 4;
-/// ...and tries it again on every this-many-th query.
+/// ...tries it again on the next query whose number is a multiple of this (a skipped sketch or
+/// deep walk: after each retry that fails, twice as long)...
 pub const AUTO_RETRY_EVERY: u32 = 16;
+/// ...up to this many queries.
+pub const AUTO_RETRY_MAX: u32 = 256;
+
+/// The interval of [`Observed`]'s retries of a step that failed `misses` times in a row: 1 (run
+/// it on every query) below [`AUTO_MISSES`], then [`AUTO_RETRY_EVERY`], doubling with each
+/// retry that failed, up to [`AUTO_RETRY_MAX`].
+fn retry_every(misses: u32) -> u32 {
+    if misses < AUTO_MISSES {
+        return 1;
+    }
+    let doublings = (misses - AUTO_MISSES).min((AUTO_RETRY_MAX / AUTO_RETRY_EVERY).ilog2());
+    AUTO_RETRY_EVERY << doublings
+}
 
 /// The work a search did, by kind (for benchmarks and for callers that tune their plan).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -228,8 +249,8 @@ pub const AUTO_PRIME_PER_K: usize = 4;
 /// 2.15 / 1.23 passes by this rule, against 1.36 / 1.31 / 0.79 and 1.90 / 1.94 / 1.23 measured
 /// (the walk's total time ÷ brute force's, caches cold as above). With 6 for every size, the
 /// deep walk went on at 1M entries for k = 10, and `auto` took 1.20× brute force's time there;
-/// with this rule 1.03× (and 1.05–1.07× at 10k and 100k, where the walk and the sketch are
-/// tried again every 16th query).
+/// with this rule 1.03× (and 1.05–1.07× at 10k and 100k, where the walk and the sketch were
+/// then tried again on every 16th query).
 pub const AUTO_TREE_ROW_COST: usize = 8;
 
 /// What one distance of a kd-tree walk over `candidates` rows costs in rows of brute force over
