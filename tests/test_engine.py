@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+import subprocess
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -328,3 +330,42 @@ def test_database_works_in_a_forked_child() -> None:
     hits, batch = in_forked_child(_search_in_child, r, a, what="a Database")
     assert all(h[0] == 5 for h in hits[:3]) and all(h == [70_000, 70_001] for h in hits[3:])
     assert batch == list(range(8))
+
+
+_WITHOUT_THREADS = """
+import resource, sys, threading
+import numpy as np
+import solid
+
+cfg = solid.SolidConfig.preset("avia")
+rng = np.random.default_rng(5)
+r = rng.uniform(0.0, 1.0, (1000, cfg.n_range)).astype(np.float32)
+a = rng.uniform(0.0, 1.0, (1000, cfg.n_azimuth)).astype(np.float32)
+db = solid.Database(cfg)
+db.add_batch(r, a, index=False)  # too few rows to start worker threads
+# No new thread can start: its stack (2 MiB or more) does not fit in the address space left.
+with open("/proc/self/statm") as f:
+    size = int(f.read().split()[0]) * resource.getpagesize()
+resource.setrlimit(resource.RLIMIT_AS, (size + (1 << 20), resource.RLIM_INFINITY))
+try:
+    threading.Thread(target=lambda: None).start()
+    sys.exit("a thread started: the limit did not hold")
+except RuntimeError:
+    pass
+ids, _ = db.search_batch(r[:100], k=1)
+assert ids[:, 0].tolist() == list(range(100)), ids[:, 0]
+db.build_index()
+assert [db.search(r[i], k=1)[0].id for i in (3, 999)] == [3, 999]
+print("ok")
+"""
+
+
+def test_a_process_that_cannot_start_threads_still_searches() -> None:
+    # Without worker threads (none can start), batches and index builds run on the calling
+    # thread; search_batch used to hand its queries to rayon's global pool then, which could
+    # not start either, and panicked. A fresh interpreter: a forked child could reuse the stacks
+    # of its parent's ended threads.
+    if not Path("/proc/self/statm").exists():
+        pytest.skip("needs Linux's /proc")
+    run = subprocess.run([sys.executable, "-c", _WITHOUT_THREADS], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0 and run.stdout == "ok\n", run.stderr[-2000:]

@@ -43,7 +43,8 @@ pub mod eval;
 pub mod lzf;
 mod math;
 #[cfg(feature = "parallel")]
-mod pool;
+#[doc(hidden)]
+pub mod pool;
 #[cfg(feature = "alloc")]
 pub mod reg;
 pub mod search;

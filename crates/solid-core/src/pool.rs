@@ -1,107 +1,208 @@
 //! The worker threads of the `parallel` feature: rayon pools of this process, started on first
-//! use.
+//! use and kept for its life.
 //!
 //! Not rayon's global pool: no thread survives `fork` (Python's multiprocessing on Linux), so a
 //! child that handed work to the global pool its parent had started waited forever (a brute-force
-//! search over 100,000 rows in a `multiprocessing` worker never returned). These pools are keyed
-//! by process id: a child starts its own. Work that is already running on a worker of some rayon
-//! pool (a batch's query, or a caller's own pool) stays in that pool.
+//! search over 100,000 rows in a `multiprocessing` worker never returned). A forked child forgets
+//! the pools of its parent (a `pthread_atfork` handler) and starts its own. The pools are found
+//! without a lock: a child forked while another thread of its parent held one would wait on it
+//! forever (with a mutex around the pools, 6 of 200 children forked while another thread searched
+//! never returned from their first search). Work that is already running on a worker of some rayon
+//! pool (a batch's query, or a caller's own pool) stays in that pool, and no work ever goes to
+//! rayon's global pool: without a pool of its own, work runs on the calling thread.
 //!
-//! Two pools: one for batches and index builds, one for the helpers of single searches, so that
-//! a search never waits behind a batch that another thread runs (sharing one pool, a brute-force
-//! search over 1M rows took up to 546 ms while a batch ran, against 4–8 ms otherwise).
+//! Two pools for the crate's own work: one for batches and index builds, one for the helpers of
+//! single searches, so that a search never waits behind a batch that another thread runs (sharing
+//! one pool, a brute-force search over 1M rows took up to 546 ms while a batch ran, against 4–8 ms
+//! otherwise). The Python bindings keep their `describe_batch` workers here too ([`pool_of`]).
 
-use std::sync::{Arc, Mutex, PoisonError};
+use core::ptr;
+use core::sync::atomic::{AtomicPtr, Ordering};
 
-/// A pool and the process that started it.
-type Slot = Mutex<Option<(u32, Arc<rayon::ThreadPool>)>>;
+use alloc::boxed::Box;
+use alloc::format;
+use alloc::string::{String, ToString};
 
-/// Batches and index builds.
-static WORK: Slot = Mutex::new(None);
-/// The threads that join single searches' scans.
-static HELPERS: Slot = Mutex::new(None);
+/// One pool of this process, in a list that only grows.
+struct Entry {
+    name: &'static str,
+    threads: usize,
+    pool: rayon::ThreadPool,
+    next: *const Entry,
+}
 
-/// This process's pool of `slot` (its threads: `RAYON_NUM_THREADS`, or one per core); `None`
-/// when no thread could be started.
-fn pool_in(slot: &Slot, name: &'static str) -> Option<Arc<rayon::ThreadPool>> {
-    let pid = std::process::id();
-    let mut slot = slot.lock().unwrap_or_else(PoisonError::into_inner);
-    if let Some((id, p)) = slot.as_ref() {
-        if *id == pid {
-            return Some(Arc::clone(p));
+/// The newest pool of this process (the others follow it); null in a child until it starts one.
+/// Entries are never freed: a pool is kept for the life of the process, and in a forked child
+/// those of the parent are forgotten (their threads do not exist there; dropping one would
+/// signal them).
+static POOLS: AtomicPtr<Entry> = AtomicPtr::new(ptr::null_mut());
+
+/// The pool `name` of `threads` threads in the list from `head`.
+fn find(mut head: *const Entry, name: &str, threads: usize) -> Option<&'static rayon::ThreadPool> {
+    while !head.is_null() {
+        // SAFETY: every entry of the list was leaked from a `Box` and is never freed or changed
+        // after it was published (release ordering of the publishing exchange, acquire of the
+        // loads that led here).
+        #[allow(unsafe_code)]
+        let e: &'static Entry = unsafe { &*head };
+        if e.name == name && e.threads == threads {
+            return Some(&e.pool);
+        }
+        head = e.next;
+    }
+    None
+}
+
+/// This process's pool `name` of `threads` threads (0: `RAYON_NUM_THREADS`, or one per core),
+/// started on first use; its threads are named `name-i`. Shared by every caller that asks for
+/// the same name and size, and kept for the life of the process (a forked child starts its own).
+///
+/// # Errors
+/// What stopped the pool's threads from starting (tried again on the next call).
+#[doc(hidden)]
+pub fn pool_of(name: &'static str, threads: usize) -> Result<&'static rayon::ThreadPool, String> {
+    let mut head = POOLS.load(Ordering::Acquire);
+    if let Some(p) = find(head, name, threads) {
+        return Ok(p);
+    }
+    forget_pools_in_children()?;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .thread_name(move |i| format!("{name}-{i}"))
+        .build()
+        .map_err(|e| e.to_string())?;
+    // Owned by this thread alone until the exchange below publishes it.
+    let entry = Box::into_raw(Box::new(Entry {
+        name,
+        threads,
+        pool,
+        next: head,
+    }));
+    loop {
+        match POOLS.compare_exchange_weak(head, entry, Ordering::AcqRel, Ordering::Acquire) {
+            Ok(_) => {
+                // SAFETY: published, the entry is never freed or changed again (see `POOLS`).
+                #[allow(unsafe_code)]
+                let published: &'static Entry = unsafe { &*entry };
+                return Ok(&published.pool);
+            }
+            Err(now) => {
+                // Another thread added a pool meanwhile: this one, or another.
+                if let Some(p) = find(now, name, threads) {
+                    // SAFETY: `entry` came from `Box::into_raw` and was never published. Its
+                    // pool is dropped: its threads are told to end.
+                    #[allow(unsafe_code)]
+                    drop(unsafe { Box::from_raw(entry) });
+                    return Ok(p);
+                }
+                // SAFETY: as above, not published: this thread alone has it.
+                #[allow(unsafe_code)]
+                unsafe {
+                    (*entry).next = now;
+                }
+                head = now;
+            }
         }
     }
-    // A pool of the parent process has no threads here: forget it (dropping it would signal
-    // threads that do not exist).
-    if let Some((_, stale)) = slot.take() {
-        core::mem::forget(stale);
-    }
-    let p = Arc::new(
-        rayon::ThreadPoolBuilder::new()
-            .thread_name(move |i| format!("{name}-{i}"))
-            .build()
-            .ok()?,
-    );
-    *slot = Some((pid, Arc::clone(&p)));
-    Some(p)
 }
 
-fn pool() -> Option<Arc<rayon::ThreadPool>> {
-    pool_in(&WORK, "solid")
-}
-
-fn helpers() -> Option<Arc<rayon::ThreadPool>> {
-    pool_in(&HELPERS, "solid-helper")
-}
-
-/// How many threads work started from this thread runs on: the current pool's on a rayon
-/// worker, else this process's pool's (1 without one: run serially then).
-pub(crate) fn threads() -> usize {
-    if rayon::current_thread_index().is_some() {
-        return rayon::current_num_threads();
-    }
-    pool().map_or(1, |p| p.current_num_threads())
-}
-
-/// How many threads a scan started from this thread through [`in_place_scope`] should run on
-/// (this one and one fewer helpers): the current pool's size on a rayon worker, else the
-/// helpers' pool's (1 without it: scan alone then).
-pub(crate) fn scan_threads() -> usize {
-    if rayon::current_thread_index().is_some() {
-        return rayon::current_num_threads();
-    }
-    helpers().map_or(1, |p| p.current_num_threads())
-}
-
-/// Runs `op` (which may use rayon's parallel iterators) on the pool's threads, this thread
-/// waiting; inline on a rayon worker. Call it when [`threads`] is more than 1.
-pub(crate) fn install<R: Send>(op: impl FnOnce() -> R + Send) -> R {
-    if rayon::current_thread_index().is_none() {
-        if let Some(p) = pool() {
-            return p.install(op);
+/// Makes sure that a forked child forgets this process's pools, before any is published.
+fn forget_pools_in_children() -> Result<(), String> {
+    #[cfg(unix)]
+    {
+        use core::sync::atomic::AtomicBool;
+        static REGISTERED: AtomicBool = AtomicBool::new(false);
+        extern "C" fn forget() {
+            // Async-signal-safe: one atomic store. The entries leak in the child.
+            POOLS.store(ptr::null_mut(), Ordering::Relaxed);
+        }
+        if !REGISTERED.load(Ordering::Acquire) {
+            // Two threads may both register it before either has marked it: the handler then
+            // runs twice, storing null twice.
+            // SAFETY: `forget` only stores to an atomic, which a child of a multithreaded
+            // process may do before `exec`.
+            #[allow(unsafe_code)]
+            let err = unsafe { libc::pthread_atfork(None, None, Some(forget)) };
+            if err != 0 {
+                return Err(format!(
+                    "cannot register the fork handler of the thread pools (error {err})"
+                ));
+            }
+            REGISTERED.store(true, Ordering::Release);
         }
     }
-    op()
+    Ok(())
 }
 
-/// `rayon::join` on the pool's threads (see [`install`]).
-pub(crate) fn join<A, B, RA, RB>(a: A, b: B) -> (RA, RB)
-where
-    A: FnOnce() -> RA + Send,
-    B: FnOnce() -> RB + Send,
-    RA: Send,
-    RB: Send,
-{
-    install(|| rayon::join(a, b))
+/// Where work started from this thread runs: on the current pool on a rayon worker, else on a
+/// pool of this process.
+#[derive(Clone, Copy)]
+pub(crate) enum Threads {
+    Current,
+    Pool(&'static rayon::ThreadPool),
 }
 
-/// `rayon::in_place_scope` whose spawned jobs go to the helpers' pool while `op` runs on this
-/// thread; on a rayon worker, to the current pool.
-pub(crate) fn in_place_scope<'scope, R>(op: impl FnOnce(&rayon::Scope<'scope>) -> R) -> R {
-    if rayon::current_thread_index().is_none() {
-        if let Some(p) = helpers() {
-            return p.in_place_scope(op);
+impl Threads {
+    /// How many threads run the work.
+    pub(crate) fn count(self) -> usize {
+        match self {
+            Threads::Current => rayon::current_num_threads(),
+            Threads::Pool(p) => p.current_num_threads(),
         }
     }
-    rayon::in_place_scope(op)
+
+    /// Runs `op` (which may use rayon's parallel iterators) on these threads, this thread
+    /// waiting; inline on a rayon worker.
+    pub(crate) fn install<R: Send>(self, op: impl FnOnce() -> R + Send) -> R {
+        match self {
+            Threads::Current => op(),
+            Threads::Pool(p) => p.install(op),
+        }
+    }
+
+    /// `rayon::join` on these threads.
+    pub(crate) fn join<A, B, RA, RB>(self, a: A, b: B) -> (RA, RB)
+    where
+        A: FnOnce() -> RA + Send,
+        B: FnOnce() -> RB + Send,
+        RA: Send,
+        RB: Send,
+    {
+        self.install(|| rayon::join(a, b))
+    }
+
+    /// `rayon::in_place_scope` whose spawned jobs go to these threads while `op` runs on this
+    /// one.
+    pub(crate) fn in_place_scope<'scope, R>(
+        self,
+        op: impl FnOnce(&rayon::Scope<'scope>) -> R,
+    ) -> R {
+        match self {
+            Threads::Current => rayon::in_place_scope(op),
+            Threads::Pool(p) => p.in_place_scope(op),
+        }
+    }
+}
+
+/// The current pool on a rayon worker, else this process's pool `name`, when it has more than
+/// one thread (`None`: run on this thread alone).
+fn parallel(name: &'static str) -> Option<Threads> {
+    let threads = if rayon::current_thread_index().is_some() {
+        Threads::Current
+    } else {
+        Threads::Pool(pool_of(name, 0).ok()?)
+    };
+    (threads.count() > 1).then_some(threads)
+}
+
+/// Where batches, index builds and bulk adds started from this thread share their work; `None`:
+/// run it on this thread.
+pub(crate) fn work() -> Option<Threads> {
+    parallel("solid")
+}
+
+/// Where the helpers of a single search's scan started from this thread run (another pool than
+/// [`work`]'s: see the module); `None`: scan on this thread.
+pub(crate) fn scan_helpers() -> Option<Threads> {
+    parallel("solid-helper")
 }

@@ -765,11 +765,21 @@ const PARALLEL_HELPERS: usize = 15;
 #[cfg(feature = "parallel")]
 const PARALLEL_SCAN_MAX_K: usize = 64;
 
+/// The threads whose helpers a scan of `rows` rows for `k` neighbours shares its parts with, and
+/// how many threads it then runs on ([`split_scan`]'s rule); `None`: this thread alone.
+#[cfg(feature = "parallel")]
+fn scan_helpers(rows: usize, k: usize) -> Option<(crate::pool::Threads, usize)> {
+    if rows < PARALLEL_SCAN || !(1..=PARALLEL_SCAN_MAX_K).contains(&k) {
+        return None;
+    }
+    crate::pool::scan_helpers().map(|t| (t, t.count().min(PARALLEL_HELPERS + 1)))
+}
+
 /// The threads a scan of `rows` rows for `k` neighbours runs on ([`split_scan`]'s rule).
 pub(crate) fn scan_threads(rows: usize, k: usize) -> usize {
     #[cfg(feature = "parallel")]
-    if rows >= PARALLEL_SCAN && k <= PARALLEL_SCAN_MAX_K {
-        return crate::pool::scan_threads().clamp(1, PARALLEL_HELPERS + 1);
+    if let Some((_, threads)) = scan_helpers(rows, k) {
+        return threads;
     }
     let _ = (rows, k);
     1
@@ -801,10 +811,7 @@ where
     use core::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
     let k = best.heap.len();
-    let threads = scan_threads(hi.saturating_sub(lo), k);
-    if hi <= lo || threads < 2 {
-        return None;
-    }
+    let (pool, threads) = scan_helpers(hi.saturating_sub(lo), k)?;
     // Part i covers ids lo..first for i = 0, then the multiples of `step` from `first` on.
     let step = (PARALLEL_PART / align).max(1) * align;
     let first = ((lo / step + 1) * step).min(hi);
@@ -850,7 +857,7 @@ where
         cost: Cost::default(),
     });
     let helpers = &mut helpers[..threads - 1];
-    crate::pool::in_place_scope(|scope| {
+    pool.in_place_scope(|scope| {
         for h in helpers.iter_mut() {
             let work = &work;
             scope.spawn(move |_| {

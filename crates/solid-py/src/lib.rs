@@ -2,7 +2,6 @@
 //! algorithm lives in the core crate.
 
 use std::cell::RefCell;
-use std::sync::{Arc, Mutex, PoisonError};
 
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyUntypedArray, PyUntypedArrayMethods};
 use pyo3::create_exception;
@@ -649,42 +648,19 @@ fn describe(
     Ok(PyDescriptor::new(d, config.inner))
 }
 
-/// The worker pools of [`describe_batch`], by thread count and process.
+/// The persistent pool of `threads` workers of [`describe_batch`] (and the detector's batch) in
+/// this process.
 ///
 /// A pool is built on first use and kept: a batch starts no thread, and each worker keeps its
 /// scratch buffers from one batch to the next (the thread-local [`Describer`] of
 /// [`describe_slice`]). rayon rather than a pool of our own: its scoped parallel iterators run
 /// closures that borrow the numpy arrays without `unsafe`, it balances uneven scans by work
-/// stealing and hands a worker's panic back to the caller, all of it well tested. Its threads
-/// do not survive `fork` (Python's multiprocessing on Linux), so pools are also keyed by
-/// process id and a child builds its own.
-static POOLS: Mutex<Vec<(u32, usize, Arc<rayon::ThreadPool>)>> = Mutex::new(Vec::new());
-
-/// The persistent pool of `threads` workers of this process.
-pub(crate) fn pool(threads: usize) -> PyResult<Arc<rayon::ThreadPool>> {
-    let pid = std::process::id();
-    let mut pools = POOLS.lock().unwrap_or_else(PoisonError::into_inner);
-    if let Some((_, _, p)) = pools.iter().find(|(id, t, _)| *id == pid && *t == threads) {
-        return Ok(Arc::clone(p));
-    }
-    // Pools made before a fork have no threads here: forget them (dropping one would signal
-    // threads that do not exist).
-    let (here, stale): (Vec<_>, Vec<_>) = std::mem::take(&mut *pools)
-        .into_iter()
-        .partition(|(id, _, _)| *id == pid);
-    *pools = here;
-    for (_, _, p) in stale {
-        std::mem::forget(p);
-    }
-    let p = Arc::new(
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .thread_name(|i| format!("solid-describe-{i}"))
-            .build()
-            .map_err(|e| SolidError::new_err(format!("cannot start describe workers: {e}")))?,
-    );
-    pools.push((pid, threads, Arc::clone(&p)));
-    Ok(p)
+/// stealing and hands a worker's panic back to the caller, all of it well tested. The core
+/// crate keeps the pools: a process forked by Python's multiprocessing starts its own, and
+/// finding one takes no lock that a fork could leave held.
+pub(crate) fn pool(threads: usize) -> PyResult<&'static rayon::ThreadPool> {
+    solid_lidar::pool::pool_of("solid-describe", threads)
+        .map_err(|e| SolidError::new_err(format!("cannot start describe workers: {e}")))
 }
 
 /// Describes many scans in parallel (every core by default), GIL released once for the batch.

@@ -890,9 +890,9 @@ where
     F: Fn(I::Item) -> Result<(), Error> + Sync + Send,
 {
     #[cfg(feature = "parallel")]
-    if m >= 2 * CHUNK_ROWS && crate::pool::threads() > 1 {
+    if let Some(threads) = (m >= 2 * CHUNK_ROWS).then(crate::pool::work).flatten() {
         use rayon::iter::{ParallelBridge, ParallelIterator};
-        return crate::pool::install(|| chunks.par_bridge().try_for_each(fill));
+        return threads.install(|| chunks.par_bridge().try_for_each(fill));
     }
     let _ = m;
     chunks.into_iter().try_for_each(fill)
@@ -1053,22 +1053,19 @@ mod batch {
             .chunks(CHUNK * dim)
             .zip(ids.chunks_mut(CHUNK * k).zip(dists.chunks_mut(CHUNK * k)));
         #[cfg(feature = "parallel")]
-        {
+        if let Some(threads) = crate::pool::work() {
             use rayon::prelude::*;
             let parts: alloc::vec::Vec<_> = parts.collect();
-            crate::pool::install(|| {
+            return threads.install(|| {
                 parts
                     .into_par_iter()
                     .try_for_each_init(Observed::new, chunk)
-            })
+            });
         }
-        #[cfg(not(feature = "parallel"))]
-        {
-            let mut observed = Observed::new();
-            parts
-                .into_iter()
-                .try_for_each(|part| chunk(&mut observed, part))
-        }
+        let mut observed = Observed::new();
+        parts
+            .into_iter()
+            .try_for_each(|part| chunk(&mut observed, part))
     }
 }
 

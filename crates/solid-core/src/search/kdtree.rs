@@ -322,8 +322,8 @@ fn build_rec(rows: Rows<'_>, perm: &mut [u32], splits: &mut [u16], keys: &mut [u
         (&mut [][..], &mut [][..])
     };
     #[cfg(feature = "parallel")]
-    if n >= PARALLEL_BUILD && crate::pool::threads() > 1 {
-        crate::pool::join(
+    if let Some(threads) = (n >= PARALLEL_BUILD).then(crate::pool::work).flatten() {
+        threads.join(
             || build_rec(rows, lp, ls, lk),
             || build_rec(rows, &mut rp[1..], &mut rs[1..], rk),
         );

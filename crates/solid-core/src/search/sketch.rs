@@ -126,10 +126,13 @@ pub fn sketch_encode(
         encode_block(rows, start, from, codes, params);
     };
     #[cfg(feature = "parallel")]
-    if blocks - first >= PARALLEL_BLOCKS && crate::pool::threads() > 1 {
+    if let Some(threads) = (blocks - first >= PARALLEL_BLOCKS)
+        .then(crate::pool::work)
+        .flatten()
+    {
         use rayon::iter::{IndexedParallelIterator, ParallelIterator};
         use rayon::slice::ParallelSliceMut;
-        crate::pool::install(|| {
+        threads.install(|| {
             codes
                 .par_chunks_mut(width)
                 .zip(params.par_chunks_mut(PARAMS * SKETCH_BLOCK))
