@@ -136,7 +136,7 @@ impl Built {
 
 /// Whether [`Observed`] tries a skipped sketch again on query `i` when it failed on the first
 /// [`AUTO_MISSES`] queries and fails on every retry: its documented schedule, written out here on
-/// its own (16, 32, 64, 128, 256, then every 256th).
+/// its own (16, 32, 64, 128, then every 128th).
 fn retried(i: u32) -> bool {
     if i < AUTO_RETRY_MAX {
         i >= AUTO_RETRY_EVERY && i.is_power_of_two()
@@ -146,8 +146,8 @@ fn retried(i: u32) -> bool {
 }
 
 /// Whether [`Observed`] tries a skipped deep walk again on query `i` while the sketch keeps
-/// failing: three quarters of the way between the sketch's retries (12, 24, 48, 96, 192, then
-/// 256 later each time).
+/// failing: three quarters of the way between the sketch's retries (12, 24, 48, 96, then 128
+/// later each time).
 fn deep_retried(i: u32) -> bool {
     let last = AUTO_RETRY_MAX / 4 * 3;
     if i < last {
@@ -176,11 +176,59 @@ fn auto_tries_a_failing_step_again_less_and_less_often() {
             deep.push(i);
         }
     }
-    assert_eq!(sketched, [0, 1, 2, 3, 16, 32, 64, 128, 256, 512, 768, 1024]);
-    assert_eq!(deep, [12, 24, 48, 96, 192, 448, 704, 960]);
+    assert_eq!(
+        sketched,
+        [0, 1, 2, 3, 16, 32, 64, 128, 256, 384, 512, 640, 768, 896, 1024]
+    );
+    assert_eq!(deep, [12, 24, 48, 96, 224, 352, 480, 608, 736, 864, 992]);
     let upto = |f: fn(u32) -> bool| (0..1_100).filter(|&i| f(i)).collect::<Vec<u32>>();
     assert_eq!(upto(retried), sketched[AUTO_MISSES as usize..]);
     assert_eq!(upto(deep_retried), deep);
+}
+
+#[test]
+fn auto_comes_back_to_the_kd_tree_when_the_queries_change() {
+    // 10,000 near-duplicates of one place and 30,000 rows around 3,000 other places. Queries of
+    // the near-duplicated place first: the sketch gives up and the deep walk runs out, so brute
+    // force soon runs alone, its retries spaced out to AUTO_RETRY_MAX. Then queries of the other
+    // places, whose walks finish: the first retry of the deep walk, cheaper than a pass, brings
+    // the kd-tree back (a review's probe of this counted 1,652 queries of brute force alone
+    // before that, with retries every 256th query and the average of the deep walk's cost
+    // falling an eighth at a time; 398 of these 400 here). The results never change.
+    let dim = 24;
+    let mut data = places(10_000, dim, 1, 1e-3, &mut Rng(31));
+    let dup = places(1, dim, 1, 0.0, &mut Rng(31));
+    let others = places(30_000, dim, 3_000, 0.05, &mut Rng(32));
+    data.extend_from_slice(&others);
+    let rows = Rows::normalized(&data, dim).unwrap();
+    let built = Built::of(rows);
+    let index = built.index(rows);
+    let observed = Observed::new();
+    let search = |q: &[f32]| {
+        let req = Request {
+            observed: Some(&observed),
+            ..Request::nearest(1)
+        };
+        let mut out = [Neighbor::default()];
+        let found = index.search(q, &req, &mut out).unwrap();
+        assert_eq!(&out[..], &brute(rows, q, 1, &Exclude::NONE)[..]);
+        found.cost
+    };
+    for _ in 0..300 {
+        search(&dup);
+    }
+    let walked: Vec<bool> = (0..400)
+        .map(|i| search(&others[(i * 997 % 30_000) * dim..][..dim]).tree_rows > 0)
+        .collect();
+    let alone = walked.iter().filter(|w| !**w).count();
+    assert!(
+        alone <= AUTO_RETRY_MAX as usize,
+        "{alone} queries of brute force alone"
+    );
+    assert!(
+        walked[walked.len() - 100..].iter().all(|w| *w),
+        "{walked:?}"
+    );
 }
 
 /// The costs of `queries` searches of `q` with [`Plan::Auto`] sharing one [`Observed`], each

@@ -69,13 +69,14 @@ impl Request<'_> {
 /// again on every [`AUTO_RETRY_EVERY`]th query (a walk that runs out costs a tenth of a pass or
 /// less). A skipped sketch is tried again on the next query whose number is a multiple of
 /// [`AUTO_RETRY_EVERY`], and each time it fails again the interval doubles, up to
-/// [`AUTO_RETRY_MAX`] (queries 16, 32, 64, 128, 256, 512, 768, …); a skipped deep walk three
-/// quarters of the way between the sketch's tries (queries 12, 24, 48, 96, 192, 448, …). Such a
-/// retry that fails costs one or two brute-force passes: tried every 16th query on
-/// near-duplicates, they made `auto` 1.06–1.21× as slow as brute force over 500 queries at 10k
-/// and 100k entries, doubling 1.01–1.07× (`benches` probe, interleaved, k = 1 and 10). The price:
-/// on rows that change (a database that grows), a sketch skipped for long comes back up to 256
-/// queries late, brute force running meanwhile. Keep one per database; threads may share
+/// [`AUTO_RETRY_MAX`] (queries 16, 32, 64, 128, 256, 384, …); a skipped deep walk three
+/// quarters of the way between the sketch's tries (queries 12, 24, 48, 96, 224, 352, …). Such a
+/// retry that fails costs one or two brute-force passes: on near-duplicates (queries of more
+/// copies, 500 of them, k = 1 and 10, `auto` and brute force interleaved, two runs each),
+/// retries every 16th query made `auto` 1.05–1.10× as slow as brute force at 10k entries and
+/// 1.11–1.26× at 100k, doubling up to 128 1.01–1.03× and 1.05–1.07×. The price: on rows or
+/// queries that change, a sketch or deep walk skipped for long comes back up to 128 queries
+/// late, brute force running meanwhile. Keep one per database; threads may share
 /// it (the counts are loaded and stored, not locked: two threads updating at once may lose a
 /// count, which only delays a change of plan).
 #[derive(Debug, Default)]
@@ -148,10 +149,19 @@ impl Observed {
     /// a mean of 0.78, and with a quarter a few dear walks in a row turned the walk off for long
     /// stretches: `auto` took 0.98–1.02× brute force's time there for k = 1, with an eighth
     /// 0.86×).
+    ///
+    /// A walk cheaper than a pass while the average says the walk is dear (a retry, on rows or
+    /// queries that changed) starts the average again from it: averaged in, a walk that had
+    /// cost three passes came back after nine such retries.
     fn record_deep(&self, passes: f64) {
         let sample = (passes * f64::from(DEEP_PASS)).min(f64::from(16 * DEEP_PASS)) as u32;
         let old = self.deep_cost.load(Relaxed);
-        self.deep_cost.store(old - old / 8 + sample / 8, Relaxed);
+        let new = if sample < DEEP_PASS && old >= DEEP_PASS {
+            sample
+        } else {
+            old - old / 8 + sample / 8
+        };
+        self.deep_cost.store(new, Relaxed);
     }
 }
 
@@ -167,8 +177,9 @@ pub const AUTO_MISSES: u32 = 4;
 /// ...tries it again on the next query whose number is a multiple of this (a skipped sketch or
 /// deep walk: after each retry that fails, twice as long)...
 pub const AUTO_RETRY_EVERY: u32 = 16;
-/// ...up to this many queries.
-pub const AUTO_RETRY_MAX: u32 = 256;
+/// ...up to this many queries (with 256, a database whose queries turned from near-duplicates to
+/// stored places took up to 256 queries of brute force to come back to the kd-tree).
+pub const AUTO_RETRY_MAX: u32 = 128;
 
 /// The interval of [`Observed`]'s retries of a step that failed `misses` times in a row: 1 (run
 /// it on every query) below [`AUTO_MISSES`], then [`AUTO_RETRY_EVERY`], doubling with each
