@@ -4,7 +4,8 @@
 //! Not rayon's global pool: no thread survives `fork` (Python's multiprocessing on Linux), so a
 //! child that handed work to the global pool its parent had started waited forever (a brute-force
 //! search over 100,000 rows in a `multiprocessing` worker never returned). A forked child forgets
-//! the pools of its parent (a `pthread_atfork` handler) and starts its own. The pools are found
+//! the pools of its parent (a `pthread_atfork` handler, and each pool records the process that
+//! started it) and starts its own. The pools are found
 //! without a lock: a child forked while another thread of its parent held one would wait on it
 //! forever (with a mutex around the pools, 6 of 200 children forked while another thread searched
 //! never returned from their first search). Work that is already running on a worker of some rayon
@@ -23,8 +24,10 @@ use alloc::boxed::Box;
 use alloc::format;
 use alloc::string::{String, ToString};
 
-/// One pool of this process, in a list that only grows.
+/// One pool, in a list that only grows.
 struct Entry {
+    /// The process that started it.
+    pid: u32,
     name: &'static str,
     threads: usize,
     pool: rayon::ThreadPool,
@@ -37,15 +40,20 @@ struct Entry {
 /// signal them).
 static POOLS: AtomicPtr<Entry> = AtomicPtr::new(ptr::null_mut());
 
-/// The pool `name` of `threads` threads in the list from `head`.
-fn find(mut head: *const Entry, name: &str, threads: usize) -> Option<&'static rayon::ThreadPool> {
+/// The pool `name` of `threads` threads of process `pid` in the list from `head`.
+fn find(
+    mut head: *const Entry,
+    pid: u32,
+    name: &str,
+    threads: usize,
+) -> Option<&'static rayon::ThreadPool> {
     while !head.is_null() {
         // SAFETY: every entry of the list was leaked from a `Box` and is never freed or changed
         // after it was published (release ordering of the publishing exchange, acquire of the
         // loads that led here).
         #[allow(unsafe_code)]
         let e: &'static Entry = unsafe { &*head };
-        if e.name == name && e.threads == threads {
+        if e.pid == pid && e.name == name && e.threads == threads {
             return Some(&e.pool);
         }
         head = e.next;
@@ -61,8 +69,13 @@ fn find(mut head: *const Entry, name: &str, threads: usize) -> Option<&'static r
 /// What stopped the pool's threads from starting (tried again on the next call).
 #[doc(hidden)]
 pub fn pool_of(name: &'static str, threads: usize) -> Result<&'static rayon::ThreadPool, String> {
+    // Besides the fork handler, the process id: glibc runs only the fork handlers registered
+    // before a fork began, and lets other threads run its `prepare` handlers meanwhile (those
+    // of other libraries), so a pool published then, with the handler registered too late,
+    // reached the child (a child's first pool hung in 3 of 3 runs of a review's probe).
+    let pid = std::process::id();
     let mut head = POOLS.load(Ordering::Acquire);
-    if let Some(p) = find(head, name, threads) {
+    if let Some(p) = find(head, pid, name, threads) {
         return Ok(p);
     }
     forget_pools_in_children()?;
@@ -73,6 +86,7 @@ pub fn pool_of(name: &'static str, threads: usize) -> Result<&'static rayon::Thr
         .map_err(|e| e.to_string())?;
     // Owned by this thread alone until the exchange below publishes it.
     let entry = Box::into_raw(Box::new(Entry {
+        pid,
         name,
         threads,
         pool,
@@ -88,7 +102,7 @@ pub fn pool_of(name: &'static str, threads: usize) -> Result<&'static rayon::Thr
             }
             Err(now) => {
                 // Another thread added a pool meanwhile: this one, or another.
-                if let Some(p) = find(now, name, threads) {
+                if let Some(p) = find(now, pid, name, threads) {
                     // SAFETY: `entry` came from `Box::into_raw` and was never published. Its
                     // pool is dropped: its threads are told to end.
                     #[allow(unsafe_code)]
@@ -108,7 +122,8 @@ pub fn pool_of(name: &'static str, threads: usize) -> Result<&'static rayon::Thr
 
 /// Makes sure that a forked child forgets this process's pools, before any is published.
 fn forget_pools_in_children() -> Result<(), String> {
-    #[cfg(unix)]
+    // (Emscripten's libc has no `pthread_atfork`; nor does it fork.)
+    #[cfg(all(unix, not(target_os = "emscripten")))]
     {
         use core::sync::atomic::AtomicBool;
         static REGISTERED: AtomicBool = AtomicBool::new(false);

@@ -3,38 +3,15 @@
 
 #![cfg(all(unix, feature = "parallel"))]
 
+mod common;
+
 use std::hint::black_box;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
+use common::reap;
 use solid_lidar::search::auto_tree_row_cost;
-
-/// Waits for the child `pid` up to `wait`; its exit code, or `None` when it had to be killed.
-fn reap(pid: libc::pid_t, wait: Duration) -> Option<i32> {
-    let deadline = Instant::now() + wait;
-    let mut status = 0;
-    loop {
-        // SAFETY: waits for a child of this process, writing its status to a local.
-        let got = unsafe { libc::waitpid(pid, &mut status, libc::WNOHANG) };
-        if got == pid {
-            return Some(if libc::WIFEXITED(status) {
-                libc::WEXITSTATUS(status)
-            } else {
-                -1
-            });
-        }
-        if Instant::now() > deadline {
-            // SAFETY: ends and reaps a child of this process.
-            unsafe {
-                libc::kill(pid, libc::SIGKILL);
-                libc::waitpid(pid, &mut status, 0);
-            }
-            return None;
-        }
-        std::thread::sleep(Duration::from_millis(1));
-    }
-}
 
 #[test]
 fn a_child_forked_while_another_thread_finds_the_pools_does_not_hang() {

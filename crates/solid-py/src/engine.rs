@@ -1332,10 +1332,10 @@ impl PyLoopDetector {
             }
             Some(t) => t.min(cores),
             None => cores,
-        }
-        .min(slices.len().max(1));
+        };
         let cfg = self.cfg;
-        let pool = if threads > 1 {
+        // One pool per size asked, not one per batch length (see `describe_batch`).
+        let pool = if threads.min(slices.len()) > 1 {
             Some(crate::pool(threads)?)
         } else {
             None

@@ -690,7 +690,7 @@ fn describe_batch(
         .collect::<PyResult<Vec<_>>>()?;
     let slices: Vec<PointSlice<'_>> = borrowed.iter().map(Borrowed::slice).collect();
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    // More threads than cores only adds switching: at most one per core (and per scan).
+    // More threads than cores only adds switching: at most one per core.
     let threads = match threads {
         Some(0) => {
             return Err(ConfigError::new_err(
@@ -699,13 +699,14 @@ fn describe_batch(
         }
         Some(t) => t.min(cores),
         None => cores,
-    }
-    .min(slices.len().max(1));
+    };
     let cfg = config.inner;
     let describe_all = || -> Vec<Result<Descriptor, Error>> {
         slices.iter().map(|s| describe_slice(s, &cfg)).collect()
     };
-    let results = if threads == 1 {
+    // The pool has the threads asked for even when there are fewer scans (the scans then take
+    // fewer of them): one pool per size asked, not one per batch length.
+    let results = if threads.min(slices.len()) <= 1 {
         py.detach(describe_all)
     } else {
         let pool = pool(threads)?;

@@ -138,3 +138,32 @@ impl Xorshift {
         (self.0 >> 11) as f64 / (1u64 << 53) as f64
     }
 }
+
+/// Waits for the child `pid` (of a test that forks) up to `wait`; its exit code, or `None` when
+/// it had to be killed.
+#[cfg(unix)]
+pub fn reap(pid: libc::pid_t, wait: std::time::Duration) -> Option<i32> {
+    use std::time::{Duration, Instant};
+    let deadline = Instant::now() + wait;
+    let mut status = 0;
+    loop {
+        // SAFETY: waits for a child of this process, writing its status to a local.
+        let got = unsafe { libc::waitpid(pid, &mut status, libc::WNOHANG) };
+        if got == pid {
+            return Some(if libc::WIFEXITED(status) {
+                libc::WEXITSTATUS(status)
+            } else {
+                -1
+            });
+        }
+        if Instant::now() > deadline {
+            // SAFETY: ends and reaps a child of this process.
+            unsafe {
+                libc::kill(pid, libc::SIGKILL);
+                libc::waitpid(pid, &mut status, 0);
+            }
+            return None;
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    }
+}
