@@ -369,3 +369,23 @@ def test_a_process_that_cannot_start_threads_still_searches() -> None:
         pytest.skip("needs Linux's /proc")
     run = subprocess.run([sys.executable, "-c", _WITHOUT_THREADS], capture_output=True, text=True, timeout=120)
     assert run.returncode == 0 and run.stdout == "ok\n", run.stderr[-2000:]
+
+
+def test_a_query_is_read_the_same_from_any_float_layout() -> None:
+    # float32 and float64 arrays are read directly (contiguous) or as sequences (strided views,
+    # lists): the same neighbours and distances either way.
+    cfg = solid.SolidConfig.preset("avia")
+    rng = np.random.default_rng(6)
+    r = rng.uniform(0.0, 1.0, (500, cfg.n_range)).astype(np.float32)
+    a = rng.uniform(0.0, 1.0, (500, cfg.n_azimuth)).astype(np.float32)
+    db = solid.Database(cfg)
+    db.add_batch(r, a)
+    q = r[3] * np.float32(0.9) + r[4] * np.float32(0.1)
+    want = [(m.id, m.distance) for m in db.search(q, k=3)]
+    assert want[0][0] == 3
+    strided = np.repeat(q, 2)[::2]
+    assert not strided.flags.c_contiguous
+    for variant in (q.astype(np.float64), strided, strided.astype(np.float64), q.tolist()):
+        assert [(m.id, m.distance) for m in db.search(variant, k=3)] == want
+    with pytest.raises(TypeError):
+        db.search(r[:2], k=1)  # two queries: search_batch takes those

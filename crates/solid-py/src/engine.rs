@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use std::sync::{PoisonError, RwLock, RwLockReadGuard, RwLockWriteGuard};
 
 use numpy::ndarray::{Array2, Array3};
-use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3};
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3, PyArrayMethods};
 use pyo3::exceptions::PyTypeError;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -137,6 +137,22 @@ fn query_r(q: &Bound<'_, PyAny>, fingerprint: u64) -> PyResult<Vec<f32>> {
         let d = d.borrow();
         check_fingerprint(q.py(), d.inner.fingerprint, fingerprint)?;
         return Ok(d.inner.r.clone());
+    }
+    // A contiguous float array read directly: extracting it as a sequence made a numpy scalar
+    // of each value (about 5 of the 31 µs of a brute-force search of 10,000 entries).
+    if let Ok(a) = q.cast::<PyArray1<f32>>() {
+        if let Ok(ro) = a.try_readonly() {
+            if let Ok(v) = ro.as_slice() {
+                return Ok(v.to_vec());
+            }
+        }
+    }
+    if let Ok(a) = q.cast::<PyArray1<f64>>() {
+        if let Ok(ro) = a.try_readonly() {
+            if let Ok(v) = ro.as_slice() {
+                return Ok(v.iter().map(|&x| x as f32).collect());
+            }
+        }
     }
     q.extract::<Vec<f32>>().map_err(|_| {
         pyo3::exceptions::PyTypeError::new_err(
