@@ -128,7 +128,7 @@ impl Database {
             splits: Vec::new(),
             codes: Vec::new(),
             params: Vec::new(),
-            observed: Observed::new(),
+            observed: Observed::timed(),
             clouds: Clouds::default(),
         })
     }
@@ -1059,10 +1059,10 @@ mod batch {
             return threads.install(|| {
                 parts
                     .into_par_iter()
-                    .try_for_each_init(Observed::new, chunk)
+                    .try_for_each_init(Observed::timed, chunk)
             });
         }
-        let mut observed = Observed::new();
+        let mut observed = Observed::timed();
         parts
             .into_iter()
             .try_for_each(|part| chunk(&mut observed, part))

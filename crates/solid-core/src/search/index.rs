@@ -64,21 +64,35 @@ impl Request<'_> {
 /// database of near-duplicates), the sketch is skipped and the kd-tree walks deeper instead (on
 /// such rows it is the only thing that can beat brute force), brute force taking what the walk
 /// did not finish; the deep walk goes on while its recent cost, counted in brute-force passes
-/// ([`AUTO_TREE_ROW_COST`]; a walk that did not finish also costs the pass that follows it),
-/// averages less than one pass, and brute force runs alone otherwise. The normal walk is tried
+/// (timed against brute force's scans with [`Observed::timed`], by [`AUTO_TREE_ROW_COST`]'s
+/// rule otherwise; a walk that did not finish also costs the pass that follows it), averages
+/// less than one pass, and brute force runs alone otherwise. The normal walk is tried
 /// again on every [`AUTO_RETRY_EVERY`]th query (a walk that runs out costs a tenth of a pass or
 /// less). A skipped sketch is tried again on the next query whose number is a multiple of
 /// [`AUTO_RETRY_EVERY`], and each time it fails again the interval doubles, up to
 /// [`AUTO_RETRY_MAX`] (queries 16, 32, 64, 128, 256, 384, …); a skipped deep walk three
-/// quarters of the way between the sketch's tries (queries 12, 24, 48, 96, 224, 352, …). Such a
-/// retry that fails costs one or two brute-force passes: on near-duplicates (queries of more
-/// copies, 500 of them, k = 1 and 10, `auto` and brute force interleaved, two runs each),
-/// retries every 16th query made `auto` 1.05–1.10× as slow as brute force at 10k entries and
-/// 1.11–1.26× at 100k, doubling up to 128 1.01–1.03× and 1.05–1.07×. The price: on rows or
+/// quarters of the way between the sketch's tries (queries 12, 24, 48, 96, 224, 352, …), with a
+/// budget of one pass instead of two (a dearer walk is no use; one that runs out costs two
+/// passes, not three). A retried deep walk under half a pass (rows or queries that changed:
+/// walks of stored places cost a tenth of a pass or less) starts the average again from it. A
+/// retry that fails costs up to a pass more than brute force alone: on near-duplicates (queries
+/// of more copies, 500 of them, k = 1 and 10, `auto` and brute force interleaved, two runs
+/// each), retries every 16th query made `auto` 1.05–1.10× as slow as brute force at 10k entries
+/// and 1.11–1.26× at 100k, doubling up to 128 1.01–1.03× and 1.05–1.07×. The price: on rows or
 /// queries that change, a sketch or deep walk skipped for long comes back up to 128 queries
-/// late, brute force running meanwhile. Keep one per database; threads may share
-/// it (the counts are loaded and stored, not locked: two threads updating at once may lose a
-/// count, which only delays a change of plan).
+/// late, brute force running meanwhile.
+///
+/// Measured over the first 144 queries of fresh databases of near-duplicates (queries of more
+/// copies; `auto` and brute force interleaved; three runs each of a release probe with 32 MB of
+/// other memory read between searches, `auto` ÷ brute force), against the rule-counted walks,
+/// two-pass retries and restarts from any retry under a pass that came before: 100k entries
+/// 1.04–1.10× (k = 1) and 1.04–1.08× (k = 10) against 1.07–1.13× and 1.10–1.14×; 1M 1.01–1.07×
+/// and 1.05–1.07× against 0.98–1.07× and 1.07–1.09×; 10k 1.09–1.19× and 1.16–1.24× against
+/// 1.22–1.34× and 1.15–1.24×. There the restarts from a retry under a pass had brought back the
+/// deep walk, at 100k entries, for runs of walks of 1.4 to 2.7 passes or that ran out.
+///
+/// Keep one per database; threads may share it (the counts are loaded and stored, not locked:
+/// two threads updating at once may lose a count, which only delays a change of plan).
 #[derive(Debug, Default)]
 pub struct Observed {
     queries: AtomicU32,
@@ -87,6 +101,11 @@ pub struct Observed {
     /// average over about the last eight walks).
     deep_cost: AtomicU32,
     sketch_misses: AtomicU32,
+    /// Whether the walks and the scans are timed ([`Observed::timed`]).
+    timed: bool,
+    /// The recent time of one row of brute force in nanoseconds (`f32` bits, a moving average
+    /// over about the last eight scans; 0: none yet).
+    row_ns: AtomicU32,
 }
 
 /// One brute-force pass in [`Observed::deep_cost`]'s unit.
@@ -107,14 +126,63 @@ enum Depth {
 }
 
 impl Observed {
-    /// Nothing observed yet.
+    /// Nothing observed yet; the cost of a walk is counted by [`auto_tree_row_cost`]'s rule, so
+    /// that the same queries always take the same steps.
     pub const fn new() -> Self {
         Observed {
             queries: AtomicU32::new(0),
             walk_misses: AtomicU32::new(0),
             deep_cost: AtomicU32::new(0),
             sketch_misses: AtomicU32::new(0),
+            timed: false,
+            row_ns: AtomicU32::new(0),
         }
+    }
+
+    /// Nothing observed yet; with a clock (the `std` feature) the walks and the brute-force
+    /// scans of [`Plan::Auto`] are timed, and a walk's cost is its time against a pass of brute
+    /// force's (a moving average of the scans' time per row). What a walk costs against brute
+    /// force depends on the machine more than the rule allows, and on the walk: on near-duplicates
+    /// at a million entries (caches cold, release probe), the rule made on an Intel Xeon gives 26
+    /// rows a distance, where on an AMD EPYC walks of 7,000 distances took 68 and walks of 75,000
+    /// took 23. Without a clock, as [`Observed::new`].
+    pub const fn timed() -> Self {
+        let mut o = Observed::new();
+        o.timed = cfg!(feature = "std");
+        o
+    }
+
+    /// What a walk over `candidates` rows that computed `distances` in `ns` nanoseconds (when
+    /// timed) cost in passes of brute force over them: its time against the scans' when both
+    /// were timed, by the rule (`tree_row`, [`auto_tree_row_cost`]) otherwise.
+    fn passes(&self, ns: Option<f64>, distances: usize, tree_row: usize, candidates: usize) -> f64 {
+        let row = f64::from(load_ns(&self.row_ns));
+        match ns {
+            Some(ns) if row > 0.0 => ns / (row * candidates as f64),
+            _ => (distances * tree_row) as f64 / candidates as f64,
+        }
+    }
+
+    /// Adds a brute-force scan of `rows` rows that took `ns` nanoseconds to the moving average
+    /// of the time per row (weight an eighth; the first sets it; a sample counts as at most four
+    /// times the average, so that a scan whose thread was descheduled moves it little).
+    fn note_scan(&self, ns: f64, rows: usize) {
+        let sample = (ns / rows as f64) as f32;
+        let old = load_ns(&self.row_ns);
+        let new = if old > 0.0 {
+            old + (sample.min(4.0 * old) - old) / 8.0
+        } else {
+            sample
+        };
+        if new.is_finite() && new > 0.0 {
+            self.row_ns.store(new.to_bits(), Relaxed);
+        }
+    }
+
+    /// Whether the deep walk is being skipped (its average is a pass or more): a deep walk now is
+    /// a retry.
+    fn deep_skipped(&self) -> bool {
+        self.deep_cost.load(Relaxed) >= DEEP_PASS
     }
 
     /// How to walk the kd-tree on the next query (and counts the query).
@@ -128,7 +196,7 @@ impl Observed {
             } else {
                 Depth::Short
             }
-        } else if self.deep_cost.load(Relaxed) < DEEP_PASS || q % sketch == sketch / 4 * 3 {
+        } else if !self.deep_skipped() || q % sketch == sketch / 4 * 3 {
             Depth::Deep
         } else {
             Depth::Skip
@@ -150,9 +218,11 @@ impl Observed {
     /// stretches: `auto` took 0.98–1.02× brute force's time there for k = 1, with an eighth
     /// 0.86×).
     ///
-    /// A walk cheaper than a pass while the average says the walk is dear (a retry, on rows or
+    /// A walk under half a pass while the average says the walk is dear (a retry, on rows or
     /// queries that changed) starts the average again from it: averaged in, a walk that had
-    /// cost three passes came back after nine such retries.
+    /// cost three passes came back after nine such retries. (From under a pass, near-duplicates
+    /// at 100k entries restarted it on walks of 0.4–0.9 passes, each followed by a run of dearer
+    /// ones.)
     ///
     /// The first walk (the average still 0: no walk costs nothing) sets the average. From 0, an
     /// eighth at a time, it took about ten walks of 1.4 passes (100k near-duplicates, k = 1)
@@ -161,9 +231,9 @@ impl Observed {
     /// 0.76–0.81× brute force's time against 0.99–1.02× from 0; 100k 1.05–1.10× against
     /// 1.05–1.12×; 10k no change.
     fn record_deep(&self, passes: f64) {
-        let sample = (passes * f64::from(DEEP_PASS)).min(f64::from(16 * DEEP_PASS)) as u32;
+        let sample = ((passes * f64::from(DEEP_PASS)).min(f64::from(16 * DEEP_PASS)) as u32).max(1);
         let old = self.deep_cost.load(Relaxed);
-        let new = if old == 0 || (sample < DEEP_PASS && old >= DEEP_PASS) {
+        let new = if old == 0 || (sample < DEEP_PASS / 2 && old >= DEEP_PASS) {
             sample
         } else {
             old - old / 8 + sample / 8
@@ -173,9 +243,45 @@ impl Observed {
 }
 
 impl Clone for Observed {
-    /// A fresh record: what one set of rows showed says nothing about a copy that changes.
+    /// A fresh record, timed or not as this one: what one set of rows showed says nothing about
+    /// a copy that changes.
     fn clone(&self) -> Self {
-        Observed::new()
+        if self.timed {
+            Observed::timed()
+        } else {
+            Observed::new()
+        }
+    }
+}
+
+fn load_ns(cell: &AtomicU32) -> f32 {
+    f32::from_bits(cell.load(Relaxed))
+}
+
+/// Brute-force scans of at least this many rows are timed by [`Observed::timed`] (shorter ones
+/// take too little time to tell).
+const TIMED_SCAN: usize = 4096;
+
+/// A clock where the crate has one (`std`): `start(true)` is the time now, `ns` the
+/// nanoseconds since.
+#[cfg(feature = "std")]
+mod clock {
+    pub(super) type Start = Option<std::time::Instant>;
+    pub(super) fn start(on: bool) -> Start {
+        on.then(std::time::Instant::now)
+    }
+    pub(super) fn ns(start: Start) -> Option<f64> {
+        start.map(|s| s.elapsed().as_nanos() as f64)
+    }
+}
+
+/// No clock without `std`: nothing is timed.
+#[cfg(not(feature = "std"))]
+mod clock {
+    pub(super) type Start = ();
+    pub(super) fn start(_: bool) -> Start {}
+    pub(super) fn ns(_: Start) -> Option<f64> {
+        None
     }
 }
 
@@ -261,7 +367,8 @@ pub const AUTO_PRIME_PER_K: usize = 4;
 /// 16.3 / 15.1 and 14.2 / 12.7.)
 ///
 /// When the sketch is being skipped ([`Observed`]), the deep walk may compute as many distances
-/// as two brute-force passes cost, and goes on while its walks average less than one pass. On
+/// as two brute-force passes cost (one on a retry), and goes on while its walks average less
+/// than one pass. [`Observed::timed`] counts a walk's cost by its time instead. On
 /// near-duplicates a walk computes a mean of 15.5 % / 7.0 % / 3.0 % of the rows at 10k / 100k /
 /// 1M entries for k = 1 and 23.5 % / 10.7 % / 4.8 % for k = 10: 1.24 / 1.41 / 0.78 and 1.88 /
 /// 2.15 / 1.23 passes by this rule, against 1.36 / 1.31 / 0.79 and 1.90 / 1.94 / 1.23 measured
@@ -427,6 +534,7 @@ impl<'a> Index<'a> {
         let walk = req.observed.map_or(Depth::Normal, Observed::plan);
         // What one kd-tree distance costs in rows of brute force over these candidates.
         let tree_row = auto_tree_row_cost(candidates, req.k);
+        let timed = req.observed.is_some_and(|o| o.timed);
         let budget = match walk {
             Depth::Skip => 0,
             Depth::Short => AUTO_PRIME_BASE + AUTO_PRIME_PER_K * req.k,
@@ -434,15 +542,25 @@ impl<'a> Index<'a> {
                 (candidates / AUTO_TREE_SHARE + AUTO_TREE_PER_K * req.k + AUTO_TREE_BASE)
                     .min(candidates / AUTO_TREE_MAX_SHARE)
             }
-            Depth::Deep => 2 * candidates / tree_row,
+            // A pass's worth of distances on a retry (a walk dearer than that is no use), two
+            // otherwise (so that a walk a little dearer than a pass, while the walks average
+            // less, is not cut short and then paid twice).
+            Depth::Deep => {
+                let retry = req.observed.is_some_and(Observed::deep_skipped);
+                candidates / tree_row * if retry { 1 } else { 2 }
+            }
         };
         let mut from = 0;
         if walk != Depth::Skip {
+            let start = clock::start(timed && matches!(walk, Depth::Normal | Depth::Deep));
             let finished = self.walk(query, exclude, bound, budget, best, cost);
+            let ns = clock::ns(start);
             match (req.observed, walk) {
-                (Some(o), Depth::Normal) => Observed::record(&o.walk_misses, finished),
+                (Some(o), Depth::Normal) => {
+                    Observed::record(&o.walk_misses, finished);
+                }
                 (Some(o), Depth::Deep) => {
-                    let walked = (cost.tree_rows * tree_row) as f64 / candidates as f64;
+                    let walked = o.passes(ns, cost.tree_rows, tree_row, candidates);
                     o.record_deep(walked + if finished { 0.0 } else { 1.0 });
                 }
                 _ => {}
@@ -461,18 +579,30 @@ impl<'a> Index<'a> {
             return;
         }
         if matches!(walk, Depth::Normal | Depth::Short) && from < self.sketch.len() {
+            let (start, exact) = (clock::start(timed), cost.exact_rows);
             let done = self
                 .sketch
                 .scan(query, from, exclude, bound, true, best, cost);
+            let ns = clock::ns(start);
             if let Some(o) = req.observed {
                 Observed::record(&o.sketch_misses, done);
+                // A sketch that gave up ran brute force over most rows: timed as such (the
+                // rows it scanned first add a few per cent).
+                let rows = cost.exact_rows - exact;
+                if let (false, Some(ns), true) = (done, ns, rows >= TIMED_SCAN) {
+                    o.note_scan(ns, rows);
+                }
             }
             // The rows beyond the sketch (`scan` stops at its end).
             from = self.sketch.len();
         }
         if from < candidates {
             cost.exact_rows += candidates - from;
+            let start = clock::start(timed && candidates - from >= TIMED_SCAN);
             scan(self.rows, from, candidates, query, exclude, bound, best);
+            if let (Some(o), Some(ns)) = (req.observed, clock::ns(start)) {
+                o.note_scan(ns, candidates - from);
+            }
         }
     }
 
@@ -495,5 +625,83 @@ impl<'a> Index<'a> {
         self.tree.walk(&mut walk, best);
         cost.tree_rows += walk.rows;
         !walk.stopped()
+    }
+}
+
+#[cfg(test)]
+mod timing_tests {
+    use super::{auto_tree_row_cost, load_ns, Index, Observed, Request};
+    use crate::search::{online_rebuild, sketch_encode, sketch_len, Neighbor, Rows};
+
+    #[test]
+    fn a_timed_walk_costs_its_time_against_the_scans() {
+        let (n, k) = (100_000, 1);
+        let rule = auto_tree_row_cost(n, k);
+        let o = Observed::timed();
+        // Nothing timed yet: the rule, whatever the walk's time.
+        assert_eq!(
+            o.passes(Some(1e9), 500, rule, n),
+            (500 * rule) as f64 / n as f64
+        );
+        // Brute force at 10 ns a row: a walk of 0.5 ms is half a pass, however many distances.
+        o.note_scan(10.0 * 4096.0, 4096);
+        assert_eq!(o.passes(Some(5e5), 500, rule, n), 0.5);
+        assert_eq!(o.passes(Some(5e5), 50_000, rule, n), 0.5);
+        // Untimed (no clock, or Observed::new): the rule.
+        assert_eq!(o.passes(None, 500, rule, n), (500 * rule) as f64 / n as f64);
+        // A scan descheduled for a second counts as four times the average, an eighth of it.
+        o.note_scan(1e9, 4096);
+        assert_eq!(load_ns(&o.row_ns), 10.0 + (40.0 - 10.0) / 8.0);
+        // A clone starts again, timed as the original.
+        let c = o.clone();
+        assert!(c.timed == o.timed && load_ns(&c.row_ns) == 0.0);
+    }
+
+    #[test]
+    fn only_a_timed_record_times_the_searches() {
+        // Near-duplicates (one place under 0.1 % noise): brute force follows the sketch on the
+        // first queries, over most rows: long enough to be timed.
+        let (n, dim) = (8_000, 24);
+        let mut x = 0x2545_f491u32;
+        let mut next = move || {
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            (x % 1_000_000) as f32 / 1e6
+        };
+        let place: Vec<f32> = (0..dim).map(|_| 0.5 + next()).collect();
+        let mut data: Vec<f32> = (0..n)
+            .flat_map(|_| {
+                place
+                    .iter()
+                    .map(|v| v * (1.0 + 1e-3 * next()))
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        for row in data.chunks_exact_mut(dim) {
+            let norm = row.iter().map(|v| v * v).sum::<f32>().sqrt();
+            row.iter_mut().for_each(|v| *v /= norm);
+        }
+        let rows = Rows::normalized(&data, dim).unwrap();
+        let (mut perm, mut splits) = (vec![0u32; n], vec![0u16; n]);
+        online_rebuild(rows, &mut perm, &mut splits).unwrap();
+        let (nc, np) = sketch_len(n, dim);
+        let (mut codes, mut params) = (vec![0u8; nc], vec![0f32; np]);
+        sketch_encode(rows, 0, &mut codes, &mut params).unwrap();
+        let index = Index::new(rows, &perm, &splits, &codes, &params).unwrap();
+        let q = &data[..dim];
+        for (o, timed) in [
+            (Observed::new(), false),
+            (Observed::timed(), cfg!(feature = "std")),
+        ] {
+            for _ in 0..4 {
+                let req = Request {
+                    observed: Some(&o),
+                    ..Request::nearest(1)
+                };
+                index.search(q, &req, &mut [Neighbor::default()]).unwrap();
+            }
+            assert_eq!(load_ns(&o.row_ns) > 0.0, timed);
+        }
     }
 }
