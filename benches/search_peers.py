@@ -15,12 +15,16 @@ target/solid-bench-data/ (the 1M sets take a few minutes the first time).
 
 Prints, with every figure measured in the same run and the ratio peer / solid:
 - single search: mean µs per query over 144 queries, each method run once on each query, the
-  methods interleaved query by query; solid `auto` and `brute`, faiss `IndexFlatIP.search` of one
+  methods interleaved query by query, on a fresh database each time (what `auto` learns starts
+  from nothing), three times; the median of the three means of each method, and the range of
+  `auto` ÷ brute force over the three (one run on this shared 2-core machine moved that ratio by
+  up to 0.15 from one run to the next); solid `auto` and `brute`, faiss `IndexFlatIP.search` of one
   query (on 1 thread or on every core, whichever was faster on the first 16 queries of that
   database: one query at 10k entries takes faiss 0.05 ms on 1 thread, 0.25-0.34 ms on 2), numpy
   `argmax(X @ q)`;
-- batch search: 1,000 queries (half of each mix) in one call: `Database.search_batch`, faiss,
-  numpy in blocks of 16 queries, and a loop over `Database.search`;
+- batch search: 1,000 queries (half of each mix) in one call: `Database.search_batch` and faiss
+  (best of 7 / 5 / 2 runs at 10k / 100k / 1M), numpy in blocks of 16 queries, and a loop over
+  `Database.search`;
 - bulk add of the N entries from arrays: `Database.add_batch` (indexed, and stored only),
   faiss `normalize_L2` + `add`, numpy row normalisation;
 - bytes per entry: `Database.memory_bytes()` / N, faiss and numpy 160.
@@ -42,6 +46,7 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 import argparse
 import itertools
 import json
+import statistics
 import sys
 import time
 from collections.abc import Callable, Iterator
@@ -233,8 +238,23 @@ def single(db: solid.Database, index: faiss.IndexFlatIP, x: F32, queries: F32, k
     return {name: t / len(queries) for name, t in total.items()}
 
 
+#: Runs of each single-search case, each on a fresh database, the median taken.
+SINGLE_RUNS = 3
+
+#: Runs of each batch search, best taken, by number of entries (with 2 at 10k, one run took
+#: solid's batch 17.7 ms where the run before took 11.0 and a probe 12.6-12.9, alternating the
+#: wheels before and after a change: a busy moment on this shared machine).
+BATCH_REPS = {10_000: 7, 100_000: 5, 1_000_000: 2}
+
 #: Runs of each bulk add, best taken, by number of entries.
 ADD_REPS = {10_000: 31, 100_000: 15, 1_000_000: 5}
+
+
+def fresh(r: F32, a: F32) -> solid.Database:
+    """A new database of the rows (indexed): nothing observed by `auto` yet."""
+    db = solid.Database(CFG)
+    db.add_batch(r, a)
+    return db
 
 
 def batches(m: int, size: int) -> Iterator[slice]:
@@ -270,6 +290,7 @@ def main() -> int:
         "cores": os.cpu_count(),
         "cpu": cpu_model(),
         "queries": QUERIES,
+        "single_runs": SINGLE_RUNS,
     }
     js_single: list[dict[str, object]] = []
     js_batch: list[dict[str, object]] = []
@@ -311,20 +332,30 @@ def main() -> int:
             for mix, queries in mixes.items():
                 threads = faiss_single_threads(index, normalised(queries[:QUERIES]))
                 for k in (1, 10):
-                    t = single(db, index, x, queries[:QUERIES], k, threads)
+                    runs = [single(fresh(r, a), index, x, queries[:QUERIES], k, threads) for _ in range(SINGLE_RUNS)]
+                    t = {m: statistics.median(run[m] for run in runs) for m in runs[0]}
+                    spread = [run["auto"] / run["brute"] for run in runs]
                     js_single.append(
-                        {"db": db_name, "mix": mix, "n": n, "k": k, "faiss_threads": threads, **{f"{m}_s": v for m, v in t.items()}}
+                        {
+                            "db": db_name,
+                            "mix": mix,
+                            "n": n,
+                            "k": k,
+                            "faiss_threads": threads,
+                            **{f"{m}_s": v for m, v in t.items()},
+                            "auto_brute_runs": spread,
+                        }
                     )
                     rows_single.append(
                         f"{db_name + '/' + mix:10s} {n:>9d} {k:3d} {t['auto'] * 1e6:9.1f} {t['brute'] * 1e6:9.1f} "
                         f"{t['faiss'] * 1e6:9.1f} {threads:2d} {t['numpy'] * 1e6:9.1f} {t['faiss'] / t['auto']:8.2f} "
-                        f"{t['numpy'] / t['brute']:8.2f} {t['brute'] / t['auto']:8.2f}"
+                        f"{t['numpy'] / t['brute']:8.2f} {t['brute'] / t['auto']:8.2f} {min(spread):5.2f}-{max(spread):4.2f}"
                     )
             # Batch: 1,000 queries, half of each mix.
             q = np.concatenate([m[:500] for m in mixes.values()])
             qn = normalised(q)
-            t_batch = best_of(2, lambda: db.search_batch(q, k=1))
-            t_faiss = best_of(2, lambda: index.search(qn, 1))
+            t_batch = best_of(BATCH_REPS[n], lambda: db.search_batch(q, k=1))
+            t_faiss = best_of(BATCH_REPS[n], lambda: index.search(qn, 1))
             t_np = best_of(1, lambda: [np.argmax(x @ qn[s].T, axis=0) for s in batches(len(qn), 16)])
             t_loop = best_of(1, lambda: [db.search(v, k=1) for v in q])
             ids, dists = db.search_batch(q, k=1)
@@ -338,8 +369,14 @@ def main() -> int:
             )
             print(f"  done {db_name} {n}", file=sys.stderr, flush=True)
 
-    print(f"\nsingle search: mean µs per query over {QUERIES} queries, methods interleaved; faiss on th threads; ratios peer / solid")
-    print(f"{'db/mix':10s} {'n':>9s} {'k':>3s} {'auto':>9s} {'brute':>9s} {'faiss':>9s} {'th':>2s} {'numpy':>9s} {'faiss/au':>8s} {'np/brute':>8s} {'bf/auto':>8s}")
+    print(
+        f"\nsingle search: mean µs per query over {QUERIES} queries, methods interleaved, median of {SINGLE_RUNS} runs on fresh "
+        "databases; faiss on th threads; ratios peer / solid; auto/brute over the runs"
+    )
+    print(
+        f"{'db/mix':10s} {'n':>9s} {'k':>3s} {'auto':>9s} {'brute':>9s} {'faiss':>9s} {'th':>2s} {'numpy':>9s} {'faiss/au':>8s} "
+        f"{'np/brute':>8s} {'bf/auto':>8s} {'au/bf runs':>10s}"
+    )
     print("\n".join(rows_single))
     print("\nbatch search: 1,000 queries (500 of each mix), k = 1, ms; ratios peer / solid search_batch")
     print(f"{'db':4s} {'n':>9s} {'batch':>9s} {'faiss':>9s} {'numpy':>9s} {'loop':>9s} {'faiss/b':>8s} {'numpy/b':>8s} {'loop/b':>8s}")
