@@ -191,11 +191,11 @@ fn auto_comes_back_to_the_kd_tree_when_the_queries_change() {
     // 10,000 near-duplicates of one place and 30,000 rows around 3,000 other places. Queries of
     // the near-duplicated place first: the sketch gives up and the deep walk runs out, so brute
     // force soon runs alone, its retries spaced out to AUTO_RETRY_MAX. Then queries of the other
-    // places, whose walks finish: the first normal walk (on the sketch's next retry) that
-    // finishes starts the deep walk's average again from its cost, and the kd-tree is back (a
+    // places, whose walks finish: the first retry of the deep walk, under half a pass, starts
+    // the average of the deep walk's cost again from its cost, and the kd-tree is back (a
     // review's probe of this counted 1,652 queries of brute force alone before that, with
-    // retries every 256th query and the average of the deep walk's cost falling an eighth at a
-    // time; without the new start, 394 of these 400 here). The results never change.
+    // retries every 256th query and the average falling an eighth at a time; without the new
+    // start, 394 of these 400 here). The results never change.
     let dim = 24;
     let mut data = places(10_000, dim, 1, 1e-3, &mut Rng(31));
     let dup = places(1, dim, 1, 0.0, &mut Rng(31));
@@ -723,7 +723,8 @@ fn auto_takes_each_path_and_stays_exact() {
     );
     // Observed over many queries: the sketch that keeps giving up is skipped and the kd-tree
     // walks deeper instead; a deep walk that keeps running out of budget (each then costs its
-    // budget, a pass of brute force, and the pass that follows) is skipped too, within a
+    // budget, two passes of brute force at first and one on a retry, and the pass that
+    // follows) is skipped too, within a
     // few queries (brute force alone). Each is tried again less and less often while it keeps
     // failing (retried, deep_retried); the results do not change.
     for (i, c) in (0..).zip(observed_costs(rows, &q, 3, 100)) {

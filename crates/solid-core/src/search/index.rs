@@ -56,31 +56,32 @@ impl Request<'_> {
     }
 }
 
-/// What [`Plan::Auto`] has seen on the earlier queries of one set of rows. When the kd-tree's
-/// walk ran out of its normal budget on [`AUTO_MISSES`] queries in a row (queries from places
-/// the rows do not hold, whose walk only delays the sketch), the walk shrinks to the few leaves
-/// nearest the query ([`AUTO_PRIME_BASE`]), enough to hand the sketch a first k-th distance.
-/// When the sketch gave up on as many queries in a row (rows too alike for its bytes: a
-/// database of near-duplicates), the sketch is skipped and the kd-tree walks deeper instead (on
-/// such rows it is the only thing that can beat brute force), brute force taking what the walk
-/// did not finish; the deep walk goes on while its recent cost, counted in brute-force passes
-/// (timed against brute force's scans with [`Observed::timed`], by [`AUTO_TREE_ROW_COST`]'s
-/// rule otherwise; a walk that did not finish also costs the pass that follows it), averages
-/// less than one pass, and brute force runs alone otherwise. The normal walk is tried
-/// again on every [`AUTO_RETRY_EVERY`]th query (a walk that runs out costs a tenth of a pass or
-/// less). A skipped sketch is tried again on the next query whose number is a multiple of
+/// What [`Plan::Auto`] has seen on the earlier queries of one set of rows. When the kd-tree's walk
+/// ran out of its normal budget on [`AUTO_MISSES`] queries in a row (queries from places the rows
+/// do not hold, whose walk only delays the sketch), the walk shrinks to the few leaves nearest the
+/// query ([`AUTO_PRIME_BASE`]), enough to hand the sketch a first k-th distance. When the sketch
+/// gave up on as many queries in a row (rows too alike for its bytes: a database of
+/// near-duplicates), the sketch is skipped and the kd-tree walks deeper instead (on such rows it is
+/// the only thing that can beat brute force), brute force taking what the walk did not finish; the
+/// deep walk goes on while its recent cost, counted in brute-force passes (timed against brute
+/// force's passes with [`Observed::timed`] once a pass of at least 4,096 rows was timed, by
+/// [`AUTO_TREE_ROW_COST`]'s rule otherwise; a walk that did not finish also costs the pass that
+/// follows it), averages less than one pass, and brute force runs alone otherwise. The normal walk
+/// is tried again on every [`AUTO_RETRY_EVERY`]th query (a walk that runs out costs a tenth of a
+/// pass or less). A skipped sketch is tried again on the next query whose number is a multiple of
 /// [`AUTO_RETRY_EVERY`], and each time it fails again the interval doubles, up to
-/// [`AUTO_RETRY_MAX`] (queries 16, 32, 64, 128, 256, 384, …); a skipped deep walk three
-/// quarters of the way between the sketch's tries (queries 12, 24, 48, 96, 224, 352, …), with a
-/// budget of one pass instead of two (a dearer walk is no use; one that runs out costs two
-/// passes, not three). A retried deep walk under half a pass (rows or queries that changed:
-/// walks of stored places cost a tenth of a pass or less) starts the average again from it. A
-/// retry that fails costs up to a pass more than brute force alone: on near-duplicates (queries
-/// of more copies, 500 of them, k = 1 and 10, `auto` and brute force interleaved, two runs
-/// each), retries every 16th query made `auto` 1.05–1.10× as slow as brute force at 10k entries
-/// and 1.11–1.26× at 100k, doubling up to 128 1.01–1.03× and 1.05–1.07×. The price: on rows or
-/// queries that change, a sketch or deep walk skipped for long comes back up to 128 queries
-/// late, brute force running meanwhile.
+/// [`AUTO_RETRY_MAX`] (queries 16, 32, 64, 128, 256, 384, …); a skipped deep walk three quarters of
+/// the way between the sketch's tries (queries 12, 24, 48, 96, 224, 352, …), with a budget of one
+/// pass instead of two (a dearer walk is no use; one that runs out costs two passes, not three; the
+/// budget is counted in distances, by the rule, which on an AMD EPYC made one pass 1.6–1.8 passes
+/// of time). A retried deep walk under half a pass (rows or queries that changed: walks of stored
+/// places cost a tenth of a pass or less) starts the average again from it. A retry that fails
+/// costs up to a pass more than brute force alone: on near-duplicates (queries of more copies, 500
+/// of them, k = 1 and 10, `auto` and brute force interleaved, two runs each), retries every 16th
+/// query made `auto` 1.05–1.10× as slow as brute force at 10k entries and 1.11–1.26× at 100k,
+/// doubling up to 128 1.01–1.03× and 1.05–1.07×. The price: on rows or queries that change, a
+/// sketch or deep walk skipped for long comes back up to 128 queries late, brute force running
+/// meanwhile.
 ///
 /// Measured over the first 144 queries of fresh databases of near-duplicates (queries of more
 /// copies; `auto` and brute force interleaved; three runs each of a release probe with 32 MB of
@@ -103,9 +104,10 @@ pub struct Observed {
     sketch_misses: AtomicU32,
     /// Whether the walks and the scans are timed ([`Observed::timed`]).
     timed: bool,
-    /// The recent time of one row of brute force in nanoseconds (`f32` bits, a moving average
-    /// over about the last eight scans; 0: none yet).
+    /// The recent time of one row of brute force in nanoseconds (`f32` bits, see
+    /// [`Observed::note_scan`]; 0: none yet), and the passes timed.
     row_ns: AtomicU32,
+    scans: AtomicU32,
 }
 
 /// One brute-force pass in [`Observed::deep_cost`]'s unit.
@@ -136,6 +138,7 @@ impl Observed {
             sketch_misses: AtomicU32::new(0),
             timed: false,
             row_ns: AtomicU32::new(0),
+            scans: AtomicU32::new(0),
         }
     }
 
@@ -163,16 +166,29 @@ impl Observed {
         }
     }
 
-    /// Adds a brute-force scan of `rows` rows that took `ns` nanoseconds to the moving average
-    /// of the time per row (weight an eighth; the first sets it; a sample counts as at most four
-    /// times the average, so that a scan whose thread was descheduled moves it little).
+    /// Adds a brute-force pass over `rows` rows that took `ns` nanoseconds to the time per row:
+    /// the fastest of the first [`TIMED_FIRST`] passes, then a moving average (weight an eighth;
+    /// a pass counts as at most four times the average). A thread descheduled during a scan
+    /// only makes it look slower, and a time per row set too high makes walks look cheap: a
+    /// review's probe saw a first scan at 419 ns a row against 2.44, and with an average that
+    /// this first scan set, finished deep walks dearer than brute force ran on for 400 queries,
+    /// `auto` 1.38–1.44× brute force's time. (The fastest of every pass instead: on 1M
+    /// near-duplicates, where the deep walk pays a little, it looked dearer, `auto` 1.02–1.05×
+    /// brute force against 0.87–0.98× with the average.)
     fn note_scan(&self, ns: f64, rows: usize) {
+        if rows == 0 {
+            return;
+        }
         let sample = (ns / rows as f64) as f32;
         let old = load_ns(&self.row_ns);
-        let new = if old > 0.0 {
-            old + (sample.min(4.0 * old) - old) / 8.0
-        } else {
+        let first = self.scans.load(Relaxed);
+        self.scans.store(first.saturating_add(1), Relaxed);
+        let new = if old == 0.0 || (first < TIMED_FIRST && sample < old) {
             sample
+        } else if first < TIMED_FIRST {
+            old
+        } else {
+            old + (sample.min(4.0 * old) - old) / 8.0
         };
         if new.is_finite() && new > 0.0 {
             self.row_ns.store(new.to_bits(), Relaxed);
@@ -261,6 +277,8 @@ fn load_ns(cell: &AtomicU32) -> f32 {
 /// Brute-force scans of at least this many rows are timed by [`Observed::timed`] (shorter ones
 /// take too little time to tell).
 const TIMED_SCAN: usize = 4096;
+/// The time per row of brute force is the fastest of this many first passes, then an average.
+const TIMED_FIRST: u32 = 4;
 
 /// A clock where the crate has one (`std`): `start(true)` is the time now, `ns` the
 /// nanoseconds since.
@@ -278,8 +296,10 @@ mod clock {
 /// No clock without `std`: nothing is timed.
 #[cfg(not(feature = "std"))]
 mod clock {
-    pub(super) type Start = ();
-    pub(super) fn start(_: bool) -> Start {}
+    pub(super) type Start = Option<()>;
+    pub(super) fn start(_: bool) -> Start {
+        None
+    }
     pub(super) fn ns(_: Start) -> Option<f64> {
         None
     }
@@ -552,15 +572,13 @@ impl<'a> Index<'a> {
         };
         let mut from = 0;
         if walk != Depth::Skip {
-            let start = clock::start(timed && matches!(walk, Depth::Normal | Depth::Deep));
+            let start = clock::start(timed && walk == Depth::Deep);
             let finished = self.walk(query, exclude, bound, budget, best, cost);
-            let ns = clock::ns(start);
+            let walk_ns = clock::ns(start);
             match (req.observed, walk) {
-                (Some(o), Depth::Normal) => {
-                    Observed::record(&o.walk_misses, finished);
-                }
+                (Some(o), Depth::Normal) => Observed::record(&o.walk_misses, finished),
                 (Some(o), Depth::Deep) => {
-                    let walked = o.passes(ns, cost.tree_rows, tree_row, candidates);
+                    let walked = o.passes(walk_ns, cost.tree_rows, tree_row, candidates);
                     o.record_deep(walked + if finished { 0.0 } else { 1.0 });
                 }
                 _ => {}
@@ -579,17 +597,20 @@ impl<'a> Index<'a> {
             return;
         }
         if matches!(walk, Depth::Normal | Depth::Short) && from < self.sketch.len() {
-            let (start, exact) = (clock::start(timed), cost.exact_rows);
+            let (start, exact, sketched) = (clock::start(timed), cost.exact_rows, cost.sketch_rows);
             let done = self
                 .sketch
                 .scan(query, from, exclude, bound, true, best, cost);
             let ns = clock::ns(start);
             if let Some(o) = req.observed {
                 Observed::record(&o.sketch_misses, done);
-                // A sketch that gave up ran brute force over most rows: timed as such (the
-                // rows it scanned first add a few per cent).
+                // A sketch that gave up at its first checks ran brute force over the rows:
+                // timed as a pass (the rows it scanned first add a few per cent; a sketch that
+                // scanned more before giving up is not a pass: on 30,000 spread rows before
+                // 10,000 near-duplicates it took four times a pass's time a row).
                 let rows = cost.exact_rows - exact;
-                if let (false, Some(ns), true) = (done, ns, rows >= TIMED_SCAN) {
+                let long = rows >= TIMED_SCAN && 8 * (cost.sketch_rows - sketched) <= rows;
+                if let (false, Some(ns), true) = (done, ns, long) {
                     o.note_scan(ns, rows);
                 }
             }
@@ -598,7 +619,8 @@ impl<'a> Index<'a> {
         }
         if from < candidates {
             cost.exact_rows += candidates - from;
-            let start = clock::start(timed && candidates - from >= TIMED_SCAN);
+            // Whole passes only (the rows beyond the kd-tree run on fewer threads).
+            let start = clock::start(timed && from == 0 && candidates >= TIMED_SCAN);
             scan(self.rows, from, candidates, query, exclude, bound, best);
             if let (Some(o), Some(ns)) = (req.observed, clock::ns(start)) {
                 o.note_scan(ns, candidates - from);
@@ -630,7 +652,9 @@ impl<'a> Index<'a> {
 
 #[cfg(test)]
 mod timing_tests {
-    use super::{auto_tree_row_cost, load_ns, Index, Observed, Request};
+    use super::{
+        auto_tree_row_cost, load_ns, Index, Observed, Relaxed, Request, AUTO_MISSES, DEEP_PASS,
+    };
     use crate::search::{online_rebuild, sketch_encode, sketch_len, Neighbor, Rows};
 
     #[test]
@@ -649,12 +673,46 @@ mod timing_tests {
         assert_eq!(o.passes(Some(5e5), 50_000, rule, n), 0.5);
         // Untimed (no clock, or Observed::new): the rule.
         assert_eq!(o.passes(None, 500, rule, n), (500 * rule) as f64 / n as f64);
-        // A scan descheduled for a second counts as four times the average, an eighth of it.
-        o.note_scan(1e9, 4096);
-        assert_eq!(load_ns(&o.row_ns), 10.0 + (40.0 - 10.0) / 8.0);
         // A clone starts again, timed as the original.
         let c = o.clone();
         assert!(c.timed == o.timed && load_ns(&c.row_ns) == 0.0);
+    }
+
+    #[test]
+    fn only_a_retry_under_half_a_pass_starts_the_deep_walk_again() {
+        let o = Observed::new();
+        o.record_deep(2.0);
+        assert!(o.deep_skipped());
+        o.record_deep(0.6);
+        assert!(o.deep_skipped(), "a retry of 0.6 passes is averaged in");
+        o.record_deep(0.4);
+        assert_eq!(
+            o.deep_cost.load(Relaxed),
+            (0.4 * f64::from(DEEP_PASS)) as u32
+        );
+        assert!(!o.deep_skipped());
+    }
+
+    #[test]
+    fn the_time_per_row_is_the_fastest_first_pass_then_an_average() {
+        let o = Observed::timed();
+        let scan = |ns_a_row: f64| o.note_scan(ns_a_row * 4096.0, 4096);
+        o.note_scan(0.0, 0);
+        assert_eq!(load_ns(&o.row_ns), 0.0, "an empty scan counts for nothing");
+        // A first scan whose thread was descheduled is undone by the next ones...
+        scan(400.0);
+        assert_eq!(load_ns(&o.row_ns), 400.0);
+        scan(2.5);
+        scan(3.0);
+        scan(2.75);
+        assert_eq!(load_ns(&o.row_ns), 2.5);
+        // ...and from the fifth on, passes are averaged in, a slow one counting at most four
+        // times the average.
+        scan(2.0);
+        assert_eq!(load_ns(&o.row_ns), 2.5 + (2.0 - 2.5) / 8.0);
+        let old = load_ns(&o.row_ns);
+        scan(1e6);
+        assert_eq!(load_ns(&o.row_ns), old + (4.0 * old - old) / 8.0);
     }
 
     #[test]
@@ -702,6 +760,34 @@ mod timing_tests {
                 index.search(q, &req, &mut [Neighbor::default()]).unwrap();
             }
             assert_eq!(load_ns(&o.row_ns) > 0.0, timed);
+        }
+        // A deep walk (the sketch being skipped) counted by its time: against brute force at a
+        // millisecond a row, it cost next to nothing, the pass that follows it if it ran out
+        // aside; by the rule, the distances it computed.
+        let deep = |o: &Observed| {
+            o.sketch_misses.store(AUTO_MISSES, Relaxed);
+            o.queries.store(AUTO_MISSES + 1, Relaxed);
+            o.deep_cost.store(0, Relaxed);
+            o.row_ns.store(1e6f32.to_bits(), Relaxed);
+            let req = Request {
+                observed: Some(o),
+                ..Request::nearest(1)
+            };
+            let found = index.search(q, &req, &mut [Neighbor::default()]).unwrap();
+            let ran_out = found.cost.exact_rows > 0;
+            let cost = f64::from(o.deep_cost.load(Relaxed)) / f64::from(DEEP_PASS);
+            (found.cost.tree_rows, cost - if ran_out { 1.0 } else { 0.0 })
+        };
+        let rule = auto_tree_row_cost(n, 1);
+        let (rows, walked) = deep(&Observed::new());
+        assert!(
+            rows > 0 && (walked - (rows * rule) as f64 / n as f64).abs() < 0.01,
+            "{rows} {walked}"
+        );
+        let (rows, walked) = deep(&Observed::timed());
+        assert!(rows > 0, "{rows}");
+        if cfg!(feature = "std") {
+            assert!(walked < 0.01, "{rows} {walked}");
         }
     }
 }
