@@ -704,6 +704,11 @@ class Database:
     target: concurrent saves to one path all succeed and leave one of them, whole; a save killed
     midway leaves the old file. `load` reads regular files only (a FIFO or a device is refused
     before it is opened) and checks the header against the file's size before reading the body.
+
+    Safe to share between threads: searches run in parallel, an add or a merge waits for them
+    and runs alone. A process forked while another thread adds finds its copy locked (as with
+    any lock held across `fork`): fork while no thread adds, or use `multiprocessing`'s
+    `forkserver` or `spawn` start method.
     """
     def __new__(cls, cfg: SolidConfig) -> Database:
         """`Database(cfg)`: an empty database.
