@@ -316,8 +316,7 @@ def main() -> int:
                 },
             )
             t_add, t_add_flat, t_faiss_add, t_np_add = (adds[m] for m in ("indexed", "stored", "faiss", "numpy"))
-            db = solid.Database(CFG)
-            db.add_batch(r, a)
+            db = fresh(r, a)
             x = normalised(r)
             index = faiss.IndexFlatIP(CFG.n_range)
             index.add(x)

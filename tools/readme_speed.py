@@ -136,10 +136,11 @@ def search_block(doc: dict[str, Any]) -> list[str]:
     lines += [
         "",
         f"Over every database, query mix, size and k (1 and 10), `auto` takes at most "
-        f"{worst['auto_s'] / worst['brute_s']:.2f}× the time of brute force ({MIXES[(worst['db'], worst['mix'])]}, "
+        f"{worst['auto_s'] / worst['brute_s']:.2f}× the time of brute force (the ratio of the medians; "
+        f"{MIXES[(worst['db'], worst['mix'])]}, "
         f"{worst['n']:,} entries, k = {worst['k']}; its {len(worst['auto_brute_runs'])} runs "
         f"{min(worst['auto_brute_runs']):.2f}–{max(worst['auto_brute_runs']):.2f}×; the largest of any single run, "
-        f"{most:.2f}×); its slowest mix over {slowest['n']:,} entries takes "
+        f"{most:.2f}×); for k = 1 its slowest mix over {slowest['n']:,} entries takes "
         f"{us(slowest['auto_s'])} a query ({MIXES[(slowest['db'], slowest['mix'])]}).",
         "",
         "| what | solid | faiss-cpu in the same run | faiss ÷ solid |",

@@ -484,7 +484,7 @@ fn time_mix(index: &Index<'_>, queries: &[f32], k: usize) -> [(f64, f64); COLUMN
     let mut lens = [0usize; COLUMNS.len()];
     // What auto learns over the mix, as a Database keeps it (one per column: the bounded one
     // sees other outcomes).
-    let observed: [Observed; COLUMNS.len()] = Default::default();
+    let observed: [Observed; COLUMNS.len()] = core::array::from_fn(|_| Observed::timed());
     for (qi, q) in queries.chunks_exact(DIM).enumerate() {
         // Rotate the order of the plans from query to query, so that none always runs first.
         for step in 0..COLUMNS.len() {

@@ -706,9 +706,9 @@ class Database:
     before it is opened) and checks the header against the file's size before reading the body.
 
     Safe to share between threads: searches run in parallel, an add or a merge waits for them
-    and runs alone. A process forked while another thread adds finds its copy locked (as with
-    any lock held across `fork`): fork while no thread adds, or use `multiprocessing`'s
-    `forkserver` or `spawn` start method.
+    and runs alone. A process forked while another thread adds, merges or builds the index finds
+    its copy locked (as with any lock held across `fork`): fork while no thread does, or use
+    `multiprocessing`'s `forkserver` or `spawn` start method.
     """
     def __new__(cls, cfg: SolidConfig) -> Database:
         """`Database(cfg)`: an empty database.
@@ -976,7 +976,8 @@ class LoopDetector:
     matched with — a prior map, and its own session minus the exclusion window — then added.
 
     Safe to share between threads: a step (search, then add) runs alone; `query` and the
-    getters run in parallel.
+    getters run in parallel. A process forked while another thread runs a step finds its copy
+    locked, as `Database`'s.
     """
     def __new__(
         cls,

@@ -736,8 +736,9 @@ fn write<T>(l: &RwLock<T>) -> RwLockWriteGuard<'_, T> {
 ///
 /// Safe to share between threads: searches run in parallel, an add or a merge waits for them
 /// and runs alone; every wait happens with the GIL released. A process forked while another
-/// thread adds finds its copy locked (as with any lock held across `fork`): fork while no
-/// thread adds, or use `multiprocessing`'s `forkserver` or `spawn` start method.
+/// thread adds, merges or builds the index finds its copy locked (as with any lock held across
+/// `fork`): fork while no thread does, or use `multiprocessing`'s `forkserver` or `spawn` start
+/// method.
 #[pyclass(name = "Database", module = "solid", frozen)]
 pub struct PyDatabase {
     inner: RwLock<Database>,
@@ -1116,7 +1117,7 @@ impl PyDatabase {
 ///
 /// Safe to share between threads: `add` (search then insert) runs alone, as one step, so no scan
 /// is lost or searched against a half-added entry; `query` and the getters run in parallel. A
-/// process forked while another thread adds finds its copy locked, as `Database`'s.
+/// process forked while another thread runs a step finds its copy locked, as `Database`'s.
 #[pyclass(name = "LoopDetector", module = "solid", frozen)]
 pub struct PyLoopDetector {
     /// The descriptor configuration (fixed for the detector's life).

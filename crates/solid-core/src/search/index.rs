@@ -76,24 +76,30 @@ impl Request<'_> {
 /// budget is counted in distances, by the rule, which on an AMD EPYC made one pass 1.6–1.8 passes
 /// of time). A retried deep walk under half a pass (rows or queries that changed: walks of stored
 /// places cost a tenth of a pass or less) starts the average again from it. A retry that fails
-/// costs up to a pass more than brute force alone: on near-duplicates (queries of more copies, 500
-/// of them, k = 1 and 10, `auto` and brute force interleaved, two runs each), retries every 16th
-/// query made `auto` 1.05–1.10× as slow as brute force at 10k entries and 1.11–1.26× at 100k,
-/// doubling up to 128 1.01–1.03× and 1.05–1.07×. The price: on rows or queries that change, a
+/// costs up to a pass more than brute force alone by the rule (about 1.7 passes of time on the
+/// EPYC): on near-duplicates (queries of more copies, 500 of them, k = 1 and 10, `auto` and brute
+/// force interleaved, two runs each, with the two-pass retries of then), retries every 16th query
+/// made `auto` 1.05–1.10× as slow as brute force at 10k entries and 1.11–1.26× at 100k, doubling
+/// up to 128 1.01–1.03× and 1.05–1.07×. The price: on rows or queries that change, a
 /// sketch or deep walk skipped for long comes back up to 128 queries late, brute force running
 /// meanwhile.
 ///
 /// Measured over the first 144 queries of fresh databases of near-duplicates (queries of more
 /// copies; `auto` and brute force interleaved; three runs each of a release probe with 32 MB of
-/// other memory read between searches, `auto` ÷ brute force), against the rule-counted walks,
-/// two-pass retries and restarts from any retry under a pass that came before: 100k entries
-/// 1.04–1.10× (k = 1) and 1.04–1.08× (k = 10) against 1.07–1.13× and 1.10–1.14×; 1M 1.01–1.07×
-/// and 1.05–1.07× against 0.98–1.07× and 1.07–1.09×; 10k 1.09–1.19× and 1.16–1.24× against
-/// 1.22–1.34× and 1.15–1.24×. There the restarts from a retry under a pass had brought back the
-/// deep walk, at 100k entries, for runs of walks of 1.4 to 2.7 passes or that ran out.
+/// other memory read between searches, `auto` ÷ brute force; the timing then took the moving
+/// average of every pass), against the rule-counted walks, two-pass retries and restarts from any
+/// retry under a pass that came before: 100k entries 1.04–1.10× (k = 1) and 1.04–1.08× (k = 10)
+/// against 1.07–1.13× and 1.10–1.14×; 1M 1.01–1.07× and 1.05–1.07× against 0.98–1.07× and
+/// 1.07–1.09×; 10k 1.09–1.19× and 1.16–1.24× against 1.22–1.34× and 1.15–1.24×. There the restarts
+/// from a retry under a pass had brought back the deep walk, at 100k entries, for runs of walks of
+/// 1.4 to 2.7 passes or that ran out. With the time per row as it is now (the fastest of the first
+/// 4 passes, then the average), in the next three runs against the average of every pass: 10k
+/// 1.11–1.16× against 1.12–1.15×, 100k 1.04–1.05× against 1.03–1.06×, 1M 0.99–1.03× against
+/// 1.01–1.03× (k = 1).
 ///
 /// Keep one per database; threads may share it (the counts are loaded and stored, not locked:
 /// two threads updating at once may lose a count, which only delays a change of plan).
+/// `Default` is [`Observed::new`], untimed.
 #[derive(Debug, Default)]
 pub struct Observed {
     queries: AtomicU32,
@@ -105,8 +111,9 @@ pub struct Observed {
     /// Whether the walks and the scans are timed ([`Observed::timed`]).
     timed: bool,
     /// The recent time of one row of brute force in nanoseconds (`f32` bits, see
-    /// [`Observed::note_scan`]; 0: none yet), and the passes timed.
+    /// [`Observed::note_scan`]; 0: none yet).
     row_ns: AtomicU32,
+    /// The brute-force passes timed so far.
     scans: AtomicU32,
 }
 
@@ -142,13 +149,13 @@ impl Observed {
         }
     }
 
-    /// Nothing observed yet; with a clock (the `std` feature) the walks and the brute-force
-    /// scans of [`Plan::Auto`] are timed, and a walk's cost is its time against a pass of brute
-    /// force's (a moving average of the scans' time per row). What a walk costs against brute
-    /// force depends on the machine more than the rule allows, and on the walk: on near-duplicates
-    /// at a million entries (caches cold, release probe), the rule made on an Intel Xeon gives 26
-    /// rows a distance, where on an AMD EPYC walks of 7,000 distances took 68 and walks of 75,000
-    /// took 23. Without a clock, as [`Observed::new`].
+    /// Nothing observed yet; with a clock (the `std` feature) the walks and the brute-force scans
+    /// of [`Plan::Auto`] are timed, and a walk's cost is its time against a pass of brute force's
+    /// (the time per row: the fastest of the first 4 passes timed, then a moving average). What a
+    /// walk costs against brute force depends on the machine more than the rule allows, and on the
+    /// walk: on near-duplicates at a million entries (caches cold, release probe), the rule made on
+    /// an Intel Xeon gives 26 rows a distance, where on an AMD EPYC walks of 7,000 distances took
+    /// 68 and walks of 75,000 took 23. Without a clock, as [`Observed::new`].
     pub const fn timed() -> Self {
         let mut o = Observed::new();
         o.timed = cfg!(feature = "std");
@@ -172,9 +179,10 @@ impl Observed {
     /// only makes it look slower, and a time per row set too high makes walks look cheap: a
     /// review's probe saw a first scan at 419 ns a row against 2.44, and with an average that
     /// this first scan set, finished deep walks dearer than brute force ran on for 400 queries,
-    /// `auto` 1.38–1.44× brute force's time. (The fastest of every pass instead: on 1M
-    /// near-duplicates, where the deep walk pays a little, it looked dearer, `auto` 1.02–1.05×
-    /// brute force against 0.87–0.98× with the average.)
+    /// `auto` 1.38–1.44× brute force's time. One time per row serves every query: a database
+    /// growing past 65,536 rows, or queries of k above 64, mix passes on one thread and on
+    /// several (their scans split from 65,536 rows on, for k up to 64), until the average
+    /// catches up.
     fn note_scan(&self, ns: f64, rows: usize) {
         if rows == 0 {
             return;
@@ -243,9 +251,10 @@ impl Observed {
     /// The first walk (the average still 0: no walk costs nothing) sets the average. From 0, an
     /// eighth at a time, it took about ten walks of 1.4 passes (100k near-duplicates, k = 1)
     /// before the walk was skipped. Measured over the first 144 queries of a fresh database of
-    /// near-duplicates (`benches/search_peers.py`'s protocol, 8 runs each): 1M entries, k = 1,
-    /// 0.76–0.81× brute force's time against 0.99–1.02× from 0; 100k 1.05–1.10× against
-    /// 1.05–1.12×; 10k no change.
+    /// near-duplicates (`benches/search_peers.py`'s protocol, 8 runs each, the walks then counted
+    /// by the rule, on the 2-core AMD EPYC): 1M entries, k = 1, 0.76–0.81× brute force's time
+    /// against 0.99–1.02× from 0; 100k 1.05–1.10× against 1.05–1.12×; 10k no change. (Timed,
+    /// the deep walk at 1M only breaks even there: 0.94–0.97× in the README's runs.)
     fn record_deep(&self, passes: f64) {
         let sample = ((passes * f64::from(DEEP_PASS)).min(f64::from(16 * DEEP_PASS)) as u32).max(1);
         let old = self.deep_cost.load(Relaxed);
@@ -380,11 +389,11 @@ pub const AUTO_PRIME_PER_K: usize = 4;
 /// against brute force over `t` threads (the scans of 65,536 rows and more), `t` times as many:
 /// [`auto_tree_row_cost`]. Measured on near-duplicate databases (release probe, 48 queries of
 /// another copy of the scan, each walk and each scan run once after 32 MB of other memory was
-/// written, as between a detector's queries: the walk's time ÷ its distances against brute
-/// force's time ÷ its rows, median, k = 1 / 10): 8.1 / 6.9 at 10k entries (brute force on one
-/// thread), 19.6 / 17.0 at 100k and 27.4 / 25.8 at 1M (on two), where the rule gives 8, 20 and
-/// 26. (Run back to back on the same query, with warm caches, the walk looks cheaper: 6.4 / 5.8,
-/// 16.3 / 15.1 and 14.2 / 12.7.)
+/// written, as between a detector's queries: the walk's time ÷ its distances against brute force's
+/// time ÷ its rows, median, k = 1 / 10; on a 2-core Intel Xeon): 8.1 / 6.9 at 10k entries (brute
+/// force on one thread), 19.6 / 17.0 at 100k and 27.4 / 25.8 at 1M (on two), where the rule gives
+/// 8, 20 and 26. (Run back to back on the same query, with warm caches, the walk looks cheaper: 6.4
+/// / 5.8, 16.3 / 15.1 and 14.2 / 12.7.)
 ///
 /// When the sketch is being skipped ([`Observed`]), the deep walk may compute as many distances
 /// as two brute-force passes cost (one on a retry), and goes on while its walks average less
@@ -597,20 +606,24 @@ impl<'a> Index<'a> {
             return;
         }
         if matches!(walk, Depth::Normal | Depth::Short) && from < self.sketch.len() {
-            let (start, exact, sketched) = (clock::start(timed), cost.exact_rows, cost.sketch_rows);
+            let (start, exact, sketched) = (
+                clock::start(timed && from == 0),
+                cost.exact_rows,
+                cost.sketch_rows,
+            );
             let done = self
                 .sketch
                 .scan(query, from, exclude, bound, true, best, cost);
             let ns = clock::ns(start);
             if let Some(o) = req.observed {
                 Observed::record(&o.sketch_misses, done);
-                // A sketch that gave up at its first checks ran brute force over the rows:
-                // timed as a pass (the rows it scanned first add a few per cent; a sketch that
-                // scanned more before giving up is not a pass: on 30,000 spread rows before
+                // A sketch over every row that gave up at its first checks ran brute force over the
+                // rows: timed as a pass (the rows it scanned first add a few per cent; a sketch
+                // that scanned more before giving up is not a pass: on 30,000 spread rows before
                 // 10,000 near-duplicates it took four times a pass's time a row).
                 let rows = cost.exact_rows - exact;
                 let long = rows >= TIMED_SCAN && 8 * (cost.sketch_rows - sketched) <= rows;
-                if let (false, Some(ns), true) = (done, ns, long) {
+                if let (Some(ns), false) = (ns, done || !long) {
                     o.note_scan(ns, rows);
                 }
             }
@@ -623,7 +636,7 @@ impl<'a> Index<'a> {
             let start = clock::start(timed && from == 0 && candidates >= TIMED_SCAN);
             scan(self.rows, from, candidates, query, exclude, bound, best);
             if let (Some(o), Some(ns)) = (req.observed, clock::ns(start)) {
-                o.note_scan(ns, candidates - from);
+                o.note_scan(ns, candidates);
             }
         }
     }
