@@ -1346,23 +1346,8 @@ impl PyLoopDetector {
             .collect::<PyResult<Vec<_>>>()?;
         let slices: Vec<crate::PointSlice<'_>> =
             borrowed.iter().map(crate::Borrowed::slice).collect();
-        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-        let threads = match threads {
-            Some(0) => {
-                return Err(crate::ConfigError::new_err(
-                    "threads must be at least 1 (or None for every core)",
-                ))
-            }
-            Some(t) => t.min(cores),
-            None => cores,
-        };
         let cfg = self.cfg;
-        // One pool per size asked, not one per batch length (see `describe_batch`).
-        let pool = if threads.min(slices.len()) > 1 {
-            Some(crate::pool(threads)?)
-        } else {
-            None
-        };
+        let pool = crate::batch_pool(threads, slices.len())?;
         let found = py
             .detach(|| -> Result<Vec<db::Detection>, DbError> {
                 use rayon::prelude::*;

@@ -658,9 +658,35 @@ fn describe(
 /// stealing and hands a worker's panic back to the caller, all of it well tested. The core
 /// crate keeps the pools: a process forked by Python's multiprocessing starts its own, and
 /// finding one takes no lock that a fork could leave held.
-pub(crate) fn pool(threads: usize) -> PyResult<&'static rayon::ThreadPool> {
+fn pool(threads: usize) -> PyResult<&'static rayon::ThreadPool> {
     solid_lidar::pool::pool_of("solid-describe", threads)
         .map_err(|e| SolidError::new_err(format!("cannot start describe workers: {e}")))
+}
+
+/// The workers of a batch of `scans` scans asked to run on `threads` threads (None: every
+/// core): at most one per core (more only adds switching), and `None` when one thread does (a
+/// single scan or a single thread). The pool has the threads asked for even when there are
+/// fewer scans (the scans then take fewer of them): one pool per size asked, not one per batch
+/// length. `threads = 0` is refused.
+pub(crate) fn batch_pool(
+    threads: Option<usize>,
+    scans: usize,
+) -> PyResult<Option<&'static rayon::ThreadPool>> {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let threads = match threads {
+        Some(0) => {
+            return Err(ConfigError::new_err(
+                "invalid threads = 0: expected at least 1 (or None for every core)",
+            ))
+        }
+        Some(t) => t.min(cores),
+        None => cores,
+    };
+    if threads.min(scans) > 1 {
+        pool(threads).map(Some)
+    } else {
+        Ok(None)
+    }
 }
 
 /// Describes many scans in parallel (every core by default), GIL released once for the batch.
@@ -689,27 +715,11 @@ fn describe_batch(
         .map(|(i, p)| borrow_points(p, &format!("scans[{i}]")))
         .collect::<PyResult<Vec<_>>>()?;
     let slices: Vec<PointSlice<'_>> = borrowed.iter().map(Borrowed::slice).collect();
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    // More threads than cores only adds switching: at most one per core.
-    let threads = match threads {
-        Some(0) => {
-            return Err(ConfigError::new_err(
-                "invalid threads = 0: expected at least 1 (or None for every core)",
-            ))
-        }
-        Some(t) => t.min(cores),
-        None => cores,
-    };
     let cfg = config.inner;
     let describe_all = || -> Vec<Result<Descriptor, Error>> {
         slices.iter().map(|s| describe_slice(s, &cfg)).collect()
     };
-    // The pool has the threads asked for even when there are fewer scans (the scans then take
-    // fewer of them): one pool per size asked, not one per batch length.
-    let results = if threads.min(slices.len()) <= 1 {
-        py.detach(describe_all)
-    } else {
-        let pool = pool(threads)?;
+    let results = if let Some(pool) = batch_pool(threads, slices.len())? {
         py.detach(|| {
             pool.install(|| {
                 slices
@@ -718,6 +728,8 @@ fn describe_batch(
                     .collect::<Vec<_>>()
             })
         })
+    } else {
+        py.detach(describe_all)
     };
     results
         .into_iter()
