@@ -211,6 +211,24 @@ pub(crate) fn floor_to_u8(y: f32) -> u8 {
     (f + MAGIC).to_bits() as u8
 }
 
+/// Marsaglia's 32-bit xorshift (13, 17, 5): the crate's unit tests' source of reproducible
+/// values.
+#[cfg(test)]
+pub(crate) struct XorShift32(pub(crate) u32);
+
+#[cfg(test)]
+impl XorShift32 {
+    /// The next state, which is also the value.
+    pub(crate) fn next_u32(&mut self) -> u32 {
+        let mut x = self.0;
+        x ^= x << 13;
+        x ^= x >> 17;
+        x ^= x << 5;
+        self.0 = x;
+        x
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -733,13 +733,8 @@ mod timing_tests {
         // Near-duplicates (one place under 0.1 % noise): brute force follows the sketch on the
         // first queries, over most rows: long enough to be timed.
         let (n, dim) = (8_000, 24);
-        let mut x = 0x2545_f491u32;
-        let mut next = move || {
-            x ^= x << 13;
-            x ^= x >> 17;
-            x ^= x << 5;
-            (x % 1_000_000) as f32 / 1e6
-        };
+        let mut rng = crate::math::XorShift32(0x2545_f491);
+        let mut next = move || (rng.next_u32() % 1_000_000) as f32 / 1e6;
         let place: Vec<f32> = (0..dim).map(|_| 0.5 + next()).collect();
         let mut data: Vec<f32> = (0..n)
             .flat_map(|_| {

@@ -719,16 +719,11 @@ mod tests {
             eprintln!("no AVX2 on this CPU: nothing to compare");
             return;
         }
-        let mut x = 0x2545_f491u32;
+        let mut rng = crate::math::XorShift32(0x2545_f491);
         for dim in [40usize, 13] {
             let n = 5 * SKETCH_BLOCK + 3;
             let mut raw: Vec<f32> = (0..n * dim)
-                .map(|_| {
-                    x ^= x << 13;
-                    x ^= x >> 17;
-                    x ^= x << 5;
-                    (x % 10_000) as f32 * 1e-3
-                })
+                .map(|_| (rng.next_u32() % 10_000) as f32 * 1e-3)
                 .collect();
             raw[2 * dim..3 * dim].fill(0.0);
             raw[5 * dim + 3] = f32::NAN;
@@ -770,13 +765,8 @@ mod bound_tests {
     /// as large as the quantisation error), rows not normalised, lengths from 1 to 1,024.
     #[test]
     fn the_stored_error_bounds_the_exact_one_closely() {
-        let mut x = 0x9e37_79b9u32;
-        let mut next = move || {
-            x ^= x << 13;
-            x ^= x >> 17;
-            x ^= x << 5;
-            f64::from(x % 1_000_000) / 1e6
-        };
+        let mut rng = crate::math::XorShift32(0x9e37_79b9);
+        let mut next = move || f64::from(rng.next_u32() % 1_000_000) / 1e6;
         let n = 3 * SKETCH_BLOCK;
         let mut worst = 0.0f64;
         for dim in [1usize, 3, 8, 40, 61, 1024] {
