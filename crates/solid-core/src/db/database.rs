@@ -986,7 +986,8 @@ impl<'a> ChunkOut<'a> {
             .zip(self.a_codes.chunks_mut(ROWS * na))
             .zip(self.a_scale.chunks_mut(ROWS))
         {
-            // The largest values first, then the steps and their inverses eight rows at a time.
+            // The largest values first, then the steps and their inverses in a loop of their own
+            // (which the compiler vectorises), then the codes.
             let (mut top, mut inv) = ([0.0f32; ROWS], [0.0f32; ROWS]);
             for (row, top) in rows.chunks_exact(na).zip(&mut top) {
                 // `a_top` refuses exactly what `check_bins` names.
@@ -1051,7 +1052,8 @@ fn a_top(a: &[f32]) -> Option<f32> {
     (top < f32::INFINITY.to_bits()).then(|| f32::from_bits(top))
 }
 
-/// The step of the codes of an A-SOLiD whose largest value is `top` ([`quantize_a`]).
+/// The step of the 8-bit codes of an A-SOLiD whose largest value is `top` (see
+/// [`Database::a`]): `top / 255`; its values are quantised by [`quantize_a_with`].
 #[inline(always)]
 fn a_step(top: f32) -> f32 {
     top / 255.0
@@ -1067,7 +1069,8 @@ fn a_inverse(step: f32) -> f32 {
     }
 }
 
-/// The codes of an A-SOLiD ([`quantize_a`]): rounded half up, saturated into `0..=255`.
+/// The codes of an A-SOLiD, given [`a_inverse`] of its [`a_step`]: rounded half up, saturated
+/// into `0..=255`.
 #[inline(always)]
 fn quantize_a_with(a: &[f32], inv: f32, codes: &mut [u8]) {
     for (c, &v) in codes.iter_mut().zip(a) {
@@ -1075,7 +1078,7 @@ fn quantize_a_with(a: &[f32], inv: f32, codes: &mut [u8]) {
     }
 }
 
-/// The values of a quantised A-SOLiD (see [`quantize_a`]).
+/// The values of a quantised A-SOLiD (see [`a_step`]).
 fn dequantize_a(codes: &[u8], step: f32, out: &mut [f32]) {
     for (o, v) in out.iter_mut().zip(dequantized(codes, step)) {
         *o = v;
@@ -1289,6 +1292,45 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// A bulk add with bad values names the first bad value of the first bad R-SOLiD row, and of
+    /// the first bad A-SOLiD row only when every R-SOLiD is good: across groups of four rows and
+    /// blocks of 64, and within a row.
+    #[test]
+    fn fill_names_the_first_bad_value() {
+        use super::{ChunkOut, Error};
+        let (nr, na, n) = (40, 60, 140);
+        let named = |r: &[f32], a: &[f32]| {
+            let (mut scale, mut codes, mut step) = (vec![0.0; n], vec![0u8; n * na], vec![0.0; n]);
+            let out = ChunkOut {
+                r,
+                a,
+                scale: &mut scale,
+                a_codes: &mut codes,
+                a_scale: &mut step,
+            }
+            .fill(nr, na);
+            match out {
+                Err(Error::InvalidParameter { name, value, .. }) => (name, value.to_bits()),
+                other => panic!("expected a bad value, got {other:?}"),
+            }
+        };
+        let bits = |v: f32| f64::from(v).to_bits();
+        let (mut r, mut a) = (vec![0.5f32; n * nr], vec![0.5f32; n * na]);
+        a[3 * na + 7] = -7.0;
+        a[2 * na + 59] = f32::INFINITY;
+        assert_eq!(named(&r, &a), ("a_solid", bits(f32::INFINITY)));
+        r[70 * nr + 1] = f32::NAN;
+        assert!(f64::from_bits(named(&r, &a).1).is_nan());
+        r[129 * nr + 39] = -1.0;
+        r[66 * nr + 5] = -2.0;
+        r[66 * nr + 9] = f32::NEG_INFINITY;
+        assert_eq!(named(&r, &a), ("r_solid", bits(-2.0)));
+        r[66 * nr + 2] = f32::INFINITY;
+        assert_eq!(named(&r, &a), ("r_solid", bits(f32::INFINITY)));
+        r[1] = -1e-45;
+        assert_eq!(named(&r, &a), ("r_solid", bits(-1e-45)));
     }
 
     /// `a_top` (a maximum of bits) is the largest value, or refuses what is negative or not
