@@ -168,21 +168,77 @@ fn encode_block_avx2(
     encode_block(rows, start, from, codes, params);
 }
 
-/// Encodes the rows of the block starting at row `start` (those from `from` on).
+/// Encodes the rows of the block starting at row `start` (those from `from` on): first the
+/// range of every row, then their codes, then their error bounds, so that one row's chain of
+/// dependent minima, maxima, divisions and square root overlaps the next rows' instead of
+/// holding up its own codes. With [`row_range`]'s loop, `sketch_encode` of 10,000 HKU rows on
+/// one thread took 0.35 ms instead of 0.61 (release probe, AMD EPYC), with the same bits.
 #[inline(always)]
 fn encode_block(rows: Rows<'_>, start: usize, from: usize, codes: &mut [u8], params: &mut [f32]) {
-    for lane in 0..SKETCH_BLOCK {
+    let mut ranges = [(0.0f32, 0.0f32); SKETCH_BLOCK];
+    for (lane, range) in ranges.iter_mut().enumerate() {
+        let i = start + lane;
+        if i >= from && i < rows.len() {
+            *range = row_range(rows, i);
+        }
+    }
+    // Then the error bounds (a square root each), in a loop of their own for the same reason.
+    let mut errors = [None; SKETCH_BLOCK];
+    for (lane, (&range, error)) in ranges.iter().zip(&mut errors).enumerate() {
         let i = start + lane;
         if i >= from {
-            encode_row(rows, i, lane, codes, params);
+            *error = encode_row(rows, i, lane, range, codes, params);
+        }
+    }
+    for (lane, (error, &(lo, hi))) in errors.iter().zip(&ranges).enumerate() {
+        if let Some((sum, step)) = *error {
+            params[2 * SKETCH_BLOCK + lane] = error_bound(sum, lo, hi, step, rows.dim());
         }
     }
 }
 
-/// Writes the codes and parameters of row `i` into lane `lane` of its block, from the row's
-/// normalised values taken exactly; rows beyond the end (of a last, partial block) get zeros.
+/// The least and the largest of the normalised values of row `i` as `f32` computes them
+/// (`raw × scale`); a NaN is skipped, as `f32::min` does (and gives the row an infinite error in
+/// [`encode_row`]).
 #[inline(always)]
-fn encode_row(rows: Rows<'_>, i: usize, lane: usize, codes: &mut [u8], params: &mut [f32]) {
+fn row_range(rows: Rows<'_>, i: usize) -> (f32, f32) {
+    // Lanes of eight, so that the compiler vectorises.
+    let (raw, scale) = rows.raw_row(i);
+    let (mut lo8, mut hi8) = ([f32::INFINITY; 8], [f32::NEG_INFINITY; 8]);
+    let eights = raw.chunks_exact(8);
+    // Plain comparisons, which compile to single min/max instructions, in a loop over the lanes:
+    // a closure given each lane's index made the compiler blend the comparisons through packed
+    // masks instead (0.55 ms for the 10,000 rows above instead of 0.35).
+    #[inline(always)]
+    fn take(lo: &mut [f32; 8], hi: &mut [f32; 8], values: &[f32], scale: f32) {
+        for ((lo, hi), &v) in lo.iter_mut().zip(hi.iter_mut()).zip(values) {
+            let x = v * scale;
+            *lo = if x < *lo { x } else { *lo };
+            *hi = if x > *hi { x } else { *hi };
+        }
+    }
+    take(&mut lo8, &mut hi8, eights.remainder(), scale);
+    for c in eights {
+        take(&mut lo8, &mut hi8, c, scale);
+    }
+    let lo = lo8.iter().fold(f32::INFINITY, |m, &v| m.min(v));
+    let hi = hi8.iter().fold(f32::NEG_INFINITY, |m, &v| m.max(v));
+    (lo, hi)
+}
+
+/// Writes the codes and parameters but the error of row `i` into lane `lane` of its block, from
+/// the row's normalised values taken exactly and its [`row_range`] `(lo, hi)`, and returns what
+/// [`error_bound`] needs besides: the `f32` sum of the squared errors, and the step. Rows beyond
+/// the end (of a last, partial block) get zeros, their error too, and `None`.
+#[inline(always)]
+fn encode_row(
+    rows: Rows<'_>,
+    i: usize,
+    lane: usize,
+    (lo, hi): (f32, f32),
+    codes: &mut [u8],
+    params: &mut [f32],
+) -> Option<(f32, f32)> {
     let dim = rows.dim();
     let param = |p: usize| p * SKETCH_BLOCK + lane;
     for d in dim..padded(dim) {
@@ -195,29 +251,11 @@ fn encode_row(rows: Rows<'_>, i: usize, lane: usize, codes: &mut [u8], params: &
         for p in 0..PARAMS {
             params[param(p)] = 0.0;
         }
-        return;
+        return None;
     }
     // Lanes of eight (and four below), so that the compiler vectorises; the row's values are
     // `raw × scale` (normalised), taken in whole groups of four as the codes are laid out.
     let (raw, scale) = rows.raw_row(i);
-    let (mut lo8, mut hi8) = ([f32::INFINITY; 8], [f32::NEG_INFINITY; 8]);
-    let eights = raw.chunks_exact(8);
-    // Plain comparisons (NaN is skipped, as `f32::min` does, and gives the row an infinite
-    // error below), which compile to single min/max instructions.
-    let mut take = |j: usize, x: f32| {
-        lo8[j] = if x < lo8[j] { x } else { lo8[j] };
-        hi8[j] = if x > hi8[j] { x } else { hi8[j] };
-    };
-    for (j, &v) in eights.remainder().iter().enumerate() {
-        take(j, v * scale);
-    }
-    for c in eights {
-        for (j, &v) in c.iter().enumerate() {
-            take(j, v * scale);
-        }
-    }
-    let lo = lo8.iter().fold(f32::INFINITY, |m, &v| m.min(v));
-    let hi = hi8.iter().fold(f32::NEG_INFINITY, |m, &v| m.max(v));
     // Any `lo`, `step` and codes will do: the error is measured against what is stored, from
     // the exact normalised values, so the codes may come from rounded ones (the cast rounds half
     // up and saturates into 0..=255).
@@ -257,7 +295,7 @@ fn encode_row(rows: Rows<'_>, i: usize, lane: usize, codes: &mut [u8], params: &
     let sum = ((sq[0] + sq[4]) + (sq[1] + sq[5])) + ((sq[2] + sq[6]) + (sq[3] + sq[7]));
     params[param(0)] = if lo.is_finite() { lo } else { 0.0 };
     params[param(1)] = if step.is_finite() { step } else { 0.0 };
-    params[param(2)] = error_bound(sum, lo, hi, step, dim);
+    Some((sum, step))
 }
 
 /// Rows of more than this many values get an infinite error (are never ruled out): the bound of
