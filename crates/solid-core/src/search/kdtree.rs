@@ -263,8 +263,40 @@ fn check_buffers(n: usize, perm: usize, splits: usize) -> Result<(), Error> {
 }
 
 /// Chooses the dimension with the widest spread among up to [`SPLIT_SAMPLE`] evenly spaced
-/// entries of `perm` (ties: the lowest dimension).
+/// entries of `perm` (ties: the lowest dimension). Compiled for AVX2 as well, which `std` picks
+/// when the CPU has it, and for the default dimension as a constant (the same operations, so
+/// the same choice): `Database::build_index` over 10,000 HKU entries took 0.71–0.74 ms instead
+/// of 0.84 on two threads (release probe, AMD EPYC), with the same trees.
 fn widest_dim(rows: Rows<'_>, perm: &[u32]) -> usize {
+    #[cfg(all(feature = "std", target_arch = "x86_64"))]
+    if std::is_x86_feature_detected!("avx2") {
+        #[allow(unsafe_code)]
+        // SAFETY: the CPU supports AVX2 (checked just above), the only requirement for calling
+        // a function compiled with `#[target_feature(enable = "avx2")]`.
+        return unsafe { widest_dim_avx2(rows, perm) };
+    }
+    widest_dim_dims(rows, perm)
+}
+
+#[cfg(all(feature = "std", target_arch = "x86_64"))]
+#[target_feature(enable = "avx2")]
+fn widest_dim_avx2(rows: Rows<'_>, perm: &[u32]) -> usize {
+    widest_dim_dims(rows, perm)
+}
+
+/// [`widest_dim_impl`] for the rows' dimension, the default one as a constant.
+#[inline(always)]
+fn widest_dim_dims(rows: Rows<'_>, perm: &[u32]) -> usize {
+    const DEFAULT: usize = crate::Config::with_defaults(0.0, 0.0, 1).n_range;
+    if rows.dim() == DEFAULT {
+        widest_dim_impl(rows, perm, DEFAULT)
+    } else {
+        widest_dim_impl(rows, perm, rows.dim())
+    }
+}
+
+#[inline(always)]
+fn widest_dim_impl(rows: Rows<'_>, perm: &[u32], dim: usize) -> usize {
     let n = perm.len();
     let step = (n / SPLIT_SAMPLE).max(1);
     let mut best_d = 0;
@@ -272,8 +304,8 @@ fn widest_dim(rows: Rows<'_>, perm: &[u32]) -> usize {
     // Row by row (each sampled row read once per block of dimensions, not once per dimension:
     // 1M rows built 2× faster), the ranges of a block of dimensions in arrays on the stack.
     const BLOCK: usize = 64;
-    for d0 in (0..rows.dim()).step_by(BLOCK) {
-        let width = (rows.dim() - d0).min(BLOCK);
+    for d0 in (0..dim).step_by(BLOCK) {
+        let width = (dim - d0).min(BLOCK);
         let (mut lo, mut hi) = ([f32::INFINITY; BLOCK], [f32::NEG_INFINITY; BLOCK]);
         let mut i = 0;
         while i < n {
