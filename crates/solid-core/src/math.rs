@@ -198,8 +198,8 @@ pub(crate) fn to_u8(y: f32) -> u8 {
 /// [`to_u8`] in float operations: clamped, then floored by rounding to an integer with 2²³
 /// (exact below 2²³) and stepping back when that rounded up; the integer is then the low byte
 /// of `f + 2²³`'s bits. Where the code is needed as an `f32` too (the sketch's error), the
-/// compiler keeps this in eight lanes (75 ns a sketch row when measured), while [`to_u8`] there
-/// assembles the bytes one by one (84 ns).
+/// compiler kept this in eight lanes (75 ns a sketch row, before the sketch's ranges were found
+/// first), while [`to_u8`] there assembled the bytes one by one (84 ns).
 #[inline(always)]
 pub(crate) fn floor_to_u8(y: f32) -> u8 {
     const MAGIC: f32 = 8_388_608.0;

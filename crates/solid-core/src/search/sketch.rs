@@ -182,7 +182,7 @@ fn encode_block(rows: Rows<'_>, start: usize, from: usize, codes: &mut [u8], par
             *range = row_range(rows, i);
         }
     }
-    // Then the error bounds (a square root each), in a loop of their own for the same reason.
+    // Then the codes, with what each row's error bound needs.
     let mut errors = [None; SKETCH_BLOCK];
     for (lane, (&range, error)) in ranges.iter().zip(&mut errors).enumerate() {
         let i = start + lane;
@@ -190,6 +190,7 @@ fn encode_block(rows: Rows<'_>, start: usize, from: usize, codes: &mut [u8], par
             *error = encode_row(rows, i, lane, range, codes, params);
         }
     }
+    // Then the error bounds (a square root each), in a loop of their own for the same reason.
     for (lane, (error, &(lo, hi))) in errors.iter().zip(&ranges).enumerate() {
         if let Some((sum, step)) = *error {
             params[2 * SKETCH_BLOCK + lane] = error_bound(sum, lo, hi, step, rows.dim());
@@ -198,8 +199,8 @@ fn encode_block(rows: Rows<'_>, start: usize, from: usize, codes: &mut [u8], par
 }
 
 /// The least and the largest of the normalised values of row `i` as `f32` computes them
-/// (`raw × scale`); a NaN is skipped, as `f32::min` does (and gives the row an infinite error in
-/// [`encode_row`]).
+/// (`raw × scale`); a NaN is skipped, as `f32::min` does (the row's squared errors then sum to
+/// NaN, which [`error_bound`] turns into an infinite error).
 #[inline(always)]
 fn row_range(rows: Rows<'_>, i: usize) -> (f32, f32) {
     // Lanes of eight, so that the compiler vectorises.
