@@ -105,14 +105,19 @@ pub const PRESETS: [Preset; 6] = [
     },
 ];
 
+/// The default number of range bins ([`Config::with_defaults`]), which every preset keeps.
+pub(crate) const DEFAULT_N_RANGE: usize = 40;
+/// The default number of azimuth bins ([`Config::with_defaults`]), which every preset keeps.
+pub(crate) const DEFAULT_N_AZIMUTH: usize = 60;
+
 impl Config {
     /// A config for a sensor's vertical field of view and channel count, with the [spec §1](crate::spec#1-parameters)
     /// defaults for everything else: 40 range bins, 60 azimuth bins, ranges (3, 80) m, voxel
     /// 0.5 m. The one place these defaults are written.
     pub const fn with_defaults(fov_up: f64, fov_down: f64, n_elevation: usize) -> Config {
         Config {
-            n_range: 40,
-            n_azimuth: 60,
+            n_range: DEFAULT_N_RANGE,
+            n_azimuth: DEFAULT_N_AZIMUTH,
             n_elevation,
             fov_up,
             fov_down,

@@ -211,6 +211,17 @@ pub(crate) fn floor_to_u8(y: f32) -> u8 {
     (f + MAGIC).to_bits() as u8
 }
 
+/// What values are multiplied by to give their codes of quantisation step `step`: `1 / step`,
+/// or 0 for a step of 0 (every value 0) or below.
+#[inline(always)]
+pub(crate) fn inverse_step(step: f32) -> f32 {
+    if step > 0.0 {
+        1.0 / step
+    } else {
+        0.0
+    }
+}
+
 /// Marsaglia's 32-bit xorshift (13, 17, 5): the crate's unit tests' source of reproducible
 /// values.
 #[cfg(test)]

@@ -287,9 +287,9 @@ fn widest_dim_avx2(rows: Rows<'_>, perm: &[u32]) -> usize {
 /// [`widest_dim_impl`] for the rows' dimension, the default one as a constant.
 #[inline(always)]
 fn widest_dim_dims(rows: Rows<'_>, perm: &[u32]) -> usize {
-    const DEFAULT: usize = crate::Config::with_defaults(0.0, 0.0, 1).n_range;
-    if rows.dim() == DEFAULT {
-        widest_dim_impl(rows, perm, DEFAULT)
+    use crate::config::DEFAULT_N_RANGE;
+    if rows.dim() == DEFAULT_N_RANGE {
+        widest_dim_impl(rows, perm, DEFAULT_N_RANGE)
     } else {
         widest_dim_impl(rows, perm, rows.dim())
     }

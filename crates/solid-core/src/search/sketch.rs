@@ -59,6 +59,13 @@ fn padded(dim: usize) -> usize {
     dim.next_multiple_of(4)
 }
 
+/// Where parameter `p` (0: `lo`, 1: `step`, 2: `err`) of lane `lane` sits in its block's
+/// parameters.
+#[inline(always)]
+fn param(p: usize, lane: usize) -> usize {
+    p * SKETCH_BLOCK + lane
+}
+
 /// Where value `d` of lane `lane` sits in its block's codes.
 #[inline(always)]
 fn at(d: usize, lane: usize) -> usize {
@@ -193,7 +200,7 @@ fn encode_block(rows: Rows<'_>, start: usize, from: usize, codes: &mut [u8], par
     // Then the error bounds (a square root each), in a loop of their own for the same reason.
     for (lane, (error, &(lo, hi))) in errors.iter().zip(&ranges).enumerate() {
         if let Some((sum, step)) = *error {
-            params[2 * SKETCH_BLOCK + lane] = error_bound(sum, lo, hi, step, rows.dim());
+            params[param(2, lane)] = error_bound(sum, lo, hi, step, rows.dim());
         }
     }
 }
@@ -241,7 +248,6 @@ fn encode_row(
     params: &mut [f32],
 ) -> Option<(f32, f32)> {
     let dim = rows.dim();
-    let param = |p: usize| p * SKETCH_BLOCK + lane;
     for d in dim..padded(dim) {
         codes[at(d, lane)] = 0;
     }
@@ -250,7 +256,7 @@ fn encode_row(
             codes[at(d, lane)] = 0;
         }
         for p in 0..PARAMS {
-            params[param(p)] = 0.0;
+            params[param(p, lane)] = 0.0;
         }
         return None;
     }
@@ -261,7 +267,7 @@ fn encode_row(
     // the exact normalised values, so the codes may come from rounded ones (the cast rounds half
     // up and saturates into 0..=255).
     let step = (hi - lo) / 255.0;
-    let inv = if step > 0.0 { 1.0 / step } else { 0.0 };
+    let inv = crate::math::inverse_step(step);
     // Each value's code, and the square of its error as `f32` computes it into eight lanes (see
     // [`error_bound`] for how far that may be from the exact error).
     let mut sq = [0.0f32; 8];
@@ -294,8 +300,8 @@ fn encode_row(
         sq[j] += e * e;
     }
     let sum = ((sq[0] + sq[4]) + (sq[1] + sq[5])) + ((sq[2] + sq[6]) + (sq[3] + sq[7]));
-    params[param(0)] = if lo.is_finite() { lo } else { 0.0 };
-    params[param(1)] = if step.is_finite() { step } else { 0.0 };
+    params[param(0, lane)] = if lo.is_finite() { lo } else { 0.0 };
+    params[param(1, lane)] = if step.is_finite() { step } else { 0.0 };
     Some((sum, step))
 }
 
