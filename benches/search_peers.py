@@ -25,7 +25,8 @@ Prints, with every figure measured in the same run and the ratio peer / solid:
 - batch search: 1,000 queries (half of each mix) in one call: `Database.search_batch` and faiss
   (best of 7 / 5 / 2 runs at 10k / 100k / 1M), numpy in blocks of 16 queries, and a loop over
   `Database.search`;
-- bulk add of the N entries from arrays: `Database.add_batch` (indexed, and stored only),
+- bulk add of the N entries from arrays: `Database.add_batch` (the default, which leaves the
+  index to the searches, and `index=True`, which builds it),
   faiss `normalize_L2` + `add`, numpy row normalisation;
 - bytes per entry: `Database.memory_bytes()` / N, faiss and numpy 160.
 Top-1 ids are checked equal to faiss's (ties aside: equal distances) on every query.
@@ -246,14 +247,19 @@ SINGLE_RUNS = 3
 #: wheels before and after a change: a busy moment on this shared machine).
 BATCH_REPS = {10_000: 7, 100_000: 5, 1_000_000: 2}
 
-#: Runs of each bulk add, best taken, by number of entries.
-ADD_REPS = {10_000: 31, 100_000: 15, 1_000_000: 5}
+#: Rounds of the bulk adds, best taken, by number of entries: whole cycles of the 24 orders of
+#: the 4 adds at 10k and 100k entries, so that each add follows each other one equally often. At
+#: 10k entries an add takes about 0.2 ms and depends on what ran before it: in one process, solid's
+#: stored add took 0.15 ms after itself, 0.21 after the indexed add and 0.30 after a numpy pass
+#: over 32 MB; with 31 rounds, one run of this script gave 0.30 ms for HKU copies where the rounds
+#: before had given 0.16.
+ADD_REPS = {10_000: 72, 100_000: 24, 1_000_000: 5}
 
 
 def fresh(r: F32, a: F32) -> solid.Database:
-    """A new database of the rows (indexed): nothing observed by `auto` yet."""
+    """A new database of the rows, indexed at once: nothing observed by `auto` yet."""
     db = solid.Database(CFG)
-    db.add_batch(r, a)
+    db.add_batch(r, a, index=True)
     return db
 
 
@@ -302,29 +308,31 @@ def main() -> int:
             ("dup", scans.dup_copy, {"same": same, "other": near}),
         ):
             r, a = described(db_name, n, 1 if db_name == "hku" else 4, make)
-            # Bulk add: solid indexed (the default) and stored only (index=False), faiss, numpy, taking
-            # turns (best of ADD_REPS rounds: more at 10k entries, where one run takes about a
-            # millisecond).
+            # Bulk add: solid's default (stored, the index left to the searches that pay for it)
+            # and index=True (the sketch and the kd-tree built at once), faiss, numpy, taking
+            # turns (best of ADD_REPS rounds).
             reps = ADD_REPS[n]
             adds = best_interleaved(
                 reps,
                 {
-                    "indexed": lambda: solid.Database(CFG).add_batch(r, a),
-                    "stored": lambda: solid.Database(CFG).add_batch(r, a, index=False),
+                    "default": lambda: solid.Database(CFG).add_batch(r, a),
+                    "indexed": lambda: solid.Database(CFG).add_batch(r, a, index=True),
                     "faiss": lambda: faiss.IndexFlatIP(CFG.n_range).add(normalised(r)),
                     "numpy": lambda: r / np.maximum(np.linalg.norm(r, axis=1, keepdims=True), 1e-30),
                 },
             )
-            t_add, t_add_flat, t_faiss_add, t_np_add = (adds[m] for m in ("indexed", "stored", "faiss", "numpy"))
+            t_add, t_add_indexed, t_faiss_add, t_np_add = (adds[m] for m in ("default", "indexed", "faiss", "numpy"))
             db = fresh(r, a)
             x = normalised(r)
             index = faiss.IndexFlatIP(CFG.n_range)
             index.add(x)
             rows_add.append(
-                f"{db_name:4s} {n:>9d} {t_add * 1e3:9.1f} {t_add_flat * 1e3:9.1f} {t_faiss_add * 1e3:9.1f} "
-                f"{t_np_add * 1e3:9.1f} {t_faiss_add / t_add:8.2f} {t_faiss_add / t_add_flat:8.2f}"
+                f"{db_name:4s} {n:>9d} {t_add * 1e3:9.1f} {t_add_indexed * 1e3:9.1f} {t_faiss_add * 1e3:9.1f} "
+                f"{t_np_add * 1e3:9.1f} {t_faiss_add / t_add:8.2f} {t_faiss_add / t_add_indexed:8.2f}"
             )
-            js_add.append({"db": db_name, "n": n, "add_s": t_add, "add_flat_s": t_add_flat, "faiss_s": t_faiss_add, "numpy_s": t_np_add})
+            js_add.append(
+                {"db": db_name, "n": n, "add_s": t_add, "add_indexed_s": t_add_indexed, "faiss_s": t_faiss_add, "numpy_s": t_np_add}
+            )
             if db_name == "hku":
                 js_mem.append({"n": n, "solid": db.memory_bytes() / n, "faiss": index.ntotal * 4 * CFG.n_range / n})
                 rows_mem.append(f"{n:>9d} {db.memory_bytes() / n:8.1f} {index.ntotal * 4 * CFG.n_range / n:8.1f} {x.nbytes / n:8.1f}")
@@ -382,8 +390,8 @@ def main() -> int:
     print("\n".join(rows_batch))
     reps_text = " / ".join(str(ADD_REPS[n]) for n in sizes)
     sizes_text = " / ".join(f"{n // 1000:,}k" for n in sizes)
-    print(f"\nbulk add of n entries from arrays, ms (best of {reps_text} runs at {sizes_text}); ratios faiss / solid (indexed, stored only)")
-    print(f"{'db':4s} {'n':>9s} {'add':>9s} {'stored':>9s} {'faiss':>9s} {'numpy':>9s} {'faiss/a':>8s} {'faiss/st':>8s}")
+    print(f"\nbulk add of n entries from arrays, ms (best of {reps_text} runs at {sizes_text}); ratios faiss / solid (default, index=True)")
+    print(f"{'db':4s} {'n':>9s} {'add':>9s} {'indexed':>9s} {'faiss':>9s} {'numpy':>9s} {'faiss/a':>8s} {'faiss/ix':>8s}")
     print("\n".join(rows_add))
     print("\nbytes per entry (hku): solid Database.memory_bytes() / n, faiss IndexFlatIP, numpy float32 rows")
     print(f"{'n':>9s} {'solid':>8s} {'faiss':>8s} {'numpy':>8s}")

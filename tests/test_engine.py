@@ -115,6 +115,83 @@ def test_batch_add_and_search_agree_with_one_at_a_time(cfg: solid.SolidConfig, d
     assert 0 < batch.memory_bytes() < 400 * 80
 
 
+def random_places(n: int, seed: int) -> tuple[solid.SolidConfig, npt.NDArray[np.float32], npt.NDArray[np.float32]]:
+    """The avia preset and `n` random R-SOLiD and A-SOLiD rows (uniform in [0, 1))."""
+    cfg = solid.SolidConfig.preset("avia")
+    rng = np.random.default_rng(seed)
+    r = rng.uniform(0.0, 1.0, (n, cfg.n_range)).astype(np.float32)
+    a = rng.uniform(0.0, 1.0, (n, cfg.n_azimuth)).astype(np.float32)
+    return cfg, r, a
+
+
+def test_a_bulk_add_leaves_the_index_to_the_searches_that_pay_for_it() -> None:
+    import threading
+
+    n = 3000
+    cfg, r, a = random_places(n, 8)
+    db = solid.Database(cfg)
+    db.add_batch(r, a)
+    assert db.index_pending() == n
+    want = [db.search(r[i], k=2, method="brute") for i in range(5)]
+    assert [w[0].id for w in want] == list(range(5))
+    # A build costs about 40 brute-force passes over the new entries: 39 searches scan them
+    # instead (brute force itself counts nothing), and the 40th builds the index first.
+    for i in range(39):
+        assert db.search(r[i % 5], k=2, method="brute") == want[i % 5]
+        assert db.search(r[i % 5], k=2) == want[i % 5]
+        assert db.index_pending() == n
+    assert db.search(r[0], k=2) == want[0]
+    assert db.index_pending() == 0
+    # A batch of 40 queries builds it before searching.
+    batch = solid.Database(cfg)
+    batch.add_batch(r, a)
+    ids, _ = batch.search_batch(r[:40], k=1)
+    assert batch.index_pending() == 0 and ids[:, 0].tolist() == list(range(40))
+    # index=False: only build_index (or the next add); index=True: at once.
+    stored = solid.Database(cfg)
+    stored.add_batch(r, a, index=False)
+    stored.search_batch(r[:100], k=1)
+    assert stored.index_pending() == n
+    stored.build_index()
+    assert stored.index_pending() == 0
+    now = solid.Database(cfg)
+    now.add_batch(r, a, index=True)
+    assert now.index_pending() == 0
+    # The last add_batch decides for every entry still waiting.
+    mixed = solid.Database(cfg)
+    mixed.add_batch(r[:1000], a[:1000])
+    mixed.add_batch(r[1000:], a[1000:], index=False)
+    mixed.search_batch(r[:100], k=1)
+    assert mixed.index_pending() == n
+    mixed.add_batch(r[:1], a[:1])
+    mixed.search_batch(r[:100], k=1)
+    assert mixed.index_pending() == 0
+    # A detector over a database builds its pending index first (it searches on every scan).
+    waiting = solid.Database(cfg)
+    waiting.add_batch(r, a)
+    detector = solid.LoopDetector.from_database(waiting)
+    assert detector.database.index_pending() == 0 and waiting.index_pending() == n
+    # Threads searching while one of them builds the index all find what brute force finds.
+    shared = solid.Database(cfg)
+    shared.add_batch(r, a)
+    errors: list[str] = []
+
+    def searcher(t: int) -> None:
+        for j in range(30):
+            i = (t + j) % 5
+            got = shared.search(r[i], k=2)
+            if got != want[i]:
+                errors.append(f"thread {t}, query {i}: {got} != {want[i]}")
+
+    threads = [threading.Thread(target=searcher, args=(t,)) for t in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert errors == []
+    assert shared.index_pending() == 0
+
+
 def test_numpy_export(cfg: solid.SolidConfig, db: solid.Database) -> None:
     assert db.r.shape == (40, cfg.n_range) and db.r.dtype == np.float32
     assert db.a.shape == (40, 60) and db.a.dtype == np.float32
@@ -308,7 +385,7 @@ def test_database_and_detector_are_safe_to_share_between_threads(cfg: solid.Soli
 
 def _search_in_child(r: npt.NDArray[np.float32], a: npt.NDArray[np.float32], conn: Any) -> None:
     db = solid.Database(solid.SolidConfig.preset("avia"))
-    db.add_batch(r, a)  # the kd-tree and the sketch built on several threads
+    db.add_batch(r, a, index=True)  # the kd-tree and the sketch built on several threads
     hits = [db.search(r[i], k=2, method=m) for i in (5, 70_000) for m in ("brute", "auto", "sketch")]
     ids, _ = db.search_batch(r[:8], k=1)
     conn.send(([[h.id for h in x] for x in hits], ids[:, 0].tolist()))
@@ -318,14 +395,10 @@ def test_database_works_in_a_forked_child() -> None:
     # Scans of 65,536 rows and more, index builds and batches run on worker threads, which do
     # not exist in a child made by fork: the child must start its own instead of waiting for
     # them forever (it did, with rayon's global pool).
-    cfg = solid.SolidConfig.preset("avia")
-    rng = np.random.default_rng(3)
-    n = 80_000
-    r = rng.uniform(0.0, 1.0, (n, cfg.n_range)).astype(np.float32)
-    a = rng.uniform(0.0, 1.0, (n, cfg.n_azimuth)).astype(np.float32)
+    cfg, r, a = random_places(80_000, 3)
     r[70_001] = r[70_000]  # a tie: the lower id first
     parent = solid.Database(cfg)
-    parent.add_batch(r, a)
+    parent.add_batch(r, a, index=True)
     assert parent.search(r[5], k=1, method="brute")[0].id == 5  # the parent's workers exist
     hits, batch = in_forked_child(_search_in_child, r, a, what="a Database")
     assert all(h[0] == 5 for h in hits[:3]) and all(h == [70_000, 70_001] for h in hits[3:])
@@ -374,10 +447,7 @@ def test_a_process_that_cannot_start_threads_still_searches() -> None:
 def test_a_query_is_read_the_same_from_any_float_layout() -> None:
     # float32 and float64 arrays are read directly (contiguous) or as sequences (strided views,
     # lists): the same neighbours and distances either way.
-    cfg = solid.SolidConfig.preset("avia")
-    rng = np.random.default_rng(6)
-    r = rng.uniform(0.0, 1.0, (500, cfg.n_range)).astype(np.float32)
-    a = rng.uniform(0.0, 1.0, (500, cfg.n_azimuth)).astype(np.float32)
+    cfg, r, a = random_places(500, 6)
     db = solid.Database(cfg)
     db.add_batch(r, a)
     q = r[3] * np.float32(0.9) + r[4] * np.float32(0.1)

@@ -706,7 +706,9 @@ class Database:
     before it is opened) and checks the header against the file's size before reading the body.
 
     Safe to share between threads: searches run in parallel, an add or a merge waits for them
-    and runs alone. A process forked while another thread adds, merges or builds the index finds
+    and runs alone, and so does the search that builds an index left to the searches (see
+    `add_batch`; that one search takes as long as `build_index`: pass `index=True` where no
+    search may wait). A process forked while another thread adds, merges or builds the index finds
     its copy locked (as with any lock held across `fork`): fork while no thread does, or use
     `multiprocessing`'s `forkserver` or `spawn` start method.
     """
@@ -748,7 +750,7 @@ class Database:
         session: int = 0,
         timestamps: npt.NDArray[np.float64] | None = None,
         poses: npt.NDArray[np.float64] | None = None,
-        index: bool = True,
+        index: bool | None = None,
     ) -> int:
         """Adds N places at once from arrays, with the GIL released; everything is checked before
         anything is added.
@@ -760,10 +762,17 @@ class Database:
             timestamps: Seconds, shape (N,), float64 (NaN: none), or None for none.
             poses: `T_world_sensor` of each, float64 of shape (N, 3, 4), (N, 4, 4) or (N, 12)
                 (row-major [R|t]), or None.
-            index: Bring the search sketch and the kd-tree up to date. With False the entries are
-                only stored (checked, normalised, A-SOLiDs quantised: the fastest way to load many)
-                and searches stay exact, computing the distance of every entry beyond the index,
-                until `build_index` or the next `add`.
+            index: When to bring the search sketch and the kd-tree up to date. Until then the
+                entries are only stored (checked, normalised, A-SOLiDs quantised: the fastest way
+                to load many) and searches stay exact, computing the distance of every entry
+                beyond the index. None (the default): the first search that finds the index due
+                builds it, alone, before searching: once the searches have scanned the entries
+                beyond it about as many times over as building it costs (40 times the rows the
+                build indexes; for a first bulk add into an empty database, 40 searches or a
+                `search_batch` of 40 queries), so a few searches never pay for an index and many
+                pay for it once. True: now. False: at `build_index`, the next `add`, an indexed
+                `add_batch` or a `merge`. The last `add_batch` decides for every entry still
+                waiting.
 
         Returns:
             The id of the first new entry (the others follow).
@@ -775,14 +784,22 @@ class Database:
             TypeError: An argument that is not a float array.
         """
     def build_index(self) -> None:
-        """Extends the search sketch and the kd-tree over every entry (after
-        `add_batch(..., index=False)`); nothing to do when they are up to date."""
+        """Extends the search sketch and the kd-tree over every entry (after `add_batch`, before
+        the searches build them); nothing to do when they are up to date."""
+    def index_pending(self) -> int:
+        """The entries the search sketch and the kd-tree do not cover yet: those left by
+        `add_batch`, and up to 15 before them (the sketch covers whole blocks of 16), scanned by
+        brute force until the index is built.
+
+        Returns:
+            A count of entries (0 when the index is up to date).
+        """
     def memory_bytes(self) -> int:
         """The memory the database holds.
 
         Returns:
             Bytes: every buffer's capacity (about 300 a place without a pose, 104 more with one;
-                about 240 for places added with `add_batch(..., index=False)` until `build_index`).
+                about 240 for places added with `add_batch` until the index is built).
         """
     def search(
         self,

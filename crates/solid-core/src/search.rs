@@ -64,12 +64,12 @@ mod kdtree;
 mod sketch;
 
 pub use index::{
-    auto_tree_row_cost, Cost, Found, Index, Observed, Plan, Request, AUTO_MISSES, AUTO_PRIME_BASE,
-    AUTO_PRIME_PER_K, AUTO_RETRY_EVERY, AUTO_RETRY_MAX, AUTO_TREE_ROW_COST,
+    auto_is_brute, auto_tree_row_cost, Cost, Found, Index, Observed, Plan, Request, AUTO_MISSES,
+    AUTO_PRIME_BASE, AUTO_PRIME_PER_K, AUTO_RETRY_EVERY, AUTO_RETRY_MAX, AUTO_TREE_ROW_COST,
 };
 pub use kdtree::{
-    online_extend, online_extend_scratch_len, online_extend_with, online_insert, online_rebuild,
-    KdTree, OnlineIndex, LEAF_SIZE,
+    online_extend, online_extend_rows, online_extend_scratch_len, online_extend_with,
+    online_insert, online_rebuild, KdTree, OnlineIndex, LEAF_SIZE,
 };
 pub use sketch::{sketch_encode, sketch_len, sketch_rows, Sketch, SKETCH_BLOCK};
 

@@ -987,3 +987,97 @@ fn growth_through_every_path_and_block_boundary_searches_as_brute_force() {
     m.merge_as_new_sessions(&back).unwrap();
     check_methods(&m, "merged as new sessions");
 }
+
+/// After a stored-only bulk add, `index_due` waits until the searches have scanned the entries
+/// beyond the index `INDEX_AFTER_PASSES` times the rows a build would index: searches by brute
+/// force and `auto` over few entries use no index and count nothing, a batch counts each of its
+/// queries, excluded entries are not scanned, and a build starts the count again.
+#[test]
+fn the_index_is_due_when_the_searches_have_scanned_what_building_costs() {
+    use solid_lidar::db::INDEX_AFTER_PASSES;
+    let c = growth_cfg();
+    let (nr, na) = (c.n_range, c.n_azimuth);
+    let (r, a) = clustered_arrays(3000, 11);
+    let opts = |method, exclude_recent| SearchOptions {
+        method,
+        exclude_recent,
+        ..SearchOptions::default()
+    };
+    let auto = opts(Method::Auto, 0);
+    let q = &r[5 * nr..6 * nr];
+
+    let mut db = Database::new(c).unwrap();
+    db.add_batch(&r[..1000 * nr], &a[..1000 * na], 0, None, None, true)
+        .unwrap();
+    assert_eq!(db.index_pending(), 0);
+    assert!(!db.index_due(&auto, usize::MAX), "nothing pending");
+    db.add_batch(&r[1000 * nr..], &a[1000 * na..], 0, None, None, false)
+        .unwrap();
+    // The sketch was cut back to its whole blocks of 16: entries 992.. are beyond it.
+    let pending = 3000 - 992;
+    assert_eq!(db.index_pending(), pending);
+    // From 1,000 entries to 3,000 the kd-tree rebuilds every block: the blocks over 3,000
+    // (ids 0..2048, 2048..2560, ...) are none of those over 1,000 (0..512, 512..768, ...).
+    let build = solid_lidar::search::online_extend_rows(3000, 1000);
+    assert_eq!(build, 3000);
+    let passes = (INDEX_AFTER_PASSES * build).div_ceil(pending);
+    let brute = opts(Method::Brute, 0);
+    for _ in 0..passes {
+        db.search_with(q, &brute).unwrap();
+    }
+    assert!(
+        !db.index_due(&brute, usize::MAX),
+        "brute force uses no index"
+    );
+    assert!(!db.index_due(&auto, passes - 1), "brute force counted");
+    assert!(db.index_due(&auto, passes), "a batch counts each query");
+    for i in 0..passes - 1 {
+        assert!(!db.index_due(&auto, 1), "due after {i} searches");
+        let found = db.search_with(q, &auto).unwrap();
+        assert_eq!(found, db.search_with(q, &brute).unwrap());
+    }
+    assert!(db.index_due(&auto, 1));
+    // A search for no neighbour scans nothing.
+    let none = SearchOptions {
+        k: 0,
+        ..SearchOptions::default()
+    };
+    db.search_with(q, &none).unwrap();
+    assert!(!db.index_due(&none, usize::MAX));
+    // Excluding the 1,990 newest entries leaves 18 beyond the index to scan: a cheap search.
+    assert!(!db.index_due(&opts(Method::Auto, 1990), 1));
+    // The kd-tree's and the sketch's plans scan the rows beyond them too.
+    assert!(db.index_due(&opts(Method::KdTree, 0), 1));
+    assert!(db.index_due(&opts(Method::Sketch, 0), 1));
+    db.build_index().unwrap();
+    assert_eq!(db.index_pending(), 0);
+    assert!(!db.index_due(&auto, usize::MAX));
+
+    // A batch's queries count, and a build starts the count again.
+    db.add_batch(&r[..10 * nr], &a[..10 * na], 0, None, None, false)
+        .unwrap();
+    let queries: Vec<f32> = r[..4 * nr].to_vec();
+    let before = db.index_due(&auto, 1);
+    db.search_batch(&queries, &auto).unwrap();
+    assert!(!before);
+    // From 3,000 to 3,010 it rebuilds 2944..3008 and 3008..3010.
+    let build = solid_lidar::search::online_extend_rows(3010, 3000);
+    assert_eq!(build, 66);
+    // The sketch was cut back to 2,992 entries: 18 beyond the index.
+    assert_eq!(db.index_pending(), 18);
+    let need = (INDEX_AFTER_PASSES * build).div_ceil(18);
+    assert!(db.index_due(&auto, need - 4) && !db.index_due(&auto, need - 5));
+
+    // `auto` over fewer than 256 entries computes every distance: never due.
+    let mut small = Database::new(c).unwrap();
+    small
+        .add_batch(&r[..200 * nr], &a[..200 * na], 0, None, None, false)
+        .unwrap();
+    assert_eq!(small.index_pending(), 200);
+    assert!(!small.index_due(&auto, usize::MAX));
+    assert!(small.index_due(&opts(Method::KdTree, 0), usize::MAX));
+
+    // A detector searches on every step: it builds a pending index first.
+    let det = LoopDetector::with_database(small, unverified()).unwrap();
+    assert_eq!(det.database().index_pending(), 0);
+}

@@ -3,6 +3,7 @@
 //! live in `solid_lidar::db` and `solid_lidar::search`.
 
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
 use std::sync::{PoisonError, RwLock, RwLockReadGuard, RwLockWriteGuard};
 
 use numpy::ndarray::{Array2, Array3};
@@ -735,20 +736,49 @@ fn write<T>(l: &RwLock<T>) -> RwLockWriteGuard<'_, T> {
 /// A database of places: exact search at every size, merge, save and load.
 ///
 /// Safe to share between threads: searches run in parallel, an add or a merge waits for them
-/// and runs alone; every wait happens with the GIL released. A process forked while another
+/// and runs alone, and so does the search that builds an index left to the searches
+/// ([`PyDatabase::read_for`]); every wait happens with the GIL released. A process forked while another
 /// thread adds, merges or builds the index finds its copy locked (as with any lock held across
 /// `fork`): fork while no thread does, or use `multiprocessing`'s `forkserver` or `spawn` start
 /// method.
 #[pyclass(name = "Database", module = "solid", frozen)]
 pub struct PyDatabase {
     inner: RwLock<Database>,
+    /// Whether the searches build the index when it is due (`add_batch(..., index=None)`).
+    auto_index: AtomicBool,
 }
 
 impl PyDatabase {
     fn wrap(inner: Database) -> Self {
         PyDatabase {
             inner: RwLock::new(inner),
+            auto_index: AtomicBool::new(false),
         }
+    }
+
+    /// The read lock for `queries` searches with `opts`, after building the index first when a
+    /// bulk add left it to the searches and these make it due ([`Database::index_due`]). Call
+    /// with the GIL released.
+    fn read_for(&self, opts: &SearchOptions, queries: usize) -> RwLockReadGuard<'_, Database> {
+        let db = read(&self.inner);
+        if !self.auto_index.load(Relaxed) || !db.index_due(opts, queries) {
+            return db;
+        }
+        drop(db);
+        {
+            let mut db = write(&self.inner);
+            // Another search may have built it while this one waited, or an add_batch may have
+            // left it to build_index.
+            if self.auto_index.load(Relaxed)
+                && db.index_due(opts, queries)
+                && db.build_index().is_err()
+            {
+                // No memory for the index: the searches stay exact by brute force, and stop
+                // trying.
+                self.auto_index.store(false, Relaxed);
+            }
+        }
+        read(&self.inner)
     }
 
     /// `f` of the database under the read lock, taken with the GIL released.
@@ -806,10 +836,12 @@ impl PyDatabase {
 
     /// Adds N entries at once: R-SOLiDs `r` (N, n_range) and A-SOLiDs `a` (N, n_azimuth)
     /// (float32 read in place, float64 converted), one session, optional timestamps (N,) and
-    /// poses; returns the first id (the others follow). Everything is checked first; with
-    /// `index=False` the search sketch and the kd-tree are left for `build_index` (searches stay
-    /// exact).
-    #[pyo3(signature = (r, a, session=0, timestamps=None, poses=None, index=true))]
+    /// poses; returns the first id (the others follow). Everything is checked first. The search
+    /// sketch and the kd-tree: with `index=None` (the default) built by the first search that
+    /// finds them due (`Database::index_due`), with `True` now, with `False` left for
+    /// `build_index`, the next `add`, an indexed `add_batch` or a merge; the last call decides
+    /// for every entry still waiting. Searches stay exact throughout.
+    #[pyo3(signature = (r, a, session=0, timestamps=None, poses=None, index=None))]
     #[allow(clippy::too_many_arguments)]
     fn add_batch(
         &self,
@@ -819,7 +851,7 @@ impl PyDatabase {
         #[pyo3(from_py_with = args::session)] session: u32,
         timestamps: Option<numpy::PyReadonlyArray1<'_, f64>>,
         poses: Option<&Bound<'_, PyAny>>,
-        index: bool,
+        index: Option<bool>,
     ) -> PyResult<u32> {
         let cfg = self.with(py, |db| *db.config());
         let r = crate::borrow_2d(r, "r", crate::Columns::Exactly(cfg.n_range))?;
@@ -835,13 +867,29 @@ impl PyDatabase {
         let (r, a) = (r.slice(), a.slice());
         py.detach(|| {
             let (r, a) = (r.to_f32(), a.to_f32());
-            write(&self.inner).add_batch(&r, &a, session, times, poses.as_deref(), index)
+            let mut db = write(&self.inner);
+            let first = db.add_batch(
+                &r,
+                &a,
+                session,
+                times,
+                poses.as_deref(),
+                index == Some(true),
+            )?;
+            self.auto_index.store(index.is_none(), Relaxed);
+            Ok(first)
         })
         .map_err(|e| db_err(py, e))
     }
 
-    /// Extends the search sketch and the kd-tree over every entry (after
-    /// `add_batch(..., index=False)`).
+    /// Entries the search sketch and the kd-tree do not cover yet (left by `add_batch`; the
+    /// searches scan them by brute force).
+    fn index_pending(&self, py: Python<'_>) -> usize {
+        self.with(py, Database::index_pending)
+    }
+
+    /// Extends the search sketch and the kd-tree over every entry (after `add_batch`, before the
+    /// searches build them).
     fn build_index(&self, py: Python<'_>) -> PyResult<()> {
         py.detach(|| write(&self.inner).build_index())
             .map_err(|e| db_err(py, e))
@@ -868,7 +916,7 @@ impl PyDatabase {
         let opts = search_options(k, exclude_recent, method, not_newer_than, max_distance)?;
         let r = query_r(descriptor, self.fingerprint(py))?;
         let found = py
-            .detach(|| read(&self.inner).search_with(&r, &opts))
+            .detach(|| self.read_for(&opts, 1).search_with(&r, &opts))
             .map_err(|e| db_err(py, e))?;
         Ok(to_matches(found))
     }
@@ -896,7 +944,7 @@ impl PyDatabase {
         let q = batch_queries(queries, nr, fingerprint)?;
         let m = q.len() / nr;
         let found = py
-            .detach(|| read(&self.inner).search_batch(&q, &opts))
+            .detach(|| self.read_for(&opts, m).search_batch(&q, &opts))
             .map_err(|e| db_err(py, e))?;
         let ids: Vec<i64> = found
             .ids

@@ -376,17 +376,24 @@ impl LoopDetector {
 
     /// A detector over an existing database (a prior map, other sessions): its entries are
     /// candidates from the first step on and are never excluded as recent. The detector's own
-    /// scans get the session after the largest one in the database.
+    /// scans get the session after the largest one in the database. An index that a bulk add
+    /// left behind ([`Database::add_batch`] without `index`) is built first: a detector searches
+    /// on every step.
     ///
     /// # Errors
     /// [`DbError::Core`] naming the invalid parameter of `detector`; [`DbError::Full`] when the
-    /// database already uses session `u32::MAX`.
-    pub fn with_database(db: Database, detector: DetectorConfig) -> Result<LoopDetector, DbError> {
+    /// database already uses session `u32::MAX`; [`DbError::OutOfMemory`] when the index does
+    /// not fit.
+    pub fn with_database(
+        mut db: Database,
+        detector: DetectorConfig,
+    ) -> Result<LoopDetector, DbError> {
         detector.validate()?;
         let session = match db.sessions().iter().max() {
             None => 0,
             Some(&s) => s.checked_add(1).ok_or(DbError::Full)?,
         };
+        db.build_index()?;
         Ok(LoopDetector {
             session_start: db.len(),
             db,

@@ -4,7 +4,8 @@
 //! R-SOLiD and A-SOLiD vectors, and the R-SOLiD in a [`crate::search::Index`] (an online kd-tree
 //! and a byte sketch) so that every search is exact over every entry added so far; entries can
 //! be added and searched one at a time or in batches ([`Database::add_batch`],
-//! [`Database::search_batch`]). [`Database::to_bytes`] / [`Database::from_bytes`] (and, with `std`, [`Database::save`] /
+//! [`Database::search_batch`]; a bulk add may leave the index to be built when the searches have
+//! paid for it, [`Database::index_due`]). [`Database::to_bytes`] / [`Database::from_bytes`] (and, with `std`, [`Database::save`] /
 //! [`Database::load`]) give a checksummed little-endian file format. [`LoopDetector`] wraps a
 //! database for online loop closure, and [`encode_place`] / [`decode_place`] give a compact wire
 //! form for exchanging one place between robots.
@@ -42,7 +43,7 @@ pub mod format;
 mod room;
 pub mod wire;
 
-pub use database::{check_pose, BatchResults, Database, SearchOptions};
+pub use database::{check_pose, BatchResults, Database, SearchOptions, INDEX_AFTER_PASSES};
 pub use detector::{
     Candidate, Detection, DetectorConfig, Loop, LoopDetector, Scan, Verification, VerifyConfig,
     DEFAULT_EXCLUDE_FRAMES, DEFAULT_MAX_LOOP_DISTANCE, DEFAULT_RERANK, DEFAULT_TOP_K,

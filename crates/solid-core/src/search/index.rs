@@ -358,6 +358,12 @@ pub struct Found {
 /// Below this many candidates [`Plan::Auto`] computes every distance.
 const AUTO_BRUTE_BELOW: usize = 256;
 
+/// Whether [`Plan::Auto`] computes every distance, using neither the kd-tree nor the sketch:
+/// below 256 candidates, or when `k` is above an eighth of them.
+pub fn auto_is_brute(candidates: usize, k: usize) -> bool {
+    candidates < AUTO_BRUTE_BELOW || k > candidates / 8
+}
+
 /// The kd-tree's normal budget under [`Plan::Auto`]: it may compute the distances of
 /// `candidates / AUTO_TREE_SHARE + AUTO_TREE_PER_K · k + AUTO_TREE_BASE` rows, and never more than
 /// `candidates / AUTO_TREE_MAX_SHARE`. A distance in the tree costs about 100 rows of the sketch
@@ -536,7 +542,7 @@ impl<'a> Index<'a> {
                     rows(tree_end, &mut best, &mut cost);
                 }
                 Plan::Auto => {
-                    if candidates < AUTO_BRUTE_BELOW || req.k > candidates / 8 {
+                    if auto_is_brute(candidates, req.k) {
                         rows(0, &mut best, &mut cost);
                     } else {
                         self.auto(query, req, candidates, &mut best, &mut cost);

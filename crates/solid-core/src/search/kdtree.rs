@@ -509,6 +509,12 @@ pub fn online_extend_scratch_len(n: usize, from: usize) -> usize {
         .unwrap_or(0)
 }
 
+/// The rows [`online_extend`] builds from `from` rows to `n`: those of the blocks it rebuilds (for
+/// `from = 0`, all `n`; for one new row, the block it completes).
+pub fn online_extend_rows(n: usize, from: usize) -> usize {
+    rebuilt(n, from.min(n)).map(|(a, b)| b - a).sum()
+}
+
 /// Builds every block of the online index over all rows from scratch: [`online_extend`] from 0.
 ///
 /// # Errors
