@@ -296,6 +296,31 @@ pub struct Rows<'a> {
 }
 
 impl<'a> Rows<'a> {
+    /// Asks the cache for row `i` and its scale, a hint that never faults (no-op off x86_64):
+    /// the kd-tree's walk jumps among rows at random, and asked for all at once, their misses
+    /// overlap instead of following one another (see `KdTree::rec`).
+    #[inline]
+    pub(crate) fn prefetch(&self, i: usize) {
+        #[cfg(all(target_arch = "x86_64", target_feature = "sse"))]
+        #[allow(unsafe_code)]
+        // SAFETY: SSE is enabled (the cfg); a prefetch reads nothing and never faults, whatever
+        // the address (these are computed with wrapping arithmetic and may lie past the end).
+        unsafe {
+            use core::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+            let row = self.data.as_ptr().wrapping_add(i * self.dim).cast::<i8>();
+            let bytes = self.dim * core::mem::size_of::<f32>();
+            // A line at every 64 bytes from the start, and the line of the last byte: every line
+            // the row spans.
+            for at in (0..bytes).step_by(64).chain([bytes.saturating_sub(1)]) {
+                _mm_prefetch::<_MM_HINT_T0>(row.wrapping_add(at));
+            }
+            if let Some(scale) = self.scale {
+                _mm_prefetch::<_MM_HINT_T0>(scale.as_ptr().wrapping_add(i).cast::<i8>());
+            }
+        }
+        let _ = i;
+    }
+
     /// L2-normalised rows (see [`normalize_rows`]).
     ///
     /// # Errors
