@@ -296,7 +296,8 @@ pub struct Rows<'a> {
 }
 
 impl<'a> Rows<'a> {
-    /// Asks the cache for row `i` and its scale, a hint that never faults (no-op off x86_64):
+    /// Asks the cache for row `i` and its scale, a hint that never faults (a no-op without
+    /// x86_64's SSE):
     /// the kd-tree's walk jumps among rows at random, and asked for all at once, their misses
     /// overlap instead of following one another (see `KdTree::rec`).
     #[inline]

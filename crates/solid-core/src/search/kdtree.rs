@@ -152,12 +152,13 @@ impl<'a> KdTree<'a> {
         let n = hi - lo;
         if n <= LEAF_SIZE {
             // The leaf's rows are asked for at once, and so are the two children's split rows
-            // below: their cache misses overlap. Measured (release probe, 48 queries, 64 MB of
-            // other memory read before each, 1M entries, k = 1, 2-core AMD EPYC): a whole walk
-            // over near-duplicates took 4.6-4.9 ms, with the leaves asked for 3.6-4.0, with the
-            // children's split rows too 2.9-3.1 (their children's as well: 3.0-3.1); over HKU
-            // copies 0.45-0.52, 0.34-0.37 and 0.26-0.30 ms. Over fresh databases (144 queries),
-            // `auto` on near-duplicates went from 4.8-5.3 ms a query to 3.2-3.3.
+            // below: their cache misses overlap. Measured (release probe switching them on and
+            // off in one process, 48 queries, 64 MB of other memory read before each, 1M entries,
+            // k = 1, 2-core AMD EPYC): a whole walk over near-duplicates took 4.6-4.9 ms, with
+            // the leaves asked for 3.6-4.0, with the children's split rows too 2.9-3.1 (their
+            // children's as well: 3.0-3.1); over HKU copies 0.45-0.52, 0.34-0.37 and 0.26-0.30
+            // ms. Over fresh databases (144 queries, two runs alternating with the code without
+            // them), `auto` on near-duplicates went from 4.7-6.1 ms a query to 3.1-3.5.
             for &id in &self.perm[lo..hi] {
                 self.rows.prefetch(id as usize);
             }
