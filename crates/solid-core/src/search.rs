@@ -297,9 +297,8 @@ pub struct Rows<'a> {
 
 impl<'a> Rows<'a> {
     /// Asks the cache for row `i` and its scale, a hint that never faults (a no-op without
-    /// x86_64's SSE):
-    /// the kd-tree's walk jumps among rows at random, and asked for all at once, their misses
-    /// overlap instead of following one another (see `KdTree::rec`).
+    /// x86_64's SSE): the kd-tree's walk jumps among rows at random, and asked for all at once,
+    /// their misses overlap instead of following one another (see `KdTree::rec`).
     #[inline]
     pub(crate) fn prefetch(&self, i: usize) {
         #[cfg(all(target_arch = "x86_64", target_feature = "sse"))]

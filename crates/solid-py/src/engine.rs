@@ -737,10 +737,10 @@ fn write<T>(l: &RwLock<T>) -> RwLockWriteGuard<'_, T> {
 ///
 /// Safe to share between threads: searches run in parallel, an add or a merge waits for them
 /// and runs alone, and so does the search that builds an index left to the searches
-/// ([`PyDatabase::read_for`]); every wait happens with the GIL released. A process forked while another
-/// thread adds, merges or builds the index finds its copy locked (as with any lock held across
-/// `fork`): fork while no thread does, or use `multiprocessing`'s `forkserver` or `spawn` start
-/// method.
+/// ([`PyDatabase::read_for`]); every wait happens with the GIL released. A process forked while
+/// another thread adds, merges or builds the index finds its copy locked (as with any lock held
+/// across `fork`): fork while no thread does, or use `multiprocessing`'s `forkserver` or `spawn`
+/// start method.
 #[pyclass(name = "Database", module = "solid", frozen)]
 pub struct PyDatabase {
     inner: RwLock<Database>,

@@ -493,7 +493,12 @@ impl Database {
     /// Entries the index (the kd-tree and the search sketch) does not cover yet: those of a bulk
     /// add without `index` ([`Database::add_batch`]), which the searches scan by brute force.
     pub fn index_pending(&self) -> usize {
-        self.len() - self.perm.len().min(self.sketched())
+        self.len() - self.indexed()
+    }
+
+    /// Entries both the kd-tree and the sketch cover (a prefix of the ids).
+    fn indexed(&self) -> usize {
+        self.perm.len().min(self.sketched())
     }
 
     /// Whether [`Database::build_index`] is due before `queries` more searches with `opts`: when
@@ -532,7 +537,7 @@ impl Database {
             Plan::Auto if search::auto_is_brute(candidates, req.k) => return 0,
             Plan::KdTree => self.perm.len(),
             Plan::Sketch => self.sketched(),
-            Plan::Auto => self.perm.len().min(self.sketched()),
+            Plan::Auto => self.indexed(),
         };
         candidates.saturating_sub(indexed)
     }
