@@ -1,16 +1,245 @@
-//! The parameter classes: `SolidConfig`, `DetectorConfig`, `RegistrationConfig` and
-//! `AcceptanceGate`.
+//! The parameter classes `SolidConfig`, `DetectorConfig`, `RegistrationConfig` and
+//! `AcceptanceGate`, driven by the core's parameter tables (`solid_lidar::params`): keyword
+//! arguments, properties, `replace`, `to_dict` and `repr` are read off the tables, so a
+//! parameter is written once, in the core.
 
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
+use pyo3::pyclass::boolean_struct::True;
+use pyo3::types::{PyBool, PyCFunction, PyDict, PyList, PyTuple};
+use pyo3::PyClass;
 use solid_lidar::db::DetectorConfig;
-use solid_lidar::reg::{Factor, Gate, Kernel, RegConfig};
+use solid_lidar::params::{Field, Kind, Params, Value};
+use solid_lidar::reg::{Gate, RegConfig};
 use solid_lidar::{Config, PRESETS};
 
-use crate::args::{self, float_param, int_arg};
+use crate::args;
 use crate::reg::{reg_err, PyRegistration};
 use crate::{core_err, ConfigError};
+
+/// A table value as a Python object.
+fn to_py<'py>(py: Python<'py>, v: Value<'_>) -> PyResult<Bound<'py, PyAny>> {
+    Ok(match v {
+        Value::Bool(b) => PyBool::new(py, b).to_owned().into_any(),
+        Value::Int(i) => i.into_pyobject(py)?.into_any(),
+        Value::Float(x) => x.into_pyobject(py)?.into_any(),
+        Value::Name(n) => n.into_pyobject(py)?.into_any(),
+    })
+}
+
+/// A table value as Python's `repr` writes it.
+fn repr(v: Value<'_>) -> String {
+    match v {
+        Value::Bool(b) => String::from(if b { "True" } else { "False" }),
+        Value::Int(i) => i.to_string(),
+        Value::Float(x) => format!("{x:?}"),
+        Value::Name(n) => format!("'{n}'"),
+    }
+}
+
+/// Writes the Python value `v` into field `f` of `set`: a value of the wrong type is a
+/// `TypeError`, one out of the field's range a `ConfigError` naming it.
+fn set_field<T>(set: &mut T, f: &Field<T>, v: &Bound<'_, PyAny>) -> PyResult<()> {
+    let name = f.name;
+    match f.kind {
+        Kind::Bool => {
+            let b = v
+                .cast::<PyBool>()
+                .map_err(|_| PyTypeError::new_err(format!("{name} must be a bool")))?;
+            f.set(set, Value::Bool(b.is_true()))
+        }
+        Kind::Int { .. } => f.set(set, Value::Int(args::int_arg(v, name, 0, u64::MAX.into())?)),
+        Kind::Float { .. } => f.set(set, Value::Float(args::float_param(v, name)?)),
+        Kind::Choice(names) => {
+            let s: String = v
+                .extract()
+                .map_err(|_| PyTypeError::new_err(format!("{name} must be a string")))?;
+            if !names.contains(&s.as_str()) {
+                return Err(ConfigError::new_err(format!(
+                    "invalid {name} = {s:?}: expected {}",
+                    f.expected
+                )));
+            }
+            f.set(set, Value::Name(&s))
+        }
+    }
+    .map_err(core_err)
+}
+
+/// The names a set takes, for messages.
+fn valid_names<T: Params>(extra: &[&str]) -> String {
+    T::FIELDS
+        .iter()
+        .map(|f| f.name)
+        .chain(extra.iter().copied())
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// Applies keyword overrides to `set` by field name; `None` means "not given". `nested` takes
+/// the keys that are not fields (`extra`, applied first), and the set is not validated here.
+fn apply<T: Params>(
+    set: &mut T,
+    kw: Option<&Bound<'_, PyDict>>,
+    extra: &[&str],
+    mut nested: impl FnMut(&mut T, &str, &Bound<'_, PyAny>) -> PyResult<()>,
+) -> PyResult<()> {
+    let Some(kw) = kw else { return Ok(()) };
+    let mut fields = Vec::with_capacity(kw.len());
+    for (k, v) in kw.iter() {
+        if v.is_none() {
+            continue;
+        }
+        let key: String = k.extract()?;
+        if extra.contains(&key.as_str()) {
+            nested(set, &key, &v)?;
+        } else if let Some(f) = T::field(&key) {
+            fields.push((f, v));
+        } else {
+            return Err(PyTypeError::new_err(format!(
+                "unknown {} parameter {key:?}; valid: {}",
+                T::NAME,
+                valid_names::<T>(extra)
+            )));
+        }
+    }
+    fields
+        .into_iter()
+        .try_for_each(|(f, v)| set_field(set, f, &v))
+}
+
+/// The fields of `set` as a dict.
+fn fields_dict<'py, T: Params>(py: Python<'py>, set: &T) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    for f in T::FIELDS {
+        d.set_item(f.name, to_py(py, (f.get)(set))?)?;
+    }
+    Ok(d)
+}
+
+/// `Name(field=value, ...)` over the table.
+fn fields_repr<T: Params>(set: &T) -> String {
+    let parts: Vec<String> = T::FIELDS
+        .iter()
+        .map(|f| format!("{}={}", f.name, repr((f.get)(set))))
+        .collect();
+    format!("{}({})", T::NAME, parts.join(", "))
+}
+
+/// A Python class over a parameter set.
+trait ParamClass: PyClass<Frozen = True> + Sync {
+    /// The set it holds.
+    type Set: Params;
+    /// The set.
+    fn params(&self) -> &Self::Set;
+}
+
+/// Adds a read-only property per table field to the class `C`, with the field's doc line.
+fn add_properties<C: ParamClass>(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    let py = m.py();
+    let property = py.import("builtins")?.getattr("property")?;
+    let cls = py.get_type::<C>();
+    for f in C::Set::FIELDS {
+        let get = f.get;
+        let getter = PyCFunction::new_closure(
+            py,
+            None,
+            None,
+            move |a: &Bound<'_, PyTuple>, _: Option<&Bound<'_, PyDict>>| -> PyResult<Py<PyAny>> {
+                let slf = a.get_item(0)?;
+                let c = slf.cast::<C>()?;
+                Ok(to_py(a.py(), get(c.get().params()))?.unbind())
+            },
+        )?;
+        cls.setattr(
+            f.name,
+            property.call1((getter, py.None(), py.None(), f.doc))?,
+        )?;
+    }
+    Ok(())
+}
+
+/// The table of a parameter set, as `_param_table` gives it to Python.
+fn table<'py, T: Params>(py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+    let defaults = T::defaults();
+    let out = PyList::empty(py);
+    for f in T::FIELDS {
+        let d = PyDict::new(py);
+        d.set_item("name", f.name)?;
+        d.set_item("aliases", f.aliases.to_vec())?;
+        let ty = match f.kind {
+            Kind::Bool => "bool",
+            Kind::Int { min, max } => {
+                d.set_item("min", min)?;
+                d.set_item("max", max)?;
+                "int"
+            }
+            Kind::Float { lo, lo_open, hi } => {
+                d.set_item("min", lo)?;
+                d.set_item("min_open", lo_open)?;
+                d.set_item("max", hi)?;
+                "float"
+            }
+            Kind::Choice(names) => {
+                d.set_item("choices", names.to_vec())?;
+                "str"
+            }
+        };
+        d.set_item("type", ty)?;
+        d.set_item("expected", f.expected)?;
+        d.set_item("required", f.required)?;
+        let default = if f.required {
+            None
+        } else {
+            Some(to_py(py, (f.get)(&defaults))?)
+        };
+        d.set_item("default", default)?;
+        d.set_item("doc", f.doc)?;
+        out.append(d)?;
+    }
+    Ok(out)
+}
+
+/// The parameter table of `SolidConfig`, `DetectorConfig`, `RegistrationConfig` or
+/// `AcceptanceGate`: one dict per field (name, aliases, type, range, expected, required,
+/// default, doc), in order. The command line and the stub generator read it.
+#[pyfunction]
+fn _param_table<'py>(py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyList>> {
+    match name {
+        n if n == Config::NAME => table::<Config>(py),
+        n if n == DetectorConfig::NAME => table::<DetectorConfig>(py),
+        n if n == RegConfig::NAME => table::<RegConfig>(py),
+        n if n == Gate::NAME => table::<Gate>(py),
+        other => Err(ConfigError::new_err(format!(
+            "no parameter table {other:?}; valid: {}, {}, {}, {}",
+            Config::NAME,
+            DetectorConfig::NAME,
+            RegConfig::NAME,
+            Gate::NAME
+        ))),
+    }
+}
+
+/// The names of the presets, for messages.
+fn preset_names() -> String {
+    PRESETS
+        .iter()
+        .map(|p| p.name)
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// The preset called `name`, or a `ConfigError` listing them.
+fn find_preset(name: &str) -> PyResult<&'static solid_lidar::Preset> {
+    PRESETS.iter().find(|p| p.name == name).ok_or_else(|| {
+        ConfigError::new_err(format!(
+            "unknown preset {name:?}; available: {}",
+            preset_names()
+        ))
+    })
+}
+
+// ---- SolidConfig -------------------------------------------------------------------------------
 
 /// The descriptor configuration exposed as `solid.SolidConfig` (immutable).
 #[pyclass(name = "SolidConfig", module = "solid", frozen, eq)]
@@ -29,47 +258,16 @@ impl PartialEq for PyConfig {
     }
 }
 
-const FIELDS: [&str; 8] = [
-    "n_range",
-    "n_azimuth",
-    "n_elevation",
-    "fov_up",
-    "fov_down",
-    "min_range",
-    "max_range",
-    "voxel_size",
-];
-
-/// A bin count of the config (`n_range`, ...): an integer; its range is the core's to check.
-fn count_param(v: &Bound<'_, PyAny>, name: &str) -> PyResult<usize> {
-    int_arg(v, name, 0, u32::MAX.into())
+impl ParamClass for PyConfig {
+    type Set = Config;
+    fn params(&self) -> &Config {
+        &self.inner
+    }
 }
 
-/// Applies keyword overrides (by field name) to `cfg`, then validates it.
-fn apply_overrides(mut cfg: Config, overrides: Option<&Bound<'_, PyDict>>) -> PyResult<Config> {
-    if let Some(kw) = overrides {
-        for (k, v) in kw.iter() {
-            let key: String = k.extract()?;
-            let float = |v: &Bound<'_, PyAny>| float_param(v, &key);
-            let int = |v: &Bound<'_, PyAny>| count_param(v, &key);
-            match key.as_str() {
-                "n_range" => cfg.n_range = int(&v)?,
-                "n_azimuth" => cfg.n_azimuth = int(&v)?,
-                "n_elevation" => cfg.n_elevation = int(&v)?,
-                "fov_up" => cfg.fov_up = float(&v)?,
-                "fov_down" => cfg.fov_down = float(&v)?,
-                "min_range" => cfg.min_range = float(&v)?,
-                "max_range" => cfg.max_range = float(&v)?,
-                "voxel_size" => cfg.voxel_size = float(&v)?,
-                other => {
-                    return Err(PyTypeError::new_err(format!(
-                        "unknown SolidConfig parameter {other:?}; valid: {}",
-                        FIELDS.join(", ")
-                    )))
-                }
-            }
-        }
-    }
+/// `cfg` with keyword overrides, validated.
+fn config_with(mut cfg: Config, kw: Option<&Bound<'_, PyDict>>) -> PyResult<Config> {
+    apply(&mut cfg, kw, &[], |_, _, _| Ok(()))?;
     cfg.validate().map_err(core_err)?;
     Ok(cfg)
 }
@@ -85,74 +283,51 @@ impl PyConfig {
 
     /// The detector defaults for this config: its base preset's loop threshold, else the
     /// general default.
-    pub fn detector_defaults(&self) -> solid_lidar::db::DetectorConfig {
+    pub fn detector_defaults(&self) -> DetectorConfig {
         self.base_preset
-            .and_then(|p| solid_lidar::db::DetectorConfig::for_preset(p).ok())
+            .and_then(|p| DetectorConfig::for_preset(p).ok())
             .unwrap_or_default()
+    }
+
+    /// `SolidConfig(...)` as Python's `repr` writes it.
+    pub(crate) fn repr(&self) -> String {
+        fields_repr(&self.inner)
     }
 }
 
 #[pymethods]
 impl PyConfig {
+    /// A configuration from explicit values; the sensor's `fov_up`, `fov_down` and
+    /// `n_elevation` are required, the others take the docs/spec.md §1 defaults of the core.
     #[new]
-    #[pyo3(signature = (*, fov_up, fov_down, n_elevation, n_range=None, n_azimuth=None, min_range=None, max_range=None, voxel_size=None))]
-    #[allow(clippy::too_many_arguments)]
-    fn new(
-        fov_up: &Bound<'_, PyAny>,
-        fov_down: &Bound<'_, PyAny>,
-        n_elevation: &Bound<'_, PyAny>,
-        n_range: Option<&Bound<'_, PyAny>>,
-        n_azimuth: Option<&Bound<'_, PyAny>>,
-        min_range: Option<&Bound<'_, PyAny>>,
-        max_range: Option<&Bound<'_, PyAny>>,
-        voxel_size: Option<&Bound<'_, PyAny>>,
-    ) -> PyResult<Self> {
-        let (fov_up, fov_down) = (
-            float_param(fov_up, "fov_up")?,
-            float_param(fov_down, "fov_down")?,
-        );
-        // The docs/spec.md §1 defaults come from the core (Config::with_defaults), not from here.
-        let d = Config::with_defaults(fov_up, fov_down, 1);
-        let count = |v: Option<&Bound<'_, PyAny>>, name, default| match v {
-            Some(v) if !v.is_none() => count_param(v, name),
-            _ => Ok(default),
-        };
-        let float = |v: Option<&Bound<'_, PyAny>>, name, default| match v {
-            Some(v) if !v.is_none() => float_param(v, name),
-            _ => Ok(default),
-        };
-        let cfg = Config {
-            n_range: count(n_range, "n_range", d.n_range)?,
-            n_azimuth: count(n_azimuth, "n_azimuth", d.n_azimuth)?,
-            n_elevation: count_param(n_elevation, "n_elevation")?,
-            fov_up,
-            fov_down,
-            min_range: float(min_range, "min_range", d.min_range)?,
-            max_range: float(max_range, "max_range", d.max_range)?,
-            voxel_size: float(voxel_size, "voxel_size", d.voxel_size)?,
-        };
-        cfg.validate().map_err(core_err)?;
-        Ok(PyConfig::new_unchecked(cfg))
+    #[pyo3(signature = (**params))]
+    fn new(params: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
+        for f in Config::FIELDS.iter().filter(|f| f.required) {
+            let given = match params {
+                Some(p) => p.get_item(f.name)?.is_some_and(|v| !v.is_none()),
+                None => false,
+            };
+            if !given {
+                return Err(PyTypeError::new_err(format!(
+                    "SolidConfig() missing required keyword argument '{}'",
+                    f.name
+                )));
+            }
+        }
+        Ok(PyConfig::new_unchecked(config_with(
+            Config::defaults(),
+            params,
+        )?))
     }
 
     /// A sensor preset (docs/spec.md §4), with optional keyword overrides.
     #[staticmethod]
     #[pyo3(signature = (name, **overrides))]
     fn preset(name: &str, overrides: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
-        let base = Config::preset(name).map_err(|_| {
-            ConfigError::new_err(format!(
-                "unknown preset {name:?}; available: {}",
-                PRESETS
-                    .iter()
-                    .map(|p| p.name)
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            ))
-        })?;
-        let preset = PRESETS.iter().find(|p| p.name == name).map(|p| p.name);
+        let p = find_preset(name)?;
         Ok(PyConfig {
-            inner: apply_overrides(base, overrides)?,
-            base_preset: preset,
+            inner: config_with(p.config, overrides)?,
+            base_preset: Some(p.name),
         })
     }
 
@@ -160,7 +335,7 @@ impl PyConfig {
     #[pyo3(signature = (**overrides))]
     fn replace(&self, overrides: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
         Ok(PyConfig {
-            inner: apply_overrides(self.inner, overrides)?,
+            inner: config_with(self.inner, overrides)?,
             base_preset: self.base_preset,
         })
     }
@@ -174,51 +349,9 @@ impl PyConfig {
 
     /// The parameters as a dict (what `SolidConfig(**d)` takes back).
     fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let c = &self.inner;
-        let d = PyDict::new(py);
-        d.set_item("n_range", c.n_range)?;
-        d.set_item("n_azimuth", c.n_azimuth)?;
-        d.set_item("n_elevation", c.n_elevation)?;
-        d.set_item("fov_up", c.fov_up)?;
-        d.set_item("fov_down", c.fov_down)?;
-        d.set_item("min_range", c.min_range)?;
-        d.set_item("max_range", c.max_range)?;
-        d.set_item("voxel_size", c.voxel_size)?;
-        Ok(d)
+        fields_dict(py, &self.inner)
     }
 
-    #[getter]
-    fn n_range(&self) -> usize {
-        self.inner.n_range
-    }
-    #[getter]
-    fn n_azimuth(&self) -> usize {
-        self.inner.n_azimuth
-    }
-    #[getter]
-    fn n_elevation(&self) -> usize {
-        self.inner.n_elevation
-    }
-    #[getter]
-    fn fov_up(&self) -> f64 {
-        self.inner.fov_up
-    }
-    #[getter]
-    fn fov_down(&self) -> f64 {
-        self.inner.fov_down
-    }
-    #[getter]
-    fn min_range(&self) -> f64 {
-        self.inner.min_range
-    }
-    #[getter]
-    fn max_range(&self) -> f64 {
-        self.inner.max_range
-    }
-    #[getter]
-    fn voxel_size(&self) -> f64 {
-        self.inner.voxel_size
-    }
     /// A 64-bit fingerprint of every parameter; equal configs have equal fingerprints.
     #[getter]
     fn fingerprint(&self) -> u64 {
@@ -229,12 +362,8 @@ impl PyConfig {
         self.inner.fingerprint()
     }
 
-    pub(crate) fn __repr__(&self) -> String {
-        let c = &self.inner;
-        format!(
-            "SolidConfig(n_range={}, n_azimuth={}, n_elevation={}, fov_up={:?}, fov_down={:?}, min_range={:?}, max_range={:?}, voxel_size={:?})",
-            c.n_range, c.n_azimuth, c.n_elevation, c.fov_up, c.fov_down, c.min_range, c.max_range, c.voxel_size
-        )
+    fn __repr__(&self) -> String {
+        self.repr()
     }
 
     fn __reduce__<'py>(
@@ -252,10 +381,12 @@ impl PyConfig {
 
 #[pyfunction]
 fn _config_from_dict(d: &Bound<'_, PyDict>) -> PyResult<PyConfig> {
-    let base = Config::with_defaults(1.0, 0.0, 1);
-    for need in ["fov_up", "fov_down", "n_elevation"] {
-        if !d.contains(need)? {
-            return Err(ConfigError::new_err(format!("config is missing {need}")));
+    for f in Config::FIELDS.iter().filter(|f| f.required) {
+        if !d.contains(f.name)? {
+            return Err(ConfigError::new_err(format!(
+                "config is missing {}",
+                f.name
+            )));
         }
     }
     let d = d.copy()?;
@@ -268,10 +399,12 @@ fn _config_from_dict(d: &Bound<'_, PyDict>) -> PyResult<PyConfig> {
         None => None,
     };
     Ok(PyConfig {
-        inner: apply_overrides(base, Some(&d))?,
+        inner: config_with(Config::defaults(), Some(&d))?,
         base_preset: preset,
     })
 }
+
+// ---- DetectorConfig ----------------------------------------------------------------------------
 
 /// The loop detector's parameters (the defaults come from the core).
 #[pyclass(name = "DetectorConfig", module = "solid", frozen, eq)]
@@ -281,81 +414,31 @@ pub struct PyDetectorConfig {
     pub inner: DetectorConfig,
 }
 
-/// Names of the detector parameters, in order.
-const DETECTOR_FIELDS: [&str; 15] = [
-    "exclude_frames",
-    "exclude_meters",
-    "exclude_seconds",
-    "threshold",
-    "top_k",
-    "rerank",
-    "verify",
-    "verify_candidates",
-    "verify_hypotheses",
-    "verify_fan_deg",
-    "cloud_bits",
-    "cache_bytes",
-    "verify_threads",
-    "registration",
-    "gate",
-];
+impl ParamClass for PyDetectorConfig {
+    type Set = DetectorConfig;
+    fn params(&self) -> &DetectorConfig {
+        &self.inner
+    }
+}
 
-/// Applies detector overrides given by name; `None` values are skipped. Validates the result.
+/// The detector's parameter sets of their own, given as objects or dicts of overrides.
+const DETECTOR_SETS: [&str; 2] = ["registration", "gate"];
+
+/// Applies detector overrides given by name (`registration` and `gate` first, as objects or
+/// dicts of overrides of the current ones); `None` values are skipped. Validates the result.
 pub(crate) fn detector_overrides(
     mut c: DetectorConfig,
     kw: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<DetectorConfig> {
-    if let Some(kw) = kw {
-        for (k, v) in kw.iter() {
-            if v.is_none() {
-                continue;
-            }
-            let key: String = k.extract()?;
-            let float = || args::float_param(&v, &key);
-            let int = || args::int_arg(&v, &key, 0, usize::MAX as i128);
-            match key.as_str() {
-                "exclude_frames" | "exclude_recent" => c.exclude_frames = int()?,
-                "exclude_meters" => c.exclude_meters = float()?,
-                "exclude_seconds" => c.exclude_seconds = float()?,
-                "threshold" => c.threshold = float()?,
-                "top_k" => c.top_k = int()?,
-                "rerank" | "verify" => {
-                    let b = v
-                        .cast::<pyo3::types::PyBool>()
-                        .map_err(|_| PyTypeError::new_err(format!("{key} must be a bool")))?
-                        .is_true();
-                    if key == "rerank" {
-                        c.rerank = b;
-                    } else {
-                        c.verify.enabled = b;
-                    }
-                }
-                "verify_candidates" => c.verify.candidates = int()?,
-                "verify_hypotheses" => c.verify.hypotheses = int()?,
-                "verify_fan_deg" => c.verify.fan_deg = float()?,
-                "cloud_bits" => {
-                    c.verify.cloud_bits = u8::try_from(int()?).map_err(|_| {
-                        crate::ConfigError::new_err(
-                            "invalid cloud_bits: expected an integer in 1..=16",
-                        )
-                    })?
-                }
-                "cache_bytes" => c.verify.cache_bytes = int()?,
-                "verify_threads" => c.verify.threads = int()?,
-                "registration" => {
-                    c.verify.registration = reg_config_from(&v, c.verify.registration)?
-                }
-                "gate" => c.verify.gate = gate_from(&v)?,
-                other => {
-                    return Err(PyTypeError::new_err(format!(
-                        "unknown DetectorConfig parameter {other:?}; valid: {}",
-                        DETECTOR_FIELDS.join(", ")
-                    )))
-                }
-            }
+    apply(&mut c, kw, &DETECTOR_SETS, |c, key, v| {
+        if key == "registration" {
+            c.verify.registration = reg_config_from(v, c.verify.registration)?;
+        } else {
+            c.verify.gate = gate_from(v, c.verify.gate)?;
         }
-    }
-    c.validate().map_err(crate::core_err)?;
+        Ok(())
+    })?;
+    c.validate().map_err(core_err)?;
     Ok(c)
 }
 
@@ -375,16 +458,8 @@ impl PyDetectorConfig {
     #[staticmethod]
     #[pyo3(signature = (name, **params))]
     fn preset(name: &str, params: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
-        let base = DetectorConfig::for_preset(name).map_err(|_| {
-            crate::ConfigError::new_err(format!(
-                "unknown preset {name:?}; available: {}",
-                solid_lidar::PRESETS
-                    .iter()
-                    .map(|p| p.name)
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            ))
-        })?;
+        let p = find_preset(name)?;
+        let base = DetectorConfig::for_preset(p.name).map_err(core_err)?;
         Ok(PyDetectorConfig {
             inner: detector_overrides(base, params)?,
         })
@@ -400,62 +475,13 @@ impl PyDetectorConfig {
 
     /// The parameters as a dict (what `DetectorConfig(**d)` takes back).
     fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let c = &self.inner;
-        let d = PyDict::new(py);
-        d.set_item("exclude_frames", c.exclude_frames)?;
-        d.set_item("exclude_meters", c.exclude_meters + 0.0)?;
-        d.set_item("exclude_seconds", c.exclude_seconds + 0.0)?;
-        d.set_item("threshold", c.threshold + 0.0)?;
-        d.set_item("top_k", c.top_k)?;
-        d.set_item("rerank", c.rerank)?;
-        let v = &c.verify;
-        d.set_item("verify", v.enabled)?;
-        d.set_item("verify_candidates", v.candidates)?;
-        d.set_item("verify_hypotheses", v.hypotheses)?;
-        d.set_item("verify_fan_deg", v.fan_deg + 0.0)?;
-        d.set_item("cloud_bits", v.cloud_bits)?;
-        d.set_item("cache_bytes", v.cache_bytes)?;
-        d.set_item("verify_threads", v.threads)?;
-        d.set_item("registration", reg_config_dict(py, &v.registration)?)?;
-        d.set_item("gate", gate_dict(py, &v.gate)?)?;
+        let d = fields_dict(py, &self.inner)?;
+        let v = &self.inner.verify;
+        d.set_item("registration", fields_dict(py, &v.registration)?)?;
+        d.set_item("gate", fields_dict(py, &v.gate)?)?;
         Ok(d)
     }
 
-    /// Whether the best candidates are verified by registration.
-    #[getter]
-    fn verify(&self) -> bool {
-        self.inner.verify.enabled
-    }
-    /// Candidates registered per step.
-    #[getter]
-    fn verify_candidates(&self) -> usize {
-        self.inner.verify.candidates
-    }
-    /// Initial yaws per registration, at most.
-    #[getter]
-    fn verify_hypotheses(&self) -> usize {
-        self.inner.verify.hypotheses
-    }
-    /// The fixed ± yaw fan added to the hypotheses, degrees.
-    #[getter]
-    fn verify_fan_deg(&self) -> f64 {
-        self.inner.verify.fan_deg
-    }
-    /// Bits per axis of the stored clouds.
-    #[getter]
-    fn cloud_bits(&self) -> u8 {
-        self.inner.verify.cloud_bits
-    }
-    /// Memory for prepared clouds kept between steps, bytes.
-    #[getter]
-    fn cache_bytes(&self) -> usize {
-        self.inner.verify.cache_bytes
-    }
-    /// Threads registering a step's candidates (0: one per core).
-    #[getter]
-    fn verify_threads(&self) -> usize {
-        self.inner.verify.threads
-    }
     /// The registration parameters.
     #[getter]
     fn registration(&self) -> PyRegConfig {
@@ -463,6 +489,7 @@ impl PyDetectorConfig {
             inner: self.inner.verify.registration,
         }
     }
+
     /// The acceptance gate (its max_translation is the largest loop, metres).
     #[getter]
     fn gate(&self) -> PyGate {
@@ -471,45 +498,8 @@ impl PyDetectorConfig {
         }
     }
 
-    /// Frames of the own session excluded (docs/spec.md §5 `exclude`).
-    #[getter]
-    fn exclude_frames(&self) -> usize {
-        self.inner.exclude_frames
-    }
-    /// Metres of the own path excluded (0: off).
-    #[getter]
-    fn exclude_meters(&self) -> f64 {
-        self.inner.exclude_meters
-    }
-    /// Seconds of the own session excluded (0: off).
-    #[getter]
-    fn exclude_seconds(&self) -> f64 {
-        self.inner.exclude_seconds
-    }
-    /// Largest accepted score (cosine distance).
-    #[getter]
-    fn threshold(&self) -> f64 {
-        self.inner.threshold
-    }
-    /// Candidates per step.
-    #[getter]
-    fn top_k(&self) -> usize {
-        self.inner.top_k
-    }
-    /// Whether candidates are re-ranked by A-SOLiD alignment.
-    #[getter]
-    fn rerank(&self) -> bool {
-        self.inner.rerank
-    }
-
     fn __repr__(&self) -> String {
-        let c = &self.inner;
-        let b = |x: bool| if x { "True" } else { "False" };
-        format!(
-            "DetectorConfig(exclude_frames={}, exclude_meters={:?}, exclude_seconds={:?}, threshold={:?}, top_k={}, rerank={}, verify={}, verify_candidates={})",
-            c.exclude_frames, c.exclude_meters, c.exclude_seconds, c.threshold, c.top_k,
-            b(c.rerank), b(c.verify.enabled), c.verify.candidates
-        )
+        fields_repr(&self.inner)
     }
 
     fn __reduce__<'py>(
@@ -528,49 +518,27 @@ fn _detector_config_from_dict(params: &Bound<'_, PyDict>) -> PyResult<PyDetector
     PyDetectorConfig::new(Some(params))
 }
 
-const FACTORS: [(&str, Factor); 2] = [
-    ("gicp", Factor::Gicp),
-    ("point-to-plane", Factor::PointToPlane),
-];
-const KERNELS: [(&str, Kernel); 2] = [
-    ("geman-mcclure", Kernel::GemanMcClure),
-    ("none", Kernel::None),
-];
+// ---- RegistrationConfig ------------------------------------------------------------------------
 
-fn factor_name(f: Factor) -> &'static str {
-    FACTORS
-        .iter()
-        .find(|(_, v)| *v == f)
-        .map_or("gicp", |(n, _)| n)
+/// The registration parameters, exposed as `solid.RegistrationConfig` (immutable).
+#[pyclass(name = "RegistrationConfig", module = "solid", frozen, eq)]
+#[derive(Clone, PartialEq)]
+pub struct PyRegConfig {
+    pub(crate) inner: RegConfig,
 }
 
-fn kernel_name(k: Kernel) -> &'static str {
-    KERNELS
-        .iter()
-        .find(|(_, v)| *v == k)
-        .map_or("none", |(n, _)| n)
+impl ParamClass for PyRegConfig {
+    type Set = RegConfig;
+    fn params(&self) -> &RegConfig {
+        &self.inner
+    }
 }
 
-/// `solid.RegistrationConfig`: the parameters of registration (immutable, validated).
-/// A registration config as a dict (what `RegistrationConfig(**d)` takes back).
-pub(crate) fn reg_config_dict<'py>(py: Python<'py>, c: &RegConfig) -> PyResult<Bound<'py, PyDict>> {
-    let d = PyDict::new(py);
-
-    d.set_item("voxel_size", c.voxel_size)?;
-    d.set_item("coarse_voxel_size", c.coarse_voxel_size)?;
-    d.set_item("min_range", c.min_range)?;
-    d.set_item("max_range", c.max_range)?;
-    d.set_item("neighbors", c.neighbors)?;
-    d.set_item("max_correspondence", c.max_correspondence)?;
-    d.set_item("coarse_max_correspondence", c.coarse_max_correspondence)?;
-    d.set_item("max_iterations", c.max_iterations)?;
-    d.set_item("rotation_eps_deg", c.rotation_eps_deg)?;
-    d.set_item("translation_eps", c.translation_eps)?;
-    d.set_item("factor", factor_name(c.factor))?;
-    d.set_item("kernel", kernel_name(c.kernel))?;
-    d.set_item("kernel_scale", c.kernel_scale)?;
-    d.set_item("inlier_distance", c.inlier_distance)?;
-    Ok(d)
+/// `c` with keyword overrides, validated.
+fn reg_config_with(mut c: RegConfig, kw: Option<&Bound<'_, PyDict>>) -> PyResult<RegConfig> {
+    apply(&mut c, kw, &[], |_, _, _| Ok(()))?;
+    c.validate().map_err(reg_err)?;
+    Ok(c)
 }
 
 /// A registration config from a `RegistrationConfig` or a dict of overrides of `base`.
@@ -583,118 +551,7 @@ pub(crate) fn reg_config_from(obj: &Bound<'_, PyAny>, base: RegConfig) -> PyResu
             "registration must be a solid.RegistrationConfig or a dict of its parameters",
         )
     })?;
-    apply(base, Some(d))
-}
-
-/// A gate as a dict (what `AcceptanceGate(**d)` takes back).
-pub(crate) fn gate_dict<'py>(py: Python<'py>, g: &Gate) -> PyResult<Bound<'py, PyDict>> {
-    let d = PyDict::new(py);
-    d.set_item("require_converged", g.require_converged)?;
-    d.set_item("min_fitness", g.min_fitness)?;
-    d.set_item("min_structure_fitness", g.min_structure_fitness)?;
-    d.set_item("max_rmse", g.max_rmse)?;
-    d.set_item("min_translation_information", g.min_translation_information)?;
-    d.set_item("min_rotation_information", g.min_rotation_information)?;
-    d.set_item("min_agreement", g.min_agreement)?;
-    d.set_item("max_translation", g.max_translation)?;
-    d.set_item("agree_translation", g.agree_translation)?;
-    d.set_item("agree_rotation_deg", g.agree_rotation_deg)?;
-    Ok(d)
-}
-
-/// A gate from an `AcceptanceGate` or a dict of its parameters (missing ones: the defaults).
-pub(crate) fn gate_from(obj: &Bound<'_, PyAny>) -> PyResult<Gate> {
-    if let Ok(g) = obj.cast::<PyGate>() {
-        return Ok(g.get().inner);
-    }
-    let d = obj.cast::<PyDict>().map_err(|_| {
-        PyTypeError::new_err("gate must be a solid.AcceptanceGate or a dict of its thresholds")
-    })?;
-    let g = obj.py().get_type::<PyGate>().call((), Some(d))?;
-    Ok(g.cast::<PyGate>()?.get().inner)
-}
-
-#[pyclass(name = "RegistrationConfig", module = "solid", frozen, eq)]
-#[derive(Clone, PartialEq)]
-pub struct PyRegConfig {
-    pub(crate) inner: RegConfig,
-}
-
-const REG_FIELDS: [&str; 14] = [
-    "voxel_size",
-    "coarse_voxel_size",
-    "min_range",
-    "max_range",
-    "neighbors",
-    "max_correspondence",
-    "coarse_max_correspondence",
-    "max_iterations",
-    "rotation_eps_deg",
-    "translation_eps",
-    "factor",
-    "kernel",
-    "kernel_scale",
-    "inlier_distance",
-];
-
-fn apply(mut c: RegConfig, kw: Option<&Bound<'_, PyDict>>) -> PyResult<RegConfig> {
-    if let Some(kw) = kw {
-        for (k, v) in kw.iter() {
-            let key: String = k.extract()?;
-            let float = || args::float_param(&v, &key);
-            let int = || args::int_arg(&v, &key, 0, usize::MAX as i128);
-            let name = || -> PyResult<String> {
-                v.extract::<String>()
-                    .map_err(|_| PyTypeError::new_err(format!("{key} must be a string")))
-            };
-            match key.as_str() {
-                "voxel_size" => c.voxel_size = float()?,
-                "coarse_voxel_size" => c.coarse_voxel_size = float()?,
-                "min_range" => c.min_range = float()?,
-                "max_range" => c.max_range = float()?,
-                "neighbors" => c.neighbors = int()?,
-                "max_correspondence" => c.max_correspondence = float()?,
-                "coarse_max_correspondence" => c.coarse_max_correspondence = float()?,
-                "max_iterations" => c.max_iterations = int()?,
-                "rotation_eps_deg" => c.rotation_eps_deg = float()?,
-                "translation_eps" => c.translation_eps = float()?,
-                "kernel_scale" => c.kernel_scale = float()?,
-                "inlier_distance" => c.inlier_distance = float()?,
-                "factor" => {
-                    let n = name()?;
-                    c.factor = FACTORS
-                        .iter()
-                        .find(|(f, _)| *f == n)
-                        .map(|(_, f)| *f)
-                        .ok_or_else(|| {
-                            ConfigError::new_err(format!(
-                                "invalid factor = {n:?}: expected \"gicp\" or \"point-to-plane\""
-                            ))
-                        })?;
-                }
-                "kernel" => {
-                    let n = name()?;
-                    c.kernel = KERNELS
-                        .iter()
-                        .find(|(k, _)| *k == n)
-                        .map(|(_, k)| *k)
-                        .ok_or_else(|| {
-                            ConfigError::new_err(format!(
-                                "invalid kernel = {n:?}: expected \"geman-mcclure\" or \"none\""
-                            ))
-                        })?;
-                }
-                other => {
-                    return Err(PyTypeError::new_err(format!(
-                        "unknown RegistrationConfig parameter {other:?}; valid: {}",
-                        REG_FIELDS.join(", ")
-                    )))
-                }
-            }
-        }
-    }
-    c.validate().map_err(reg_err)?;
-    Ok(c)
+    reg_config_with(base, Some(d))
 }
 
 #[pymethods]
@@ -705,7 +562,7 @@ impl PyRegConfig {
     #[pyo3(signature = (**overrides))]
     fn new(overrides: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
         Ok(PyRegConfig {
-            inner: apply(RegConfig::default(), overrides)?,
+            inner: reg_config_with(RegConfig::default(), overrides)?,
         })
     }
 
@@ -713,101 +570,21 @@ impl PyRegConfig {
     #[pyo3(signature = (**overrides))]
     fn replace(&self, overrides: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
         Ok(PyRegConfig {
-            inner: apply(self.inner, overrides)?,
+            inner: reg_config_with(self.inner, overrides)?,
         })
     }
 
     /// The parameters as a dict (what `RegistrationConfig(**d)` takes back).
     fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        reg_config_dict(py, &self.inner)
+        fields_dict(py, &self.inner)
     }
 
-    #[getter]
-    fn voxel_size(&self) -> f64 {
-        let c = &self.inner;
-        c.voxel_size
-    }
-    #[getter]
-    fn coarse_voxel_size(&self) -> f64 {
-        let c = &self.inner;
-        c.coarse_voxel_size
-    }
-    #[getter]
-    fn min_range(&self) -> f64 {
-        let c = &self.inner;
-        c.min_range
-    }
-    #[getter]
-    fn max_range(&self) -> f64 {
-        let c = &self.inner;
-        c.max_range
-    }
-    #[getter]
-    fn neighbors(&self) -> usize {
-        let c = &self.inner;
-        c.neighbors
-    }
-    #[getter]
-    fn max_correspondence(&self) -> f64 {
-        let c = &self.inner;
-        c.max_correspondence
-    }
-    #[getter]
-    fn coarse_max_correspondence(&self) -> f64 {
-        let c = &self.inner;
-        c.coarse_max_correspondence
-    }
-    #[getter]
-    fn max_iterations(&self) -> usize {
-        let c = &self.inner;
-        c.max_iterations
-    }
-    #[getter]
-    fn rotation_eps_deg(&self) -> f64 {
-        let c = &self.inner;
-        c.rotation_eps_deg
-    }
-    #[getter]
-    fn translation_eps(&self) -> f64 {
-        let c = &self.inner;
-        c.translation_eps
-    }
-    #[getter]
-    fn factor(&self) -> &'static str {
-        let c = &self.inner;
-        factor_name(c.factor)
-    }
-    #[getter]
-    fn kernel(&self) -> &'static str {
-        let c = &self.inner;
-        kernel_name(c.kernel)
-    }
-    #[getter]
-    fn kernel_scale(&self) -> f64 {
-        let c = &self.inner;
-        c.kernel_scale
-    }
-    #[getter]
-    fn inlier_distance(&self) -> f64 {
-        let c = &self.inner;
-        c.inlier_distance
-    }
-
-    fn __repr__(&self, py: Python<'_>) -> PyResult<String> {
-        let d = self.to_dict(py)?;
-        let parts: Vec<String> = REG_FIELDS
-            .iter()
-            .map(|k| -> PyResult<String> {
-                let v = d
-                    .get_item(k)?
-                    .map(|v| v.repr().map(|r| r.to_string()))
-                    .transpose()?;
-                Ok(format!("{k}={}", v.unwrap_or_default()))
-            })
-            .collect::<PyResult<_>>()?;
-        Ok(format!("RegistrationConfig({})", parts.join(", ")))
+    fn __repr__(&self) -> String {
+        fields_repr(&self.inner)
     }
 }
+
+// ---- AcceptanceGate ----------------------------------------------------------------------------
 
 /// The acceptance gate, exposed as `solid.AcceptanceGate` (immutable).
 #[pyclass(name = "AcceptanceGate", module = "solid", frozen, eq)]
@@ -816,89 +593,53 @@ pub struct PyGate {
     pub(crate) inner: Gate,
 }
 
+impl ParamClass for PyGate {
+    type Set = Gate;
+    fn params(&self) -> &Gate {
+        &self.inner
+    }
+}
+
+/// `g` with keyword overrides, validated.
+fn gate_with(mut g: Gate, kw: Option<&Bound<'_, PyDict>>) -> PyResult<Gate> {
+    apply(&mut g, kw, &[], |_, _, _| Ok(()))?;
+    g.validate().map_err(core_err)?;
+    Ok(g)
+}
+
+/// A gate from an `AcceptanceGate`, or a dict of overrides of `base`.
+pub(crate) fn gate_from(obj: &Bound<'_, PyAny>, base: Gate) -> PyResult<Gate> {
+    if let Ok(g) = obj.cast::<PyGate>() {
+        return Ok(g.get().inner);
+    }
+    let d = obj.cast::<PyDict>().map_err(|_| {
+        PyTypeError::new_err("gate must be a solid.AcceptanceGate or a dict of its thresholds")
+    })?;
+    gate_with(base, Some(d))
+}
+
 #[pymethods]
 impl PyGate {
     /// The measured default thresholds, with keyword overrides.
     #[new]
-    #[pyo3(signature = (*, require_converged=None, min_fitness=None, min_structure_fitness=None, max_rmse=None, min_translation_information=None, min_rotation_information=None, min_agreement=None, max_translation=None, agree_translation=None, agree_rotation_deg=None))]
-    #[allow(clippy::too_many_arguments)]
-    fn new(
-        require_converged: Option<bool>,
-        min_fitness: Option<&Bound<'_, PyAny>>,
-        min_structure_fitness: Option<&Bound<'_, PyAny>>,
-        max_rmse: Option<&Bound<'_, PyAny>>,
-        min_translation_information: Option<&Bound<'_, PyAny>>,
-        min_rotation_information: Option<&Bound<'_, PyAny>>,
-        #[pyo3(from_py_with = args::min_agreement)] min_agreement: Option<usize>,
-        max_translation: Option<&Bound<'_, PyAny>>,
-        agree_translation: Option<&Bound<'_, PyAny>>,
-        agree_rotation_deg: Option<&Bound<'_, PyAny>>,
-    ) -> PyResult<Self> {
-        let mut g = Gate::default();
-        let number = |name: &str, v: Option<&Bound<'_, PyAny>>| -> PyResult<Option<f64>> {
-            v.filter(|v| !v.is_none())
-                .map(|v| args::float_param(v, name))
-                .transpose()
-        };
-        let max_translation = number("max_translation", max_translation)?;
-        let set = |name: &str, v: Option<&Bound<'_, PyAny>>, slot: &mut f64| -> PyResult<()> {
-            if let Some(v) = number(name, v)? {
-                if !v.is_finite() {
-                    return Err(ConfigError::new_err(format!(
-                        "invalid {name} = {v}: expected a finite number"
-                    )));
-                }
-                *slot = v;
-            }
-            Ok(())
-        };
-        set("min_fitness", min_fitness, &mut g.min_fitness)?;
-        set(
-            "min_structure_fitness",
-            min_structure_fitness,
-            &mut g.min_structure_fitness,
-        )?;
-        set("max_rmse", max_rmse, &mut g.max_rmse)?;
-        set(
-            "min_translation_information",
-            min_translation_information,
-            &mut g.min_translation_information,
-        )?;
-        set(
-            "min_rotation_information",
-            min_rotation_information,
-            &mut g.min_rotation_information,
-        )?;
-        set(
-            "agree_translation",
-            agree_translation,
-            &mut g.agree_translation,
-        )?;
-        if let Some(v) = max_translation {
-            if v.is_nan() {
-                return Err(ConfigError::new_err(format!(
-                    "invalid max_translation = {v}: expected a number (inf: no limit)"
-                )));
-            }
-            g.max_translation = v;
-        }
-        set(
-            "agree_rotation_deg",
-            agree_rotation_deg,
-            &mut g.agree_rotation_deg,
-        )?;
-        if let Some(v) = require_converged {
-            g.require_converged = v;
-        }
-        if let Some(v) = min_agreement {
-            g.min_agreement = v;
-        }
-        Ok(PyGate { inner: g })
+    #[pyo3(signature = (**overrides))]
+    fn new(overrides: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
+        Ok(PyGate {
+            inner: gate_with(Gate::default(), overrides)?,
+        })
+    }
+
+    /// A copy with some thresholds changed.
+    #[pyo3(signature = (**overrides))]
+    fn replace(&self, overrides: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
+        Ok(PyGate {
+            inner: gate_with(self.inner, overrides)?,
+        })
     }
 
     /// The thresholds as a dict (what `AcceptanceGate(**d)` takes back).
     fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        gate_dict(py, &self.inner)
+        fields_dict(py, &self.inner)
     }
 
     /// None when `registration` passes, else why it is rejected.
@@ -925,71 +666,23 @@ impl PyGate {
             .map_or(0, |b| self.inner.agreement(&registration.hypotheses, b))
     }
 
-    #[getter]
-    fn require_converged(&self) -> bool {
-        self.inner.require_converged
-    }
-    #[getter]
-    fn min_fitness(&self) -> f64 {
-        self.inner.min_fitness
-    }
-    #[getter]
-    fn min_structure_fitness(&self) -> f64 {
-        self.inner.min_structure_fitness
-    }
-    #[getter]
-    fn max_rmse(&self) -> f64 {
-        self.inner.max_rmse
-    }
-    #[getter]
-    fn min_translation_information(&self) -> f64 {
-        self.inner.min_translation_information
-    }
-    #[getter]
-    fn min_rotation_information(&self) -> f64 {
-        self.inner.min_rotation_information
-    }
-    #[getter]
-    fn min_agreement(&self) -> usize {
-        self.inner.min_agreement
-    }
-    #[getter]
-    fn max_translation(&self) -> f64 {
-        self.inner.max_translation
-    }
-    #[getter]
-    fn agree_translation(&self) -> f64 {
-        self.inner.agree_translation
-    }
-    #[getter]
-    fn agree_rotation_deg(&self) -> f64 {
-        self.inner.agree_rotation_deg
-    }
     fn __repr__(&self) -> String {
-        let g = &self.inner;
-        format!(
-            "AcceptanceGate(require_converged={}, min_fitness={:?}, min_structure_fitness={:?}, max_rmse={:?}, min_translation_information={:?}, min_rotation_information={:?}, min_agreement={}, max_translation={:?}, agree_translation={:?}, agree_rotation_deg={:?})",
-            if g.require_converged { "True" } else { "False" },
-            g.min_fitness,
-            g.min_structure_fitness,
-            g.max_rmse,
-            g.min_translation_information,
-            g.min_rotation_information,
-            g.min_agreement,
-            g.max_translation,
-            g.agree_translation,
-            g.agree_rotation_deg
-        )
+        fields_repr(&self.inner)
     }
 }
 
-/// Adds the parameter classes to the module.
+/// Adds the parameter classes, their properties and the table reader to the module.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyConfig>()?;
     m.add_class::<PyDetectorConfig>()?;
     m.add_class::<PyRegConfig>()?;
     m.add_class::<PyGate>()?;
+    add_properties::<PyConfig>(m)?;
+    add_properties::<PyDetectorConfig>(m)?;
+    add_properties::<PyRegConfig>(m)?;
+    add_properties::<PyGate>(m)?;
     m.add_function(wrap_pyfunction!(_config_from_dict, m)?)?;
     m.add_function(wrap_pyfunction!(_detector_config_from_dict, m)?)?;
+    m.add_function(wrap_pyfunction!(_param_table, m)?)?;
     Ok(())
 }

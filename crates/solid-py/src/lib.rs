@@ -84,8 +84,8 @@ pub(crate) fn comparable(a: &PyDescriptor, b: &PyDescriptor) -> PyResult<()> {
     if a.cfg != b.cfg {
         return Err(SolidError::new_err(format!(
             "descriptors come from different configs ({:?} vs {:?}); describe both scans with the same SolidConfig",
-            PyConfig::new_unchecked(a.cfg).__repr__(),
-            PyConfig::new_unchecked(b.cfg).__repr__()
+            PyConfig::new_unchecked(a.cfg).repr(),
+            PyConfig::new_unchecked(b.cfg).repr()
         )));
     }
     Ok(())

@@ -1,10 +1,12 @@
 //! The parameters of a [`super::LoopDetector`]: [`DetectorConfig`] and its [`VerifyConfig`], with
 //! their defaults and checks.
 
+use crate::params::{field, Field, Kind, Params, FINITE};
 use crate::reg::{self, Gate, RegConfig};
 use crate::{Error, PRESETS};
 
-/// The parameters of a [`LoopDetector`]. This is the only place their defaults are written; the
+/// The parameters of a [`LoopDetector`](super::LoopDetector). Their defaults, ranges and docs are
+/// written once, here and in [`DetectorConfig::FIELDS`]; the
 /// Python package reads them from here.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DetectorConfig {
@@ -31,7 +33,7 @@ pub struct DetectorConfig {
     pub verify: VerifyConfig,
 }
 
-/// How a [`LoopDetector`] verifies its best candidates: it registers the query's cloud with each
+/// How a [`LoopDetector`](super::LoopDetector) verifies its best candidates: it registers the query's cloud with each
 /// candidate's ([`crate::reg`]) from several initial yaws and accepts a loop only when the
 /// registration passes the [`Gate`]. A verified loop carries the metric pose `T_query_candidate`
 /// (SPEC §3) and its heading is that pose's yaw.
@@ -42,7 +44,7 @@ pub struct DetectorConfig {
 /// over the scores first sweeps the verified loops by overlap, then the rest by R-SOLiD distance.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct VerifyConfig {
-    /// Verify at all (the scans' points must then be given, see [`LoopDetector::detect_scan`]).
+    /// Verify at all (the scans' points must then be given, see [`LoopDetector::detect_scan`](super::LoopDetector::detect_scan)).
     pub enabled: bool,
     /// How many of the step's best candidates (by R-SOLiD distance) are registered.
     pub candidates: usize,
@@ -93,62 +95,16 @@ impl Default for VerifyConfig {
 pub const DEFAULT_VERIFY_CANDIDATES: usize = 5;
 
 impl VerifyConfig {
-    /// Checks every parameter.
+    /// Checks the registration parameters and the gate (the detector's own fields are in
+    /// [`DetectorConfig::FIELDS`]).
     ///
     /// # Errors
     /// [`Error::InvalidParameter`] naming the first invalid one.
     pub fn validate(&self) -> Result<(), Error> {
-        if self.candidates == 0 || self.candidates > MAX_TOP_K {
-            return Err(Error::invalid(
-                "verify_candidates",
-                self.candidates as f64,
-                "an integer in 1..=1000",
-            ));
-        }
-        if !(1..=16).contains(&self.hypotheses) {
-            return Err(Error::invalid(
-                "verify_hypotheses",
-                self.hypotheses as f64,
-                "an integer in 1..=16",
-            ));
-        }
-        if !(self.fan_deg.is_finite() && (0.0..=180.0).contains(&self.fan_deg)) {
-            return Err(Error::invalid(
-                "verify_fan_deg",
-                self.fan_deg,
-                "degrees in [0, 180]",
-            ));
-        }
-        if !(1..=16).contains(&self.cloud_bits) {
-            return Err(Error::invalid(
-                "cloud_bits",
-                f64::from(self.cloud_bits),
-                "an integer in 1..=16",
-            ));
-        }
         if let Err(reg::RegError::Core(e)) = self.registration.validate() {
             return Err(e);
         }
-        let g = &self.gate;
-        if g.max_translation.is_nan() || g.max_translation <= 0.0 {
-            return Err(Error::invalid(
-                "max_loop_distance",
-                g.max_translation,
-                "metres > 0 (infinity: no limit)",
-            ));
-        }
-        for (name, v) in [
-            ("min_fitness", g.min_fitness),
-            ("min_structure_fitness", g.min_structure_fitness),
-            ("max_rmse", g.max_rmse),
-            ("min_translation_information", g.min_translation_information),
-            ("min_rotation_information", g.min_rotation_information),
-        ] {
-            if v.is_nan() {
-                return Err(Error::invalid(name, v, "a number"));
-            }
-        }
-        Ok(())
+        self.gate.validate()
     }
 }
 
@@ -159,15 +115,8 @@ pub const DEFAULT_TOP_K: usize = 10;
 /// Largest [`DetectorConfig::top_k`].
 pub const MAX_TOP_K: usize = 1000;
 
-/// Whether [`LoopDetector`] re-ranks by A-SOLiD alignment by default: no.
-///
-/// Re-ranking the top 10 by R-SOLiD distance + rotation-aligned A-SOLiD distance was measured
-/// through the pipeline ([spec §5](crate::spec#5-evaluating-loop-closure-against-poses)): on the HKU Livox Avia walk (exclude 50) it changes Recall@1 at
-/// 3 m from 0.621 to 0.621 and at 5 m from 0.490 to 0.535 (`tests/loop_eval.rs`); on the
-/// simulator's same-direction revisits it changes nothing (0.98-0.99 for every sensor); but on a
-/// street driven back the other way with a full 360° HDL-64E (world 0, exclude 25, radius 5 m) it
-/// drops Recall@1 from 0.746 to 0.537 (`tests/test_sim.py`). A small gain on one walk does not
-/// pay for losing a fifth of the reverse revisits, so it is off; `rerank = true` turns it on.
+/// Whether [`LoopDetector`](super::LoopDetector) re-ranks by A-SOLiD alignment by default: no, it loses reverse
+/// revisits for a small gain elsewhere (docs/performance.md#rerank).
 pub const DEFAULT_RERANK: bool = false;
 
 impl Default for DetectorConfig {
@@ -202,41 +151,53 @@ impl DetectorConfig {
         })
     }
 
-    /// Checks every parameter.
+    /// Checks every parameter: each against its range in [`DetectorConfig::FIELDS`], then the
+    /// registration parameters and the gate.
     ///
     /// # Errors
-    /// [`Error::InvalidParameter`] naming the first invalid one: `threshold` outside `[0, 1]`,
-    /// `exclude_meters` or `exclude_seconds` negative or not finite, `top_k` outside
-    /// `1..=1000`.
+    /// [`Error::InvalidParameter`] naming the first invalid one.
     pub fn validate(&self) -> Result<(), Error> {
-        if !(0.0..=1.0).contains(&self.threshold) {
-            return Err(Error::invalid(
-                "threshold",
-                self.threshold,
-                "a number in [0, 1] (a cosine distance)",
-            ));
-        }
-        if !(self.exclude_meters.is_finite() && self.exclude_meters >= 0.0) {
-            return Err(Error::invalid(
-                "exclude_meters",
-                self.exclude_meters,
-                "a finite number >= 0",
-            ));
-        }
-        if !(self.exclude_seconds.is_finite() && self.exclude_seconds >= 0.0) {
-            return Err(Error::invalid(
-                "exclude_seconds",
-                self.exclude_seconds,
-                "a finite number >= 0",
-            ));
-        }
-        if self.top_k == 0 || self.top_k > MAX_TOP_K {
-            return Err(Error::invalid(
-                "top_k",
-                self.top_k as f64,
-                "an integer in 1..=1000",
-            ));
-        }
+        self.check_fields()?;
         self.verify.validate()
+    }
+}
+
+/// A count of anything (frames, bytes, threads).
+const COUNT: Kind = Kind::at_least(0);
+
+impl Params for DetectorConfig {
+    const NAME: &'static str = "DetectorConfig";
+    const FIELDS: &'static [Field<DetectorConfig>] = &[
+        field!(DetectorConfig, "exclude_frames", exclude_frames, COUNT, "an integer >= 0",
+            "Skip the places of the own session added in the last this many steps.",
+            aliases = ["exclude_recent"]),
+        field!(DetectorConfig, "exclude_meters", exclude_meters, Kind::closed(0.0, FINITE), "a finite number >= 0",
+            "Also skip own places fewer than this many metres back along the path (0: off; needs poses)."),
+        field!(DetectorConfig, "exclude_seconds", exclude_seconds, Kind::closed(0.0, FINITE), "a finite number >= 0",
+            "Also skip own places fewer than this many seconds back (0: off; needs timestamps)."),
+        field!(DetectorConfig, "threshold", threshold, Kind::closed(0.0, 1.0), "a number in [0, 1] (a cosine distance)",
+            "Without verification, the largest R-SOLiD cosine distance accepted as a loop."),
+        field!(DetectorConfig, "top_k", top_k, Kind::Int { min: 1, max: MAX_TOP_K as u64 }, "an integer in 1..=1000",
+            "Candidates each step returns."),
+        field!(DetectorConfig, "rerank", rerank, Kind::Bool, "a bool",
+            "Re-rank the candidates by R-SOLiD plus rotation-aligned A-SOLiD distance."),
+        field!(DetectorConfig, "verify", verify.enabled, Kind::Bool, "a bool",
+            "Verify the best candidates by registering the places' clouds; a loop then carries its pose."),
+        field!(DetectorConfig, "verify_candidates", verify.candidates, Kind::Int { min: 1, max: MAX_TOP_K as u64 },
+            "an integer in 1..=1000", "Candidates registered per step."),
+        field!(DetectorConfig, "verify_hypotheses", verify.hypotheses, Kind::Int { min: 1, max: 16 },
+            "an integer in 1..=16", "Initial yaws per registration, at most (0°, the A-SOLiD minima, then the fan)."),
+        field!(DetectorConfig, "verify_fan_deg", verify.fan_deg, Kind::closed(0.0, 180.0), "degrees in [0, 180]",
+            "The fixed ± yaw fan added to the hypotheses, degrees (0: none)."),
+        field!(DetectorConfig, "cloud_bits", verify.cloud_bits, Kind::Int { min: 1, max: 16 }, "an integer in 1..=16",
+            "Bits per axis of the compact clouds stored with the places."),
+        field!(DetectorConfig, "cache_bytes", verify.cache_bytes, COUNT, "an integer >= 0",
+            "Memory for prepared clouds kept between steps, bytes."),
+        field!(DetectorConfig, "verify_threads", verify.threads, COUNT, "an integer >= 0",
+            "Threads registering a step's candidates at once (0: one per core)."),
+    ];
+
+    fn defaults() -> DetectorConfig {
+        DetectorConfig::default()
     }
 }
