@@ -165,7 +165,7 @@ def _doc_default(f: dict[str, Any], per_preset: set[str]) -> str:
     if f["required"]:
         return "none (the sensor's)"
     if f["name"] in per_preset:
-        return "the preset's (§4)"
+        return "the preset's loop threshold (§4)" if f["name"] == "threshold" else "the preset's (§4)"
     v = f["default"]
     if isinstance(v, bool):
         return "on" if v else "off"
@@ -174,14 +174,42 @@ def _doc_default(f: dict[str, Any], per_preset: set[str]) -> str:
     return repr(v)
 
 
+def _num(x: float) -> str:
+    return str(int(x)) if x == int(x) else repr(x)
+
+
+def _valid(f: dict[str, Any]) -> str:
+    """The field's valid values, from its kind and its rule (the grammar of docs/spec.md)."""
+    big = sys.float_info.max
+    if f["type"] == "int":
+        lo, hi = f["min"], f["max"]
+        text = f"an integer ≥ {lo}" if hi >= 2**32 - 1 else f"an integer in {lo}..={hi}"
+    elif f["type"] == "float":
+        lo, hi, lo_open = f["min"], f["max"], f["min_open"]
+        low = f"{'>' if lo_open else '≥'} {_num(lo)}"
+        if lo == -big and hi == big:
+            text = "finite"
+        elif hi == big:
+            text = f"finite, {low}"
+        elif math.isinf(hi):
+            text = f"{low} (∞: no limit)" if lo > -math.inf else "any number but NaN"
+        else:
+            text = f"in {'(' if lo_open else '['}{_num(lo)}, {_num(hi)}]"
+    elif f["type"] == "str":
+        text = " or ".join(f'"{c}"' for c in f["choices"])
+    else:
+        text = ""
+    return ", ".join(t for t in (text, f["rule"]) if t)
+
+
 def doc_table(cls: str) -> list[str]:
     """The Markdown table of class `cls`'s parameters: name, default, meaning, valid values."""
     per_preset = _per_preset(cls)
     rows = ["| name | default | meaning | valid |", "|---|---|---|---|"]
     for f in _solid._param_table(cls):
-        rows.append(f"| `{f['name']}` | {_doc_default(f, per_preset)} | {f['doc'].rstrip('.')} | {f['expected']} |")
+        rows.append(f"| `{f['name']}` | {_doc_default(f, per_preset)} | {f['doc'].rstrip('.')} | {_valid(f)} |")
     for name, (set_cls, doc) in CLASSES[cls]["nested"].items():
-        rows.append(f"| `{name}` | {set_cls}'s (§11) | {doc.rstrip('.')} | §11 |")
+        rows.append(f"| `{name}` | §11 | {doc.rstrip('.')} ({set_cls}) | §11 |")
     return rows
 
 

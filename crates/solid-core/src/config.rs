@@ -237,7 +237,8 @@ impl Params for Config {
             ANGLE,
             "a finite angle in [-90, 90] degrees",
             "Lower edge of the vertical field of view, degrees, below fov_up.",
-            required = true
+            required = true,
+            rule = "below `fov_up`"
         ),
         field!(
             Config,
@@ -251,9 +252,10 @@ impl Params for Config {
             Config,
             "max_range",
             max_range,
-            Kind::open_closed(0.0, FINITE),
+            Kind::closed(-FINITE, FINITE),
             "a finite value above min_range",
-            "Points at or beyond this distance (metres, 3-D) are dropped."
+            "Points at or beyond this distance (metres, 3-D) are dropped.",
+            rule = "above `min_range`"
         ),
         field!(
             Config,
@@ -261,7 +263,8 @@ impl Params for Config {
             voxel_size,
             Kind::closed(0.0, FINITE),
             "a finite value >= 0 metres (0 disables downsampling)",
-            "Voxel edge in metres for downsampling (0: none); at least max_range / 2^19."
+            "Voxel edge in metres for downsampling (0: none).",
+            rule = "when > 0, `max_range / voxel_size` < 2^19"
         ),
     ];
 

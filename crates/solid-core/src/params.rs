@@ -121,6 +121,8 @@ pub struct Field<T: 'static> {
     pub expected: &'static str,
     /// Whether the set has no default for it (the sensor's field of view, say).
     pub required: bool,
+    /// A rule between this field and others, in words (the set's `validate` checks it), or "".
+    pub rule: &'static str,
     /// One line of documentation.
     pub doc: &'static str,
     /// Reads the parameter.
@@ -241,18 +243,19 @@ macro_rules! int_param {
 int_param!(u8, u32, usize);
 
 /// A [`Field`] of a parameter set, read and written at a field path of the struct:
-/// `field!(T, "name", path.to.field, kind, "expected", "doc")`, optionally with
-/// `aliases = [..]` and `required` before the doc.
+/// `field!(T, "name", path.to.field, kind, "expected", "doc")`, optionally followed by
+/// `aliases = [..]`, `required = true` and `rule = "..."`, in that order.
 #[macro_export]
 #[doc(hidden)]
 macro_rules! param_field {
-    ($t:ty, $name:literal, $($path:ident).+, $kind:expr, $expected:literal, $doc:literal $(, aliases = [$($alias:literal),*])? $(, required = $req:literal)?) => {
+    ($t:ty, $name:literal, $($path:ident).+, $kind:expr, $expected:literal, $doc:literal $(, aliases = [$($alias:literal),*])? $(, required = $req:literal)? $(, rule = $rule:literal)?) => {
         $crate::params::Field::<$t> {
             name: $name,
             aliases: &[$($($alias),*)?],
             kind: $kind,
             expected: $expected,
             required: false $(|| $req)?,
+            rule: concat!("" $(, $rule)?),
             doc: $doc,
             get: |c: &$t| $crate::params::ParamType::to_value(c.$($path).+),
             put: |c: &mut $t, v| c.$($path).+ = $crate::params::ParamType::from_value(v),

@@ -188,6 +188,7 @@ fn table<'py, T: Params>(py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
         d.set_item("type", ty)?;
         d.set_item("expected", f.expected)?;
         d.set_item("required", f.required)?;
+        d.set_item("rule", f.rule)?;
         let default = if f.required {
             None
         } else {
@@ -201,7 +202,7 @@ fn table<'py, T: Params>(py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
 }
 
 /// The parameter table of `SolidConfig`, `DetectorConfig`, `RegistrationConfig` or
-/// `AcceptanceGate`: one dict per field (name, aliases, type, range, expected, required,
+/// `AcceptanceGate`: one dict per field (name, aliases, type, range, expected, required, rule,
 /// default, doc), in order. The command line and the stub generator read it.
 #[pyfunction]
 fn _param_table<'py>(py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyList>> {

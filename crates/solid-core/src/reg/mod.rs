@@ -317,16 +317,14 @@ impl Params for RegConfig {
             voxel_size,
             Kind::closed(0.0, FINITE),
             "a finite value >= 0 metres (0 disables downsampling)",
-            "Voxel edge of the fine level, metres (0 keeps every point in range)."
-        ),
+            "Voxel edge of the fine level, metres (0 keeps every point in range).", rule = "when > 0, `max_range / voxel_size` < 2^19"),
         field!(
             RegConfig,
             "coarse_voxel_size",
             coarse_voxel_size,
             Kind::closed(0.0, FINITE),
             "0 (no coarse level), or a finite value above voxel_size and >= max_range / 2^19",
-            "Voxel edge of the coarse level, metres (0: no coarse level); above voxel_size."
-        ),
+            "Voxel edge of the coarse level, metres (0: no coarse level).", rule = "when > 0, above `voxel_size` and `max_range / coarse_voxel_size` < 2^19"),
         field!(
             RegConfig,
             "min_range",
@@ -339,10 +337,9 @@ impl Params for RegConfig {
             RegConfig,
             "max_range",
             max_range,
-            LENGTH,
+            Kind::closed(-FINITE, FINITE),
             "a finite value above min_range",
-            "Points at or beyond this distance are dropped."
-        ),
+            "Points at or beyond this distance are dropped.", rule = "above `min_range`"),
         field!(
             RegConfig,
             "neighbors",
