@@ -6,7 +6,7 @@ PY := $(VENV)/bin/python
 PYABS = $(abspath $(PY))
 PYTHON ?= python3
 
-.PHONY: demo test venv dist aarch64 wheel install-test crates docs lint rust-test py-test typecheck bench bench-py bench-search bench-search-py readme-speed readme-results thresholds bench-pcd fuzz fuzz-smoke fuzz-deps cargo-fuzz-run bench-reg audit clean
+.PHONY: crate-copy-check demo test venv dist aarch64 wheel install-test crates docs lint rust-test py-test typecheck bench bench-py bench-search bench-search-py readme-speed readme-results thresholds bench-pcd fuzz fuzz-smoke fuzz-deps cargo-fuzz-run bench-reg audit clean
 
 $(VENV)/.ready: requirements-dev.txt pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -77,6 +77,20 @@ docs: venv
 	$(VENV)/bin/mkdocs build --strict --site-dir build/site
 	RUSTDOCFLAGS="-D warnings" cargo doc --no-deps -p solid-lidar -p solid-lidar-sim
 
+## The core copied out of this repository into another project and depended on by path (what
+## docs/rust.md tells users): it must carry no symlink and inherit nothing from this workspace.
+## Builds a tiny consumer of the copy offline (the dependencies are in ~/.cargo already).
+crate-copy-check:
+	@links=$$(find crates/solid-core -type l); [ -z "$$links" ] || { echo "symlinks in crates/solid-core (dangle in a copy): $$links"; exit 1; }
+	cmp LICENSE-MIT crates/solid-core/LICENSE-MIT && cmp LICENSE-APACHE crates/solid-core/LICENSE-APACHE
+	tmp=$$(mktemp -d) && trap 'rm -rf "$$tmp"' EXIT && \
+	cp -r crates/solid-core "$$tmp/solid-lidar" && mkdir -p "$$tmp/consumer/src" && \
+	printf '[package]\nname = "consumer"\nversion = "0.0.0"\nedition = "2021"\n\n[dependencies]\nsolid-lidar = { path = "../solid-lidar" }\n\n[workspace]\n' > "$$tmp/consumer/Cargo.toml" && \
+	printf 'fn main() {\n    let cfg = solid_lidar::Config::preset("hdl64").unwrap();\n    let xyz = [10.0f32, 0.0, -1.0, 0.0, 12.0, 0.5];\n    let d = solid_lidar::Describer::new(cfg).unwrap().describe(solid_lidar::Points::new(&xyz, 3).unwrap()).unwrap();\n    assert_eq!(d.stats.n_kept, 2);\n}\n' > "$$tmp/consumer/src/main.rs" && \
+	cp Cargo.lock "$$tmp/consumer/" && \
+	(cd "$$tmp/consumer" && CARGO_TARGET_DIR="$(CURDIR)/target/crate-copy" cargo run --quiet --offline)
+	@echo "crates/solid-core builds by path from a copy"
+
 demo: wheel
 	$(VENV)/bin/solid demo
 
@@ -103,7 +117,7 @@ typecheck: wheel
 	$(VENV)/bin/mypy --strict fuzz/python
 	$(PY) -m mypy.stubtest solid._solid
 
-test: lint rust-test crates docs py-test typecheck fuzz-smoke install-test
+test: lint rust-test crates crate-copy-check docs py-test typecheck fuzz-smoke install-test
 
 bench:
 	cargo bench -p solid-lidar-benches
