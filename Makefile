@@ -144,6 +144,11 @@ c-test: wheel c-header-check
 	SOLID_C_BUILD="$(CURDIR)/$(C_BUILD)" PATH="$(abspath $(VENV))/bin:$$PATH" $(PY) -m pytest tests/c/c_api_check.py
 
 
+## The C API's describe against the Rust call in one process, and the bytes a warm C call
+## allocates (docs/c.md quotes the figures).
+c-bench:
+	cargo bench -p solid-lidar-benches --bench c_api
+
 demo: wheel
 	$(VENV)/bin/solid demo
 
