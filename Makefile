@@ -6,7 +6,7 @@ PY := $(VENV)/bin/python
 PYABS = $(abspath $(PY))
 PYTHON ?= python3
 
-.PHONY: c-deps c-header c-header-check c-lib c-install c-test c-bench crate-copy-check demo test venv dist aarch64 wheel install-test crates docs lint rust-test py-test typecheck bench bench-py bench-search bench-search-py readme-speed readme-results thresholds bench-pcd fuzz fuzz-smoke fuzz-deps cargo-fuzz-run bench-reg audit clean
+.PHONY: c-deps c-header c-header-check c-lib c-install c-test c-bench crate-copy-check demo test venv dist aarch64 wheel install-test crates docs lint rust-test py-test typecheck bench bench-py bench-search bench-search-py readme-speed readme-results thresholds bench-pcd fuzz fuzz-smoke fuzz-deps cargo-fuzz-run bench-reg audit clean stubs
 
 $(VENV)/.ready: requirements-dev.txt pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -166,7 +166,13 @@ rust-test:
 py-test: wheel
 	$(PY) -m pytest
 
+## Rewrite the parameter classes of python/solid/_solid.pyi from the core's parameter tables
+## (tools/stubgen.py); `make test` fails when the stub is stale.
+stubs: wheel
+	$(PY) tools/stubgen.py
+
 typecheck: wheel
+	$(PY) tools/stubgen.py --check
 	mkdir -p build
 	$(PY) tools/readme_examples.py README.md build/readme_blocks.py
 	$(PY) tools/readme_examples.py docs/describe.md build/docs_describe_blocks.py

@@ -34,6 +34,7 @@ __all__ = [
     "Detection",
     "DetectorConfig",
     "_detector_config_from_dict",
+    "_param_table",
     "DEFAULT_RADIUS",
     "VERIFIED_THRESHOLD",
     "Scores",
@@ -93,102 +94,135 @@ class SolidConfig:
     Nothing is clamped: an invalid value raises ConfigError naming the parameter. Usually made
     from a sensor preset, `SolidConfig.preset("hdl64")`, rather than field by field.
     """
-
+    # generated from the core's parameter table by tools/stubgen.py (make stubs): do not edit
     def __new__(
         cls,
         *,
+        n_range: int = 40,
+        n_azimuth: int = 60,
+        n_elevation: int,
         fov_up: float,
         fov_down: float,
-        n_elevation: int,
+        min_range: float = 3.0,
+        max_range: float = 80.0,
+        voxel_size: float = 0.5,
+    ) -> SolidConfig:
+        """`SolidConfig(...)`: parameters by keyword (None: the default).
+
+        Args:
+            n_range: Range bins over [0, max_range): the length of R-SOLiD (an integer in 1..=1024; default 40).
+            n_azimuth: Azimuth bins over [0°, 360°): the length of A-SOLiD (an integer in 1..=3600; default 60).
+            n_elevation: Elevation bins over [fov_down, fov_up) (the sensor's channels) (an integer in 1..=1024; required).
+            fov_up: Upper edge of the vertical field of view, degrees (a finite angle in [-90, 90] degrees; required).
+            fov_down: Lower edge of the vertical field of view, degrees, below fov_up (a finite angle in [-90, 90] degrees; required).
+            min_range: Points at or within this distance (metres, 3-D) are dropped (a finite value >= 0 metres; default 3.0).
+            max_range: Points at or beyond this distance (metres, 3-D) are dropped (a finite value above min_range; default 80.0).
+            voxel_size: Voxel edge in metres for downsampling (0: none); at least max_range / 2^19 (a finite value >= 0 metres (0 disables downsampling); default 0.5).
+
+        Raises:
+            ConfigError: A value out of its range (named in the message).
+            TypeError: An unknown parameter, or a value of the wrong type.
+        """
+    @staticmethod
+    def preset(
+        name: str,
+        *,
         n_range: int | None = None,
         n_azimuth: int | None = None,
+        n_elevation: int | None = None,
+        fov_up: float | None = None,
+        fov_down: float | None = None,
         min_range: float | None = None,
         max_range: float | None = None,
         voxel_size: float | None = None,
     ) -> SolidConfig:
-        """`SolidConfig(...)`: a configuration from explicit values.
+        """A sensor preset (docs/spec.md §4), with overrides (None: the preset's).
 
         Args:
-            fov_up: Upper edge of the vertical field of view, degrees, in [-90, 90].
-            fov_down: Lower edge of the vertical field of view, degrees, in [-90, 90], below `fov_up`.
-            n_elevation: Elevation bins over [fov_down, fov_up), 1..=1024 (the sensor's channels).
-            n_range: Range bins over [0, max_range), 1..=1024; None: 40.
-            n_azimuth: Azimuth bins over [0°, 360°), 1..=3600; None: 60.
-            min_range: Points at or within this distance (metres, 3-D) are dropped; finite, >= 0;
-                None: 3.
-            max_range: Points at or beyond this distance are dropped; finite, above `min_range`;
-                None: 80.
-            voxel_size: Voxel edge in metres for downsampling, 0 disables it; when > 0,
-                `max_range / voxel_size` must be below 2^19; None: 0.5.
-
-        Raises:
-            ConfigError: A parameter out of its range (named in the message), or a negative count.
-            TypeError: A parameter missing or of the wrong type.
-        """
-    @staticmethod
-    def preset(name: str, **overrides: float) -> SolidConfig:
-        """The configuration of a sensor preset (docs/spec.md §4), with optional overrides.
-
-        Args:
-            name: One of `solid.presets()`: "hdl64", "hdl32", "vlp16", "os1-64", "avia", "aeva".
-            **overrides: Parameters to change, by name (`max_range=40.0`).
+            name: A preset name (`solid.presets()`): "hdl64", "hdl32", "vlp16", "os1-64", "avia", "aeva".
+            n_range: Range bins over [0, max_range): the length of R-SOLiD (an integer in 1..=1024; default 40).
+            n_azimuth: Azimuth bins over [0°, 360°): the length of A-SOLiD (an integer in 1..=3600; default 60).
+            n_elevation: Elevation bins over [fov_down, fov_up) (the sensor's channels) (an integer in 1..=1024; required).
+            fov_up: Upper edge of the vertical field of view, degrees (a finite angle in [-90, 90] degrees; required).
+            fov_down: Lower edge of the vertical field of view, degrees, below fov_up (a finite angle in [-90, 90] degrees; required).
+            min_range: Points at or within this distance (metres, 3-D) are dropped (a finite value >= 0 metres; default 3.0).
+            max_range: Points at or beyond this distance (metres, 3-D) are dropped (a finite value above min_range; default 80.0).
+            voxel_size: Voxel edge in metres for downsampling (0: none); at least max_range / 2^19 (a finite value >= 0 metres (0 disables downsampling); default 0.5).
 
         Returns:
-            The validated configuration; its `base_preset` is `name`.
+            The validated parameters.
 
         Raises:
-            ConfigError: An unknown preset name (the message lists them) or an invalid override.
-            TypeError: An unknown parameter name, or a value of the wrong type.
+            ConfigError: An unknown preset name (the message lists them) or an invalid value.
+            TypeError: An unknown parameter, or a value of the wrong type.
         """
-    def replace(self, **overrides: float) -> SolidConfig:
-        """A copy with some parameters changed (this one is immutable); it keeps its base preset.
+    def replace(
+        self,
+        *,
+        n_range: int | None = None,
+        n_azimuth: int | None = None,
+        n_elevation: int | None = None,
+        fov_up: float | None = None,
+        fov_down: float | None = None,
+        min_range: float | None = None,
+        max_range: float | None = None,
+        voxel_size: float | None = None,
+    ) -> SolidConfig:
+        """A copy with some parameters changed (None: unchanged); this one is immutable.
 
         Args:
-            **overrides: Parameters to change, by name.
+            n_range: Range bins over [0, max_range): the length of R-SOLiD (an integer in 1..=1024; default 40).
+            n_azimuth: Azimuth bins over [0°, 360°): the length of A-SOLiD (an integer in 1..=3600; default 60).
+            n_elevation: Elevation bins over [fov_down, fov_up) (the sensor's channels) (an integer in 1..=1024; required).
+            fov_up: Upper edge of the vertical field of view, degrees (a finite angle in [-90, 90] degrees; required).
+            fov_down: Lower edge of the vertical field of view, degrees, below fov_up (a finite angle in [-90, 90] degrees; required).
+            min_range: Points at or within this distance (metres, 3-D) are dropped (a finite value >= 0 metres; default 3.0).
+            max_range: Points at or beyond this distance (metres, 3-D) are dropped (a finite value above min_range; default 80.0).
+            voxel_size: Voxel edge in metres for downsampling (0: none); at least max_range / 2^19 (a finite value >= 0 metres (0 disables downsampling); default 0.5).
 
         Returns:
-            The validated new configuration.
+            The validated new parameters.
 
         Raises:
-            ConfigError: An invalid value (named in the message).
-            TypeError: An unknown parameter name, or a value of the wrong type.
-        """
-    @property
-    def base_preset(self) -> str | None:
-        """The preset this configuration was made from (`SolidConfig.preset(name, ...)`), or None.
-        It chooses the loop detector's default threshold; it is not part of equality or the fingerprint.
+            ConfigError: A value out of its range (named in the message).
+            TypeError: An unknown parameter, or a value of the wrong type.
         """
     def to_dict(self) -> dict[str, Any]:
-        """The eight parameters by name (and `base_preset` when there is one): what
-        `SolidConfig(**d)` takes back, and what `solid config dump` writes.
+        """The parameters by name (n_range, n_azimuth, n_elevation, fov_up, fov_down, min_range, max_range, voxel_size): what `SolidConfig(**d)` takes back.
 
         Returns:
             A new dict.
         """
     @property
     def n_range(self) -> int:
-        """Range bins (Nr): the length of R-SOLiD."""
+        """Range bins over [0, max_range): the length of R-SOLiD (an integer in 1..=1024; default 40)."""
     @property
     def n_azimuth(self) -> int:
-        """Azimuth bins (Na): the length of A-SOLiD."""
+        """Azimuth bins over [0°, 360°): the length of A-SOLiD (an integer in 1..=3600; default 60)."""
     @property
     def n_elevation(self) -> int:
-        """Elevation bins (Ne)."""
+        """Elevation bins over [fov_down, fov_up) (the sensor's channels) (an integer in 1..=1024; required)."""
     @property
     def fov_up(self) -> float:
-        """Upper edge of the vertical field of view, degrees."""
+        """Upper edge of the vertical field of view, degrees (a finite angle in [-90, 90] degrees; required)."""
     @property
     def fov_down(self) -> float:
-        """Lower edge of the vertical field of view, degrees."""
+        """Lower edge of the vertical field of view, degrees, below fov_up (a finite angle in [-90, 90] degrees; required)."""
     @property
     def min_range(self) -> float:
-        """Points at or within this distance (metres) are dropped."""
+        """Points at or within this distance (metres, 3-D) are dropped (a finite value >= 0 metres; default 3.0)."""
     @property
     def max_range(self) -> float:
-        """Points at or beyond this distance (metres) are dropped."""
+        """Points at or beyond this distance (metres, 3-D) are dropped (a finite value above min_range; default 80.0)."""
     @property
     def voxel_size(self) -> float:
-        """Voxel edge in metres (0: no downsampling)."""
+        """Voxel edge in metres for downsampling (0: none); at least max_range / 2^19 (a finite value >= 0 metres (0 disables downsampling); default 0.5)."""
+    # end of generated
+    @property
+    def base_preset(self) -> str | None:
+        """The preset this configuration was made from (`SolidConfig.preset(name, ...)`), or None.
+        It chooses the loop detector's default threshold; it is not part of equality or the fingerprint.
+        """
     @property
     def fingerprint(self) -> int:
         """64-bit FNV-1a hash of every parameter (docs/spec.md §1): descriptors are comparable
@@ -198,6 +232,7 @@ class SolidConfig:
     def __ne__(self, value: object, /) -> bool: ...
     def __hash__(self) -> int: ...
     def __reduce__(self) -> tuple[Any, tuple[dict[str, Any]]]: ...
+
 
 @final
 class Descriptor:
@@ -481,207 +516,187 @@ class DetectorConfig:
     The defaults come from the Rust core, the one place they are written; prefer
     `DetectorConfig.preset(name)`, which takes the loop threshold measured for that sensor.
     """
+    # generated from the core's parameter table by tools/stubgen.py (make stubs): do not edit
     def __new__(
         cls,
         *,
-        exclude_frames: int = ...,
-        exclude_meters: float = ...,
-        exclude_seconds: float = ...,
-        threshold: float = ...,
-        top_k: int = ...,
-        rerank: bool = ...,
-        verify: bool = ...,
-        verify_candidates: int = ...,
-        verify_hypotheses: int = ...,
-        verify_fan_deg: float = ...,
-        cloud_bits: int = ...,
-        cache_bytes: int = ...,
-        verify_threads: int = ...,
-        registration: RegistrationConfig | dict[str, Any] = ...,
-        gate: AcceptanceGate | dict[str, Any] = ...,
+        exclude_frames: int = 50,
+        exclude_meters: float = 0.0,
+        exclude_seconds: float = 0.0,
+        threshold: float = 0.034,
+        top_k: int = 10,
+        rerank: bool = False,
+        verify: bool = True,
+        verify_candidates: int = 5,
+        verify_hypotheses: int = 4,
+        verify_fan_deg: float = 25.0,
+        cloud_bits: int = 8,
+        cache_bytes: int = 268435456,
+        verify_threads: int = 0,
+        registration: RegistrationConfig | dict[str, Any] | None = None,
+        gate: AcceptanceGate | dict[str, Any] | None = None,
     ) -> DetectorConfig:
-        """`DetectorConfig(...)`: parameters by keyword; those not given take the core's defaults
-        (exclusion 50 frames, top 10, no re-ranking, and the largest of the presets' loop thresholds).
+        """`DetectorConfig(...)`: parameters by keyword (None: the default).
 
         Args:
-            exclude_frames: Frames of the own session never matched (the robot is still there).
-            exclude_meters: Also skip places of the own session fewer than this many metres back along
-                the path (0: off; needs a pose with every scan).
-            exclude_seconds: Also skip places of the own session fewer than this many seconds back
-                (0: off; needs non-decreasing timestamps).
-            threshold: Largest score (R-SOLiD cosine distance) accepted as a loop, in [0, 1].
-            top_k: Candidates each step returns, 1..=1000.
-            rerank: Re-rank the candidates by R-SOLiD distance plus rotation-aligned A-SOLiD distance.
-            verify: Verify the best candidates by registering the places' clouds (default on):
-                a loop is then accepted only when the registration passes `gate`, and it carries
-                its metric pose.
-            verify_candidates: Candidates registered per step (default 5).
-            verify_hypotheses: Initial yaws per registration, at most (0°, the A-SOLiD minima,
-                then ±verify_fan_deg; default 4).
-            verify_fan_deg: The fixed ± yaw fan of the hypotheses, degrees (default 25).
-            cloud_bits: Bits per axis of the compact clouds stored with the places (default 8).
-            cache_bytes: Memory for prepared clouds kept between steps (default 256 MiB).
-            verify_threads: Threads registering a step's candidates at once (0: one per core).
-            registration: The registration parameters (a `RegistrationConfig` or a dict of
-                overrides).
-            gate: The acceptance gate (an `AcceptanceGate` or a dict); its `max_translation` is
-                the largest loop in metres (default 5, the evaluation radius of docs/spec.md §5).
+            exclude_frames: Skip the places of the own session added in the last this many steps (an integer >= 0; default 50; formerly exclude_recent).
+            exclude_meters: Also skip own places fewer than this many metres back along the path (0: off; needs poses) (a finite number >= 0; default 0.0).
+            exclude_seconds: Also skip own places fewer than this many seconds back (0: off; needs timestamps) (a finite number >= 0; default 0.0).
+            threshold: Without verification, the largest R-SOLiD cosine distance accepted as a loop (a number in [0, 1] (a cosine distance); default 0.034).
+            top_k: Candidates each step returns (an integer in 1..=1000; default 10).
+            rerank: Re-rank the candidates by R-SOLiD plus rotation-aligned A-SOLiD distance (a bool; default False).
+            verify: Verify the best candidates by registering the places' clouds; a loop then carries its pose (a bool; default True).
+            verify_candidates: Candidates registered per step (an integer in 1..=1000; default 5).
+            verify_hypotheses: Initial yaws per registration, at most (0°, the A-SOLiD minima, then the fan) (an integer in 1..=16; default 4).
+            verify_fan_deg: The fixed ± yaw fan added to the hypotheses, degrees (0: none) (degrees in [0, 180]; default 25.0).
+            cloud_bits: Bits per axis of the compact clouds stored with the places (an integer in 1..=16; default 8).
+            cache_bytes: Memory for prepared clouds kept between steps, bytes (an integer >= 0; default 268435456).
+            verify_threads: Threads registering a step's candidates at once (0: one per core) (an integer >= 0; default 0).
+            registration: The registration parameters (an object, or a dict of overrides of the current ones).
+            gate: The acceptance gate (an object, or a dict of overrides of the current one).
 
         Raises:
             ConfigError: A value out of its range (named in the message).
-            TypeError: A value of the wrong type.
+            TypeError: An unknown parameter, or a value of the wrong type.
         """
     @staticmethod
     def preset(
         name: str,
         *,
-        exclude_frames: int = ...,
-        exclude_meters: float = ...,
-        exclude_seconds: float = ...,
-        threshold: float = ...,
-        top_k: int = ...,
-        rerank: bool = ...,
-        verify: bool = ...,
-        verify_candidates: int = ...,
-        verify_hypotheses: int = ...,
-        verify_fan_deg: float = ...,
-        cloud_bits: int = ...,
-        cache_bytes: int = ...,
-        verify_threads: int = ...,
-        registration: RegistrationConfig | dict[str, Any] = ...,
-        gate: AcceptanceGate | dict[str, Any] = ...,
+        exclude_frames: int | None = None,
+        exclude_meters: float | None = None,
+        exclude_seconds: float | None = None,
+        threshold: float | None = None,
+        top_k: int | None = None,
+        rerank: bool | None = None,
+        verify: bool | None = None,
+        verify_candidates: int | None = None,
+        verify_hypotheses: int | None = None,
+        verify_fan_deg: float | None = None,
+        cloud_bits: int | None = None,
+        cache_bytes: int | None = None,
+        verify_threads: int | None = None,
+        registration: RegistrationConfig | dict[str, Any] | None = None,
+        gate: AcceptanceGate | dict[str, Any] | None = None,
     ) -> DetectorConfig:
-        """The defaults for a sensor preset (its measured loop threshold, docs/spec.md §4), with overrides.
+        """The detector defaults of a sensor preset (its measured loop threshold), with overrides (None: the preset's).
 
         Args:
-            name: A preset name, as for `SolidConfig.preset`.
-            exclude_frames: Frames of the own session never matched (the robot is still there).
-            exclude_meters: Also skip places of the own session fewer than this many metres back along
-                the path (0: off; needs a pose with every scan).
-            exclude_seconds: Also skip places of the own session fewer than this many seconds back
-                (0: off; needs non-decreasing timestamps).
-            threshold: Largest score (R-SOLiD cosine distance) accepted as a loop, in [0, 1].
-            top_k: Candidates each step returns, 1..=1000.
-            rerank: Re-rank the candidates by R-SOLiD distance plus rotation-aligned A-SOLiD distance.
-            verify: Verify the best candidates by registering the places' clouds (default on):
-                a loop is then accepted only when the registration passes `gate`, and it carries
-                its metric pose.
-            verify_candidates: Candidates registered per step (default 5).
-            verify_hypotheses: Initial yaws per registration, at most (0°, the A-SOLiD minima,
-                then ±verify_fan_deg; default 4).
-            verify_fan_deg: The fixed ± yaw fan of the hypotheses, degrees (default 25).
-            cloud_bits: Bits per axis of the compact clouds stored with the places (default 8).
-            cache_bytes: Memory for prepared clouds kept between steps (default 256 MiB).
-            verify_threads: Threads registering a step's candidates at once (0: one per core).
-            registration: The registration parameters (a `RegistrationConfig` or a dict of
-                overrides).
-            gate: The acceptance gate (an `AcceptanceGate` or a dict); its `max_translation` is
-                the largest loop in metres (default 5, the evaluation radius of docs/spec.md §5).
+            name: A preset name (`solid.presets()`): "hdl64", "hdl32", "vlp16", "os1-64", "avia", "aeva".
+            exclude_frames: Skip the places of the own session added in the last this many steps (an integer >= 0; default 50; formerly exclude_recent).
+            exclude_meters: Also skip own places fewer than this many metres back along the path (0: off; needs poses) (a finite number >= 0; default 0.0).
+            exclude_seconds: Also skip own places fewer than this many seconds back (0: off; needs timestamps) (a finite number >= 0; default 0.0).
+            threshold: Without verification, the largest R-SOLiD cosine distance accepted as a loop (a number in [0, 1] (a cosine distance); default 0.034).
+            top_k: Candidates each step returns (an integer in 1..=1000; default 10).
+            rerank: Re-rank the candidates by R-SOLiD plus rotation-aligned A-SOLiD distance (a bool; default False).
+            verify: Verify the best candidates by registering the places' clouds; a loop then carries its pose (a bool; default True).
+            verify_candidates: Candidates registered per step (an integer in 1..=1000; default 5).
+            verify_hypotheses: Initial yaws per registration, at most (0°, the A-SOLiD minima, then the fan) (an integer in 1..=16; default 4).
+            verify_fan_deg: The fixed ± yaw fan added to the hypotheses, degrees (0: none) (degrees in [0, 180]; default 25.0).
+            cloud_bits: Bits per axis of the compact clouds stored with the places (an integer in 1..=16; default 8).
+            cache_bytes: Memory for prepared clouds kept between steps, bytes (an integer >= 0; default 268435456).
+            verify_threads: Threads registering a step's candidates at once (0: one per core) (an integer >= 0; default 0).
+            registration: The registration parameters (an object, or a dict of overrides of the current ones).
+            gate: The acceptance gate (an object, or a dict of overrides of the current one).
 
         Returns:
             The validated parameters.
 
         Raises:
-            ConfigError: An unknown preset or a value out of its range.
-            TypeError: A value of the wrong type.
+            ConfigError: An unknown preset name (the message lists them) or an invalid value.
+            TypeError: An unknown parameter, or a value of the wrong type.
         """
     def replace(
         self,
         *,
-        exclude_frames: int = ...,
-        exclude_meters: float = ...,
-        exclude_seconds: float = ...,
-        threshold: float = ...,
-        top_k: int = ...,
-        rerank: bool = ...,
-        verify: bool = ...,
-        verify_candidates: int = ...,
-        verify_hypotheses: int = ...,
-        verify_fan_deg: float = ...,
-        cloud_bits: int = ...,
-        cache_bytes: int = ...,
-        verify_threads: int = ...,
-        registration: RegistrationConfig | dict[str, Any] = ...,
-        gate: AcceptanceGate | dict[str, Any] = ...,
+        exclude_frames: int | None = None,
+        exclude_meters: float | None = None,
+        exclude_seconds: float | None = None,
+        threshold: float | None = None,
+        top_k: int | None = None,
+        rerank: bool | None = None,
+        verify: bool | None = None,
+        verify_candidates: int | None = None,
+        verify_hypotheses: int | None = None,
+        verify_fan_deg: float | None = None,
+        cloud_bits: int | None = None,
+        cache_bytes: int | None = None,
+        verify_threads: int | None = None,
+        registration: RegistrationConfig | dict[str, Any] | None = None,
+        gate: AcceptanceGate | dict[str, Any] | None = None,
     ) -> DetectorConfig:
-        """A copy with some parameters changed.
+        """A copy with some parameters changed (None: unchanged); this one is immutable.
 
         Args:
-            exclude_frames: Frames of the own session never matched (the robot is still there).
-            exclude_meters: Also skip places of the own session fewer than this many metres back along
-                the path (0: off; needs a pose with every scan).
-            exclude_seconds: Also skip places of the own session fewer than this many seconds back
-                (0: off; needs non-decreasing timestamps).
-            threshold: Largest score (R-SOLiD cosine distance) accepted as a loop, in [0, 1].
-            top_k: Candidates each step returns, 1..=1000.
-            rerank: Re-rank the candidates by R-SOLiD distance plus rotation-aligned A-SOLiD distance.
-            verify: Verify the best candidates by registering the places' clouds (default on):
-                a loop is then accepted only when the registration passes `gate`, and it carries
-                its metric pose.
-            verify_candidates: Candidates registered per step (default 5).
-            verify_hypotheses: Initial yaws per registration, at most (0°, the A-SOLiD minima,
-                then ±verify_fan_deg; default 4).
-            verify_fan_deg: The fixed ± yaw fan of the hypotheses, degrees (default 25).
-            cloud_bits: Bits per axis of the compact clouds stored with the places (default 8).
-            cache_bytes: Memory for prepared clouds kept between steps (default 256 MiB).
-            verify_threads: Threads registering a step's candidates at once (0: one per core).
-            registration: The registration parameters (a `RegistrationConfig` or a dict of
-                overrides).
-            gate: The acceptance gate (an `AcceptanceGate` or a dict); its `max_translation` is
-                the largest loop in metres (default 5, the evaluation radius of docs/spec.md §5).
+            exclude_frames: Skip the places of the own session added in the last this many steps (an integer >= 0; default 50; formerly exclude_recent).
+            exclude_meters: Also skip own places fewer than this many metres back along the path (0: off; needs poses) (a finite number >= 0; default 0.0).
+            exclude_seconds: Also skip own places fewer than this many seconds back (0: off; needs timestamps) (a finite number >= 0; default 0.0).
+            threshold: Without verification, the largest R-SOLiD cosine distance accepted as a loop (a number in [0, 1] (a cosine distance); default 0.034).
+            top_k: Candidates each step returns (an integer in 1..=1000; default 10).
+            rerank: Re-rank the candidates by R-SOLiD plus rotation-aligned A-SOLiD distance (a bool; default False).
+            verify: Verify the best candidates by registering the places' clouds; a loop then carries its pose (a bool; default True).
+            verify_candidates: Candidates registered per step (an integer in 1..=1000; default 5).
+            verify_hypotheses: Initial yaws per registration, at most (0°, the A-SOLiD minima, then the fan) (an integer in 1..=16; default 4).
+            verify_fan_deg: The fixed ± yaw fan added to the hypotheses, degrees (0: none) (degrees in [0, 180]; default 25.0).
+            cloud_bits: Bits per axis of the compact clouds stored with the places (an integer in 1..=16; default 8).
+            cache_bytes: Memory for prepared clouds kept between steps, bytes (an integer >= 0; default 268435456).
+            verify_threads: Threads registering a step's candidates at once (0: one per core) (an integer >= 0; default 0).
+            registration: The registration parameters (an object, or a dict of overrides of the current ones).
+            gate: The acceptance gate (an object, or a dict of overrides of the current one).
 
         Returns:
-            The validated parameters.
+            The validated new parameters.
 
         Raises:
-            ConfigError: A value out of its range.
-            TypeError: A value of the wrong type.
+            ConfigError: A value out of its range (named in the message).
+            TypeError: An unknown parameter, or a value of the wrong type.
         """
     def to_dict(self) -> dict[str, Any]:
-        """The parameters by name: what `DetectorConfig(**d)` takes back.
+        """The parameters by name (exclude_frames, exclude_meters, exclude_seconds, threshold, top_k, rerank, verify, verify_candidates, verify_hypotheses, verify_fan_deg, cloud_bits, cache_bytes, verify_threads, registration, gate): what `DetectorConfig(**d)` takes back.
 
         Returns:
             A new dict.
         """
     @property
     def exclude_frames(self) -> int:
-        """Frames of the own session excluded as too recent (docs/spec.md §5 `exclude`)."""
+        """Skip the places of the own session added in the last this many steps (an integer >= 0; default 50; formerly exclude_recent)."""
     @property
     def exclude_meters(self) -> float:
-        """Metres of the own path excluded (0: off)."""
+        """Also skip own places fewer than this many metres back along the path (0: off; needs poses) (a finite number >= 0; default 0.0)."""
     @property
     def exclude_seconds(self) -> float:
-        """Seconds of the own session excluded (0: off)."""
+        """Also skip own places fewer than this many seconds back (0: off; needs timestamps) (a finite number >= 0; default 0.0)."""
     @property
     def threshold(self) -> float:
-        """Largest accepted score (R-SOLiD cosine distance)."""
+        """Without verification, the largest R-SOLiD cosine distance accepted as a loop (a number in [0, 1] (a cosine distance); default 0.034)."""
     @property
     def top_k(self) -> int:
-        """Candidates per step."""
+        """Candidates each step returns (an integer in 1..=1000; default 10)."""
     @property
     def rerank(self) -> bool:
-        """Whether candidates are re-ranked by A-SOLiD alignment."""
+        """Re-rank the candidates by R-SOLiD plus rotation-aligned A-SOLiD distance (a bool; default False)."""
     @property
     def verify(self) -> bool:
-        """Whether the best candidates are verified by registration."""
+        """Verify the best candidates by registering the places' clouds; a loop then carries its pose (a bool; default True)."""
     @property
     def verify_candidates(self) -> int:
-        """Candidates registered per step."""
+        """Candidates registered per step (an integer in 1..=1000; default 5)."""
     @property
     def verify_hypotheses(self) -> int:
-        """Initial yaws per registration, at most."""
+        """Initial yaws per registration, at most (0°, the A-SOLiD minima, then the fan) (an integer in 1..=16; default 4)."""
     @property
     def verify_fan_deg(self) -> float:
-        """The fixed ± yaw fan added to the hypotheses, degrees."""
+        """The fixed ± yaw fan added to the hypotheses, degrees (0: none) (degrees in [0, 180]; default 25.0)."""
     @property
     def cloud_bits(self) -> int:
-        """Bits per axis of the stored compact clouds."""
+        """Bits per axis of the compact clouds stored with the places (an integer in 1..=16; default 8)."""
     @property
     def cache_bytes(self) -> int:
-        """Memory for prepared clouds kept between steps, bytes."""
+        """Memory for prepared clouds kept between steps, bytes (an integer >= 0; default 268435456)."""
     @property
     def verify_threads(self) -> int:
-        """Threads registering a step's candidates (0: one per core)."""
+        """Threads registering a step's candidates at once (0: one per core) (an integer >= 0; default 0)."""
+    # end of generated
     @property
     def registration(self) -> RegistrationConfig:
         """The registration parameters."""
@@ -691,7 +706,13 @@ class DetectorConfig:
     def __eq__(self, other: object, /) -> bool: ...
     def __reduce__(self) -> tuple[Any, tuple[dict[str, Any]]]: ...
 
+
 def _detector_config_from_dict(params: dict[str, Any]) -> DetectorConfig: ...
+def _param_table(name: str) -> list[dict[str, Any]]:
+    """The core's parameter table of "SolidConfig", "DetectorConfig", "RegistrationConfig" or
+    "AcceptanceGate": one dict per field (name, aliases, type, min/max or choices, expected,
+    required, default, doc), in order. The command line and tools/stubgen.py read it.
+    """
 
 @final
 class Database:
@@ -1407,7 +1428,7 @@ class RegistrationConfig:
     `solid_lidar::reg`): GICP with a Geman-McClure kernel, coarse 1 m voxels with 3 m
     correspondences, then 0.5 m / 1 m.
     """
-
+    # generated from the core's parameter table by tools/stubgen.py (make stubs): do not edit
     def __new__(
         cls,
         *,
@@ -1421,97 +1442,128 @@ class RegistrationConfig:
         max_iterations: int = 20,
         rotation_eps_deg: float = 0.1,
         translation_eps: float = 0.001,
-        factor: str = "gicp",
-        kernel: str = "geman-mcclure",
+        factor: str = 'gicp',
+        kernel: str = 'geman-mcclure',
         kernel_scale: float = 0.5,
         inlier_distance: float = 0.5,
     ) -> RegistrationConfig:
-        """`RegistrationConfig(...)`: the defaults with keyword overrides.
+        """`RegistrationConfig(...)`: parameters by keyword (None: the default).
 
         Args:
-            voxel_size: Voxel edge (metres) of the fine level; 0 keeps every point in range.
-            coarse_voxel_size: Voxel edge of the coarse level, above `voxel_size`; 0: no coarse level.
-            min_range: Points at or within this norm (metres, sensor frame) are dropped.
-            max_range: Points at or beyond this norm are dropped (with non-finite ones).
-            neighbors: Neighbours of each local covariance, 5..=64.
-            max_correspondence: Largest correspondence distance (metres) at the fine level.
-            coarse_max_correspondence: Largest correspondence distance at the coarse level.
-            max_iterations: Largest number of Gauss-Newton iterations per level, 1..=1000.
-            rotation_eps_deg: A level converges when an update rotates by less than this (degrees)
-                and translates by less than `translation_eps`.
-            translation_eps: The translation part of the convergence test (metres).
-            factor: "gicp" or "point-to-plane".
-            kernel: "geman-mcclure" or "none" (a truncated quadratic).
-            kernel_scale: Kernel scale as a fraction of the level's correspondence distance, (0, 10].
-            inlier_distance: Distance (metres) within which a point counts as overlapping.
+            voxel_size: Voxel edge of the fine level, metres (0 keeps every point in range) (a finite value >= 0 metres (0 disables downsampling); default 0.5).
+            coarse_voxel_size: Voxel edge of the coarse level, metres (0: no coarse level); above voxel_size (0 (no coarse level), or a finite value above voxel_size and >= max_range / 2^19; default 1.0).
+            min_range: Points at or within this distance (metres, sensor frame) are dropped (a finite value >= 0 metres; default 1.0).
+            max_range: Points at or beyond this distance are dropped (a finite value above min_range; default 200.0).
+            neighbors: Neighbours (the point included) of each local covariance (an integer in 5..=64; default 10).
+            max_correspondence: Largest correspondence distance at the fine level, metres (a finite value > 0 metres; default 1.0).
+            coarse_max_correspondence: Largest correspondence distance at the coarse level, metres (a finite value > 0 metres; default 3.0).
+            max_iterations: Largest number of Gauss-Newton iterations per level (an integer in 1..=1000; default 20).
+            rotation_eps_deg: A level has converged when an update rotates by less than this (degrees)  (a finite value > 0 degrees; default 0.1).
+            translation_eps: ... and translates by less than this (metres) (a finite value > 0 metres; default 0.001).
+            factor: The residual: plane-to-plane GICP or point-to-plane ICP ("gicp" or "point-to-plane"; default 'gicp').
+            kernel: The robust kernel ("geman-mcclure" or "none"; default 'geman-mcclure').
+            kernel_scale: Kernel scale as a fraction of the level's maximum correspondence distance (a value in (0, 10]; default 0.5).
+            inlier_distance: Distance (metres) within which a point overlaps the other cloud (overlaps, RMSE) (a finite value > 0 metres; default 0.5).
 
         Raises:
-            ConfigError: A parameter out of its range (named in the message).
-            TypeError: An unknown parameter name, or a value of the wrong type.
+            ConfigError: A value out of its range (named in the message).
+            TypeError: An unknown parameter, or a value of the wrong type.
         """
-    def replace(self, **overrides: float | int | str) -> RegistrationConfig:
-        """A copy with some parameters changed (this one is immutable).
+    def replace(
+        self,
+        *,
+        voxel_size: float | None = None,
+        coarse_voxel_size: float | None = None,
+        min_range: float | None = None,
+        max_range: float | None = None,
+        neighbors: int | None = None,
+        max_correspondence: float | None = None,
+        coarse_max_correspondence: float | None = None,
+        max_iterations: int | None = None,
+        rotation_eps_deg: float | None = None,
+        translation_eps: float | None = None,
+        factor: str | None = None,
+        kernel: str | None = None,
+        kernel_scale: float | None = None,
+        inlier_distance: float | None = None,
+    ) -> RegistrationConfig:
+        """A copy with some parameters changed (None: unchanged); this one is immutable.
 
         Args:
-            **overrides: Parameters to change, by name.
+            voxel_size: Voxel edge of the fine level, metres (0 keeps every point in range) (a finite value >= 0 metres (0 disables downsampling); default 0.5).
+            coarse_voxel_size: Voxel edge of the coarse level, metres (0: no coarse level); above voxel_size (0 (no coarse level), or a finite value above voxel_size and >= max_range / 2^19; default 1.0).
+            min_range: Points at or within this distance (metres, sensor frame) are dropped (a finite value >= 0 metres; default 1.0).
+            max_range: Points at or beyond this distance are dropped (a finite value above min_range; default 200.0).
+            neighbors: Neighbours (the point included) of each local covariance (an integer in 5..=64; default 10).
+            max_correspondence: Largest correspondence distance at the fine level, metres (a finite value > 0 metres; default 1.0).
+            coarse_max_correspondence: Largest correspondence distance at the coarse level, metres (a finite value > 0 metres; default 3.0).
+            max_iterations: Largest number of Gauss-Newton iterations per level (an integer in 1..=1000; default 20).
+            rotation_eps_deg: A level has converged when an update rotates by less than this (degrees)  (a finite value > 0 degrees; default 0.1).
+            translation_eps: ... and translates by less than this (metres) (a finite value > 0 metres; default 0.001).
+            factor: The residual: plane-to-plane GICP or point-to-plane ICP ("gicp" or "point-to-plane"; default 'gicp').
+            kernel: The robust kernel ("geman-mcclure" or "none"; default 'geman-mcclure').
+            kernel_scale: Kernel scale as a fraction of the level's maximum correspondence distance (a value in (0, 10]; default 0.5).
+            inlier_distance: Distance (metres) within which a point overlaps the other cloud (overlaps, RMSE) (a finite value > 0 metres; default 0.5).
 
         Returns:
-            The validated new configuration.
+            The validated new parameters.
 
         Raises:
-            ConfigError: An invalid value.
-            TypeError: An unknown parameter name, or a value of the wrong type.
+            ConfigError: A value out of its range (named in the message).
+            TypeError: An unknown parameter, or a value of the wrong type.
         """
     def to_dict(self) -> dict[str, Any]:
-        """The parameters by name.
+        """The parameters by name (voxel_size, coarse_voxel_size, min_range, max_range, neighbors, max_correspondence, coarse_max_correspondence, max_iterations, rotation_eps_deg, translation_eps, factor, kernel, kernel_scale, inlier_distance): what `RegistrationConfig(**d)` takes back.
 
         Returns:
-            What `RegistrationConfig(**d)` takes back.
+            A new dict.
         """
     @property
     def voxel_size(self) -> float:
-        """Voxel edge of the fine level, metres."""
+        """Voxel edge of the fine level, metres (0 keeps every point in range) (a finite value >= 0 metres (0 disables downsampling); default 0.5)."""
     @property
     def coarse_voxel_size(self) -> float:
-        """Voxel edge of the coarse level, metres (0: none)."""
+        """Voxel edge of the coarse level, metres (0: no coarse level); above voxel_size (0 (no coarse level), or a finite value above voxel_size and >= max_range / 2^19; default 1.0)."""
     @property
     def min_range(self) -> float:
-        """Points at or within this norm are dropped, metres."""
+        """Points at or within this distance (metres, sensor frame) are dropped (a finite value >= 0 metres; default 1.0)."""
     @property
     def max_range(self) -> float:
-        """Points at or beyond this norm are dropped, metres."""
+        """Points at or beyond this distance are dropped (a finite value above min_range; default 200.0)."""
     @property
     def neighbors(self) -> int:
-        """Neighbours of each local covariance."""
+        """Neighbours (the point included) of each local covariance (an integer in 5..=64; default 10)."""
     @property
     def max_correspondence(self) -> float:
-        """Largest correspondence distance at the fine level, metres."""
+        """Largest correspondence distance at the fine level, metres (a finite value > 0 metres; default 1.0)."""
     @property
     def coarse_max_correspondence(self) -> float:
-        """Largest correspondence distance at the coarse level, metres."""
+        """Largest correspondence distance at the coarse level, metres (a finite value > 0 metres; default 3.0)."""
     @property
     def max_iterations(self) -> int:
-        """Largest number of iterations per level."""
+        """Largest number of Gauss-Newton iterations per level (an integer in 1..=1000; default 20)."""
     @property
     def rotation_eps_deg(self) -> float:
-        """Rotation part of the convergence test, degrees."""
+        """A level has converged when an update rotates by less than this (degrees)  (a finite value > 0 degrees; default 0.1)."""
     @property
     def translation_eps(self) -> float:
-        """Translation part of the convergence test, metres."""
+        """... and translates by less than this (metres) (a finite value > 0 metres; default 0.001)."""
     @property
     def factor(self) -> str:
-        """The residual: "gicp" or "point-to-plane"."""
+        """The residual: plane-to-plane GICP or point-to-plane ICP ("gicp" or "point-to-plane"; default 'gicp')."""
     @property
     def kernel(self) -> str:
-        """The robust kernel: "geman-mcclure" or "none"."""
+        """The robust kernel ("geman-mcclure" or "none"; default 'geman-mcclure')."""
     @property
     def kernel_scale(self) -> float:
-        """Kernel scale as a fraction of the correspondence distance."""
+        """Kernel scale as a fraction of the level's maximum correspondence distance (a value in (0, 10]; default 0.5)."""
     @property
     def inlier_distance(self) -> float:
-        """Distance within which a point counts as overlapping, metres."""
+        """Distance (metres) within which a point overlaps the other cloud (overlaps, RMSE) (a finite value > 0 metres; default 0.5)."""
+    # end of generated
     def __eq__(self, value: object, /) -> bool: ...
     def __ne__(self, value: object, /) -> bool: ...
+
 
 @final
 class PreparedCloud:
@@ -1650,9 +1702,41 @@ class AcceptanceGate:
     Tuned for precision on hku1-avia and the simulator: with the defaults, none of 843 wrong
     registrations of hku1's top-5 candidates passes, 373 of 462 correct ones do.
     """
-
+    # generated from the core's parameter table by tools/stubgen.py (make stubs): do not edit
     def __new__(
         cls,
+        *,
+        require_converged: bool = False,
+        min_fitness: float = 0.35,
+        min_structure_fitness: float = 0.35,
+        max_rmse: float = 0.3,
+        min_translation_information: float = 1.5,
+        min_rotation_information: float = 0.0,
+        min_agreement: int = 1,
+        max_translation: float = ...,
+        agree_translation: float = 0.5,
+        agree_rotation_deg: float = 2.0,
+    ) -> AcceptanceGate:
+        """`AcceptanceGate(...)`: parameters by keyword (None: the default).
+
+        Args:
+            require_converged: Require the fine level to have converged (a bool; default False).
+            min_fitness: Smallest accepted fitness (the smaller of the two overlaps) (a finite number; default 0.35).
+            min_structure_fitness: Smallest accepted overlap of the structure (points off the ground) (a finite number; default 0.35).
+            max_rmse: Largest accepted inlier RMSE, metres (a finite number; default 0.3).
+            min_translation_information: Smallest accepted translation information (degeneracy.translation) (a finite number; default 1.5).
+            min_rotation_information: Smallest accepted rotation information (degeneracy.rotation) (a finite number; default 0.0).
+            min_agreement: Fewest initial yaws (the best included) that must reach the best pose (an integer >= 0; default 1).
+            max_translation: Largest accepted length of the translation, metres (metres > 0 (infinity: no limit); default inf).
+            agree_translation: Two hypotheses agree when their poses are within this distance (metres)  (a finite number; default 0.5).
+            agree_rotation_deg: ... and this angle (degrees) (a finite number; default 2.0).
+
+        Raises:
+            ConfigError: A value out of its range (named in the message).
+            TypeError: An unknown parameter, or a value of the wrong type.
+        """
+    def replace(
+        self,
         *,
         require_converged: bool | None = None,
         min_fitness: float | None = None,
@@ -1665,89 +1749,88 @@ class AcceptanceGate:
         agree_translation: float | None = None,
         agree_rotation_deg: float | None = None,
     ) -> AcceptanceGate:
-        """`AcceptanceGate(...)`: the measured defaults with keyword overrides (None: default).
+        """A copy with some parameters changed (None: unchanged); this one is immutable.
 
         Args:
-            require_converged: Require `Registration.converged`; default False.
-            min_fitness: Smallest accepted `fitness`; default 0.35.
-            min_structure_fitness: Smallest accepted `structure_fitness`; default 0.35.
-            max_rmse: Largest accepted `rmse`, metres; default 0.30.
-            min_translation_information: Smallest accepted `degeneracy_translation`; default 1.5.
-            min_rotation_information: Smallest accepted `degeneracy_rotation`; default 0.
-            min_agreement: Fewest hypotheses that must reach the best pose; default 1.
-            max_translation: Largest accepted length of the translation, metres; default inf
-                (an evaluation within a radius sets the radius).
-            agree_translation: Two hypotheses agree within this distance, metres; default 0.5.
-            agree_rotation_deg: ... and this angle, degrees; default 2.
+            require_converged: Require the fine level to have converged (a bool; default False).
+            min_fitness: Smallest accepted fitness (the smaller of the two overlaps) (a finite number; default 0.35).
+            min_structure_fitness: Smallest accepted overlap of the structure (points off the ground) (a finite number; default 0.35).
+            max_rmse: Largest accepted inlier RMSE, metres (a finite number; default 0.3).
+            min_translation_information: Smallest accepted translation information (degeneracy.translation) (a finite number; default 1.5).
+            min_rotation_information: Smallest accepted rotation information (degeneracy.rotation) (a finite number; default 0.0).
+            min_agreement: Fewest initial yaws (the best included) that must reach the best pose (an integer >= 0; default 1).
+            max_translation: Largest accepted length of the translation, metres (metres > 0 (infinity: no limit); default inf).
+            agree_translation: Two hypotheses agree when their poses are within this distance (metres)  (a finite number; default 0.5).
+            agree_rotation_deg: ... and this angle (degrees) (a finite number; default 2.0).
+
+        Returns:
+            The validated new parameters.
 
         Raises:
-            ConfigError: A NaN or infinite threshold.
+            ConfigError: A value out of its range (named in the message).
+            TypeError: An unknown parameter, or a value of the wrong type.
         """
-    def __eq__(self, other: object, /) -> bool: ...
     def to_dict(self) -> dict[str, Any]:
-        """The thresholds by name: what `AcceptanceGate(**d)` takes back.
+        """The parameters by name (require_converged, min_fitness, min_structure_fitness, max_rmse, min_translation_information, min_rotation_information, min_agreement, max_translation, agree_translation, agree_rotation_deg): what `AcceptanceGate(**d)` takes back.
 
         Returns:
             A new dict.
         """
+    @property
+    def require_converged(self) -> bool:
+        """Require the fine level to have converged (a bool; default False)."""
+    @property
+    def min_fitness(self) -> float:
+        """Smallest accepted fitness (the smaller of the two overlaps) (a finite number; default 0.35)."""
+    @property
+    def min_structure_fitness(self) -> float:
+        """Smallest accepted overlap of the structure (points off the ground) (a finite number; default 0.35)."""
+    @property
+    def max_rmse(self) -> float:
+        """Largest accepted inlier RMSE, metres (a finite number; default 0.3)."""
+    @property
+    def min_translation_information(self) -> float:
+        """Smallest accepted translation information (degeneracy.translation) (a finite number; default 1.5)."""
+    @property
+    def min_rotation_information(self) -> float:
+        """Smallest accepted rotation information (degeneracy.rotation) (a finite number; default 0.0)."""
+    @property
+    def min_agreement(self) -> int:
+        """Fewest initial yaws (the best included) that must reach the best pose (an integer >= 0; default 1)."""
+    @property
+    def max_translation(self) -> float:
+        """Largest accepted length of the translation, metres (metres > 0 (infinity: no limit); default inf)."""
+    @property
+    def agree_translation(self) -> float:
+        """Two hypotheses agree when their poses are within this distance (metres)  (a finite number; default 0.5)."""
+    @property
+    def agree_rotation_deg(self) -> float:
+        """... and this angle (degrees) (a finite number; default 2.0)."""
+    # end of generated
+    def __eq__(self, other: object, /) -> bool: ...
     def check(self, registration: Registration) -> str | None:
         """Why `registration` is rejected, if it is.
-
         Args:
             registration: A result of `register`.
-
         Returns:
             None when it passes every threshold, else the first failed check ("low overlap",
             "degenerate translation", ...).
         """
     def accepts(self, registration: Registration) -> bool:
         """Whether `registration` passes every threshold.
-
         Args:
             registration: A result of `register`.
-
         Returns:
             True when `check` finds nothing.
         """
     def agreement(self, registration: Registration) -> int:
         """How many hypotheses reached the best one's pose (within this gate's tolerances).
-
         Args:
             registration: A result of `register` with `yaws`.
-
         Returns:
             The count, the best included; 0 without hypotheses.
         """
-    @property
-    def require_converged(self) -> bool:
-        """Whether convergence is required."""
-    @property
-    def min_fitness(self) -> float:
-        """Smallest accepted fitness."""
-    @property
-    def min_structure_fitness(self) -> float:
-        """Smallest accepted structure fitness."""
-    @property
-    def max_rmse(self) -> float:
-        """Largest accepted RMSE, metres."""
-    @property
-    def min_translation_information(self) -> float:
-        """Smallest accepted translation eigenvalue."""
-    @property
-    def min_rotation_information(self) -> float:
-        """Smallest accepted rotation eigenvalue."""
-    @property
-    def min_agreement(self) -> int:
-        """Fewest agreeing hypotheses."""
-    @property
-    def max_translation(self) -> float:
-        """Largest accepted translation, metres."""
-    @property
-    def agree_translation(self) -> float:
-        """Agreement tolerance in translation, metres."""
-    @property
-    def agree_rotation_deg(self) -> float:
-        """Agreement tolerance in rotation, degrees."""
+
 
 def register(
     query: PreparedCloud | npt.NDArray[np.float32] | npt.NDArray[np.float64],

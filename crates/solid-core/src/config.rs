@@ -1,5 +1,6 @@
 //! Descriptor configuration ([spec §1](crate::spec#1-parameters)) and sensor presets ([spec §4](crate::spec#4-sensor-presets)).
 
+use crate::params::{field, Field, Kind, Params, FINITE};
 use crate::Error;
 
 /// Bound on `max_range / voxel_size` (voxel keys pack 21 bits per axis, which leaves a margin for rounding).
@@ -45,17 +46,8 @@ pub struct Preset {
     pub loop_threshold: f64,
 }
 
-/// How the presets' loop thresholds were measured: `python tools/thresholds.py` prints them.
-///
-/// The shipped pipeline (preset descriptor and detector, exclusion 50 frames) runs on the
-/// simulator's looping drive (worlds 0 and 1, 1.6 laps, frames 2 m apart, full field of view and
-/// 90° ahead) and, for `avia`, on the real Livox walk hku1-avia; each threshold maximises the
-/// mean F1 at 5 m over the preset's sequences, the real walk weighing as much as the simulated
-/// ones together. Measured (F1 at the chosen threshold; every simulated F1 max is 0.990-0.995):
-/// hdl64 0.0111 (0.930-0.990), vlp16 0.0217 (0.965-0.990), os1-64 0.0211 (0.985-0.990), aeva
-/// 0.0248 (0.990), avia 0.0340 (simulated 0.951-0.975; hku1 0.328, whose own F1 max is 0.396 at
-/// 0.193). hdl32 has no sequence: the median of the spinning sensors' (hdl64, vlp16, os1-64),
-/// 0.0211.
+/// How the presets' loop thresholds were measured (`make thresholds`; figures in
+/// docs/performance.md#loop-thresholds).
 pub const LOOP_THRESHOLD_MEASUREMENT: &str = "tools/thresholds.py: F1-max thresholds of the shipped pipeline on the simulator (all presets) and hku1-avia (avia); hdl32 = median of hdl64, vlp16, os1-64";
 
 const fn sensor(fov_up: f64, fov_down: f64, n_elevation: usize, max_range: f64) -> Config {
@@ -139,41 +131,13 @@ impl Config {
             .ok_or(Error::UnknownPreset)
     }
 
-    /// Checks every parameter against [spec §1](crate::spec#1-parameters).
+    /// Checks every parameter against [spec §1](crate::spec#1-parameters): each against its
+    /// range in [`Config::FIELDS`], then the rules between them.
     ///
     /// # Errors
     /// [`Error::InvalidParameter`] naming the first invalid parameter.
     pub fn validate(&self) -> Result<(), Error> {
-        fn count(
-            name: &'static str,
-            v: usize,
-            max: usize,
-            expected: &'static str,
-        ) -> Result<(), Error> {
-            if v == 0 || v > max {
-                return Err(Error::InvalidParameter {
-                    name,
-                    value: v as f64,
-                    expected,
-                });
-            }
-            Ok(())
-        }
-        count("n_range", self.n_range, 1024, "an integer in 1..=1024")?;
-        count("n_azimuth", self.n_azimuth, 3600, "an integer in 1..=3600")?;
-        count(
-            "n_elevation",
-            self.n_elevation,
-            1024,
-            "an integer in 1..=1024",
-        )?;
-        let angle = "a finite angle in [-90, 90] degrees";
-        if !(self.fov_up.is_finite() && (-90.0..=90.0).contains(&self.fov_up)) {
-            return Err(Error::invalid("fov_up", self.fov_up, angle));
-        }
-        if !(self.fov_down.is_finite() && (-90.0..=90.0).contains(&self.fov_down)) {
-            return Err(Error::invalid("fov_down", self.fov_down, angle));
-        }
+        self.check_fields()?;
         if self.fov_down >= self.fov_up {
             return Err(Error::invalid(
                 "fov_down",
@@ -181,25 +145,11 @@ impl Config {
                 "a value below fov_up",
             ));
         }
-        if !(self.min_range.is_finite() && self.min_range >= 0.0) {
-            return Err(Error::invalid(
-                "min_range",
-                self.min_range,
-                "a finite value >= 0 metres",
-            ));
-        }
-        if !(self.max_range.is_finite() && self.max_range > self.min_range) {
+        if self.max_range <= self.min_range {
             return Err(Error::invalid(
                 "max_range",
                 self.max_range,
                 "a finite value above min_range",
-            ));
-        }
-        if !(self.voxel_size.is_finite() && self.voxel_size >= 0.0) {
-            return Err(Error::invalid(
-                "voxel_size",
-                self.voxel_size,
-                "a finite value >= 0 metres (0 disables downsampling)",
             ));
         }
         if self.voxel_size > 0.0 && self.max_range / self.voxel_size >= MAX_VOXELS_PER_AXIS {
@@ -237,6 +187,86 @@ impl Config {
             eat((v + 0.0).to_bits().to_le_bytes());
         }
         h
+    }
+}
+
+/// An angle of the vertical field of view.
+const ANGLE: Kind = Kind::closed(-90.0, 90.0);
+
+impl Params for Config {
+    const NAME: &'static str = "SolidConfig";
+    const FIELDS: &'static [Field<Config>] = &[
+        field!(
+            Config,
+            "n_range",
+            n_range,
+            Kind::Int { min: 1, max: 1024 },
+            "an integer in 1..=1024",
+            "Range bins over [0, max_range): the length of R-SOLiD."
+        ),
+        field!(
+            Config,
+            "n_azimuth",
+            n_azimuth,
+            Kind::Int { min: 1, max: 3600 },
+            "an integer in 1..=3600",
+            "Azimuth bins over [0°, 360°): the length of A-SOLiD."
+        ),
+        field!(
+            Config,
+            "n_elevation",
+            n_elevation,
+            Kind::Int { min: 1, max: 1024 },
+            "an integer in 1..=1024",
+            "Elevation bins over [fov_down, fov_up) (the sensor's channels).",
+            required = true
+        ),
+        field!(
+            Config,
+            "fov_up",
+            fov_up,
+            ANGLE,
+            "a finite angle in [-90, 90] degrees",
+            "Upper edge of the vertical field of view, degrees.",
+            required = true
+        ),
+        field!(
+            Config,
+            "fov_down",
+            fov_down,
+            ANGLE,
+            "a finite angle in [-90, 90] degrees",
+            "Lower edge of the vertical field of view, degrees, below fov_up.",
+            required = true
+        ),
+        field!(
+            Config,
+            "min_range",
+            min_range,
+            Kind::closed(0.0, FINITE),
+            "a finite value >= 0 metres",
+            "Points at or within this distance (metres, 3-D) are dropped."
+        ),
+        field!(
+            Config,
+            "max_range",
+            max_range,
+            Kind::open_closed(0.0, FINITE),
+            "a finite value above min_range",
+            "Points at or beyond this distance (metres, 3-D) are dropped."
+        ),
+        field!(
+            Config,
+            "voxel_size",
+            voxel_size,
+            Kind::closed(0.0, FINITE),
+            "a finite value >= 0 metres (0 disables downsampling)",
+            "Voxel edge in metres for downsampling (0: none); at least max_range / 2^19."
+        ),
+    ];
+
+    fn defaults() -> Config {
+        Config::with_defaults(f64::NAN, f64::NAN, 0)
     }
 }
 

@@ -42,6 +42,7 @@ mod error;
 pub mod eval;
 pub mod lzf;
 mod math;
+pub mod params;
 #[cfg(feature = "parallel")]
 #[doc(hidden)]
 pub mod pool;

@@ -171,6 +171,4 @@ opt_int_args! {
     points: usize = "points" in 0, usize::MAX;
     /// Number of candidates (None: the detector's top_k).
     opt_k: usize = "k" in 0, usize::MAX;
-    /// Hypotheses that must agree (None: the gate's default).
-    min_agreement: usize = "min_agreement" in 0, usize::MAX;
 }

@@ -10,9 +10,10 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
 use solid_lidar::{Config, Describer, Descriptor, Error, Points, Stats, PRESETS};
 
-use args::{float_param, int_arg};
+pub use config::PyConfig;
 
 mod args;
+mod config;
 mod engine;
 mod eval;
 mod io;
@@ -62,267 +63,6 @@ pub fn io_err(source: &std::io::Error, file: Option<String>) -> PyErr {
     }
 }
 
-/// The descriptor configuration exposed as `solid.SolidConfig` (immutable).
-#[pyclass(name = "SolidConfig", module = "solid", frozen, eq)]
-#[derive(Clone)]
-pub struct PyConfig {
-    /// The validated core config.
-    pub inner: Config,
-    /// The preset it was made from (`SolidConfig.preset`), kept through `replace` and pickling:
-    /// it chooses the loop detector's default threshold. Not part of equality or hashing.
-    pub base_preset: Option<&'static str>,
-}
-
-impl PartialEq for PyConfig {
-    fn eq(&self, other: &Self) -> bool {
-        self.inner == other.inner
-    }
-}
-
-const FIELDS: [&str; 8] = [
-    "n_range",
-    "n_azimuth",
-    "n_elevation",
-    "fov_up",
-    "fov_down",
-    "min_range",
-    "max_range",
-    "voxel_size",
-];
-
-/// A bin count of the config (`n_range`, ...): an integer; its range is the core's to check.
-fn count_param(v: &Bound<'_, PyAny>, name: &str) -> PyResult<usize> {
-    int_arg(v, name, 0, u32::MAX.into())
-}
-
-/// Applies keyword overrides (by field name) to `cfg`, then validates it.
-fn apply_overrides(mut cfg: Config, overrides: Option<&Bound<'_, PyDict>>) -> PyResult<Config> {
-    if let Some(kw) = overrides {
-        for (k, v) in kw.iter() {
-            let key: String = k.extract()?;
-            let float = |v: &Bound<'_, PyAny>| float_param(v, &key);
-            let int = |v: &Bound<'_, PyAny>| count_param(v, &key);
-            match key.as_str() {
-                "n_range" => cfg.n_range = int(&v)?,
-                "n_azimuth" => cfg.n_azimuth = int(&v)?,
-                "n_elevation" => cfg.n_elevation = int(&v)?,
-                "fov_up" => cfg.fov_up = float(&v)?,
-                "fov_down" => cfg.fov_down = float(&v)?,
-                "min_range" => cfg.min_range = float(&v)?,
-                "max_range" => cfg.max_range = float(&v)?,
-                "voxel_size" => cfg.voxel_size = float(&v)?,
-                other => {
-                    return Err(PyTypeError::new_err(format!(
-                        "unknown SolidConfig parameter {other:?}; valid: {}",
-                        FIELDS.join(", ")
-                    )))
-                }
-            }
-        }
-    }
-    cfg.validate().map_err(core_err)?;
-    Ok(cfg)
-}
-
-impl PyConfig {
-    /// Wraps a config that was validated already (a database's, say).
-    pub fn new_unchecked(inner: Config) -> Self {
-        PyConfig {
-            inner,
-            base_preset: None,
-        }
-    }
-
-    /// The detector defaults for this config: its base preset's loop threshold, else the
-    /// general default.
-    pub fn detector_defaults(&self) -> solid_lidar::db::DetectorConfig {
-        self.base_preset
-            .and_then(|p| solid_lidar::db::DetectorConfig::for_preset(p).ok())
-            .unwrap_or_default()
-    }
-}
-
-#[pymethods]
-impl PyConfig {
-    #[new]
-    #[pyo3(signature = (*, fov_up, fov_down, n_elevation, n_range=None, n_azimuth=None, min_range=None, max_range=None, voxel_size=None))]
-    #[allow(clippy::too_many_arguments)]
-    fn new(
-        fov_up: &Bound<'_, PyAny>,
-        fov_down: &Bound<'_, PyAny>,
-        n_elevation: &Bound<'_, PyAny>,
-        n_range: Option<&Bound<'_, PyAny>>,
-        n_azimuth: Option<&Bound<'_, PyAny>>,
-        min_range: Option<&Bound<'_, PyAny>>,
-        max_range: Option<&Bound<'_, PyAny>>,
-        voxel_size: Option<&Bound<'_, PyAny>>,
-    ) -> PyResult<Self> {
-        let (fov_up, fov_down) = (
-            float_param(fov_up, "fov_up")?,
-            float_param(fov_down, "fov_down")?,
-        );
-        // The docs/spec.md §1 defaults come from the core (Config::with_defaults), not from here.
-        let d = Config::with_defaults(fov_up, fov_down, 1);
-        let count = |v: Option<&Bound<'_, PyAny>>, name, default| match v {
-            Some(v) if !v.is_none() => count_param(v, name),
-            _ => Ok(default),
-        };
-        let float = |v: Option<&Bound<'_, PyAny>>, name, default| match v {
-            Some(v) if !v.is_none() => float_param(v, name),
-            _ => Ok(default),
-        };
-        let cfg = Config {
-            n_range: count(n_range, "n_range", d.n_range)?,
-            n_azimuth: count(n_azimuth, "n_azimuth", d.n_azimuth)?,
-            n_elevation: count_param(n_elevation, "n_elevation")?,
-            fov_up,
-            fov_down,
-            min_range: float(min_range, "min_range", d.min_range)?,
-            max_range: float(max_range, "max_range", d.max_range)?,
-            voxel_size: float(voxel_size, "voxel_size", d.voxel_size)?,
-        };
-        cfg.validate().map_err(core_err)?;
-        Ok(PyConfig::new_unchecked(cfg))
-    }
-
-    /// A sensor preset (docs/spec.md §4), with optional keyword overrides.
-    #[staticmethod]
-    #[pyo3(signature = (name, **overrides))]
-    fn preset(name: &str, overrides: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
-        let base = Config::preset(name).map_err(|_| {
-            ConfigError::new_err(format!(
-                "unknown preset {name:?}; available: {}",
-                PRESETS
-                    .iter()
-                    .map(|p| p.name)
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            ))
-        })?;
-        let preset = PRESETS.iter().find(|p| p.name == name).map(|p| p.name);
-        Ok(PyConfig {
-            inner: apply_overrides(base, overrides)?,
-            base_preset: preset,
-        })
-    }
-
-    /// A copy with some parameters changed (it keeps its base preset).
-    #[pyo3(signature = (**overrides))]
-    fn replace(&self, overrides: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
-        Ok(PyConfig {
-            inner: apply_overrides(self.inner, overrides)?,
-            base_preset: self.base_preset,
-        })
-    }
-
-    /// The preset this config was made from (`SolidConfig.preset(name, ...)`), or None. It
-    /// chooses the loop detector's default threshold; it is not part of equality.
-    #[getter]
-    fn base_preset(&self) -> Option<&'static str> {
-        self.base_preset
-    }
-
-    /// The parameters as a dict (what `SolidConfig(**d)` takes back).
-    fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let c = &self.inner;
-        let d = PyDict::new(py);
-        d.set_item("n_range", c.n_range)?;
-        d.set_item("n_azimuth", c.n_azimuth)?;
-        d.set_item("n_elevation", c.n_elevation)?;
-        d.set_item("fov_up", c.fov_up)?;
-        d.set_item("fov_down", c.fov_down)?;
-        d.set_item("min_range", c.min_range)?;
-        d.set_item("max_range", c.max_range)?;
-        d.set_item("voxel_size", c.voxel_size)?;
-        Ok(d)
-    }
-
-    #[getter]
-    fn n_range(&self) -> usize {
-        self.inner.n_range
-    }
-    #[getter]
-    fn n_azimuth(&self) -> usize {
-        self.inner.n_azimuth
-    }
-    #[getter]
-    fn n_elevation(&self) -> usize {
-        self.inner.n_elevation
-    }
-    #[getter]
-    fn fov_up(&self) -> f64 {
-        self.inner.fov_up
-    }
-    #[getter]
-    fn fov_down(&self) -> f64 {
-        self.inner.fov_down
-    }
-    #[getter]
-    fn min_range(&self) -> f64 {
-        self.inner.min_range
-    }
-    #[getter]
-    fn max_range(&self) -> f64 {
-        self.inner.max_range
-    }
-    #[getter]
-    fn voxel_size(&self) -> f64 {
-        self.inner.voxel_size
-    }
-    /// A 64-bit fingerprint of every parameter; equal configs have equal fingerprints.
-    #[getter]
-    fn fingerprint(&self) -> u64 {
-        self.inner.fingerprint()
-    }
-
-    fn __hash__(&self) -> u64 {
-        self.inner.fingerprint()
-    }
-
-    fn __repr__(&self) -> String {
-        let c = &self.inner;
-        format!(
-            "SolidConfig(n_range={}, n_azimuth={}, n_elevation={}, fov_up={:?}, fov_down={:?}, min_range={:?}, max_range={:?}, voxel_size={:?})",
-            c.n_range, c.n_azimuth, c.n_elevation, c.fov_up, c.fov_down, c.min_range, c.max_range, c.voxel_size
-        )
-    }
-
-    fn __reduce__<'py>(
-        slf: &Bound<'py, Self>,
-    ) -> PyResult<(Bound<'py, PyAny>, (Bound<'py, PyDict>,))> {
-        let py = slf.py();
-        let ctor = py.import("solid._solid")?.getattr("_config_from_dict")?;
-        let d = slf.get().to_dict(py)?;
-        if let Some(p) = slf.get().base_preset {
-            d.set_item("base_preset", p)?;
-        }
-        Ok((ctor, (d,)))
-    }
-}
-
-#[pyfunction]
-fn _config_from_dict(d: &Bound<'_, PyDict>) -> PyResult<PyConfig> {
-    let base = Config::with_defaults(1.0, 0.0, 1);
-    for need in ["fov_up", "fov_down", "n_elevation"] {
-        if !d.contains(need)? {
-            return Err(ConfigError::new_err(format!("config is missing {need}")));
-        }
-    }
-    let d = d.copy()?;
-    let preset = match d.get_item("base_preset")? {
-        Some(v) => {
-            d.del_item("base_preset")?;
-            let name: String = v.extract()?;
-            PRESETS.iter().find(|p| p.name == name).map(|p| p.name)
-        }
-        None => None,
-    };
-    Ok(PyConfig {
-        inner: apply_overrides(base, Some(&d))?,
-        base_preset: preset,
-    })
-}
-
 /// One scan's SOLiD descriptor, exposed as `solid.Descriptor` (immutable).
 #[pyclass(name = "Descriptor", module = "solid", frozen)]
 pub struct PyDescriptor {
@@ -344,8 +84,8 @@ pub(crate) fn comparable(a: &PyDescriptor, b: &PyDescriptor) -> PyResult<()> {
     if a.cfg != b.cfg {
         return Err(SolidError::new_err(format!(
             "descriptors come from different configs ({:?} vs {:?}); describe both scans with the same SolidConfig",
-            PyConfig::new_unchecked(a.cfg).__repr__(),
-            PyConfig::new_unchecked(b.cfg).__repr__()
+            PyConfig::new_unchecked(a.cfg).repr(),
+            PyConfig::new_unchecked(b.cfg).repr()
         )));
     }
     Ok(())
@@ -789,7 +529,7 @@ fn _solid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add("SolidError", py.get_type::<SolidError>())?;
     m.add("ConfigError", py.get_type::<ConfigError>())?;
-    m.add_class::<PyConfig>()?;
+    config::register(m)?;
     m.add_class::<PyDescriptor>()?;
     m.add_function(wrap_pyfunction!(describe, m)?)?;
     m.add_function(wrap_pyfunction!(describe_batch, m)?)?;
@@ -797,7 +537,6 @@ fn _solid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(heading, m)?)?;
     m.add_function(wrap_pyfunction!(presets, m)?)?;
     m.add_function(wrap_pyfunction!(preset_sensors, m)?)?;
-    m.add_function(wrap_pyfunction!(_config_from_dict, m)?)?;
     engine::register(m)?;
     eval::register(m)?;
     reg::register_module(m)?;

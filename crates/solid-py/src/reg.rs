@@ -8,16 +8,17 @@ use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray2};
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
-use pyo3::types::{PyBytes, PyDict};
+use pyo3::types::PyBytes;
 use solid_lidar::reg::{
-    self, decode_cloud, encode_cloud, hypothesis_yaws as core_yaws, Factor, Gate, Hypothesis,
-    Kernel, Pose, PreparedCloud, RegConfig, RegError, Registration, IDENTITY,
+    self, decode_cloud, encode_cloud, hypothesis_yaws as core_yaws, Hypothesis, Pose,
+    PreparedCloud, RegConfig, RegError, Registration, IDENTITY,
 };
 use solid_lidar::Points;
 
-use crate::{args, borrow_points, core_err, ConfigError, PointSlice, PyDescriptor, SolidError};
+use crate::config::PyRegConfig;
+use crate::{args, borrow_points, core_err, PointSlice, PyDescriptor, SolidError};
 
-fn reg_err(e: RegError) -> PyErr {
+pub(crate) fn reg_err(e: RegError) -> PyErr {
     match e {
         RegError::Core(c) => core_err(c),
         // Corrupt or foreign bytes, as for a database or a place.
@@ -25,287 +26,6 @@ fn reg_err(e: RegError) -> PyErr {
             Python::attach(|py| crate::engine::database_error(py, e.to_string()))
         }
         other => SolidError::new_err(other.to_string()),
-    }
-}
-
-const FACTORS: [(&str, Factor); 2] = [
-    ("gicp", Factor::Gicp),
-    ("point-to-plane", Factor::PointToPlane),
-];
-const KERNELS: [(&str, Kernel); 2] = [
-    ("geman-mcclure", Kernel::GemanMcClure),
-    ("none", Kernel::None),
-];
-
-fn factor_name(f: Factor) -> &'static str {
-    FACTORS
-        .iter()
-        .find(|(_, v)| *v == f)
-        .map_or("gicp", |(n, _)| n)
-}
-
-fn kernel_name(k: Kernel) -> &'static str {
-    KERNELS
-        .iter()
-        .find(|(_, v)| *v == k)
-        .map_or("none", |(n, _)| n)
-}
-
-/// `solid.RegistrationConfig`: the parameters of registration (immutable, validated).
-/// A registration config as a dict (what `RegistrationConfig(**d)` takes back).
-pub(crate) fn reg_config_dict<'py>(py: Python<'py>, c: &RegConfig) -> PyResult<Bound<'py, PyDict>> {
-    let d = PyDict::new(py);
-
-    d.set_item("voxel_size", c.voxel_size)?;
-    d.set_item("coarse_voxel_size", c.coarse_voxel_size)?;
-    d.set_item("min_range", c.min_range)?;
-    d.set_item("max_range", c.max_range)?;
-    d.set_item("neighbors", c.neighbors)?;
-    d.set_item("max_correspondence", c.max_correspondence)?;
-    d.set_item("coarse_max_correspondence", c.coarse_max_correspondence)?;
-    d.set_item("max_iterations", c.max_iterations)?;
-    d.set_item("rotation_eps_deg", c.rotation_eps_deg)?;
-    d.set_item("translation_eps", c.translation_eps)?;
-    d.set_item("factor", factor_name(c.factor))?;
-    d.set_item("kernel", kernel_name(c.kernel))?;
-    d.set_item("kernel_scale", c.kernel_scale)?;
-    d.set_item("inlier_distance", c.inlier_distance)?;
-    Ok(d)
-}
-
-/// A registration config from a `RegistrationConfig` or a dict of overrides of `base`.
-pub(crate) fn reg_config_from(obj: &Bound<'_, PyAny>, base: RegConfig) -> PyResult<RegConfig> {
-    if let Ok(c) = obj.cast::<PyRegConfig>() {
-        return Ok(c.get().inner);
-    }
-    let d = obj.cast::<PyDict>().map_err(|_| {
-        PyTypeError::new_err(
-            "registration must be a solid.RegistrationConfig or a dict of its parameters",
-        )
-    })?;
-    apply(base, Some(d))
-}
-
-/// A gate as a dict (what `AcceptanceGate(**d)` takes back).
-pub(crate) fn gate_dict<'py>(py: Python<'py>, g: &Gate) -> PyResult<Bound<'py, PyDict>> {
-    let d = PyDict::new(py);
-    d.set_item("require_converged", g.require_converged)?;
-    d.set_item("min_fitness", g.min_fitness)?;
-    d.set_item("min_structure_fitness", g.min_structure_fitness)?;
-    d.set_item("max_rmse", g.max_rmse)?;
-    d.set_item("min_translation_information", g.min_translation_information)?;
-    d.set_item("min_rotation_information", g.min_rotation_information)?;
-    d.set_item("min_agreement", g.min_agreement)?;
-    d.set_item("max_translation", g.max_translation)?;
-    d.set_item("agree_translation", g.agree_translation)?;
-    d.set_item("agree_rotation_deg", g.agree_rotation_deg)?;
-    Ok(d)
-}
-
-/// A gate from an `AcceptanceGate` or a dict of its parameters (missing ones: the defaults).
-pub(crate) fn gate_from(obj: &Bound<'_, PyAny>) -> PyResult<Gate> {
-    if let Ok(g) = obj.cast::<PyGate>() {
-        return Ok(g.get().inner);
-    }
-    let d = obj.cast::<PyDict>().map_err(|_| {
-        PyTypeError::new_err("gate must be a solid.AcceptanceGate or a dict of its thresholds")
-    })?;
-    let g = obj.py().get_type::<PyGate>().call((), Some(d))?;
-    Ok(g.cast::<PyGate>()?.get().inner)
-}
-
-#[pyclass(name = "RegistrationConfig", module = "solid", frozen, eq)]
-#[derive(Clone, PartialEq)]
-pub struct PyRegConfig {
-    pub(crate) inner: RegConfig,
-}
-
-const REG_FIELDS: [&str; 14] = [
-    "voxel_size",
-    "coarse_voxel_size",
-    "min_range",
-    "max_range",
-    "neighbors",
-    "max_correspondence",
-    "coarse_max_correspondence",
-    "max_iterations",
-    "rotation_eps_deg",
-    "translation_eps",
-    "factor",
-    "kernel",
-    "kernel_scale",
-    "inlier_distance",
-];
-
-fn apply(mut c: RegConfig, kw: Option<&Bound<'_, PyDict>>) -> PyResult<RegConfig> {
-    if let Some(kw) = kw {
-        for (k, v) in kw.iter() {
-            let key: String = k.extract()?;
-            let float = || args::float_param(&v, &key);
-            let int = || args::int_arg(&v, &key, 0, usize::MAX as i128);
-            let name = || -> PyResult<String> {
-                v.extract::<String>()
-                    .map_err(|_| PyTypeError::new_err(format!("{key} must be a string")))
-            };
-            match key.as_str() {
-                "voxel_size" => c.voxel_size = float()?,
-                "coarse_voxel_size" => c.coarse_voxel_size = float()?,
-                "min_range" => c.min_range = float()?,
-                "max_range" => c.max_range = float()?,
-                "neighbors" => c.neighbors = int()?,
-                "max_correspondence" => c.max_correspondence = float()?,
-                "coarse_max_correspondence" => c.coarse_max_correspondence = float()?,
-                "max_iterations" => c.max_iterations = int()?,
-                "rotation_eps_deg" => c.rotation_eps_deg = float()?,
-                "translation_eps" => c.translation_eps = float()?,
-                "kernel_scale" => c.kernel_scale = float()?,
-                "inlier_distance" => c.inlier_distance = float()?,
-                "factor" => {
-                    let n = name()?;
-                    c.factor = FACTORS
-                        .iter()
-                        .find(|(f, _)| *f == n)
-                        .map(|(_, f)| *f)
-                        .ok_or_else(|| {
-                            ConfigError::new_err(format!(
-                                "invalid factor = {n:?}: expected \"gicp\" or \"point-to-plane\""
-                            ))
-                        })?;
-                }
-                "kernel" => {
-                    let n = name()?;
-                    c.kernel = KERNELS
-                        .iter()
-                        .find(|(k, _)| *k == n)
-                        .map(|(_, k)| *k)
-                        .ok_or_else(|| {
-                            ConfigError::new_err(format!(
-                                "invalid kernel = {n:?}: expected \"geman-mcclure\" or \"none\""
-                            ))
-                        })?;
-                }
-                other => {
-                    return Err(PyTypeError::new_err(format!(
-                        "unknown RegistrationConfig parameter {other:?}; valid: {}",
-                        REG_FIELDS.join(", ")
-                    )))
-                }
-            }
-        }
-    }
-    c.validate().map_err(reg_err)?;
-    Ok(c)
-}
-
-#[pymethods]
-impl PyRegConfig {
-    /// Defaults (measured; see the Rust documentation of `solid_lidar::reg`) with keyword
-    /// overrides.
-    #[new]
-    #[pyo3(signature = (**overrides))]
-    fn new(overrides: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
-        Ok(PyRegConfig {
-            inner: apply(RegConfig::default(), overrides)?,
-        })
-    }
-
-    /// A copy with some parameters changed.
-    #[pyo3(signature = (**overrides))]
-    fn replace(&self, overrides: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
-        Ok(PyRegConfig {
-            inner: apply(self.inner, overrides)?,
-        })
-    }
-
-    /// The parameters as a dict (what `RegistrationConfig(**d)` takes back).
-    fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        reg_config_dict(py, &self.inner)
-    }
-
-    #[getter]
-    fn voxel_size(&self) -> f64 {
-        let c = &self.inner;
-        c.voxel_size
-    }
-    #[getter]
-    fn coarse_voxel_size(&self) -> f64 {
-        let c = &self.inner;
-        c.coarse_voxel_size
-    }
-    #[getter]
-    fn min_range(&self) -> f64 {
-        let c = &self.inner;
-        c.min_range
-    }
-    #[getter]
-    fn max_range(&self) -> f64 {
-        let c = &self.inner;
-        c.max_range
-    }
-    #[getter]
-    fn neighbors(&self) -> usize {
-        let c = &self.inner;
-        c.neighbors
-    }
-    #[getter]
-    fn max_correspondence(&self) -> f64 {
-        let c = &self.inner;
-        c.max_correspondence
-    }
-    #[getter]
-    fn coarse_max_correspondence(&self) -> f64 {
-        let c = &self.inner;
-        c.coarse_max_correspondence
-    }
-    #[getter]
-    fn max_iterations(&self) -> usize {
-        let c = &self.inner;
-        c.max_iterations
-    }
-    #[getter]
-    fn rotation_eps_deg(&self) -> f64 {
-        let c = &self.inner;
-        c.rotation_eps_deg
-    }
-    #[getter]
-    fn translation_eps(&self) -> f64 {
-        let c = &self.inner;
-        c.translation_eps
-    }
-    #[getter]
-    fn factor(&self) -> &'static str {
-        let c = &self.inner;
-        factor_name(c.factor)
-    }
-    #[getter]
-    fn kernel(&self) -> &'static str {
-        let c = &self.inner;
-        kernel_name(c.kernel)
-    }
-    #[getter]
-    fn kernel_scale(&self) -> f64 {
-        let c = &self.inner;
-        c.kernel_scale
-    }
-    #[getter]
-    fn inlier_distance(&self) -> f64 {
-        let c = &self.inner;
-        c.inlier_distance
-    }
-
-    fn __repr__(&self, py: Python<'_>) -> PyResult<String> {
-        let d = self.to_dict(py)?;
-        let parts: Vec<String> = REG_FIELDS
-            .iter()
-            .map(|k| -> PyResult<String> {
-                let v = d
-                    .get_item(k)?
-                    .map(|v| v.repr().map(|r| r.to_string()))
-                    .transpose()?;
-                Ok(format!("{k}={}", v.unwrap_or_default()))
-            })
-            .collect::<PyResult<_>>()?;
-        Ok(format!("RegistrationConfig({})", parts.join(", ")))
     }
 }
 
@@ -477,9 +197,9 @@ impl PyHypothesis {
 /// The outcome of `solid.register`, exposed as `solid.Registration` (immutable).
 #[pyclass(name = "Registration", module = "solid", frozen)]
 pub struct PyRegistration {
-    inner: Registration,
-    hypotheses: Vec<Hypothesis>,
-    best: Option<usize>,
+    pub(crate) inner: Registration,
+    pub(crate) hypotheses: Vec<Hypothesis>,
+    pub(crate) best: Option<usize>,
 }
 
 #[pymethods]
@@ -687,180 +407,6 @@ fn hypothesis_yaws(
     Ok(out)
 }
 
-/// The acceptance gate, exposed as `solid.AcceptanceGate` (immutable).
-#[pyclass(name = "AcceptanceGate", module = "solid", frozen, eq)]
-#[derive(Clone, PartialEq)]
-pub struct PyGate {
-    pub(crate) inner: Gate,
-}
-
-#[pymethods]
-impl PyGate {
-    /// The measured default thresholds, with keyword overrides.
-    #[new]
-    #[pyo3(signature = (*, require_converged=None, min_fitness=None, min_structure_fitness=None, max_rmse=None, min_translation_information=None, min_rotation_information=None, min_agreement=None, max_translation=None, agree_translation=None, agree_rotation_deg=None))]
-    #[allow(clippy::too_many_arguments)]
-    fn new(
-        require_converged: Option<bool>,
-        min_fitness: Option<&Bound<'_, PyAny>>,
-        min_structure_fitness: Option<&Bound<'_, PyAny>>,
-        max_rmse: Option<&Bound<'_, PyAny>>,
-        min_translation_information: Option<&Bound<'_, PyAny>>,
-        min_rotation_information: Option<&Bound<'_, PyAny>>,
-        #[pyo3(from_py_with = args::min_agreement)] min_agreement: Option<usize>,
-        max_translation: Option<&Bound<'_, PyAny>>,
-        agree_translation: Option<&Bound<'_, PyAny>>,
-        agree_rotation_deg: Option<&Bound<'_, PyAny>>,
-    ) -> PyResult<Self> {
-        let mut g = Gate::default();
-        let number = |name: &str, v: Option<&Bound<'_, PyAny>>| -> PyResult<Option<f64>> {
-            v.filter(|v| !v.is_none())
-                .map(|v| args::float_param(v, name))
-                .transpose()
-        };
-        let max_translation = number("max_translation", max_translation)?;
-        let set = |name: &str, v: Option<&Bound<'_, PyAny>>, slot: &mut f64| -> PyResult<()> {
-            if let Some(v) = number(name, v)? {
-                if !v.is_finite() {
-                    return Err(ConfigError::new_err(format!(
-                        "invalid {name} = {v}: expected a finite number"
-                    )));
-                }
-                *slot = v;
-            }
-            Ok(())
-        };
-        set("min_fitness", min_fitness, &mut g.min_fitness)?;
-        set(
-            "min_structure_fitness",
-            min_structure_fitness,
-            &mut g.min_structure_fitness,
-        )?;
-        set("max_rmse", max_rmse, &mut g.max_rmse)?;
-        set(
-            "min_translation_information",
-            min_translation_information,
-            &mut g.min_translation_information,
-        )?;
-        set(
-            "min_rotation_information",
-            min_rotation_information,
-            &mut g.min_rotation_information,
-        )?;
-        set(
-            "agree_translation",
-            agree_translation,
-            &mut g.agree_translation,
-        )?;
-        if let Some(v) = max_translation {
-            if v.is_nan() {
-                return Err(ConfigError::new_err(format!(
-                    "invalid max_translation = {v}: expected a number (inf: no limit)"
-                )));
-            }
-            g.max_translation = v;
-        }
-        set(
-            "agree_rotation_deg",
-            agree_rotation_deg,
-            &mut g.agree_rotation_deg,
-        )?;
-        if let Some(v) = require_converged {
-            g.require_converged = v;
-        }
-        if let Some(v) = min_agreement {
-            g.min_agreement = v;
-        }
-        Ok(PyGate { inner: g })
-    }
-
-    /// The thresholds as a dict (what `AcceptanceGate(**d)` takes back).
-    fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        gate_dict(py, &self.inner)
-    }
-
-    /// None when `registration` passes, else why it is rejected.
-    fn check(&self, registration: &PyRegistration) -> Option<String> {
-        self.inner
-            .check(
-                &registration.inner,
-                &registration.hypotheses,
-                registration.best.unwrap_or(0),
-            )
-            .err()
-            .map(|r| r.to_string())
-    }
-
-    /// Whether `registration` passes every threshold.
-    fn accepts(&self, registration: &PyRegistration) -> bool {
-        self.check(registration).is_none()
-    }
-
-    /// How many hypotheses reached the best one's pose (0 without hypotheses).
-    fn agreement(&self, registration: &PyRegistration) -> usize {
-        registration
-            .best
-            .map_or(0, |b| self.inner.agreement(&registration.hypotheses, b))
-    }
-
-    #[getter]
-    fn require_converged(&self) -> bool {
-        self.inner.require_converged
-    }
-    #[getter]
-    fn min_fitness(&self) -> f64 {
-        self.inner.min_fitness
-    }
-    #[getter]
-    fn min_structure_fitness(&self) -> f64 {
-        self.inner.min_structure_fitness
-    }
-    #[getter]
-    fn max_rmse(&self) -> f64 {
-        self.inner.max_rmse
-    }
-    #[getter]
-    fn min_translation_information(&self) -> f64 {
-        self.inner.min_translation_information
-    }
-    #[getter]
-    fn min_rotation_information(&self) -> f64 {
-        self.inner.min_rotation_information
-    }
-    #[getter]
-    fn min_agreement(&self) -> usize {
-        self.inner.min_agreement
-    }
-    #[getter]
-    fn max_translation(&self) -> f64 {
-        self.inner.max_translation
-    }
-    #[getter]
-    fn agree_translation(&self) -> f64 {
-        self.inner.agree_translation
-    }
-    #[getter]
-    fn agree_rotation_deg(&self) -> f64 {
-        self.inner.agree_rotation_deg
-    }
-    fn __repr__(&self) -> String {
-        let g = &self.inner;
-        format!(
-            "AcceptanceGate(require_converged={}, min_fitness={:?}, min_structure_fitness={:?}, max_rmse={:?}, min_translation_information={:?}, min_rotation_information={:?}, min_agreement={}, max_translation={:?}, agree_translation={:?}, agree_rotation_deg={:?})",
-            if g.require_converged { "True" } else { "False" },
-            g.min_fitness,
-            g.min_structure_fitness,
-            g.max_rmse,
-            g.min_translation_information,
-            g.min_rotation_information,
-            g.min_agreement,
-            g.max_translation,
-            g.agree_translation,
-            g.agree_rotation_deg
-        )
-    }
-}
-
 /// Encodes (N, 3) points compactly (quantised on a grid of edge `grid` metres, `bits` bits per
 /// axis within a cell, CRC-checked).
 #[pyfunction]
@@ -906,11 +452,9 @@ fn decode_cloud_py<'py>(
 
 /// Adds the registration classes and functions to the module.
 pub fn register_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
-    m.add_class::<PyRegConfig>()?;
     m.add_class::<PyPrepared>()?;
     m.add_class::<PyHypothesis>()?;
     m.add_class::<PyRegistration>()?;
-    m.add_class::<PyGate>()?;
     m.add_function(wrap_pyfunction!(register, m)?)?;
     m.add_function(wrap_pyfunction!(hypothesis_yaws, m)?)?;
     m.add_function(wrap_pyfunction!(encode_cloud_py, m)?)?;

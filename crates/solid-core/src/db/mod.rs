@@ -39,15 +39,19 @@ use crate::Error;
 pub mod clouds;
 mod database;
 mod detector;
+mod detector_config;
 pub mod format;
 mod room;
 pub mod wire;
 
 pub use database::{check_pose, BatchResults, Database, SearchOptions, INDEX_AFTER_PASSES};
 pub use detector::{
-    Candidate, Detection, DetectorConfig, Loop, LoopDetector, Scan, Verification, VerifyConfig,
-    DEFAULT_EXCLUDE_FRAMES, DEFAULT_MAX_LOOP_DISTANCE, DEFAULT_RERANK, DEFAULT_TOP_K,
-    DEFAULT_VERIFY_CANDIDATES, MAX_TOP_K, UNVERIFIED_SCORE, VERIFIED_THRESHOLD,
+    Candidate, Detection, Loop, LoopDetector, Scan, Verification, UNVERIFIED_SCORE,
+    VERIFIED_THRESHOLD,
+};
+pub use detector_config::{
+    DetectorConfig, VerifyConfig, DEFAULT_EXCLUDE_FRAMES, DEFAULT_MAX_LOOP_DISTANCE,
+    DEFAULT_RERANK, DEFAULT_TOP_K, DEFAULT_VERIFY_CANDIDATES, MAX_TOP_K,
 };
 pub use format::crc32;
 pub use wire::{decode_place, encode_place, Place};

@@ -4,6 +4,8 @@ use core::cmp::Ordering;
 use core::fmt;
 
 use super::{agreement, Hypothesis, Registration};
+use crate::params::{field, Field, Kind, Params, FINITE};
+use crate::Error;
 
 /// Why [`Gate::check`] rejected a registration, in the order the checks run.
 #[non_exhaustive]
@@ -73,32 +75,9 @@ pub struct Gate {
 }
 
 impl Default for Gate {
-    /// Thresholds from measured distributions (`tools/reg_measure.py`). hku1-avia: every query
-    /// (exclude 50) against its top-5 SOLiD candidates, 1305 registrations from 0°, ±25° and
-    /// the A-SOLiD minima; 462 end within 1 m / 5° of the ground truth ("correct"), 843 do not.
-    /// Percentiles p5 / p50 / p95:
-    ///
-    /// | measure | correct | wrong |
-    /// |---|---|---|
-    /// | fitness | 0.36 / 0.53 / 0.73 | 0.10 / 0.22 / 0.49 |
-    /// | structure_fitness | 0.33 / 0.53 / 0.74 | 0.09 / 0.17 / 0.48 |
-    /// | rmse (m) | 0.24 / 0.26 / 0.28 | 0.27 / 0.32 / 0.35 |
-    /// | degeneracy.translation | 1.29 / 2.87 / 24.1 | 0.70 / 0.99 / 2.63 |
-    /// | agreement (of 3–4) | 1 / 2 / 3 | 1 / 1 / 2 |
-    ///
-    /// Wrong results that look good by overlap are GICP sliding along a corridor (2–5 m off,
-    /// fitness up to 0.67): their smallest translation eigenvalue is 1.0–1.25, the level of
-    /// in-plane information alone, while every correct result but a few lies above 1.3; hence
-    /// 1.5. On the simulator (five sensors, true pairs 0–2 m and up to 20° apart, wrong pairs
-    /// 60 m or more apart in a world with repeated blocks) a 360° sensor's wrong pairs reach a
-    /// fitness of 0.41 with well-constrained walls: the ground of any two places overlaps.
-    /// Their structure fitness stays at or below 0.25 (true pairs: 0.57 and above but for a few
-    /// Avia pairs that hardly overlap); hence 0.35. With these thresholds: hku1 accepts 373 of
-    /// the 462 correct results and none of the 843 wrong ones (median pose error 4.4 cm /
-    /// 0.21°, worst 0.75 m); the simulator accepts every correctly registered true pair and no
-    /// wrong pair. Requiring agreement of two hypotheses as well would remove no wrong result
-    /// but 40% of the correct ones, so `min_agreement` is 1; convergence is not required
-    /// (results stopped by the iteration budget are as accurate).
+    /// Thresholds from the measured distributions of correct and wrong registrations
+    /// (`tools/reg_measure.py`; figures in docs/performance.md#gate), tuned so that no wrong one
+    /// passes.
     fn default() -> Self {
         Gate {
             require_converged: false,
@@ -175,5 +154,108 @@ impl Gate {
             self.agree_translation,
             self.agree_rotation_deg,
         )
+    }
+}
+
+/// A finite threshold.
+const NUMBER: Kind = Kind::closed(-FINITE, FINITE);
+
+impl Gate {
+    /// Checks every threshold against its range in [`Gate::FIELDS`].
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming the first invalid one.
+    pub fn validate(&self) -> Result<(), Error> {
+        self.check_fields()
+    }
+}
+
+impl Params for Gate {
+    const NAME: &'static str = "AcceptanceGate";
+    const FIELDS: &'static [Field<Gate>] = &[
+        field!(
+            Gate,
+            "require_converged",
+            require_converged,
+            Kind::Bool,
+            "a bool",
+            "Require the fine level to have converged."
+        ),
+        field!(
+            Gate,
+            "min_fitness",
+            min_fitness,
+            NUMBER,
+            "a finite number",
+            "Smallest accepted fitness (the smaller of the two overlaps)."
+        ),
+        field!(
+            Gate,
+            "min_structure_fitness",
+            min_structure_fitness,
+            NUMBER,
+            "a finite number",
+            "Smallest accepted overlap of the structure (points off the ground)."
+        ),
+        field!(
+            Gate,
+            "max_rmse",
+            max_rmse,
+            NUMBER,
+            "a finite number",
+            "Largest accepted inlier RMSE, metres."
+        ),
+        field!(
+            Gate,
+            "min_translation_information",
+            min_translation_information,
+            NUMBER,
+            "a finite number",
+            "Smallest accepted translation information (degeneracy.translation)."
+        ),
+        field!(
+            Gate,
+            "min_rotation_information",
+            min_rotation_information,
+            NUMBER,
+            "a finite number",
+            "Smallest accepted rotation information (degeneracy.rotation)."
+        ),
+        field!(
+            Gate,
+            "min_agreement",
+            min_agreement,
+            Kind::at_least(0),
+            "an integer >= 0",
+            "Fewest initial yaws (the best included) that must reach the best pose."
+        ),
+        field!(
+            Gate,
+            "max_translation",
+            max_translation,
+            Kind::open_closed(0.0, f64::INFINITY),
+            "metres > 0 (infinity: no limit)",
+            "Largest accepted length of the translation, metres."
+        ),
+        field!(
+            Gate,
+            "agree_translation",
+            agree_translation,
+            NUMBER,
+            "a finite number",
+            "Two hypotheses agree when their translations differ by at most this, metres (and their rotations by agree_rotation_deg)."
+        ),
+        field!(
+            Gate,
+            "agree_rotation_deg",
+            agree_rotation_deg,
+            NUMBER,
+            "a finite number",
+            "Two hypotheses agree when their rotations differ by at most this, degrees (and their translations by agree_translation)."
+        ),
+    ];
+
+    fn defaults() -> Gate {
+        Gate::default()
     }
 }

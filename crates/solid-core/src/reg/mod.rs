@@ -83,6 +83,7 @@ pub mod kdtree;
 mod solve;
 pub mod wire;
 
+use crate::params::{field, Field, Kind, ParamType, Params, Value, FINITE};
 use core::fmt;
 
 pub use cloud::{Level, PreparedCloud, MIN_NEIGHBORS, PLANE_EPSILON};
@@ -241,12 +242,13 @@ impl Default for RegConfig {
 }
 
 impl RegConfig {
-    /// Checks every parameter.
+    /// Checks every parameter: each against its range in [`RegConfig::FIELDS`], then the rules
+    /// between them.
     ///
     /// # Errors
     /// [`RegError::Core`] with [`Error::InvalidParameter`] naming the first invalid parameter.
     pub fn validate(&self) -> Result<(), RegError> {
-        let pos = |v: f64| v.is_finite() && v > 0.0;
+        self.check_fields()?;
         // The range and the fine voxel size obey the descriptor's rules (SPEC §1), checked by
         // the same code, since the same voxel downsampling applies them.
         cloud::voxel_config(self.min_range, self.max_range, self.voxel_size).validate()?;
@@ -262,65 +264,172 @@ impl RegConfig {
             )
             .into());
         }
-        if !(MIN_NEIGHBORS..=64).contains(&self.neighbors) {
-            return Err(
-                Error::invalid("neighbors", self.neighbors as f64, "an integer in 5..=64").into(),
-            );
-        }
-        if !pos(self.max_correspondence) {
-            return Err(Error::invalid(
-                "max_correspondence",
-                self.max_correspondence,
-                "a finite value > 0 metres",
-            )
-            .into());
-        }
-        if !pos(self.coarse_max_correspondence) {
-            return Err(Error::invalid(
-                "coarse_max_correspondence",
-                self.coarse_max_correspondence,
-                "a finite value > 0 metres",
-            )
-            .into());
-        }
-        if !(1..=1000).contains(&self.max_iterations) {
-            return Err(Error::invalid(
-                "max_iterations",
-                self.max_iterations as f64,
-                "an integer in 1..=1000",
-            )
-            .into());
-        }
-        if !pos(self.rotation_eps_deg) {
-            return Err(Error::invalid(
-                "rotation_eps_deg",
-                self.rotation_eps_deg,
-                "a finite value > 0 degrees",
-            )
-            .into());
-        }
-        if !pos(self.translation_eps) {
-            return Err(Error::invalid(
-                "translation_eps",
-                self.translation_eps,
-                "a finite value > 0 metres",
-            )
-            .into());
-        }
-        if !(pos(self.kernel_scale) && self.kernel_scale <= 10.0) {
-            return Err(
-                Error::invalid("kernel_scale", self.kernel_scale, "a value in (0, 10]").into(),
-            );
-        }
-        if !pos(self.inlier_distance) {
-            return Err(Error::invalid(
-                "inlier_distance",
-                self.inlier_distance,
-                "a finite value > 0 metres",
-            )
-            .into());
-        }
         Ok(())
+    }
+}
+
+/// [`Factor`]'s values and their names, as users write them.
+const FACTORS: [Factor; 2] = [Factor::Gicp, Factor::PointToPlane];
+const FACTOR_NAMES: [&str; 2] = ["gicp", "point-to-plane"];
+/// [`Kernel`]'s values and their names.
+const KERNELS: [Kernel; 2] = [Kernel::GemanMcClure, Kernel::None];
+const KERNEL_NAMES: [&str; 2] = ["geman-mcclure", "none"];
+
+/// The name of `v`, one of `values`.
+fn name_of<T: PartialEq>(values: &[T], names: &[&'static str], v: T) -> &'static str {
+    values.iter().position(|x| *x == v).map_or("", |i| names[i])
+}
+
+/// The value called by the name `v` (the first one for another name, which the field's
+/// [`Kind::Choice`] has already refused).
+fn by_name<T: Copy>(values: &[T], names: &[&str], v: Value<'_>) -> T {
+    let n = if let Value::Name(n) = v { n } else { "" };
+    values[names.iter().position(|x| *x == n).unwrap_or(0)]
+}
+
+impl ParamType for Factor {
+    fn to_value(self) -> Value<'static> {
+        Value::Name(name_of(&FACTORS, &FACTOR_NAMES, self))
+    }
+    fn from_value(v: Value<'_>) -> Self {
+        by_name(&FACTORS, &FACTOR_NAMES, v)
+    }
+}
+
+impl ParamType for Kernel {
+    fn to_value(self) -> Value<'static> {
+        Value::Name(name_of(&KERNELS, &KERNEL_NAMES, self))
+    }
+    fn from_value(v: Value<'_>) -> Self {
+        by_name(&KERNELS, &KERNEL_NAMES, v)
+    }
+}
+
+/// A finite length > 0, metres.
+const LENGTH: Kind = Kind::open_closed(0.0, FINITE);
+
+impl Params for RegConfig {
+    const NAME: &'static str = "RegistrationConfig";
+    const FIELDS: &'static [Field<RegConfig>] = &[
+        field!(
+            RegConfig,
+            "voxel_size",
+            voxel_size,
+            Kind::closed(0.0, FINITE),
+            "a finite value >= 0 metres (0 disables downsampling)",
+            "Voxel edge of the fine level, metres (0 keeps every point in range)."
+        ),
+        field!(
+            RegConfig,
+            "coarse_voxel_size",
+            coarse_voxel_size,
+            Kind::closed(0.0, FINITE),
+            "0 (no coarse level), or a finite value above voxel_size and >= max_range / 2^19",
+            "Voxel edge of the coarse level, metres (0: no coarse level); above voxel_size."
+        ),
+        field!(
+            RegConfig,
+            "min_range",
+            min_range,
+            Kind::closed(0.0, FINITE),
+            "a finite value >= 0 metres",
+            "Points at or within this distance (metres, sensor frame) are dropped."
+        ),
+        field!(
+            RegConfig,
+            "max_range",
+            max_range,
+            LENGTH,
+            "a finite value above min_range",
+            "Points at or beyond this distance are dropped."
+        ),
+        field!(
+            RegConfig,
+            "neighbors",
+            neighbors,
+            Kind::Int {
+                min: MIN_NEIGHBORS as u64,
+                max: 64
+            },
+            "an integer in 5..=64",
+            "Neighbours (the point included) of each local covariance."
+        ),
+        field!(
+            RegConfig,
+            "max_correspondence",
+            max_correspondence,
+            LENGTH,
+            "a finite value > 0 metres",
+            "Largest correspondence distance at the fine level, metres."
+        ),
+        field!(
+            RegConfig,
+            "coarse_max_correspondence",
+            coarse_max_correspondence,
+            LENGTH,
+            "a finite value > 0 metres",
+            "Largest correspondence distance at the coarse level, metres."
+        ),
+        field!(
+            RegConfig,
+            "max_iterations",
+            max_iterations,
+            Kind::Int { min: 1, max: 1000 },
+            "an integer in 1..=1000",
+            "Largest number of Gauss-Newton iterations per level."
+        ),
+        field!(
+            RegConfig,
+            "rotation_eps_deg",
+            rotation_eps_deg,
+            LENGTH,
+            "a finite value > 0 degrees",
+            "A level has converged when an update rotates by less than this, degrees (and translates by less than translation_eps)."
+        ),
+        field!(
+            RegConfig,
+            "translation_eps",
+            translation_eps,
+            LENGTH,
+            "a finite value > 0 metres",
+            "A level has converged when an update translates by less than this, metres (and rotates by less than rotation_eps_deg)."
+        ),
+        field!(
+            RegConfig,
+            "factor",
+            factor,
+            Kind::Choice(&FACTOR_NAMES),
+            "\"gicp\" or \"point-to-plane\"",
+            "The residual: plane-to-plane GICP or point-to-plane ICP."
+        ),
+        field!(
+            RegConfig,
+            "kernel",
+            kernel,
+            Kind::Choice(&KERNEL_NAMES),
+            "\"geman-mcclure\" or \"none\"",
+            "The robust kernel."
+        ),
+        field!(
+            RegConfig,
+            "kernel_scale",
+            kernel_scale,
+            Kind::open_closed(0.0, 10.0),
+            "a value in (0, 10]",
+            "Kernel scale as a fraction of the level's maximum correspondence distance."
+        ),
+        field!(
+            RegConfig,
+            "inlier_distance",
+            inlier_distance,
+            LENGTH,
+            "a finite value > 0 metres",
+            "Distance (metres) within which a point overlaps the other cloud (overlaps, RMSE)."
+        ),
+    ];
+
+    fn defaults() -> RegConfig {
+        RegConfig::default()
     }
 }
 

@@ -1,0 +1,203 @@
+//! The parameters of a [`super::LoopDetector`]: [`DetectorConfig`] and its [`VerifyConfig`], with
+//! their defaults and checks.
+
+use crate::params::{field, Field, Kind, Params, FINITE};
+use crate::reg::{self, Gate, RegConfig};
+use crate::{Error, PRESETS};
+
+/// The parameters of a [`LoopDetector`](super::LoopDetector). Their defaults, ranges and docs are
+/// written once, here and in [`DetectorConfig::FIELDS`]; the
+/// Python package reads them from here.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DetectorConfig {
+    /// Skip the places of the own session added in the last `exclude_frames` steps ([spec §5](crate::spec#5-evaluating-loop-closure-against-poses):
+    /// query q sees frames `< q − exclude_frames`). Default 50.
+    pub exclude_frames: usize,
+    /// Also skip places of the own session fewer than this many metres back along the path
+    /// (needs a pose with every scan); 0 turns it off (the default).
+    pub exclude_meters: f64,
+    /// Also skip places of the own session fewer than this many seconds back (needs
+    /// non-decreasing timestamps); 0 turns it off (the default).
+    pub exclude_seconds: f64,
+    /// A step's best candidate is a loop when its score is at most this (the score is the
+    /// R-SOLiD cosine distance, [spec §3](crate::spec#3-comparing-descriptors)). Default: the preset's measured threshold
+    /// ([`crate::Preset::loop_threshold`]).
+    pub threshold: f64,
+    /// Candidates each step returns: the `top_k` nearest by R-SOLiD distance, re-ranked when
+    /// `rerank` is set. Default 10.
+    pub top_k: usize,
+    /// Re-rank the candidates by R-SOLiD distance plus rotation-aligned A-SOLiD distance
+    /// ([`DEFAULT_RERANK`]).
+    pub rerank: bool,
+    /// Verification of the best candidates by registering the places' clouds.
+    pub verify: VerifyConfig,
+}
+
+/// How a [`LoopDetector`](super::LoopDetector) verifies its best candidates: it registers the query's cloud with each
+/// candidate's ([`crate::reg`]) from several initial yaws and accepts a loop only when the
+/// registration passes the [`Gate`]. A verified loop carries the metric pose `T_query_candidate`
+/// (SPEC §3) and its heading is that pose's yaw.
+///
+/// With verification on, a candidate's score is `1 − fitness` when it passed the gate (in
+/// `[0, 1]`) and `1.5 + distance / 2` otherwise (in `[1.5, 2]`): candidates are ranked by it, a
+/// step's best candidate is a loop exactly when it passed the gate, and a precision-recall curve
+/// over the scores first sweeps the verified loops by overlap, then the rest by R-SOLiD distance.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VerifyConfig {
+    /// Verify at all (the scans' points must then be given, see [`LoopDetector::detect_scan`](super::LoopDetector::detect_scan)).
+    pub enabled: bool,
+    /// How many of the step's best candidates (by R-SOLiD distance) are registered.
+    pub candidates: usize,
+    /// At most this many initial yaws per candidate: 0°, the A-SOLiD minima, then ±`fan_deg`.
+    pub hypotheses: usize,
+    /// The fixed yaw fan added to the hypotheses (degrees; 0: none). On a narrow field of view
+    /// the A-SOLiD cost often has a single minimum near 0°.
+    pub fan_deg: f64,
+    /// Bits per axis of the stored clouds within their voxel ([`crate::reg::encode_cloud`]).
+    pub cloud_bits: u8,
+    /// Memory for prepared clouds kept between steps (bytes); older ones are prepared again
+    /// from the stored compact cloud when needed.
+    pub cache_bytes: usize,
+    /// Threads that register a step's candidates at once (0: one per core; 1: the calling
+    /// thread). Needs the `std` feature; without it, candidates are registered one by one.
+    pub threads: usize,
+    /// The registration parameters (the stored clouds use its `voxel_size`).
+    pub registration: RegConfig,
+    /// What a registration must meet to be a loop; its `max_translation` is the largest loop
+    /// (metres between the places).
+    pub gate: Gate,
+}
+
+/// Default [`Gate::max_translation`] of a detector: a loop joins places at most this many metres
+/// apart (the default radius of SPEC §5).
+pub const DEFAULT_MAX_LOOP_DISTANCE: f64 = crate::eval::DEFAULT_RADIUS;
+
+impl Default for VerifyConfig {
+    fn default() -> Self {
+        VerifyConfig {
+            enabled: true,
+            candidates: DEFAULT_VERIFY_CANDIDATES,
+            hypotheses: 4,
+            fan_deg: 25.0,
+            cloud_bits: 8,
+            cache_bytes: 256 << 20,
+            threads: 0,
+            registration: RegConfig::default(),
+            gate: Gate {
+                max_translation: DEFAULT_MAX_LOOP_DISTANCE,
+                ..Gate::default()
+            },
+        }
+    }
+}
+
+/// Default [`VerifyConfig::candidates`].
+pub const DEFAULT_VERIFY_CANDIDATES: usize = 5;
+
+impl VerifyConfig {
+    /// Checks the registration parameters and the gate (the detector's own fields are in
+    /// [`DetectorConfig::FIELDS`]).
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming the first invalid one.
+    pub fn validate(&self) -> Result<(), Error> {
+        if let Err(reg::RegError::Core(e)) = self.registration.validate() {
+            return Err(e);
+        }
+        self.gate.validate()
+    }
+}
+
+/// Default [`DetectorConfig::exclude_frames`] ([spec §5](crate::spec#5-evaluating-loop-closure-against-poses)).
+pub const DEFAULT_EXCLUDE_FRAMES: usize = 50;
+/// Default [`DetectorConfig::top_k`].
+pub const DEFAULT_TOP_K: usize = 10;
+/// Largest [`DetectorConfig::top_k`].
+pub const MAX_TOP_K: usize = 1000;
+
+/// Whether [`LoopDetector`](super::LoopDetector) re-ranks by A-SOLiD alignment by default: no, it loses reverse
+/// revisits for a small gain elsewhere (docs/performance.md#rerank).
+pub const DEFAULT_RERANK: bool = false;
+
+impl Default for DetectorConfig {
+    /// The defaults with the loop threshold of no particular sensor (the largest of the
+    /// presets'); prefer [`DetectorConfig::for_preset`].
+    fn default() -> Self {
+        DetectorConfig {
+            exclude_frames: DEFAULT_EXCLUDE_FRAMES,
+            exclude_meters: 0.0,
+            exclude_seconds: 0.0,
+            threshold: PRESETS.iter().map(|p| p.loop_threshold).fold(0.0, f64::max),
+            top_k: DEFAULT_TOP_K,
+            rerank: DEFAULT_RERANK,
+            verify: VerifyConfig::default(),
+        }
+    }
+}
+
+impl DetectorConfig {
+    /// The defaults with the loop threshold measured for a sensor preset.
+    ///
+    /// # Errors
+    /// [`Error::UnknownPreset`] for a name that is not a preset.
+    pub fn for_preset(name: &str) -> Result<DetectorConfig, Error> {
+        let p = PRESETS
+            .iter()
+            .find(|p| p.name == name)
+            .ok_or(Error::UnknownPreset)?;
+        Ok(DetectorConfig {
+            threshold: p.loop_threshold,
+            ..DetectorConfig::default()
+        })
+    }
+
+    /// Checks every parameter: each against its range in [`DetectorConfig::FIELDS`], then the
+    /// registration parameters and the gate.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming the first invalid one.
+    pub fn validate(&self) -> Result<(), Error> {
+        self.check_fields()?;
+        self.verify.validate()
+    }
+}
+
+/// A count of anything (frames, bytes, threads).
+const COUNT: Kind = Kind::at_least(0);
+
+impl Params for DetectorConfig {
+    const NAME: &'static str = "DetectorConfig";
+    const FIELDS: &'static [Field<DetectorConfig>] = &[
+        field!(DetectorConfig, "exclude_frames", exclude_frames, COUNT, "an integer >= 0",
+            "Skip the places of the own session added in the last this many steps.",
+            aliases = ["exclude_recent"]),
+        field!(DetectorConfig, "exclude_meters", exclude_meters, Kind::closed(0.0, FINITE), "a finite number >= 0",
+            "Also skip own places fewer than this many metres back along the path (0: off; needs poses)."),
+        field!(DetectorConfig, "exclude_seconds", exclude_seconds, Kind::closed(0.0, FINITE), "a finite number >= 0",
+            "Also skip own places fewer than this many seconds back (0: off; needs timestamps)."),
+        field!(DetectorConfig, "threshold", threshold, Kind::closed(0.0, 1.0), "a number in [0, 1] (a cosine distance)",
+            "Without verification, the largest R-SOLiD cosine distance accepted as a loop."),
+        field!(DetectorConfig, "top_k", top_k, Kind::Int { min: 1, max: MAX_TOP_K as u64 }, "an integer in 1..=1000",
+            "Candidates each step returns."),
+        field!(DetectorConfig, "rerank", rerank, Kind::Bool, "a bool",
+            "Re-rank the candidates by R-SOLiD plus rotation-aligned A-SOLiD distance."),
+        field!(DetectorConfig, "verify", verify.enabled, Kind::Bool, "a bool",
+            "Verify the best candidates by registering the places' clouds; a loop then carries its pose."),
+        field!(DetectorConfig, "verify_candidates", verify.candidates, Kind::Int { min: 1, max: MAX_TOP_K as u64 },
+            "an integer in 1..=1000", "Candidates registered per step."),
+        field!(DetectorConfig, "verify_hypotheses", verify.hypotheses, Kind::Int { min: 1, max: 16 },
+            "an integer in 1..=16", "Initial yaws per registration, at most (0°, the A-SOLiD minima, then the fan)."),
+        field!(DetectorConfig, "verify_fan_deg", verify.fan_deg, Kind::closed(0.0, 180.0), "degrees in [0, 180]",
+            "The fixed ± yaw fan added to the hypotheses, degrees (0: none)."),
+        field!(DetectorConfig, "cloud_bits", verify.cloud_bits, Kind::Int { min: 1, max: 16 }, "an integer in 1..=16",
+            "Bits per axis of the compact clouds stored with the places."),
+        field!(DetectorConfig, "cache_bytes", verify.cache_bytes, COUNT, "an integer >= 0",
+            "Memory for prepared clouds kept between steps, bytes."),
+        field!(DetectorConfig, "verify_threads", verify.threads, COUNT, "an integer >= 0",
+            "Threads registering a step's candidates at once (0: one per core)."),
+    ];
+
+    fn defaults() -> DetectorConfig {
+        DetectorConfig::default()
+    }
+}

@@ -1,0 +1,234 @@
+"""Writes the parameter classes of ``python/solid/_solid.pyi``, and the parameter tables of
+``docs/spec.md``, from the core's parameter tables.
+
+``make stubs`` runs it; ``make test`` runs it with ``--check``, which fails when either is stale.
+The tables (``solid._solid._param_table``) give each field's name, type, default, valid range and
+doc line; this script turns them into each class's constructor, ``preset``, ``replace``,
+``to_dict`` and properties, between the markers::
+
+    # generated from the core's parameter table by tools/stubgen.py (make stubs): do not edit
+    ...
+    # end of generated
+
+Everything outside the markers (class docstrings, other methods, the rest of the module) is
+written by hand. In Markdown the markers are ``<!-- generated: CLASS ... -->`` and
+``<!-- end of generated -->`` around a table of the class's parameters.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import re
+import sys
+from pathlib import Path
+from typing import Any
+
+from solid import _solid
+
+ROOT = Path(__file__).resolve().parent.parent
+STUB = ROOT / "python" / "solid" / "_solid.pyi"
+DOCS = [ROOT / "docs" / "spec.md"]
+DOC_BEGIN = re.compile(r"^<!-- generated: (\w+) from the core's parameter table by tools/stubgen.py \(make stubs\) -->$")
+DOC_END = "<!-- end of generated -->"
+BEGIN = "    # generated from the core's parameter table by tools/stubgen.py (make stubs): do not edit"
+END = "    # end of generated"
+
+# The classes with a table: whether they have `preset(name, ...)`, and their parameter sets of
+# their own (given as an object or a dict of overrides).
+CLASSES: dict[str, dict[str, Any]] = {
+    "SolidConfig": {"preset": "a sensor preset (docs/spec.md §4)", "nested": {}},
+    "DetectorConfig": {
+        "preset": "the detector defaults of a sensor preset (its measured loop threshold)",
+        "nested": {
+            "registration": ("RegistrationConfig", "The registration parameters (an object, or a dict of overrides of the current ones)."),
+            "gate": ("AcceptanceGate", "The acceptance gate (an object, or a dict of overrides of the current one)."),
+        },
+    },
+    "RegistrationConfig": {"preset": None, "nested": {}},
+    "AcceptanceGate": {"preset": None, "nested": {}},
+}
+
+
+def _literal(v: Any) -> str:
+    """A default as a stub literal (`...` where Python has none, such as infinity)."""
+    if isinstance(v, float) and not math.isfinite(v):
+        return "..."
+    return repr(v)
+
+
+def _described(f: dict[str, Any]) -> str:
+    """The field's doc line with its valid values and default."""
+    default = "required" if f["required"] else f"default {f['default']!r}"
+    alias = f"; formerly {', '.join(f['aliases'])}" if f["aliases"] else ""
+    return f"{f['doc'].rstrip('.')} ({f['expected']}; {default}{alias})."
+
+
+def _args_doc(fields: list[dict[str, Any]], nested: dict[str, tuple[str, str]], indent: str) -> list[str]:
+    out = [f"{indent}Args:"]
+    for f in fields:
+        out.append(f"{indent}    {f['name']}: {_described(f)}")
+    for name, (_, doc) in nested.items():
+        out.append(f"{indent}    {name}: {doc}")
+    return out
+
+
+def _signature(fields: list[dict[str, Any]], nested: dict[str, tuple[str, str]], *, defaults: bool) -> list[str]:
+    """Keyword parameters: with the table's defaults, or `None` (not given) for overrides."""
+    out = []
+    for f in fields:
+        if defaults and f["required"]:
+            out.append(f"        {f['name']}: {f['type']},")
+        elif defaults:
+            out.append(f"        {f['name']}: {f['type']} = {_literal(f['default'])},")
+        else:
+            out.append(f"        {f['name']}: {f['type']} | None = None,")
+    for name, (cls, _) in nested.items():
+        out.append(f"        {name}: {cls} | dict[str, Any] | None = None,")
+    return out
+
+
+def generate(cls: str) -> list[str]:
+    """The generated members of class `cls`."""
+    spec = CLASSES[cls]
+    fields: list[dict[str, Any]] = _solid._param_table(cls)
+    nested: dict[str, tuple[str, str]] = spec["nested"]
+    raises = [
+        "        Raises:",
+        "            ConfigError: A value out of its range (named in the message).",
+        "            TypeError: An unknown parameter, or a value of the wrong type.",
+    ]
+    lines = [BEGIN, "    def __new__(", "        cls,", "        *,"]
+    lines += _signature(fields, nested, defaults=True)
+    lines += [f"    ) -> {cls}:", f'        """`{cls}(...)`: parameters by keyword (None: the default).', ""]
+    lines += _args_doc(fields, nested, "        ") + [""] + raises + ['        """']
+    if spec["preset"]:
+        lines += ["    @staticmethod", "    def preset(", "        name: str,", "        *,"]
+        lines += _signature(fields, nested, defaults=False)
+        lines += [f"    ) -> {cls}:", f'        """{spec["preset"][0].upper()}{spec["preset"][1:]}, with overrides (None: the preset\'s).', ""]
+        lines += ['        Args:', '            name: A preset name (`solid.presets()`): "hdl64", "hdl32", "vlp16", "os1-64", "avia", "aeva".']
+        lines += _args_doc(fields, nested, "        ")[1:] + ["", "        Returns:", "            The validated parameters.", ""]
+        lines += ["        Raises:", "            ConfigError: An unknown preset name (the message lists them) or an invalid value.", "            TypeError: An unknown parameter, or a value of the wrong type.", '        """']
+    lines += ["    def replace(", "        self,", "        *,"]
+    lines += _signature(fields, nested, defaults=False)
+    lines += [f"    ) -> {cls}:", '        """A copy with some parameters changed (None: unchanged); this one is immutable.', ""]
+    lines += _args_doc(fields, nested, "        ") + ["", "        Returns:", "            The validated new parameters.", ""] + raises + ['        """']
+    keys = ", ".join(f["name"] for f in fields) + "".join(f", {n}" for n in nested)
+    lines += [
+        "    def to_dict(self) -> dict[str, Any]:",
+        f'        """The parameters by name ({keys}): what `{cls}(**d)` takes back.',
+        "",
+        "        Returns:",
+        "            A new dict.",
+        '        """',
+    ]
+    for f in fields:
+        lines += ["    @property", f"    def {f['name']}(self) -> {f['type']}:", f'        """{_described(f)}"""']
+    lines.append(END)
+    return lines
+
+
+def render(text: str) -> str:
+    """`text` (the stub) with every generated region written anew."""
+    lines = text.split("\n")
+    out: list[str] = []
+    cls = None
+    i = 0
+    while i < len(lines):
+        line = lines[i]
+        if line.startswith("class "):
+            cls = line[len("class ") :].split("(")[0].split(":")[0]
+        if line == BEGIN:
+            if cls not in CLASSES:
+                raise SystemExit(f"stubgen: a generated region in class {cls!r}, which has no parameter table")
+            end = lines.index(END, i)
+            out += generate(cls)
+            i = end + 1
+            continue
+        out.append(line)
+        i += 1
+    missing = [c for c in CLASSES if f"class {c}:" not in text or _region_count(text, c) != 1]
+    if missing:
+        raise SystemExit(f"stubgen: no generated region (or more than one) in class {', '.join(missing)}")
+    return "\n".join(out)
+
+
+def _per_preset(cls: str) -> set[str]:
+    """The fields whose default depends on the sensor preset."""
+    if cls != "DetectorConfig":
+        return set()
+    base = _solid.DetectorConfig().to_dict()
+    return {k for p in _solid.presets() for k, v in _solid.DetectorConfig.preset(p).to_dict().items() if v != base[k]}
+
+
+def _doc_default(f: dict[str, Any], per_preset: set[str]) -> str:
+    if f["required"]:
+        return "none (the sensor's)"
+    if f["name"] in per_preset:
+        return "the preset's (§4)"
+    v = f["default"]
+    if isinstance(v, bool):
+        return "on" if v else "off"
+    if isinstance(v, float) and math.isinf(v):
+        return "∞ (no limit)"
+    return repr(v)
+
+
+def doc_table(cls: str) -> list[str]:
+    """The Markdown table of class `cls`'s parameters: name, default, meaning, valid values."""
+    per_preset = _per_preset(cls)
+    rows = ["| name | default | meaning | valid |", "|---|---|---|---|"]
+    for f in _solid._param_table(cls):
+        rows.append(f"| `{f['name']}` | {_doc_default(f, per_preset)} | {f['doc'].rstrip('.')} | {f['expected']} |")
+    for name, (set_cls, doc) in CLASSES[cls]["nested"].items():
+        rows.append(f"| `{name}` | {set_cls}'s (§11) | {doc.rstrip('.')} | §11 |")
+    return rows
+
+
+def render_doc(text: str) -> str:
+    """Markdown `text` with every generated table written anew."""
+    lines = text.split("\n")
+    out: list[str] = []
+    i = 0
+    while i < len(lines):
+        m = DOC_BEGIN.match(lines[i])
+        if m is None:
+            out.append(lines[i])
+            i += 1
+            continue
+        if m.group(1) not in CLASSES:
+            raise SystemExit(f"stubgen: no parameter table {m.group(1)!r}")
+        end = lines.index(DOC_END, i)
+        out += [lines[i], *doc_table(m.group(1)), DOC_END]
+        i = end + 1
+    return "\n".join(out)
+
+
+def _region_count(text: str, cls: str) -> int:
+    body = text.split(f"class {cls}:", 1)[1].split("\nclass ", 1)[0]
+    return body.count(BEGIN)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("--check", action="store_true", help="fail when the stub is not what this would write")
+    args = p.parse_args(argv)
+    stale = []
+    for path, write in [(STUB, render), *((d, render_doc) for d in DOCS)]:
+        old = path.read_text(encoding="utf-8")
+        new = write(old)
+        if new == old:
+            continue
+        if args.check:
+            stale.append(str(path.relative_to(ROOT)))
+        else:
+            path.write_text(new, encoding="utf-8")
+            print(f"wrote {path.relative_to(ROOT)}")
+    if stale:
+        print(f"stale: {', '.join(stale)}: run `make stubs`", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
