@@ -98,15 +98,18 @@ typedef struct SolidDescriber SolidDescriber;
 typedef struct SolidDetector SolidDetector;
 
 /**
- * The loop detector's parameters (the names of `solid config dump`'s `detector` section, such
- * as `exclude_frames`, `threshold`, `verify`, `verify_candidates`, `max_loop_distance`).
+ * The loop detector's parameters, by the names of its table in docs/spec.md (`exclude_frames`,
+ * `threshold`, `verify`, `verify_candidates`, ...), and those of its registration and
+ * acceptance gate prefixed with `registration.` and `gate.` (`registration.voxel_size`,
+ * `gate.max_translation`: the largest loop in metres), as in `solid config dump`.
  *
  * Threads: as [`SolidConfig`].
  */
 typedef struct SolidDetectorConfig SolidDetectorConfig;
 
 /**
- * Registration's parameters (`voxel_size`, `max_correspondence`, `max_iterations`, ...).
+ * Registration's parameters, by the names of its table in docs/spec.md (`voxel_size`,
+ * `max_correspondence`, `max_iterations`, ...).
  *
  * Threads: as [`SolidConfig`].
  */
@@ -365,6 +368,14 @@ enum SolidStatus solid_detector_config_get(const struct SolidDetectorConfig *con
                                            double *value);
 
 /**
+ * Sets detector parameter `name`, whose values are names, to `value` (such as
+ * `registration.factor`: `"gicp"` or `"point-to-plane"`); checked as [`solid_config_set`].
+ */
+enum SolidStatus solid_detector_config_set_name(struct SolidDetectorConfig *config,
+                                                const char *name,
+                                                const char *value);
+
+/**
  * Makes registration's defaults in `*out`; release it with [`solid_reg_config_free`].
  */
 enum SolidStatus solid_reg_config_new(struct SolidRegConfig **out_config);
@@ -380,6 +391,14 @@ void solid_reg_config_free(struct SolidRegConfig *config);
 enum SolidStatus solid_reg_config_set(struct SolidRegConfig *config,
                                       const char *name,
                                       double value);
+
+/**
+ * Sets registration parameter `name`, whose values are names, to `value` (`factor`: `"gicp"`
+ * or `"point-to-plane"`; `kernel`); checked as [`solid_config_set`].
+ */
+enum SolidStatus solid_reg_config_set_name(struct SolidRegConfig *config,
+                                           const char *name,
+                                           const char *value);
 
 /**
  * Reads registration parameter `name` into `*value`.

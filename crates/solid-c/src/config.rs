@@ -5,144 +5,140 @@
 use std::ffi::c_char;
 
 use solid_lidar::db::DetectorConfig;
-use solid_lidar::reg::RegConfig;
+use solid_lidar::params::{Field, Kind, Params, Value};
+use solid_lidar::reg::{Gate, RegConfig};
 use solid_lidar::Config;
 
 use crate::{guard, nonnull, out, release, string, Failure, SolidStatus};
 
-/// A parameter value as the tables hold it.
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Value {
-    Bool(bool),
-    Int(u64),
-    Float(f64),
+/// A parameter set whose fields C reads and writes by name: the core's tables
+/// ([`solid_lidar::params`]), and for the detector, its registration and gate tables under
+/// `registration.` and `gate.`.
+trait Named: Sized + Copy {
+    /// The field called `name` of the set, as a place to read and write.
+    fn slot<'a>(&'a mut self, name: &str) -> Option<Box<dyn AnySlot + 'a>>;
+    /// Checks the whole set (fields and the rules between them).
+    fn check(&self) -> Result<(), Failure>;
 }
 
-/// A parameter struct whose fields are read and written by name.
-trait Named: Sized + Copy {
-    fn get(&self, name: &str) -> Option<Value>;
-    fn set(&mut self, name: &str, v: Value) -> Result<(), Failure>;
-    fn check(&self) -> Result<(), Failure>;
+/// One field of one set, bound to the set.
+struct Slot<'a, P: 'static> {
+    set: &'a mut P,
+    field: &'static Field<P>,
+}
+
+/// A [`Slot`] of any set.
+trait AnySlot {
+    fn kind(&self) -> Kind;
+    fn get(&self) -> Value<'static>;
+    fn put(&mut self, v: Value<'_>) -> Result<(), solid_lidar::Error>;
+}
+
+impl<P> AnySlot for Slot<'_, P> {
+    fn kind(&self) -> Kind {
+        self.field.kind
+    }
+    fn get(&self) -> Value<'static> {
+        (self.field.get)(self.set)
+    }
+    fn put(&mut self, v: Value<'_>) -> Result<(), solid_lidar::Error> {
+        self.field.set(self.set, v)
+    }
+}
+
+fn slot<'a, P: Params>(set: &'a mut P, name: &str) -> Option<Box<dyn AnySlot + 'a>> {
+    let field = P::field(name)?;
+    Some(Box::new(Slot { set, field }))
+}
+
+impl Named for Config {
+    fn slot<'a>(&'a mut self, name: &str) -> Option<Box<dyn AnySlot + 'a>> {
+        slot(self, name)
+    }
+    fn check(&self) -> Result<(), Failure> {
+        Ok(self.validate()?)
+    }
+}
+
+impl Named for RegConfig {
+    fn slot<'a>(&'a mut self, name: &str) -> Option<Box<dyn AnySlot + 'a>> {
+        slot(self, name)
+    }
+    fn check(&self) -> Result<(), Failure> {
+        Ok(self.validate()?)
+    }
+}
+
+impl Named for DetectorConfig {
+    fn slot<'a>(&'a mut self, name: &str) -> Option<Box<dyn AnySlot + 'a>> {
+        if let Some(n) = name.strip_prefix("registration.") {
+            return slot(&mut self.verify.registration, n);
+        }
+        if let Some(n) = name.strip_prefix("gate.") {
+            return slot::<Gate>(&mut self.verify.gate, n);
+        }
+        slot(self, name)
+    }
+    fn check(&self) -> Result<(), Failure> {
+        Ok(self.validate()?)
+    }
 }
 
 fn unknown(name: &str) -> Failure {
     Failure::arg(format!("unknown parameter {name:?}"))
 }
 
-macro_rules! named {
-    ($ty:ty, $check:expr, { $($name:literal => $field:ident $(. $sub:ident)* : $kind:ident),* $(,)? }) => {
-        impl Named for $ty {
-            fn get(&self, name: &str) -> Option<Value> {
-                match name {
-                    $($name => Some(named!(@get $kind, self.$field $(. $sub)*)),)*
-                    _ => None,
-                }
-            }
-            fn set(&mut self, name: &str, v: Value) -> Result<(), Failure> {
-                match (name, v) {
-                    $(($name, named!(@pat $kind, x)) => self.$field $(. $sub)* = named!(@set $kind, x),)*
-                    _ => return Err(unknown(name)),
-                }
-                Ok(())
-            }
-            fn check(&self) -> Result<(), Failure> {
-                let f: fn(&$ty) -> Result<(), Failure> = $check;
-                f(self)
-            }
-        }
-    };
-    (@get bool, $e:expr) => { Value::Bool($e) };
-    (@get usize, $e:expr) => { Value::Int($e as u64) };
-    (@get u8, $e:expr) => { Value::Int(u64::from($e)) };
-    (@get f64, $e:expr) => { Value::Float($e) };
-    (@pat bool, $x:ident) => { Value::Bool($x) };
-    (@pat usize, $x:ident) => { Value::Int($x) };
-    (@pat u8, $x:ident) => { Value::Int($x) };
-    (@pat f64, $x:ident) => { Value::Float($x) };
-    (@set bool, $x:ident) => { $x };
-    (@set usize, $x:ident) => { usize::try_from($x).unwrap_or(usize::MAX) };
-    (@set u8, $x:ident) => { u8::try_from($x).unwrap_or(u8::MAX) };
-    (@set f64, $x:ident) => { $x };
+/// Sets parameter `name` of `p` to `value` and checks the whole set: on error `p` is unchanged.
+fn set_value<P: Named>(p: &mut P, name: &str, value: Value<'_>) -> Result<(), Failure> {
+    let mut changed = *p;
+    changed
+        .slot(name)
+        .ok_or_else(|| unknown(name))?
+        .put(value)?;
+    changed.check()?;
+    *p = changed;
+    Ok(())
 }
 
-named!(Config, |c| Ok(c.validate()?), {
-    "n_range" => n_range: usize,
-    "n_azimuth" => n_azimuth: usize,
-    "n_elevation" => n_elevation: usize,
-    "fov_up" => fov_up: f64,
-    "fov_down" => fov_down: f64,
-    "min_range" => min_range: f64,
-    "max_range" => max_range: f64,
-    "voxel_size" => voxel_size: f64,
-});
-
-named!(DetectorConfig, |c| Ok(c.validate()?), {
-    "exclude_frames" => exclude_frames: usize,
-    "exclude_meters" => exclude_meters: f64,
-    "exclude_seconds" => exclude_seconds: f64,
-    "threshold" => threshold: f64,
-    "top_k" => top_k: usize,
-    "rerank" => rerank: bool,
-    "verify" => verify.enabled: bool,
-    "verify_candidates" => verify.candidates: usize,
-    "verify_hypotheses" => verify.hypotheses: usize,
-    "verify_fan_deg" => verify.fan_deg: f64,
-    "cloud_bits" => verify.cloud_bits: u8,
-    "cache_bytes" => verify.cache_bytes: usize,
-    "verify_threads" => verify.threads: usize,
-    "max_loop_distance" => verify.gate.max_translation: f64,
-});
-
-named!(RegConfig, |c| Ok(c.validate()?), {
-    "voxel_size" => voxel_size: f64,
-    "coarse_voxel_size" => coarse_voxel_size: f64,
-    "min_range" => min_range: f64,
-    "max_range" => max_range: f64,
-    "neighbors" => neighbors: usize,
-    "max_correspondence" => max_correspondence: f64,
-    "coarse_max_correspondence" => coarse_max_correspondence: f64,
-    "max_iterations" => max_iterations: usize,
-    "rotation_eps_deg" => rotation_eps_deg: f64,
-    "translation_eps" => translation_eps: f64,
-    "kernel_scale" => kernel_scale: f64,
-    "inlier_distance" => inlier_distance: f64,
-});
-
-/// Sets parameter `name` of `p` from a C double, converted to the parameter's kind, and checks
-/// the whole struct: on error `p` is unchanged.
+/// Sets parameter `name` of `p` from a C double, converted to the parameter's kind.
 fn set_by_name<P: Named>(p: &mut P, name: &str, value: f64) -> Result<(), Failure> {
+    let kind = (*p).slot(name).ok_or_else(|| unknown(name))?.kind();
     let bad = |expected: &str| {
         Failure::new(
             SolidStatus::InvalidParameter,
             format!("invalid {name} = {value}: expected {expected}"),
         )
     };
-    let v = match p.get(name).ok_or_else(|| unknown(name))? {
-        Value::Bool(_) if value == 0.0 || value == 1.0 => Value::Bool(value == 1.0),
-        Value::Bool(_) => return Err(bad("0 (false) or 1 (true)")),
+    let v = match kind {
+        Kind::Bool if value == 0.0 || value == 1.0 => Value::Bool(value == 1.0),
+        Kind::Bool => return Err(bad("0 (false) or 1 (true)")),
         // Integers up to 2^53 are exact in a double.
-        Value::Int(_)
+        Kind::Int { .. }
             if (0.0..=9_007_199_254_740_992.0).contains(&value) && value.fract() == 0.0 =>
         {
             Value::Int(value as u64)
         }
-        Value::Int(_) => return Err(bad("a non-negative integer")),
-        Value::Float(_) => Value::Float(value),
+        Kind::Int { .. } => return Err(bad("a non-negative integer")),
+        Kind::Choice(names) => {
+            return Err(bad(&format!(
+                "one of the names {names:?}, set with the *_set_name function"
+            )))
+        }
+        _ => Value::Float(value),
     };
-    let mut changed = *p;
-    changed.set(name, v)?;
-    changed.check()?;
-    *p = changed;
-    Ok(())
+    set_value(p, name, v)
 }
 
 /// Parameter `name` of `p` as a double (booleans as 0 or 1).
 fn get_by_name<P: Named>(p: &P, name: &str) -> Result<f64, Failure> {
-    Ok(match p.get(name).ok_or_else(|| unknown(name))? {
-        Value::Bool(b) => f64::from(u8::from(b)),
-        Value::Int(i) => i as f64,
-        Value::Float(f) => f,
-    })
+    let mut copy = *p;
+    let v = copy.slot(name).ok_or_else(|| unknown(name))?.get();
+    match v {
+        Value::Name(n) => Err(Failure::arg(format!(
+            "{name} is a name ({n:?}), not a number"
+        ))),
+        v => Ok(v.as_f64()),
+    }
 }
 
 /// The descriptor's parameters (docs/spec.md §1: `n_range`, `n_azimuth`, `n_elevation`, `fov_up`,
@@ -153,15 +149,18 @@ pub struct SolidConfig {
     pub(crate) cfg: Config,
 }
 
-/// The loop detector's parameters (the names of `solid config dump`'s `detector` section, such
-/// as `exclude_frames`, `threshold`, `verify`, `verify_candidates`, `max_loop_distance`).
+/// The loop detector's parameters, by the names of its table in docs/spec.md (`exclude_frames`,
+/// `threshold`, `verify`, `verify_candidates`, ...), and those of its registration and
+/// acceptance gate prefixed with `registration.` and `gate.` (`registration.voxel_size`,
+/// `gate.max_translation`: the largest loop in metres), as in `solid config dump`.
 ///
 /// Threads: as [`SolidConfig`].
 pub struct SolidDetectorConfig {
     pub(crate) cfg: DetectorConfig,
 }
 
-/// Registration's parameters (`voxel_size`, `max_correspondence`, `max_iterations`, ...).
+/// Registration's parameters, by the names of its table in docs/spec.md (`voxel_size`,
+/// `max_correspondence`, `max_iterations`, ...).
 ///
 /// Threads: as [`SolidConfig`].
 pub struct SolidRegConfig {
@@ -286,6 +285,21 @@ pub unsafe extern "C" fn solid_detector_config_get(
     })
 }
 
+/// Sets detector parameter `name`, whose values are names, to `value` (such as
+/// `registration.factor`: `"gicp"` or `"point-to-plane"`); checked as [`solid_config_set`].
+#[no_mangle]
+pub unsafe extern "C" fn solid_detector_config_set_name(
+    config: *mut SolidDetectorConfig,
+    name: *const c_char,
+    value: *const c_char,
+) -> SolidStatus {
+    guard("solid_detector_config_set_name", || {
+        let c = out(config, "config")?;
+        let v = Value::Name(string(value, "value")?);
+        set_value(&mut c.cfg, string(name, "name")?, v)
+    })
+}
+
 /// Makes registration's defaults in `*out`; release it with [`solid_reg_config_free`].
 #[no_mangle]
 pub unsafe extern "C" fn solid_reg_config_new(out_config: *mut *mut SolidRegConfig) -> SolidStatus {
@@ -317,6 +331,21 @@ pub unsafe extern "C" fn solid_reg_config_set(
     guard("solid_reg_config_set", || {
         let c = out(config, "config")?;
         set_by_name(&mut c.cfg, string(name, "name")?, value)
+    })
+}
+
+/// Sets registration parameter `name`, whose values are names, to `value` (`factor`: `"gicp"`
+/// or `"point-to-plane"`; `kernel`); checked as [`solid_config_set`].
+#[no_mangle]
+pub unsafe extern "C" fn solid_reg_config_set_name(
+    config: *mut SolidRegConfig,
+    name: *const c_char,
+    value: *const c_char,
+) -> SolidStatus {
+    guard("solid_reg_config_set_name", || {
+        let c = out(config, "config")?;
+        let v = Value::Name(string(value, "value")?);
+        set_value(&mut c.cfg, string(name, "name")?, v)
     })
 }
 
