@@ -249,6 +249,37 @@ fn parameters_by_name_are_checked_and_kept_on_error() {
             solid_detector_config_set(dc, c("verify").as_ptr(), 2.0),
             SolidStatus::InvalidParameter
         );
+        // The registration and the gate of the detector, by prefix.
+        let gate = c("gate.max_translation");
+        assert_eq!(
+            solid_detector_config_set(dc, gate.as_ptr(), 3.0),
+            SolidStatus::Ok
+        );
+        assert_eq!(
+            solid_detector_config_get(dc, gate.as_ptr(), &mut v),
+            SolidStatus::Ok
+        );
+        assert_eq!(v, 3.0);
+        let nb = c("registration.neighbors");
+        assert_eq!(
+            solid_detector_config_set(dc, nb.as_ptr(), 2.0),
+            SolidStatus::InvalidParameter
+        );
+        assert!(last_error().contains("neighbors"), "{}", last_error());
+        let (f, p2p) = (c("registration.factor"), c("point-to-plane"));
+        assert_eq!(
+            solid_detector_config_set(dc, f.as_ptr(), 1.0),
+            SolidStatus::InvalidParameter
+        );
+        assert_eq!(
+            solid_detector_config_set_name(dc, f.as_ptr(), p2p.as_ptr()),
+            SolidStatus::Ok
+        );
+        let nope = c("nope");
+        assert_eq!(
+            solid_detector_config_set_name(dc, f.as_ptr(), nope.as_ptr()),
+            SolidStatus::InvalidParameter
+        );
         solid_detector_config_free(dc);
     }
 }
