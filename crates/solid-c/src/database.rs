@@ -1,0 +1,218 @@
+//! [`SolidDatabase`]: places (descriptors with a session, a timestamp and an optional pose),
+//! exact k-nearest search, and the checksummed file format.
+
+use std::ffi::c_char;
+use std::sync::RwLock;
+
+use solid_lidar::db::{Database, Method};
+
+use crate::config::SolidConfig;
+use crate::{guard, nonnull, out, pose_3x4, read, release, slice, slice_mut, string, write};
+use crate::{Failure, SolidStatus};
+
+/// A growable database of places with exact search at every size.
+///
+/// Threads: may be shared; searches run in parallel, an add waits for them and runs alone.
+pub struct SolidDatabase {
+    pub(crate) db: RwLock<Database>,
+}
+
+/// One neighbour found by [`solid_database_search`].
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default)]
+pub struct SolidNeighbor {
+    /// The entry's id (ids count from 0 in the order of adding).
+    pub id: u32,
+    /// Cosine distance of the R-SOLiDs, in [0, 1].
+    pub distance: f32,
+}
+
+/// Makes an empty database for descriptors of `config` (copied) in `*out`; release it with
+/// [`solid_database_free`].
+#[no_mangle]
+pub unsafe extern "C" fn solid_database_new(
+    config: *const SolidConfig,
+    out_database: *mut *mut SolidDatabase,
+) -> SolidStatus {
+    guard("solid_database_new", || {
+        let o = out(out_database, "out_database")?;
+        let db = Database::new(nonnull(config, "config")?.cfg)?;
+        crate::give(
+            o,
+            SolidDatabase {
+                db: RwLock::new(db),
+            },
+        );
+        Ok(())
+    })
+}
+
+/// Releases a database (NULL: nothing).
+#[no_mangle]
+pub unsafe extern "C" fn solid_database_free(database: *mut SolidDatabase) {
+    release(database);
+}
+
+/// Reads a database file written by [`solid_database_save`] (or the Python and Rust APIs) into
+/// `*out`. A foreign, truncated or corrupted file is refused (`SOLID_STATUS_FORMAT`).
+#[no_mangle]
+pub unsafe extern "C" fn solid_database_load(
+    path: *const c_char,
+    out_database: *mut *mut SolidDatabase,
+) -> SolidStatus {
+    guard("solid_database_load", || {
+        let o = out(out_database, "out_database")?;
+        let db = Database::load(string(path, "path")?)?;
+        crate::give(
+            o,
+            SolidDatabase {
+                db: RwLock::new(db),
+            },
+        );
+        Ok(())
+    })
+}
+
+/// Writes the database to `path` atomically (a temporary file renamed over it: a crash leaves
+/// the old file or the new one, whole).
+#[no_mangle]
+pub unsafe extern "C" fn solid_database_save(
+    database: *const SolidDatabase,
+    path: *const c_char,
+) -> SolidStatus {
+    guard("solid_database_save", || {
+        let d = nonnull(database, "database")?;
+        read(&d.db)?.save(string(path, "path")?)?;
+        Ok(())
+    })
+}
+
+/// Number of entries.
+#[no_mangle]
+pub unsafe extern "C" fn solid_database_len(
+    database: *const SolidDatabase,
+    len: *mut usize,
+) -> SolidStatus {
+    guard("solid_database_len", || {
+        let n = read(&nonnull(database, "database")?.db)?.len();
+        *out(len, "len")? = n;
+        Ok(())
+    })
+}
+
+/// Adds a place: its R-SOLiD (`r_len` = `n_range` values) and A-SOLiD (`a_len` = `n_azimuth`
+/// values) from `solid_describe` with this database's configuration, its `session` (robot or
+/// run), `timestamp` (seconds; NaN: none) and `pose` (NULL, or `T_world_sensor` as a row-major
+/// 4x4: 16 doubles). Writes its id to `*id` when `id` is not NULL. On error nothing is added.
+#[no_mangle]
+pub unsafe extern "C" fn solid_database_add(
+    database: *const SolidDatabase,
+    r: *const f32,
+    r_len: usize,
+    a: *const f32,
+    a_len: usize,
+    session: u32,
+    timestamp: f64,
+    pose: *const f64,
+    id: *mut u32,
+) -> SolidStatus {
+    guard("solid_database_add", || {
+        let d = nonnull(database, "database")?;
+        let (r, a) = (slice(r, r_len, "r")?, slice(a, a_len, "a")?);
+        let pose = optional_pose(pose, "pose")?;
+        let new = write(&d.db)?.add_vectors(r, a, session, timestamp, pose)?;
+        if let Some(id) = id.as_mut() {
+            *id = new;
+        }
+        Ok(())
+    })
+}
+
+/// The `k` entries nearest to the R-SOLiD `r` (`r_len` = `n_range` values), nearest first, ties
+/// by lower id, skipping the `exclude_recent` most recently added: writes up to `k` neighbours to
+/// `neighbors` (room for `k`) and their number to `*found`. Exact at every size.
+#[no_mangle]
+pub unsafe extern "C" fn solid_database_search(
+    database: *const SolidDatabase,
+    r: *const f32,
+    r_len: usize,
+    k: usize,
+    exclude_recent: usize,
+    neighbors: *mut SolidNeighbor,
+    found: *mut usize,
+) -> SolidStatus {
+    guard("solid_database_search", || {
+        let d = nonnull(database, "database")?;
+        let r = slice(r, r_len, "r")?;
+        let dst = slice_mut(neighbors, k, "neighbors")?;
+        let found = out(found, "found")?;
+        let hits = read(&d.db)?.search(r, k, exclude_recent, Method::Auto)?;
+        for (o, h) in dst.iter_mut().zip(&hits) {
+            *o = SolidNeighbor {
+                id: h.id,
+                distance: h.distance,
+            };
+        }
+        *found = hits.len();
+        Ok(())
+    })
+}
+
+/// What the database holds about entry `id`: its session, timestamp (NaN: none) and, when `pose`
+/// is not NULL, its pose as a row-major 4x4 (16 doubles; all NaN when it has none).
+#[no_mangle]
+pub unsafe extern "C" fn solid_database_entry(
+    database: *const SolidDatabase,
+    id: u32,
+    session: *mut u32,
+    timestamp: *mut f64,
+    pose: *mut f64,
+) -> SolidStatus {
+    guard("solid_database_entry", || {
+        let d = nonnull(database, "database")?;
+        let db = read(&d.db)?;
+        entry(&db, id, session, timestamp, pose)
+    })
+}
+
+/// Writes what `db` holds about entry `id` (see [`solid_database_entry`]).
+pub(crate) unsafe fn entry(
+    db: &Database,
+    id: u32,
+    session: *mut u32,
+    timestamp: *mut f64,
+    pose: *mut f64,
+) -> Result<(), Failure> {
+    let i = id as usize;
+    if i >= db.len() {
+        return Err(Failure::arg(format!(
+            "id {id} out of range: the database has {} entries",
+            db.len()
+        )));
+    }
+    let (s, t) = (out(session, "session")?, out(timestamp, "timestamp")?);
+    let p = slice_mut(pose, if pose.is_null() { 0 } else { 16 }, "pose")?;
+    (*s, *t) = (db.sessions()[i], db.timestamps()[i]);
+    if !p.is_empty() {
+        match db.pose(id) {
+            Some(m) => {
+                p[..12].copy_from_slice(&m);
+                p[12..].copy_from_slice(&[0.0, 0.0, 0.0, 1.0]);
+            }
+            None => p.fill(f64::NAN),
+        }
+    }
+    Ok(())
+}
+
+/// A pose argument: NULL, or a row-major 4x4 rigid transform.
+pub(crate) unsafe fn optional_pose(
+    pose: *const f64,
+    name: &str,
+) -> Result<Option<[f64; 12]>, Failure> {
+    if pose.is_null() {
+        return Ok(None);
+    }
+    let m: &[f64; 16] = &*pose.cast();
+    pose_3x4(m, name).map(Some)
+}

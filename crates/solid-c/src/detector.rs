@@ -1,0 +1,297 @@
+//! [`SolidDetector`]: online loop closure. Each scan is described (and, when verification is on,
+//! its cloud prepared), searched against the earlier places except the most recent ones, and
+//! added; a loop carries the candidate, the distance and, when verified by registration, the pose
+//! `T_query_candidate` with an information matrix for a pose graph.
+
+use std::ffi::c_char;
+use std::sync::RwLock;
+
+use solid_lidar::db::{Loop, LoopDetector, Scan};
+
+use crate::config::{SolidConfig, SolidDetectorConfig};
+use crate::database::{entry, optional_pose, SolidDatabase};
+use crate::{flat_pose, guard, nonnull, out, points, read, release, string, with_points, write};
+use crate::{Failure, SolidPoints, SolidStatus};
+
+/// A loop detector and its database of places.
+///
+/// Threads: may be shared. [`solid_detector_prepare`] runs in parallel with other prepares and
+/// reads; adding a scan waits for them and runs alone (the steps of one detector are ordered).
+pub struct SolidDetector {
+    det: RwLock<LoopDetector>,
+}
+
+/// A scan described and prepared by [`solid_detector_prepare`], ready for
+/// [`solid_detector_add_scan`] on the same detector.
+///
+/// Threads: owned by one thread at a time; it may be handed to another thread.
+pub struct SolidScan {
+    scan: Scan,
+}
+
+/// One detected loop closure.
+#[repr(C)]
+#[derive(Debug, Clone, Copy)]
+pub struct SolidLoop {
+    /// Id of the query place (the scan just added).
+    pub query: u32,
+    /// Id of the matched earlier place.
+    pub candidate: u32,
+    /// Cosine distance of the R-SOLiDs (docs/spec.md §3).
+    pub distance: f64,
+    /// Heading of the query relative to the candidate, degrees in (-180, 180]: the yaw of `pose`
+    /// when verified, else the A-SOLiD estimate.
+    pub heading_deg: f64,
+    /// The score the loop was accepted with: the distance, or with verification `1 - fitness`.
+    pub score: f64,
+    /// Whether registration verified the loop; `pose`, `information`, `fitness` and `rmse` are
+    /// NaN when it did not.
+    pub verified: bool,
+    /// `T_query_candidate`, row-major 4x4: `p_query = pose * p_candidate` (points in the
+    /// sensor frames of the two scans). A pose-graph factor between the places' poses
+    /// `T_world_query` and `T_world_candidate` measures `inv(T_world_query) * T_world_candidate`.
+    pub pose: [f64; 16],
+    /// The 6x6 information matrix of `pose`, row-major, translation first (x, y, z, then
+    /// rotation about x, y, z: g2o's order; GTSAM's Pose3 puts rotation first). Diagonal:
+    /// `1/s^2` with `s` = the registration's inlier RMSE (at least 0.01 m) for each translation
+    /// axis and `s / 10 m` (radians) for each rotation axis, as `solid detect --g2o` writes it.
+    /// Scale it to your odometry's weights.
+    pub information: [f64; 36],
+    /// Overlap of the registered clouds, in [0, 1].
+    pub fitness: f64,
+    /// Inlier RMSE of the registration (metres).
+    pub rmse: f64,
+}
+
+impl SolidLoop {
+    fn from_loop(lp: &Loop) -> SolidLoop {
+        let mut out = SolidLoop {
+            query: lp.query,
+            candidate: lp.candidate,
+            distance: lp.distance,
+            heading_deg: lp.heading_deg,
+            score: lp.score,
+            verified: false,
+            pose: [f64::NAN; 16],
+            information: [f64::NAN; 36],
+            fitness: f64::NAN,
+            rmse: f64::NAN,
+        };
+        if let Some(pose) = &lp.pose {
+            let rmse = lp.rmse.unwrap_or(0.0);
+            let sig_t = rmse.max(0.01);
+            let sig_r = sig_t / 10.0;
+            out.information = [0.0; 36];
+            for i in 0..6 {
+                let s = if i < 3 { sig_t } else { sig_r };
+                out.information[i * 6 + i] = 1.0 / (s * s);
+            }
+            out.verified = true;
+            out.pose = flat_pose(pose);
+            out.fitness = lp.fitness.unwrap_or(f64::NAN);
+            out.rmse = rmse;
+        }
+        out
+    }
+}
+
+fn detector(det: LoopDetector) -> SolidDetector {
+    SolidDetector {
+        det: RwLock::new(det),
+    }
+}
+
+/// Makes a detector with an empty database for scans described with `config`, with the
+/// parameters `detector_config` (both copied), in `*out`; release it with
+/// [`solid_detector_free`].
+#[no_mangle]
+pub unsafe extern "C" fn solid_detector_new(
+    config: *const SolidConfig,
+    detector_config: *const SolidDetectorConfig,
+    out_detector: *mut *mut SolidDetector,
+) -> SolidStatus {
+    guard("solid_detector_new", || {
+        let o = out(out_detector, "out_detector")?;
+        let cfg = nonnull(config, "config")?.cfg;
+        let dcfg = nonnull(detector_config, "detector_config")?.cfg;
+        crate::give(o, detector(LoopDetector::new(cfg, dcfg)?));
+        Ok(())
+    })
+}
+
+/// Makes a detector over a copy of `database` (a prior map, other sessions): its places are
+/// candidates from the first scan on and never excluded as recent; the detector's scans form a
+/// new session.
+#[no_mangle]
+pub unsafe extern "C" fn solid_detector_from_database(
+    database: *const SolidDatabase,
+    detector_config: *const SolidDetectorConfig,
+    out_detector: *mut *mut SolidDetector,
+) -> SolidStatus {
+    guard("solid_detector_from_database", || {
+        let o = out(out_detector, "out_detector")?;
+        let db = read(&nonnull(database, "database")?.db)?.clone();
+        let dcfg = nonnull(detector_config, "detector_config")?.cfg;
+        crate::give(o, detector(LoopDetector::with_database(db, dcfg)?));
+        Ok(())
+    })
+}
+
+/// Releases a detector (NULL: nothing).
+#[no_mangle]
+pub unsafe extern "C" fn solid_detector_free(detector: *mut SolidDetector) {
+    release(detector);
+}
+
+/// Describes a scan and, when verification is on, prepares its cloud: the heavy part of a step,
+/// which may run on any thread while the detector adds other scans. Writes the scan to `*out`:
+/// pass it to [`solid_detector_add_scan`] or release it with [`solid_scan_free`].
+#[no_mangle]
+pub unsafe extern "C" fn solid_detector_prepare(
+    detector: *const SolidDetector,
+    points_in: *const SolidPoints,
+    out_scan: *mut *mut SolidScan,
+) -> SolidStatus {
+    guard("solid_detector_prepare", || {
+        let o = out(out_scan, "out_scan")?;
+        let scan = prepare(nonnull(detector, "detector")?, points_in)?;
+        crate::give(o, SolidScan { scan });
+        Ok(())
+    })
+}
+
+unsafe fn prepare(d: &SolidDetector, points_in: *const SolidPoints) -> Result<Scan, Failure> {
+    let pts = points(points_in)?;
+    let det = read(&d.det)?;
+    Ok(with_points!(pts, |p| det.prepare_scan(p))?)
+}
+
+/// Releases a prepared scan that was not added (NULL: nothing).
+#[no_mangle]
+pub unsafe extern "C" fn solid_scan_free(scan: *mut SolidScan) {
+    release(scan);
+}
+
+/// One step with a prepared scan: searches it against the eligible places, verifies the best
+/// candidates when verification is on, and adds it. `timestamp` is seconds (NaN: none); `pose`
+/// NULL or `T_world_sensor` as a row-major 4x4 (16 doubles; needed by `exclude_meters`).
+/// `scan` is consumed, even on error. When a loop is found, `*found` is true and `*loop_out`
+/// holds it; otherwise `*found` is false and `*loop_out` is not written (either may be NULL).
+/// On error nothing is added.
+#[no_mangle]
+pub unsafe extern "C" fn solid_detector_add_scan(
+    detector: *mut SolidDetector,
+    scan: *mut SolidScan,
+    timestamp: f64,
+    pose: *const f64,
+    loop_out: *mut SolidLoop,
+    found: *mut bool,
+) -> SolidStatus {
+    // Taken first, so that the scan is released on every path.
+    let scan = if scan.is_null() {
+        None
+    } else {
+        Some(Box::from_raw(scan))
+    };
+    guard("solid_detector_add_scan", || {
+        let d = nonnull(detector, "detector")?;
+        let scan = scan.ok_or_else(|| Failure::arg("scan is NULL"))?.scan;
+        step(d, scan, timestamp, pose, loop_out, found)
+    })
+}
+
+/// One step with the scan's points: [`solid_detector_prepare`] then
+/// [`solid_detector_add_scan`] (see both).
+#[no_mangle]
+pub unsafe extern "C" fn solid_detector_add(
+    detector: *mut SolidDetector,
+    points_in: *const SolidPoints,
+    timestamp: f64,
+    pose: *const f64,
+    loop_out: *mut SolidLoop,
+    found: *mut bool,
+) -> SolidStatus {
+    guard("solid_detector_add", || {
+        let d = nonnull(detector, "detector")?;
+        let scan = prepare(d, points_in)?;
+        step(d, scan, timestamp, pose, loop_out, found)
+    })
+}
+
+unsafe fn step(
+    d: &SolidDetector,
+    scan: Scan,
+    timestamp: f64,
+    pose: *const f64,
+    loop_out: *mut SolidLoop,
+    found: *mut bool,
+) -> Result<(), Failure> {
+    let pose = optional_pose(pose, "pose")?;
+    let detection = write(&d.det)?.detect_scan(scan, timestamp, pose)?;
+    if let Some(f) = found.as_mut() {
+        *f = detection.accepted.is_some();
+    }
+    if let (Some(lp), Some(o)) = (&detection.accepted, loop_out.as_mut()) {
+        *o = SolidLoop::from_loop(lp);
+    }
+    Ok(())
+}
+
+/// Number of places (a prior map's and every scan added).
+#[no_mangle]
+pub unsafe extern "C" fn solid_detector_len(
+    detector: *const SolidDetector,
+    len: *mut usize,
+) -> SolidStatus {
+    guard("solid_detector_len", || {
+        let n = read(&nonnull(detector, "detector")?.det)?.database().len();
+        *out(len, "len")? = n;
+        Ok(())
+    })
+}
+
+/// The session of the scans this detector adds, and the id of its first scan (the number of
+/// places of a prior map).
+#[no_mangle]
+pub unsafe extern "C" fn solid_detector_session(
+    detector: *const SolidDetector,
+    session: *mut u32,
+    first_id: *mut usize,
+) -> SolidStatus {
+    guard("solid_detector_session", || {
+        let det = read(&nonnull(detector, "detector")?.det)?;
+        let (s, f) = (out(session, "session")?, out(first_id, "first_id")?);
+        (*s, *f) = (det.session(), det.session_start());
+        Ok(())
+    })
+}
+
+/// What the detector's database holds about place `id` (see `solid_database_entry`).
+#[no_mangle]
+pub unsafe extern "C" fn solid_detector_entry(
+    detector: *const SolidDetector,
+    id: u32,
+    session: *mut u32,
+    timestamp: *mut f64,
+    pose: *mut f64,
+) -> SolidStatus {
+    guard("solid_detector_entry", || {
+        let det = read(&nonnull(detector, "detector")?.det)?;
+        entry(det.database(), id, session, timestamp, pose)
+    })
+}
+
+/// Writes the detector's database (every place, with the clouds of verification) to `path`, as
+/// `solid_database_save`: a map that `solid_database_load` and `solid_detector_from_database`
+/// read back.
+#[no_mangle]
+pub unsafe extern "C" fn solid_detector_save(
+    detector: *const SolidDetector,
+    path: *const c_char,
+) -> SolidStatus {
+    guard("solid_detector_save", || {
+        let det = read(&nonnull(detector, "detector")?.det)?;
+        det.database().save(string(path, "path")?)?;
+        Ok(())
+    })
+}

@@ -1,0 +1,495 @@
+//! The C ABI called as C calls it: statuses, messages, in-place points, and that its results are
+//! the core's.
+
+use std::ffi::{c_void, CStr, CString};
+use std::ptr::{null, null_mut};
+
+use solid::config::*;
+use solid::database::*;
+use solid::describe::*;
+use solid::detector::*;
+use solid::registration::*;
+use solid::*;
+
+fn last_error() -> String {
+    unsafe { CStr::from_ptr(solid_last_error()) }
+        .to_string_lossy()
+        .into_owned()
+}
+
+fn c(s: &str) -> CString {
+    CString::new(s).unwrap()
+}
+
+/// A scan with structure: a box room with a floor and a wall across, x y z intensity per point.
+fn room(shift: f64) -> Vec<f32> {
+    let mut v = Vec::new();
+    for i in 0..60 {
+        for j in 0..12 {
+            let (u, h) = (i as f64 * 0.5 - 15.0, j as f64 * 0.5 - 2.0);
+            for (x, y) in [
+                (u, -8.0),
+                (u, 8.0),
+                (-15.0, u * 0.5),
+                (15.0, u * 0.5),
+                (4.0, u * 0.1),
+            ] {
+                v.extend([(x + shift) as f32, y as f32, h as f32, 1.0]);
+            }
+            // The floor, under the walls.
+            let w = j as f64 * 1.3 - 7.5;
+            v.extend([(u + shift) as f32, w as f32, -2.0, 1.0]);
+        }
+    }
+    v
+}
+
+fn points(xyzi: &[f32]) -> SolidPoints {
+    SolidPoints {
+        data: xyzi.as_ptr().cast::<c_void>(),
+        count: xyzi.len() / 4,
+        stride_bytes: 16,
+        coord_bytes: 4,
+    }
+}
+
+fn config(preset: &str) -> *mut SolidConfig {
+    let mut cfg = null_mut();
+    assert_eq!(
+        unsafe { solid_config_new(c(preset).as_ptr(), &mut cfg) },
+        SolidStatus::Ok
+    );
+    cfg
+}
+
+#[test]
+fn describe_reads_strided_points_in_place_and_equals_the_core() {
+    let scan = room(0.0);
+    let cfg = config("vlp16");
+    let mut d = null_mut();
+    unsafe {
+        assert_eq!(solid_describer_new(cfg, &mut d), SolidStatus::Ok);
+        let (mut r, mut a) = (vec![0f32; 40], vec![0f32; 60]);
+        let mut st = SolidDescribeStats::default();
+        let pts = points(&scan);
+        let s = solid_describe(d, &pts, r.as_mut_ptr(), 40, a.as_mut_ptr(), 60, &mut st);
+        assert_eq!(s, SolidStatus::Ok);
+        let want = solid_lidar::Describer::new(solid_lidar::Config::preset("vlp16").unwrap())
+            .unwrap()
+            .describe(solid_lidar::Points::new(&scan, 4).unwrap())
+            .unwrap();
+        assert_eq!((r, a), (want.r.clone(), want.a.clone()));
+        assert_eq!(st.n_kept, want.stats.n_kept);
+        // The same points as float64 x y z give the same bits (docs/spec.md §2).
+        let xyz: Vec<f64> = scan
+            .chunks(4)
+            .flat_map(|p| p[..3].iter().map(|&v| f64::from(v)))
+            .collect();
+        let pts64 = SolidPoints {
+            data: xyz.as_ptr().cast(),
+            count: xyz.len() / 3,
+            stride_bytes: 24,
+            coord_bytes: 8,
+        };
+        let (mut r2, mut a2) = (vec![0f32; 40], vec![0f32; 60]);
+        let s = solid_describe(
+            d,
+            &pts64,
+            r2.as_mut_ptr(),
+            40,
+            a2.as_mut_ptr(),
+            60,
+            null_mut(),
+        );
+        assert_eq!(s, SolidStatus::Ok);
+        assert_eq!((&r2, &a2), (&want.r, &want.a));
+        // A short output buffer is refused and named.
+        let mut short = vec![0f32; 39];
+        let s = solid_describe(
+            d,
+            &pts,
+            short.as_mut_ptr(),
+            39,
+            a2.as_mut_ptr(),
+            60,
+            null_mut(),
+        );
+        assert_eq!(s, SolidStatus::BufferTooSmall);
+        assert!(
+            last_error().starts_with("solid_describe: "),
+            "{}",
+            last_error()
+        );
+        solid_describer_free(d);
+        solid_config_free(cfg);
+    }
+}
+
+#[test]
+fn bad_point_buffers_are_named_errors() {
+    let scan = room(0.0);
+    let cfg = config("hdl64");
+    let mut d = null_mut();
+    let (mut r, mut a) = (vec![0f32; 40], vec![0f32; 60]);
+    unsafe {
+        solid_describer_new(cfg, &mut d);
+        let mut run = |p: SolidPoints| {
+            solid_describe(d, &p, r.as_mut_ptr(), 40, a.as_mut_ptr(), 60, null_mut())
+        };
+        let good = points(&scan);
+        let misaligned = SolidPoints {
+            data: scan.as_ptr().cast::<u8>().wrapping_add(1).cast(),
+            ..good
+        };
+        assert_eq!(run(misaligned), SolidStatus::InvalidArgument);
+        assert!(last_error().contains("aligned"), "{}", last_error());
+        assert_eq!(
+            run(SolidPoints {
+                stride_bytes: 10,
+                ..good
+            }),
+            SolidStatus::InvalidArgument
+        );
+        assert!(
+            last_error().contains("stride_bytes = 10"),
+            "{}",
+            last_error()
+        );
+        assert_eq!(
+            run(SolidPoints {
+                coord_bytes: 2,
+                ..good
+            }),
+            SolidStatus::InvalidArgument
+        );
+        assert_eq!(
+            run(SolidPoints {
+                data: null(),
+                ..good
+            }),
+            SolidStatus::InvalidArgument
+        );
+        assert_eq!(
+            run(SolidPoints {
+                data: null(),
+                count: 0,
+                ..good
+            }),
+            SolidStatus::Ok
+        );
+        assert_eq!(
+            solid_describe(
+                d,
+                null(),
+                r.as_mut_ptr(),
+                40,
+                a.as_mut_ptr(),
+                60,
+                null_mut()
+            ),
+            SolidStatus::InvalidArgument
+        );
+        assert_eq!(last_error(), "solid_describe: points is NULL");
+        solid_describer_free(d);
+        solid_config_free(cfg);
+    }
+}
+
+#[test]
+fn parameters_by_name_are_checked_and_kept_on_error() {
+    let cfg = config("avia");
+    let mut v = 0.0;
+    unsafe {
+        assert_eq!(
+            solid_config_set(cfg, c("max_range").as_ptr(), 40.0),
+            SolidStatus::Ok
+        );
+        assert_eq!(
+            solid_config_get(cfg, c("max_range").as_ptr(), &mut v),
+            SolidStatus::Ok
+        );
+        assert_eq!(v, 40.0);
+        assert_eq!(
+            solid_config_set(cfg, c("n_range").as_ptr(), 0.0),
+            SolidStatus::InvalidParameter
+        );
+        assert!(last_error().contains("n_range"), "{}", last_error());
+        assert_eq!(
+            solid_config_set(cfg, c("n_range").as_ptr(), 2.5),
+            SolidStatus::InvalidParameter
+        );
+        solid_config_get(cfg, c("n_range").as_ptr(), &mut v);
+        assert_eq!(v, 40.0, "the old value stays");
+        assert_eq!(
+            solid_config_set(cfg, c("no_such").as_ptr(), 1.0),
+            SolidStatus::InvalidArgument
+        );
+        assert!(last_error().contains("no_such"));
+        assert_eq!(
+            solid_config_new(c("nope").as_ptr(), &mut null_mut()),
+            SolidStatus::InvalidParameter
+        );
+        solid_config_free(cfg);
+
+        let mut dc = null_mut();
+        assert_eq!(
+            solid_detector_config_new(c("avia").as_ptr(), &mut dc),
+            SolidStatus::Ok
+        );
+        assert_eq!(
+            solid_detector_config_set(dc, c("verify").as_ptr(), 0.0),
+            SolidStatus::Ok
+        );
+        assert_eq!(
+            solid_detector_config_get(dc, c("verify").as_ptr(), &mut v),
+            SolidStatus::Ok
+        );
+        assert_eq!(v, 0.0);
+        assert_eq!(
+            solid_detector_config_set(dc, c("verify").as_ptr(), 2.0),
+            SolidStatus::InvalidParameter
+        );
+        // The registration and the gate of the detector, by prefix.
+        let gate = c("gate.max_translation");
+        assert_eq!(
+            solid_detector_config_set(dc, gate.as_ptr(), 3.0),
+            SolidStatus::Ok
+        );
+        assert_eq!(
+            solid_detector_config_get(dc, gate.as_ptr(), &mut v),
+            SolidStatus::Ok
+        );
+        assert_eq!(v, 3.0);
+        let nb = c("registration.neighbors");
+        assert_eq!(
+            solid_detector_config_set(dc, nb.as_ptr(), 2.0),
+            SolidStatus::InvalidParameter
+        );
+        assert!(last_error().contains("neighbors"), "{}", last_error());
+        let (f, p2p) = (c("registration.factor"), c("point-to-plane"));
+        assert_eq!(
+            solid_detector_config_set(dc, f.as_ptr(), 1.0),
+            SolidStatus::InvalidParameter
+        );
+        assert_eq!(
+            solid_detector_config_set_name(dc, f.as_ptr(), p2p.as_ptr()),
+            SolidStatus::Ok
+        );
+        let nope = c("nope");
+        assert_eq!(
+            solid_detector_config_set_name(dc, f.as_ptr(), nope.as_ptr()),
+            SolidStatus::InvalidParameter
+        );
+        solid_detector_config_free(dc);
+    }
+}
+
+#[test]
+fn database_adds_searches_saves_and_loads() {
+    let cfg = config("hdl64");
+    let mut db = null_mut();
+    let dir = std::env::temp_dir().join(format!("solid-c-test-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = c(dir.join("db.solid").to_str().unwrap());
+    unsafe {
+        assert_eq!(solid_database_new(cfg, &mut db), SolidStatus::Ok);
+        let a = [1f32; 60];
+        for i in 0..5 {
+            let mut r = [0f32; 40];
+            r[i] = 1.0;
+            let mut id = 99;
+            let pose = [
+                1.0, 0.0, 0.0, i as f64, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0,
+            ];
+            let s = solid_database_add(
+                db,
+                r.as_ptr(),
+                40,
+                a.as_ptr(),
+                60,
+                0,
+                i as f64,
+                pose.as_ptr(),
+                &mut id,
+            );
+            assert_eq!((s, id), (SolidStatus::Ok, i as u32));
+        }
+        // A column-major pose (translation in the last row) is refused.
+        let bad = [
+            1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 3.0, 0.0, 0.0, 1.0,
+        ];
+        let r = [1f32; 40];
+        let s = solid_database_add(
+            db,
+            r.as_ptr(),
+            40,
+            a.as_ptr(),
+            60,
+            0,
+            f64::NAN,
+            bad.as_ptr(),
+            null_mut(),
+        );
+        assert_eq!(s, SolidStatus::InvalidParameter);
+        assert!(last_error().contains("column-major"), "{}", last_error());
+        let mut q = [0f32; 40];
+        q[3] = 1.0;
+        let mut hits = [SolidNeighbor::default(); 3];
+        let mut found = 0;
+        assert_eq!(
+            solid_database_search(db, q.as_ptr(), 40, 3, 0, hits.as_mut_ptr(), &mut found),
+            SolidStatus::Ok
+        );
+        assert_eq!((found, hits[0].id, hits[0].distance), (3, 3, 0.0));
+        assert_eq!(solid_database_save(db, path.as_ptr()), SolidStatus::Ok);
+        let mut back = null_mut();
+        assert_eq!(
+            solid_database_load(path.as_ptr(), &mut back),
+            SolidStatus::Ok
+        );
+        let (mut n, mut session, mut t, mut pose) = (0, 9, 0.0, [0.0; 16]);
+        solid_database_len(back, &mut n);
+        assert_eq!(n, 5);
+        assert_eq!(
+            solid_database_entry(back, 2, &mut session, &mut t, pose.as_mut_ptr()),
+            SolidStatus::Ok
+        );
+        assert_eq!((session, t, pose[3], pose[15]), (0, 2.0, 2.0, 1.0));
+        assert_eq!(
+            solid_database_entry(back, 5, &mut session, &mut t, null_mut()),
+            SolidStatus::InvalidArgument
+        );
+        solid_database_free(back);
+        std::fs::write(dir.join("junk"), b"not a database").unwrap();
+        let junk = c(dir.join("junk").to_str().unwrap());
+        assert_eq!(
+            solid_database_load(junk.as_ptr(), &mut back),
+            SolidStatus::Format
+        );
+        assert_eq!(
+            solid_database_load(c("/nonexistent/x").as_ptr(), &mut back),
+            SolidStatus::Io
+        );
+        solid_database_free(db);
+        solid_config_free(cfg);
+    }
+    std::fs::remove_dir_all(dir).unwrap();
+}
+
+#[test]
+fn detector_finds_a_verified_loop_with_its_pose() {
+    let cfg = config("vlp16");
+    let mut dc = null_mut();
+    let mut det = null_mut();
+    unsafe {
+        solid_detector_config_new(c("vlp16").as_ptr(), &mut dc);
+        solid_detector_config_set(dc, c("exclude_frames").as_ptr(), 2.0);
+        assert_eq!(solid_detector_new(cfg, dc, &mut det), SolidStatus::Ok);
+        let mut loops = Vec::new();
+        for (k, shift) in [0.0, 3.0, 6.0, 9.0, 0.4].into_iter().enumerate() {
+            let scan = room(shift);
+            let mut lp = std::mem::MaybeUninit::<SolidLoop>::uninit();
+            let mut found = false;
+            let s = if k % 2 == 0 {
+                solid_detector_add(
+                    det,
+                    &points(&scan),
+                    k as f64,
+                    null(),
+                    lp.as_mut_ptr(),
+                    &mut found,
+                )
+            } else {
+                let mut sc = null_mut();
+                assert_eq!(
+                    solid_detector_prepare(det, &points(&scan), &mut sc),
+                    SolidStatus::Ok
+                );
+                solid_detector_add_scan(det, sc, k as f64, null(), lp.as_mut_ptr(), &mut found)
+            };
+            assert_eq!(s, SolidStatus::Ok, "{}", last_error());
+            if found {
+                loops.push(lp.assume_init());
+            }
+        }
+        let lp = loops.last().expect("the revisit is a loop");
+        assert_eq!((lp.query, lp.candidate), (4, 0));
+        assert!(lp.verified);
+        // The query's points lie 0.4 m further along x: p_query = p_candidate + 0.4 x.
+        assert!((lp.pose[3] - 0.4).abs() < 0.05, "{:?}", lp.pose);
+        assert_eq!(lp.information[0], 1.0 / lp.rmse.max(0.01).powi(2));
+        assert_eq!(lp.information[1], 0.0);
+        // A scan handed back without adding it, and a NULL scan, are fine.
+        let mut sc = null_mut();
+        solid_detector_prepare(det, &points(&room(1.0)), &mut sc);
+        solid_scan_free(sc);
+        assert_eq!(
+            solid_detector_add_scan(det, null_mut(), 0.0, null(), null_mut(), null_mut()),
+            SolidStatus::InvalidArgument
+        );
+        let mut n = 0;
+        solid_detector_len(det, &mut n);
+        assert_eq!(n, 5);
+        solid_detector_free(det);
+        solid_detector_config_free(dc);
+        solid_config_free(cfg);
+    }
+}
+
+#[test]
+fn registration_recovers_a_shift() {
+    let (a, b) = (room(0.0), room(0.3));
+    let (mut qa, mut qb) = (null_mut(), null_mut());
+    let mut out = std::mem::MaybeUninit::<SolidRegistration>::uninit();
+    unsafe {
+        assert_eq!(
+            solid_cloud_new(&points(&b), null(), &mut qb),
+            SolidStatus::Ok
+        );
+        assert_eq!(
+            solid_cloud_new(&points(&a), null(), &mut qa),
+            SolidStatus::Ok
+        );
+        assert_eq!(
+            solid_register(qb, qa, null(), null(), out.as_mut_ptr()),
+            SolidStatus::Ok
+        );
+        let r = out.assume_init();
+        assert!(
+            (r.pose[3] - 0.3).abs() < 0.05 && r.fitness > 0.5,
+            "{:?}",
+            r.pose
+        );
+        let mut rc = null_mut();
+        solid_reg_config_new(&mut rc);
+        solid_reg_config_set(rc, c("voxel_size").as_ptr(), 0.25);
+        // Clouds prepared with other voxel sizes are refused.
+        assert_eq!(
+            solid_register(qb, qa, null(), rc, out.as_mut_ptr()),
+            SolidStatus::ConfigMismatch
+        );
+        solid_reg_config_free(rc);
+        solid_cloud_free(qa);
+        solid_cloud_free(qb);
+    }
+}
+
+#[test]
+fn errors_are_per_thread_and_free_accepts_null() {
+    unsafe {
+        solid_config_new(c("nope").as_ptr(), &mut null_mut());
+        let here = last_error();
+        let there = std::thread::spawn(last_error).join().unwrap();
+        assert!(here.contains("unknown preset") && there.is_empty());
+        solid_config_free(null_mut());
+        solid_describer_free(null_mut());
+        solid_database_free(null_mut());
+        solid_detector_free(null_mut());
+        solid_cloud_free(null_mut());
+        solid_scan_free(null_mut());
+        assert_eq!(
+            CStr::from_ptr(solid_version()).to_str().unwrap(),
+            env!("CARGO_PKG_VERSION")
+        );
+    }
+}

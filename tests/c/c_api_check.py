@@ -1,0 +1,119 @@
+"""The C and C++ examples, built against the installed C package, against the Python product.
+
+Run by `make c-test` (not collected by the plain pytest run: the examples must be built first),
+which sets SOLID_C_BUILD to the folder holding the builds: cmake/ (find_package), pkgconfig/,
+static/ (libsolid.a) and asan/ (AddressSanitizer). Checks that `describe` prints the Python
+descriptor bit for bit, that `loops` prints `solid detect`'s loops.csv (verified and
+--no-verify), and that both run clean under AddressSanitizer and valgrind.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+import pytest
+
+import solid
+from solid import io as sio
+
+# (scan, preset) pairs covering KITTI .bin (clipped and full), binary PCD of three sensors.
+SCANS = [
+    *[(f"solid-samples/kitti_00_{fov}/{f}.bin", "hdl64") for fov in (60, 120, 180) for f in ("000000", "000001", "000060")],
+    *[(f"kitti00/velodyne/{f}.bin", "hdl64") for f in ("000000", "000094", "000198")],
+    *[(f"solid-samples/kitti_00_pcd/{f}.pcd", "hdl64") for f in ("000313", "000314", "000315")],
+    *[(f"hku1-avia/Scans/{f:06d}.pcd", "avia") for f in (0, 1, 100, 200, 313)],
+    ("misc/naverlabs_vel16.pcd", "vlp16"),
+]
+
+
+def build_dir() -> Path:
+    env = os.environ.get("SOLID_C_BUILD")
+    if not env:
+        pytest.fail("SOLID_C_BUILD is not set: run these checks through `make c-test`")
+    return Path(env)
+
+
+def run(cmd: list[str], env: dict[str, str] | None = None, timeout: float = 600) -> str:
+    p = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=timeout)
+    assert p.returncode == 0, f"{' '.join(cmd)} exited {p.returncode}:\n{p.stderr[-4000:]}"
+    return p.stdout
+
+
+def parse_describe(out: str) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]:
+    r, a = out.split("\n\n")
+    return np.array(r.split(), dtype=np.float32), np.array(a.split(), dtype=np.float32)
+
+
+@pytest.mark.parametrize(("scan", "preset"), SCANS)
+def test_describe_equals_python_bit_for_bit(data: Path, scan: str, preset: str) -> None:
+    path = data / scan
+    r, a = parse_describe(run([str(build_dir() / "cmake" / "describe"), str(path), preset]))
+    want = solid.describe(sio.read_points(path), solid.SolidConfig.preset(preset))
+    assert r.tobytes() == np.asarray(want.r, dtype=np.float32).tobytes()
+    assert a.tobytes() == np.asarray(want.a, dtype=np.float32).tobytes()
+
+
+@pytest.mark.parametrize("variant", ["pkgconfig", "static", "asan"])
+def test_other_builds_print_the_same(data: Path, variant: str) -> None:
+    for scan, preset in (SCANS[0], SCANS[-1]):
+        args = [str(data / scan), preset]
+        assert run([str(build_dir() / variant / "describe"), *args]) == run([str(build_dir() / "cmake" / "describe"), *args])
+
+
+def test_describe_names_what_is_wrong(data: Path, tmp_path: Path) -> None:
+    exe = str(build_dir() / "cmake" / "describe")
+    p = subprocess.run([exe, str(data / SCANS[0][0]), "nope"], capture_output=True, text=True)
+    assert p.returncode == 1 and "unknown preset" in p.stderr
+    bad = tmp_path / "bad.bin"
+    bad.write_bytes(b"\0" * 17)
+    p = subprocess.run([exe, str(bad), "hdl64"], capture_output=True, text=True)
+    assert p.returncode == 1 and "16-byte" in p.stderr
+
+
+def solid_detect(scans: Path, preset: str, out: Path, verify: bool) -> str:
+    cmd = [sys.executable, "-m", "solid", "detect", str(scans), "--preset", preset, "-o", str(out), "-q"]
+    run(cmd + ([] if verify else ["--no-verify"]))
+    return (out / "loops.csv").read_text()
+
+
+def stretch(data: Path, tmp_path: Path) -> Path:
+    """The start and the end of the hku1 walk (the revisit), as links to its keyframes."""
+    folder = tmp_path / "stretch"
+    folder.mkdir()
+    for i in [*range(0, 30), *range(262, 314)]:
+        (folder / f"{i:06d}.pcd").symlink_to(data / "hku1-avia" / "Scans" / f"{i:06d}.pcd")
+    return folder
+
+
+@pytest.mark.parametrize("verify", [True, False], ids=["verified", "no-verify"])
+def test_loops_equal_solid_detect_on_the_walk(data: Path, tmp_path: Path, verify: bool) -> None:
+    scans = data / "hku1-avia" / "Scans"
+    want = solid_detect(scans, "avia", tmp_path / "py", verify)
+    got = run([str(build_dir() / "cmake" / "loops"), str(scans), "avia", *([] if verify else ["--no-verify"])])
+    assert want.count("\n") > 50, "the walk has loops"
+    assert got == want
+
+
+def test_examples_clean_under_address_sanitizer(data: Path, tmp_path: Path) -> None:
+    env = dict(os.environ, ASAN_OPTIONS="detect_leaks=1:halt_on_error=1:abort_on_error=0")
+    folder = stretch(data, tmp_path)
+    got = run([str(build_dir() / "asan" / "loops"), str(folder), "avia"], env=env)
+    assert got == solid_detect(folder, "avia", tmp_path / "py", True)
+    assert got.count("\n") > 5
+    run([str(build_dir() / "asan" / "describe"), str(data / SCANS[-2][0]), "avia"], env=env)
+
+
+def test_examples_clean_under_valgrind(data: Path, tmp_path: Path) -> None:
+    if shutil.which("valgrind") is None:
+        pytest.fail("valgrind is missing (make c-deps installs it)")
+    vg = ["valgrind", "--quiet", "--error-exitcode=99", "--leak-check=full", "--errors-for-leak-kinds=definite,indirect"]
+    folder = stretch(data, tmp_path)
+    got = run([*vg, str(build_dir() / "cmake" / "loops"), str(folder), "avia", "--no-verify"])
+    assert got == solid_detect(folder, "avia", tmp_path / "py", False)
+    run([*vg, str(build_dir() / "cmake" / "describe"), str(data / SCANS[0][0]), "hdl64"])
