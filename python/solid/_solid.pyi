@@ -117,7 +117,7 @@ class SolidConfig:
             fov_down: Lower edge of the vertical field of view, degrees, below fov_up (a finite angle in [-90, 90] degrees; required).
             min_range: Points at or within this distance (metres, 3-D) are dropped (a finite value >= 0 metres; default 3.0).
             max_range: Points at or beyond this distance (metres, 3-D) are dropped (a finite value above min_range; default 80.0).
-            voxel_size: Voxel edge in metres for downsampling (0: none); at least max_range / 2^19 (a finite value >= 0 metres (0 disables downsampling); default 0.5).
+            voxel_size: Voxel edge in metres for downsampling (0: none) (a finite value >= 0 metres (0 disables downsampling); default 0.5).
 
         Raises:
             ConfigError: A value out of its range (named in the message).
@@ -147,7 +147,7 @@ class SolidConfig:
             fov_down: Lower edge of the vertical field of view, degrees, below fov_up (a finite angle in [-90, 90] degrees; required).
             min_range: Points at or within this distance (metres, 3-D) are dropped (a finite value >= 0 metres; default 3.0).
             max_range: Points at or beyond this distance (metres, 3-D) are dropped (a finite value above min_range; default 80.0).
-            voxel_size: Voxel edge in metres for downsampling (0: none); at least max_range / 2^19 (a finite value >= 0 metres (0 disables downsampling); default 0.5).
+            voxel_size: Voxel edge in metres for downsampling (0: none) (a finite value >= 0 metres (0 disables downsampling); default 0.5).
 
         Returns:
             The validated parameters.
@@ -178,7 +178,7 @@ class SolidConfig:
             fov_down: Lower edge of the vertical field of view, degrees, below fov_up (a finite angle in [-90, 90] degrees; required).
             min_range: Points at or within this distance (metres, 3-D) are dropped (a finite value >= 0 metres; default 3.0).
             max_range: Points at or beyond this distance (metres, 3-D) are dropped (a finite value above min_range; default 80.0).
-            voxel_size: Voxel edge in metres for downsampling (0: none); at least max_range / 2^19 (a finite value >= 0 metres (0 disables downsampling); default 0.5).
+            voxel_size: Voxel edge in metres for downsampling (0: none) (a finite value >= 0 metres (0 disables downsampling); default 0.5).
 
         Returns:
             The validated new parameters.
@@ -216,7 +216,7 @@ class SolidConfig:
         """Points at or beyond this distance (metres, 3-D) are dropped (a finite value above min_range; default 80.0)."""
     @property
     def voxel_size(self) -> float:
-        """Voxel edge in metres for downsampling (0: none); at least max_range / 2^19 (a finite value >= 0 metres (0 disables downsampling); default 0.5)."""
+        """Voxel edge in metres for downsampling (0: none) (a finite value >= 0 metres (0 disables downsampling); default 0.5)."""
     # end of generated
     @property
     def base_preset(self) -> str | None:
@@ -1451,15 +1451,15 @@ class RegistrationConfig:
 
         Args:
             voxel_size: Voxel edge of the fine level, metres (0 keeps every point in range) (a finite value >= 0 metres (0 disables downsampling); default 0.5).
-            coarse_voxel_size: Voxel edge of the coarse level, metres (0: no coarse level); above voxel_size (0 (no coarse level), or a finite value above voxel_size and >= max_range / 2^19; default 1.0).
+            coarse_voxel_size: Voxel edge of the coarse level, metres (0: no coarse level) (0 (no coarse level), or a finite value above voxel_size and >= max_range / 2^19; default 1.0).
             min_range: Points at or within this distance (metres, sensor frame) are dropped (a finite value >= 0 metres; default 1.0).
             max_range: Points at or beyond this distance are dropped (a finite value above min_range; default 200.0).
             neighbors: Neighbours (the point included) of each local covariance (an integer in 5..=64; default 10).
             max_correspondence: Largest correspondence distance at the fine level, metres (a finite value > 0 metres; default 1.0).
             coarse_max_correspondence: Largest correspondence distance at the coarse level, metres (a finite value > 0 metres; default 3.0).
             max_iterations: Largest number of Gauss-Newton iterations per level (an integer in 1..=1000; default 20).
-            rotation_eps_deg: A level has converged when an update rotates by less than this (degrees)  (a finite value > 0 degrees; default 0.1).
-            translation_eps: ... and translates by less than this (metres) (a finite value > 0 metres; default 0.001).
+            rotation_eps_deg: A level has converged when an update rotates by less than this, degrees (and translates by less than translation_eps) (a finite value > 0 degrees; default 0.1).
+            translation_eps: A level has converged when an update translates by less than this, metres (and rotates by less than rotation_eps_deg) (a finite value > 0 metres; default 0.001).
             factor: The residual: plane-to-plane GICP or point-to-plane ICP ("gicp" or "point-to-plane"; default 'gicp').
             kernel: The robust kernel ("geman-mcclure" or "none"; default 'geman-mcclure').
             kernel_scale: Kernel scale as a fraction of the level's maximum correspondence distance (a value in (0, 10]; default 0.5).
@@ -1491,15 +1491,15 @@ class RegistrationConfig:
 
         Args:
             voxel_size: Voxel edge of the fine level, metres (0 keeps every point in range) (a finite value >= 0 metres (0 disables downsampling); default 0.5).
-            coarse_voxel_size: Voxel edge of the coarse level, metres (0: no coarse level); above voxel_size (0 (no coarse level), or a finite value above voxel_size and >= max_range / 2^19; default 1.0).
+            coarse_voxel_size: Voxel edge of the coarse level, metres (0: no coarse level) (0 (no coarse level), or a finite value above voxel_size and >= max_range / 2^19; default 1.0).
             min_range: Points at or within this distance (metres, sensor frame) are dropped (a finite value >= 0 metres; default 1.0).
             max_range: Points at or beyond this distance are dropped (a finite value above min_range; default 200.0).
             neighbors: Neighbours (the point included) of each local covariance (an integer in 5..=64; default 10).
             max_correspondence: Largest correspondence distance at the fine level, metres (a finite value > 0 metres; default 1.0).
             coarse_max_correspondence: Largest correspondence distance at the coarse level, metres (a finite value > 0 metres; default 3.0).
             max_iterations: Largest number of Gauss-Newton iterations per level (an integer in 1..=1000; default 20).
-            rotation_eps_deg: A level has converged when an update rotates by less than this (degrees)  (a finite value > 0 degrees; default 0.1).
-            translation_eps: ... and translates by less than this (metres) (a finite value > 0 metres; default 0.001).
+            rotation_eps_deg: A level has converged when an update rotates by less than this, degrees (and translates by less than translation_eps) (a finite value > 0 degrees; default 0.1).
+            translation_eps: A level has converged when an update translates by less than this, metres (and rotates by less than rotation_eps_deg) (a finite value > 0 metres; default 0.001).
             factor: The residual: plane-to-plane GICP or point-to-plane ICP ("gicp" or "point-to-plane"; default 'gicp').
             kernel: The robust kernel ("geman-mcclure" or "none"; default 'geman-mcclure').
             kernel_scale: Kernel scale as a fraction of the level's maximum correspondence distance (a value in (0, 10]; default 0.5).
@@ -1523,7 +1523,7 @@ class RegistrationConfig:
         """Voxel edge of the fine level, metres (0 keeps every point in range) (a finite value >= 0 metres (0 disables downsampling); default 0.5)."""
     @property
     def coarse_voxel_size(self) -> float:
-        """Voxel edge of the coarse level, metres (0: no coarse level); above voxel_size (0 (no coarse level), or a finite value above voxel_size and >= max_range / 2^19; default 1.0)."""
+        """Voxel edge of the coarse level, metres (0: no coarse level) (0 (no coarse level), or a finite value above voxel_size and >= max_range / 2^19; default 1.0)."""
     @property
     def min_range(self) -> float:
         """Points at or within this distance (metres, sensor frame) are dropped (a finite value >= 0 metres; default 1.0)."""
@@ -1544,10 +1544,10 @@ class RegistrationConfig:
         """Largest number of Gauss-Newton iterations per level (an integer in 1..=1000; default 20)."""
     @property
     def rotation_eps_deg(self) -> float:
-        """A level has converged when an update rotates by less than this (degrees)  (a finite value > 0 degrees; default 0.1)."""
+        """A level has converged when an update rotates by less than this, degrees (and translates by less than translation_eps) (a finite value > 0 degrees; default 0.1)."""
     @property
     def translation_eps(self) -> float:
-        """... and translates by less than this (metres) (a finite value > 0 metres; default 0.001)."""
+        """A level has converged when an update translates by less than this, metres (and rotates by less than rotation_eps_deg) (a finite value > 0 metres; default 0.001)."""
     @property
     def factor(self) -> str:
         """The residual: plane-to-plane GICP or point-to-plane ICP ("gicp" or "point-to-plane"; default 'gicp')."""
@@ -1728,8 +1728,8 @@ class AcceptanceGate:
             min_rotation_information: Smallest accepted rotation information (degeneracy.rotation) (a finite number; default 0.0).
             min_agreement: Fewest initial yaws (the best included) that must reach the best pose (an integer >= 0; default 1).
             max_translation: Largest accepted length of the translation, metres (metres > 0 (infinity: no limit); default inf).
-            agree_translation: Two hypotheses agree when their poses are within this distance (metres)  (a finite number; default 0.5).
-            agree_rotation_deg: ... and this angle (degrees) (a finite number; default 2.0).
+            agree_translation: Two hypotheses agree when their translations differ by at most this, metres (and their rotations by agree_rotation_deg) (a finite number; default 0.5).
+            agree_rotation_deg: Two hypotheses agree when their rotations differ by at most this, degrees (and their translations by agree_translation) (a finite number; default 2.0).
 
         Raises:
             ConfigError: A value out of its range (named in the message).
@@ -1760,8 +1760,8 @@ class AcceptanceGate:
             min_rotation_information: Smallest accepted rotation information (degeneracy.rotation) (a finite number; default 0.0).
             min_agreement: Fewest initial yaws (the best included) that must reach the best pose (an integer >= 0; default 1).
             max_translation: Largest accepted length of the translation, metres (metres > 0 (infinity: no limit); default inf).
-            agree_translation: Two hypotheses agree when their poses are within this distance (metres)  (a finite number; default 0.5).
-            agree_rotation_deg: ... and this angle (degrees) (a finite number; default 2.0).
+            agree_translation: Two hypotheses agree when their translations differ by at most this, metres (and their rotations by agree_rotation_deg) (a finite number; default 0.5).
+            agree_rotation_deg: Two hypotheses agree when their rotations differ by at most this, degrees (and their translations by agree_translation) (a finite number; default 2.0).
 
         Returns:
             The validated new parameters.
@@ -1802,10 +1802,10 @@ class AcceptanceGate:
         """Largest accepted length of the translation, metres (metres > 0 (infinity: no limit); default inf)."""
     @property
     def agree_translation(self) -> float:
-        """Two hypotheses agree when their poses are within this distance (metres)  (a finite number; default 0.5)."""
+        """Two hypotheses agree when their translations differ by at most this, metres (and their rotations by agree_rotation_deg) (a finite number; default 0.5)."""
     @property
     def agree_rotation_deg(self) -> float:
-        """... and this angle (degrees) (a finite number; default 2.0)."""
+        """Two hypotheses agree when their rotations differ by at most this, degrees (and their translations by agree_translation) (a finite number; default 2.0)."""
     # end of generated
     def __eq__(self, other: object, /) -> bool: ...
     def check(self, registration: Registration) -> str | None:
