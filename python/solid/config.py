@@ -35,14 +35,11 @@ from pathlib import Path
 from typing import Any, Union
 
 from . import _solid
+from .errors import ConfigFileError
 
 __all__ = ["ConfigFileError", "InputOptions", "PipelineConfig", "descriptor_fields", "detector_fields"]
 
 PathLike = Union[str, "os.PathLike[str]"]
-
-
-class ConfigFileError(_solid.ConfigError):
-    """A configuration file that cannot be read or holds something invalid (names the file)."""
 
 
 def descriptor_fields() -> dict[str, type]:

@@ -25,13 +25,11 @@ from typing import Any
 
 import numpy as np
 
+from .errors import OutputExistsError
+
 __all__ = ["Output", "OutputExistsError", "output_folder", "write_csv", "write_json"]
 
 DEFAULT_ROOT = Path("solid_results")
-
-
-class OutputExistsError(FileExistsError):
-    """The requested output folder already holds something."""
 
 
 def _json_default(o: Any) -> Any:

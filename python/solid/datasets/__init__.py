@@ -43,7 +43,8 @@ import numpy as np
 
 from . import helipr, kitti, nclt, npy, pcd, ply, rosbag
 from ._bin import BinLayout, sniff
-from ._common import F32, F64, I64, Cloud, PathLike, ReadError, file_size, natural_key, read_bytes
+from ..errors import ReadError
+from ._common import F32, F64, I64, Cloud, PathLike, file_size, natural_key, read_bytes
 from .poses import (
     interpolate_poses,
     load_extrinsic,

@@ -25,7 +25,8 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
-from ._common import F64, I64, PathLike, ReadError
+from ..errors import ReadError
+from ._common import F64, I64, PathLike
 
 
 def _rows(path: PathLike, what: str) -> list[list[str]]:
