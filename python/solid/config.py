@@ -36,6 +36,7 @@ from typing import Any, Union
 
 from . import _solid
 from .errors import ConfigFileError
+from .outputs import atomic_write_bytes
 
 __all__ = ["ConfigFileError", "InputOptions", "PipelineConfig", "descriptor_fields", "detector_fields"]
 
@@ -225,9 +226,7 @@ class PipelineConfig:
 
     def dump(self, path: PathLike) -> None:
         """Write :meth:`dumps` to ``path`` atomically."""
-        from .io import _atomic_write_bytes
-
-        _atomic_write_bytes(Path(path), self.dumps().encode())
+        atomic_write_bytes(Path(path), self.dumps().encode())
 
     @classmethod
     def load(cls, path: PathLike) -> PipelineConfig:

@@ -11,8 +11,9 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import ReadError
+from ..outputs import atomic_write_bytes
 from ._common import Cloud, PathLike, cloud_from_records, read_bytes, stack_columns, unique_names
-from ._write import atomic_write_bytes, columns_to_write
+from ._write import columns_to_write
 from .lzf import decompress_array, lzf_compress
 
 _TYPES: Final = {

@@ -188,13 +188,6 @@ def sensor_poses_in_sensor_world(poses: npt.ArrayLike, T_pose_sensor: npt.ArrayL
     return out
 
 
-def yaw_degrees(R: npt.ArrayLike) -> F64:
-    """Yaw (rotation about z, degrees, (−180, 180]) of rotation matrices (..., 3, 3)."""
-    m = np.asarray(R, dtype=np.float64)
-    y = np.degrees(np.arctan2(m[..., 1, 0], m[..., 0, 0]))
-    return np.asarray(np.where(y <= -180.0, y + 360.0, y), dtype=np.float64)
-
-
 def resolve(p: PathLike, root: Path, what: str) -> Path:
     """The absolute path of a ``poses=``/``timestamps=``/``calib=`` argument.
 
