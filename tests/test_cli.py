@@ -17,9 +17,9 @@ from conftest import data_dir
 
 import solid
 from solid import io as sio
-from solid import sim
+from solid import sim, transforms
 from solid.cli import main
-from solid.pipeline import LOOP_COLUMNS
+from solid.records import LOOP_COLUMNS
 
 
 def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
@@ -235,7 +235,7 @@ def test_eval_accepted_rows_are_exactly_detects_loops(capsys: pytest.CaptureFixt
     # and the library's detector, run by hand on the same frames, made the same decisions
     cfg = solid.config.PipelineConfig.preset("avia", radius=3.0)
     det = solid.LoopDetector(cfg.descriptor, detector=cfg.detector)
-    ds = sio.Sequence(seq)
+    ds = sio.Dataset(seq)
     frames = list(range(0, 40)) + list(range(260, 314))
     mine = [lp for i in frames if (lp := det.add(ds[i])) is not None]
     assert [(lp.query, lp.candidate, f"{lp.distance:.6f}", f"{lp.pose[0, 3]:.6f}") for lp in mine if lp.pose is not None] == [
@@ -290,7 +290,7 @@ def test_fov_center_defaults_to_where_the_points_are(capsys: pytest.CaptureFixtu
     assert code == 0, err
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert 60 <= summary["fov_center_deg"] <= 120
-    pts = sio.clip_fov(sim.simulate(world, sens, traj[:1]).scans[0], 60.0, summary["fov_center_deg"])
+    pts = transforms.clip_fov(sim.simulate(world, sens, traj[:1]).scans[0], 60.0, summary["fov_center_deg"])
     assert pts.shape[0] > 1000
 
 

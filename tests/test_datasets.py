@@ -17,6 +17,7 @@ from conftest import data_dir
 import solid
 from solid import datasets as sd
 from solid import io as sio
+from solid import transforms
 from solid.datasets.poses import matrix_to_quat, quat_to_matrix
 
 KITTI_00_TR = (
@@ -32,7 +33,7 @@ def test_registry_and_api_shape() -> None:
         assert n in names and names[n]
     assert set(sd.FORMATS) == set(names) | {"rosbag"}
     assert issubclass(sd.ReadError, solid.SolidError) and issubclass(sd.ReadError, ValueError)
-    assert sio.ReadError is sd.ReadError and sio.Sequence is sd.Dataset
+    assert sio.ReadError is sd.ReadError and sio.Dataset is sd.Dataset
     with pytest.raises(ValueError, match="unknown format 'lasx'"):
         sd.open_dataset(data_dir() / "kitti00", format="lasx")
 
@@ -224,7 +225,7 @@ def test_tum_interpolation_and_range(tmp_path: Path) -> None:
     ds = sd.open_dataset(seq, poses="poses.txt", timestamps="times.txt")
     assert ds.poses is not None and ds.timestamps is not None
     assert np.allclose(ds.poses[:, 0, 3], ds.timestamps, atol=1e-9)
-    assert np.allclose(sio.yaw_degrees(ds.poses[:, :, :3]), 10.0 * ds.timestamps, atol=1e-6)
+    assert np.allclose(transforms.yaw_degrees(ds.poses[:, :, :3]), 10.0 * ds.timestamps, atol=1e-6)
     (seq / "late.txt").write_text("1.0\n2.0\n3.0\n4.0\n5.2\n")
     with pytest.raises(sd.ReadError, match=r"poses\.txt: 1 of 5 scans lie outside the pose times \[0\.950000, 5\.050000\] s"):
         sd.open_dataset(seq, poses="poses.txt", timestamps="late.txt")

@@ -106,7 +106,7 @@ def test_scoring_refuses_bad_input() -> None:
 
 def hku_pipeline(**detector: float) -> PipelineResult:
     """The pipeline on hku1 (verification off unless asked: these tests are about the search)."""
-    seq = sio.Sequence(data_dir() / "hku1-avia", poses="odom_poses.txt")
+    seq = sio.Dataset(data_dir() / "hku1-avia", poses="odom_poses.txt")
     return LoopClosurePipeline(seq, PipelineConfig.preset("avia", detector={"verify": False, **detector})).run()
 
 
@@ -122,7 +122,7 @@ def test_eval_scores_exactly_what_the_detector_decided() -> None:
     res = hku_pipeline(threshold=1.0)
     e = res.evaluate(radius=5.0)
     det = solid.LoopDetector(solid.SolidConfig.preset("avia"), threshold=1.0, verify=False)
-    seq = sio.Sequence(data_dir() / "hku1-avia")
+    seq = sio.Dataset(data_dir() / "hku1-avia")
     loops = [lp for p in seq if (lp := det.add(p)) is not None]
     assert [lp.query for lp in loops] == e.query.tolist()
     assert [lp.candidate for lp in loops] == e.ids[:, 0].tolist()

@@ -1,4 +1,4 @@
-"""Readers, sequences and transforms of solid.io, on the shared real scans and on files written here."""
+"""Readers and datasets of solid.io and the transforms of solid.transforms, on the shared real scans and on files written here."""
 
 from __future__ import annotations
 
@@ -14,6 +14,7 @@ import pytest
 from conftest import data_dir
 
 from solid import io as sio
+from solid import transforms
 
 
 
@@ -146,7 +147,7 @@ def test_clip_fov_reproduces_authors_clipped_samples() -> None:
     full = sio.read_points(d / "kitti00/velodyne/000000.bin")
     for width in (60, 120, 180):
         sample = sio.read_points(d / f"solid-samples/kitti_00_{width}/000000.bin")
-        ours = sio.clip_fov(full, width)
+        ours = transforms.clip_fov(full, width)
         assert ours.shape == sample.shape
         a = np.sort(ours.view("V16").ravel())
         b = np.sort(np.ascontiguousarray(sample).view("V16").ravel())
@@ -155,7 +156,7 @@ def test_clip_fov_reproduces_authors_clipped_samples() -> None:
 
 def test_sequence_hku() -> None:
     d = data_dir() / "hku1-avia"
-    seq = sio.Sequence(d, poses="odom_poses.txt", timestamps="times.txt")
+    seq = sio.Dataset(d, poses="odom_poses.txt", timestamps="times.txt")
     assert len(seq) == 314
     assert seq.files[0].name == "000000.pcd" and seq.files[-1].name == "000313.pcd"
     assert seq.poses is not None and seq.poses.shape == (314, 3, 4)
@@ -180,7 +181,7 @@ def test_sequence_hku() -> None:
 
 def test_sequence_kitti_layout(tmp_path: Path) -> None:
     d = data_dir() / "kitti00"
-    seq = sio.Sequence(d)
+    seq = sio.Dataset(d)
     assert [f.name for f in seq.files] == ["000000.bin", "000094.bin", "000095.bin", "000198.bin", "000199.bin"]
     poses, t = sio.load_poses(d / "poses_00.txt")
     assert poses.shape == (4541, 3, 4) and t is None
@@ -447,12 +448,12 @@ def test_natural_order_and_scan_folder(tmp_path: Path) -> None:
     for i in (10, 2, 1, 100):
         (v / f"{i}.bin").write_bytes(np.full((3, 4), i, dtype=np.float32).tobytes())
     (tmp_path / "seq" / "notes.txt").write_text("not a scan")
-    seq = sio.Sequence(tmp_path / "seq")
+    seq = sio.Dataset(tmp_path / "seq")
     assert [f.name for f in seq.files] == ["1.bin", "2.bin", "10.bin", "100.bin"]
     assert [float(s[0, 0]) for s in seq] == [1.0, 2.0, 10.0, 100.0]
     (v / "3.pcd").write_bytes(b"")
     with pytest.raises(sio.ReadError, match="mixed scan types"):
-        sio.Sequence(tmp_path / "seq")
+        sio.Dataset(tmp_path / "seq")
     assert sorted(["a10b", "a2b", "a1b"], key=sio.natural_key) == ["a1b", "a2b", "a10b"]
 
 
@@ -462,7 +463,7 @@ def test_poses_kitti_tum_and_errors(tmp_path: Path) -> None:
     P, t = sio.load_poses(kitti)
     assert t is None and P.shape == (2, 3, 4)
     assert np.array_equal(P[1, :, 3], [4, 5, 6])
-    assert np.allclose(sio.yaw_degrees(P[:, :, :3]), [0.0, 90.0])
+    assert np.allclose(transforms.yaw_degrees(P[:, :, :3]), [0.0, 90.0])
     tum = tmp_path / "t.txt"
     s = math.sin(math.radians(30) / 2)
     c = math.cos(math.radians(30) / 2)
@@ -471,7 +472,7 @@ def test_poses_kitti_tum_and_errors(tmp_path: Path) -> None:
     assert t is not None and np.array_equal(t, [10.5, 11.5])
     assert np.allclose(P[0, :, :3], np.eye(3))
     assert np.allclose(P[1, :, 3], [4, 5, 6])
-    assert math.isclose(float(sio.yaw_degrees(P[1, :, :3])), 30.0, abs_tol=1e-9)
+    assert math.isclose(float(transforms.yaw_degrees(P[1, :, :3])), 30.0, abs_tol=1e-9)
     bad = tmp_path / "bad.txt"
     bad.write_text("1 2 3 4 5\n")
     with pytest.raises(sio.ReadError, match=r"bad\.txt: pose rows have 5 numbers"):
@@ -503,10 +504,10 @@ def test_kitti_calib_turns_camera_poses_into_lidar_yaw(tmp_path: Path) -> None:
     cam[1, :, :3] = ry
     cam[1, :, 3] = [0, 0, 2.0]  # 2 m forward
     rel_cam = cam[0, :, :3].T @ cam[1, :, :3]
-    assert abs(float(sio.yaw_degrees(rel_cam))) < 1e-9  # "yaw" of the camera frame is not the heading
+    assert abs(float(transforms.yaw_degrees(rel_cam))) < 1e-9  # "yaw" of the camera frame is not the heading
     lidar = sio.sensor_poses(cam, T)
     rel = lidar[0, :, :3].T @ lidar[1, :, :3]
-    assert float(sio.yaw_degrees(rel)) == pytest.approx(25.0, abs=0.5)
+    assert float(transforms.yaw_degrees(rel)) == pytest.approx(25.0, abs=0.5)
     # the lidar sits 0.27 m behind the camera: moving 2 m forward moves it 2 m too
     assert np.linalg.norm(lidar[1, :, 3] - lidar[0, :, 3]) == pytest.approx(2.0, abs=0.1)
     plain = tmp_path / "tr.txt"
@@ -533,30 +534,30 @@ def ring_points() -> npt.NDArray[np.float32]:
 
 def test_clip_and_occlude_sectors() -> None:
     p = ring_points()  # one point per degree at azimuth k + 0.5
-    front = sio.clip_fov(p, 60)
+    front = transforms.clip_fov(p, 60)
     assert front.shape[0] == 60
     az = np.degrees(np.arctan2(front[:, 1], front[:, 0]))
     assert np.all(np.abs(az) < 30)
-    left = sio.clip_fov(p, 90, center_deg=90)
+    left = transforms.clip_fov(p, 90, center_deg=90)
     azl = np.degrees(np.arctan2(left[:, 1], left[:, 0]))
     assert left.shape[0] == 90 and np.all((azl > 45) & (azl < 135))
-    back = sio.clip_fov(p, 20, center_deg=180)  # wraps through ±180°
+    back = transforms.clip_fov(p, 20, center_deg=180)  # wraps through ±180°
     assert back.shape[0] == 20
-    occ = sio.occlude_sector(p, 90, center_deg=-45)
+    occ = transforms.occlude_sector(p, 90, center_deg=-45)
     assert occ.shape[0] == 270
     azo = np.degrees(np.arctan2(occ[:, 1], occ[:, 0]))
     assert not np.any((azo > -90) & (azo < 0))
-    assert sio.clip_fov(p, 360).shape[0] == 360 and sio.occlude_sector(p, 0).shape[0] == 360
+    assert transforms.clip_fov(p, 360).shape[0] == 360 and transforms.occlude_sector(p, 0).shape[0] == 360
     with pytest.raises(ValueError):
-        sio.clip_fov(p, 0)
+        transforms.clip_fov(p, 0)
 
 
 def test_rotate_z_counter_clockwise() -> None:
     p = np.array([[1.0, 0.0, 2.0, 5.0], [0.0, 2.0, -1.0, 6.0]], dtype=np.float32)
-    r = sio.rotate_z(p, 90)
+    r = transforms.rotate_z(p, 90)
     assert np.allclose(r, [[0, 1, 2, 5], [-2, 0, -1, 6]], atol=1e-6)
     assert r.dtype == np.float32
-    assert np.allclose(sio.rotate_z(sio.rotate_z(p, 33), -33), p, atol=1e-6)
+    assert np.allclose(transforms.rotate_z(transforms.rotate_z(p, 33), -33), p, atol=1e-6)
 
 
 def test_subsample_by_distance() -> None:
@@ -564,13 +565,13 @@ def test_subsample_by_distance() -> None:
     n = 11
     P = np.tile(np.eye(3, 4), (n, 1, 1))
     P[:, 0, 3] = np.arange(n) * 0.4
-    keep = sio.subsample_by_distance(P, 1.0)
+    keep = transforms.subsample_by_distance(P, 1.0)
     assert keep.tolist() == [0, 3, 5, 8, 10]
     # standing still keeps only the first frame
     still = np.tile(np.eye(3, 4), (5, 1, 1))
-    assert sio.subsample_by_distance(still, 0.5).tolist() == [0]
+    assert transforms.subsample_by_distance(still, 0.5).tolist() == [0]
     with pytest.raises(ValueError):
-        sio.subsample_by_distance(P, 0.0)
+        transforms.subsample_by_distance(P, 0.0)
 
 
 # --------------------------------------------------------------------------------------------
@@ -623,7 +624,7 @@ def test_rosbag_pointcloud2(tmp_path: Path) -> None:
     pytest.importorskip("rosbags", reason="rosbags is an optional extra: pip install solid-lidar[ros]")
     clouds = [cloud(20 + 5 * i, 4, seed=i) for i in range(3)]
     for path in _write_bags(tmp_path, clouds):
-        seq = sio.Sequence(path, xyz_only=False)
+        seq = sio.Dataset(path, xyz_only=False)
         assert len(seq) == 3, path
         assert seq.timestamps is not None and np.array_equal(seq.timestamps, [1.0, 2.0, 3.0])
         got = list(seq)
@@ -633,7 +634,7 @@ def test_rosbag_pointcloud2(tmp_path: Path) -> None:
             assert np.array_equal(g[:, 3], want[:, 3])
         assert np.array_equal(seq[1][:, :3], clouds[1][:, :3])
         with pytest.raises(sio.ReadError, match="no topic '/nope'"):
-            sio.Sequence(path, topic="/nope")
+            sio.Dataset(path, topic="/nope")
 
 
 def test_rosbag_missing_extra_message(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
@@ -650,4 +651,16 @@ def test_rosbag_missing_extra_message(monkeypatch: pytest.MonkeyPatch, tmp_path:
     bag = tmp_path / "x.bag"
     bag.write_bytes(b"#ROSBAG V2.0\n")
     with pytest.raises(ImportError, match=r"pip install solid-lidar\[ros\]"):
-        sio.Sequence(bag)
+        sio.Dataset(bag)
+
+
+def test_names_that_moved_out_of_solid_io_still_work_with_a_warning() -> None:
+    from solid import datasets
+
+    with pytest.warns(DeprecationWarning, match="solid.io.Sequence is solid.datasets.Dataset"):
+        assert sio.Sequence is datasets.Dataset
+    for name in ("clip_fov", "occlude_sector", "rotate_z", "subsample_by_distance", "yaw_degrees"):
+        with pytest.warns(DeprecationWarning, match=f"solid.transforms.{name}"):
+            assert getattr(sio, name) is getattr(transforms, name)
+    with pytest.raises(AttributeError):
+        sio.no_such_name  # noqa: B018

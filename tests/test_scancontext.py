@@ -11,7 +11,7 @@ import pytest
 from conftest import data_dir
 
 from solid import io as sio
-from solid import scancontext as sc
+from solid import scancontext as sc, transforms
 
 F64 = npt.NDArray[np.float64]
 
@@ -145,7 +145,7 @@ def test_heading_sign_convention() -> None:
     t = np.floor(t / 6) * 6 + 3  # sector centres: rotating by 18° moves every point exactly 3 sectors
     z = rng.normal(0, 1.5, n)
     cand = np.c_[r * np.cos(np.radians(t)), r * np.sin(np.radians(t)), z]
-    query = sio.rotate_z(cand, 18.0)
+    query = transforms.rotate_z(cand, 18.0)
     dq, dc = sc.describe(query), sc.describe(cand)
     d, s = sc.distance(dq, dc)
     assert d == pytest.approx(0.0, abs=1e-12) and s == 3
@@ -244,7 +244,7 @@ REF_AUC = 0.746
 
 
 def test_hku1_matches_the_reference_implementation() -> None:
-    seq = sio.Sequence(data_dir() / "hku1-avia", poses="odom_poses.txt")
+    seq = sio.Dataset(data_dir() / "hku1-avia", poses="odom_poses.txt")
     assert seq.poses is not None and len(seq) == 314
     D = sc.describe_many(seq[i] for i in range(len(seq)))
     m = sc.evaluate_scancontext(D, seq.poses, exclude=50, radius=3.0).metrics()

@@ -19,7 +19,7 @@ import pytest
 import solid
 from solid import sim
 from solid.config import PipelineConfig
-from solid.io import Sequence as ReadSequence
+from solid.io import Dataset as ReadSequence
 from solid.pipeline import LoopClosurePipeline
 
 F64 = npt.NDArray[np.float64]

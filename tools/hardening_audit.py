@@ -89,7 +89,7 @@ def package_error(o: Outcome) -> bool:
     if o.kind != "exc":
         return False
     name = o.detail.split(" |")[0]
-    return name.startswith("solid.") or name.endswith(("builtins.TypeError", "solid.config.ConfigFileError"))
+    return name.startswith("solid.") or name.endswith(("builtins.TypeError", "solid.errors.ConfigFileError"))
 
 
 def clean_exc(o: Outcome, *names: str) -> bool:

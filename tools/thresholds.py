@@ -43,7 +43,7 @@ def evaluations(preset: str, shared: Path | None) -> list[tuple[str, object]]:
                 res = LoopClosurePipeline(seq, cfg).run()
                 out.append((f"sim seed {seed} {'full' if fov is None else '90°'}", res.evaluate(radius=5.0)))
     if preset == "avia" and shared is not None and (shared / "data" / "hku1-avia").is_dir():
-        real = sio.Sequence(shared / "data" / "hku1-avia", poses="odom_poses.txt")
+        real = sio.Dataset(shared / "data" / "hku1-avia", poses="odom_poses.txt")
         res = LoopClosurePipeline(real, cfg).run()
         out.append(("hku1-avia (real)", res.evaluate(radius=5.0)))
     return out

@@ -85,7 +85,9 @@ __all__ = [
 
 #: The package's submodules, imported on first use (``solid.datasets.open_dataset(...)`` works after
 #: a plain ``import solid``) so that ``import solid`` stays light.
-_SUBMODULES = frozenset({"commands", "config", "datasets", "evaluation", "io", "outputs", "pipeline", "plots", "scancontext", "sim"})
+_SUBMODULES = frozenset(
+    {"commands", "config", "datasets", "errors", "evaluation", "io", "outputs", "pipeline", "plots", "records", "scancontext", "sim", "transforms"}
+)
 
 
 def __getattr__(name: str) -> object:

@@ -286,57 +286,7 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-# ---- from arguments to objects -----------------------------------------------------------------
-
-
-def make_config(args: argparse.Namespace, base: Any | None = None) -> Any:
-    """The pipeline configuration: ``base``, else ``--config FILE``, else ``--preset``; then the
-    flags."""
-    import solid
-    from .config import InputOptions, PipelineConfig
-
-    if base is not None:
-        pass
-    elif getattr(args, "config", None) is not None:
-        base = PipelineConfig.load(args.config)
-        if args.preset is not None and args.preset != base.preset_name:
-            raise solid.ConfigError(f"--preset {args.preset} contradicts the preset {base.preset_name!r} of {args.config}")
-    elif args.preset is not None:
-        base = PipelineConfig.preset(args.preset)
-    else:
-        raise solid.ConfigError("give --preset NAME (see `solid presets`) or --config FILE")
-    desc = {k: getattr(args, k) for k in _descriptor_fields() if getattr(args, k, None) is not None}
-    det: dict[str, Any] = {}
-    for flag, key in (("exclude", "exclude_frames"), ("exclude_m", "exclude_meters"), ("exclude_s", "exclude_seconds"), ("threshold", "threshold"), ("top_k", "top_k")):
-        v = getattr(args, flag, None)
-        if v is not None:
-            det[key] = v
-    if getattr(args, "rerank", False):
-        det["rerank"] = True
-    if getattr(args, "no_verify", False):
-        det["verify"] = False
-    if getattr(args, "verify_candidates", None) is not None:
-        det["verify_candidates"] = args.verify_candidates
-    max_loop = getattr(args, "max_loop_distance", None)
-    if max_loop is None and getattr(args, "radius", None) is not None:
-        max_loop = args.radius  # a loop joins places within the evaluation radius
-    if max_loop is not None:
-        det["gate"] = {**base.detector.gate.to_dict(), "max_translation": max_loop}
-    inp = {}
-    for key in ("fov", "fov_center", "occlude", "occlude_center", "frames", "subsample_m"):
-        v = getattr(args, key, None)
-        if v is not None:
-            inp[key] = v
-    cfg = base
-    if desc:
-        cfg = cfg.replace(descriptor=cfg.descriptor.replace(**desc))
-    if det:
-        cfg = cfg.replace(detector=cfg.detector.replace(**det))
-    if inp:
-        cfg = cfg.replace(input=InputOptions(**{**cfg.input.to_dict(), **inp}))
-    if getattr(args, "radius", None) is not None:
-        cfg = cfg.replace(radius=args.radius)
-    return cfg
+# ---- progress and inputs -----------------------------------------------------------------------
 
 
 def _progress(args: argparse.Namespace, total: int | None, desc: str, unit: str = "scan") -> Any:
@@ -347,65 +297,33 @@ def _progress(args: argparse.Namespace, total: int | None, desc: str, unit: str 
 
 def _open(args: argparse.Namespace, err: TextIO) -> tuple[Any, Any]:
     """The dataset and the record of its inputs; prints which reader was chosen."""
-    from .commands import Inputs
-    from .pipeline import open_dataset
+    from .commands import open_recording
 
-    ds, info = open_dataset(
+    ds, inputs = open_recording(
         args.sequence,
         format=getattr(args, "format", None),
         topic=getattr(args, "topic", None),
         poses=getattr(args, "poses", None),
         timestamps=getattr(args, "timestamps", None),
         calib=getattr(args, "calib", None),
-    )
-    if not args.quiet:
-        err.write(f"solid: {info['sequence']}: {len(ds)} scans, reader {info['reader']}\n")
-    inputs = Inputs(
-        sequence=Path(info["sequence"]),
-        reader=info["reader"],
-        poses=info.get("poses"),
-        timestamps=info.get("timestamps"),
-        calib=info.get("calib"),
         map=getattr(args, "map", None),
     )
+    if not args.quiet:
+        err.write(f"solid: {inputs.sequence}: {len(ds)} scans, reader {inputs.reader}\n")
     return ds, inputs
-
-
-def config_and_map(args: argparse.Namespace) -> tuple[Any, Any]:
-    """The pipeline configuration and the ``--map`` database (or None). Without ``--preset`` and
-    ``--config``, a map's own descriptor configuration is used (and its preset's detector
-    defaults when it is a preset's); otherwise the two must agree."""
-    import solid
-    from .config import PipelineConfig
-
-    if getattr(args, "map", None) is None:
-        return make_config(args), None
-    m = solid.Database.load(args.map)
-    if args.preset is None and args.config is None:
-        base = next(
-            (PipelineConfig.preset(n) for n, c in solid.presets().items() if c == m.config),
-            PipelineConfig(descriptor=m.config, detector=solid.DetectorConfig()),
-        )
-        cfg = make_config(args, base)
-    else:
-        cfg = make_config(args)
-    if m.config != cfg.descriptor:
-        raise solid.ConfigError(f"{args.map} was built with {m.config!r}; this run asks for {cfg.descriptor!r}")
-    return cfg, m
 
 
 # ---- commands ----------------------------------------------------------------------------------
 
 
 def cmd_describe(args: argparse.Namespace, out: TextIO) -> int:
-    from .commands import describe_scan
+    from .commands import describe_scan, make_config
+    from .outputs import atomic_write_bytes
 
     cfg = make_config(args)
     text = json.dumps(describe_scan(args.scan, cfg, args.format), indent=1) + "\n"
     if args.output is not None:
-        from .io import _atomic_write_bytes
-
-        _atomic_write_bytes(args.output, text.encode())
+        atomic_write_bytes(args.output, text.encode())
     else:
         out.write(text)
     return 0
@@ -414,7 +332,7 @@ def cmd_describe(args: argparse.Namespace, out: TextIO) -> int:
 def cmd_detect(args: argparse.Namespace, out: TextIO) -> int:
     from . import commands
 
-    cfg, map_db = config_and_map(args)
+    cfg, map_db = commands.config_and_map(args)
     ds, inputs = _open(args, sys.stderr)
     with _progress(args, len(ds), "detect") as bar:
         result, folder = commands.detect(ds, cfg, inputs, output=args.output, map_db=map_db, threads=args.threads, progress=bar.update, g2o=args.g2o)
@@ -434,7 +352,7 @@ def cmd_detect(args: argparse.Namespace, out: TextIO) -> int:
 def cmd_eval(args: argparse.Namespace, out: TextIO) -> int:
     from . import commands
 
-    cfg, map_db = config_and_map(args)
+    cfg, map_db = commands.config_and_map(args)
     ds, inputs = _open(args, sys.stderr)
     sc_cfg = None
     if "scancontext" in args.baseline:
@@ -525,6 +443,8 @@ def cmd_presets(args: argparse.Namespace, out: TextIO) -> int:
 
 
 def cmd_config(args: argparse.Namespace, out: TextIO) -> int:
+    from .commands import make_config
+
     if args.preset is None and args.config is None:
         args.preset = "hdl64"
     out.write(make_config(args).dumps())
@@ -535,7 +455,7 @@ def cmd_map(args: argparse.Namespace, out: TextIO) -> int:
     from . import commands
 
     if args.map_command == "build":
-        cfg = make_config(args)
+        cfg = commands.make_config(args)
         ds, _ = _open(args, sys.stderr)
         with _progress(args, len(ds), "map build") as bar:
             db, result = commands.build_map(ds, cfg, args.output, threads=args.threads, progress=bar.update)
@@ -564,7 +484,7 @@ def cmd_map(args: argparse.Namespace, out: TextIO) -> int:
 def cmd_bench(args: argparse.Namespace, out: TextIO) -> int:
     from . import commands
 
-    cfg = make_config(args)
+    cfg = commands.make_config(args)
     out.write(commands.bench(args.sequence, cfg, frames=args.n_frames, db_size=args.db_size, threads=args.threads, format=args.format, topic=args.topic) + "\n")
     return 0
 

@@ -8,8 +8,10 @@ plots. ``metrics.json`` records the configuration and the absolute paths of ever
 
 from __future__ import annotations
 
+import argparse
 import math
 import shlex
+import time
 from collections.abc import Callable, Sequence as AbcSequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,12 +20,29 @@ from typing import Any
 import numpy as np
 
 from . import _solid
-from .config import PipelineConfig
-from .evaluation import QUERY_COLUMNS, Evaluation
-from .outputs import Output, output_folder, write_csv, write_json
-from .pipeline import LOOP_COLUMNS, LoopClosurePipeline, PipelineResult
+from .config import InputOptions, PipelineConfig, descriptor_fields
+from .datasets import Dataset, detect_format, open_dataset, read_points
+from .datasets.selection import iter_selected
+from .evaluation import Evaluation
+from .outputs import Output, atomic_write_bytes, output_folder, write_csv, write_json
+from .pipeline import LoopClosurePipeline, PipelineResult
+from .records import LOOP_COLUMNS, QUERY_COLUMNS
+from .transforms import quaternion
 
-__all__ = ["Inputs", "bench", "build_map", "describe_scan", "detect", "evaluate", "map_info", "merge_maps", "write_g2o"]
+__all__ = [
+    "Inputs",
+    "bench",
+    "build_map",
+    "config_and_map",
+    "describe_scan",
+    "detect",
+    "evaluate",
+    "make_config",
+    "map_info",
+    "merge_maps",
+    "open_recording",
+    "write_g2o",
+]
 
 
 @dataclass(frozen=True)
@@ -52,6 +71,97 @@ class Inputs:
         }
         d.update(self.extra)
         return d
+
+
+def open_recording(
+    sequence: Path | str,
+    *,
+    format: str | None = None,
+    topic: str | None = None,
+    poses: Path | str | None = None,
+    timestamps: Path | str | None = None,
+    calib: Path | str | None = None,
+    map: Path | None = None,
+) -> tuple[Dataset, Inputs]:
+    """Opens a recording for the pipeline (:func:`solid.datasets.open_dataset`); returns it and the
+    record of its inputs: the reader chosen and the absolute paths of every file used."""
+    ds = open_dataset(sequence, format=format, topic=topic, poses=poses, timestamps=timestamps, calib=calib)
+    inputs = Inputs(
+        sequence=Path(ds.path),
+        reader=ds.reader,
+        poses=ds.pose_source,
+        timestamps=ds.timestamp_source,
+        calib=ds.calib_source,
+        map=map,
+    )
+    return ds, inputs
+
+
+def make_config(args: argparse.Namespace, base: Any | None = None) -> Any:
+    """The pipeline configuration: ``base``, else ``--config FILE``, else ``--preset``; then the
+    flags."""
+    if base is not None:
+        pass
+    elif getattr(args, "config", None) is not None:
+        base = PipelineConfig.load(args.config)
+        if args.preset is not None and args.preset != base.preset_name:
+            raise _solid.ConfigError(f"--preset {args.preset} contradicts the preset {base.preset_name!r} of {args.config}")
+    elif args.preset is not None:
+        base = PipelineConfig.preset(args.preset)
+    else:
+        raise _solid.ConfigError("give --preset NAME (see `solid presets`) or --config FILE")
+    desc = {k: getattr(args, k) for k in descriptor_fields() if getattr(args, k, None) is not None}
+    det: dict[str, Any] = {}
+    for flag, key in (("exclude", "exclude_frames"), ("exclude_m", "exclude_meters"), ("exclude_s", "exclude_seconds"), ("threshold", "threshold"), ("top_k", "top_k")):
+        v = getattr(args, flag, None)
+        if v is not None:
+            det[key] = v
+    if getattr(args, "rerank", False):
+        det["rerank"] = True
+    if getattr(args, "no_verify", False):
+        det["verify"] = False
+    if getattr(args, "verify_candidates", None) is not None:
+        det["verify_candidates"] = args.verify_candidates
+    max_loop = getattr(args, "max_loop_distance", None)
+    if max_loop is None and getattr(args, "radius", None) is not None:
+        max_loop = args.radius  # a loop joins places within the evaluation radius
+    if max_loop is not None:
+        det["gate"] = {**base.detector.gate.to_dict(), "max_translation": max_loop}
+    inp = {}
+    for key in ("fov", "fov_center", "occlude", "occlude_center", "frames", "subsample_m"):
+        v = getattr(args, key, None)
+        if v is not None:
+            inp[key] = v
+    cfg = base
+    if desc:
+        cfg = cfg.replace(descriptor=cfg.descriptor.replace(**desc))
+    if det:
+        cfg = cfg.replace(detector=cfg.detector.replace(**det))
+    if inp:
+        cfg = cfg.replace(input=InputOptions(**{**cfg.input.to_dict(), **inp}))
+    if getattr(args, "radius", None) is not None:
+        cfg = cfg.replace(radius=args.radius)
+    return cfg
+
+
+def config_and_map(args: argparse.Namespace) -> tuple[Any, Any]:
+    """The pipeline configuration and the ``--map`` database (or None). Without ``--preset`` and
+    ``--config``, a map's own descriptor configuration is used (and its preset's detector
+    defaults when it is a preset's); otherwise the two must agree."""
+    if getattr(args, "map", None) is None:
+        return make_config(args), None
+    m = _solid.Database.load(args.map)
+    if args.preset is None and args.config is None:
+        base = next(
+            (PipelineConfig.preset(n) for n, c in _solid.presets().items() if c == m.config),
+            PipelineConfig(descriptor=m.config, detector=_solid.DetectorConfig()),
+        )
+        cfg = make_config(args, base)
+    else:
+        cfg = make_config(args)
+    if m.config != cfg.descriptor:
+        raise _solid.ConfigError(f"{args.map} was built with {m.config!r}; this run asks for {cfg.descriptor!r}")
+    return cfg, m
 
 
 def _run(
@@ -129,9 +239,7 @@ def detect(
         if g2o is not None:
             write_g2o(out.work / "loops.g2o", result.loops())
     if g2o is not None:
-        from .io import _atomic_write_bytes
-
-        _atomic_write_bytes(Path(g2o), (out.final / "loops.g2o").read_bytes())
+        atomic_write_bytes(Path(g2o), (out.final / "loops.g2o").read_bytes())
     return result, out.final
 
 
@@ -144,8 +252,6 @@ def write_g2o(path: Path, loops: AbcSequence[Any]) -> int:
     RMSE over 10 m (the typical lever arm of the points) in radians for each rotation axis —
     a plain, documented default; scale it to your odometry's weights. Returns the edges written
     (loops without a pose are skipped)."""
-    from .evaluation import quaternion
-
     lines = []
     for lp in loops:
         if lp.pose is None:
@@ -354,17 +460,13 @@ def _short(v: float) -> float:
 
 def describe_scan(path: Path, config: PipelineConfig, format: str | None = None) -> dict[str, Any]:
     """``solid describe``: one scan's descriptor as a JSON-ready dict."""
-    import time
-
-    from . import io as sio
-
-    pts = sio.read_points(path, format, xyz_only=True)
+    pts = read_points(path, format, xyz_only=True)
     t0 = time.perf_counter()
     d = _solid.describe(pts, config.descriptor)
     dt = time.perf_counter() - t0
     return {
         "file": str(path),
-        "format": format or sio.detect_format(path),
+        "format": format or detect_format(path),
         "preset": config.preset_name,
         "config": config.descriptor.to_dict(),
         "n_points": int(d.n_points),
@@ -388,15 +490,10 @@ def bench(
 ) -> str:
     """``solid bench``: reading, describing and searching rates on the user's data, with numpy's
     brute-force search timed in the same run as the baseline."""
-    import time
-
-    from . import io as sio
-    from .pipeline import _iter_selected
-
-    seq = sio.Sequence(sequence, format=format, topic=topic)
+    seq = Dataset(sequence, format=format, topic=topic)
     n = min(frames, len(seq))
     t0 = time.perf_counter()
-    scans = [np.ascontiguousarray(p[:, :3]) for p in _iter_selected(seq, list(range(n)))]
+    scans = [np.ascontiguousarray(p[:, :3]) for p in iter_selected(seq, list(range(n)))]
     t_read = time.perf_counter() - t0
     npts = sum(s.shape[0] for s in scans)
     cfg = config.descriptor

@@ -35,14 +35,12 @@ from pathlib import Path
 from typing import Any, Union
 
 from . import _solid
+from .errors import ConfigFileError
+from .outputs import atomic_write_bytes
 
 __all__ = ["ConfigFileError", "InputOptions", "PipelineConfig", "descriptor_fields", "detector_fields"]
 
 PathLike = Union[str, "os.PathLike[str]"]
-
-
-class ConfigFileError(_solid.ConfigError):
-    """A configuration file that cannot be read or holds something invalid (names the file)."""
 
 
 def descriptor_fields() -> dict[str, type]:
@@ -228,9 +226,7 @@ class PipelineConfig:
 
     def dump(self, path: PathLike) -> None:
         """Write :meth:`dumps` to ``path`` atomically."""
-        from .io import _atomic_write_bytes
-
-        _atomic_write_bytes(Path(path), self.dumps().encode())
+        atomic_write_bytes(Path(path), self.dumps().encode())
 
     @classmethod
     def load(cls, path: PathLike) -> PipelineConfig:

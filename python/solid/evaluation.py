@@ -3,7 +3,8 @@
 The scoring itself is the Rust core's (``solid_lidar::eval``, bound as
 ``solid._solid.score_candidates``): this module only gathers what a detector decided — per query
 its ranked candidate ids, the score and heading of its best candidate and the entries it could be
-matched with — hands it over, and formats what comes back (``metrics.json``, ``queries.csv``).
+matched with — hands it over, and formats what comes back (``metrics.json``, and the rows of
+``queries.csv``, whose columns :mod:`solid.records` defines).
 :func:`evaluate_detections` scores a :class:`solid.LoopDetector` run (what the pipeline does);
 :func:`evaluate_candidates` scores any method given as arrays (the Scan Context baseline).
 
@@ -24,44 +25,13 @@ import numpy as np
 import numpy.typing as npt
 
 from . import _solid
+from .records import QUERY_COLUMNS, fmt_opt, pose_columns
 
 __all__ = ["QUERY_COLUMNS", "Evaluation", "evaluate_candidates", "evaluate_detections"]
 
 F64 = npt.NDArray[np.float64]
 I64 = npt.NDArray[np.int64]
 B = npt.NDArray[np.bool_]
-
-#: Columns of ``queries.csv`` (one row per query), in order. The first block is the issue's
-#: contract; ``accepted`` is at the run's threshold, ``score`` is what the PR curve thresholds.
-#: Rows with ``accepted`` true carry, in their columns shared with ``loops.csv``, exactly the rows
-#: of ``solid detect`` for the same configuration.
-#: The columns of a loop's pose (``loops.csv`` and ``queries.csv``), filled by :func:`pose_columns`.
-POSE_COLUMNS = ("verified", "x", "y", "z", "qx", "qy", "qz", "qw", "fitness", "rmse")
-
-QUERY_COLUMNS = (
-    "query",
-    "candidate",
-    "distance",
-    "score",
-    "accepted",
-    "heading_deg",
-    "true_heading_deg",
-    "candidate_distance_m",
-    "gt_positive",
-    "correct",
-    "first_hit",
-    "eligible",
-    "query_time",
-    "candidate_time",
-    "query_session",
-    "candidate_session",
-    "query_frame",
-    "candidate_frame",
-    *POSE_COLUMNS,
-    "pose_error_m",
-    "pose_error_deg",
-)
-
 
 def _none_if_nan(v: float) -> float | None:
     return None if v is None or (isinstance(v, float) and math.isnan(v)) else float(v)
@@ -177,8 +147,6 @@ class Evaluation:
 
     def rows(self) -> list[dict[str, Any]]:
         """``queries.csv`` rows (:data:`QUERY_COLUMNS`)."""
-        from .pipeline import _fmt_opt
-
         gt = self.gt_positive
         correct = self.correct
         first = np.asarray(self.scores.first_hit)
@@ -200,69 +168,24 @@ class Evaluation:
                     "score": f"{self.score[i]:.6f}" if has else "",
                     "accepted": bool(accepted[i]),
                     "heading_deg": f"{self.heading_deg[i]:.3f}" if has else "",
-                    "true_heading_deg": _fmt_opt(float(truth[i]), ".3f"),
-                    "candidate_distance_m": _fmt_opt(float(cand_m[i]), ".3f"),
+                    "true_heading_deg": fmt_opt(float(truth[i]), ".3f"),
+                    "candidate_distance_m": fmt_opt(float(cand_m[i]), ".3f"),
                     "gt_positive": bool(gt[i]),
                     "correct": bool(correct[i]),
                     "first_hit": int(first[i]),
                     "eligible": int(self.eligible[i]),
-                    "query_time": _fmt_opt(float(self.entry_times[q])),
-                    "candidate_time": _fmt_opt(float(self.entry_times[c])) if has else "",
+                    "query_time": fmt_opt(float(self.entry_times[q])),
+                    "candidate_time": fmt_opt(float(self.entry_times[c])) if has else "",
                     "query_session": int(self.entry_sessions[q]),
                     "candidate_session": int(self.entry_sessions[c]) if has else "",
-                    "query_frame": _fmt_opt(self.frame_of(q)),
-                    "candidate_frame": _fmt_opt(self.frame_of(c)) if has else "",
+                    "query_frame": fmt_opt(self.frame_of(q)),
+                    "candidate_frame": fmt_opt(self.frame_of(c)) if has else "",
                     **pose_columns(pose, None if self.fitness is None else float(self.fitness[i]), None if self.rmse is None else float(self.rmse[i])),
-                    "pose_error_m": _fmt_opt(float(pe_m[i]), ".4f"),
-                    "pose_error_deg": _fmt_opt(float(pe_d[i]), ".4f"),
+                    "pose_error_m": fmt_opt(float(pe_m[i]), ".4f"),
+                    "pose_error_deg": fmt_opt(float(pe_d[i]), ".4f"),
                 }
             )
         return out
-
-
-def quaternion(R: npt.ArrayLike) -> tuple[float, float, float, float]:
-    """(qx, qy, qz, qw) of a rotation matrix, qw >= 0 (Shepperd's method)."""
-    m = np.asarray(R, dtype=np.float64)
-    tr = m[0, 0] + m[1, 1] + m[2, 2]
-    if tr > 0:
-        s = 2.0 * math.sqrt(1.0 + tr)
-        q = ((m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, 0.25 * s)
-    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
-        s = 2.0 * math.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2])
-        q = (0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s, (m[2, 1] - m[1, 2]) / s)
-    elif m[1, 1] > m[2, 2]:
-        s = 2.0 * math.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2])
-        q = ((m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s, (m[0, 2] - m[2, 0]) / s)
-    else:
-        s = 2.0 * math.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1])
-        q = ((m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s, (m[1, 0] - m[0, 1]) / s)
-    n = math.sqrt(sum(v * v for v in q))
-    sign = -1.0 if q[3] < 0 else 1.0
-    x, y, z, w = (sign * v / n for v in q)
-    return x, y, z, w
-
-
-def pose_columns(pose: npt.ArrayLike | None, fitness: float | None, rmse: float | None) -> dict[str, Any]:
-    """The ``verified,x,y,z,qx,qy,qz,qw,fitness,rmse`` columns of a loop (empty without a pose):
-    the pose ``T_query_candidate`` of a verified loop as translation and unit quaternion."""
-    from .pipeline import _fmt_opt
-
-    if pose is None:
-        return {"verified": False} | {k: "" for k in POSE_COLUMNS[1:]}
-    P = np.asarray(pose, dtype=np.float64)
-    qx, qy, qz, qw = quaternion(P[:3, :3])
-    return {
-        "verified": True,
-        "x": f"{P[0, 3]:.6f}",
-        "y": f"{P[1, 3]:.6f}",
-        "z": f"{P[2, 3]:.6f}",
-        "qx": f"{qx:.9f}",
-        "qy": f"{qy:.9f}",
-        "qz": f"{qz:.9f}",
-        "qw": f"{qw:.9f}",
-        "fitness": _fmt_opt(fitness, ".4f"),
-        "rmse": _fmt_opt(rmse, ".4f"),
-    }
 
 
 def _poses_of(database: Any) -> F64:

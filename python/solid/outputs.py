@@ -5,7 +5,8 @@ Every command that writes results gets a fresh folder. Without ``-o``, it is
 kiss-icp does); with ``-o DIR``, ``DIR`` must not exist or be empty (an existing result is never
 mixed with a new one). The files are written into a hidden sibling folder that is renamed to the
 final name only when everything is written: an interrupted or failed run (Ctrl-C, a full disk, an
-error) leaves no folder that looks complete, and removes its partial one.
+error) leaves no folder that looks complete, and removes its partial one. A single file is written
+the same way (:func:`atomic_write_bytes`): to a temporary name, renamed over the target when whole.
 """
 
 from __future__ import annotations
@@ -25,13 +26,11 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["Output", "OutputExistsError", "output_folder", "write_csv", "write_json"]
+from .errors import OutputExistsError
+
+__all__ = ["Output", "OutputExistsError", "atomic_write_bytes", "output_folder", "write_csv", "write_json"]
 
 DEFAULT_ROOT = Path("solid_results")
-
-
-class OutputExistsError(FileExistsError):
-    """The requested output folder already holds something."""
 
 
 def _json_default(o: Any) -> Any:
@@ -62,6 +61,23 @@ def write_json(path: Path, doc: Any) -> Path:
     """``doc`` as indented JSON (NaN → null)."""
     path.write_text(json.dumps(_clean(doc), indent=2, default=_json_default) + "\n", encoding="utf-8")
     return path
+
+
+def atomic_write_bytes(path: Path, data: bytes) -> None:
+    """Write ``data`` to a temporary file beside ``path``, then rename it over ``path``."""
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        with open(tmp, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            tmp.unlink()
+        except FileNotFoundError:
+            pass
+        raise
 
 
 def write_csv(path: Path, columns: AbcSequence[str], rows: Iterable[dict[str, Any]]) -> Path:

@@ -20,60 +20,31 @@ the accepted loops, and the evaluation scores the same candidates against poses
 
 from __future__ import annotations
 
-import math
 import time
-from collections.abc import Callable, Iterator, Sequence as AbcSequence
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
 import numpy.typing as npt
 
 from . import _solid
-from . import io as sio
 from .config import PipelineConfig
-from .evaluation import POSE_COLUMNS
+from .datasets.selection import iter_selected, select_frames
+from .evaluation import evaluate_detections
+from .records import LOOP_COLUMNS, loop_row
+from .transforms import auto_fov_center, clip_fov, occlude_sector
 
-__all__ = [
-    "Dataset",
-    "open_dataset",
-    "LOOP_COLUMNS",
-    "LoopClosurePipeline",
-    "PipelineResult",
-    "auto_fov_center",
-    "parse_frames",
-    "select_frames",
-]
+__all__ = ["LOOP_COLUMNS", "LoopClosurePipeline", "PipelineResult", "ScanSource"]
 
 F32 = npt.NDArray[np.float32]
 F64 = npt.NDArray[np.float64]
 I64 = npt.NDArray[np.int64]
 
-#: Columns of ``loops.csv`` (one row per accepted loop), in order. ``query``/``candidate`` are ids
-#: in the detector's database (a prior map's places first); ``*_frame`` the frame number in the
-#: query's own recording (empty for a map place); times in seconds (empty when unknown). A verified
-#: loop has its pose ``T_query_candidate`` (``p_query ≈ T·p_candidate``, docs/spec.md §3) as
-#: ``x,y,z`` and the unit quaternion ``qx,qy,qz,qw``, with the registration's ``fitness`` and
-#: ``rmse`` (metres).
-LOOP_COLUMNS = (
-    "query",
-    "candidate",
-    "distance",
-    "score",
-    "heading_deg",
-    "query_time",
-    "candidate_time",
-    "query_session",
-    "candidate_session",
-    "query_frame",
-    "candidate_frame",
-    *POSE_COLUMNS,
-)
 
-
-class Dataset(Protocol):
-    """What the pipeline reads: ``solid.datasets.open_dataset`` gives one, and so does the simulator."""
+class ScanSource(Protocol):
+    """What the pipeline reads: a :class:`solid.datasets.Dataset` is one, and so is a simulated
+    :class:`solid.sim.Sequence`."""
 
     timestamps: F64 | None
     poses: F64 | None
@@ -81,63 +52,6 @@ class Dataset(Protocol):
     def __len__(self) -> int: ...
     def __getitem__(self, i: int) -> F32: ...
     def __iter__(self) -> Iterator[F32]: ...
-
-
-def parse_frames(spec: str, n: int) -> list[int]:
-    """Frame selection ``"0:60,284:314,300"`` (Python slices and indices, in that order, no repeats)."""
-    out: list[int] = []
-    seen: set[int] = set()
-    for part in spec.split(","):
-        part = part.strip()
-        if not part:
-            continue
-        try:
-            if ":" in part:
-                bits = [int(b) if b.strip() else None for b in part.split(":")]
-                if len(bits) > 3:
-                    raise ValueError
-                idx = list(range(n))[slice(*bits)]
-            else:
-                i = int(part)
-                if not -n <= i < n:
-                    raise _solid.ConfigError(f"frames: frame {i} is out of range for {n} scans")
-                idx = [i % n]
-        except ValueError:
-            raise _solid.ConfigError(f"frames: cannot parse {part!r} (use e.g. 0:60,284:314)") from None
-        for i in idx:
-            if i not in seen:
-                seen.add(i)
-                out.append(i)
-    if not out:
-        raise _solid.ConfigError(f"frames {spec!r} selects no scans")
-    return out
-
-
-def select_frames(n: int, poses: F64 | None, frames: str | None, subsample_m: float | None) -> list[int]:
-    """The dataset indices the pipeline reads, in order (``input.frames``, then ``subsample_m``)."""
-    idx = parse_frames(frames, n) if frames else list(range(n))
-    if subsample_m is not None:
-        if poses is None:
-            raise _solid.ConfigError("input.subsample_m needs poses")
-        keep = sio.subsample_by_distance(poses[idx], subsample_m)
-        idx = [idx[int(k)] for k in keep]
-    return idx
-
-
-def auto_fov_center(points: npt.NDArray[Any], width_deg: float) -> float:
-    """The centre (degrees, 0 = +x, counter-clockwise) of the ``width_deg`` sector holding the most
-    points of a scan: where to clip when the user gave no centre, so that a sensor whose +x is
-    blocked (or points elsewhere) is not clipped to an empty sector."""
-    p = np.asarray(points)
-    if p.shape[0] == 0:
-        return 0.0
-    az = np.degrees(np.arctan2(p[:, 1].astype(np.float64), p[:, 0].astype(np.float64))) % 360.0
-    hist = np.bincount(np.minimum(az.astype(np.int64), 359), minlength=360).astype(np.float64)
-    w = max(1, min(360, int(round(width_deg))))
-    windows = np.convolve(np.r_[hist, hist[: w - 1]], np.ones(w), mode="valid")[:360]
-    start = int(np.argmax(windows))
-    centre = (start + w / 2.0) % 360.0
-    return float(centre - 360.0 if centre > 180.0 else centre)
 
 
 @dataclass
@@ -178,8 +92,6 @@ class PipelineResult:
     def evaluate(self, radius: float | None = None, name: str = "SOLiD") -> Any:
         """docs/spec.md §5 scores of this run's candidates against the poses of every place (the map's
         stored poses and this recording's), at ``radius`` (default: the config's)."""
-        from .evaluation import evaluate_detections
-
         det = self.config.detector
         return evaluate_detections(
             name,
@@ -190,33 +102,6 @@ class PipelineResult:
             threshold=_solid.VERIFIED_THRESHOLD if det.verify else det.threshold,
             frame_of=self.frame_of,
         )
-
-
-def _fmt_opt(v: float | int | None, fmt: str = ".6f") -> str:
-    if v is None or (isinstance(v, float) and math.isnan(v)):
-        return ""
-    return format(v, fmt) if isinstance(v, float) else str(v)
-
-
-def loop_row(lp: Any, times: F64, sessions: npt.NDArray[np.uint32], frame_of: Callable[[int], int | None]) -> dict[str, Any]:
-    """One ``loops.csv`` row; eval's ``queries.csv`` formats the same fields the same way."""
-    from .evaluation import pose_columns
-
-    q, c = int(lp.query), int(lp.candidate)
-    return {
-        "query": q,
-        "candidate": c,
-        "distance": f"{lp.distance:.6f}",
-        "score": f"{lp.score:.6f}",
-        "heading_deg": f"{lp.heading:.3f}",
-        "query_time": _fmt_opt(float(times[q])) if q < len(times) else "",
-        "candidate_time": _fmt_opt(float(times[c])),
-        "query_session": int(sessions[q]) if q < len(sessions) else "",
-        "candidate_session": int(sessions[c]),
-        "query_frame": _fmt_opt(frame_of(q)),
-        "candidate_frame": _fmt_opt(frame_of(c)),
-        **pose_columns(lp.pose, lp.fitness, lp.rmse),
-    }
 
 
 class LoopClosurePipeline:
@@ -291,13 +176,13 @@ class LoopClosurePipeline:
             batch.clear()
             batch_idx.clear()
 
-        for i, pts in zip(idx, _iter_selected(ds, idx)):
+        for i, pts in zip(idx, iter_selected(ds, idx)):
             if opts.fov is not None:
                 if fov_center is None:
                     fov_center = auto_fov_center(pts, opts.fov)
-                pts = sio.clip_fov(pts, opts.fov, fov_center)
+                pts = clip_fov(pts, opts.fov, fov_center)
             if opts.occlude is not None:
-                pts = sio.occlude_sector(pts, opts.occlude, opts.occlude_center)
+                pts = occlude_sector(pts, opts.occlude, opts.occlude_center)
             xyz = np.ascontiguousarray(pts[:, :3])
             if self.on_scan is not None:
                 self.on_scan(i, xyz)
@@ -320,50 +205,3 @@ class LoopClosurePipeline:
             fov_center=fov_center,
             timings={"detect_s": t_detect},
         )
-
-
-def _iter_selected(ds: Any, idx: AbcSequence[int]) -> Iterator[F32]:
-    """Scans idx[0], idx[1], ... read once each: streamed in order when the selection is every
-    scan (bags read sequentially), by index otherwise."""
-    if list(idx) == list(range(len(ds))):
-        yield from iter(ds)
-        return
-    if getattr(ds, "is_bag", False):
-        want = {i: k for k, i in enumerate(idx)}
-        buf: dict[int, F32] = {}
-        nxt = 0
-        for i, pts in enumerate(ds):
-            if i in want:
-                buf[want[i]] = pts
-                while nxt in buf:
-                    yield buf.pop(nxt)
-                    nxt += 1
-            if nxt == len(idx):
-                return
-        return
-    for i in idx:
-        yield ds[i]
-
-
-def open_dataset(
-    path: Path | str,
-    *,
-    format: str | None = None,
-    topic: str | None = None,
-    poses: Path | str | None = None,
-    timestamps: Path | str | None = None,
-    calib: Path | str | None = None,
-) -> tuple[Any, dict[str, Any]]:
-    """Opens a recording for the pipeline (:func:`solid.datasets.open_dataset`); returns it and a
-    record of what was read: the reader chosen and the absolute paths of every file used."""
-    from .datasets import open_dataset as _open
-
-    ds = _open(path, format=format, topic=topic, poses=poses, timestamps=timestamps, calib=calib)
-    info = {
-        "sequence": Path(ds.path),
-        "reader": ds.reader,
-        "poses": ds.pose_source,
-        "timestamps": ds.timestamp_source,
-        "calib": ds.calib_source,
-    }
-    return ds, info

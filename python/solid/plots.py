@@ -21,14 +21,15 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["plot_distance_matrix", "plot_heading", "plot_pr_roc", "plot_trajectory", "save"]
+__all__ = ["figure", "plot_distance_matrix", "plot_heading", "plot_pr_roc", "plot_trajectory", "save"]
 
 TRUE = "#1a9641"  # green: a true loop
 FALSE = "#d7191c"  # red: a false loop
 PATH = "0.35"
 
 
-def _figure(w: float = 5.4, h: float = 4.6) -> Any:
+def figure(w: float = 5.4, h: float = 4.6) -> Any:
+    """An empty ``w`` × ``h`` inch figure on the Agg canvas (no pyplot state)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -54,7 +55,7 @@ def plot_pr_roc(out: Path, evals: AbcSequence[Any], subtitle: str) -> dict[str, 
     """``pr.png`` and ``roc.png`` of every evaluation on shared axes."""
     written: dict[str, Path] = {}
     for kind in ("pr", "roc"):
-        fig = _figure()
+        fig = figure()
         ax = fig.add_subplot()
         for ev in evals:
             m = ev.metrics()
@@ -103,7 +104,7 @@ def plot_pr_roc(out: Path, evals: AbcSequence[Any], subtitle: str) -> dict[str, 
 
 def plot_trajectory(path: Path, ev: Any, poses: npt.NDArray[np.float64], sessions: npt.NDArray[Any], subtitle: str) -> Path:
     """Places from above (one line per session) and the accepted loops, true green, false red."""
-    fig = _figure(6.0, 5.6)
+    fig = figure(6.0, 5.6)
     ax = fig.add_subplot()
     xy = poses[:, :2, 3]
     for k, s in enumerate(np.unique(sessions)):
@@ -145,7 +146,7 @@ def plot_distance_matrix(path: Path, ev: Any, database: Any, subtitle: str, max_
         e = elig[qi]
         M[row, :e] = np.asarray(database.distances(R[qi]))[:e]
         near[row, :e] = np.linalg.norm(P[:e] - P[qi], axis=1) <= ev.radius
-    fig = _figure(6.0, 5.0)
+    fig = figure(6.0, 5.0)
     ax = fig.add_subplot()
     im = ax.imshow(M, aspect="auto", cmap="viridis_r", interpolation="nearest", vmin=0.0, vmax=float(np.nanmax(M)) if np.isfinite(M).any() else 1.0)
     if near.any():
@@ -163,7 +164,7 @@ def plot_heading(path: Path, ev: Any, subtitle: str) -> Path:
     est = ev.heading_deg[c]
     true = np.asarray(ev.scores.true_heading_deg)[c]
     err = np.asarray(ev.scores.rotation_errors())
-    fig = _figure(5.0, 4.8)
+    fig = figure(5.0, 4.8)
     ax = fig.add_subplot()
     ax.plot([-180, 180], [-180, 180], color="0.6", lw=0.8, ls="--", label="estimate = truth")
     ax.scatter(true, est, s=9, color="#2c7bb6", label=f"correct top-1 ({int(c.sum())})")

@@ -55,7 +55,7 @@ import numpy.typing as npt
 
 from . import _solid
 from .evaluation import Evaluation, evaluate_candidates
-from .io import _wrap180
+from .transforms import wrap_degrees
 
 __all__ = [
     "Candidates",
@@ -65,6 +65,7 @@ __all__ = [
     "describe",
     "describe_many",
     "distance",
+    "eligible_count",
     "evaluate_scancontext",
     "heading_deg",
     "ring_key",
@@ -185,7 +186,7 @@ def sector_key(descriptors: npt.ArrayLike) -> F64:
 
 def heading_deg(shift: npt.ArrayLike, n_sector: int) -> F64:
     """Heading of docs/spec.md §3 (degrees in (−180, 180]) for a best column shift."""
-    return _wrap180(np.asarray(shift, dtype=np.float64) * 360.0 / n_sector)
+    return wrap_degrees(np.asarray(shift, dtype=np.float64) * 360.0 / n_sector)
 
 
 @dataclass(frozen=True)
@@ -271,13 +272,20 @@ class Candidates:
     headings_deg: F64  # (Q, k), docs/spec.md §3 convention
 
 
+def eligible_count(query: npt.ArrayLike, exclude: int) -> I64:
+    """How many frames each query frame may be matched with under docs/spec.md §5 frame exclusion:
+    those ``< q − exclude``. The rule of the core's loop detector for one session, which does not
+    expose it; the baseline must ask the same questions."""
+    return np.maximum(np.asarray(query, dtype=np.int64) - exclude, 0)
+
+
 def _eligibility(exclude: Exclusion, n: int) -> Callable[[int], B]:
     if isinstance(exclude, (int, np.integer)) and not isinstance(exclude, bool):
         e = int(exclude)
         if e < 0:
             raise _solid.ConfigError(f"exclude must be >= 0, got {e}")
         ids = np.arange(n)
-        return lambda q: ids < q - e
+        return lambda q: np.asarray(ids < eligible_count(q, e), dtype=bool)
     if callable(exclude):
         f = exclude
 
@@ -427,4 +435,5 @@ def query_indices(n_frames: int, exclude: int) -> I64:
     """Frames that are queries under docs/spec.md §5 frame exclusion: those with a non-empty database."""
     if exclude < 0:
         raise _solid.ConfigError(f"exclude must be >= 0, got {exclude}")
-    return np.arange(exclude + 1, n_frames, dtype=np.int64)
+    q = np.arange(n_frames, dtype=np.int64)
+    return q[eligible_count(q, exclude) > 0]

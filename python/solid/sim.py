@@ -18,7 +18,6 @@ row-major float64 matrices, the KITTI convention in the LiDAR frame. Heading con
 
 from __future__ import annotations
 
-import math
 import os
 from collections.abc import Iterator, Sequence as AbcSequence
 from dataclasses import dataclass, field
@@ -29,6 +28,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import _solid
+from .transforms import wrap_degrees, yaw_degrees
 
 __all__ = [
     "SENSORS",
@@ -251,7 +251,7 @@ class Trajectory:
     @property
     def headings(self) -> F64:
         """Yaw of each pose in degrees, (−180, 180]."""
-        return np.degrees(np.arctan2(self.poses[:, 1, 0], self.poses[:, 0, 0]))
+        return yaw_degrees(self.poses[:, :, :3])
 
     def __getitem__(self, index: slice) -> Trajectory:
         return Trajectory(self.poses[index], self.times[index])
@@ -459,9 +459,7 @@ def true_heading(pose_query: npt.ArrayLike, pose_candidate: npt.ArrayLike) -> fl
     that ``p_query ≈ Rz(ψ) · p_candidate``."""
     rq = _pose_array(pose_query)[:, :3]
     rc = _pose_array(pose_candidate)[:, :3]
-    r = rq.T @ rc
-    psi = math.degrees(math.atan2(float(r[1, 0]), float(r[0, 0])))
-    return 180.0 if psi <= -180.0 else psi
+    return float(yaw_degrees(rq.T @ rc))
 
 
 def run_demo(
@@ -499,7 +497,7 @@ def run_demo(
 
     def heading_of_true_loops(ev: Any) -> dict[str, Any]:
         m = ev.accepted & ev.correct
-        err = np.abs((ev.heading_deg[m] - np.asarray(ev.scores.true_heading_deg)[m] + 180.0) % 360.0 - 180.0)
+        err = np.abs(wrap_degrees(ev.heading_deg[m] - np.asarray(ev.scores.true_heading_deg)[m]))
         return {
             "true_loop_heading_error_deg_mean": float(err.mean()) if err.size else None,
             "true_loop_heading_error_deg_max": float(err.max()) if err.size else None,
@@ -565,7 +563,7 @@ def _plot_map(
 ) -> Path:
     from matplotlib.patches import Rectangle
 
-    from .plots import _figure, save
+    from .plots import figure, save
 
     # Muted colours for the world, none of them the legend's green (correct) or red (wrong).
     colours = {"building": "0.65", "car": "#9ecae1", "crown": "#c7b99a", "trunk": "#8c6d46",
@@ -574,7 +572,7 @@ def _plot_map(
     xy = traj.positions
     pad = 60.0
     lo, hi = xy[:, :2].min(axis=0) - pad, xy[:, :2].max(axis=0) + pad
-    fig = _figure(6.5, 6.5)
+    fig = figure(6.5, 6.5)
     ax = fig.add_subplot()
     for k, f in zip(kinds, fp):
         if f[2] < lo[0] or f[0] > hi[0] or f[3] < lo[1] or f[1] > hi[1]:

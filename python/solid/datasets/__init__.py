@@ -28,7 +28,8 @@ What a dataset knows (``open_dataset``):
 Poses and timestamps files, and how their rows meet the scans (by frame number, by time with
 interpolation), are described in :mod:`.poses`. Every reader raises :class:`ReadError` (a
 :class:`solid.SolidError`, hence a ``ValueError``) naming the file and the problem; a missing
-file is a ``FileNotFoundError``.
+file is a ``FileNotFoundError``. Which frames of a dataset a run reads (``--frames``,
+``subsample_m``) is :mod:`.selection`.
 """
 
 from __future__ import annotations
@@ -43,7 +44,8 @@ import numpy as np
 
 from . import helipr, kitti, nclt, npy, pcd, ply, rosbag
 from ._bin import BinLayout, sniff
-from ._common import F32, F64, I64, Cloud, PathLike, ReadError, file_size, natural_key, read_bytes
+from ..errors import ReadError
+from ._common import F32, F64, I64, Cloud, PathLike, file_size, natural_key, read_bytes
 from .poses import (
     interpolate_poses,
     load_extrinsic,
@@ -64,6 +66,7 @@ __all__ = [
     "Reader",
     "available",
     "detect_format",
+    "natural_key",
     "open_dataset",
     "read_cloud",
     "read_points",

@@ -1,5 +1,6 @@
-"""What every reader shares: the read error, the :class:`Cloud` it returns, and the checks and
-conversions that turn raw records into a float32 (N, C) array with x, y, z first."""
+"""What every reader shares: the :class:`Cloud` it returns, and the checks and conversions that
+turn raw records into a float32 (N, C) array with x, y, z first. The readers' error,
+:class:`~solid.errors.ReadError`, is defined in :mod:`solid.errors`."""
 
 from __future__ import annotations
 
@@ -12,28 +13,12 @@ from typing import Any, Union
 import numpy as np
 import numpy.typing as npt
 
-from .._solid import SolidError
+from ..errors import ReadError
 
 F32 = npt.NDArray[np.float32]
 F64 = npt.NDArray[np.float64]
 I64 = npt.NDArray[np.int64]
 PathLike = Union[str, "os.PathLike[str]"]
-
-
-class ReadError(SolidError):
-    """A point-cloud, bag, pose, timestamp or calibration file is malformed, truncated or unsupported.
-
-    A :class:`solid.SolidError`, hence a :class:`ValueError`. The message always starts with the
-    file's path, then says what is wrong; :attr:`path` and :attr:`what` hold the two parts.
-    """
-
-    def __init__(self, path: PathLike, what: str) -> None:
-        self.path = os.fspath(path)
-        self.what = what
-        super().__init__(f"{self.path}: {what}")
-
-    def __reduce__(self) -> tuple[Any, tuple[str, str]]:
-        return (type(self), (self.path, self.what))
 
 
 @dataclass(frozen=True)

@@ -1,10 +1,8 @@
-"""What the writers share: the array they store and an atomic file write."""
+"""What the writers share: the array they store (they write it with :func:`solid.outputs.atomic_write_bytes`)."""
 
 from __future__ import annotations
 
-import os
 from collections.abc import Sequence as AbcSequence
-from pathlib import Path
 
 import numpy as np
 import numpy.typing as npt
@@ -22,20 +20,3 @@ def columns_to_write(points: npt.ArrayLike, fields: AbcSequence[str] | None) -> 
     if len(names) != c:
         raise ValueError(f"{len(names)} field names for {c} columns")
     return pts, names
-
-
-def atomic_write_bytes(path: Path, data: bytes) -> None:
-    """Write ``data`` to a temporary file beside ``path``, then rename it over ``path``."""
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        with open(tmp, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            tmp.unlink()
-        except FileNotFoundError:
-            pass
-        raise

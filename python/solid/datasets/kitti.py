@@ -17,7 +17,8 @@ import numpy as np
 import numpy.typing as npt
 
 from ._bin import BinLayout, plausible_coords
-from ._common import Cloud, PathLike, ReadError
+from ..errors import ReadError
+from ._common import Cloud, PathLike
 
 _DTYPE = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("reflectance", "<f4")])
 

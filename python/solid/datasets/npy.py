@@ -14,7 +14,8 @@ from typing import IO, Any
 import numpy as np
 import numpy.typing as npt
 
-from ._common import Cloud, PathLike, ReadError, check_real, cloud_from_records, file_size
+from ..errors import ReadError
+from ._common import Cloud, PathLike, check_real, cloud_from_records, file_size
 
 _NPZ_KEYS = ("points", "xyz", "pc", "arr_0")
 

@@ -11,8 +11,10 @@ from typing import Any, Final, Literal
 import numpy as np
 import numpy.typing as npt
 
-from ._common import Cloud, PathLike, ReadError, cloud_from_records, read_bytes, stack_columns
-from ._write import atomic_write_bytes, columns_to_write
+from ..errors import ReadError
+from ..outputs import atomic_write_bytes
+from ._common import Cloud, PathLike, cloud_from_records, read_bytes, stack_columns
+from ._write import columns_to_write
 
 _TYPES: Final = {
     "char": "i1",

@@ -25,7 +25,8 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
-from ._common import F64, I64, PathLike, ReadError
+from ..errors import ReadError
+from ._common import F64, I64, PathLike
 
 
 def _rows(path: PathLike, what: str) -> list[list[str]]:
@@ -185,13 +186,6 @@ def sensor_poses_in_sensor_world(poses: npt.ArrayLike, T_pose_sensor: npt.ArrayL
     out[:, :, :3] = Rinv @ out[:, :, :3]
     out[:, :, 3] = out[:, :, 3] @ Rinv.T - Rinv @ T[:3, 3]
     return out
-
-
-def yaw_degrees(R: npt.ArrayLike) -> F64:
-    """Yaw (rotation about z, degrees, (−180, 180]) of rotation matrices (..., 3, 3)."""
-    m = np.asarray(R, dtype=np.float64)
-    y = np.degrees(np.arctan2(m[..., 1, 0], m[..., 0, 0]))
-    return np.asarray(np.where(y <= -180.0, y + 360.0, y), dtype=np.float64)
 
 
 def resolve(p: PathLike, root: Path, what: str) -> Path:
