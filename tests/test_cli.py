@@ -338,7 +338,7 @@ def test_interrupted_eval_leaves_no_folder(tmp_path: Path) -> None:
 
 
 def test_bench_prints_rates(capsys: pytest.CaptureFixture[str]) -> None:
-    code, out, err = run(capsys, "bench", str(data_dir() / "hku1-avia"), "--preset", "avia", "--frames", "20", "--db-size", "500", "-q")
+    code, out, err = run(capsys, "bench", str(data_dir() / "hku1-avia"), "--preset", "avia", "--scans", "20", "--db-size", "500", "-q")
     assert code == 0, err
     for word in ("read", "describe", "batch", "search"):
         line = next(ln for ln in out.splitlines() if ln.startswith(word))

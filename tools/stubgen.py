@@ -24,7 +24,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from solid import _solid
+from solid.config import param_table, per_preset_fields
 
 ROOT = Path(__file__).resolve().parent.parent
 STUB = ROOT / "python" / "solid" / "_solid.pyi"
@@ -91,7 +91,7 @@ def _signature(fields: list[dict[str, Any]], nested: dict[str, tuple[str, str]],
 def generate(cls: str) -> list[str]:
     """The generated members of class `cls`."""
     spec = CLASSES[cls]
-    fields: list[dict[str, Any]] = _solid._param_table(cls)
+    fields: list[dict[str, Any]] = param_table(cls)
     nested: dict[str, tuple[str, str]] = spec["nested"]
     raises = [
         "        Raises:",
@@ -153,14 +153,6 @@ def render(text: str) -> str:
     return "\n".join(out)
 
 
-def _per_preset(cls: str) -> set[str]:
-    """The fields whose default depends on the sensor preset."""
-    if cls != "DetectorConfig":
-        return set()
-    base = _solid.DetectorConfig().to_dict()
-    return {k for p in _solid.presets() for k, v in _solid.DetectorConfig.preset(p).to_dict().items() if v != base[k]}
-
-
 def _doc_default(f: dict[str, Any], per_preset: set[str]) -> str:
     if f["required"]:
         return "none (the sensor's)"
@@ -204,9 +196,9 @@ def _valid(f: dict[str, Any]) -> str:
 
 def doc_table(cls: str) -> list[str]:
     """The Markdown table of class `cls`'s parameters: name, default, meaning, valid values."""
-    per_preset = _per_preset(cls)
+    per_preset = per_preset_fields() if cls == "DetectorConfig" else set()
     rows = ["| name | default | meaning | valid |", "|---|---|---|---|"]
-    for f in _solid._param_table(cls):
+    for f in param_table(cls):
         rows.append(f"| `{f['name']}` | {_doc_default(f, per_preset)} | {f['doc'].rstrip('.')} | {_valid(f)} |")
     for name, (set_cls, doc) in CLASSES[cls]["nested"].items():
         rows.append(f"| `{name}` | §11 | {doc.rstrip('.')} ({set_cls}) | §11 |")

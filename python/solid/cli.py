@@ -13,7 +13,7 @@ import json
 import math
 import sys
 import traceback
-from collections.abc import Callable, Sequence as AbcSequence
+from collections.abc import Callable, Sequence as AbcSequence, Set as AbcSet
 from pathlib import Path
 from typing import Any, NoReturn, TextIO
 
@@ -69,41 +69,64 @@ nonneg_int = _number(int, "an integer in 0..2^31-1", lambda v: 0 <= v <= _BIG)
 pos_int = _number(int, "an integer in 1..2^31-1", lambda v: 1 <= v <= _BIG)
 any_float = _number(float, "a finite number", math.isfinite)
 pos_float = _number(float, "a finite number > 0", lambda v: math.isfinite(v) and v > 0)
-nonneg_float = _number(float, "a finite number >= 0", lambda v: math.isfinite(v) and v >= 0)
 unit_float = _number(float, "a number in [0, 1]", lambda v: 0.0 <= v <= 1.0)
 degrees = _number(float, "degrees in (0, 360]", lambda v: 0 < v <= 360)
 
 
-def _descriptor_fields() -> dict[str, type]:
-    from .config import descriptor_fields
+# Older spellings of table flags, still accepted.
+_FLAG_ALIASES = {"exclude_frames": ["--exclude"], "exclude_meters": ["--exclude-m"], "exclude_seconds": ["--exclude-s"]}
 
-    return descriptor_fields()
+
+def _table_type(f: dict[str, Any]) -> Callable[[str], Any]:
+    """The argparse type of a table field: its range checked, a value outside it a usage error."""
+    if f["type"] == "int":
+        lo, hi = f["min"], f["max"]
+        return _number(int, f["expected"], lambda v: lo <= v <= hi)
+    lo, hi, lo_open = f["min"], f["max"], f["min_open"]
+    return _number(float, f["expected"], lambda v: (v > lo if lo_open else v >= lo) and v <= hi)
+
+
+def _default_text(f: dict[str, Any], per_preset: set[str]) -> str:
+    if f["name"] in per_preset:
+        return "the preset's"
+    v = f["default"]
+    if isinstance(v, bool):
+        return "on" if v else "off"
+    return f"{v:g}" if isinstance(v, float) else str(v)
+
+
+def _add_table_args(g: Any, table: str, per_preset: AbcSet[str] = frozenset()) -> None:
+    """One flag per field of a core parameter table (`--name-with-dashes`, dest the field's name),
+    with its doc line, true default and range; switches get `--name` and `--no-name`."""
+    from .config import param_table
+
+    for f in param_table(table):
+        flags = ["--" + f["name"].replace("_", "-"), *_FLAG_ALIASES.get(f["name"], [])]
+        help = f"{f['doc'].rstrip('.')} (default: {_default_text(f, set(per_preset))})"
+        if f["type"] == "bool":
+            g.add_argument(*flags, dest=f["name"], action=argparse.BooleanOptionalAction, default=None, help=help)
+        elif f["type"] == "str":
+            g.add_argument(*flags, dest=f["name"], choices=f["choices"], default=None, help=help)
+        else:
+            metavar = "N" if f["type"] == "int" else "X"
+            g.add_argument(*flags, dest=f["name"], type=_table_type(f), default=None, metavar=metavar, help=help)
 
 
 def _add_config_args(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group(f"descriptor ({_SPEC} §1; flags override --config, which is based on its preset)")
     g.add_argument("--preset", help="sensor preset (see `solid presets`), e.g. hdl64, vlp16, avia")
     g.add_argument("--config", type=Path, metavar="FILE", help="pipeline configuration (JSON from `solid config dump`)")
-    for name, kind in _descriptor_fields().items():
-        g.add_argument(
-            "--" + name.replace("_", "-"),
-            type=pos_int if kind is int else any_float,
-            default=None,
-            metavar="N" if kind is int else "X",
-        )
+    from .config import param_table
+
+    _add_table_args(g, "SolidConfig", {f["name"] for f in param_table("SolidConfig")})  # a preset sets them all
 
 
 def _add_detector_args(p: argparse.ArgumentParser) -> None:
-    g = p.add_argument_group("loop detector (defaults: the preset's, from the core)")
-    g.add_argument("--exclude", type=nonneg_int, metavar="N", help="skip the N most recent frames of the own session (default 50)")
-    g.add_argument("--exclude-m", type=nonneg_float, metavar="M", help="also skip places less than M metres back along the path (needs poses)")
-    g.add_argument("--exclude-s", type=nonneg_float, metavar="S", help="also skip places less than S seconds back (needs timestamps)")
-    g.add_argument("--threshold", type=unit_float, metavar="X", help="accept a loop when its score (cosine distance) is <= X (default: the preset's)")
-    g.add_argument("--top-k", type=pos_int, metavar="K", help="candidates per query (default 10)")
-    g.add_argument("--rerank", action="store_true", help="re-rank candidates by A-SOLiD alignment (off by default)")
-    g.add_argument("--no-verify", action="store_true", help="accept loops by R-SOLiD distance alone, without registering the clouds")
-    g.add_argument("--verify-candidates", type=pos_int, metavar="K", help="candidates registered per scan (default 5)")
-    g.add_argument("--max-loop-distance", type=pos_float, metavar="M", help="largest loop, metres between the places (default: the evaluation radius, 5)")
+    from .config import per_preset_fields
+
+    g = p.add_argument_group(f"loop detector ({_SPEC} §8; every default is the core's)")
+    _add_table_args(g, "DetectorConfig", per_preset_fields())
+    g.add_argument("--max-loop-distance", type=pos_float, metavar="M", help="largest loop, metres between the places: the gate's max_translation (default: the evaluation radius, 5)")
 
 
 def _add_input_args(p: argparse.ArgumentParser, poses_required: bool = False) -> None:
@@ -273,10 +296,10 @@ def build_parser() -> argparse.ArgumentParser:
         "bench",
         help="time reading, describing and searching on your data (prints Hz)",
         formatter_class=fmt,
-        epilog="examples:\n  solid bench ~/kitti/00/velodyne --preset hdl64\n  solid bench scans/ --preset avia --frames 200 --db-size 5000\n",
+        epilog="examples:\n  solid bench ~/kitti/00/velodyne --preset hdl64\n  solid bench scans/ --preset avia --scans 200 --db-size 5000\n",
     )
     p.add_argument("sequence", type=Path)
-    p.add_argument("--frames", dest="n_frames", type=pos_int, default=200, help="scans to load (default 200)")
+    p.add_argument("--scans", dest="n_frames", type=pos_int, default=200, help="scans to load, from the first (default 200)")
     p.add_argument("--db-size", type=pos_int, default=None, help="search a database of this many entries (descriptors repeated)")
     p.add_argument("--threads", type=pos_int, default=None, help="threads for the batch describe (default: every core)")
     p.add_argument("--format", choices=_formats(), help="force the scan reader")

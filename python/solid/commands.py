@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from . import _solid
-from .config import InputOptions, PipelineConfig, descriptor_fields
+from .config import InputOptions, PipelineConfig, descriptor_fields, detector_fields
 from .datasets import Dataset, detect_format, open_dataset, read_points
 from .datasets.selection import iter_selected
 from .evaluation import Evaluation
@@ -111,17 +111,7 @@ def make_config(args: argparse.Namespace, base: Any | None = None) -> Any:
     else:
         raise _solid.ConfigError("give --preset NAME (see `solid presets`) or --config FILE")
     desc = {k: getattr(args, k) for k in descriptor_fields() if getattr(args, k, None) is not None}
-    det: dict[str, Any] = {}
-    for flag, key in (("exclude", "exclude_frames"), ("exclude_m", "exclude_meters"), ("exclude_s", "exclude_seconds"), ("threshold", "threshold"), ("top_k", "top_k")):
-        v = getattr(args, flag, None)
-        if v is not None:
-            det[key] = v
-    if getattr(args, "rerank", False):
-        det["rerank"] = True
-    if getattr(args, "no_verify", False):
-        det["verify"] = False
-    if getattr(args, "verify_candidates", None) is not None:
-        det["verify_candidates"] = args.verify_candidates
+    det: dict[str, Any] = {k: getattr(args, k) for k in detector_fields() if getattr(args, k, None) is not None}
     max_loop = getattr(args, "max_loop_distance", None)
     if max_loop is None and getattr(args, "radius", None) is not None:
         max_loop = args.radius  # a loop joins places within the evaluation radius

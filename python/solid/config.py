@@ -38,7 +38,7 @@ from . import _solid
 from .errors import ConfigFileError
 from .outputs import atomic_write_bytes
 
-__all__ = ["ConfigFileError", "InputOptions", "PipelineConfig", "descriptor_fields", "detector_fields"]
+__all__ = ["ConfigFileError", "InputOptions", "PipelineConfig", "descriptor_fields", "detector_fields", "param_table", "per_preset_fields"]
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -52,6 +52,20 @@ def descriptor_fields() -> dict[str, type]:
 def detector_fields() -> dict[str, type]:
     """The loop-detector parameters and their types, read from the core."""
     return {k: type(v) for k, v in _solid.DetectorConfig().to_dict().items()}
+
+
+def param_table(name: str) -> list[dict[str, Any]]:
+    """The core's table of a parameter set ("SolidConfig", "DetectorConfig", "RegistrationConfig",
+    "AcceptanceGate"): one dict per field with its name, aliases, type, range (``min``, ``max``,
+    ``min_open`` or ``choices``), ``expected`` (the range in words), ``rule``, ``required``,
+    ``default`` and ``doc``. The command-line flags and the stub are made from it."""
+    return _solid._param_table(name)
+
+
+def per_preset_fields() -> set[str]:
+    """The detector parameters whose default depends on the sensor preset (the loop threshold)."""
+    base = _solid.DetectorConfig().to_dict()
+    return {k for p in _solid.presets() for k, v in _solid.DetectorConfig.preset(p).to_dict().items() if v != base[k]}
 
 
 def _is_number(v: Any) -> bool:
