@@ -32,6 +32,8 @@
 #[cfg(feature = "alloc")]
 extern crate alloc;
 
+#[cfg(feature = "alloc")]
+mod checksum;
 mod compare;
 mod config;
 #[cfg(feature = "alloc")]

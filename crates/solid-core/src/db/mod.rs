@@ -44,6 +44,7 @@ pub mod format;
 mod room;
 pub mod wire;
 
+pub use crate::checksum::crc32;
 pub use database::{check_pose, BatchResults, Database, SearchOptions, INDEX_AFTER_PASSES};
 pub use detector::{
     Candidate, Detection, Loop, LoopDetector, Scan, Verification, UNVERIFIED_SCORE,
@@ -53,7 +54,6 @@ pub use detector_config::{
     DetectorConfig, VerifyConfig, DEFAULT_EXCLUDE_FRAMES, DEFAULT_MAX_LOOP_DISTANCE,
     DEFAULT_RERANK, DEFAULT_TOP_K, DEFAULT_VERIFY_CANDIDATES, MAX_TOP_K,
 };
-pub use format::crc32;
 pub use wire::{decode_place, encode_place, Place};
 
 /// Everything that can go wrong in the database, the loop detector and the wire form.

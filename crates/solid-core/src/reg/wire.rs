@@ -34,7 +34,7 @@
 use alloc::vec::Vec;
 
 use super::RegError;
-use crate::db::crc32;
+use crate::checksum::crc32;
 use crate::Error;
 
 const MAGIC: [u8; 2] = *b"SC";
