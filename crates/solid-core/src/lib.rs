@@ -32,6 +32,7 @@
 #[cfg(feature = "alloc")]
 extern crate alloc;
 
+pub mod angle;
 #[cfg(feature = "alloc")]
 mod checksum;
 mod compare;

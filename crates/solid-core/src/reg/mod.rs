@@ -371,7 +371,7 @@ pub struct Registration {
 impl Registration {
     /// The yaw of `pose` in degrees, `(−180, 180]`: the heading of SPEC §3.
     pub fn yaw_degrees(&self) -> f64 {
-        libm::atan2(self.pose[1][0], self.pose[0][0]).to_degrees()
+        crate::angle::yaw_degrees(self.pose[0][0], self.pose[1][0])
     }
 
     /// The translation of `pose` (metres).
