@@ -12,6 +12,7 @@ use alloc::vec;
 use alloc::vec::Vec;
 
 use super::database::check_pose;
+use super::exclusion::visible_own_places;
 use super::{Database, DbError, Method, SearchOptions};
 use crate::compare::aligned_distance;
 use crate::reg::{self, Hypothesis, PreparedCloud, Registration, Rejection};
@@ -482,24 +483,20 @@ impl LoopDetector {
         })
     }
 
-    /// Number of entries the step may search: ids `0..eligible`.
+    /// Number of entries the step may search: ids `0..eligible` (every other session's, and its
+    /// own session's first [`visible_own_places`]).
     fn eligible(&self, s: &Step) -> Result<usize, DbError> {
-        let (n, start) = (self.db.len(), self.session_start);
-        let mut bound = start + (n - start).saturating_sub(self.config.exclude_frames);
-        if self.config.exclude_meters > 0.0 {
-            // Entries added without a pose (before exclusion by metres was set) count as far.
-            let limit = s.travelled - self.config.exclude_meters;
-            let far = self
-                .travelled
-                .partition_point(|&t| t.is_nan() || t <= limit);
-            bound = bound.min(start + far);
-        }
-        if self.config.exclude_seconds > 0.0 {
-            let limit = s.timestamp - self.config.exclude_seconds;
-            let own = &self.db.timestamps()[start..];
-            bound = bound.min(start + own.partition_point(|&t| t <= limit));
-        }
-        Ok(bound)
+        let start = self.session_start;
+        let c = &self.config;
+        Ok(start
+            + visible_own_places(
+                self.db.len() - start,
+                c.exclude_frames,
+                c.exclude_meters,
+                c.exclude_seconds,
+                (&self.travelled, s.travelled),
+                (&self.db.timestamps()[start..], s.timestamp),
+            ))
     }
 
     fn detect_checked(

@@ -40,6 +40,7 @@ pub mod clouds;
 mod database;
 mod detector;
 mod detector_config;
+mod exclusion;
 pub mod format;
 mod room;
 pub mod wire;
@@ -54,6 +55,7 @@ pub use detector_config::{
     DetectorConfig, VerifyConfig, DEFAULT_EXCLUDE_FRAMES, DEFAULT_MAX_LOOP_DISTANCE,
     DEFAULT_RERANK, DEFAULT_TOP_K, DEFAULT_VERIFY_CANDIDATES, MAX_TOP_K,
 };
+pub use exclusion::visible_own_places;
 pub use wire::{decode_place, encode_place, Place};
 
 /// Everything that can go wrong in the database, the loop detector and the wire form.
