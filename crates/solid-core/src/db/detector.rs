@@ -787,36 +787,24 @@ fn verify_pair(
     }))
 }
 
-/// `f` of every job, in order: on up to `threads` scoped threads with `std` (0: one per core),
-/// one after the other without it.
+/// `f` of every job, in order, the first error in job order: shared among the threads of this
+/// process's pool `solid-verify` of `threads` threads (0: one per core; see `crate::pool`) with
+/// `parallel`, one after the other without it.
 fn run_jobs<J: Sync, R: Send>(
     jobs: &[J],
     threads: usize,
     f: impl Fn(&J) -> Result<R, DbError> + Sync,
 ) -> Result<Vec<R>, DbError> {
-    #[cfg(feature = "std")]
-    {
-        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-        let t = if threads == 0 { cores } else { threads }.min(jobs.len());
-        if t > 1 {
-            let chunk = jobs.len().div_ceil(t);
-            let f = &f;
-            let parts: Vec<Result<Vec<R>, DbError>> = std::thread::scope(|scope| {
-                let handles: Vec<_> = jobs
-                    .chunks(chunk)
-                    .map(|part| scope.spawn(move || part.iter().map(f).collect()))
-                    .collect();
-                handles
-                    .into_iter()
-                    // A registration does not panic; should one, the panic goes on in the caller.
-                    .map(|h| h.join().unwrap_or_else(|p| std::panic::resume_unwind(p)))
-                    .collect()
-            });
-            let mut out = Vec::new();
-            for p in parts {
-                out.extend(p?);
-            }
-            return Ok(out);
+    #[cfg(feature = "parallel")]
+    if jobs.len() > 1 {
+        if let Some(pool) = crate::pool::pool_of("solid-verify", threads)
+            .ok()
+            .filter(|p| p.current_num_threads() > 1)
+        {
+            use rayon::prelude::*;
+            let results: Vec<Result<R, DbError>> =
+                pool.install(|| jobs.par_iter().map(&f).collect());
+            return results.into_iter().collect();
         }
     }
     let _ = threads;
