@@ -270,7 +270,7 @@ impl LoopDetector {
         }
         PreparedCloud::new(points, &self.config.verify.registration)
             .map(Some)
-            .map_err(reg_err)
+            .map_err(DbError::from)
     }
 
     /// [`LoopDetector::detect`] for a prepared scan: with verification on, its best candidates
@@ -512,7 +512,7 @@ impl LoopDetector {
             Some(c) if v.enabled => {
                 let bytes =
                     reg::encode_cloud(&c.fine.points, v.registration.voxel_size, v.cloud_bits)
-                        .map_err(reg_err)?;
+                        .map_err(DbError::from)?;
                 (Some(Arc::new(c)), Some(bytes))
             }
             _ => (None, None),
@@ -737,16 +737,6 @@ fn yaw_hypotheses(
         }
     }
     Ok(m)
-}
-
-fn reg_err(e: reg::RegError) -> DbError {
-    match e {
-        reg::RegError::Core(c) => DbError::Core(c),
-        other => DbError::Format {
-            file: None,
-            reason: alloc::format!("{other}"),
-        },
-    }
 }
 
 /// Registers one candidate from its yaw hypotheses and checks the gate; None when the clouds

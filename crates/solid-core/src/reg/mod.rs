@@ -83,8 +83,7 @@ pub mod kdtree;
 mod solve;
 pub mod wire;
 
-use core::fmt;
-
+pub use crate::error::RegError;
 pub use cloud::{Level, PreparedCloud, MIN_NEIGHBORS, PLANE_EPSILON};
 pub use gate::{Gate, Rejection};
 pub use kdtree::{KdTree3, Nearest};
@@ -117,44 +116,6 @@ pub fn yaw_pose(degrees: f64) -> Pose {
         [0.0, 0.0, 0.0, 1.0],
     ]
 }
-
-/// Everything that can go wrong in registration and in the cloud wire form.
-#[non_exhaustive]
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum RegError {
-    /// An error of the core: an invalid parameter (named), a buffer too small, a bad layout.
-    Core(Error),
-    /// The two clouds were prepared with other preparation parameters than the config passed
-    /// to registration (voxel sizes, range or neighbours differ).
-    NotPreparedWith,
-    /// A wire-form cloud that cannot be decoded.
-    Format {
-        /// Why.
-        reason: &'static str,
-    },
-}
-
-impl From<Error> for RegError {
-    fn from(e: Error) -> Self {
-        RegError::Core(e)
-    }
-}
-
-impl fmt::Display for RegError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            RegError::Core(e) => e.fmt(f),
-            RegError::NotPreparedWith => write!(
-                f,
-                "the clouds were prepared with other voxel sizes, range or neighbours than the registration config"
-            ),
-            RegError::Format { reason } => write!(f, "not a valid SOLiD cloud: {reason}"),
-        }
-    }
-}
-
-#[cfg(feature = "std")]
-impl std::error::Error for RegError {}
 
 /// The residual each correspondence contributes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
