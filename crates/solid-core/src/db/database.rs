@@ -1,13 +1,12 @@
 //! [`Database`]: the entries and their exact search.
 //!
-//! Per entry without a pose the database holds 298 bytes (`memory_bytes` counts them; the issue
-//! that set the budget measured 682 before): the R-SOLiD as added (`4·n_range`) and the scale
-//! that normalises it (4), the search sketch (`n_range` bytes and 12), the kd-tree (6), the
+//! Per entry without a pose the database holds the R-SOLiD as added (`4·n_range` bytes) and the
+//! scale that normalises it (4), the search sketch (`n_range` bytes and 12), the kd-tree (6), the
 //! session (4), the timestamp (8) and the A-SOLiD at 8 bits with its scale (`n_azimuth` + 4);
-//! entries added by [`Database::add_batch`] without `index` hold no sketch or kd-tree (240 bytes)
-//! until [`Database::build_index`]. A pose costs 104 bytes for the entries that have one. On
-//! Linux with `std`, columns of 4 MiB and more ask the kernel for transparent huge pages (`madvise`, as numpy does for its large
-//! arrays): faster bulk adds and scans, memory taken in steps of 2 MiB.
+//! entries added by [`Database::add_batch`] without `index` hold no sketch or kd-tree until
+//! [`Database::build_index`]. A pose costs 104 bytes for the entries that have one
+//! (`memory_bytes` counts them all; sizes for the presets: docs/performance.md#database). Large
+//! columns ask for transparent huge pages on Linux (see `room`).
 
 mod fill;
 mod index;
@@ -408,8 +407,8 @@ impl Database {
 
     /// The A-SOLiD of entry `id` as stored: at 8 bits per value, `code × step` with one step
     /// per entry (the largest value / 255), so each value is within half a step (0.2 % of the
-    /// entry's largest value) of the one added. Measured on hku1 (`tests/loop_eval.rs`): headings change by at most
-    /// 0.06° and Recall@1 not at all.
+    /// entry's largest value) of the one added: too little to change a heading or a match
+    /// (docs/performance.md#database).
     ///
     /// # Panics
     /// When `id >= len()`.

@@ -209,10 +209,10 @@ pub(crate) fn scan_threads(rows: usize, k: usize) -> usize {
 /// finished its preferred way.
 ///
 /// This thread scans from the start, while the pool's threads wake (tens of microseconds on an
-/// idle machine: a `rayon::join` from outside the pool put this thread to sleep until two woken
-/// workers had done everything, and woke it again, costing a 100,000-row scan about 40 % more
-/// than the same scan run back to back). When no part is left it waits, spinning, for the parts
-/// the others are still scanning (each a few tens of microseconds), not for a wake-up.
+/// idle machine: a `rayon::join` from outside the pool put this thread to sleep until the woken
+/// workers had done everything, and woke it again: docs/performance.md#brute-force). When no part
+/// is left it waits, spinning, for the parts the others are still scanning (each a few tens of
+/// microseconds), not for a wake-up.
 #[cfg(feature = "parallel")]
 pub(super) fn split_scan<F>(
     lo: usize,

@@ -266,9 +266,8 @@ pub(super) mod avx2 {
     }
 
     /// Groups of four rows ahead of the one being compared that [`prefetch_ahead`] asks the
-    /// cache for: the hardware prefetcher alone left one core reading a 1M-row scan at 12 GB/s
-    /// (160 MB in 13.4 ms); asking 2.5 KB ahead (4 groups of 40-value rows) took it to 10.7 ms
-    /// (2 groups: 11.5, 8: 11.7, 16: 12.1; one thread, same window).
+    /// cache for, ahead of the hardware prefetcher; 4 was the fastest distance tried
+    /// (docs/performance.md#brute-force).
     const PREFETCH_GROUPS: usize = 4;
 
     /// Asks for the cache lines of the group [`PREFETCH_GROUPS`] after `group` (4 rows). A hint
@@ -382,9 +381,7 @@ pub(crate) fn norm_scale(sum: f64) -> f32 {
 /// `Σ x²` of each of `N` vectors of one length, in `f64`, as [`inverse_norm`] sums it: four
 /// partial sums so that the compiler vectorises, the values past the last whole group of four
 /// going first into the first sums. The vectors are interleaved group by group, so that one's
-/// additions need not wait for its previous ones: four rows of 40 values at a time took 8.9 ns a
-/// row where one at a time took 14 (release probe, AMD EPYC, AVX2, the 40 known when compiling;
-/// 10.4 ns when known only at run time), with the same bits.
+/// additions need not wait for its previous ones (faster, the same bits: docs/performance.md#database).
 #[inline(always)]
 pub(crate) fn square_sums<const N: usize>(v: [&[f32]; N]) -> [f64; N] {
     let mut part = [[0.0f64; 4]; N];
@@ -395,8 +392,8 @@ pub(crate) fn square_sums<const N: usize>(v: [&[f32]; N]) -> [f64; N] {
         }
     }
     // Cut to whole groups, and read as arrays of four, so that the compiler sees every group
-    // of every vector in bounds and keeps each vector's sums in one register (with the length
-    // known only at run time, slices of four took 14.7 ns a row, these arrays 10.4).
+    // of every vector in bounds and keeps each vector's sums in one register (slices of four were
+    // slower when the length is known only at run time).
     let v = v.map(|v| &v[..full]);
     for c in (0..full).step_by(4) {
         for (p, v) in part.iter_mut().zip(v) {

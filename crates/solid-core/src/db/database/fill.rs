@@ -57,8 +57,7 @@ impl<'a> ChunkOut<'a> {
     }
 
     /// [`ChunkOut::fill_impl`], compiled a second time for the default dimensions (every
-    /// preset's) as constants, so that the compiler unrolls each row's loops: the stored-only
-    /// add of 10,000 HKU entries took 0.29 ms instead of 0.33 on one thread.
+    /// preset's) as constants, so that the compiler unrolls each row's loops (docs/performance.md#database).
     #[inline(always)]
     fn fill_dims(&mut self, nr: usize, na: usize) -> Result<(), Error> {
         use crate::config::{DEFAULT_N_AZIMUTH, DEFAULT_N_RANGE};
@@ -72,9 +71,8 @@ impl<'a> ChunkOut<'a> {
     /// Rows at a time: first what each row needs (its sum of squares, its A-SOLiD's step), then
     /// the scales and codes from those, so that one row's chain of dependent operations (sums,
     /// maxima, a square root, divisions) overlaps the next rows' instead of holding up its own
-    /// codes. With [`a_top`]'s one maximum of bits for three checks, the stored-only add of 10,000
-    /// HKU entries took 0.29 ms instead of 0.43 on one thread, 0.18 instead of 0.25 on two
-    /// (release probe, AMD EPYC), with the same bits.
+    /// codes, [`a_top`] finding the largest value and checking the row in one maximum of bits:
+    /// faster, with the same bits (docs/performance.md#database).
     #[inline(always)]
     fn fill_impl(&mut self, nr: usize, na: usize) -> Result<(), Error> {
         const ROWS: usize = 64;

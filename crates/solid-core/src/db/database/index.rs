@@ -17,11 +17,8 @@ use alloc::vec::Vec;
 /// the rows the build would index ([`Database::index_due`]): about what a build costs in passes of
 /// brute force over the same rows. So a few searches never pay for an index, many pay for it
 /// once, and no number of searches costs more than about twice the cheaper of the two (the
-/// renter's rule: rent until the rent paid would have bought it). Measured (release probe,
-/// `build_index` from nothing ÷ the median `search_with` by brute force over every entry, 15
-/// queries back to back, HKU copies and near-duplicates, 2-core AMD EPYC): 30–32 at 10,000
-/// entries, 72–84 at 100,000 (rows that stay in the cache between the searches), 27–44 at
-/// 1,000,000.
+/// renter's rule: rent until the rent paid would have bought it). The ratio measured between the
+/// two: docs/performance.md#database.
 pub const INDEX_AFTER_PASSES: usize = 40;
 
 impl Database {

@@ -143,8 +143,8 @@ pub(super) fn encode_block_avx2(
 /// Encodes the rows of the block starting at row `start` (those from `from` on): first the
 /// range of every row, then their codes, then their error bounds, so that one row's chain of
 /// dependent minima, maxima, divisions and square root overlaps the next rows' instead of
-/// holding up its own codes. With [`row_range`]'s loop, `sketch_encode` of 10,000 HKU rows on
-/// one thread took 0.35 ms instead of 0.61 (release probe, AMD EPYC), with the same bits.
+/// holding up its own codes (with [`row_range`]'s loop: faster, the same bits; see
+/// docs/performance.md#sketch).
 #[inline(always)]
 pub(super) fn encode_block(
     rows: Rows<'_>,
@@ -187,7 +187,7 @@ pub(super) fn row_range(rows: Rows<'_>, i: usize) -> (f32, f32) {
     let eights = raw.chunks_exact(8);
     // Plain comparisons, which compile to single min/max instructions, in a loop over the lanes:
     // a closure given each lane's index made the compiler blend the comparisons through packed
-    // masks instead (0.55 ms for the 10,000 rows above instead of 0.35).
+    // masks instead, which was slower.
     #[inline(always)]
     pub(super) fn take(lo: &mut [f32; 8], hi: &mut [f32; 8], values: &[f32], scale: f32) {
         for ((lo, hi), &v) in lo.iter_mut().zip(hi.iter_mut()).zip(values) {
