@@ -1,5 +1,6 @@
 //! Comparing descriptors ([spec §3](crate::spec#3-comparing-descriptors)): cosine distance of R-SOLiDs and heading from A-SOLiDs.
 
+use crate::angle::wrap180;
 use crate::math::sqrt;
 use crate::Error;
 
@@ -92,16 +93,6 @@ pub fn aligned_distance(q: &[f32], c: &[f32]) -> Result<f64, Error> {
     Ok((1.0 - best / sqrt(nq * nc)).clamp(0.0, 1.0))
 }
 
-fn wrap_degrees(mut d: f64) -> f64 {
-    while d > 180.0 {
-        d -= 360.0;
-    }
-    while d <= -180.0 {
-        d += 360.0;
-    }
-    d
-}
-
 fn best_shift(q: &[f32], c: &[f32]) -> (usize, f64) {
     let mut best = (0, shift_cost(q, c, 0));
     for s in 1..q.len() {
@@ -123,7 +114,7 @@ pub fn heading(a_query: &[f32], a_candidate: &[f32]) -> Result<Heading, Error> {
     let (s, _) = best_shift(a_query, a_candidate);
     Ok(Heading {
         shift: s,
-        degrees: wrap_degrees(s as f64 * 360.0 / a_query.len() as f64),
+        degrees: wrap180(s as f64 * 360.0 / a_query.len() as f64),
     })
 }
 
@@ -152,7 +143,7 @@ fn refined(s: usize, n: usize, [cm, c0, cp]: [f64; 3]) -> Heading {
     };
     Heading {
         shift: s,
-        degrees: wrap_degrees((s as f64 + delta) * 360.0 / n as f64),
+        degrees: wrap180((s as f64 + delta) * 360.0 / n as f64),
     }
 }
 

@@ -1,6 +1,22 @@
-//! The one error type of the crate.
+//! The errors of the crate, one enum per layer, each wrapping the one below (through `From`):
+//!
+//! ```text
+//! DbError    the database, the loop detector, files and the wire form    (feature `alloc`)
+//!   ├─ Core(Error)                   From<Error>
+//!   └─ RegError, as Core or Format   From<RegError>  (a verification's registration)
+//! RegError   registration and the compact cloud                         (feature `alloc`)
+//!   └─ Core(Error)                   From<Error>
+//! Error      the descriptor, comparison, search, configuration: no allocation, `Copy`
+//! LzfError   the LZF decoder (PCD files): a codec of its own, `Copy`
+//! ```
+//!
+//! A function returns the enum of its layer; `?` lifts an error of a layer below. Every
+//! variant's message names what was wrong, so that the bindings can pass it on unchanged.
 
 use core::fmt;
+
+#[cfg(feature = "alloc")]
+use alloc::string::String;
 
 /// Everything that can go wrong in `solid-lidar`.
 ///
@@ -108,3 +124,187 @@ impl fmt::Display for Error {
 
 #[cfg(feature = "std")]
 impl std::error::Error for Error {}
+
+#[cfg(feature = "alloc")]
+/// Everything that can go wrong in registration and in the cloud wire form.
+#[non_exhaustive]
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum RegError {
+    /// An error of the core: an invalid parameter (named), a buffer too small, a bad layout.
+    Core(Error),
+    /// The two clouds were prepared with other preparation parameters than the config passed
+    /// to registration (voxel sizes, range or neighbours differ).
+    NotPreparedWith,
+    /// A wire-form cloud that cannot be decoded.
+    Format {
+        /// Why.
+        reason: &'static str,
+    },
+}
+
+#[cfg(feature = "alloc")]
+impl From<Error> for RegError {
+    fn from(e: Error) -> Self {
+        RegError::Core(e)
+    }
+}
+
+#[cfg(feature = "alloc")]
+impl fmt::Display for RegError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            RegError::Core(e) => e.fmt(f),
+            RegError::NotPreparedWith => write!(
+                f,
+                "the clouds were prepared with other voxel sizes, range or neighbours than the registration config"
+            ),
+            RegError::Format { reason } => write!(f, "not a valid SOLiD cloud: {reason}"),
+        }
+    }
+}
+
+#[cfg(feature = "std")]
+impl std::error::Error for RegError {}
+
+#[cfg(feature = "alloc")]
+/// Everything that can go wrong in the database, the loop detector and the wire form.
+#[non_exhaustive]
+#[derive(Debug)]
+pub enum DbError {
+    /// An error of the core (a bad vector length, a non-finite value, an invalid config, ...).
+    Core(Error),
+    /// A descriptor, database or place made with another configuration.
+    ConfigMismatch {
+        /// Fingerprint of this database's config.
+        expected: u64,
+        /// Fingerprint of what was offered.
+        got: u64,
+    },
+    /// Bytes that are not a valid database or place: foreign, truncated, corrupted or newer.
+    Format {
+        /// The file, when the bytes came from one.
+        file: Option<String>,
+        /// What is wrong, in words.
+        reason: String,
+    },
+    /// The file could not be read or written.
+    #[cfg(feature = "std")]
+    Io {
+        /// The file.
+        file: String,
+        /// The operating system's error.
+        source: std::io::Error,
+    },
+    /// More than `u32::MAX` entries (or sessions).
+    Full,
+    /// Memory for the operation could not be allocated (nothing was changed).
+    OutOfMemory,
+}
+
+#[cfg(feature = "alloc")]
+impl From<Error> for DbError {
+    fn from(e: Error) -> Self {
+        DbError::Core(e)
+    }
+}
+
+#[cfg(feature = "alloc")]
+impl fmt::Display for DbError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            DbError::Core(e) => e.fmt(f),
+            DbError::ConfigMismatch { expected, got } => write!(
+                f,
+                "config mismatch: the database uses config fingerprint {expected:#018x}, \
+                 this one has {got:#018x} (descriptors from different configs are not comparable)"
+            ),
+            DbError::Format {
+                file: Some(file),
+                reason,
+            } => write!(f, "cannot load {file}: {reason}"),
+            DbError::Format { file: None, reason } => write!(f, "invalid data: {reason}"),
+            #[cfg(feature = "std")]
+            DbError::Io { file, source } => write!(f, "{file}: {source}"),
+            DbError::Full => write!(f, "database full: at most 2^32 - 1 entries"),
+            DbError::OutOfMemory => write!(f, "out of memory"),
+        }
+    }
+}
+
+#[cfg(feature = "std")]
+impl std::error::Error for DbError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            DbError::Core(e) => Some(e),
+            DbError::Io { source, .. } => Some(source),
+            _ => None,
+        }
+    }
+}
+
+#[cfg(feature = "alloc")]
+impl From<RegError> for DbError {
+    /// An error of the core stays one; a cloud that cannot be decoded is invalid data.
+    fn from(e: RegError) -> Self {
+        match e {
+            RegError::Core(c) => DbError::Core(c),
+            other => DbError::Format {
+                file: None,
+                reason: alloc::format!("{other}"),
+            },
+        }
+    }
+}
+
+/// Everything that can go wrong while decoding an LZF stream.
+#[non_exhaustive]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LzfError {
+    /// The stream decodes to more bytes than the output holds (at least `needed`).
+    OutputTooSmall {
+        /// Output bytes the stream needs at least (what was written plus the token that overflowed).
+        needed: usize,
+        /// Length of the output slice.
+        capacity: usize,
+    },
+    /// A token runs past the end of the input.
+    Truncated {
+        /// Input offset of the token's control byte.
+        offset: usize,
+    },
+    /// A back-reference points before the start of the output.
+    BadReference {
+        /// Input offset of the token's control byte.
+        offset: usize,
+        /// How far back the reference points, in bytes.
+        distance: usize,
+        /// Bytes written so far (the reference must not reach further back than this).
+        written: usize,
+    },
+}
+
+impl fmt::Display for LzfError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            LzfError::OutputTooSmall { needed, capacity } => write!(
+                f,
+                "LZF data expands beyond the declared {capacity} B (at least {needed} B)"
+            ),
+            LzfError::Truncated { offset } => write!(
+                f,
+                "LZF stream is truncated: the token at input byte {offset} runs past the end of the data"
+            ),
+            LzfError::BadReference {
+                offset,
+                distance,
+                written,
+            } => write!(
+                f,
+                "LZF back-reference before the start of the output (input byte {offset}: {distance} B back after {written} B)"
+            ),
+        }
+    }
+}
+
+#[cfg(feature = "std")]
+impl std::error::Error for LzfError {}

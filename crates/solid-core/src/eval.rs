@@ -45,6 +45,9 @@ use alloc::vec::Vec;
 
 use crate::Error;
 
+pub use crate::angle::wrap180;
+use crate::angle::yaw_degrees;
+
 /// Padding of [`Queries::ids`] where a query has fewer than `k` candidates.
 pub const NO_CANDIDATE: u32 = u32::MAX;
 
@@ -255,17 +258,7 @@ pub fn true_heading(query: &[f64; 12], candidate: &[f64; 12]) -> f64 {
             .map(|k| query[4 * k + r] * candidate[4 * k + s])
             .sum()
     };
-    wrap180(libm::atan2(m(1, 0), m(0, 0)).to_degrees())
-}
-
-/// `d` wrapped into `(−180, 180]`.
-pub fn wrap180(d: f64) -> f64 {
-    let w = d - 360.0 * libm::floor((d + 180.0) / 360.0);
-    if w <= -180.0 {
-        w + 360.0
-    } else {
-        w
-    }
+    yaw_degrees(m(0, 0), m(1, 0))
 }
 
 impl Evaluation {

@@ -32,6 +32,9 @@
 #[cfg(feature = "alloc")]
 extern crate alloc;
 
+pub mod angle;
+#[cfg(feature = "alloc")]
+mod checksum;
 mod compare;
 mod config;
 #[cfg(feature = "alloc")]

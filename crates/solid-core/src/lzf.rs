@@ -19,60 +19,7 @@
 //! assert!(matches!(decompress_into(&stream, &mut small), Err(LzfError::OutputTooSmall { .. })));
 //! ```
 
-use core::fmt;
-
-/// Everything that can go wrong while decoding an LZF stream.
-#[non_exhaustive]
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum LzfError {
-    /// The stream decodes to more bytes than the output holds (at least `needed`).
-    OutputTooSmall {
-        /// Output bytes the stream needs at least (what was written plus the token that overflowed).
-        needed: usize,
-        /// Length of the output slice.
-        capacity: usize,
-    },
-    /// A token runs past the end of the input.
-    Truncated {
-        /// Input offset of the token's control byte.
-        offset: usize,
-    },
-    /// A back-reference points before the start of the output.
-    BadReference {
-        /// Input offset of the token's control byte.
-        offset: usize,
-        /// How far back the reference points, in bytes.
-        distance: usize,
-        /// Bytes written so far (the reference must not reach further back than this).
-        written: usize,
-    },
-}
-
-impl fmt::Display for LzfError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match *self {
-            LzfError::OutputTooSmall { needed, capacity } => write!(
-                f,
-                "LZF data expands beyond the declared {capacity} B (at least {needed} B)"
-            ),
-            LzfError::Truncated { offset } => write!(
-                f,
-                "LZF stream is truncated: the token at input byte {offset} runs past the end of the data"
-            ),
-            LzfError::BadReference {
-                offset,
-                distance,
-                written,
-            } => write!(
-                f,
-                "LZF back-reference before the start of the output (input byte {offset}: {distance} B back after {written} B)"
-            ),
-        }
-    }
-}
-
-#[cfg(feature = "std")]
-impl std::error::Error for LzfError {}
+pub use crate::error::LzfError;
 
 /// The most bytes any LZF stream of `input_len` bytes can decode to (88 per input byte: a
 /// 3-byte token copies at most 264 bytes), saturating at `usize::MAX`.

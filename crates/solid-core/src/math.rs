@@ -179,11 +179,10 @@ pub(crate) fn floor_i64(v: f64) -> i64 {
 }
 
 /// `y as u8` (toward zero, saturating into 0..=255, NaN to 0) in operations that vectorise:
-/// the cast itself compiles to a conversion with a scalar fix-up per value (perf: 41 % of the
-/// bulk add's quantisation loop). Clamped first (a NaN compares false), then converted toward
-/// zero without the fix-up, which a value in 0..=255 never needs: 0.71 → 0.57 ms for the
-/// stored-only add of 10,000 rows on one thread (release probe). For a caller that needs the
-/// code as an `f32` as well, [`floor_to_u8`] compiles better.
+/// the cast itself compiles to a conversion with a scalar fix-up per value, a large part of the
+/// bulk add's quantisation loop (docs/performance.md#database). Clamped first (a NaN compares
+/// false), then converted toward zero without the fix-up, which a value in 0..=255 never needs.
+/// For a caller that needs the code as an `f32` as well, [`floor_to_u8`] compiles better.
 #[cfg(any(feature = "alloc", test))]
 #[inline(always)]
 pub(crate) fn to_u8(y: f32) -> u8 {
@@ -198,8 +197,8 @@ pub(crate) fn to_u8(y: f32) -> u8 {
 /// [`to_u8`] in float operations: clamped, then floored by rounding to an integer with 2²³
 /// (exact below 2²³) and stepping back when that rounded up; the integer is then the low byte
 /// of `f + 2²³`'s bits. Where the code is needed as an `f32` too (the sketch's error), the
-/// compiler kept this in eight lanes (75 ns a sketch row, before the sketch's ranges were found
-/// first), while [`to_u8`] there assembled the bytes one by one (84 ns).
+/// compiler kept this in eight lanes, while [`to_u8`] there assembled the bytes one by one
+/// (docs/performance.md#sketch).
 #[inline(always)]
 pub(crate) fn floor_to_u8(y: f32) -> u8 {
     const MAGIC: f32 = 8_388_608.0;

@@ -6,16 +6,15 @@
 //! search over 100,000 rows in a `multiprocessing` worker never returned). A forked child forgets
 //! the pools of its parent (a `pthread_atfork` handler, and each pool records the process that
 //! started it) and starts its own. The pools are found without a lock: a child forked while
-//! another thread of its parent held one would wait on it forever (with a mutex around the pools,
-//! 6 of 200 children forked while another thread searched never returned from their first
-//! search). Work that is already running on a worker of some rayon pool (a batch's query, or a
-//! caller's own pool) stays in that pool, and no work ever goes to rayon's global pool: without a
-//! pool of its own, work runs on the calling thread.
+//! another thread of its parent held one would wait on it forever (it happened with a mutex
+//! around the pools: docs/performance.md#thread-pools). Work that is already running on a worker
+//! of some rayon pool (a batch's query, or a caller's own pool) stays in that pool, and no work
+//! ever goes to rayon's global pool: without a pool of its own, work runs on the calling thread.
 //!
 //! Two pools for the crate's own work: one for batches and index builds, one for the helpers of
-//! single searches, so that a search never waits behind a batch that another thread runs (sharing
-//! one pool, a brute-force search over 1M rows took up to 546 ms while a batch ran, against 4–8 ms
-//! otherwise). The Python bindings keep their `describe_batch` workers here too ([`pool_of`]).
+//! single searches, so that a search never waits behind a batch that another thread runs
+//! (docs/performance.md#thread-pools). The Python bindings keep their `describe_batch` workers
+//! here too ([`pool_of`]).
 
 use core::ptr;
 use core::sync::atomic::{AtomicPtr, Ordering};

@@ -1,7 +1,7 @@
 //! The compact point clouds places keep for verification (feature `alloc`).
 //!
 //! Each place may carry its downsampled cloud in the quantised wire form of
-//! [`crate::reg::wire`] (about 4 bytes a point: 5 kB for a Livox Avia keyframe at 0.5 m voxels),
+//! [`crate::reg::wire`] (a few bytes a point: docs/performance.md#cloud-wire-form),
 //! stored back to back in one buffer. Only the entries up to the last one with a cloud have an
 //! offset: a database without clouds pays nothing per entry, nor do entries added after the last
 //! cloud (bulk adds of descriptors alone).

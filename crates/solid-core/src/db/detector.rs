@@ -12,13 +12,18 @@ use alloc::vec;
 use alloc::vec::Vec;
 
 use super::database::check_pose;
+use super::exclusion::visible_own_places;
 use super::{Database, DbError, Method, SearchOptions};
 use crate::compare::aligned_distance;
-use crate::reg::{self, Hypothesis, PreparedCloud, Registration, Rejection};
+use crate::reg::{self, PreparedCloud, Registration, Rejection};
 use crate::{heading_refined, Config, Descriptor, Error};
 use crate::{Coord, Points};
 
 use super::detector_config::*;
+
+mod verify;
+
+pub use verify::{UNVERIFIED_SCORE, VERIFIED_THRESHOLD};
 
 /// One candidate of a detector step, in the detector's ranking order.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -269,7 +274,7 @@ impl LoopDetector {
         }
         PreparedCloud::new(points, &self.config.verify.registration)
             .map(Some)
-            .map_err(reg_err)
+            .map_err(DbError::from)
     }
 
     /// [`LoopDetector::detect`] for a prepared scan: with verification on, its best candidates
@@ -482,24 +487,20 @@ impl LoopDetector {
         })
     }
 
-    /// Number of entries the step may search: ids `0..eligible`.
+    /// Number of entries the step may search: ids `0..eligible` (every other session's, and its
+    /// own session's first [`visible_own_places`]).
     fn eligible(&self, s: &Step) -> Result<usize, DbError> {
-        let (n, start) = (self.db.len(), self.session_start);
-        let mut bound = start + (n - start).saturating_sub(self.config.exclude_frames);
-        if self.config.exclude_meters > 0.0 {
-            // Entries added without a pose (before exclusion by metres was set) count as far.
-            let limit = s.travelled - self.config.exclude_meters;
-            let far = self
-                .travelled
-                .partition_point(|&t| t.is_nan() || t <= limit);
-            bound = bound.min(start + far);
-        }
-        if self.config.exclude_seconds > 0.0 {
-            let limit = s.timestamp - self.config.exclude_seconds;
-            let own = &self.db.timestamps()[start..];
-            bound = bound.min(start + own.partition_point(|&t| t <= limit));
-        }
-        Ok(bound)
+        let start = self.session_start;
+        let c = &self.config;
+        Ok(start
+            + visible_own_places(
+                self.db.len() - start,
+                c.exclude_frames,
+                c.exclude_meters,
+                c.exclude_seconds,
+                (&self.travelled, s.travelled),
+                (&self.db.timestamps()[start..], s.timestamp),
+            ))
     }
 
     fn detect_checked(
@@ -515,7 +516,7 @@ impl LoopDetector {
             Some(c) if v.enabled => {
                 let bytes =
                     reg::encode_cloud(&c.fine.points, v.registration.voxel_size, v.cloud_bits)
-                        .map_err(reg_err)?;
+                        .map_err(DbError::from)?;
                 (Some(Arc::new(c)), Some(bytes))
             }
             _ => (None, None),
@@ -542,82 +543,6 @@ impl LoopDetector {
             accepted: self.accept(&candidates, id),
             candidates,
         })
-    }
-
-    /// Registers the query's cloud with its best candidates' and scores every candidate (see
-    /// [`VerifyConfig`]); candidates end sorted by score.
-    fn verify_candidates(
-        &mut self,
-        a_query: &[f32],
-        query: Option<&PreparedCloud>,
-        cands: &mut [Candidate],
-    ) -> Result<(), DbError> {
-        let v = self.config.verify;
-        for c in cands.iter_mut() {
-            c.score = UNVERIFIED_SCORE + c.distance / 2.0;
-        }
-        if let Some(q) = query {
-            // The clouds first (the cache needs `&mut self`), then the registrations, which are
-            // independent of each other: in parallel where threads exist.
-            let mut jobs: Vec<(usize, Arc<PreparedCloud>)> = Vec::new();
-            for (i, c) in cands.iter().enumerate().take(v.candidates) {
-                if let Some(cp) = self.prepared_cloud(c.id) {
-                    jobs.push((i, cp));
-                }
-            }
-            let db = &self.db;
-            let verify_one = |&(i, ref cp): &(usize, Arc<PreparedCloud>)| {
-                verify_pair(&v, a_query, &db.a(cands[i].id), q, cp)
-            };
-            let results: Vec<Option<Verification>> = run_jobs(&jobs, v.threads, verify_one)?;
-            for ((i, _), r) in jobs.iter().zip(results) {
-                let c = &mut cands[*i];
-                c.verification = r;
-                if let Some(r) = r.filter(|r| r.accepted) {
-                    c.score = 1.0 - r.registration.fitness;
-                    c.heading_deg = r.registration.yaw_degrees();
-                }
-            }
-        }
-        cands.sort_by(|x, y| x.score.total_cmp(&y.score));
-        Ok(())
-    }
-
-    /// The prepared cloud of place `id`: from the cache, or prepared from its stored compact
-    /// cloud (then cached). None when the place has no usable cloud.
-    fn prepared_cloud(&mut self, id: u32) -> Option<Arc<PreparedCloud>> {
-        self.clock += 1;
-        if let Some((stamp, c)) = self.prepared.get_mut(&id) {
-            *stamp = self.clock;
-            return Some(Arc::clone(c));
-        }
-        let points = reg::decode_cloud(self.db.cloud(id)?).ok()?;
-        let c = Arc::new(
-            PreparedCloud::from_downsampled(&points, &self.config.verify.registration).ok()?,
-        );
-        self.remember(id, Arc::clone(&c));
-        Some(c)
-    }
-
-    /// Caches a prepared cloud, evicting the least recently used ones beyond the budget.
-    fn remember(&mut self, id: u32, c: Arc<PreparedCloud>) {
-        self.clock += 1;
-        self.prepared_bytes += c.heap_bytes();
-        if let Some((_, old)) = self.prepared.insert(id, (self.clock, c)) {
-            self.prepared_bytes -= old.heap_bytes();
-        }
-        while self.prepared_bytes > self.config.verify.cache_bytes && self.prepared.len() > 1 {
-            let oldest = self
-                .prepared
-                .iter()
-                .filter(|(&k, _)| k != id)
-                .min_by_key(|(_, (stamp, _))| *stamp)
-                .map(|(&k, _)| k);
-            let Some(k) = oldest else { break };
-            if let Some((_, old)) = self.prepared.remove(&k) {
-                self.prepared_bytes -= old.heap_bytes();
-            }
-        }
     }
 
     fn accept(&self, cands: &[Candidate], query: u32) -> Option<Loop> {
@@ -705,123 +630,4 @@ fn backwards_time(t: f64, _prev: f64) -> DbError {
         expected: "timestamps that do not decrease within a session (exclude_seconds is set)",
     }
     .into()
-}
-
-/// Score of a candidate that was not verified or failed the gate: above every verified score.
-pub const UNVERIFIED_SCORE: f64 = 1.5;
-
-/// With verification, the scores of candidates that passed the gate lie in `[0, 1]`: accepting
-/// the scores up to this threshold accepts exactly the verified loops.
-pub const VERIFIED_THRESHOLD: f64 = 1.0;
-
-/// The initial yaws for registering a candidate (degrees, at most `max` and 16): 0°, the A-SOLiD
-/// minima ([`reg::hypothesis_yaws`]), then `±fan_deg`, skipping any within one azimuth bin of a
-/// yaw already chosen.
-fn yaw_hypotheses(
-    a_query: &[f32],
-    a_candidate: &[f32],
-    max: usize,
-    fan_deg: f64,
-    out: &mut [f64; 16],
-) -> Result<usize, DbError> {
-    let max = max.min(out.len());
-    let mut m = reg::hypothesis_yaws(a_query, a_candidate, &mut out[..max])?;
-    let bin = 360.0 / a_query.len() as f64;
-    if fan_deg > 0.0 {
-        for y in [fan_deg, -fan_deg] {
-            let near = out[..m].iter().any(|&x| {
-                let d = libm::fabs(x - y) % 360.0;
-                d.min(360.0 - d) < bin
-            });
-            if m < max && !near {
-                out[m] = y;
-                m += 1;
-            }
-        }
-    }
-    Ok(m)
-}
-
-fn reg_err(e: reg::RegError) -> DbError {
-    match e {
-        reg::RegError::Core(c) => DbError::Core(c),
-        other => DbError::Format {
-            file: None,
-            reason: alloc::format!("{other}"),
-        },
-    }
-}
-
-/// Registers one candidate from its yaw hypotheses and checks the gate; None when the clouds
-/// cannot be registered (for example, one of them is empty).
-fn verify_pair(
-    v: &VerifyConfig,
-    a_query: &[f32],
-    a_candidate: &[f32],
-    query: &PreparedCloud,
-    candidate: &PreparedCloud,
-) -> Result<Option<Verification>, DbError> {
-    let mut yaws = [0.0f64; 16];
-    let m = yaw_hypotheses(a_query, a_candidate, v.hypotheses, v.fan_deg, &mut yaws)?;
-    let mut hyps = [Hypothesis::default(); 16];
-    let Ok(h) = reg::register_hypotheses(
-        query,
-        candidate,
-        &yaws[..m],
-        &reg::IDENTITY,
-        &v.registration,
-        &mut hyps[..m],
-    ) else {
-        return Ok(None);
-    };
-    let tried = &hyps[..h.count];
-    let check = v.gate.check(&h.registration, tried, h.best);
-    Ok(Some(Verification {
-        registration: h.registration,
-        accepted: check.is_ok(),
-        rejection: check.err(),
-        hypotheses: h.count,
-        agreement: reg::agreement(
-            tried,
-            h.best,
-            v.gate.agree_translation,
-            v.gate.agree_rotation_deg,
-        ),
-    }))
-}
-
-/// `f` of every job, in order: on up to `threads` scoped threads with `std` (0: one per core),
-/// one after the other without it.
-fn run_jobs<J: Sync, R: Send>(
-    jobs: &[J],
-    threads: usize,
-    f: impl Fn(&J) -> Result<R, DbError> + Sync,
-) -> Result<Vec<R>, DbError> {
-    #[cfg(feature = "std")]
-    {
-        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-        let t = if threads == 0 { cores } else { threads }.min(jobs.len());
-        if t > 1 {
-            let chunk = jobs.len().div_ceil(t);
-            let f = &f;
-            let parts: Vec<Result<Vec<R>, DbError>> = std::thread::scope(|scope| {
-                let handles: Vec<_> = jobs
-                    .chunks(chunk)
-                    .map(|part| scope.spawn(move || part.iter().map(f).collect()))
-                    .collect();
-                handles
-                    .into_iter()
-                    // A registration does not panic; should one, the panic goes on in the caller.
-                    .map(|h| h.join().unwrap_or_else(|p| std::panic::resume_unwind(p)))
-                    .collect()
-            });
-            let mut out = Vec::new();
-            for p in parts {
-                out.extend(p?);
-            }
-            return Ok(out);
-        }
-    }
-    let _ = threads;
-    jobs.iter().map(f).collect()
 }

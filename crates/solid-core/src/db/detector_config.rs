@@ -59,7 +59,8 @@ pub struct VerifyConfig {
     /// from the stored compact cloud when needed.
     pub cache_bytes: usize,
     /// Threads that register a step's candidates at once (0: one per core; 1: the calling
-    /// thread). Needs the `std` feature; without it, candidates are registered one by one.
+    /// thread). Needs the `parallel` feature (a default); without it, candidates are registered one
+    /// by one.
     pub threads: usize,
     /// The registration parameters (the stored clouds use its `voxel_size`).
     pub registration: RegConfig,
@@ -69,8 +70,8 @@ pub struct VerifyConfig {
 }
 
 /// Default [`Gate::max_translation`] of a detector: a loop joins places at most this many metres
-/// apart (the default radius of SPEC §5).
-pub const DEFAULT_MAX_LOOP_DISTANCE: f64 = crate::eval::DEFAULT_RADIUS;
+/// apart. A detector parameter of its own, not the evaluation radius (which happens to be 5 m too).
+pub const DEFAULT_MAX_LOOP_DISTANCE: f64 = 5.0;
 
 impl Default for VerifyConfig {
     fn default() -> Self {

@@ -32,6 +32,8 @@ use super::clouds::Clouds;
 use super::{Database, DbError};
 use crate::Config;
 
+pub use crate::checksum::crc32;
+
 impl Database {
     /// Serialises the database in the file format above (allocates [`Database::encoded_len`]
     /// bytes; [`Database::encode_into`] writes into a buffer of the caller's).
@@ -609,33 +611,4 @@ impl Reader<'_> {
     pub(super) fn f64(&mut self) -> f64 {
         f64::from_le_bytes(self.take())
     }
-}
-
-const CRC_TABLE: [u32; 256] = {
-    let mut t = [0u32; 256];
-    let mut i = 0;
-    while i < 256 {
-        let mut c = i as u32;
-        let mut k = 0;
-        while k < 8 {
-            c = if c & 1 != 0 {
-                0xEDB8_8320 ^ (c >> 1)
-            } else {
-                c >> 1
-            };
-            k += 1;
-        }
-        t[i] = c;
-        i += 1;
-    }
-    t
-};
-
-/// CRC-32 (IEEE 802.3, the one of zlib and PNG) of `bytes`.
-pub fn crc32(bytes: &[u8]) -> u32 {
-    let mut c = !0u32;
-    for &b in bytes {
-        c = CRC_TABLE[((c ^ b as u32) & 0xff) as usize] ^ (c >> 8);
-    }
-    !c
 }

@@ -31,19 +31,19 @@
 //! The code is split by what it owns: [`Database`] (storage and search), [`mod@format`] (the file
 //! format), [`LoopDetector`] (online loop closure) and [`wire`] (one place on the wire).
 
-use alloc::string::String;
-use core::fmt;
-
 use crate::Error;
 
 pub mod clouds;
 mod database;
 mod detector;
 mod detector_config;
+mod exclusion;
 pub mod format;
 mod room;
 pub mod wire;
 
+pub use crate::checksum::crc32;
+pub use crate::error::DbError;
 pub use database::{check_pose, BatchResults, Database, SearchOptions, INDEX_AFTER_PASSES};
 pub use detector::{
     Candidate, Detection, Loop, LoopDetector, Scan, Verification, UNVERIFIED_SCORE,
@@ -53,81 +53,8 @@ pub use detector_config::{
     DetectorConfig, VerifyConfig, DEFAULT_EXCLUDE_FRAMES, DEFAULT_MAX_LOOP_DISTANCE,
     DEFAULT_RERANK, DEFAULT_TOP_K, DEFAULT_VERIFY_CANDIDATES, MAX_TOP_K,
 };
-pub use format::crc32;
+pub use exclusion::visible_own_places;
 pub use wire::{decode_place, encode_place, Place};
-
-/// Everything that can go wrong in the database, the loop detector and the wire form.
-#[non_exhaustive]
-#[derive(Debug)]
-pub enum DbError {
-    /// An error of the core (a bad vector length, a non-finite value, an invalid config, ...).
-    Core(Error),
-    /// A descriptor, database or place made with another configuration.
-    ConfigMismatch {
-        /// Fingerprint of this database's config.
-        expected: u64,
-        /// Fingerprint of what was offered.
-        got: u64,
-    },
-    /// Bytes that are not a valid database or place: foreign, truncated, corrupted or newer.
-    Format {
-        /// The file, when the bytes came from one.
-        file: Option<String>,
-        /// What is wrong, in words.
-        reason: String,
-    },
-    /// The file could not be read or written.
-    #[cfg(feature = "std")]
-    Io {
-        /// The file.
-        file: String,
-        /// The operating system's error.
-        source: std::io::Error,
-    },
-    /// More than `u32::MAX` entries (or sessions).
-    Full,
-    /// Memory for the operation could not be allocated (nothing was changed).
-    OutOfMemory,
-}
-
-impl From<Error> for DbError {
-    fn from(e: Error) -> Self {
-        DbError::Core(e)
-    }
-}
-
-impl fmt::Display for DbError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            DbError::Core(e) => e.fmt(f),
-            DbError::ConfigMismatch { expected, got } => write!(
-                f,
-                "config mismatch: the database uses config fingerprint {expected:#018x}, \
-                 this one has {got:#018x} (descriptors from different configs are not comparable)"
-            ),
-            DbError::Format {
-                file: Some(file),
-                reason,
-            } => write!(f, "cannot load {file}: {reason}"),
-            DbError::Format { file: None, reason } => write!(f, "invalid data: {reason}"),
-            #[cfg(feature = "std")]
-            DbError::Io { file, source } => write!(f, "{file}: {source}"),
-            DbError::Full => write!(f, "database full: at most 2^32 - 1 entries"),
-            DbError::OutOfMemory => write!(f, "out of memory"),
-        }
-    }
-}
-
-#[cfg(feature = "std")]
-impl std::error::Error for DbError {
-    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
-        match self {
-            DbError::Core(e) => Some(e),
-            DbError::Io { source, .. } => Some(source),
-            _ => None,
-        }
-    }
-}
 
 /// How [`Database::search`] searches; every method returns the same results (see
 /// [`crate::search::Plan`]).

@@ -1,10 +1,8 @@
 //! Room for new entries: reserving the database's columns and writing new rows in place.
 //!
-//! A bulk add of a million entries writes ~300 MB of fresh memory; on Linux the kernel zeroes
-//! each page on first touch, and measured on a 2-core Xeon that zeroing took a third of the
-//! time when `Vec::extend_from_slice` / `Vec::resize` touched every page from one thread. Two
-//! things cut it (`cargo run --release` probe of `add_batch`, 1M rows without the kd-tree,
-//! 260 → 195 ms for the first alone):
+//! A bulk add writes much fresh memory; on Linux the kernel zeroes each page on first touch,
+//! which took a large part of the time when `Vec::extend_from_slice` / `Vec::resize` touched every
+//! page from one thread (docs/performance.md#database). Two things cut it:
 //! - Columns of 4 MiB and more ask for transparent huge pages (`madvise(MADV_HUGEPAGE)`, as
 //!   numpy does for its large arrays): one fault per 2 MiB instead of per 4 KiB, and fewer TLB
 //!   misses when a search scans every row. Linux with `std` only; a no-op elsewhere.

@@ -39,37 +39,26 @@
 //! assert!((r.pose[0][3] - 0.3).abs() < 0.01 && (r.yaw_degrees() - 4.0).abs() < 0.1);
 //! ```
 //!
-//! # Measured choices
-//! All figures: hku1-avia (314 Livox Avia keyframes, `odom_poses.txt` as ground truth), the 66
-//! queries whose nearest earlier keyframe (exclude 50) lies within 3 m; simulator pairs from
-//! `solid.sim`. `tools/reg_measure.py` prints the distributions and the gate's figures,
-//! `benches/registration.py` (`make bench-reg`) the speed against small-gicp.
+//! # Choices
+//! Each was measured against its alternatives on hku1-avia and the simulator; the figures, and
+//! the commands that produce them, are in docs/performance.md#registration.
 //!
-//! - **GICP, not point-to-plane** ([`Factor`]): started from the ground truth, GICP ends at a
-//!   median 4.9 cm / 0.25° from it (55 of 66 pairs within 0.1 m) in a median 12 iterations;
-//!   point-to-plane at 6.0 cm / 0.27° (49 of 66) in 18. From 0° with yaw hypotheses: 42 vs 38
-//!   pairs within 0.1 m. Point-to-plane's cheaper iteration does not pay for the extra ones.
-//! - **Geman–McClure kernel** ([`Kernel`]), scale half the correspondence distance: from the
-//!   ground truth p90 error 0.121 m against 0.143 m without a kernel (truncated quadratic).
+//! - **GICP, not point-to-plane** ([`Factor`]): more accurate, and point-to-plane's cheaper
+//!   iteration does not pay for the extra iterations it needs.
+//! - **Geman–McClure kernel** ([`Kernel`]), scale half the correspondence distance: smaller
+//!   errors than without a kernel (a truncated quadratic).
 //! - **Damped Gauss–Newton** with the step scale halved whenever the robust cost (with fresh
 //!   correspondences) rises: plain Gauss–Newton cycles between two correspondence sets; a
-//!   strict line search stopped on bumps of the cost (median error from the truth 8.5 cm).
-//! - **Coarse to fine**: 1 m voxels / 3 m correspondences, then 0.5 m / 1 m (the issue's
-//!   prototype). With the same model (no kernel, no range cut, fine level only) and the same
-//!   start, the pose agrees with small-gicp's within 2 mm / 0.014° (median; 66 of 66 within
-//!   5 cm and 0.2°, `tests/test_register.py`).
+//!   strict line search stopped on bumps of the cost.
+//! - **Coarse to fine**: 1 m voxels / 3 m correspondences, then 0.5 m / 1 m. With the same model
+//!   (no kernel, no range cut, fine level only) and the same start, the pose agrees with
+//!   small-gicp's (`tests/test_register.py`).
 //! - **Yaw hypotheses** ([`register_hypotheses`]): each runs the coarse level only and is
 //!   ranked by the fine level's robust cost at its end; the fine level then continues from the
-//!   best. 44 of 66 within 0.1 m from 0°, ±25° and the A-SOLiD minima (ranking by coarse cost:
-//!   40; small-gicp best-of-three by inlier ratio: 45). On the narrow Avia the A-SOLiD cost has
-//!   a single minimum, near 0°: the fixed ±25° give the other hypotheses.
+//!   best. On the narrow Avia the A-SOLiD cost has a single minimum, near 0°: the fixed ±25°
+//!   give the other hypotheses.
 //! - **Convergence**: updates below 0.1° and 1 mm (small-gicp's), 10× looser on the coarse
 //!   level, at most 20 iterations per level: the same budget as small-gicp.
-//! - **Speed** (`make bench-reg`: same pairs, same run, single-threaded, release wheel, CPU
-//!   time on a shared 2-core machine under load): one registration of prepared clouds takes a
-//!   median 6.0 ms on the hku1 true revisits and 5.7 ms on the top-5 candidates, against
-//!   small-gicp's 6.9 and 9.3 ms (total time ratio small-gicp / solid 1.58 and 1.64); with four
-//!   yaw hypotheses 9.2 and 10.0 ms. Preparing a cloud (both levels): 2.4 ms (small-gicp 2.3).
 //!
 //! # Allocation
 //! [`register`], [`register_hypotheses`], [`hypothesis_yaws`], [`Gate::check`] and the
@@ -84,8 +73,8 @@ mod solve;
 pub mod wire;
 
 use crate::params::{field, Field, Kind, ParamType, Params, Value, FINITE};
-use core::fmt;
 
+pub use crate::error::RegError;
 pub use cloud::{Level, PreparedCloud, MIN_NEIGHBORS, PLANE_EPSILON};
 pub use gate::{Gate, Rejection};
 pub use kdtree::{KdTree3, Nearest};
@@ -118,44 +107,6 @@ pub fn yaw_pose(degrees: f64) -> Pose {
         [0.0, 0.0, 0.0, 1.0],
     ]
 }
-
-/// Everything that can go wrong in registration and in the cloud wire form.
-#[non_exhaustive]
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum RegError {
-    /// An error of the core: an invalid parameter (named), a buffer too small, a bad layout.
-    Core(Error),
-    /// The two clouds were prepared with other preparation parameters than the config passed
-    /// to registration (voxel sizes, range or neighbours differ).
-    NotPreparedWith,
-    /// A wire-form cloud that cannot be decoded.
-    Format {
-        /// Why.
-        reason: &'static str,
-    },
-}
-
-impl From<Error> for RegError {
-    fn from(e: Error) -> Self {
-        RegError::Core(e)
-    }
-}
-
-impl fmt::Display for RegError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            RegError::Core(e) => e.fmt(f),
-            RegError::NotPreparedWith => write!(
-                f,
-                "the clouds were prepared with other voxel sizes, range or neighbours than the registration config"
-            ),
-            RegError::Format { reason } => write!(f, "not a valid SOLiD cloud: {reason}"),
-        }
-    }
-}
-
-#[cfg(feature = "std")]
-impl std::error::Error for RegError {}
 
 /// The residual each correspondence contributes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -477,7 +428,7 @@ pub struct Registration {
 impl Registration {
     /// The yaw of `pose` in degrees, `(−180, 180]`: the heading of SPEC §3.
     pub fn yaw_degrees(&self) -> f64 {
-        libm::atan2(self.pose[1][0], self.pose[0][0]).to_degrees()
+        crate::angle::yaw_degrees(self.pose[0][0], self.pose[1][0])
     }
 
     /// The translation of `pose` (metres).

@@ -25,16 +25,13 @@
 //! end-4   4     u32 CRC-32 (IEEE) of every byte before it
 //! ```
 //!
-//! Measured (`tools/reg_measure.py wire`, fine voxel 0.5 m, grid 0.5 m): hku1-avia 1284 points
-//! and 5.3 kB a place with 8 bits (4.1 B/point), 4.3 kB with 6 bits, 3.4 kB with 4; KITTI 00
-//! 8360 points and 34 kB with 8 bits, 28 kB with 6. Registering a decoded query instead of the
-//! original moves the pose by a median 1.3 mm / 0.005° on hku1 (8 bits; 2.9 mm with 6 bits)
-//! and 0.6 mm on KITTI, over consecutive pairs the gate accepts.
+//! 8 bits per axis keep a decoded cloud registering as the original; sizes and pose changes per
+//! setting: docs/performance.md#cloud-wire-form.
 
 use alloc::vec::Vec;
 
 use super::RegError;
-use crate::db::crc32;
+use crate::checksum::crc32;
 use crate::Error;
 
 const MAGIC: [u8; 2] = *b"SC";

@@ -73,29 +73,10 @@ impl Request<'_> {
 /// [`AUTO_RETRY_MAX`] (queries 16, 32, 64, 128, 256, 384, …); a skipped deep walk three quarters of
 /// the way between the sketch's tries (queries 12, 24, 48, 96, 224, 352, …), with a budget of one
 /// pass instead of two (a dearer walk is no use; one that runs out costs two passes, not three; the
-/// budget is counted in distances, by the rule, which on an AMD EPYC made one pass 1.6–1.8 passes
-/// of time). A retried deep walk under half a pass (rows or queries that changed: walks of stored
-/// places cost a tenth of a pass or less) starts the average again from it. A retry that fails
-/// costs up to a pass more than brute force alone by the rule (about 1.7 passes of time on the
-/// EPYC): on near-duplicates (queries of more copies, 500 of them, k = 1 and 10, `auto` and brute
-/// force interleaved, two runs each, with the two-pass retries of then), retries every 16th query
-/// made `auto` 1.05–1.10× as slow as brute force at 10k entries and 1.11–1.26× at 100k, doubling
-/// up to 128 1.01–1.03× and 1.05–1.07×. The price: on rows or queries that change, a
-/// sketch or deep walk skipped for long comes back up to 128 queries late, brute force running
-/// meanwhile.
-///
-/// Measured over the first 144 queries of fresh databases of near-duplicates (queries of more
-/// copies; `auto` and brute force interleaved; three runs each of a release probe with 32 MB of
-/// other memory read between searches, `auto` ÷ brute force; the timing then took the moving
-/// average of every pass), against the rule-counted walks, two-pass retries and restarts from any
-/// retry under a pass that came before: 100k entries 1.04–1.10× (k = 1) and 1.04–1.08× (k = 10)
-/// against 1.07–1.13× and 1.10–1.14×; 1M 1.01–1.07× and 1.05–1.07× against 0.98–1.07× and
-/// 1.07–1.09×; 10k 1.09–1.19× and 1.16–1.24× against 1.22–1.34× and 1.15–1.24×. There the restarts
-/// from a retry under a pass had brought back the deep walk, at 100k entries, for runs of walks of
-/// 1.4 to 2.7 passes or that ran out. With the time per row as it is now (the fastest of the first
-/// 4 passes, then the average), in the next three runs against the average of every pass: 10k
-/// 1.11–1.16× against 1.12–1.15×, 100k 1.04–1.05× against 1.03–1.06×, 1M 0.99–1.03× against
-/// 1.01–1.03× (k = 1).
+/// budget is counted in distances, by the rule). A retried deep walk under half a pass (rows or
+/// queries that changed) starts the average again from it. The price: on rows or queries that
+/// change, a sketch or deep walk skipped for long comes back up to 128 queries late, brute force
+/// running meanwhile. Why these intervals: docs/performance.md#auto-plan.
 ///
 /// Keep one per database; threads may share it (the counts are loaded and stored, not locked:
 /// two threads updating at once may lose a count, which only delays a change of plan).
@@ -153,9 +134,7 @@ impl Observed {
     /// of [`Plan::Auto`] are timed, and a walk's cost is its time against a pass of brute force's
     /// (the time per row: the fastest of the first 4 passes timed, then a moving average). What a
     /// walk costs against brute force depends on the machine more than the rule allows, and on the
-    /// walk: on near-duplicates at a million entries (caches cold, release probe), the rule made on
-    /// an Intel Xeon gives 26 rows a distance, where on an AMD EPYC walks of 7,000 distances took
-    /// 68 and walks of 75,000 took 23. Without a clock, as [`Observed::new`].
+    /// walk (docs/performance.md#auto-plan). Without a clock, as [`Observed::new`].
     pub const fn timed() -> Self {
         let mut o = Observed::new();
         o.timed = cfg!(feature = "std");
@@ -176,13 +155,10 @@ impl Observed {
     /// Adds a brute-force pass over `rows` rows that took `ns` nanoseconds to the time per row:
     /// the fastest of the first [`TIMED_FIRST`] passes, then a moving average (weight an eighth;
     /// a pass counts as at most four times the average). A thread descheduled during a scan
-    /// only makes it look slower, and a time per row set too high makes walks look cheap: a
-    /// review's probe saw a first scan at 419 ns a row against 2.44, and with an average that
-    /// this first scan set, finished deep walks dearer than brute force ran on for 400 queries,
-    /// `auto` 1.38–1.44× brute force's time. One time per row serves every query: a database
-    /// growing past 65,536 rows, or queries of k above 64, mix passes on one thread and on
-    /// several (their scans split from 65,536 rows on, for k up to 64), until the average
-    /// catches up.
+    /// only makes it look slower, and a time per row set too high makes walks look cheap (see
+    /// docs/performance.md#auto-plan). One time per row serves every query: a database growing past
+    /// 65,536 rows, or queries of k above 64, mix passes on one thread and on several until the
+    /// average catches up.
     fn note_scan(&self, ns: f64, rows: usize) {
         if rows == 0 {
             return;
@@ -237,24 +213,11 @@ impl Observed {
     }
 
     /// Adds a deep walk that cost `passes` brute-force passes to the moving average (each walk
-    /// weighs an eighth: walks on near-duplicates vary, 0.3 to 1.9 passes at 1M entries around
-    /// a mean of 0.78, and with a quarter a few dear walks in a row turned the walk off for long
-    /// stretches: `auto` took 0.98–1.02× brute force's time there for k = 1, with an eighth
-    /// 0.86×).
-    ///
-    /// A walk under half a pass while the average says the walk is dear (a retry, on rows or
-    /// queries that changed) starts the average again from it: averaged in, a walk that had
-    /// cost three passes came back after nine such retries. (From under a pass, near-duplicates
-    /// at 100k entries restarted it on walks of 0.4–0.9 passes, each followed by a run of dearer
-    /// ones.)
-    ///
-    /// The first walk (the average still 0: no walk costs nothing) sets the average. From 0, an
-    /// eighth at a time, it took about ten walks of 1.4 passes (100k near-duplicates, k = 1)
-    /// before the walk was skipped. Measured over the first 144 queries of a fresh database of
-    /// near-duplicates (`benches/search_peers.py`'s protocol, 8 runs each, the walks then counted
-    /// by the rule, on the 2-core AMD EPYC): 1M entries, k = 1, 0.76–0.81× brute force's time
-    /// against 0.99–1.02× from 0; 100k 1.05–1.10× against 1.05–1.12×; 10k no change. (Timed,
-    /// the deep walk at 1M only breaks even there: 0.94–0.97× in the README's runs.)
+    /// weighs an eighth: walks vary, and a larger weight let a few dear walks in a row turn the walk
+    /// off for long stretches). A walk under half a pass while the average says the walk is dear (a
+    /// retry, on rows or queries that changed) starts the average again from it. The first walk (the
+    /// average still 0: no walk costs nothing) sets the average. Measurements behind each of these:
+    /// docs/performance.md#auto-plan.
     fn record_deep(&self, passes: f64) {
         let sample = ((passes * f64::from(DEEP_PASS)).min(f64::from(16 * DEEP_PASS)) as u32).max(1);
         let old = self.deep_cost.load(Relaxed);
@@ -367,13 +330,10 @@ pub fn auto_is_brute(candidates: usize, k: usize) -> bool {
 /// The kd-tree's normal budget under [`Plan::Auto`]: it may compute the distances of
 /// `candidates / AUTO_TREE_SHARE + AUTO_TREE_PER_K · k + AUTO_TREE_BASE` rows, and never more than
 /// `candidates / AUTO_TREE_MAX_SHARE`. A distance in the tree costs about 100 rows of the sketch
-/// and 5–15 of brute force (a jump to another row), so a fruitless walk adds at most about 40 %
-/// to the sketch's pass (measured: 0.6 ms before a 1.3 ms sketch over a million rows), more at
-/// 10k entries, where the cap lets it take as long as the sketch; [`Observed`] skips a walk that
-/// keeps running out. Measured on realistic databases (`benches/benches/search.rs`,
-/// `Cost::tree_rows` of `Plan::KdTree`): queries near stored places need a median of 390 / 480 /
-/// 980 rows for k = 1 at 10k / 100k / 1M entries (largest of 48: 1,251 / 4,814 / 4,082), and 2.5
-/// times that for k = 10.
+/// and 5–15 of brute force (a jump to another row): a fruitless walk adds a fraction of the
+/// sketch's pass, more at 10k entries, where the cap lets it take as long as the sketch;
+/// [`Observed`] skips a walk that keeps running out. The budget covers what queries near stored
+/// places need (docs/performance.md#auto-plan).
 const AUTO_TREE_SHARE: usize = 256;
 const AUTO_TREE_PER_K: usize = 64;
 const AUTO_TREE_BASE: usize = 512;
@@ -382,9 +342,8 @@ const AUTO_TREE_MAX_SHARE: usize = 16;
 /// The short walk before the sketch while the normal walk is being skipped ([`Observed`]) computes
 /// `AUTO_PRIME_BASE + AUTO_PRIME_PER_K · k` distances, the leaves nearest the query, whose k-th
 /// distance lets the sketch rule rows out from its first block. Without it the sketch starts from
-/// an empty heap and, on near-duplicates at 10k entries, gave up at its first check. Measured
-/// (release probe, 48 queries of another city, k = 1): 1M entries 2.7 ms with the normal walk,
-/// 2.2 ms with this one; 10k near-duplicates, queries of another place, 35 → 22 µs.
+/// an empty heap and, on near-duplicates at 10k entries, gave up at its first check (see
+/// docs/performance.md#auto-plan).
 pub const AUTO_PRIME_BASE: usize = 64;
 /// See [`AUTO_PRIME_BASE`].
 pub const AUTO_PRIME_PER_K: usize = 4;
@@ -393,24 +352,11 @@ pub const AUTO_PRIME_PER_K: usize = 4;
 /// thread (a jump to another row, and the walk itself) over fewer than 32,768 rows, one more for
 /// every doubling of the rows from there (the rows the walk jumps among outgrow the core's caches);
 /// against brute force over `t` threads (the scans of 65,536 rows and more), `t` times as many:
-/// [`auto_tree_row_cost`]. Measured on near-duplicate databases (release probe, 48 queries of
-/// another copy of the scan, each walk and each scan run once after 32 MB of other memory was
-/// written, as between a detector's queries: the walk's time ÷ its distances against brute force's
-/// time ÷ its rows, median, k = 1 / 10; on a 2-core Intel Xeon): 8.1 / 6.9 at 10k entries (brute
-/// force on one thread), 19.6 / 17.0 at 100k and 27.4 / 25.8 at 1M (on two), where the rule gives
-/// 8, 20 and 26. (Run back to back on the same query, with warm caches, the walk looks cheaper: 6.4
-/// / 5.8, 16.3 / 15.1 and 14.2 / 12.7.)
+/// [`auto_tree_row_cost`], which matches the measured cost (docs/performance.md#auto-plan).
 ///
 /// When the sketch is being skipped ([`Observed`]), the deep walk may compute as many distances
 /// as two brute-force passes cost (one on a retry), and goes on while its walks average less
-/// than one pass. [`Observed::timed`] counts a walk's cost by its time instead. On
-/// near-duplicates a walk computes a mean of 15.5 % / 7.0 % / 3.0 % of the rows at 10k / 100k /
-/// 1M entries for k = 1 and 23.5 % / 10.7 % / 4.8 % for k = 10: 1.24 / 1.41 / 0.78 and 1.88 /
-/// 2.15 / 1.23 passes by this rule, against 1.36 / 1.31 / 0.79 and 1.90 / 1.94 / 1.23 measured
-/// (the walk's total time ÷ brute force's, caches cold as above). With 6 for every size, the
-/// deep walk went on at 1M entries for k = 10, and `auto` took 1.20× brute force's time there;
-/// with this rule 1.03× (and 1.05–1.07× at 10k and 100k, where the walk and the sketch were
-/// then tried again on every 16th query).
+/// than one pass. [`Observed::timed`] counts a walk's cost by its time instead.
 pub const AUTO_TREE_ROW_COST: usize = 8;
 
 /// What one distance of a kd-tree walk over `candidates` rows costs in rows of brute force over

@@ -152,13 +152,7 @@ impl<'a> KdTree<'a> {
         let n = hi - lo;
         if n <= LEAF_SIZE {
             // The leaf's rows are asked for at once, and so are the two children's split rows
-            // below: their cache misses overlap. Measured (release probe switching them on and
-            // off in one process, 48 queries, 64 MB of other memory read before each, 1M entries,
-            // k = 1, 2-core AMD EPYC): a whole walk over near-duplicates took 4.6-4.9 ms, with
-            // the leaves asked for 3.6-4.0, with the children's split rows too 2.9-3.1 (their
-            // children's as well: 3.0-3.1); over HKU copies 0.45-0.52, 0.34-0.37 and 0.26-0.30
-            // ms. Over fresh databases (144 queries, two runs alternating with the code without
-            // them), `auto` on near-duplicates went from 4.7-6.1 ms a query to 3.1-3.5.
+            // below: their cache misses overlap (docs/performance.md#kd-tree).
             for &id in &self.perm[lo..hi] {
                 self.rows.prefetch(id as usize);
             }
@@ -281,8 +275,7 @@ fn check_buffers(n: usize, perm: usize, splits: usize) -> Result<(), Error> {
 /// Chooses the dimension with the widest spread among up to [`SPLIT_SAMPLE`] evenly spaced
 /// entries of `perm` (ties: the lowest dimension). Compiled for AVX2 as well, which `std` picks
 /// when the CPU has it, and for the default dimension as a constant (the same operations, so
-/// the same choice): `Database::build_index` over 10,000 HKU entries took 0.71–0.74 ms instead
-/// of 0.84 on two threads (release probe, AMD EPYC), with the same trees.
+/// the same choice): faster builds, the same trees (docs/performance.md#kd-tree).
 fn widest_dim(rows: Rows<'_>, perm: &[u32]) -> usize {
     #[cfg(all(feature = "std", target_arch = "x86_64"))]
     if std::is_x86_feature_detected!("avx2") {
@@ -382,9 +375,7 @@ fn build_rec(rows: Rows<'_>, perm: &mut [u32], splits: &mut [u16], keys: &mut [u
 }
 
 /// Nodes from this size on are split through [`select_keyed`] when there is scratch for it.
-/// Measured (release probe of `build_index`, 1 thread for 10k / 100k, 2 for 1M): 64 took
-/// 2.08–2.17 / 25.4–26.6 / 204 ms where 1,024 took 2.33–2.34 / 26.7–27.5 / 229 ms; 32 and 256
-/// were no better than 64.
+/// 64 builds fastest of the sizes tried (docs/performance.md#kd-tree).
 const KEYED_FROM: usize = 64;
 
 /// Puts the entry with the `mid`-th smallest value of dimension `d` at `perm[mid]`, those not

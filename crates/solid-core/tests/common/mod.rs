@@ -3,6 +3,10 @@
 
 use std::path::PathBuf;
 
+#[cfg(feature = "std")]
+pub mod db;
+pub mod search;
+
 /// The shared folder (`SOLID_SHARED`, else `<repo>/../shared`), or `None` when absent.
 /// Under `CI=true` a missing folder is a failure, not a skip.
 pub fn shared() -> Option<PathBuf> {
