@@ -166,8 +166,9 @@ rust-test:
 py-test: wheel
 	$(PY) -m pytest
 
-## Rewrite the parameter classes of python/solid/_solid.pyi from the core's parameter tables
-## (tools/stubgen.py); `make test` fails when the stub is stale.
+## Write python/solid/_solid.pyi from its hand-written parts (stubs/*.pyi, one per binding module)
+## and the core's parameter tables, and the parameter tables of docs/spec.md (tools/stubgen.py);
+## `make test` fails when either is stale.
 stubs: wheel
 	$(PY) tools/stubgen.py
 

@@ -1,5 +1,6 @@
-"""Writes the parameter classes of ``python/solid/_solid.pyi``, and the parameter tables of
-``docs/spec.md``, from the core's parameter tables.
+"""Writes ``python/solid/_solid.pyi`` from its hand-written parts in ``stubs/*.pyi`` (one per binding
+module, in name order) and the core's parameter tables, and the parameter tables of
+``docs/spec.md``.
 
 ``make stubs`` runs it; ``make test`` runs it with ``--check``, which fails when either is stale.
 The tables (``solid._solid._param_table``) give each field's name, type, default, valid range and
@@ -11,7 +12,7 @@ doc line; this script turns them into each class's constructor, ``preset``, ``re
     # end of generated
 
 Everything outside the markers (class docstrings, other methods, the rest of the module) is
-written by hand. In Markdown the markers are ``<!-- generated: CLASS ... -->`` and
+written by hand, in ``stubs/``, where the markers stand with nothing between them. In Markdown the markers are ``<!-- generated: CLASS ... -->`` and
 ``<!-- end of generated -->`` around a table of the class's parameters.
 """
 
@@ -22,12 +23,15 @@ import math
 import re
 import sys
 from pathlib import Path
+from collections.abc import Callable
 from typing import Any
 
 from solid.config import param_table, per_preset_fields
 
 ROOT = Path(__file__).resolve().parent.parent
 STUB = ROOT / "python" / "solid" / "_solid.pyi"
+PARTS = ROOT / "stubs"
+NOTE = "# Written by `make stubs` (tools/stubgen.py) from stubs/*.pyi and the core's parameter tables: edit those."
 DOCS = [ROOT / "docs" / "spec.md"]
 DOC_BEGIN = re.compile(r"^<!-- generated: (\w+) from the core's parameter table by tools/stubgen.py \(make stubs\) -->$")
 DOC_END = "<!-- end of generated -->"
@@ -224,6 +228,14 @@ def render_doc(text: str) -> str:
     return "\n".join(out)
 
 
+def assemble() -> str:
+    """The stub: the parts of `stubs/` joined, the note after the module docstring, the regions filled."""
+    parts = [p.read_text(encoding="utf-8").strip("\n") for p in sorted(PARTS.glob("*.pyi"))]
+    text = "\n\n\n".join(parts) + "\n"
+    end = text.index('"""', 3) + 3  # the module docstring of the first part
+    return render(text[:end] + "\n" + NOTE + text[end:])
+
+
 def _region_count(text: str, cls: str) -> int:
     body = text.split(f"class {cls}:", 1)[1].split("\nclass ", 1)[0]
     return body.count(BEGIN)
@@ -234,8 +246,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--check", action="store_true", help="fail when the stub is not what this would write")
     args = p.parse_args(argv)
     stale = []
-    for path, write in [(STUB, render), *((d, render_doc) for d in DOCS)]:
-        old = path.read_text(encoding="utf-8")
+    outputs: list[tuple[Path, Callable[[str], str]]] = [(STUB, lambda _old: assemble()), *((d, render_doc) for d in DOCS)]
+    for path, write in outputs:
+        old = path.read_text(encoding="utf-8") if path.exists() else ""
         new = write(old)
         if new == old:
             continue

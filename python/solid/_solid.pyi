@@ -3,6 +3,7 @@
 Every public function, method and property has a docstring (arguments, returns, raises): the
 API reference of the documentation site is generated from them (tests/test_docs.py checks).
 """
+# Written by `make stubs` (tools/stubgen.py) from stubs/*.pyi and the core's parameter tables: edit those.
 
 import os
 from collections.abc import Iterable, Sequence
@@ -86,6 +87,7 @@ class SolidError(ValueError):
 
 class ConfigError(SolidError):
     """An invalid parameter (of a configuration, a detector, a pose, ...), argument value or preset name; the message names it."""
+
 
 @final
 class SolidConfig:
@@ -234,280 +236,8 @@ class SolidConfig:
     def __reduce__(self) -> tuple[Any, tuple[dict[str, Any]]]: ...
 
 
-@final
-class Descriptor:
-    """One scan's SOLiD descriptor: R-SOLiD (``r``) and A-SOLiD (``a``) with point counts."""
-
-    def __new__(
-        cls,
-        r: npt.ArrayLike,
-        a: npt.ArrayLike,
-        config: SolidConfig,
-        n_points: int = 0,
-        n_in_range: int = 0,
-        n_kept: int = 0,
-    ) -> Descriptor:
-        """`Descriptor(...)`: a descriptor from stored vectors.
-
-                Args:
-                    r: R-SOLiD, `config.n_range` finite non-negative values.
-                    a: A-SOLiD, `config.n_azimuth` finite non-negative values.
-                    config: The configuration the vectors were computed with.
-                    n_points: Points in the scan (informative).
-                    n_in_range: Points left after the range filter (informative).
-                    n_kept: Points binned, after voxel downsampling (informative).
-
-                Raises:
-                    SolidError: A vector of the wrong length, or with a negative or non-finite value.
-                    TypeError: A vector that is not a 1-D sequence of numbers.
-        """
-    @property
-    def r(self) -> npt.NDArray[np.float32]:
-        """R-SOLiD, shape (n_range,), float32 (a new array on each access)."""
-    @property
-    def a(self) -> npt.NDArray[np.float32]:
-        """A-SOLiD, shape (n_azimuth,), float32 (a new array on each access)."""
-    @property
-    def n_points(self) -> int:
-        """Points passed in, before any filtering."""
-    @property
-    def n_in_range(self) -> int:
-        """Points that were finite and within (min_range, max_range) (docs/spec.md §2 steps 1–2)."""
-    @property
-    def n_kept(self) -> int:
-        """Points binned: voxel centroids after downsampling, else `n_in_range`."""
-    @property
-    def config(self) -> SolidConfig:
-        """The configuration the descriptor was computed with."""
-    def distance(self, other: Descriptor) -> float:
-        """Cosine distance of the R-SOLiDs (docs/spec.md §3); the same as `solid.distance(self, other)`.
-
-                Args:
-                    other: A descriptor made with the same configuration.
-
-                Returns:
-                    The distance in [0, 1]: small for the same place; 1 when either scan was empty.
-
-                Raises:
-                    SolidError: The descriptors come from different configurations.
-        """
-    def heading(self, candidate: Descriptor, refine: bool = True) -> float:
-        """Heading of this scan relative to `candidate` (docs/spec.md §3); the same as
-                `solid.heading(self, candidate, refine)`.
-
-                Args:
-                    candidate: A descriptor of the same place made with the same configuration.
-                    refine: Refine the best shift to a fraction of a bin (parabolic fit); if False the
-                        result is a multiple of 360°/n_azimuth.
-
-                Returns:
-                    ψ in degrees, in (-180, 180]: this scan ≈ the candidate rotated by ψ counter-clockwise
-                    about +z.
-
-                Raises:
-                    SolidError: The descriptors come from different configurations.
-        """
-    def __reduce__(self) -> tuple[Any, tuple[Any, ...]]: ...
-
-def describe(points: npt.NDArray[np.float32] | npt.NDArray[np.float64], config: SolidConfig) -> Descriptor:
-    """Computes the SOLiD descriptor of one scan (docs/spec.md §2), with the GIL released.
-
-        The array is read in place, never copied or converted: columns 0, 1, 2 are x, y, z in metres
-        in the sensor frame (x forward, y left, z up); further columns (intensity, time, ...) are
-        ignored. Non-finite points and points outside (min_range, max_range) are dropped; an empty
-        scan is valid and gives all-zero vectors.
-
-        Args:
-            points: A C-contiguous float32 or float64 numpy array of shape (N, >=3).
-            config: The descriptor configuration.
-
-        Returns:
-            The descriptor, with its point counts.
-
-        Raises:
-            TypeError: `points` is not a numpy array, or its dtype is not float32 or float64.
-            SolidError: The shape is not (N, >=3), or the array is Fortran-ordered, a strided view
-                or misaligned (the message says how to convert it).
-    """
-def describe_batch(
-    scans: Iterable[npt.NDArray[np.float32] | npt.NDArray[np.float64]],
-    config: SolidConfig,
-    threads: int | None = None,
-) -> list[Descriptor]:
-    """Describes many scans in parallel, with the GIL released; the same results as `describe`
-        on each.
-
-        Args:
-            scans: Point arrays, each as `describe` accepts (float32 and float64 may be mixed).
-            config: The descriptor configuration.
-            threads: Worker threads, at most one per core; None uses every core, 1 the
-                calling thread. The workers persist from one call to the next, each keeping its
-                scratch buffers.
-
-        Returns:
-            One descriptor per scan, in order.
-
-        Raises:
-            TypeError: `scans` is not iterable, or an element is not a float32/float64 numpy array.
-            SolidError: An element has the wrong shape or layout (named as `scans[i]`), or
-                `threads` is 0.
-    """
-def distance(a: Descriptor, b: Descriptor) -> float:
-    """Cosine distance between two descriptors' R-SOLiDs (docs/spec.md §3).
-
-        Args:
-            a: One descriptor.
-            b: Another, made with the same configuration.
-
-        Returns:
-            The distance in [0, 1]: small for the same place; 1 when either scan was empty.
-
-        Raises:
-            SolidError: The descriptors come from different configurations.
-    """
-def heading(query: Descriptor, candidate: Descriptor, refine: bool = True) -> float:
-    """Heading of `query` relative to `candidate` from their A-SOLiDs (docs/spec.md §3).
-
-        Args:
-            query: The scan taken now.
-            candidate: An earlier scan of the same place, made with the same configuration.
-            refine: Refine the best circular shift to a fraction of a bin (parabolic fit); if False
-                the result is a multiple of 360°/n_azimuth.
-
-        Returns:
-            ψ in degrees, in (-180, 180]: the query scan ≈ the candidate rotated by ψ
-            counter-clockwise about +z (`p_query ≈ Rz(ψ) · p_candidate`; with poses,
-            ψ = yaw(R_queryᵀ · R_candidate)).
-
-        Raises:
-            SolidError: The descriptors come from different configurations.
-    """
-def presets() -> dict[str, SolidConfig]:
-    """Every sensor preset (docs/spec.md §4).
-
-        Returns:
-            A new dict from preset name to its configuration, in the order of the spec's table.
-    """
-def preset_sensors() -> dict[str, str]:
-    """The sensor each preset describes.
-
-        Returns:
-            A new dict from preset name to the sensor's name ("Velodyne HDL-64E (KITTI)", ...).
-    """
 def _config_from_dict(d: dict[str, Any]) -> SolidConfig: ...
 
-# --- search, database, loop detector, wire form (engine.rs) ---
-
-class DatabaseError(SolidError):
-    """A database, place or loop-detector error: config mismatch, corrupt, truncated, foreign or
-    newer-version file (the message names the file and the reason)."""
-
-@final
-class Match:
-    """One search result."""
-    @property
-    def id(self) -> int:
-        """The entry's id in its database (insertion order, from 0)."""
-    @property
-    def distance(self) -> float:
-        """Cosine distance of the R-SOLiDs, in [0, 1]."""
-    def __eq__(self, other: object, /) -> bool: ...
-
-@final
-class Loop:
-    """A detected loop closure: the best candidate of a detector step, when its score passes the threshold."""
-    @property
-    def query(self) -> int:
-        """Id of the query scan (for `LoopDetector.query`, the id it would get)."""
-    @property
-    def candidate(self) -> int:
-        """Id of the matched database entry."""
-    @property
-    def distance(self) -> float:
-        """Cosine distance of the R-SOLiDs."""
-    @property
-    def heading(self) -> float:
-        """Heading of the query relative to the candidate (refined), degrees in (-180, 180]."""
-    @property
-    def score(self) -> float:
-        """The score the loop was accepted with: the R-SOLiD distance, or with verification
-        1 − fitness."""
-    @property
-    def verified(self) -> bool:
-        """Whether the loop was verified by registration (then it has a pose)."""
-    @property
-    def pose(self) -> npt.NDArray[np.float64] | None:
-        """`T_query_candidate`, (4, 4) float64, of a verified loop: `p_query ≈ pose @ p_candidate`
-        (docs/spec.md §3); its yaw is `heading`. None when the loop was not verified."""
-    @property
-    def fitness(self) -> float | None:
-        """Overlap of the verifying registration (None when not verified)."""
-    @property
-    def rmse(self) -> float | None:
-        """Inlier RMSE of the verifying registration, metres (None when not verified)."""
-    def __eq__(self, other: object, /) -> bool: ...
-
-@final
-class Candidate:
-    """One candidate of a detector step, in the detector's ranking order."""
-    @property
-    def id(self) -> int:
-        """Id of the database entry."""
-    @property
-    def distance(self) -> float:
-        """Cosine distance of the R-SOLiDs, in [0, 1]."""
-    @property
-    def heading(self) -> float:
-        """Heading of the query relative to this candidate (refined), degrees in (-180, 180]."""
-    @property
-    def score(self) -> float:
-        """What ranks the candidates and what a precision-recall curve sweeps: the R-SOLiD
-        distance, or with verification 1 − fitness for a candidate that passed the gate and
-        1.5 + distance / 2 otherwise."""
-    @property
-    def verified(self) -> bool:
-        """Whether this candidate was registered."""
-    @property
-    def accepted(self) -> bool:
-        """Whether its registration passed the gate."""
-    @property
-    def rejection(self) -> str | None:
-        """Why the gate rejected its registration (None when accepted or not registered)."""
-    @property
-    def pose(self) -> npt.NDArray[np.float64] | None:
-        """`T_query_candidate` (4, 4) of its registration (None when not registered)."""
-    @property
-    def fitness(self) -> float | None:
-        """Overlap of its registration (None when not registered)."""
-    @property
-    def structure_fitness(self) -> float | None:
-        """Overlap of its registration's points off horizontal surfaces (None when not registered)."""
-    @property
-    def rmse(self) -> float | None:
-        """Inlier RMSE of its registration, metres (None when not registered)."""
-    @property
-    def degeneracy_translation(self) -> float | None:
-        """Smallest eigenvalue of the translation block of its registration's information matrix."""
-    @property
-    def agreement(self) -> tuple[int, int] | None:
-        """(initial yaws that reached the best pose, yaws tried), or None when not registered."""
-    def __eq__(self, other: object, /) -> bool: ...
-
-@final
-class Detection:
-    """Everything one detector step decided (docs/spec.md §8)."""
-    @property
-    def query(self) -> int:
-        """Id of the query (the entry the step added)."""
-    @property
-    def eligible(self) -> int:
-        """The candidates were drawn from the entries 0..eligible (the others were too recent); 0: nothing to search yet."""
-    @property
-    def candidates(self) -> list[Candidate]:
-        """Up to `top_k` candidates, best first."""
-    @property
-    def loop(self) -> Loop | None:
-        """The loop, when the best candidate's score is at most the threshold; else None."""
 
 @final
 class DetectorConfig:
@@ -708,11 +438,486 @@ class DetectorConfig:
 
 
 def _detector_config_from_dict(params: dict[str, Any]) -> DetectorConfig: ...
+
+
 def _param_table(name: str) -> list[dict[str, Any]]:
     """The core's parameter table of "SolidConfig", "DetectorConfig", "RegistrationConfig" or
     "AcceptanceGate": one dict per field (name, aliases, type, min/max or choices, expected,
     required, default, doc), in order. The command line and tools/stubgen.py read it.
     """
+
+
+@final
+class RegistrationConfig:
+    """Registration parameters, immutable; invalid values raise ConfigError naming the parameter.
+
+    The defaults were chosen by measurement on hku1-avia (see the Rust documentation of
+    `solid_lidar::reg`): GICP with a Geman-McClure kernel, coarse 1 m voxels with 3 m
+    correspondences, then 0.5 m / 1 m.
+    """
+    # generated from the core's parameter table by tools/stubgen.py (make stubs): do not edit
+    def __new__(
+        cls,
+        *,
+        voxel_size: float = 0.5,
+        coarse_voxel_size: float = 1.0,
+        min_range: float = 1.0,
+        max_range: float = 200.0,
+        neighbors: int = 10,
+        max_correspondence: float = 1.0,
+        coarse_max_correspondence: float = 3.0,
+        max_iterations: int = 20,
+        rotation_eps_deg: float = 0.1,
+        translation_eps: float = 0.001,
+        factor: str = 'gicp',
+        kernel: str = 'geman-mcclure',
+        kernel_scale: float = 0.5,
+        inlier_distance: float = 0.5,
+    ) -> RegistrationConfig:
+        """`RegistrationConfig(...)`: parameters by keyword (None: the default).
+
+        Args:
+            voxel_size: Voxel edge of the fine level, metres (0 keeps every point in range) (a finite value >= 0 metres (0 disables downsampling); default 0.5).
+            coarse_voxel_size: Voxel edge of the coarse level, metres (0: no coarse level) (0 (no coarse level), or a finite value above voxel_size and >= max_range / 2^19; default 1.0).
+            min_range: Points at or within this distance (metres, sensor frame) are dropped (a finite value >= 0 metres; default 1.0).
+            max_range: Points at or beyond this distance are dropped (a finite value above min_range; default 200.0).
+            neighbors: Neighbours (the point included) of each local covariance (an integer in 5..=64; default 10).
+            max_correspondence: Largest correspondence distance at the fine level, metres (a finite value > 0 metres; default 1.0).
+            coarse_max_correspondence: Largest correspondence distance at the coarse level, metres (a finite value > 0 metres; default 3.0).
+            max_iterations: Largest number of Gauss-Newton iterations per level (an integer in 1..=1000; default 20).
+            rotation_eps_deg: A level has converged when an update rotates by less than this, degrees (and translates by less than translation_eps) (a finite value > 0 degrees; default 0.1).
+            translation_eps: A level has converged when an update translates by less than this, metres (and rotates by less than rotation_eps_deg) (a finite value > 0 metres; default 0.001).
+            factor: The residual: plane-to-plane GICP or point-to-plane ICP ("gicp" or "point-to-plane"; default 'gicp').
+            kernel: The robust kernel ("geman-mcclure" or "none"; default 'geman-mcclure').
+            kernel_scale: Kernel scale as a fraction of the level's maximum correspondence distance (a value in (0, 10]; default 0.5).
+            inlier_distance: Distance (metres) within which a point overlaps the other cloud (overlaps, RMSE) (a finite value > 0 metres; default 0.5).
+
+        Raises:
+            ConfigError: A value out of its range (named in the message).
+            TypeError: An unknown parameter, or a value of the wrong type.
+        """
+    def replace(
+        self,
+        *,
+        voxel_size: float | None = None,
+        coarse_voxel_size: float | None = None,
+        min_range: float | None = None,
+        max_range: float | None = None,
+        neighbors: int | None = None,
+        max_correspondence: float | None = None,
+        coarse_max_correspondence: float | None = None,
+        max_iterations: int | None = None,
+        rotation_eps_deg: float | None = None,
+        translation_eps: float | None = None,
+        factor: str | None = None,
+        kernel: str | None = None,
+        kernel_scale: float | None = None,
+        inlier_distance: float | None = None,
+    ) -> RegistrationConfig:
+        """A copy with some parameters changed (None: unchanged); this one is immutable.
+
+        Args:
+            voxel_size: Voxel edge of the fine level, metres (0 keeps every point in range) (a finite value >= 0 metres (0 disables downsampling); default 0.5).
+            coarse_voxel_size: Voxel edge of the coarse level, metres (0: no coarse level) (0 (no coarse level), or a finite value above voxel_size and >= max_range / 2^19; default 1.0).
+            min_range: Points at or within this distance (metres, sensor frame) are dropped (a finite value >= 0 metres; default 1.0).
+            max_range: Points at or beyond this distance are dropped (a finite value above min_range; default 200.0).
+            neighbors: Neighbours (the point included) of each local covariance (an integer in 5..=64; default 10).
+            max_correspondence: Largest correspondence distance at the fine level, metres (a finite value > 0 metres; default 1.0).
+            coarse_max_correspondence: Largest correspondence distance at the coarse level, metres (a finite value > 0 metres; default 3.0).
+            max_iterations: Largest number of Gauss-Newton iterations per level (an integer in 1..=1000; default 20).
+            rotation_eps_deg: A level has converged when an update rotates by less than this, degrees (and translates by less than translation_eps) (a finite value > 0 degrees; default 0.1).
+            translation_eps: A level has converged when an update translates by less than this, metres (and rotates by less than rotation_eps_deg) (a finite value > 0 metres; default 0.001).
+            factor: The residual: plane-to-plane GICP or point-to-plane ICP ("gicp" or "point-to-plane"; default 'gicp').
+            kernel: The robust kernel ("geman-mcclure" or "none"; default 'geman-mcclure').
+            kernel_scale: Kernel scale as a fraction of the level's maximum correspondence distance (a value in (0, 10]; default 0.5).
+            inlier_distance: Distance (metres) within which a point overlaps the other cloud (overlaps, RMSE) (a finite value > 0 metres; default 0.5).
+
+        Returns:
+            The validated new parameters.
+
+        Raises:
+            ConfigError: A value out of its range (named in the message).
+            TypeError: An unknown parameter, or a value of the wrong type.
+        """
+    def to_dict(self) -> dict[str, Any]:
+        """The parameters by name (voxel_size, coarse_voxel_size, min_range, max_range, neighbors, max_correspondence, coarse_max_correspondence, max_iterations, rotation_eps_deg, translation_eps, factor, kernel, kernel_scale, inlier_distance): what `RegistrationConfig(**d)` takes back.
+
+        Returns:
+            A new dict.
+        """
+    @property
+    def voxel_size(self) -> float:
+        """Voxel edge of the fine level, metres (0 keeps every point in range) (a finite value >= 0 metres (0 disables downsampling); default 0.5)."""
+    @property
+    def coarse_voxel_size(self) -> float:
+        """Voxel edge of the coarse level, metres (0: no coarse level) (0 (no coarse level), or a finite value above voxel_size and >= max_range / 2^19; default 1.0)."""
+    @property
+    def min_range(self) -> float:
+        """Points at or within this distance (metres, sensor frame) are dropped (a finite value >= 0 metres; default 1.0)."""
+    @property
+    def max_range(self) -> float:
+        """Points at or beyond this distance are dropped (a finite value above min_range; default 200.0)."""
+    @property
+    def neighbors(self) -> int:
+        """Neighbours (the point included) of each local covariance (an integer in 5..=64; default 10)."""
+    @property
+    def max_correspondence(self) -> float:
+        """Largest correspondence distance at the fine level, metres (a finite value > 0 metres; default 1.0)."""
+    @property
+    def coarse_max_correspondence(self) -> float:
+        """Largest correspondence distance at the coarse level, metres (a finite value > 0 metres; default 3.0)."""
+    @property
+    def max_iterations(self) -> int:
+        """Largest number of Gauss-Newton iterations per level (an integer in 1..=1000; default 20)."""
+    @property
+    def rotation_eps_deg(self) -> float:
+        """A level has converged when an update rotates by less than this, degrees (and translates by less than translation_eps) (a finite value > 0 degrees; default 0.1)."""
+    @property
+    def translation_eps(self) -> float:
+        """A level has converged when an update translates by less than this, metres (and rotates by less than rotation_eps_deg) (a finite value > 0 metres; default 0.001)."""
+    @property
+    def factor(self) -> str:
+        """The residual: plane-to-plane GICP or point-to-plane ICP ("gicp" or "point-to-plane"; default 'gicp')."""
+    @property
+    def kernel(self) -> str:
+        """The robust kernel ("geman-mcclure" or "none"; default 'geman-mcclure')."""
+    @property
+    def kernel_scale(self) -> float:
+        """Kernel scale as a fraction of the level's maximum correspondence distance (a value in (0, 10]; default 0.5)."""
+    @property
+    def inlier_distance(self) -> float:
+        """Distance (metres) within which a point overlaps the other cloud (overlaps, RMSE) (a finite value > 0 metres; default 0.5)."""
+    # end of generated
+    def __eq__(self, value: object, /) -> bool: ...
+    def __ne__(self, value: object, /) -> bool: ...
+
+
+@final
+class AcceptanceGate:
+    """Thresholds a registration must meet to be accepted as a loop (measured defaults).
+
+    Tuned for precision on hku1-avia and the simulator: with the defaults, none of 843 wrong
+    registrations of hku1's top-5 candidates passes, 373 of 462 correct ones do.
+    """
+    # generated from the core's parameter table by tools/stubgen.py (make stubs): do not edit
+    def __new__(
+        cls,
+        *,
+        require_converged: bool = False,
+        min_fitness: float = 0.35,
+        min_structure_fitness: float = 0.35,
+        max_rmse: float = 0.3,
+        min_translation_information: float = 1.5,
+        min_rotation_information: float = 0.0,
+        min_agreement: int = 1,
+        max_translation: float = ...,
+        agree_translation: float = 0.5,
+        agree_rotation_deg: float = 2.0,
+    ) -> AcceptanceGate:
+        """`AcceptanceGate(...)`: parameters by keyword (None: the default).
+
+        Args:
+            require_converged: Require the fine level to have converged (a bool; default False).
+            min_fitness: Smallest accepted fitness (the smaller of the two overlaps) (a finite number; default 0.35).
+            min_structure_fitness: Smallest accepted overlap of the structure (points off the ground) (a finite number; default 0.35).
+            max_rmse: Largest accepted inlier RMSE, metres (a finite number; default 0.3).
+            min_translation_information: Smallest accepted translation information (degeneracy.translation) (a finite number; default 1.5).
+            min_rotation_information: Smallest accepted rotation information (degeneracy.rotation) (a finite number; default 0.0).
+            min_agreement: Fewest initial yaws (the best included) that must reach the best pose (an integer >= 0; default 1).
+            max_translation: Largest accepted length of the translation, metres (metres > 0 (infinity: no limit); default inf).
+            agree_translation: Two hypotheses agree when their translations differ by at most this, metres (and their rotations by agree_rotation_deg) (a finite number; default 0.5).
+            agree_rotation_deg: Two hypotheses agree when their rotations differ by at most this, degrees (and their translations by agree_translation) (a finite number; default 2.0).
+
+        Raises:
+            ConfigError: A value out of its range (named in the message).
+            TypeError: An unknown parameter, or a value of the wrong type.
+        """
+    def replace(
+        self,
+        *,
+        require_converged: bool | None = None,
+        min_fitness: float | None = None,
+        min_structure_fitness: float | None = None,
+        max_rmse: float | None = None,
+        min_translation_information: float | None = None,
+        min_rotation_information: float | None = None,
+        min_agreement: int | None = None,
+        max_translation: float | None = None,
+        agree_translation: float | None = None,
+        agree_rotation_deg: float | None = None,
+    ) -> AcceptanceGate:
+        """A copy with some parameters changed (None: unchanged); this one is immutable.
+
+        Args:
+            require_converged: Require the fine level to have converged (a bool; default False).
+            min_fitness: Smallest accepted fitness (the smaller of the two overlaps) (a finite number; default 0.35).
+            min_structure_fitness: Smallest accepted overlap of the structure (points off the ground) (a finite number; default 0.35).
+            max_rmse: Largest accepted inlier RMSE, metres (a finite number; default 0.3).
+            min_translation_information: Smallest accepted translation information (degeneracy.translation) (a finite number; default 1.5).
+            min_rotation_information: Smallest accepted rotation information (degeneracy.rotation) (a finite number; default 0.0).
+            min_agreement: Fewest initial yaws (the best included) that must reach the best pose (an integer >= 0; default 1).
+            max_translation: Largest accepted length of the translation, metres (metres > 0 (infinity: no limit); default inf).
+            agree_translation: Two hypotheses agree when their translations differ by at most this, metres (and their rotations by agree_rotation_deg) (a finite number; default 0.5).
+            agree_rotation_deg: Two hypotheses agree when their rotations differ by at most this, degrees (and their translations by agree_translation) (a finite number; default 2.0).
+
+        Returns:
+            The validated new parameters.
+
+        Raises:
+            ConfigError: A value out of its range (named in the message).
+            TypeError: An unknown parameter, or a value of the wrong type.
+        """
+    def to_dict(self) -> dict[str, Any]:
+        """The parameters by name (require_converged, min_fitness, min_structure_fitness, max_rmse, min_translation_information, min_rotation_information, min_agreement, max_translation, agree_translation, agree_rotation_deg): what `AcceptanceGate(**d)` takes back.
+
+        Returns:
+            A new dict.
+        """
+    @property
+    def require_converged(self) -> bool:
+        """Require the fine level to have converged (a bool; default False)."""
+    @property
+    def min_fitness(self) -> float:
+        """Smallest accepted fitness (the smaller of the two overlaps) (a finite number; default 0.35)."""
+    @property
+    def min_structure_fitness(self) -> float:
+        """Smallest accepted overlap of the structure (points off the ground) (a finite number; default 0.35)."""
+    @property
+    def max_rmse(self) -> float:
+        """Largest accepted inlier RMSE, metres (a finite number; default 0.3)."""
+    @property
+    def min_translation_information(self) -> float:
+        """Smallest accepted translation information (degeneracy.translation) (a finite number; default 1.5)."""
+    @property
+    def min_rotation_information(self) -> float:
+        """Smallest accepted rotation information (degeneracy.rotation) (a finite number; default 0.0)."""
+    @property
+    def min_agreement(self) -> int:
+        """Fewest initial yaws (the best included) that must reach the best pose (an integer >= 0; default 1)."""
+    @property
+    def max_translation(self) -> float:
+        """Largest accepted length of the translation, metres (metres > 0 (infinity: no limit); default inf)."""
+    @property
+    def agree_translation(self) -> float:
+        """Two hypotheses agree when their translations differ by at most this, metres (and their rotations by agree_rotation_deg) (a finite number; default 0.5)."""
+    @property
+    def agree_rotation_deg(self) -> float:
+        """Two hypotheses agree when their rotations differ by at most this, degrees (and their translations by agree_translation) (a finite number; default 2.0)."""
+    # end of generated
+    def __eq__(self, other: object, /) -> bool: ...
+    def check(self, registration: Registration) -> str | None:
+        """Why `registration` is rejected, if it is.
+        Args:
+            registration: A result of `register`.
+        Returns:
+            None when it passes every threshold, else the first failed check ("low overlap",
+            "degenerate translation", ...).
+        """
+    def accepts(self, registration: Registration) -> bool:
+        """Whether `registration` passes every threshold.
+        Args:
+            registration: A result of `register`.
+        Returns:
+            True when `check` finds nothing.
+        """
+    def agreement(self, registration: Registration) -> int:
+        """How many hypotheses reached the best one's pose (within this gate's tolerances).
+        Args:
+            registration: A result of `register` with `yaws`.
+        Returns:
+            The count, the best included; 0 without hypotheses.
+        """
+
+
+@final
+class Descriptor:
+    """One scan's SOLiD descriptor: R-SOLiD (``r``) and A-SOLiD (``a``) with point counts."""
+
+    def __new__(
+        cls,
+        r: npt.ArrayLike,
+        a: npt.ArrayLike,
+        config: SolidConfig,
+        n_points: int = 0,
+        n_in_range: int = 0,
+        n_kept: int = 0,
+    ) -> Descriptor:
+        """`Descriptor(...)`: a descriptor from stored vectors.
+
+                Args:
+                    r: R-SOLiD, `config.n_range` finite non-negative values.
+                    a: A-SOLiD, `config.n_azimuth` finite non-negative values.
+                    config: The configuration the vectors were computed with.
+                    n_points: Points in the scan (informative).
+                    n_in_range: Points left after the range filter (informative).
+                    n_kept: Points binned, after voxel downsampling (informative).
+
+                Raises:
+                    SolidError: A vector of the wrong length, or with a negative or non-finite value.
+                    TypeError: A vector that is not a 1-D sequence of numbers.
+        """
+    @property
+    def r(self) -> npt.NDArray[np.float32]:
+        """R-SOLiD, shape (n_range,), float32 (a new array on each access)."""
+    @property
+    def a(self) -> npt.NDArray[np.float32]:
+        """A-SOLiD, shape (n_azimuth,), float32 (a new array on each access)."""
+    @property
+    def n_points(self) -> int:
+        """Points passed in, before any filtering."""
+    @property
+    def n_in_range(self) -> int:
+        """Points that were finite and within (min_range, max_range) (docs/spec.md §2 steps 1–2)."""
+    @property
+    def n_kept(self) -> int:
+        """Points binned: voxel centroids after downsampling, else `n_in_range`."""
+    @property
+    def config(self) -> SolidConfig:
+        """The configuration the descriptor was computed with."""
+    def distance(self, other: Descriptor) -> float:
+        """Cosine distance of the R-SOLiDs (docs/spec.md §3); the same as `solid.distance(self, other)`.
+
+                Args:
+                    other: A descriptor made with the same configuration.
+
+                Returns:
+                    The distance in [0, 1]: small for the same place; 1 when either scan was empty.
+
+                Raises:
+                    SolidError: The descriptors come from different configurations.
+        """
+    def heading(self, candidate: Descriptor, refine: bool = True) -> float:
+        """Heading of this scan relative to `candidate` (docs/spec.md §3); the same as
+                `solid.heading(self, candidate, refine)`.
+
+                Args:
+                    candidate: A descriptor of the same place made with the same configuration.
+                    refine: Refine the best shift to a fraction of a bin (parabolic fit); if False the
+                        result is a multiple of 360°/n_azimuth.
+
+                Returns:
+                    ψ in degrees, in (-180, 180]: this scan ≈ the candidate rotated by ψ counter-clockwise
+                    about +z.
+
+                Raises:
+                    SolidError: The descriptors come from different configurations.
+        """
+    def __reduce__(self) -> tuple[Any, tuple[Any, ...]]: ...
+
+
+def describe(points: npt.NDArray[np.float32] | npt.NDArray[np.float64], config: SolidConfig) -> Descriptor:
+    """Computes the SOLiD descriptor of one scan (docs/spec.md §2), with the GIL released.
+
+        The array is read in place, never copied or converted: columns 0, 1, 2 are x, y, z in metres
+        in the sensor frame (x forward, y left, z up); further columns (intensity, time, ...) are
+        ignored. Non-finite points and points outside (min_range, max_range) are dropped; an empty
+        scan is valid and gives all-zero vectors.
+
+        Args:
+            points: A C-contiguous float32 or float64 numpy array of shape (N, >=3).
+            config: The descriptor configuration.
+
+        Returns:
+            The descriptor, with its point counts.
+
+        Raises:
+            TypeError: `points` is not a numpy array, or its dtype is not float32 or float64.
+            SolidError: The shape is not (N, >=3), or the array is Fortran-ordered, a strided view
+                or misaligned (the message says how to convert it).
+    """
+
+
+def describe_batch(
+    scans: Iterable[npt.NDArray[np.float32] | npt.NDArray[np.float64]],
+    config: SolidConfig,
+    threads: int | None = None,
+) -> list[Descriptor]:
+    """Describes many scans in parallel, with the GIL released; the same results as `describe`
+        on each.
+
+        Args:
+            scans: Point arrays, each as `describe` accepts (float32 and float64 may be mixed).
+            config: The descriptor configuration.
+            threads: Worker threads, at most one per core; None uses every core, 1 the
+                calling thread. The workers persist from one call to the next, each keeping its
+                scratch buffers.
+
+        Returns:
+            One descriptor per scan, in order.
+
+        Raises:
+            TypeError: `scans` is not iterable, or an element is not a float32/float64 numpy array.
+            SolidError: An element has the wrong shape or layout (named as `scans[i]`), or
+                `threads` is 0.
+    """
+
+
+def distance(a: Descriptor, b: Descriptor) -> float:
+    """Cosine distance between two descriptors' R-SOLiDs (docs/spec.md §3).
+
+        Args:
+            a: One descriptor.
+            b: Another, made with the same configuration.
+
+        Returns:
+            The distance in [0, 1]: small for the same place; 1 when either scan was empty.
+
+        Raises:
+            SolidError: The descriptors come from different configurations.
+    """
+
+
+def heading(query: Descriptor, candidate: Descriptor, refine: bool = True) -> float:
+    """Heading of `query` relative to `candidate` from their A-SOLiDs (docs/spec.md §3).
+
+        Args:
+            query: The scan taken now.
+            candidate: An earlier scan of the same place, made with the same configuration.
+            refine: Refine the best circular shift to a fraction of a bin (parabolic fit); if False
+                the result is a multiple of 360°/n_azimuth.
+
+        Returns:
+            ψ in degrees, in (-180, 180]: the query scan ≈ the candidate rotated by ψ
+            counter-clockwise about +z (`p_query ≈ Rz(ψ) · p_candidate`; with poses,
+            ψ = yaw(R_queryᵀ · R_candidate)).
+
+        Raises:
+            SolidError: The descriptors come from different configurations.
+    """
+
+
+def presets() -> dict[str, SolidConfig]:
+    """Every sensor preset (docs/spec.md §4).
+
+        Returns:
+            A new dict from preset name to its configuration, in the order of the spec's table.
+    """
+
+
+def preset_sensors() -> dict[str, str]:
+    """The sensor each preset describes.
+
+        Returns:
+            A new dict from preset name to the sensor's name ("Velodyne HDL-64E (KITTI)", ...).
+    """
+
+
+class DatabaseError(SolidError):
+    """A database, place or loop-detector error: config mismatch, corrupt, truncated, foreign or
+    newer-version file (the message names the file and the reason)."""
+
+
+@final
+class Match:
+    """One search result."""
+    @property
+    def id(self) -> int:
+        """The entry's id in its database (insertion order, from 0)."""
+    @property
+    def distance(self) -> float:
+        """Cosine distance of the R-SOLiDs, in [0, 1]."""
+    def __eq__(self, other: object, /) -> bool: ...
+
 
 @final
 class Database:
@@ -1008,6 +1213,140 @@ class Database:
     def poses(self) -> npt.NDArray[np.float64]:
         """Each entry's pose, shape (N, 3, 4), float64 (all NaN where none was given)."""
 
+
+def encode_place(descriptor: Descriptor, quantized: bool = False) -> bytes:
+    """Encodes one place for exchange between robots (docs/spec.md §10).
+
+        Args:
+            descriptor: The place.
+            quantized: One byte per bin (square-root companded) instead of float32.
+
+        Returns:
+            420 bytes as float32 or 128 bytes quantised, for the default 40 + 60 bins.
+
+        Raises:
+            ConfigError: A vector with a negative or non-finite value (no descriptor holds one),
+                named as r_solid or a_solid.
+    """
+
+
+def decode_place(data: bytes | bytearray | memoryview, cfg: SolidConfig) -> Descriptor:
+    """Decodes a place made by `encode_place`. Point counts are not transmitted (they read 0).
+
+        Args:
+            data: The encoded place: bytes, bytearray or memoryview.
+            cfg: The configuration the receiver uses; the place must have been made with it.
+
+        Returns:
+            The descriptor (approximate vectors when the place was quantised).
+
+        Raises:
+            DatabaseError: Not a place, an unknown version, a wrong length, a checksum mismatch, a
+                negative or non-finite value, or a place made with another configuration (checked
+                by fingerprint).
+            TypeError: `data` is not bytes, bytearray or memoryview.
+    """
+
+
+@final
+class Loop:
+    """A detected loop closure: the best candidate of a detector step, when its score passes the threshold."""
+    @property
+    def query(self) -> int:
+        """Id of the query scan (for `LoopDetector.query`, the id it would get)."""
+    @property
+    def candidate(self) -> int:
+        """Id of the matched database entry."""
+    @property
+    def distance(self) -> float:
+        """Cosine distance of the R-SOLiDs."""
+    @property
+    def heading(self) -> float:
+        """Heading of the query relative to the candidate (refined), degrees in (-180, 180]."""
+    @property
+    def score(self) -> float:
+        """The score the loop was accepted with: the R-SOLiD distance, or with verification
+        1 − fitness."""
+    @property
+    def verified(self) -> bool:
+        """Whether the loop was verified by registration (then it has a pose)."""
+    @property
+    def pose(self) -> npt.NDArray[np.float64] | None:
+        """`T_query_candidate`, (4, 4) float64, of a verified loop: `p_query ≈ pose @ p_candidate`
+        (docs/spec.md §3); its yaw is `heading`. None when the loop was not verified."""
+    @property
+    def fitness(self) -> float | None:
+        """Overlap of the verifying registration (None when not verified)."""
+    @property
+    def rmse(self) -> float | None:
+        """Inlier RMSE of the verifying registration, metres (None when not verified)."""
+    def __eq__(self, other: object, /) -> bool: ...
+
+
+@final
+class Candidate:
+    """One candidate of a detector step, in the detector's ranking order."""
+    @property
+    def id(self) -> int:
+        """Id of the database entry."""
+    @property
+    def distance(self) -> float:
+        """Cosine distance of the R-SOLiDs, in [0, 1]."""
+    @property
+    def heading(self) -> float:
+        """Heading of the query relative to this candidate (refined), degrees in (-180, 180]."""
+    @property
+    def score(self) -> float:
+        """What ranks the candidates and what a precision-recall curve sweeps: the R-SOLiD
+        distance, or with verification 1 − fitness for a candidate that passed the gate and
+        1.5 + distance / 2 otherwise."""
+    @property
+    def verified(self) -> bool:
+        """Whether this candidate was registered."""
+    @property
+    def accepted(self) -> bool:
+        """Whether its registration passed the gate."""
+    @property
+    def rejection(self) -> str | None:
+        """Why the gate rejected its registration (None when accepted or not registered)."""
+    @property
+    def pose(self) -> npt.NDArray[np.float64] | None:
+        """`T_query_candidate` (4, 4) of its registration (None when not registered)."""
+    @property
+    def fitness(self) -> float | None:
+        """Overlap of its registration (None when not registered)."""
+    @property
+    def structure_fitness(self) -> float | None:
+        """Overlap of its registration's points off horizontal surfaces (None when not registered)."""
+    @property
+    def rmse(self) -> float | None:
+        """Inlier RMSE of its registration, metres (None when not registered)."""
+    @property
+    def degeneracy_translation(self) -> float | None:
+        """Smallest eigenvalue of the translation block of its registration's information matrix."""
+    @property
+    def agreement(self) -> tuple[int, int] | None:
+        """(initial yaws that reached the best pose, yaws tried), or None when not registered."""
+    def __eq__(self, other: object, /) -> bool: ...
+
+
+@final
+class Detection:
+    """Everything one detector step decided (docs/spec.md §8)."""
+    @property
+    def query(self) -> int:
+        """Id of the query (the entry the step added)."""
+    @property
+    def eligible(self) -> int:
+        """The candidates were drawn from the entries 0..eligible (the others were too recent); 0: nothing to search yet."""
+    @property
+    def candidates(self) -> list[Candidate]:
+        """Up to `top_k` candidates, best first."""
+    @property
+    def loop(self) -> Loop | None:
+        """The loop, when the best candidate's score is at most the threshold; else None."""
+
+
 @final
 class LoopDetector:
     """Online loop closure (docs/spec.md §8): each scan is searched against the places it may be
@@ -1263,10 +1602,12 @@ class LoopDetector:
     def rerank(self) -> bool:
         """Whether re-ranking is on."""
 
-# --- docs/spec.md §5 scoring (eval.rs) ---
 
 DEFAULT_RADIUS: float
+
+
 VERIFIED_THRESHOLD: float
+
 
 @final
 class Scores:
@@ -1352,6 +1693,7 @@ class Scores:
         """
     def __len__(self) -> int: ...
 
+
 def score_candidates(
     query: npt.NDArray[np.int64],
     eligible: npt.NDArray[np.int64],
@@ -1386,183 +1728,6 @@ def score_candidates(
             candidate that is not eligible, an `eligible` of 0 (skip queries with no database) or
             beyond the poses, a non-finite position.
     """
-
-def encode_place(descriptor: Descriptor, quantized: bool = False) -> bytes:
-    """Encodes one place for exchange between robots (docs/spec.md §10).
-
-        Args:
-            descriptor: The place.
-            quantized: One byte per bin (square-root companded) instead of float32.
-
-        Returns:
-            420 bytes as float32 or 128 bytes quantised, for the default 40 + 60 bins.
-
-        Raises:
-            ConfigError: A vector with a negative or non-finite value (no descriptor holds one),
-                named as r_solid or a_solid.
-    """
-def decode_place(data: bytes | bytearray | memoryview, cfg: SolidConfig) -> Descriptor:
-    """Decodes a place made by `encode_place`. Point counts are not transmitted (they read 0).
-
-        Args:
-            data: The encoded place: bytes, bytearray or memoryview.
-            cfg: The configuration the receiver uses; the place must have been made with it.
-
-        Returns:
-            The descriptor (approximate vectors when the place was quantised).
-
-        Raises:
-            DatabaseError: Not a place, an unknown version, a wrong length, a checksum mismatch, a
-                negative or non-finite value, or a place made with another configuration (checked
-                by fingerprint).
-            TypeError: `data` is not bytes, bytearray or memoryview.
-    """
-
-# --- registration (reg.rs) ---
-
-@final
-class RegistrationConfig:
-    """Registration parameters, immutable; invalid values raise ConfigError naming the parameter.
-
-    The defaults were chosen by measurement on hku1-avia (see the Rust documentation of
-    `solid_lidar::reg`): GICP with a Geman-McClure kernel, coarse 1 m voxels with 3 m
-    correspondences, then 0.5 m / 1 m.
-    """
-    # generated from the core's parameter table by tools/stubgen.py (make stubs): do not edit
-    def __new__(
-        cls,
-        *,
-        voxel_size: float = 0.5,
-        coarse_voxel_size: float = 1.0,
-        min_range: float = 1.0,
-        max_range: float = 200.0,
-        neighbors: int = 10,
-        max_correspondence: float = 1.0,
-        coarse_max_correspondence: float = 3.0,
-        max_iterations: int = 20,
-        rotation_eps_deg: float = 0.1,
-        translation_eps: float = 0.001,
-        factor: str = 'gicp',
-        kernel: str = 'geman-mcclure',
-        kernel_scale: float = 0.5,
-        inlier_distance: float = 0.5,
-    ) -> RegistrationConfig:
-        """`RegistrationConfig(...)`: parameters by keyword (None: the default).
-
-        Args:
-            voxel_size: Voxel edge of the fine level, metres (0 keeps every point in range) (a finite value >= 0 metres (0 disables downsampling); default 0.5).
-            coarse_voxel_size: Voxel edge of the coarse level, metres (0: no coarse level) (0 (no coarse level), or a finite value above voxel_size and >= max_range / 2^19; default 1.0).
-            min_range: Points at or within this distance (metres, sensor frame) are dropped (a finite value >= 0 metres; default 1.0).
-            max_range: Points at or beyond this distance are dropped (a finite value above min_range; default 200.0).
-            neighbors: Neighbours (the point included) of each local covariance (an integer in 5..=64; default 10).
-            max_correspondence: Largest correspondence distance at the fine level, metres (a finite value > 0 metres; default 1.0).
-            coarse_max_correspondence: Largest correspondence distance at the coarse level, metres (a finite value > 0 metres; default 3.0).
-            max_iterations: Largest number of Gauss-Newton iterations per level (an integer in 1..=1000; default 20).
-            rotation_eps_deg: A level has converged when an update rotates by less than this, degrees (and translates by less than translation_eps) (a finite value > 0 degrees; default 0.1).
-            translation_eps: A level has converged when an update translates by less than this, metres (and rotates by less than rotation_eps_deg) (a finite value > 0 metres; default 0.001).
-            factor: The residual: plane-to-plane GICP or point-to-plane ICP ("gicp" or "point-to-plane"; default 'gicp').
-            kernel: The robust kernel ("geman-mcclure" or "none"; default 'geman-mcclure').
-            kernel_scale: Kernel scale as a fraction of the level's maximum correspondence distance (a value in (0, 10]; default 0.5).
-            inlier_distance: Distance (metres) within which a point overlaps the other cloud (overlaps, RMSE) (a finite value > 0 metres; default 0.5).
-
-        Raises:
-            ConfigError: A value out of its range (named in the message).
-            TypeError: An unknown parameter, or a value of the wrong type.
-        """
-    def replace(
-        self,
-        *,
-        voxel_size: float | None = None,
-        coarse_voxel_size: float | None = None,
-        min_range: float | None = None,
-        max_range: float | None = None,
-        neighbors: int | None = None,
-        max_correspondence: float | None = None,
-        coarse_max_correspondence: float | None = None,
-        max_iterations: int | None = None,
-        rotation_eps_deg: float | None = None,
-        translation_eps: float | None = None,
-        factor: str | None = None,
-        kernel: str | None = None,
-        kernel_scale: float | None = None,
-        inlier_distance: float | None = None,
-    ) -> RegistrationConfig:
-        """A copy with some parameters changed (None: unchanged); this one is immutable.
-
-        Args:
-            voxel_size: Voxel edge of the fine level, metres (0 keeps every point in range) (a finite value >= 0 metres (0 disables downsampling); default 0.5).
-            coarse_voxel_size: Voxel edge of the coarse level, metres (0: no coarse level) (0 (no coarse level), or a finite value above voxel_size and >= max_range / 2^19; default 1.0).
-            min_range: Points at or within this distance (metres, sensor frame) are dropped (a finite value >= 0 metres; default 1.0).
-            max_range: Points at or beyond this distance are dropped (a finite value above min_range; default 200.0).
-            neighbors: Neighbours (the point included) of each local covariance (an integer in 5..=64; default 10).
-            max_correspondence: Largest correspondence distance at the fine level, metres (a finite value > 0 metres; default 1.0).
-            coarse_max_correspondence: Largest correspondence distance at the coarse level, metres (a finite value > 0 metres; default 3.0).
-            max_iterations: Largest number of Gauss-Newton iterations per level (an integer in 1..=1000; default 20).
-            rotation_eps_deg: A level has converged when an update rotates by less than this, degrees (and translates by less than translation_eps) (a finite value > 0 degrees; default 0.1).
-            translation_eps: A level has converged when an update translates by less than this, metres (and rotates by less than rotation_eps_deg) (a finite value > 0 metres; default 0.001).
-            factor: The residual: plane-to-plane GICP or point-to-plane ICP ("gicp" or "point-to-plane"; default 'gicp').
-            kernel: The robust kernel ("geman-mcclure" or "none"; default 'geman-mcclure').
-            kernel_scale: Kernel scale as a fraction of the level's maximum correspondence distance (a value in (0, 10]; default 0.5).
-            inlier_distance: Distance (metres) within which a point overlaps the other cloud (overlaps, RMSE) (a finite value > 0 metres; default 0.5).
-
-        Returns:
-            The validated new parameters.
-
-        Raises:
-            ConfigError: A value out of its range (named in the message).
-            TypeError: An unknown parameter, or a value of the wrong type.
-        """
-    def to_dict(self) -> dict[str, Any]:
-        """The parameters by name (voxel_size, coarse_voxel_size, min_range, max_range, neighbors, max_correspondence, coarse_max_correspondence, max_iterations, rotation_eps_deg, translation_eps, factor, kernel, kernel_scale, inlier_distance): what `RegistrationConfig(**d)` takes back.
-
-        Returns:
-            A new dict.
-        """
-    @property
-    def voxel_size(self) -> float:
-        """Voxel edge of the fine level, metres (0 keeps every point in range) (a finite value >= 0 metres (0 disables downsampling); default 0.5)."""
-    @property
-    def coarse_voxel_size(self) -> float:
-        """Voxel edge of the coarse level, metres (0: no coarse level) (0 (no coarse level), or a finite value above voxel_size and >= max_range / 2^19; default 1.0)."""
-    @property
-    def min_range(self) -> float:
-        """Points at or within this distance (metres, sensor frame) are dropped (a finite value >= 0 metres; default 1.0)."""
-    @property
-    def max_range(self) -> float:
-        """Points at or beyond this distance are dropped (a finite value above min_range; default 200.0)."""
-    @property
-    def neighbors(self) -> int:
-        """Neighbours (the point included) of each local covariance (an integer in 5..=64; default 10)."""
-    @property
-    def max_correspondence(self) -> float:
-        """Largest correspondence distance at the fine level, metres (a finite value > 0 metres; default 1.0)."""
-    @property
-    def coarse_max_correspondence(self) -> float:
-        """Largest correspondence distance at the coarse level, metres (a finite value > 0 metres; default 3.0)."""
-    @property
-    def max_iterations(self) -> int:
-        """Largest number of Gauss-Newton iterations per level (an integer in 1..=1000; default 20)."""
-    @property
-    def rotation_eps_deg(self) -> float:
-        """A level has converged when an update rotates by less than this, degrees (and translates by less than translation_eps) (a finite value > 0 degrees; default 0.1)."""
-    @property
-    def translation_eps(self) -> float:
-        """A level has converged when an update translates by less than this, metres (and rotates by less than rotation_eps_deg) (a finite value > 0 metres; default 0.001)."""
-    @property
-    def factor(self) -> str:
-        """The residual: plane-to-plane GICP or point-to-plane ICP ("gicp" or "point-to-plane"; default 'gicp')."""
-    @property
-    def kernel(self) -> str:
-        """The robust kernel ("geman-mcclure" or "none"; default 'geman-mcclure')."""
-    @property
-    def kernel_scale(self) -> float:
-        """Kernel scale as a fraction of the level's maximum correspondence distance (a value in (0, 10]; default 0.5)."""
-    @property
-    def inlier_distance(self) -> float:
-        """Distance (metres) within which a point overlaps the other cloud (overlaps, RMSE) (a finite value > 0 metres; default 0.5)."""
-    # end of generated
-    def __eq__(self, value: object, /) -> bool: ...
-    def __ne__(self, value: object, /) -> bool: ...
 
 
 @final
@@ -1628,6 +1793,7 @@ class PreparedCloud:
         """The configuration it was prepared with."""
     def __len__(self) -> int: ...
 
+
 @final
 class Hypothesis:
     """One initial yaw of a multi-hypothesis registration and where its coarse level ended."""
@@ -1647,6 +1813,7 @@ class Hypothesis:
     @property
     def iterations(self) -> int:
         """Iterations of the coarse level."""
+
 
 @final
 class Registration:
@@ -1695,142 +1862,6 @@ class Registration:
     def best_hypothesis(self) -> int | None:
         """Index of the best hypothesis (None when no yaws were given)."""
 
-@final
-class AcceptanceGate:
-    """Thresholds a registration must meet to be accepted as a loop (measured defaults).
-
-    Tuned for precision on hku1-avia and the simulator: with the defaults, none of 843 wrong
-    registrations of hku1's top-5 candidates passes, 373 of 462 correct ones do.
-    """
-    # generated from the core's parameter table by tools/stubgen.py (make stubs): do not edit
-    def __new__(
-        cls,
-        *,
-        require_converged: bool = False,
-        min_fitness: float = 0.35,
-        min_structure_fitness: float = 0.35,
-        max_rmse: float = 0.3,
-        min_translation_information: float = 1.5,
-        min_rotation_information: float = 0.0,
-        min_agreement: int = 1,
-        max_translation: float = ...,
-        agree_translation: float = 0.5,
-        agree_rotation_deg: float = 2.0,
-    ) -> AcceptanceGate:
-        """`AcceptanceGate(...)`: parameters by keyword (None: the default).
-
-        Args:
-            require_converged: Require the fine level to have converged (a bool; default False).
-            min_fitness: Smallest accepted fitness (the smaller of the two overlaps) (a finite number; default 0.35).
-            min_structure_fitness: Smallest accepted overlap of the structure (points off the ground) (a finite number; default 0.35).
-            max_rmse: Largest accepted inlier RMSE, metres (a finite number; default 0.3).
-            min_translation_information: Smallest accepted translation information (degeneracy.translation) (a finite number; default 1.5).
-            min_rotation_information: Smallest accepted rotation information (degeneracy.rotation) (a finite number; default 0.0).
-            min_agreement: Fewest initial yaws (the best included) that must reach the best pose (an integer >= 0; default 1).
-            max_translation: Largest accepted length of the translation, metres (metres > 0 (infinity: no limit); default inf).
-            agree_translation: Two hypotheses agree when their translations differ by at most this, metres (and their rotations by agree_rotation_deg) (a finite number; default 0.5).
-            agree_rotation_deg: Two hypotheses agree when their rotations differ by at most this, degrees (and their translations by agree_translation) (a finite number; default 2.0).
-
-        Raises:
-            ConfigError: A value out of its range (named in the message).
-            TypeError: An unknown parameter, or a value of the wrong type.
-        """
-    def replace(
-        self,
-        *,
-        require_converged: bool | None = None,
-        min_fitness: float | None = None,
-        min_structure_fitness: float | None = None,
-        max_rmse: float | None = None,
-        min_translation_information: float | None = None,
-        min_rotation_information: float | None = None,
-        min_agreement: int | None = None,
-        max_translation: float | None = None,
-        agree_translation: float | None = None,
-        agree_rotation_deg: float | None = None,
-    ) -> AcceptanceGate:
-        """A copy with some parameters changed (None: unchanged); this one is immutable.
-
-        Args:
-            require_converged: Require the fine level to have converged (a bool; default False).
-            min_fitness: Smallest accepted fitness (the smaller of the two overlaps) (a finite number; default 0.35).
-            min_structure_fitness: Smallest accepted overlap of the structure (points off the ground) (a finite number; default 0.35).
-            max_rmse: Largest accepted inlier RMSE, metres (a finite number; default 0.3).
-            min_translation_information: Smallest accepted translation information (degeneracy.translation) (a finite number; default 1.5).
-            min_rotation_information: Smallest accepted rotation information (degeneracy.rotation) (a finite number; default 0.0).
-            min_agreement: Fewest initial yaws (the best included) that must reach the best pose (an integer >= 0; default 1).
-            max_translation: Largest accepted length of the translation, metres (metres > 0 (infinity: no limit); default inf).
-            agree_translation: Two hypotheses agree when their translations differ by at most this, metres (and their rotations by agree_rotation_deg) (a finite number; default 0.5).
-            agree_rotation_deg: Two hypotheses agree when their rotations differ by at most this, degrees (and their translations by agree_translation) (a finite number; default 2.0).
-
-        Returns:
-            The validated new parameters.
-
-        Raises:
-            ConfigError: A value out of its range (named in the message).
-            TypeError: An unknown parameter, or a value of the wrong type.
-        """
-    def to_dict(self) -> dict[str, Any]:
-        """The parameters by name (require_converged, min_fitness, min_structure_fitness, max_rmse, min_translation_information, min_rotation_information, min_agreement, max_translation, agree_translation, agree_rotation_deg): what `AcceptanceGate(**d)` takes back.
-
-        Returns:
-            A new dict.
-        """
-    @property
-    def require_converged(self) -> bool:
-        """Require the fine level to have converged (a bool; default False)."""
-    @property
-    def min_fitness(self) -> float:
-        """Smallest accepted fitness (the smaller of the two overlaps) (a finite number; default 0.35)."""
-    @property
-    def min_structure_fitness(self) -> float:
-        """Smallest accepted overlap of the structure (points off the ground) (a finite number; default 0.35)."""
-    @property
-    def max_rmse(self) -> float:
-        """Largest accepted inlier RMSE, metres (a finite number; default 0.3)."""
-    @property
-    def min_translation_information(self) -> float:
-        """Smallest accepted translation information (degeneracy.translation) (a finite number; default 1.5)."""
-    @property
-    def min_rotation_information(self) -> float:
-        """Smallest accepted rotation information (degeneracy.rotation) (a finite number; default 0.0)."""
-    @property
-    def min_agreement(self) -> int:
-        """Fewest initial yaws (the best included) that must reach the best pose (an integer >= 0; default 1)."""
-    @property
-    def max_translation(self) -> float:
-        """Largest accepted length of the translation, metres (metres > 0 (infinity: no limit); default inf)."""
-    @property
-    def agree_translation(self) -> float:
-        """Two hypotheses agree when their translations differ by at most this, metres (and their rotations by agree_rotation_deg) (a finite number; default 0.5)."""
-    @property
-    def agree_rotation_deg(self) -> float:
-        """Two hypotheses agree when their rotations differ by at most this, degrees (and their translations by agree_translation) (a finite number; default 2.0)."""
-    # end of generated
-    def __eq__(self, other: object, /) -> bool: ...
-    def check(self, registration: Registration) -> str | None:
-        """Why `registration` is rejected, if it is.
-        Args:
-            registration: A result of `register`.
-        Returns:
-            None when it passes every threshold, else the first failed check ("low overlap",
-            "degenerate translation", ...).
-        """
-    def accepts(self, registration: Registration) -> bool:
-        """Whether `registration` passes every threshold.
-        Args:
-            registration: A result of `register`.
-        Returns:
-            True when `check` finds nothing.
-        """
-    def agreement(self, registration: Registration) -> int:
-        """How many hypotheses reached the best one's pose (within this gate's tolerances).
-        Args:
-            registration: A result of `register` with `yaws`.
-        Returns:
-            The count, the best included; 0 without hypotheses.
-        """
-
 
 def register(
     query: PreparedCloud | npt.NDArray[np.float32] | npt.NDArray[np.float64],
@@ -1862,6 +1893,8 @@ def register(
             `yaws`, or a PreparedCloud prepared with another configuration.
         ConfigError: `init` is not a finite rigid transform, or a yaw is not finite.
     """
+
+
 def hypothesis_yaws(query: Descriptor, candidate: Descriptor, n: int = 4) -> list[float]:
     """Initial yaws worth trying for a pair of places: 0° then the A-SOLiD minima.
 
@@ -1877,6 +1910,8 @@ def hypothesis_yaws(query: Descriptor, candidate: Descriptor, n: int = 4) -> lis
     Raises:
         SolidError: Descriptors from different configurations.
     """
+
+
 def encode_cloud(
     points: npt.NDArray[np.float32] | npt.NDArray[np.float64], grid: float = 0.5, bits: int = 8
 ) -> bytes:
@@ -1893,6 +1928,8 @@ def encode_cloud(
     Raises:
         ConfigError: A bad `grid` or `bits`, or a non-finite or far-away point.
     """
+
+
 def decode_cloud(data: bytes | bytearray | memoryview) -> npt.NDArray[np.float64]:
     """Decodes points made by `encode_cloud`.
 
@@ -1907,10 +1944,12 @@ def decode_cloud(data: bytes | bytearray | memoryview) -> npt.NDArray[np.float64
         TypeError: `data` is not bytes, bytearray or memoryview.
     """
 
-# --- simulator (sim.rs), used by solid.sim ---
 
 _SIM_SENSORS: list[str]
+
+
 _SIM_TRAJECTORIES: list[str]
+
 
 @final
 class _SimWorld:
@@ -1927,6 +1966,7 @@ class _SimWorld:
     def __len__(self) -> int: ...
     def ground_height(self, x: float, y: float) -> float: ...
     def footprints(self) -> tuple[list[str], npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
+
 
 @final
 class _SimSensor:
@@ -1952,6 +1992,7 @@ class _SimSensor:
     def channels(self) -> int: ...
     def n_rays(self, frame: int = 0) -> int: ...
 
+
 def _sim_world(
     seed: int = 0,
     blocks: int = 4,
@@ -1961,6 +2002,8 @@ def _sim_world(
     repetition: float = 0.3,
     cell_size: float = 4.0,
 ) -> _SimWorld: ...
+
+
 def _sim_sensor(
     name: str,
     h_fov: float | None = None,
@@ -1972,10 +2015,16 @@ def _sim_sensor(
     seed: int = 0,
     points: int | None = None,
 ) -> _SimSensor: ...
+
+
 def _sim_scan(world: _SimWorld, sensor: _SimSensor, pose: npt.NDArray[np.float64], frame: int = 0) -> npt.NDArray[np.float32]: ...
+
+
 def _sim_scans(
     world: _SimWorld, sensor: _SimSensor, poses: npt.NDArray[np.float64], first_frame: int = 0
 ) -> list[npt.NDArray[np.float32]]: ...
+
+
 def _sim_trajectory(
     world: _SimWorld,
     kind: str,
@@ -1986,6 +2035,8 @@ def _sim_trajectory(
     speed: float = 10.0,
     mount_height: float = 1.73,
 ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
+
+
 def _sim_route(
     world: _SimWorld,
     waypoints: list[tuple[float, float]],
@@ -1995,9 +2046,13 @@ def _sim_route(
     speed: float = 10.0,
     mount_height: float = 1.73,
 ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
+
+
 def _sim_spin(
     world: _SimWorld, x: float, y: float, headings: list[float], mount_height: float = 1.73
 ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
+
+
 def _sim_write_sequence(
     directory: str | os.PathLike[str],
     world: _SimWorld,
@@ -2005,14 +2060,19 @@ def _sim_write_sequence(
     poses: npt.NDArray[np.float64],
     times: list[float],
 ) -> int: ...
+
+
 def _sim_write_scans(
     directory: str | os.PathLike[str],
     scans: list[npt.NDArray[np.float32]],
     poses: npt.NDArray[np.float64],
     times: list[float],
 ) -> int: ...
+
+
 def _lzf_decompress_into(data: bytes, out: npt.NDArray[np.uint8], start: int = 0, stop: int | None = None) -> int:
     """Decode the LZF stream ``data[start:stop]`` into ``out`` (uint8, C-contiguous); returns the bytes written."""
+
 
 def _lzf_max_decompressed_len(n: int) -> int:
     """The most bytes an LZF stream of ``n`` bytes can decode to."""

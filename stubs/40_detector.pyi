@@ -1,0 +1,353 @@
+@final
+class Loop:
+    """A detected loop closure: the best candidate of a detector step, when its score passes the threshold."""
+    @property
+    def query(self) -> int:
+        """Id of the query scan (for `LoopDetector.query`, the id it would get)."""
+    @property
+    def candidate(self) -> int:
+        """Id of the matched database entry."""
+    @property
+    def distance(self) -> float:
+        """Cosine distance of the R-SOLiDs."""
+    @property
+    def heading(self) -> float:
+        """Heading of the query relative to the candidate (refined), degrees in (-180, 180]."""
+    @property
+    def score(self) -> float:
+        """The score the loop was accepted with: the R-SOLiD distance, or with verification
+        1 − fitness."""
+    @property
+    def verified(self) -> bool:
+        """Whether the loop was verified by registration (then it has a pose)."""
+    @property
+    def pose(self) -> npt.NDArray[np.float64] | None:
+        """`T_query_candidate`, (4, 4) float64, of a verified loop: `p_query ≈ pose @ p_candidate`
+        (docs/spec.md §3); its yaw is `heading`. None when the loop was not verified."""
+    @property
+    def fitness(self) -> float | None:
+        """Overlap of the verifying registration (None when not verified)."""
+    @property
+    def rmse(self) -> float | None:
+        """Inlier RMSE of the verifying registration, metres (None when not verified)."""
+    def __eq__(self, other: object, /) -> bool: ...
+
+
+@final
+class Candidate:
+    """One candidate of a detector step, in the detector's ranking order."""
+    @property
+    def id(self) -> int:
+        """Id of the database entry."""
+    @property
+    def distance(self) -> float:
+        """Cosine distance of the R-SOLiDs, in [0, 1]."""
+    @property
+    def heading(self) -> float:
+        """Heading of the query relative to this candidate (refined), degrees in (-180, 180]."""
+    @property
+    def score(self) -> float:
+        """What ranks the candidates and what a precision-recall curve sweeps: the R-SOLiD
+        distance, or with verification 1 − fitness for a candidate that passed the gate and
+        1.5 + distance / 2 otherwise."""
+    @property
+    def verified(self) -> bool:
+        """Whether this candidate was registered."""
+    @property
+    def accepted(self) -> bool:
+        """Whether its registration passed the gate."""
+    @property
+    def rejection(self) -> str | None:
+        """Why the gate rejected its registration (None when accepted or not registered)."""
+    @property
+    def pose(self) -> npt.NDArray[np.float64] | None:
+        """`T_query_candidate` (4, 4) of its registration (None when not registered)."""
+    @property
+    def fitness(self) -> float | None:
+        """Overlap of its registration (None when not registered)."""
+    @property
+    def structure_fitness(self) -> float | None:
+        """Overlap of its registration's points off horizontal surfaces (None when not registered)."""
+    @property
+    def rmse(self) -> float | None:
+        """Inlier RMSE of its registration, metres (None when not registered)."""
+    @property
+    def degeneracy_translation(self) -> float | None:
+        """Smallest eigenvalue of the translation block of its registration's information matrix."""
+    @property
+    def agreement(self) -> tuple[int, int] | None:
+        """(initial yaws that reached the best pose, yaws tried), or None when not registered."""
+    def __eq__(self, other: object, /) -> bool: ...
+
+
+@final
+class Detection:
+    """Everything one detector step decided (docs/spec.md §8)."""
+    @property
+    def query(self) -> int:
+        """Id of the query (the entry the step added)."""
+    @property
+    def eligible(self) -> int:
+        """The candidates were drawn from the entries 0..eligible (the others were too recent); 0: nothing to search yet."""
+    @property
+    def candidates(self) -> list[Candidate]:
+        """Up to `top_k` candidates, best first."""
+    @property
+    def loop(self) -> Loop | None:
+        """The loop, when the best candidate's score is at most the threshold; else None."""
+
+
+@final
+class LoopDetector:
+    """Online loop closure (docs/spec.md §8): each scan is searched against the places it may be
+    matched with — a prior map, and its own session minus the exclusion window — then added.
+
+    Safe to share between threads: a step (search, then add) runs alone; `query` and the
+    getters run in parallel. A process forked while another thread runs a step finds its copy
+    locked, as `Database`'s.
+    """
+    def __new__(
+        cls,
+        cfg: SolidConfig,
+        exclude_recent: int | None = None,
+        threshold: float | None = None,
+        top_k: int | None = None,
+        rerank: bool | None = None,
+        *,
+        exclude_meters: float | None = None,
+        exclude_seconds: float | None = None,
+        verify: bool | None = None,
+        detector: DetectorConfig | None = None,
+    ) -> LoopDetector:
+        """`LoopDetector(cfg, ...)`: a detector with an empty database.
+
+        Args:
+            cfg: The configuration scans are described with; its base preset chooses the default
+                threshold.
+            exclude_recent: Frames of the own session never matched (the robot is still there);
+                None: 50. The same as `DetectorConfig.exclude_frames`.
+            threshold: Largest score (R-SOLiD cosine distance) accepted as a loop; None: the loop
+                threshold of the configuration's base preset (docs/spec.md §4), else the largest preset
+                threshold.
+            top_k: Candidates each step returns (1..=1000); None: 10.
+            rerank: Re-rank the candidates by R-SOLiD distance plus rotation-aligned A-SOLiD distance;
+                None: off.
+            exclude_meters: Also skip places of the own session fewer than this many metres back along
+                the path (every scan then needs a pose); None or 0: off.
+            exclude_seconds: Also skip places of the own session fewer than this many seconds back
+                (every scan then needs a non-decreasing timestamp); None or 0: off.
+            verify: Verify the best candidates by registration (None: on, the default); with it on,
+                scans must be given as points.
+            detector: Parameters to start from instead of the defaults; the other arguments override
+                them.
+
+        Raises:
+            ConfigError: A detector parameter out of its range (named in the message).
+            TypeError: A parameter of the wrong type.
+        """
+    @staticmethod
+    def from_database(
+        database: Database,
+        exclude_recent: int | None = None,
+        threshold: float | None = None,
+        top_k: int | None = None,
+        rerank: bool | None = None,
+        *,
+        exclude_meters: float | None = None,
+        exclude_seconds: float | None = None,
+        verify: bool | None = None,
+        detector: DetectorConfig | None = None,
+    ) -> LoopDetector:
+        """A detector over a copy of an existing database (a prior map, other sessions): its places
+        are candidates from the first scan on and are never excluded as recent; the detector's own
+        scans get the session after the largest one in the database.
+
+        Args:
+            database: The map; its configuration becomes the detector's.
+            exclude_recent: Frames of the own session never matched (the robot is still there);
+                None: 50. The same as `DetectorConfig.exclude_frames`.
+            threshold: Largest score (R-SOLiD cosine distance) accepted as a loop; None: the loop
+                threshold of the configuration's base preset (docs/spec.md §4), else the largest preset
+                threshold.
+            top_k: Candidates each step returns (1..=1000); None: 10.
+            rerank: Re-rank the candidates by R-SOLiD distance plus rotation-aligned A-SOLiD distance;
+                None: off.
+            exclude_meters: Also skip places of the own session fewer than this many metres back along
+                the path (every scan then needs a pose); None or 0: off.
+            exclude_seconds: Also skip places of the own session fewer than this many seconds back
+                (every scan then needs a non-decreasing timestamp); None or 0: off.
+            verify: Verify the best candidates by registration (None: on, the default); with it on,
+                scans must be given as points.
+            detector: Parameters to start from instead of the defaults; the other arguments override
+                them.
+
+        Returns:
+            The detector.
+
+        Raises:
+            ConfigError: A detector parameter out of its range.
+            DatabaseError: The database already uses the largest session number.
+            TypeError: A parameter of the wrong type.
+        """
+    def add(
+        self,
+        points_or_descriptor: Descriptor | npt.ArrayLike,
+        timestamp: float | None = None,
+        pose: npt.ArrayLike | None = None,
+    ) -> Loop | None:
+        """Searches one scan against the eligible places, then adds it (GIL released).
+
+        Args:
+            points_or_descriptor: The scan's points (as `solid.describe` accepts) or its descriptor,
+                made with the detector's configuration.
+            timestamp: Seconds, or None.
+            pose: `T_world_sensor` as a 3×4 array or 12 floats (row-major [R|t]), or None; stored with
+                the place.
+
+        Returns:
+            The loop, or None when the best candidate's score is above the threshold (or there is no
+            candidate yet).
+
+        Raises:
+            DatabaseError: A descriptor made with another configuration.
+            ConfigError: An infinite timestamp, a non-finite pose or one that is not a rotation, a pose
+                or timestamp missing when the exclusion needs it, a timestamp older than the previous
+                one when excluding by seconds. Nothing is added then.
+            SolidError: Points of the wrong shape or layout (as `solid.describe`).
+            TypeError: Points of the wrong type or dtype.
+            SolidError: A pose that is not 12 values or a 3×4 array.
+        """
+    def detect(
+        self,
+        points_or_descriptor: Descriptor | npt.ArrayLike,
+        timestamp: float | None = None,
+        pose: npt.ArrayLike | None = None,
+    ) -> Detection:
+        """As `add`, returning everything the step decided. With verification on (the default) the
+        scan must be given as points: its cloud is prepared, stored with the place and registered
+        with the best candidates'; a Descriptor then raises ConfigError.
+
+        Args:
+            points_or_descriptor: The scan's points (as `solid.describe` accepts) or its descriptor,
+                made with the detector's configuration.
+            timestamp: Seconds, or None.
+            pose: `T_world_sensor` as a 3×4 array or 12 floats (row-major [R|t]), or None; stored with
+                the place.
+
+        Returns:
+            The step's query id, eligible entries, ranked candidates and loop.
+
+        Raises:
+            DatabaseError: A descriptor made with another configuration.
+            ConfigError: An infinite timestamp, a non-finite pose or one that is not a rotation, a pose
+                or timestamp missing when the exclusion needs it, a timestamp older than the previous
+                one when excluding by seconds. Nothing is added then.
+            SolidError: Points of the wrong shape or layout (as `solid.describe`).
+            TypeError: Points of the wrong type or dtype.
+            SolidError: A pose that is not 12 values or a 3×4 array.
+        """
+    def detect_many(
+        self,
+        scans: Sequence[Descriptor] | Sequence[npt.ArrayLike],
+        timestamps: Sequence[float | None] | npt.ArrayLike | None = None,
+        poses: Sequence[npt.ArrayLike | None] | npt.ArrayLike | None = None,
+        threads: int | None = None,
+    ) -> list[Detection]:
+        """`detect` for many scans in order, in one call (the GIL is released once): point arrays
+        are described (and, when the detector verifies, their clouds prepared) in parallel, then
+        the steps run in order. Every input is checked before the first is added: on error
+        nothing is added.
+
+        Args:
+            scans: Point arrays (as `solid.describe` accepts), or Descriptors made with the
+                detector's configuration (verification off).
+            threads: Workers describing and preparing the scans (None: every core).
+            timestamps: One per scan (None entries: none), or None for none at all.
+            poses: One per scan (3×4 or 12 floats; None entries: none), an (N, 3, 4) array,
+                or None for none at all.
+
+        Returns:
+            One Detection per descriptor, in order.
+
+        Raises:
+            DatabaseError: A descriptor made with another configuration.
+            ConfigError: An infinite timestamp, a non-finite pose or one that is not a rotation, a pose
+                or timestamp missing when the exclusion needs it, a timestamp older than the previous
+                one when excluding by seconds. Nothing is added then.
+            SolidError: Points of the wrong shape or layout (as `solid.describe`).
+            TypeError: Points of the wrong type or dtype.
+            SolidError: A pose that is not 12 values or a 3×4 array.
+            SolidError: `timestamps` or `poses` of another length than `scans`.
+        """
+    def candidates(
+        self,
+        points_or_descriptor: Descriptor | npt.ArrayLike,
+        k: int | None = None,
+        timestamp: float | None = None,
+        pose: npt.ArrayLike | None = None,
+    ) -> list[Candidate]:
+        """The candidates the scan would get if it were added now (with this timestamp and pose),
+        without adding it.
+
+        Args:
+            points_or_descriptor: The scan's points (as `solid.describe` accepts) or its descriptor,
+                made with the detector's configuration.
+            timestamp: Seconds, or None.
+            pose: `T_world_sensor` as a 3×4 array or 12 floats (row-major [R|t]), or None; stored with
+                the place.
+            k: At most this many; None: the detector's `top_k`.
+
+        Returns:
+            The candidates, best first.
+
+        Raises:
+            DatabaseError: A descriptor made with another configuration.
+            ConfigError: An infinite timestamp, a non-finite pose or one that is not a rotation, a pose
+                or timestamp missing when the exclusion needs it, a timestamp older than the previous
+                one when excluding by seconds. Nothing is added then.
+            SolidError: Points of the wrong shape or layout (as `solid.describe`).
+            TypeError: Points of the wrong type or dtype.
+            SolidError: A pose that is not 12 values or a 3×4 array.
+        """
+    def query(self, points_or_descriptor: Descriptor | npt.ArrayLike) -> Loop | None:
+        """Searches one scan against every place without adding it and without excluding any
+        (localisation in a prior map); with verification on, its best candidates are registered
+        (then the scan must be given as points).
+
+        Args:
+            points_or_descriptor: The scan's points or its descriptor.
+
+        Returns:
+            The best match as a Loop (its `query` is the id the scan would get), or None when its
+            score is above the threshold.
+
+        Raises:
+            DatabaseError: A descriptor made with another configuration.
+            SolidError: Points of the wrong shape or layout.
+            TypeError: Points of the wrong type or dtype.
+        """
+    def __len__(self) -> int: ...
+    @property
+    def database(self) -> Database:
+        """A copy of the database: the prior map and every scan added so far."""
+    @property
+    def config(self) -> DetectorConfig:
+        """The detector's parameters."""
+    @property
+    def session(self) -> int:
+        """The session of the scans this detector adds."""
+    @property
+    def session_start(self) -> int:
+        """Id of the first scan of the own session (the number of prior-map places)."""
+    @property
+    def exclude_recent(self) -> int:
+        """Frames of the own session excluded as too recent."""
+    @property
+    def threshold(self) -> float:
+        """Largest score accepted as a loop."""
+    @property
+    def top_k(self) -> int:
+        """Candidates re-ranked by A-SOLiD alignment."""
+    @property
+    def rerank(self) -> bool:
+        """Whether re-ranking is on."""
