@@ -254,6 +254,7 @@ pub struct PyLoop {
     #[pyo3(get)]
     pub rmse: Option<f64>,
     pose_: Option<solid_lidar::reg::Pose>,
+    information_: Option<solid_lidar::reg::Information>,
 }
 
 #[pymethods]
@@ -263,6 +264,13 @@ impl PyLoop {
     #[getter]
     fn pose<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray2<f64>>> {
         self.pose_.map(|p| pose_array(py, &p))
+    }
+
+    /// The 6×6 information matrix of `pose` for a pose graph (translation first, g2o's order;
+    /// the error on the right of the measurement), or None when the loop was not verified.
+    #[getter]
+    fn information<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray2<f64>>> {
+        self.information_.map(|m| matrix6(py, &m))
     }
 
     /// Whether the loop was verified by registration.
@@ -288,6 +296,17 @@ impl PyLoop {
     }
 }
 
+/// A (6, 6) float64 array of an information matrix.
+pub(crate) fn matrix6<'py>(
+    py: Python<'py>,
+    m: &solid_lidar::reg::Information,
+) -> Bound<'py, PyArray2<f64>> {
+    let flat: Vec<f64> = m.iter().flatten().copied().collect();
+    Array2::from_shape_vec((6, 6), flat)
+        .expect("6 x 6")
+        .into_pyarray(py)
+}
+
 /// A (4, 4) float64 array of a pose.
 pub(crate) fn pose_array<'py>(
     py: Python<'py>,
@@ -310,6 +329,7 @@ impl From<db::Loop> for PyLoop {
             fitness: l.fitness,
             rmse: l.rmse,
             pose_: l.pose,
+            information_: l.information,
         }
     }
 }
