@@ -112,11 +112,16 @@ def make_config(args: argparse.Namespace, base: Any | None = None) -> Any:
         raise _solid.ConfigError("give --preset NAME (see `solid presets`) or --config FILE")
     desc = {k: getattr(args, k) for k in descriptor_fields() if getattr(args, k, None) is not None}
     det: dict[str, Any] = {k: getattr(args, k) for k in detector_fields() if getattr(args, k, None) is not None}
-    max_loop = getattr(args, "max_loop_distance", None)
-    if max_loop is None and getattr(args, "radius", None) is not None:
-        max_loop = args.radius  # a loop joins places within the evaluation radius
-    if max_loop is not None:
-        det["gate"] = {**base.detector.gate.to_dict(), "max_translation": max_loop}
+    gate = {f: getattr(args, "gate_" + f) for f in base.detector.gate.to_dict() if getattr(args, "gate_" + f, None) is not None}
+    if gate:
+        det["gate"] = gate  # overrides of the configuration's gate
+    if getattr(args, "threshold", None) is not None and not det.get("verify", base.detector.verify):
+        pass
+    elif getattr(args, "threshold", None) is not None:
+        raise _solid.ConfigError(
+            "--threshold applies without verification (--no-verify): a verified loop is accepted by the gate; "
+            "tighten it with --gate-min-fitness and the other --gate-* options"
+        )
     inp = {}
     for key in ("fov", "fov_center", "occlude", "occlude_center", "frames", "subsample_m"):
         v = getattr(args, key, None)
@@ -129,8 +134,9 @@ def make_config(args: argparse.Namespace, base: Any | None = None) -> Any:
         cfg = cfg.replace(detector=cfg.detector.replace(**det))
     if inp:
         cfg = cfg.replace(input=InputOptions(**{**cfg.input.to_dict(), **inp}))
-    if getattr(args, "radius", None) is not None:
-        cfg = cfg.replace(radius=args.radius)
+    evaluation = {k: getattr(args, k) for k in ("radius", "pose_tolerance_m", "pose_tolerance_deg") if getattr(args, k, None) is not None}
+    if evaluation:
+        cfg = cfg.replace(**evaluation)
     return cfg
 
 

@@ -33,10 +33,26 @@ impl PyScores {
     fn gt_positive<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<bool>> {
         PyArray1::from_slice(py, &self.inner.gt_positive)
     }
-    /// Whether the best candidate lies within the radius, per query (bool array).
+    /// Whether the best candidate lies within the radius and its estimated pose, if any, within
+    /// the pose tolerance, per query (bool array).
     #[getter]
     fn correct<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<bool>> {
         PyArray1::from_slice(py, &self.inner.correct)
+    }
+    /// Whether the best candidate lies within the radius, whatever its pose (bool array).
+    #[getter]
+    fn place_correct<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<bool>> {
+        PyArray1::from_slice(py, &self.inner.place_correct)
+    }
+    /// Largest translation error (metres) of a correct loop's pose.
+    #[getter]
+    fn pose_tolerance_m(&self) -> f64 {
+        self.inner.truth.translation_m
+    }
+    /// Largest rotation error (degrees) of a correct loop's pose.
+    #[getter]
+    fn pose_tolerance_deg(&self) -> f64 {
+        self.inner.truth.rotation_deg
     }
     /// 1-based rank of the first candidate within the radius (0: none), per query.
     #[getter]
@@ -100,6 +116,10 @@ impl PyScores {
     fn at_threshold(&self, threshold: f64) -> (usize, usize, f64, f64) {
         self.inner.at_threshold(threshold)
     }
+    /// (place-false, pose-false) among the top-1s accepted with scores <= threshold.
+    fn false_at_threshold(&self, threshold: f64) -> (usize, usize) {
+        self.inner.false_at_threshold(threshold)
+    }
     /// Translation error (metres) of each query's estimated pose (NaN: none).
     #[getter]
     fn pose_error_m<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
@@ -133,7 +153,7 @@ fn rows<const N: usize>(flat: &[f64], what: &str) -> PyResult<Vec<[f64; N]>> {
 
 /// Scores candidates against poses (docs/spec.md §5); see `solid.evaluation` for the friendly form.
 #[pyfunction]
-#[pyo3(signature = (query, eligible, ids, score, heading_deg, poses, radius, pose=None))]
+#[pyo3(signature = (query, eligible, ids, score, heading_deg, poses, radius, pose=None, pose_tolerance_m=eval::DEFAULT_POSE_TOLERANCE_M, pose_tolerance_deg=eval::DEFAULT_POSE_TOLERANCE_DEG))]
 #[allow(clippy::too_many_arguments)]
 fn score_candidates(
     py: Python<'_>,
@@ -145,6 +165,8 @@ fn score_candidates(
     poses: PyReadonlyArray3<'_, f64>,
     radius: f64,
     pose: Option<PyReadonlyArray3<'_, f64>>,
+    pose_tolerance_m: f64,
+    pose_tolerance_deg: f64,
 ) -> PyResult<PyScores> {
     let to_u32 = |name: &str, v: &[i64], allow_missing: bool| -> PyResult<Vec<u32>> {
         let mut out = crate::args::try_vec(v.len(), name)?;
@@ -197,7 +219,14 @@ fn score_candidates(
         heading_deg: heading,
     };
     let inner = py
-        .detach(|| eval::score(&q, &poses, radius))
+        .detach(|| {
+            let truth = eval::Truth {
+                radius,
+                translation_m: pose_tolerance_m,
+                rotation_deg: pose_tolerance_deg,
+            };
+            eval::score_with(&q, &poses, &truth)
+        })
         .map_err(crate::core_err)?;
     Ok(PyScores { inner })
 }
@@ -205,6 +234,11 @@ fn score_candidates(
 /// Registers the scoring function and class.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("DEFAULT_RADIUS", eval::DEFAULT_RADIUS)?;
+    m.add("DEFAULT_POSE_TOLERANCE_M", eval::DEFAULT_POSE_TOLERANCE_M)?;
+    m.add(
+        "DEFAULT_POSE_TOLERANCE_DEG",
+        eval::DEFAULT_POSE_TOLERANCE_DEG,
+    )?;
     m.add_class::<PyScores>()?;
     m.add_function(wrap_pyfunction!(score_candidates, m)?)?;
     Ok(())
