@@ -9,8 +9,8 @@ use solid_lidar::reg::{Factor, Gate, Kernel, RegConfig};
 use solid_lidar::{Config, PRESETS};
 
 use crate::args::{self, float_param, int_arg};
-use crate::reg::{reg_err, PyRegistration};
-use crate::{core_err, ConfigError};
+use crate::reg::PyRegistration;
+use crate::{core_err, core_err as reg_err, ConfigError};
 
 /// The descriptor configuration exposed as `solid.SolidConfig` (immutable).
 #[pyclass(name = "SolidConfig", module = "solid", frozen, eq)]
