@@ -7,12 +7,13 @@ use numpy::PyArray1;
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
+use solid_lidar::pool;
 use solid_lidar::{Config, Describer, Descriptor, Error, Points, Stats, PRESETS};
 
 use crate::args;
 use crate::arrays::{borrow_points, borrow_scans, Borrowed, PointSlice};
 use crate::config::PyConfig;
-use crate::errors::{core_err, ConfigError, SolidError};
+use crate::errors::{core_err, SolidError};
 
 /// One scan's SOLiD descriptor, exposed as `solid.Descriptor` (immutable).
 #[pyclass(name = "Descriptor", module = "solid", frozen)]
@@ -203,8 +204,9 @@ fn describe(
     Ok(PyDescriptor::new(d, config.inner))
 }
 
-/// The persistent pool of `threads` workers of [`describe_batch`] (and the detector's batch) in
-/// this process.
+/// The persistent pool of [`describe_batch`] (and the detector's batch) for `jobs` jobs asked to
+/// run on `threads` threads (None: every core), as the core sizes it
+/// ([`solid_lidar::pool::batch_threads`]); `None`: run on this thread.
 ///
 /// A pool is built on first use and kept: a batch starts no thread, and each worker keeps its
 /// scratch buffers from one batch to the next (the thread-local [`Describer`] of
@@ -213,34 +215,28 @@ fn describe(
 /// stealing and hands a worker's panic back to the caller, all of it well tested. The core
 /// crate keeps the pools: a process forked by Python's multiprocessing starts its own, and
 /// finding one takes no lock that a fork could leave held.
-fn pool(threads: usize) -> PyResult<&'static rayon::ThreadPool> {
-    solid_lidar::pool::pool_of("solid-describe", threads)
+pub(crate) fn batch_pool(
+    threads: Option<usize>,
+    jobs: usize,
+) -> PyResult<Option<&'static rayon::ThreadPool>> {
+    let Some(threads) = pool::batch_threads(threads, jobs).map_err(core_err)? else {
+        return Ok(None);
+    };
+    pool::pool_of("solid-describe", threads)
+        .map(Some)
         .map_err(|e| SolidError::new_err(format!("cannot start describe workers: {e}")))
 }
 
-/// The workers of a batch of `scans` scans asked to run on `threads` threads (None: every
-/// core): at most one per core (more only adds switching), and `None` when one thread does (a
-/// single scan or a single thread). The pool has the threads asked for even when there are
-/// fewer scans (the scans then take fewer of them): one pool per size asked, not one per batch
-/// length. `threads = 0` is refused.
-pub(crate) fn batch_pool(
-    threads: Option<usize>,
-    scans: usize,
-) -> PyResult<Option<&'static rayon::ThreadPool>> {
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let threads = match threads {
-        Some(0) => {
-            return Err(ConfigError::new_err(
-                "invalid threads = 0: expected at least 1 (or None for every core)",
-            ))
-        }
-        Some(t) => t.min(cores),
-        None => cores,
-    };
-    if threads.min(scans) > 1 {
-        pool(threads).map(Some)
-    } else {
-        Ok(None)
+/// `f` of every item, in order: on `pool`'s workers ([`batch_pool`]), else on this thread.
+pub(crate) fn batch_map<T: Sync, R: Send>(
+    pool: Option<&rayon::ThreadPool>,
+    items: &[T],
+    f: impl Fn(&T) -> R + Sync + Send,
+) -> Vec<R> {
+    use rayon::prelude::*;
+    match pool {
+        Some(p) => p.install(|| items.par_iter().map(f).collect()),
+        None => items.iter().map(f).collect(),
     }
 }
 
@@ -253,7 +249,6 @@ fn describe_batch(
     config: &PyConfig,
     #[pyo3(from_py_with = args::threads)] threads: Option<usize>,
 ) -> PyResult<Vec<PyDescriptor>> {
-    use rayon::prelude::*;
     let items: Vec<Bound<'_, PyAny>> = if let Ok(list) = scans.cast::<PyList>() {
         list.iter().collect()
     } else {
@@ -267,22 +262,8 @@ fn describe_batch(
     let borrowed = borrow_scans(&items)?;
     let slices: Vec<PointSlice<'_>> = borrowed.iter().map(Borrowed::slice).collect();
     let cfg = config.inner;
-    let describe_all = || -> Vec<Result<Descriptor, Error>> {
-        slices.iter().map(|s| describe_slice(s, &cfg)).collect()
-    };
-    let results = if let Some(pool) = batch_pool(threads, slices.len())? {
-        py.detach(|| {
-            pool.install(|| {
-                slices
-                    .par_iter()
-                    .map(|s| describe_slice(s, &cfg))
-                    .collect::<Vec<_>>()
-            })
-        })
-    } else {
-        py.detach(describe_all)
-    };
-    results
+    let pool = batch_pool(threads, slices.len())?;
+    py.detach(|| batch_map(pool, &slices, |s| describe_slice(s, &cfg)))
         .into_iter()
         .map(|r| r.map(|d| PyDescriptor::new(d, cfg)).map_err(core_err))
         .collect()

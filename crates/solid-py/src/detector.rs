@@ -14,7 +14,7 @@ use crate::args;
 use crate::arrays::{borrow_points, borrow_scans, parse_pose, pose_array, Borrowed, PointSlice};
 use crate::config::{detector_overrides, PyConfig, PyDetectorConfig};
 use crate::database::{check_fingerprint, read, write, PyDatabase};
-use crate::describe::{batch_pool, describe_points, describe_slice, PyDescriptor};
+use crate::describe::{batch_map, batch_pool, describe_points, describe_slice, PyDescriptor};
 use crate::errors::core_err;
 
 /// A detected loop closure.
@@ -470,16 +470,12 @@ impl PyLoopDetector {
         let pool = batch_pool(threads, slices.len())?;
         let found = py
             .detach(|| -> Result<Vec<db::Detection>, DbError> {
-                use rayon::prelude::*;
                 let scans: Vec<db::Scan> = {
                     let det = read(&self.inner);
                     let prep = |s: &PointSlice<'_>| prepare_slice(&det, s, &cfg);
-                    match &pool {
-                        Some(p) => {
-                            p.install(|| slices.par_iter().map(prep).collect::<Result<_, _>>())?
-                        }
-                        None => slices.iter().map(prep).collect::<Result<_, _>>()?,
-                    }
+                    batch_map(pool, &slices, prep)
+                        .into_iter()
+                        .collect::<Result<_, _>>()?
                 };
                 write(&self.inner).detect_scans(scans, &ts, &ps)
             })
