@@ -3,7 +3,6 @@
 //! error mapping only; the search, and when to build its index, live in the core.
 
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
 use std::sync::{PoisonError, RwLock, RwLockReadGuard, RwLockWriteGuard};
 
 use numpy::ndarray::{Array2, Array3};
@@ -11,7 +10,7 @@ use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
-use solid_lidar::db::{self, Database, DbError, Method, SearchOptions};
+use solid_lidar::db::{self, Database, DbError, IndexPolicy, Method, SearchOptions};
 use solid_lidar::{Descriptor, Stats};
 
 use crate::args;
@@ -140,40 +139,26 @@ pub(crate) fn write<T>(l: &RwLock<T>) -> RwLockWriteGuard<'_, T> {
 #[pyclass(name = "Database", module = "solid", frozen)]
 pub struct PyDatabase {
     inner: RwLock<Database>,
-    /// Whether the searches build the index when it is due (`add_batch(..., index=None)`).
-    auto_index: AtomicBool,
 }
 
 impl PyDatabase {
     pub(crate) fn wrap(inner: Database) -> Self {
         PyDatabase {
             inner: RwLock::new(inner),
-            auto_index: AtomicBool::new(false),
         }
     }
 
-    /// The read lock for `queries` searches with `opts`, after building the index first when a
-    /// bulk add left it to the searches and these make it due ([`Database::index_due`]). Call
-    /// with the GIL released.
+    /// The read lock for `queries` searches with `opts`, after building the index alone first
+    /// when the core says these searches do ([`Database::search_builds_index`]). Call with the
+    /// GIL released.
     fn read_for(&self, opts: &SearchOptions, queries: usize) -> RwLockReadGuard<'_, Database> {
         let db = read(&self.inner);
-        if !self.auto_index.load(Relaxed) || !db.index_due(opts, queries) {
+        if !db.search_builds_index(opts, queries) {
             return db;
         }
         drop(db);
-        {
-            let mut db = write(&self.inner);
-            // Another search may have built it while this one waited, or an add_batch may have
-            // left it to build_index.
-            if self.auto_index.load(Relaxed)
-                && db.index_due(opts, queries)
-                && db.build_index().is_err()
-            {
-                // No memory for the index: the searches stay exact by brute force, and stop
-                // trying.
-                self.auto_index.store(false, Relaxed);
-            }
-        }
+        // Asks again under the write lock: another search may have built it meanwhile.
+        write(&self.inner).build_index_for_search(opts, queries);
         read(&self.inner)
     }
 
@@ -256,19 +241,14 @@ impl PyDatabase {
             None => None,
         };
         let (r, a) = (r.slice(), a.slice());
-        py.detach(|| -> Result<u32, DbError> {
+        let policy = match index {
+            None => IndexPolicy::BySearches,
+            Some(true) => IndexPolicy::Now,
+            Some(false) => IndexPolicy::OnRequest,
+        };
+        py.detach(|| {
             let (r, a) = (r.to_f32(), a.to_f32());
-            let mut db = write(&self.inner);
-            let first = db.add_batch(
-                &r,
-                &a,
-                session,
-                times,
-                poses.as_deref(),
-                index == Some(true),
-            )?;
-            self.auto_index.store(index.is_none(), Relaxed);
-            Ok(first)
+            write(&self.inner).add_batch_with(&r, &a, session, times, poses.as_deref(), policy)
         })
         .map_err(core_err)
     }
