@@ -7,6 +7,9 @@ use numpy::{
 use pyo3::prelude::*;
 use solid_lidar::eval::{self, Evaluation, Queries, NO_CANDIDATE};
 
+use crate::args;
+use crate::errors::{core_err, SolidError};
+
 /// The per-query outcomes and the summary metrics of one scored run (docs/spec.md §5).
 #[pyclass(name = "Scores", module = "solid", frozen)]
 pub struct PyScores {
@@ -75,7 +78,7 @@ impl PyScores {
         self.inner.n_gt()
     }
     /// Recall@n (NaN without GT-positive queries).
-    fn recall_at(&self, #[pyo3(from_py_with = crate::args::n)] n: usize) -> f64 {
+    fn recall_at(&self, #[pyo3(from_py_with = args::n)] n: usize) -> f64 {
         opt(self.inner.recall_at(n))
     }
     /// (thresholds, precision, recall) arrays of the PR curve.
@@ -142,7 +145,7 @@ impl PyScores {
 /// The rows of `N` values of a flat C-contiguous array, copied (MemoryError naming `what` when
 /// they do not fit).
 fn rows<const N: usize>(flat: &[f64], what: &str) -> PyResult<Vec<[f64; N]>> {
-    let mut out = crate::args::try_vec(flat.len() / N, what)?;
+    let mut out = args::try_vec(flat.len() / N, what)?;
     out.extend(flat.chunks_exact(N).map(|c| {
         let mut m = [0.0; N];
         m.copy_from_slice(c);
@@ -169,7 +172,7 @@ fn score_candidates(
     pose_tolerance_deg: f64,
 ) -> PyResult<PyScores> {
     let to_u32 = |name: &str, v: &[i64], allow_missing: bool| -> PyResult<Vec<u32>> {
-        let mut out = crate::args::try_vec(v.len(), name)?;
+        let mut out = args::try_vec(v.len(), name)?;
         for &x in v {
             out.push(if allow_missing && x < 0 {
                 NO_CANDIDATE
@@ -177,16 +180,14 @@ fn score_candidates(
                 u32::try_from(x)
                     .ok()
                     .filter(|&u| u != NO_CANDIDATE)
-                    .ok_or_else(|| {
-                        crate::SolidError::new_err(format!("{name}: {x} is not a valid id"))
-                    })?
+                    .ok_or_else(|| SolidError::new_err(format!("{name}: {x} is not a valid id")))?
             });
         }
         Ok(out)
     };
     let shape = poses.shape();
     if shape.len() != 3 || shape[1] != 3 || shape[2] != 4 {
-        return Err(crate::SolidError::new_err(format!(
+        return Err(SolidError::new_err(format!(
             "poses must have shape (N, 3, 4), got {shape:?}"
         )));
     }
@@ -201,7 +202,7 @@ fn score_candidates(
         Some(p) => {
             let sh = p.shape();
             if sh.len() != 3 || sh[0] != query.len() || sh[1] != 4 || sh[2] != 4 {
-                return Err(crate::SolidError::new_err(format!(
+                return Err(SolidError::new_err(format!(
                     "pose must have shape ({}, 4, 4), got {sh:?}",
                     query.len()
                 )));
@@ -227,7 +228,7 @@ fn score_candidates(
             };
             eval::score_with(&q, &poses, &truth)
         })
-        .map_err(crate::core_err)?;
+        .map_err(core_err)?;
     Ok(PyScores { inner })
 }
 
