@@ -434,8 +434,10 @@ def cmd_eval(args: argparse.Namespace, out: TextIO) -> int:
             f"{m['pose_tolerance_m']:g} m or {m['pose_tolerance_deg']:g}°; "
             f"precision {commands.fmt_metric(m['precision'])}, recall {commands.fmt_metric(m['recall'])})\n"
         )
-    if m.get("best_threshold") is not None:
-        out.write(f"best F1 {commands.fmt_metric(m['f1_max'])} at threshold {m['best_threshold']:.6g}; to use it:\n  {m.get('best_threshold_command', '')}\n")
+    if m.get("best_threshold_command") is not None:
+        out.write(f"best F1 {commands.fmt_metric(m['f1_max'])} at threshold {m['best_threshold']:.6g}; to use it:\n  {m['best_threshold_command']}\n")
+    elif m.get("best_threshold") is not None:
+        out.write(f"best F1 {commands.fmt_metric(m['f1_max'])} at threshold {m['best_threshold']:.6g}, past what the gate accepts: no detector setting reproduces it\n")
     out.write(f"wrote {run.folder}\n")
     return 0
 

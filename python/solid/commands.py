@@ -345,9 +345,14 @@ def evaluate(
         write_csv(out.work / "queries.csv", QUERY_COLUMNS, main.rows())
         for e in evals[1:]:
             write_csv(out.work / f"queries_{e.name.lower().replace(' ', '')}.csv", QUERY_COLUMNS, e.rows())
-        if best is not None and command_hint is not None:
+        setting = None if best is None else main.setting_for(best, config.detector.verify)
+        if best is not None:
+            metrics["accepted_at_best_threshold"] = int((main.score <= best).sum())
+        if setting is not None:
+            metrics["best_setting"] = {setting[0].lstrip("-").replace("-", "_"): setting[1]}
+        if setting is not None and command_hint is not None:
             metrics["best_threshold_command"] = " ".join(
-                [*map(shlex.quote, command_hint), "--config", shlex.quote(str(out.final / "config.json")), "--threshold", f"{best:.6g}"]
+                [*map(shlex.quote, command_hint), "--config", shlex.quote(str(out.final / "config.json")), setting[0], repr(setting[1])]
             )
         write_json(out.work / "metrics.json", metrics)
         if plots:

@@ -159,6 +159,24 @@ class Evaluation:
         m.update(self.extra)
         return m
 
+    def setting_for(self, threshold: float, verified: bool) -> tuple[str, float] | None:
+        """The detector flag and value whose run accepts exactly the top-1s with score ≤
+        ``threshold``: without verification ``--threshold`` itself; with it, the gate's largest loop
+        (``--gate-max-translation``), since a verified score orders the loops by length (the
+        longest accepted loop's length, so that no float rounding drops it). None when no setting
+        does (``threshold`` reaches candidates the gate rejected)."""
+        if not verified:
+            return "--threshold", float(threshold)
+        if threshold > _solid.VERIFIED_THRESHOLD or self.pose is None:
+            return None
+        keep = (self.score <= threshold) & np.isfinite(self.pose[:, 0, 3])
+        if not keep.any():
+            return None
+        t = self.pose[keep, :3, 3]
+        # The length the gate compares, summed in its order: x² + y² + z², then the square root.
+        lengths = [math.sqrt(x * x + y * y + z * z) for x, y, z in t.tolist()]
+        return "--gate-max-translation", max(lengths)
+
     def rows(self) -> list[dict[str, Any]]:
         """``queries.csv`` rows (:data:`QUERY_COLUMNS`)."""
         gt = self.gt_positive

@@ -708,4 +708,53 @@ mod tests {
         let (m, _) = pose_error(&off, &q, &c);
         assert!((m - 0.3).abs() < 1e-12);
     }
+
+    #[test]
+    fn a_loop_at_the_right_place_with_a_wrong_pose_is_pose_false() {
+        // Places 1 m apart on a line; queries 2 and 3 both match the place one metre back, the
+        // first with its true pose, the second with a pose 3 m off and one turned by 10°.
+        let poses = line(5);
+        let mut good = [0.0; 16];
+        for i in 0..4 {
+            good[5 * i] = 1.0;
+        }
+        good[3] = -1.0;
+        let mut far = good;
+        far[3] = 2.0;
+        let (s, c) = (libm::sin(10f64.to_radians()), libm::cos(10f64.to_radians()));
+        let mut turned = good;
+        turned[..2].copy_from_slice(&[c, -s]);
+        turned[4..6].copy_from_slice(&[s, c]);
+        let q = Queries {
+            query: &[2, 3, 4],
+            eligible: &[2, 3, 4],
+            k: 1,
+            ids: &[1, 2, 3],
+            score: &[0.1, 0.2, 0.3],
+            heading_deg: &[0.0, 0.0, 10.0],
+            pose: &[good, far, turned],
+        };
+        let e = score(&q, &poses, 5.0).unwrap();
+        assert_eq!(e.place_correct, vec![true, true, true]);
+        assert_eq!(e.correct, vec![true, false, false]);
+        assert_eq!(e.false_at_threshold(1.0), (0, 2));
+        assert_eq!(e.at_threshold(1.0).1, 1);
+        // Looser tolerances let them through; tighter radii make them place-false.
+        let loose = Truth {
+            radius: 5.0,
+            translation_m: 4.0,
+            rotation_deg: 15.0,
+        };
+        assert_eq!(
+            score_with(&q, &poses, &loose).unwrap().correct,
+            vec![true; 3]
+        );
+        let near = score_with(&q, &poses, &Truth::at(0.5)).unwrap();
+        assert_eq!(near.false_at_threshold(1.0), (3, 0));
+        let bad = Truth {
+            rotation_deg: f64::NAN,
+            ..loose
+        };
+        assert!(score_with(&q, &poses, &bad).is_err());
+    }
 }

@@ -34,7 +34,7 @@ pub struct PyLoop {
     #[pyo3(get)]
     pub heading: f64,
     /// The score the loop was accepted with (the R-SOLiD distance; with verification
-    /// 1 − fitness).
+    /// |t| / (1 + |t|), the loop's length mapped into [0, 1)).
     #[pyo3(get)]
     pub score: f64,
     /// Overlap of the verifying registration (None when not verified).
@@ -107,7 +107,7 @@ pub struct PyCandidate {
     #[pyo3(get)]
     pub heading: f64,
     /// What ranks the candidates (the value a PR curve sweeps): the R-SOLiD distance, or with
-    /// verification 1 − fitness for a candidate that passed the gate and 1.5 + distance / 2
+    /// verification |t| / (1 + |t|) for a candidate that passed the gate and 1.5 + distance / 2
     /// otherwise.
     #[pyo3(get)]
     pub score: f64,
