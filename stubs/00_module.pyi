@@ -36,6 +36,8 @@ __all__ = [
     "_detector_config_from_dict",
     "_param_table",
     "DEFAULT_RADIUS",
+    "DEFAULT_POSE_TOLERANCE_M",
+    "DEFAULT_POSE_TOLERANCE_DEG",
     "VERIFIED_THRESHOLD",
     "Scores",
     "score_candidates",

@@ -37,6 +37,8 @@ __all__ = [
     "_detector_config_from_dict",
     "_param_table",
     "DEFAULT_RADIUS",
+    "DEFAULT_POSE_TOLERANCE_M",
+    "DEFAULT_POSE_TOLERANCE_DEG",
     "VERIFIED_THRESHOLD",
     "Scores",
     "score_candidates",
@@ -1266,7 +1268,7 @@ class Loop:
     @property
     def score(self) -> float:
         """The score the loop was accepted with: the R-SOLiD distance, or with verification
-        1 − fitness."""
+        |t| / (1 + |t|), |t| the length of its pose's translation (metres)."""
     @property
     def verified(self) -> bool:
         """Whether the loop was verified by registration (then it has a pose)."""
@@ -1304,8 +1306,8 @@ class Candidate:
     @property
     def score(self) -> float:
         """What ranks the candidates and what a precision-recall curve sweeps: the R-SOLiD
-        distance, or with verification 1 − fitness for a candidate that passed the gate and
-        1.5 + distance / 2 otherwise."""
+        distance, or with verification |t| / (1 + |t|) for a candidate that passed the gate (|t|
+        the length of its pose's translation) and 1.5 + distance / 2 otherwise."""
     @property
     def verified(self) -> bool:
         """Whether this candidate was registered."""
@@ -1612,6 +1614,12 @@ class LoopDetector:
 DEFAULT_RADIUS: float
 
 
+DEFAULT_POSE_TOLERANCE_M: float
+
+
+DEFAULT_POSE_TOLERANCE_DEG: float
+
+
 VERIFIED_THRESHOLD: float
 
 
@@ -1627,8 +1635,18 @@ class Scores:
     def gt_positive(self) -> npt.NDArray[np.bool_]:
         """Whether some eligible place lies within the radius, per query (bool array)."""
     @property
+    def pose_tolerance_m(self) -> float:
+        """Largest translation error (metres) of a correct loop's pose."""
+    @property
+    def pose_tolerance_deg(self) -> float:
+        """Largest rotation error (degrees) of a correct loop's pose."""
+    @property
     def correct(self) -> npt.NDArray[np.bool_]:
-        """Whether the best candidate lies within the radius, per query (bool array)."""
+        """Whether the best candidate lies within the radius and its estimated pose, if any,
+        within the pose tolerance, per query (bool array)."""
+    @property
+    def place_correct(self) -> npt.NDArray[np.bool_]:
+        """Whether the best candidate lies within the radius, whatever its pose (bool array)."""
     @property
     def first_hit(self) -> npt.NDArray[np.uint32]:
         """1-based rank of the first candidate within the radius (0: none), per query."""
@@ -1691,6 +1709,16 @@ class Scores:
         Returns:
             (accepted, correct accepted, precision, recall).
         """
+    def false_at_threshold(self, threshold: float) -> tuple[int, int]:
+        """The wrong top-1s among those accepted with score <= `threshold`.
+
+        Args:
+            threshold: The largest accepted score.
+
+        Returns:
+            (place-false: the candidate lies beyond the radius, pose-false: the place is right
+            but the estimated pose is outside the tolerance).
+        """
     def rotation_errors(self) -> npt.NDArray[np.float64]:
         """|ψ_est − ψ_true| wrapped into [0°, 180°], over the correct top-1s.
 
@@ -1709,6 +1737,8 @@ def score_candidates(
     poses: npt.NDArray[np.float64],
     radius: float,
     pose: npt.NDArray[np.float64] | None = None,
+    pose_tolerance_m: float = ...,
+    pose_tolerance_deg: float = ...,
 ) -> Scores:
     """Scores what a detector (or a baseline) decided against poses (docs/spec.md §5), with the
     GIL released; `solid.evaluation` wraps it in a friendlier form.
@@ -1723,6 +1753,10 @@ def score_candidates(
         radius: Metres within which a place counts as the same.
         pose: Per query, the metric `T_query_candidate` estimated for its best candidate, shape
             (M, 4, 4), NaN where none; None when no query has one.
+        pose_tolerance_m: A top-1 whose pose is off by more than this many metres is not correct
+            (default `DEFAULT_POSE_TOLERANCE_M`).
+        pose_tolerance_deg: ... nor one off by more than this many degrees (default
+            `DEFAULT_POSE_TOLERANCE_DEG`).
 
     Returns:
         The per-query outcomes and summary metrics.

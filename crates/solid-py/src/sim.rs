@@ -2,27 +2,12 @@
 //! `_SimWorld` / `_SimSensor` classes; the typed API is `solid.sim` (python/solid/sim.py).
 
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
-use pyo3::exceptions::PyMemoryError;
 use pyo3::prelude::*;
-use solid_lidar_sim::{Pose, RouteOptions, Sensor, SimError, Trajectory, World, WorldConfig};
+use solid_lidar_sim::{Pose, RouteOptions, Sensor, Trajectory, World, WorldConfig};
 use std::path::PathBuf;
 
-use crate::{args, ConfigError, SolidError};
-
-/// Maps a simulator error: invalid parameters and unknown names to `solid.ConfigError`, I/O
-/// errors to `OSError`, exhausted memory to `MemoryError`.
-fn sim_err(e: SimError) -> PyErr {
-    match e {
-        SimError::Io(io) => crate::io_err(&io, None),
-        SimError::OutOfMemory { .. } => PyMemoryError::new_err(e.to_string()),
-        other => ConfigError::new_err(other.to_string()),
-    }
-}
-
-/// A shape or layout problem of an array argument.
-fn shape_err(msg: impl Into<String>) -> PyErr {
-    SolidError::new_err(msg.into())
-}
+use crate::args;
+use crate::errors::{core_err, ConfigError, SolidError};
 
 /// A generated world (immutable).
 #[pyclass(name = "_SimWorld", module = "solid._solid", frozen)]
@@ -204,7 +189,7 @@ fn _sim_world(
         repetition,
         cell_size,
     };
-    let inner = py.detach(|| World::new(cfg)).map_err(sim_err)?;
+    let inner = py.detach(|| World::new(cfg)).map_err(core_err)?;
     Ok(PySimWorld { inner })
 }
 
@@ -222,7 +207,7 @@ fn _sim_sensor(
     #[pyo3(from_py_with = args::seed)] seed: u64,
     #[pyo3(from_py_with = args::points)] points: Option<usize>,
 ) -> PyResult<PySimSensor> {
-    let mut s = Sensor::preset(name).map_err(sim_err)?;
+    let mut s = Sensor::preset(name).map_err(core_err)?;
     if let Some(w) = h_fov {
         s.h_fov_deg = w;
     }
@@ -248,7 +233,7 @@ fn _sim_sensor(
             }
         }
     }
-    s.validate().map_err(sim_err)?;
+    s.validate().map_err(core_err)?;
     Ok(PySimSensor { inner: s })
 }
 
@@ -258,11 +243,13 @@ fn read_poses(poses: &PyReadonlyArrayDyn<'_, f64>) -> PyResult<Vec<Pose>> {
     let ok = (shape.len() == 3 && shape[1] == 3 && shape[2] == 4)
         || (shape.len() == 2 && shape == [3, 4]);
     if !ok || !poses.is_c_contiguous() {
-        return Err(shape_err(format!(
+        return Err(SolidError::new_err(format!(
             "poses must be a C-contiguous float64 array of shape (M, 3, 4) or (3, 4), got shape {shape:?}"
         )));
     }
-    let data = poses.as_slice().map_err(|e| shape_err(e.to_string()))?;
+    let data = poses
+        .as_slice()
+        .map_err(|e| SolidError::new_err(e.to_string()))?;
     let mut out = args::try_vec(data.len() / 12, "poses")?;
     for chunk in data.chunks_exact(12) {
         if chunk.iter().any(|v| !v.is_finite()) {
@@ -304,12 +291,12 @@ fn _sim_scan<'py>(
 ) -> PyResult<Bound<'py, PyAny>> {
     let poses = read_poses(&pose)?;
     if poses.len() != 1 {
-        return Err(shape_err("pose must have shape (3, 4)"));
+        return Err(SolidError::new_err("pose must have shape (3, 4)"));
     }
     let (w, s) = (world.get(), sensor.get());
     let pts = py
         .detach(|| s.inner.scan(&w.inner, &poses[0], frame))
-        .map_err(sim_err)?;
+        .map_err(core_err)?;
     points_array(py, pts)
 }
 
@@ -335,7 +322,7 @@ fn _sim_scans<'py>(
                 })
                 .collect::<Result<Vec<_>, _>>()
         })
-        .map_err(sim_err)?;
+        .map_err(core_err)?;
     scans.into_iter().map(|p| points_array(py, p)).collect()
 }
 
@@ -360,7 +347,7 @@ fn _sim_trajectory<'py>(
         speed,
         mount_height,
     };
-    let t = Trajectory::by_name(&world.get().inner, kind, laps, &opts).map_err(sim_err)?;
+    let t = Trajectory::by_name(&world.get().inner, kind, laps, &opts).map_err(core_err)?;
     trajectory_arrays(py, t)
 }
 
@@ -385,7 +372,7 @@ fn _sim_route<'py>(
         mount_height,
     };
     let wps: Vec<[f64; 2]> = waypoints.into_iter().map(|(x, y)| [x, y]).collect();
-    let t = Trajectory::from_waypoints(&world.get().inner, &wps, &opts).map_err(sim_err)?;
+    let t = Trajectory::from_waypoints(&world.get().inner, &wps, &opts).map_err(core_err)?;
     trajectory_arrays(py, t)
 }
 
@@ -427,7 +414,7 @@ fn _sim_write_sequence<'py>(
     };
     let (w, s) = (world.get(), sensor.get());
     py.detach(|| solid_lidar_sim::write_sequence(&directory, &w.inner, &s.inner, &traj, |_, _| {}))
-        .map_err(sim_err)
+        .map_err(core_err)
 }
 
 #[pyfunction]
@@ -444,11 +431,13 @@ fn _sim_write_scans<'py>(
     for (i, s) in scans.iter().enumerate() {
         let shape = s.shape();
         if shape.len() != 2 || shape[1] != 4 || !s.is_c_contiguous() {
-            return Err(shape_err(format!(
+            return Err(SolidError::new_err(format!(
                 "scan {i} must be a C-contiguous float32 array of shape (N, 4), got {shape:?}"
             )));
         }
-        let data = s.as_slice().map_err(|e| shape_err(e.to_string()))?;
+        let data = s
+            .as_slice()
+            .map_err(|e| SolidError::new_err(e.to_string()))?;
         owned.push(
             data.chunks_exact(4)
                 .map(|c| [c[0], c[1], c[2], c[3]])
@@ -456,7 +445,7 @@ fn _sim_write_scans<'py>(
         );
     }
     py.detach(|| solid_lidar_sim::write_scans(&directory, &owned, &poses, &times))
-        .map_err(sim_err)
+        .map_err(core_err)
 }
 
 /// Adds the simulator's classes and functions to the extension module.
