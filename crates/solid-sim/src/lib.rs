@@ -24,6 +24,7 @@
 
 mod error;
 mod io;
+mod odometry;
 mod pose;
 mod prim;
 pub mod rng;
@@ -37,7 +38,8 @@ mod world;
 pub struct ReadmeDoctests;
 
 pub use error::SimError;
-pub use io::{write_scans, write_sequence};
+pub use io::{write_poses, write_scans, write_sequence};
+pub use odometry::DriftOptions;
 pub use pose::Pose;
 pub use prim::{Hit, Kind, Primitive, Shape};
 pub use sensor::{hdl64_elevations, wrap180, Pattern, Sensor, SENSOR_PRESETS};
