@@ -65,6 +65,12 @@ __all__ = [
     "_sim_spin",
     "_sim_write_sequence",
     "_sim_write_scans",
+    "_sim_corridor_world",
+    "_sim_room_world",
+    "_sim_turn",
+    "_sim_odometry",
+    "_sim_in_frame",
+    "_sim_write_poses",
     "_lzf_decompress_into",
     "_lzf_max_decompressed_len",
 ]
