@@ -28,6 +28,7 @@ import numpy.typing as npt
 from .transforms import quaternion
 
 __all__ = [
+    "GNC_INLIER_CHI2",
     "ROBUST_SCHEMES",
     "Anchor",
     "OdometryNoise",
@@ -247,7 +248,7 @@ def _gtsam_info(info_g2o: F64) -> F64:
 #: √χ² around √6; a false one tens to thousands.
 _KERNEL_WIDTH = {"cauchy": 3.0, "dcs": 3.0, "huber": 3.0}
 #: GNC's inlier threshold: the χ² (6 degrees of freedom) exceeded by 1 in 1000 true edges.
-_GNC_CHI2 = 22.46
+GNC_INLIER_CHI2 = 22.46
 
 
 def _factors(gtsam: Any, graph: PoseGraph, robust: str) -> tuple[Any, list[int]]:
@@ -294,7 +295,7 @@ def optimize_graph(graph: PoseGraph, robust: str = ROBUST_SCHEMES[0], *, max_ite
         params.setLossType(gtsam.GncLossType.TLS if robust == "gnc-tls" else gtsam.GncLossType.GM)
         params.setKnownInliers(known)
         opt = gtsam.GncLMOptimizer(fg, init, params)
-        opt.setInlierCostThresholds(_GNC_CHI2 / 2)  # GTSAM's factor error is χ²/2
+        opt.setInlierCostThresholds(GNC_INLIER_CHI2 / 2)  # GTSAM's factor error is χ²/2
         values = opt.optimize()
         w = np.asarray(opt.getWeights())
         weights = np.array([w[e + 1] for e in loops])
