@@ -205,9 +205,13 @@ def test_tum_poses_at_ten_times_the_scan_rate(tmp_path: Path) -> None:
     assert len(ds) == 314 and ds.poses is not None
     assert np.allclose(ds.poses[:, :, 3], P[:, :, 3], atol=1e-6)
     assert np.allclose(ds.poses[:, :, :3], P[:, :, :3], atol=1e-6)
-    # a TUM file without scan timestamps cannot be matched
+    # the times.txt beside Scans/ are the scans' timestamps when none are given (issue 26) ...
+    auto = sd.open_dataset(d, poses=tum)
+    assert auto.timestamp_source == (d / "times.txt").absolute() and auto.poses is not None
+    assert np.allclose(auto.poses, ds.poses)
+    # ... and a TUM file for scans without timestamps cannot be matched
     with pytest.raises(sd.ReadError, match=r"3131 TUM poses for 314 scans.*pass timestamps="):
-        sd.open_dataset(d, poses=tum)
+        sd.open_dataset(d / "Scans", poses=tum)
 
 
 def test_tum_interpolation_and_range(tmp_path: Path) -> None:
