@@ -862,13 +862,20 @@ impl PyDatabase {
 
     /// The compact cloud stored with place `id` (the wire form of `solid.encode_cloud`; decode
     /// it with `solid.decode_cloud`), or None.
-    fn cloud<'py>(&self, py: Python<'py>, id: u32) -> PyResult<Option<Bound<'py, PyBytes>>> {
+    fn cloud<'py>(
+        &self,
+        py: Python<'py>,
+        id: &Bound<'_, PyAny>,
+    ) -> PyResult<Option<Bound<'py, PyBytes>>> {
         let n = self.with(py, Database::len);
-        if id as usize >= n {
-            return Err(pyo3::exceptions::PyIndexError::new_err(format!(
-                "place {id} does not exist (the database has {n})"
+        if n == 0 {
+            args::int_arg::<i128>(id, "id", 0, i128::MAX)?; // a bool or a non-integer: TypeError
+            return Err(crate::ConfigError::new_err(format!(
+                "place {} does not exist: the database is empty",
+                id.str()?
             )));
         }
+        let id: u32 = args::int_arg(id, "id", 0, n as i128 - 1)?;
         let c = self.with(py, |db| db.cloud(id).map(<[u8]>::to_vec));
         Ok(c.map(|b| PyBytes::new(py, &b)))
     }
@@ -1104,7 +1111,7 @@ impl PyLoopDetector {
     /// parallel, `threads` workers, every core by default) or Descriptors (verification off).
     /// The GIL is released once. Every input is checked before the first is added: on error
     /// nothing is added.
-    #[pyo3(signature = (scans, timestamps=None, poses=None, threads=None))]
+    #[pyo3(signature = (scans, timestamps=None, poses=None, threads=None, progress=None))]
     fn detect_many(
         &self,
         py: Python<'_>,
@@ -1112,6 +1119,7 @@ impl PyLoopDetector {
         timestamps: Option<&Bound<'_, PyAny>>,
         poses: Option<&Bound<'_, PyAny>>,
         #[pyo3(from_py_with = args::threads)] threads: Option<usize>,
+        progress: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Vec<PyDetection>> {
         let items: Vec<Bound<'_, PyAny>> = scans
             .try_iter()
@@ -1139,22 +1147,47 @@ impl PyLoopDetector {
             borrowed.iter().map(crate::Borrowed::slice).collect();
         let cfg = self.cfg;
         let pool = crate::batch_pool(threads, slices.len())?;
+        let progress = progress
+            .filter(|p| !p.is_none())
+            .map(|p| p.clone().unbind());
+        let mut stopped: Option<PyErr> = None;
         let found = py
             .detach(|| -> Result<Vec<db::Detection>, DbError> {
-                use rayon::prelude::*;
-                let scans: Vec<db::Scan> = {
+                let scans = {
                     let det = read(&self.inner);
                     let prep = |s: &crate::PointSlice<'_>| prepare_slice(&det, s, &cfg);
-                    match &pool {
-                        Some(p) => {
-                            p.install(|| slices.par_iter().map(prep).collect::<Result<_, _>>())?
+                    match crate::map_interruptible(&slices, pool, prep) {
+                        Ok(v) => v.into_iter().collect::<Result<Vec<_>, _>>()?,
+                        Err(e) => {
+                            stopped = Some(e);
+                            return Ok(Vec::new());
                         }
-                        None => slices.iter().map(prep).collect::<Result<_, _>>()?,
                     }
                 };
-                write(&self.inner).detect_scans(scans, &ts, &ps)
+                // Between steps, the GIL is taken back briefly: Ctrl-C and progress.
+                let mut each = |i: usize| {
+                    let r = Python::attach(|py| -> PyResult<()> {
+                        py.check_signals()?;
+                        match &progress {
+                            Some(f) if i > 0 => f.call1(py, (1,)).map(drop),
+                            _ => Ok(()),
+                        }
+                    });
+                    r.map_err(|e| stopped = Some(e)).is_ok()
+                };
+                let found = write(&self.inner).detect_scans_each(scans, &ts, &ps, &mut each)?;
+                if stopped.is_none() && !found.is_empty() {
+                    if let Some(f) = &progress {
+                        Python::attach(|py| f.call1(py, (1,)).map(drop))
+                            .unwrap_or_else(|e| stopped = Some(e));
+                    }
+                }
+                Ok(found)
             })
             .map_err(|e| db_err(py, e))?;
+        if let Some(e) = stopped {
+            return Err(e);
+        }
         Ok(found.into_iter().map(PyDetection::from).collect())
     }
 
@@ -1183,14 +1216,24 @@ impl PyLoopDetector {
     }
 
     /// Searches the scan against every place without adding it (localisation in a prior map).
+    /// With verification on (the default), points are described, prepared and the best
+    /// candidates registered, as a step would; a Descriptor needs verification off.
     fn query(
         &self,
         py: Python<'_>,
         points_or_descriptor: &Bound<'_, PyAny>,
     ) -> PyResult<Option<PyLoop>> {
-        let d = self.descriptor(py, points_or_descriptor)?;
-        let found = self
-            .with(py, |det| det.query(&d))
+        let verifies = self.with(py, |det| det.config().verify.enabled);
+        let found =
+            match self.input(py, points_or_descriptor)? {
+                Input::Scan(scan) if verifies => py.detach(|| write(&self.inner).query_scan(&scan)),
+                Input::Scan(scan) => self.with(py, |det| det.query(&scan.descriptor)),
+                Input::Descriptor(_) if verifies => return Err(crate::ConfigError::new_err(
+                    "query() with a Descriptor needs verification off (verify=False): a verifying \
+                     detector registers the scan, so give its points",
+                )),
+                Input::Descriptor(d) => self.with(py, |det| det.query(&d)),
+            }
             .map_err(|e| db_err(py, e))?;
         Ok(found.map(PyLoop::from))
     }

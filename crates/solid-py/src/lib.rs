@@ -429,7 +429,32 @@ pub(crate) fn batch_pool(
     }
 }
 
-/// Describes many scans in parallel (every core by default), GIL released once for the batch.
+/// `f` of every item, on `pool` (or this thread), a chunk at a time: between chunks the GIL is
+/// taken back briefly to check for signals, so that Ctrl-C stops a long batch within a chunk's
+/// time (`Err`: the signal handler's exception). Call it with the GIL released.
+pub(crate) fn map_interruptible<T: Sync, R: Send>(
+    items: &[T],
+    pool: Option<&rayon::ThreadPool>,
+    f: impl Fn(&T) -> R + Sync,
+) -> PyResult<Vec<R>> {
+    use rayon::prelude::*;
+    // A few items per worker: enough to balance uneven scans, short enough to answer a signal.
+    let chunk = 4 * pool.map_or(1, rayon::ThreadPool::current_num_threads);
+    let mut out = Vec::new();
+    out.try_reserve_exact(items.len())
+        .map_err(|_| PyMemoryError::new_err("no memory for the batch's results"))?;
+    for part in items.chunks(chunk) {
+        Python::attach(|py| py.check_signals())?;
+        match pool {
+            Some(p) => out.extend(p.install(|| part.par_iter().map(&f).collect::<Vec<_>>())),
+            None => out.extend(part.iter().map(&f)),
+        }
+    }
+    Ok(out)
+}
+
+/// Describes many scans in parallel (every core by default), GIL released for the batch but
+/// for a signal check between chunks (Ctrl-C raises KeyboardInterrupt within a chunk's time).
 #[pyfunction]
 #[pyo3(signature = (scans, config, threads=None))]
 fn describe_batch(
@@ -438,7 +463,6 @@ fn describe_batch(
     config: &PyConfig,
     #[pyo3(from_py_with = args::threads)] threads: Option<usize>,
 ) -> PyResult<Vec<PyDescriptor>> {
-    use rayon::prelude::*;
     let items: Vec<Bound<'_, PyAny>> = if let Ok(list) = scans.cast::<PyList>() {
         list.iter().collect()
     } else {
@@ -456,21 +480,8 @@ fn describe_batch(
         .collect::<PyResult<Vec<_>>>()?;
     let slices: Vec<PointSlice<'_>> = borrowed.iter().map(Borrowed::slice).collect();
     let cfg = config.inner;
-    let describe_all = || -> Vec<Result<Descriptor, Error>> {
-        slices.iter().map(|s| describe_slice(s, &cfg)).collect()
-    };
-    let results = if let Some(pool) = batch_pool(threads, slices.len())? {
-        py.detach(|| {
-            pool.install(|| {
-                slices
-                    .par_iter()
-                    .map(|s| describe_slice(s, &cfg))
-                    .collect::<Vec<_>>()
-            })
-        })
-    } else {
-        py.detach(describe_all)
-    };
+    let pool = batch_pool(threads, slices.len())?;
+    let results = py.detach(|| map_interruptible(&slices, pool, |s| describe_slice(s, &cfg)))?;
     results
         .into_iter()
         .map(|r| r.map(|d| PyDescriptor::new(d, cfg)).map_err(core_err))
