@@ -16,7 +16,7 @@ class Loop:
     @property
     def score(self) -> float:
         """The score the loop was accepted with: the R-SOLiD distance, or with verification
-        1 − fitness."""
+        |t| / (1 + |t|), |t| the length of its pose's translation (metres)."""
     @property
     def verified(self) -> bool:
         """Whether the loop was verified by registration (then it has a pose)."""
@@ -48,8 +48,8 @@ class Candidate:
     @property
     def score(self) -> float:
         """What ranks the candidates and what a precision-recall curve sweeps: the R-SOLiD
-        distance, or with verification 1 − fitness for a candidate that passed the gate and
-        1.5 + distance / 2 otherwise."""
+        distance, or with verification |t| / (1 + |t|) for a candidate that passed the gate (|t|
+        the length of its pose's translation) and 1.5 + distance / 2 otherwise."""
     @property
     def verified(self) -> bool:
         """Whether this candidate was registered."""

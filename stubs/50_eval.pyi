@@ -1,6 +1,12 @@
 DEFAULT_RADIUS: float
 
 
+DEFAULT_POSE_TOLERANCE_M: float
+
+
+DEFAULT_POSE_TOLERANCE_DEG: float
+
+
 VERIFIED_THRESHOLD: float
 
 
@@ -16,8 +22,18 @@ class Scores:
     def gt_positive(self) -> npt.NDArray[np.bool_]:
         """Whether some eligible place lies within the radius, per query (bool array)."""
     @property
+    def pose_tolerance_m(self) -> float:
+        """Largest translation error (metres) of a correct loop's pose."""
+    @property
+    def pose_tolerance_deg(self) -> float:
+        """Largest rotation error (degrees) of a correct loop's pose."""
+    @property
     def correct(self) -> npt.NDArray[np.bool_]:
-        """Whether the best candidate lies within the radius, per query (bool array)."""
+        """Whether the best candidate lies within the radius and its estimated pose, if any,
+        within the pose tolerance, per query (bool array)."""
+    @property
+    def place_correct(self) -> npt.NDArray[np.bool_]:
+        """Whether the best candidate lies within the radius, whatever its pose (bool array)."""
     @property
     def first_hit(self) -> npt.NDArray[np.uint32]:
         """1-based rank of the first candidate within the radius (0: none), per query."""
@@ -80,6 +96,16 @@ class Scores:
         Returns:
             (accepted, correct accepted, precision, recall).
         """
+    def false_at_threshold(self, threshold: float) -> tuple[int, int]:
+        """The wrong top-1s among those accepted with score <= `threshold`.
+
+        Args:
+            threshold: The largest accepted score.
+
+        Returns:
+            (place-false: the candidate lies beyond the radius, pose-false: the place is right
+            but the estimated pose is outside the tolerance).
+        """
     def rotation_errors(self) -> npt.NDArray[np.float64]:
         """|ψ_est − ψ_true| wrapped into [0°, 180°], over the correct top-1s.
 
@@ -98,6 +124,8 @@ def score_candidates(
     poses: npt.NDArray[np.float64],
     radius: float,
     pose: npt.NDArray[np.float64] | None = None,
+    pose_tolerance_m: float = ...,
+    pose_tolerance_deg: float = ...,
 ) -> Scores:
     """Scores what a detector (or a baseline) decided against poses (docs/spec.md §5), with the
     GIL released; `solid.evaluation` wraps it in a friendlier form.
@@ -112,6 +140,10 @@ def score_candidates(
         radius: Metres within which a place counts as the same.
         pose: Per query, the metric `T_query_candidate` estimated for its best candidate, shape
             (M, 4, 4), NaN where none; None when no query has one.
+        pose_tolerance_m: A top-1 whose pose is off by more than this many metres is not correct
+            (default `DEFAULT_POSE_TOLERANCE_M`).
+        pose_tolerance_deg: ... nor one off by more than this many degrees (default
+            `DEFAULT_POSE_TOLERANCE_DEG`).
 
     Returns:
         The per-query outcomes and summary metrics.

@@ -16,6 +16,8 @@ class _SimWorld:
     def roads(self) -> list[float]: ...
     @property
     def bounds(self) -> tuple[float, float, float, float]: ...
+    @property
+    def layout(self) -> str: ...
     def __len__(self) -> int: ...
     def ground_height(self, x: float, y: float) -> float: ...
     def footprints(self) -> tuple[list[str], npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
@@ -54,6 +56,28 @@ def _sim_world(
     slope: tuple[float, float] = ...,  # (0.01, -0.006)
     repetition: float = 0.3,
     cell_size: float = 4.0,
+) -> _SimWorld: ...
+
+
+def _sim_corridor_world(
+    seed: int = 0,
+    blocks: int = 1,
+    modules: int = 4,
+    module_length: float = 45.0,
+    width: float = 6.0,
+    height: float = 3.0,
+    jitter: float = 0.15,
+    dropout: float = 0.1,
+    cell_size: float = 4.0,
+) -> _SimWorld: ...
+
+
+def _sim_room_world(
+    seed: int = 0,
+    size: tuple[float, float] = ...,  # (6.0, 4.5)
+    height: float = 2.6,
+    furniture: int = 8,
+    cell_size: float = 1.0,
 ) -> _SimWorld: ...
 
 
@@ -104,6 +128,38 @@ def _sim_route(
 def _sim_spin(
     world: _SimWorld, x: float, y: float, headings: list[float], mount_height: float = 1.73
 ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
+
+
+def _sim_turn(
+    world: _SimWorld,
+    x: float,
+    y: float,
+    start: float = 0.0,
+    sweep: float = 330.0,
+    step: float = 2.0,
+    wobble: float = 0.0,
+    seed: int = 0,
+    mount_height: float = 1.2,
+    period: float = 0.1,
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
+
+
+def _sim_odometry(
+    poses: npt.NDArray[np.float64],
+    times: list[float],
+    yaw_bias_deg_per_m: float = 0.0,
+    yaw_bias_deg_per_frame: float = 0.0,
+    scale_error: float = 0.0,
+    translation_noise: float = 0.0,
+    rotation_noise_deg: float = 0.0,
+    seed: int = 0,
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
+
+
+def _sim_in_frame(poses: npt.NDArray[np.float64], frame: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]: ...
+
+
+def _sim_write_poses(path: str | os.PathLike[str], poses: npt.NDArray[np.float64]) -> None: ...
 
 
 def _sim_write_sequence(

@@ -215,8 +215,7 @@ def test_eval_accepted_rows_are_exactly_detects_loops(capsys: pytest.CaptureFixt
     common = ["--preset", "avia", "--frames", "0:40,260:314", "-q"]
     code, _, err = run(capsys, "detect", seq, *common, "--max-loop-distance", "3", "-o", str(tmp_path / "d"), "--g2o", str(tmp_path / "loops.g2o"))
     assert code == 0, err
-    # eval's radius also bounds the loops the detector accepts, so both run one configuration
-    code, _, err = run(capsys, "eval", seq, *common, "--radius", "3", "--poses", "odom_poses.txt", "--no-plots", "-o", str(tmp_path / "e"))
+    code, _, err = run(capsys, "eval", seq, *common, "--max-loop-distance", "3", "--radius", "3", "--poses", "odom_poses.txt", "--no-plots", "-o", str(tmp_path / "e"))
     assert code == 0, err
     loops = read_csv(tmp_path / "d" / "loops.csv")
     accepted = [{k: r[k] for k in LOOP_COLUMNS} for r in read_csv(tmp_path / "e" / "queries.csv") if r["accepted"] == "True"]
@@ -233,7 +232,7 @@ def test_eval_accepted_rows_are_exactly_detects_loops(capsys: pytest.CaptureFixt
         assert f[0] == "EDGE_SE3:QUAT" and (f[1], f[2]) == (r["query"], r["candidate"]) and len(f) == 3 + 7 + 21
         assert [float(x) for x in f[3:10]] == pytest.approx([float(r[k]) for k in ("x", "y", "z", "qx", "qy", "qz", "qw")], abs=1e-6)
     # and the library's detector, run by hand on the same frames, made the same decisions
-    cfg = solid.config.PipelineConfig.preset("avia", radius=3.0)
+    cfg = solid.config.PipelineConfig.preset("avia", radius=3.0, detector={"gate": {"max_translation": 3.0}})
     det = solid.LoopDetector(cfg.descriptor, detector=cfg.detector)
     ds = sio.Dataset(seq)
     frames = list(range(0, 40)) + list(range(260, 314))

@@ -37,6 +37,8 @@ __all__ = [
     "_detector_config_from_dict",
     "_param_table",
     "DEFAULT_RADIUS",
+    "DEFAULT_POSE_TOLERANCE_M",
+    "DEFAULT_POSE_TOLERANCE_DEG",
     "VERIFIED_THRESHOLD",
     "Scores",
     "score_candidates",
@@ -64,6 +66,12 @@ __all__ = [
     "_sim_spin",
     "_sim_write_sequence",
     "_sim_write_scans",
+    "_sim_corridor_world",
+    "_sim_room_world",
+    "_sim_turn",
+    "_sim_odometry",
+    "_sim_in_frame",
+    "_sim_write_poses",
     "_lzf_decompress_into",
     "_lzf_max_decompressed_len",
 ]
@@ -1276,7 +1284,7 @@ class Loop:
     @property
     def score(self) -> float:
         """The score the loop was accepted with: the R-SOLiD distance, or with verification
-        1 − fitness."""
+        |t| / (1 + |t|), |t| the length of its pose's translation (metres)."""
     @property
     def verified(self) -> bool:
         """Whether the loop was verified by registration (then it has a pose)."""
@@ -1308,8 +1316,8 @@ class Candidate:
     @property
     def score(self) -> float:
         """What ranks the candidates and what a precision-recall curve sweeps: the R-SOLiD
-        distance, or with verification 1 − fitness for a candidate that passed the gate and
-        1.5 + distance / 2 otherwise."""
+        distance, or with verification |t| / (1 + |t|) for a candidate that passed the gate (|t|
+        the length of its pose's translation) and 1.5 + distance / 2 otherwise."""
     @property
     def verified(self) -> bool:
         """Whether this candidate was registered."""
@@ -1621,6 +1629,12 @@ class LoopDetector:
 DEFAULT_RADIUS: float
 
 
+DEFAULT_POSE_TOLERANCE_M: float
+
+
+DEFAULT_POSE_TOLERANCE_DEG: float
+
+
 VERIFIED_THRESHOLD: float
 
 
@@ -1636,8 +1650,18 @@ class Scores:
     def gt_positive(self) -> npt.NDArray[np.bool_]:
         """Whether some eligible place lies within the radius, per query (bool array)."""
     @property
+    def pose_tolerance_m(self) -> float:
+        """Largest translation error (metres) of a correct loop's pose."""
+    @property
+    def pose_tolerance_deg(self) -> float:
+        """Largest rotation error (degrees) of a correct loop's pose."""
+    @property
     def correct(self) -> npt.NDArray[np.bool_]:
-        """Whether the best candidate lies within the radius, per query (bool array)."""
+        """Whether the best candidate lies within the radius and its estimated pose, if any,
+        within the pose tolerance, per query (bool array)."""
+    @property
+    def place_correct(self) -> npt.NDArray[np.bool_]:
+        """Whether the best candidate lies within the radius, whatever its pose (bool array)."""
     @property
     def first_hit(self) -> npt.NDArray[np.uint32]:
         """1-based rank of the first candidate within the radius (0: none), per query."""
@@ -1700,6 +1724,16 @@ class Scores:
         Returns:
             (accepted, correct accepted, precision, recall).
         """
+    def false_at_threshold(self, threshold: float) -> tuple[int, int]:
+        """The wrong top-1s among those accepted with score <= `threshold`.
+
+        Args:
+            threshold: The largest accepted score.
+
+        Returns:
+            (place-false: the candidate lies beyond the radius, pose-false: the place is right
+            but the estimated pose is outside the tolerance).
+        """
     def rotation_errors(self) -> npt.NDArray[np.float64]:
         """|ψ_est − ψ_true| wrapped into [0°, 180°], over the correct top-1s.
 
@@ -1718,6 +1752,8 @@ def score_candidates(
     poses: npt.NDArray[np.float64],
     radius: float,
     pose: npt.NDArray[np.float64] | None = None,
+    pose_tolerance_m: float = ...,
+    pose_tolerance_deg: float = ...,
 ) -> Scores:
     """Scores what a detector (or a baseline) decided against poses (docs/spec.md §5), with the
     GIL released; `solid.evaluation` wraps it in a friendlier form.
@@ -1732,6 +1768,10 @@ def score_candidates(
         radius: Metres within which a place counts as the same.
         pose: Per query, the metric `T_query_candidate` estimated for its best candidate, shape
             (M, 4, 4), NaN where none; None when no query has one.
+        pose_tolerance_m: A top-1 whose pose is off by more than this many metres is not correct
+            (default `DEFAULT_POSE_TOLERANCE_M`).
+        pose_tolerance_deg: ... nor one off by more than this many degrees (default
+            `DEFAULT_POSE_TOLERANCE_DEG`).
 
     Returns:
         The per-query outcomes and summary metrics.
@@ -1978,6 +2018,8 @@ class _SimWorld:
     def roads(self) -> list[float]: ...
     @property
     def bounds(self) -> tuple[float, float, float, float]: ...
+    @property
+    def layout(self) -> str: ...
     def __len__(self) -> int: ...
     def ground_height(self, x: float, y: float) -> float: ...
     def footprints(self) -> tuple[list[str], npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
@@ -2016,6 +2058,28 @@ def _sim_world(
     slope: tuple[float, float] = ...,  # (0.01, -0.006)
     repetition: float = 0.3,
     cell_size: float = 4.0,
+) -> _SimWorld: ...
+
+
+def _sim_corridor_world(
+    seed: int = 0,
+    blocks: int = 1,
+    modules: int = 4,
+    module_length: float = 45.0,
+    width: float = 6.0,
+    height: float = 3.0,
+    jitter: float = 0.15,
+    dropout: float = 0.1,
+    cell_size: float = 4.0,
+) -> _SimWorld: ...
+
+
+def _sim_room_world(
+    seed: int = 0,
+    size: tuple[float, float] = ...,  # (6.0, 4.5)
+    height: float = 2.6,
+    furniture: int = 8,
+    cell_size: float = 1.0,
 ) -> _SimWorld: ...
 
 
@@ -2066,6 +2130,38 @@ def _sim_route(
 def _sim_spin(
     world: _SimWorld, x: float, y: float, headings: list[float], mount_height: float = 1.73
 ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
+
+
+def _sim_turn(
+    world: _SimWorld,
+    x: float,
+    y: float,
+    start: float = 0.0,
+    sweep: float = 330.0,
+    step: float = 2.0,
+    wobble: float = 0.0,
+    seed: int = 0,
+    mount_height: float = 1.2,
+    period: float = 0.1,
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
+
+
+def _sim_odometry(
+    poses: npt.NDArray[np.float64],
+    times: list[float],
+    yaw_bias_deg_per_m: float = 0.0,
+    yaw_bias_deg_per_frame: float = 0.0,
+    scale_error: float = 0.0,
+    translation_noise: float = 0.0,
+    rotation_noise_deg: float = 0.0,
+    seed: int = 0,
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
+
+
+def _sim_in_frame(poses: npt.NDArray[np.float64], frame: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]: ...
+
+
+def _sim_write_poses(path: str | os.PathLike[str], poses: npt.NDArray[np.float64]) -> None: ...
 
 
 def _sim_write_sequence(

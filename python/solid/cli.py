@@ -74,7 +74,12 @@ degrees = _number(float, "degrees in (0, 360]", lambda v: 0 < v <= 360)
 
 
 # Older spellings of table flags, still accepted.
-_FLAG_ALIASES = {"exclude_frames": ["--exclude"], "exclude_meters": ["--exclude-m"], "exclude_seconds": ["--exclude-s"]}
+_FLAG_ALIASES = {
+    "exclude_frames": ["--exclude"],
+    "exclude_meters": ["--exclude-m"],
+    "exclude_seconds": ["--exclude-s"],
+    "gate_max_translation": ["--max-loop-distance"],
+}
 
 
 def _table_type(f: dict[str, Any]) -> Callable[[str], Any]:
@@ -95,21 +100,25 @@ def _default_text(f: dict[str, Any], per_preset: set[str]) -> str:
     return f"{v:g}" if isinstance(v, float) else str(v)
 
 
-def _add_table_args(g: Any, table: str, per_preset: AbcSet[str] = frozenset()) -> None:
-    """One flag per field of a core parameter table (`--name-with-dashes`, dest the field's name),
-    with its doc line, true default and range; switches get `--name` and `--no-name`."""
+def _add_table_args(g: Any, table: str, per_preset: AbcSet[str] = frozenset(), prefix: str = "", defaults: dict[str, Any] | None = None) -> None:
+    """One flag per field of a core parameter table (`--prefix-name-with-dashes`, dest
+    `prefix_name`), with its doc line, true default (`defaults` where given, else the table's) and
+    range; switches get `--name` and `--no-name`."""
     from .config import param_table
 
     for f in param_table(table):
-        flags = ["--" + f["name"].replace("_", "-"), *_FLAG_ALIASES.get(f["name"], [])]
+        if defaults is not None and f["name"] in defaults:
+            f = {**f, "default": defaults[f["name"]]}
+        dest = prefix + f["name"]
+        flags = ["--" + dest.replace("_", "-"), *_FLAG_ALIASES.get(dest, [])]
         help = f"{f['doc'].rstrip('.')} (default: {_default_text(f, set(per_preset))})"
         if f["type"] == "bool":
-            g.add_argument(*flags, dest=f["name"], action=argparse.BooleanOptionalAction, default=None, help=help)
+            g.add_argument(*flags, dest=dest, action=argparse.BooleanOptionalAction, default=None, help=help)
         elif f["type"] == "str":
-            g.add_argument(*flags, dest=f["name"], choices=f["choices"], default=None, help=help)
+            g.add_argument(*flags, dest=dest, choices=f["choices"], default=None, help=help)
         else:
             metavar = "N" if f["type"] == "int" else "X"
-            g.add_argument(*flags, dest=f["name"], type=_table_type(f), default=None, metavar=metavar, help=help)
+            g.add_argument(*flags, dest=dest, type=_table_type(f), default=None, metavar=metavar, help=help)
 
 
 def _add_config_args(p: argparse.ArgumentParser) -> None:
@@ -124,9 +133,19 @@ def _add_config_args(p: argparse.ArgumentParser) -> None:
 def _add_detector_args(p: argparse.ArgumentParser) -> None:
     from .config import per_preset_fields
 
+    from . import _solid
+
     g = p.add_argument_group(f"loop detector ({_SPEC} §8; every default is the core's)")
     _add_table_args(g, "DetectorConfig", per_preset_fields())
-    g.add_argument("--max-loop-distance", type=pos_float, metavar="M", help="largest loop, metres between the places: the gate's max_translation (default: the evaluation radius, 5)")
+    g = p.add_argument_group(f"the detector's acceptance gate ({_SPEC} §11; with verification)")
+    _add_table_args(g, "AcceptanceGate", prefix="gate_", defaults=_solid.DetectorConfig().gate.to_dict())
+
+
+def _add_truth_args(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group(f"truth ({_SPEC} §5: a loop is correct when its place is within the radius and its pose within the tolerance)")
+    g.add_argument("--radius", type=pos_float, default=None, metavar="M", help="a match is the same place within this many metres (default 5)")
+    g.add_argument("--pose-tolerance-m", type=pos_float, default=None, metavar="M", help="a loop's pose is right within this many metres (default 1)")
+    g.add_argument("--pose-tolerance-deg", type=pos_float, default=None, metavar="DEG", help="... and this many degrees (default 5)")
 
 
 def _add_input_args(p: argparse.ArgumentParser, poses_required: bool = False) -> None:
@@ -219,7 +238,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("sequence", type=Path)
     p.add_argument("-o", "--output", type=Path, default=None, help="output folder (must not exist or be empty)")
     p.add_argument("--map", type=Path, metavar="FILE", help="a map from `solid map build` (with poses): score against it too")
-    p.add_argument("--radius", type=pos_float, default=None, help="a match is correct within this many metres (default 5)")
+    _add_truth_args(p)
     p.add_argument("--baseline", action="append", choices=["scancontext"], default=[], help="also evaluate this baseline on the same queries")
     p.add_argument("--sc-max-range", type=pos_float, default=None, metavar="M", help="Scan Context max range (default 80, as the reference)")
     p.add_argument("--sc-lidar-height", type=any_float, default=None, metavar="M", help="added to z before the max height (default 2.0)")
@@ -261,7 +280,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _add_config_args(d)
     _add_detector_args(d)
-    d.add_argument("--radius", type=pos_float, default=None, help="evaluation radius in metres")
+    _add_truth_args(d)
     _add_common(d)
 
     p = sub.add_parser("map", help="saved maps: build one from a recording, merge, inspect", formatter_class=fmt)
@@ -418,10 +437,14 @@ def cmd_eval(args: argparse.Namespace, out: TextIO) -> int:
     if m.get("accepted") is not None:
         out.write(
             f"at the threshold {m['threshold']:g}: {m['accepted']} loops accepted, {m['false_accepts']} false "
-            f"(precision {commands.fmt_metric(m['precision'])}, recall {commands.fmt_metric(m['recall'])})\n"
+            f"({m['place_false_accepts']} beyond {m['radius_m']:g} m, {m['pose_false_accepts']} with a pose off by more than "
+            f"{m['pose_tolerance_m']:g} m or {m['pose_tolerance_deg']:g}°; "
+            f"precision {commands.fmt_metric(m['precision'])}, recall {commands.fmt_metric(m['recall'])})\n"
         )
-    if m.get("best_threshold") is not None:
-        out.write(f"best F1 {commands.fmt_metric(m['f1_max'])} at threshold {m['best_threshold']:.6g}; to use it:\n  {m.get('best_threshold_command', '')}\n")
+    if m.get("best_threshold_command") is not None:
+        out.write(f"best F1 {commands.fmt_metric(m['f1_max'])} at threshold {m['best_threshold']:.6g}; to use it:\n  {m['best_threshold_command']}\n")
+    elif m.get("best_threshold") is not None:
+        out.write(f"best F1 {commands.fmt_metric(m['f1_max'])} at threshold {m['best_threshold']:.6g}, past what the gate accepts: no detector setting reproduces it\n")
     out.write(f"wrote {run.folder}\n")
     return 0
 

@@ -114,11 +114,16 @@ def make_config(args: argparse.Namespace, base: Any | None = None) -> Any:
         raise _solid.ConfigError("give --preset NAME (see `solid presets`) or --config FILE")
     desc = {k: getattr(args, k) for k in descriptor_fields() if getattr(args, k, None) is not None}
     det: dict[str, Any] = {k: getattr(args, k) for k in detector_fields() if getattr(args, k, None) is not None}
-    max_loop = getattr(args, "max_loop_distance", None)
-    if max_loop is None and getattr(args, "radius", None) is not None:
-        max_loop = args.radius  # a loop joins places within the evaluation radius
-    if max_loop is not None:
-        det["gate"] = {**base.detector.gate.to_dict(), "max_translation": max_loop}
+    gate = {f: getattr(args, "gate_" + f) for f in base.detector.gate.to_dict() if getattr(args, "gate_" + f, None) is not None}
+    if gate:
+        det["gate"] = gate  # overrides of the configuration's gate
+    if getattr(args, "threshold", None) is not None and not det.get("verify", base.detector.verify):
+        pass
+    elif getattr(args, "threshold", None) is not None:
+        raise _solid.ConfigError(
+            "--threshold applies without verification (--no-verify): a verified loop is accepted by the gate; "
+            "tighten it with --gate-min-fitness and the other --gate-* options"
+        )
     inp = {}
     for key in ("fov", "fov_center", "occlude", "occlude_center", "frames", "subsample_m"):
         v = getattr(args, key, None)
@@ -131,8 +136,9 @@ def make_config(args: argparse.Namespace, base: Any | None = None) -> Any:
         cfg = cfg.replace(detector=cfg.detector.replace(**det))
     if inp:
         cfg = cfg.replace(input=InputOptions(**{**cfg.input.to_dict(), **inp}))
-    if getattr(args, "radius", None) is not None:
-        cfg = cfg.replace(radius=args.radius)
+    evaluation = {k: getattr(args, k) for k in ("radius", "pose_tolerance_m", "pose_tolerance_deg") if getattr(args, k, None) is not None}
+    if evaluation:
+        cfg = cfg.replace(**evaluation)
     return cfg
 
 
@@ -341,9 +347,14 @@ def evaluate(
         write_csv(out.work / "queries.csv", QUERY_COLUMNS, main.rows())
         for e in evals[1:]:
             write_csv(out.work / f"queries_{e.name.lower().replace(' ', '')}.csv", QUERY_COLUMNS, e.rows())
-        if best is not None and command_hint is not None:
+        setting = None if best is None else main.setting_for(best, config.detector.verify)
+        if best is not None:
+            metrics["accepted_at_best_threshold"] = int((main.score <= best).sum())
+        if setting is not None:
+            metrics["best_setting"] = {setting[0].lstrip("-").replace("-", "_"): setting[1]}
+        if setting is not None and command_hint is not None:
             metrics["best_threshold_command"] = " ".join(
-                [*map(shlex.quote, command_hint), "--config", shlex.quote(str(out.final / "config.json")), "--threshold", f"{best:.6g}"]
+                [*map(shlex.quote, command_hint), "--config", shlex.quote(str(out.final / "config.json")), setting[0], repr(setting[1])]
             )
         write_json(out.work / "metrics.json", metrics)
         if plots:

@@ -15,14 +15,16 @@ JSON layout::
      "descriptor": {"n_range": 40, ...},          # solid.SolidConfig fields
      "detector": {"exclude_frames": 50, ..., "verify": true, ...,
                   "registration": {...}, "gate": {...}},   # solid.DetectorConfig fields
-     "evaluation": {"radius": 5.0},
+     "evaluation": {"radius": 5.0, "pose_tolerance_m": 1.0, "pose_tolerance_deg": 5.0},
      "input": {"fov": null, "fov_center": null, "occlude": null, "occlude_center": 0.0,
                "frames": null, "subsample_m": null}}
 
 Any section or key may be left out (it takes its default); unknown keys are errors that name
 them. ``-0.0`` is written as ``0.0`` so that equal configurations dump, compare and hash equally.
-An evaluation ``radius`` given without the gate's ``max_translation`` also bounds the loops the
-detector accepts (places farther apart would count as false at that radius).
+The evaluation section only says how loops are scored (docs/spec.md §5: a loop is correct when its
+candidate lies within ``radius`` and its pose within the pose tolerance of the truth); it never
+changes what the detector accepts, so ``solid eval`` and ``solid detect`` with the same detector
+settings accept the same loops.
 """
 
 from __future__ import annotations
@@ -120,6 +122,10 @@ class InputOptions:
         return {f.name: _norm(getattr(self, f.name)) for f in fields(self)}
 
 
+#: The keys of the evaluation section (each a finite number > 0) and what they hold.
+_EVALUATION_KEYS = {"radius": "metres > 0", "pose_tolerance_m": "metres > 0", "pose_tolerance_deg": "degrees > 0"}
+
+
 @dataclass(frozen=True)
 class PipelineConfig:
     """Descriptor + detector + evaluation + input options of one pipeline run."""
@@ -129,11 +135,19 @@ class PipelineConfig:
     radius: float = field(default=float(_solid.DEFAULT_RADIUS))
     input: InputOptions = field(default_factory=InputOptions)
     preset_name: str | None = None
+    pose_tolerance_m: float = field(default=float(_solid.DEFAULT_POSE_TOLERANCE_M))
+    pose_tolerance_deg: float = field(default=float(_solid.DEFAULT_POSE_TOLERANCE_DEG))
 
     def __post_init__(self) -> None:
-        if not (_is_number(self.radius) and math.isfinite(self.radius) and self.radius > 0):
-            raise _solid.ConfigError(f"invalid evaluation.radius = {self.radius!r}: expected metres > 0")
-        object.__setattr__(self, "radius", float(self.radius) + 0.0)
+        for name in _EVALUATION_KEYS:
+            v = getattr(self, name)
+            if not (_is_number(v) and math.isfinite(v) and v > 0):
+                raise _solid.ConfigError(f"invalid evaluation.{name} = {v!r}: expected {_EVALUATION_KEYS[name]}")
+            object.__setattr__(self, name, float(v) + 0.0)
+
+    def evaluation(self) -> dict[str, float]:
+        """The evaluation section: radius and pose tolerance of a correct loop (docs/spec.md §5)."""
+        return {k: _norm(getattr(self, k)) for k in _EVALUATION_KEYS}
 
     @classmethod
     def preset(
@@ -178,7 +192,7 @@ class PipelineConfig:
         allowed = {
             "descriptor": set(descriptor_fields()),
             "detector": set(detector_fields()),
-            "evaluation": {"radius"},
+            "evaluation": set(_EVALUATION_KEYS),
             "input": {f.name for f in fields(InputOptions)},
         }
         for sec, keys in allowed.items():
@@ -198,15 +212,11 @@ class PipelineConfig:
             inp = InputOptions(**sections["input"])
         except TypeError as e:
             raise _solid.ConfigError(f"{where}: {e}") from None
-        radius = sections["evaluation"].get("radius", float(_solid.DEFAULT_RADIUS))
-        if not (isinstance(radius, (int, float)) and not isinstance(radius, bool) and math.isfinite(radius) and radius > 0):
-            raise _solid.ConfigError(f"{where}: invalid evaluation.radius = {radius!r}: expected metres > 0")
-        gate = sections["detector"].get("gate")
-        if "radius" in sections["evaluation"] and not (isinstance(gate, dict) and "max_translation" in gate):
-            # A loop joins places within the evaluation radius unless the gate says otherwise:
-            # farther ones would count as false (docs/spec.md §5).
-            det = det.replace(gate={**det.gate.to_dict(), "max_translation": float(radius)})
-        return cls(descriptor=desc, detector=det, radius=radius, input=inp, preset_name=preset)
+        evaluation = dict(sections["evaluation"])
+        for k, v in evaluation.items():
+            if not (_is_number(v) and math.isfinite(v) and v > 0):
+                raise _solid.ConfigError(f"{where}: invalid evaluation.{k} = {v!r}: expected {_EVALUATION_KEYS[k]}")
+        return cls(descriptor=desc, detector=det, input=inp, preset_name=preset, **evaluation)
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON layout of the module docstring, every field written out."""
@@ -214,7 +224,7 @@ class PipelineConfig:
             "preset": self.preset_name,
             "descriptor": {k: _norm(v) for k, v in self.descriptor.to_dict().items()},
             "detector": {k: _norm(v) for k, v in self.detector.to_dict().items()},
-            "evaluation": {"radius": _norm(self.radius)},
+            "evaluation": self.evaluation(),
             "input": self.input.to_dict(),
         }
 

@@ -9,7 +9,9 @@ matched with — hands it over, and formats what comes back (``metrics.json``, a
 :func:`evaluate_candidates` scores any method given as arrays (the Scan Context baseline).
 
 Definitions (docs/spec.md §5): a query is GT-positive when some place it could be matched with lies within
-``radius`` metres; its top-1 is correct when the best candidate does. Recall@N, the PR curve over
+``radius`` metres; its top-1 is correct when the best candidate does (place-correct) and its
+estimated pose, when it has one, lies within the pose tolerance of the true relative pose (default
+1 m and 5°). An accepted top-1 that is not correct is place-false or pose-false. Recall@N, the PR curve over
 every observed top-1 score (accept when score ≤ τ), F1 max, AUC (P(correct top-1 scores lower than
 an incorrect one), ties one half), and the rotation error |ψ_est − ψ_true| over correct top-1s.
 """
@@ -64,7 +66,13 @@ class Evaluation:
 
     @property
     def correct(self) -> B:
+        """Place-correct and, where a pose was estimated, pose-correct (docs/spec.md §5)."""
         return np.asarray(self.scores.correct, dtype=bool)
+
+    @property
+    def place_correct(self) -> B:
+        """The best candidate lies within the radius, whatever its pose."""
+        return np.asarray(self.scores.place_correct, dtype=bool)
 
     @property
     def gt_positive(self) -> B:
@@ -102,9 +110,12 @@ class Evaluation:
         m: dict[str, Any] = {
             "method": self.name,
             "radius_m": self.radius,
+            "pose_tolerance_m": float(self.scores.pose_tolerance_m),
+            "pose_tolerance_deg": float(self.scores.pose_tolerance_deg),
             "queries": int(self.query.size),
             "gt_queries": int(self.scores.n_gt),
             "correct_top1": int(self.correct.sum()),
+            "place_correct_top1": int(self.place_correct.sum()),
             "recall_at_1": self.recall_at(1),
             "recall_at_5": self.recall_at(5) if self.ids.shape[1] >= 5 else None,
             "f1_max": f1,
@@ -132,12 +143,15 @@ class Evaluation:
             m["pose_error_m_max_all_accepted"] = float(pe_m[acc_pose].max())
         if self.threshold is not None:
             acc, tp, prec, rec = self.scores.at_threshold(self.threshold)
+            place_false, pose_false = self.scores.false_at_threshold(self.threshold)
             m.update(
                 {
                     "threshold": self.threshold,
                     "accepted": int(acc),
                     "true_accepts": int(tp),
                     "false_accepts": int(acc - tp),
+                    "place_false_accepts": int(place_false),
+                    "pose_false_accepts": int(pose_false),
                     "precision": _none_if_nan(float(prec)),
                     "recall": _none_if_nan(float(rec)),
                 }
@@ -145,10 +159,28 @@ class Evaluation:
         m.update(self.extra)
         return m
 
+    def setting_for(self, threshold: float, verified: bool) -> tuple[str, float] | None:
+        """The detector flag and value whose run accepts exactly the top-1s with score ≤
+        ``threshold``: without verification ``--threshold`` itself; with it, the gate's largest loop
+        (``--gate-max-translation``), since a verified score orders the loops by length (the
+        longest accepted loop's length, so that no float rounding drops it). None when no setting
+        does (``threshold`` reaches candidates the gate rejected)."""
+        if not verified:
+            return "--threshold", float(threshold)
+        if threshold > _solid.VERIFIED_THRESHOLD or self.pose is None:
+            return None
+        keep = (self.score <= threshold) & np.isfinite(self.pose[:, 0, 3])
+        if not keep.any():
+            return None
+        t = self.pose[keep, :3, 3]
+        # The length the gate compares, summed in its order: x² + y² + z², then the square root.
+        lengths = [math.sqrt(x * x + y * y + z * z) for x, y, z in t.tolist()]
+        return "--gate-max-translation", max(lengths)
+
     def rows(self) -> list[dict[str, Any]]:
         """``queries.csv`` rows (:data:`QUERY_COLUMNS`)."""
         gt = self.gt_positive
-        correct = self.correct
+        correct, place = self.correct, self.place_correct
         first = np.asarray(self.scores.first_hit)
         cand_m = np.asarray(self.scores.candidate_distance_m)
         truth = np.asarray(self.scores.true_heading_deg)
@@ -172,6 +204,7 @@ class Evaluation:
                     "candidate_distance_m": fmt_opt(float(cand_m[i]), ".3f"),
                     "gt_positive": bool(gt[i]),
                     "correct": bool(correct[i]),
+                    "place_correct": bool(place[i]),
                     "first_hit": int(first[i]),
                     "eligible": int(self.eligible[i]),
                     "query_time": fmt_opt(float(self.entry_times[q])),
@@ -204,6 +237,8 @@ def evaluate_candidates(
     poses: npt.ArrayLike,
     *,
     radius: float,
+    pose_tolerance_m: float = _solid.DEFAULT_POSE_TOLERANCE_M,
+    pose_tolerance_deg: float = _solid.DEFAULT_POSE_TOLERANCE_DEG,
     threshold: float | None = None,
     entry_times: npt.ArrayLike | None = None,
     entry_sessions: npt.ArrayLike | None = None,
@@ -219,7 +254,8 @@ def evaluate_candidates(
     ``score`` and ``heading_deg`` (Q,) of each best candidate (the PR curve sweeps ``score``);
     ``poses`` (N, 3, 4) of every entry id, in one frame. ``pose`` (Q, 4, 4), optional: the
     metric ``T_query_candidate`` estimated for each best candidate (NaN where none), scored
-    against the poses (translation and rotation error).
+    against the poses (translation and rotation error): a top-1 whose pose is off by more than
+    ``pose_tolerance_m`` or ``pose_tolerance_deg`` is not correct.
     """
     P = np.ascontiguousarray(poses, dtype=np.float64)
     if P.ndim != 3 or P.shape[1:] != (3, 4):
@@ -245,7 +281,7 @@ def evaluate_candidates(
     # Entries without poses that no query can reach stay out of the ground truth.
     P = np.where(np.isfinite(P), P, 1e300)
     est = None if pose is None else np.ascontiguousarray(pose, dtype=np.float64)
-    scores = _solid.score_candidates(q, el, I, s, h, P, float(radius), est)
+    scores = _solid.score_candidates(q, el, I, s, h, P, float(radius), est, float(pose_tolerance_m), float(pose_tolerance_deg))
     return Evaluation(
         name=name,
         scores=scores,
@@ -273,6 +309,8 @@ def evaluate_detections(
     radius: float,
     threshold: float | None,
     frame_of: Callable[[int], int | None] | None = None,
+    pose_tolerance_m: float = _solid.DEFAULT_POSE_TOLERANCE_M,
+    pose_tolerance_deg: float = _solid.DEFAULT_POSE_TOLERANCE_DEG,
 ) -> Evaluation:
     """Score the steps of a :class:`solid.LoopDetector` run (``Detection`` objects) against the
     poses stored with the database's places; steps with nothing eligible are skipped (docs/spec.md §5)."""
@@ -304,6 +342,8 @@ def evaluate_detections(
         head,
         _poses_of(database),
         radius=radius,
+        pose_tolerance_m=pose_tolerance_m,
+        pose_tolerance_deg=pose_tolerance_deg,
         threshold=threshold,
         entry_times=np.asarray(database.timestamps),
         entry_sessions=np.asarray(database.sessions),

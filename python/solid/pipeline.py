@@ -148,6 +148,8 @@ class PipelineResult:
             self.detections,
             self.database,
             radius=self.config.radius if radius is None else radius,
+            pose_tolerance_m=self.config.pose_tolerance_m,
+            pose_tolerance_deg=self.config.pose_tolerance_deg,
             # With verification, the scores of the loops that passed the gate lie in [0, 1].
             threshold=_solid.VERIFIED_THRESHOLD if det.verify else det.threshold,
             frame_of=self.frame_of,

@@ -58,6 +58,7 @@ QUERY_COLUMNS = (
     "candidate_distance_m",
     "gt_positive",
     "correct",
+    "place_correct",
     "first_hit",
     "eligible",
     *_PLACE_COLUMNS,

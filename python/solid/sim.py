@@ -11,6 +11,16 @@ bit-identical scans on every platform.
 >>> seq = sim.simulate(world, sensor, traj)               # scans (N, 4) float32 + poses (M, 3, 4)
 >>> seq.write("sim_seq")                                  # KITTI layout: velodyne/*.bin, poses.txt
 
+The failure modes of loop closure, with exact truth (:meth:`World.corridors`,
+:meth:`World.room`, :meth:`Trajectory.odometry`, :class:`Session`):
+
+>>> corridors = sim.World.corridors(seed=1)               # one module repeated every 45 m
+>>> walk = sim.Trajectory.corridor_walk(corridors, laps=1.3)  # true loops and look-alikes
+>>> odom = walk.odometry(yaw_bias_deg_per_m=0.01, scale_error=0.01, seed=1)  # drifts
+>>> sim.write_sequence("walk", corridors, sim.Sensor("avia"), walk, odometry=odom)  # + odometry.txt
+>>> room = sim.World.room(seed=2)
+>>> turn = sim.Trajectory.turn_in_place(room, sweep=330.0, step=2.0, wobble=0.3)
+
 Frames: the sensor frame is x forward, y left, z up; poses are ``T_world_sensor`` as (3, 4)
 row-major float64 matrices, the KITTI convention in the LiDAR frame. Heading convention of docs/spec.md §3:
 :func:`true_heading` gives ψ with ``p_query ≈ Rz(ψ) · p_candidate``.
@@ -19,7 +29,7 @@ row-major float64 matrices, the KITTI convention in the LiDAR frame. Heading con
 from __future__ import annotations
 
 import os
-from collections.abc import Iterator, Sequence as AbcSequence
+from collections.abc import Callable, Iterator, Sequence as AbcSequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Union, overload
@@ -34,12 +44,16 @@ if TYPE_CHECKING:
     from .pipeline import Progress
 
 __all__ = [
+    "ANCHOR_FILE",
+    "ODOMETRY_FILE",
     "SENSORS",
     "TRAJECTORIES",
     "Sensor",
     "Sequence",
+    "Session",
     "Trajectory",
     "World",
+    "corridor_sessions",
     "demo_summary",
     "run_demo",
     "scan",
@@ -71,7 +85,7 @@ class World:
     grid plus an outer ring). Immutable.
     """
 
-    __slots__ = ("_ext", "_args")
+    __slots__ = ("_ext", "_args", "_layout")
 
     def __init__(
         self,
@@ -93,11 +107,87 @@ class World:
             repetition=repetition,
             cell_size=cell_size,
         )
+        self._layout = "city"
         self._ext = _solid._sim_world(**self._args)
+
+    @classmethod
+    def corridors(
+        cls,
+        seed: int = 0,
+        *,
+        blocks: int = 1,
+        modules: int = 4,
+        module_length: float = 45.0,
+        width: float = 6.0,
+        height: float = 3.0,
+        jitter: float = 0.15,
+        dropout: float = 0.1,
+        cell_size: float = 4.0,
+    ) -> World:
+        """A look-alike world: corridors (``width`` m wall to wall, ceiling at ``height`` m, flat
+        floor at z = 0) along the roads of a ``blocks`` × ``blocks`` grid (one block: a square ring
+        of four corridors, :attr:`roads` gives their centrelines). Every corridor between two
+        intersections is ``modules`` copies of one ``module_length`` m module — pillar pairs
+        under ceiling beams, doors, cabinets and benches along the walls — each copy moving every
+        feature by up to ``jitter`` m and leaving it out with probability ``dropout``. Places one
+        module apart look nearly the same to a descriptor although they are tens of metres apart;
+        :meth:`Trajectory.corridor_walk` laps the ring, so a drive has true revisits too.
+
+        >>> w = World.corridors(seed=3, modules=3)
+        >>> w.layout, w.block_pitch                      # pitch = modules · module_length + width
+        ('corridors', 141.0)
+        """
+        args: dict[str, Any] = dict(
+            seed=seed, blocks=blocks, modules=modules, module_length=module_length, width=width,
+            height=height, jitter=jitter, dropout=dropout, cell_size=cell_size,
+        )
+        return cls._made("corridors", args)
+
+    @classmethod
+    def room(
+        cls,
+        seed: int = 0,
+        *,
+        size: tuple[float, float] = (6.0, 4.5),
+        height: float = 2.6,
+        furniture: int = 8,
+        cell_size: float = 1.0,
+    ) -> World:
+        """A small closed room centred on the origin (inner extent ``size`` m along x and y,
+        ceiling at ``height`` m, flat floor at z = 0): a pillar standing out of one wall, up to
+        ``furniture`` cabinets, shelves and boxes along the walls, and a table in one corner;
+        nothing within 1.2 m of the centre. For a sensor turning in place
+        (:meth:`Trajectory.turn_in_place`), where a narrow view sees nothing twice once it has
+        turned by more than its field of view. It has no roads.
+
+        >>> World.room(seed=1).layout
+        'room'
+        """
+        args: dict[str, Any] = dict(
+            seed=seed, size=(float(size[0]), float(size[1])), height=height, furniture=furniture, cell_size=cell_size
+        )
+        return cls._made("room", args)
+
+    @classmethod
+    def _made(cls, layout: str, args: dict[str, Any]) -> World:
+        make: dict[str, Callable[..., _solid._SimWorld]] = {
+            "city": _solid._sim_world, "corridors": _solid._sim_corridor_world, "room": _solid._sim_room_world
+        }
+        world = cls.__new__(cls)
+        world._args = args
+        world._layout = layout
+        world._ext = make[layout](**args)
+        return world
 
     def __reduce__(self) -> tuple[Any, tuple[Any, ...]]:
         # Pickled by its parameters; unpickling regenerates the identical world.
-        return (_world_from_args, (self._args,))
+        return (_world_from_args, (self._args, self._layout))
+
+    @property
+    def layout(self) -> str:
+        """Which generator made the world: ``"city"`` (the constructor), ``"corridors"`` or
+        ``"room"``."""
+        return self._ext.layout
 
     @property
     def seed(self) -> int:
@@ -136,11 +226,12 @@ class World:
         return self._ext.footprints()
 
     def __repr__(self) -> str:
-        return f"World(seed={self.seed}, blocks={self.blocks}, block_pitch={self.block_pitch:g}, primitives={len(self)})"
+        kind = "" if self._layout == "city" else f"{self._layout}, "
+        return f"World({kind}seed={self.seed}, blocks={self.blocks}, block_pitch={self.block_pitch:g}, primitives={len(self)})"
 
 
-def _world_from_args(args: dict[str, Any]) -> World:
-    return World(**args)
+def _world_from_args(args: dict[str, Any], layout: str = "city") -> World:
+    return World._made(layout, args)
 
 
 @dataclass(frozen=True)
@@ -341,6 +432,100 @@ class Trajectory:
         poses, times = _solid._sim_spin(world._ext, float(x), float(y), [float(h) for h in headings], mount_height)
         return cls(poses, times)
 
+    @classmethod
+    def corridor_walk(
+        cls,
+        world: World,
+        laps: float = 1.3,
+        *,
+        spacing: float = 2.0,
+        speed: float = 1.5,
+        mount_height: float = 1.2,
+    ) -> Trajectory:
+        """Walk counter-clockwise laps along the middle of the corridor ring of
+        :meth:`World.corridors` (around the central block, from the middle of its southern
+        corridor; corners rounded with 3 m arcs), a frame every ``spacing`` m at ``speed`` m/s,
+        the sensor ``mount_height`` m above the floor. ``laps`` > 1 revisits the start's
+        stretch in the same direction (true loops); every lap passes each module's copies, which
+        look alike but lie ``module_length`` m and more apart.
+
+        >>> w = World.corridors(seed=1, modules=3)
+        >>> t = Trajectory.corridor_walk(w, laps=1.2)
+        >>> round(float(np.linalg.norm(t.positions[1] - t.positions[0])), 6)
+        2.0
+        """
+        return cls.loop(
+            world, laps=laps, spacing=spacing, lane_offset=0.0, corner_radius=3.0, speed=speed, mount_height=mount_height
+        )
+
+    @classmethod
+    def turn_in_place(
+        cls,
+        world: World,
+        x: float = 0.0,
+        y: float = 0.0,
+        *,
+        start: float = 0.0,
+        sweep: float = 330.0,
+        step: float = 2.0,
+        wobble: float = 0.0,
+        seed: int = 0,
+        mount_height: float = 1.2,
+        period: float = 0.1,
+    ) -> Trajectory:
+        """A sensor standing at (x, y) turning through ``sweep`` degrees (negative: clockwise) in
+        ``step`` degree steps from heading ``start``; its position wanders smoothly within
+        ``wobble`` metres of (x, y) (a seeded path, as a hand-held sensor's), ``mount_height``
+        m above the ground, frames ``period`` s apart. ``floor(|sweep| / step) + 1`` frames.
+
+        >>> t = Trajectory.turn_in_place(World.room(), sweep=330.0, step=2.0, wobble=0.3, seed=1)
+        >>> len(t), bool(np.linalg.norm(t.positions[:, :2], axis=1).max() <= 0.3)
+        (166, True)
+        """
+        poses, times = _solid._sim_turn(
+            world._ext, float(x), float(y), start=start, sweep=sweep, step=step, wobble=wobble, seed=seed,
+            mount_height=mount_height, period=period,
+        )
+        return cls(poses, times)
+
+    def odometry(
+        self,
+        *,
+        yaw_bias_deg_per_m: float = 0.0,
+        yaw_bias_deg_per_frame: float = 0.0,
+        scale_error: float = 0.0,
+        translation_noise: float = 0.0,
+        rotation_noise_deg: float = 0.0,
+        seed: int = 0,
+    ) -> Trajectory:
+        """The odometry a drifting estimator would report along this true trajectory: same
+        first pose, frame and time stamps. Every relative motion ``Δ = T_{k−1}⁻¹ T_k`` is
+        corrupted — its translation scaled by ``1 + scale_error`` plus Gaussian noise of
+        ``translation_noise`` m per axis, its rotation followed by a yaw about the sensor's z of
+        ``yaw_bias_deg_per_m · |t_Δ| + yaw_bias_deg_per_frame`` plus Gaussian noise of
+        ``rotation_noise_deg`` — and integrated, so the error grows with the path as a real
+        odometry's does (on a straight line of length L, a yaw bias b puts the end b·L degrees
+        and about b·L²/2 (radians) metres sideways off). The noise is seeded: the same seed gives
+        the same odometry.
+
+        >>> w = World(seed=1)
+        >>> truth = Trajectory.loop(w, spacing=2.0)
+        >>> odom = truth.odometry(yaw_bias_deg_per_m=0.01, scale_error=0.01, seed=3)
+        >>> bool(np.allclose(odom.poses[0], truth.poses[0]))
+        True
+        """
+        poses, times = _solid._sim_odometry(
+            self.poses, [float(t) for t in self.times], yaw_bias_deg_per_m=yaw_bias_deg_per_m,
+            yaw_bias_deg_per_frame=yaw_bias_deg_per_frame, scale_error=scale_error,
+            translation_noise=translation_noise, rotation_noise_deg=rotation_noise_deg, seed=seed,
+        )
+        return Trajectory(poses, times)
+
+    def in_frame(self, frame: npt.ArrayLike) -> Trajectory:
+        """The same poses expressed in ``frame`` ((3, 4) or (4, 4) ``T_world_frame``): each pose P
+        becomes ``frame⁻¹ · P``."""
+        return Trajectory(_solid._sim_in_frame(self.poses, _pose_array(frame)), self.times)
+
 
 @dataclass(frozen=True)
 class Sequence:
@@ -374,9 +559,9 @@ class Sequence:
         """(M,) seconds."""
         return self.trajectory.times
 
-    def write(self, directory: PathLike) -> Path:
+    def write(self, directory: PathLike, *, odometry: Trajectory | None = None) -> Path:
         """Write as a KITTI-layout folder (see :func:`write_sequence`); returns the folder."""
-        write_sequence(directory, self)
+        write_sequence(directory, self, odometry=odometry)
         return Path(directory)
 
 
@@ -402,18 +587,30 @@ def simulate(world: World, sensor: Sensor, trajectory: Trajectory, first_frame: 
     return Sequence(scans=scans, trajectory=trajectory, sensor=sensor)
 
 
+#: File name of the drifting odometry that :func:`write_sequence` writes beside ``poses.txt``.
+ODOMETRY_FILE = "odometry.txt"
+#: File name of a session's true anchor that :func:`write_sessions` writes beside ``poses.txt``.
+ANCHOR_FILE = "anchor.txt"
+
+
 @overload
-def write_sequence(directory: PathLike, source: Sequence) -> int: ...
+def write_sequence(directory: PathLike, source: Sequence, *, odometry: Trajectory | None = None) -> int: ...
 @overload
-def write_sequence(directory: PathLike, source: World, sensor: Sensor, trajectory: Trajectory) -> int: ...
+def write_sequence(
+    directory: PathLike, source: World, sensor: Sensor, trajectory: Trajectory, *, odometry: Trajectory | None = None
+) -> int: ...
 def write_sequence(
     directory: PathLike,
     source: Sequence | World,
     sensor: Sensor | None = None,
     trajectory: Trajectory | None = None,
+    *,
+    odometry: Trajectory | None = None,
 ) -> int:
     """Write a KITTI-layout folder: ``velodyne/000000.bin`` … (float32 N×4, little-endian),
-    ``poses.txt`` (12 numbers per line: row-major 3×4 ``T_world_sensor``) and ``times.txt``.
+    ``poses.txt`` (12 numbers per line: row-major 3×4 ``T_world_sensor``, the exact truth) and
+    ``times.txt``; with ``odometry`` (e.g. :meth:`Trajectory.odometry`, one pose per frame) also
+    ``odometry.txt`` in the same form, the poses a drifting estimator would report.
     Each file is written under a temporary name and renamed. Either pass a simulated
     :class:`Sequence`, or a world, sensor and trajectory to simulate and write one frame at a time
     (constant memory). Returns the number of frames."""
@@ -421,11 +618,22 @@ def write_sequence(
     if isinstance(source, Sequence):
         if sensor is not None or trajectory is not None:
             raise TypeError("pass either a Sequence or (world, sensor, trajectory)")
-        scans = [np.ascontiguousarray(s, dtype=np.float32) for s in source.scans]
-        return _solid._sim_write_scans(d, scans, source.poses, [float(t) for t in source.times])
-    if sensor is None or trajectory is None:
+        truth = source.trajectory
+    elif sensor is None or trajectory is None:
         raise TypeError("write_sequence(directory, world, sensor, trajectory) needs all three")
-    return _solid._sim_write_sequence(d, source._ext, sensor._ext, trajectory.poses, [float(t) for t in trajectory.times])
+    else:
+        truth = trajectory
+    if odometry is not None and len(odometry) != len(truth):
+        raise _solid.SolidError(f"odometry has {len(odometry)} poses for {len(truth)} frames")
+    if isinstance(source, Sequence):
+        scans = [np.ascontiguousarray(s, dtype=np.float32) for s in source.scans]
+        n = _solid._sim_write_scans(d, scans, source.poses, [float(t) for t in source.times])
+    else:
+        assert sensor is not None
+        n = _solid._sim_write_sequence(d, source._ext, sensor._ext, truth.poses, [float(t) for t in truth.times])
+    if odometry is not None:
+        _solid._sim_write_poses(os.path.join(d, ODOMETRY_FILE), odometry.poses)
+    return n
 
 
 def session_routes(world: World, spacing: float = 2.0) -> tuple[Trajectory, Trajectory]:
@@ -442,17 +650,96 @@ def session_routes(world: World, spacing: float = 2.0) -> tuple[Trajectory, Traj
     return lap, second
 
 
+def corridor_sessions(world: World, *, laps: float = 1.0, spacing: float = 2.0) -> tuple[Trajectory, Trajectory]:
+    """Two sessions' walks around the corridor ring of :meth:`World.corridors`, in the world's
+    frame: the first as :meth:`Trajectory.corridor_walk` (from the middle of the southern
+    corridor, heading east), the second from the middle of the eastern corridor heading north —
+    a different place and a heading 90° apart — both counter-clockwise for ``laps`` laps, so
+    each revisits all of the other. Make them :class:`Session` s to give each its own frame."""
+    first = Trajectory.corridor_walk(world, laps=laps, spacing=spacing)
+    x0, x1 = world.roads[0], world.roads[1]
+    ym = (x0 + x1) / 2.0
+    ring = [(x1, x1), (x0, x1), (x0, x0), (x1, x0)]
+    turns = int(np.ceil(laps))
+    route = [(x1, ym)] + ring * turns + [(x1, ym)]
+    second = Trajectory.from_waypoints(world, route, spacing=spacing, lane_offset=0.0, corner_radius=3.0, speed=1.5, mount_height=1.2)
+    per_lap = (len(second) - 1) / turns
+    return first, second[: int(round(laps * per_lap)) + 1]
+
+
+@dataclass(frozen=True)
+class Session:
+    """One recording session with its own world frame, as a robot that starts its odometry at
+    the identity sees it: :attr:`trajectory` holds the poses in the session's frame (the first
+    is the identity) and :attr:`frame` is ``T_world_session`` (3, 4), the exact transform from the
+    session's coordinates to the simulator's world.
+
+    >>> w = World.corridors(seed=2, modules=2)
+    >>> a, b = (Session.of(t) for t in corridor_sessions(w))
+    >>> anchor = b.anchor(a)            # maps session b's coordinates into session a's
+    >>> bool(np.allclose(b.trajectory.poses[0], np.eye(4)[:3]))
+    True
+    """
+
+    trajectory: Trajectory
+    frame: F64
+
+    @classmethod
+    def of(cls, trajectory: Trajectory, frame: npt.ArrayLike | None = None) -> Session:
+        """The session that recorded ``trajectory`` (poses in the world's frame) in ``frame``
+        (``T_world_session``; default: its first pose, so the session starts at the identity)."""
+        f = _pose_array(trajectory.poses[0] if frame is None else frame)
+        return cls(trajectory.in_frame(f), f)
+
+    def anchor(self, other: Session) -> F64:
+        """``T_other_self`` (3, 4): maps this session's coordinates into ``other`` 's — the
+        anchor of this session in a map recorded by ``other`` (issue 27's ``anchor.txt``)."""
+        anchor: F64 = _solid._sim_in_frame(self.frame, other.frame)[0]
+        return anchor
+
+    def in_world(self) -> Trajectory:
+        """The poses back in the simulator's world frame."""
+        return Trajectory(_solid._sim_in_frame(self.trajectory.poses, _inverse(self.frame)), self.trajectory.times)
+
+
+def _inverse(pose: F64) -> F64:
+    r = pose[:, :3]
+    return np.ascontiguousarray(np.hstack([r.T, -(r.T @ pose[:, 3:])]))
+
+
 def write_sessions(
-    directory: PathLike, world: World, sensor: Sensor, trajectories: AbcSequence[Trajectory]
+    directory: PathLike,
+    world: World,
+    sensor: Sensor,
+    trajectories: AbcSequence[Trajectory],
+    *,
+    own_frames: bool = False,
+    odometry: AbcSequence[Trajectory] | None = None,
 ) -> list[Path]:
     """Simulate and write one KITTI-layout folder per trajectory (``session_0/``, ``session_1/``,
-    …, see :func:`write_sequence`), all poses in the world's frame, so that a map built from one
-    session can be evaluated against another (``solid map build`` / ``solid eval --map``).
-    Returns the folders."""
+    …, see :func:`write_sequence`), so that a map built from one session can be evaluated
+    against another (``solid map build`` / ``solid eval --map``). Returns the folders.
+
+    By default all poses are in the world's frame. With ``own_frames``, each session's
+    ``poses.txt`` is in its own frame (its first pose is the identity, as two independent
+    odometries would give) and ``anchor.txt`` holds the exact transform from that session's
+    frame into the first session's (one KITTI 3×4 row; the identity for ``session_0``).
+    ``odometry`` (one trajectory per session, in the world's frame, e.g. from
+    :meth:`Trajectory.odometry`) is written as each folder's ``odometry.txt``, in the same frame
+    as its ``poses.txt``."""
+    if odometry is not None and len(odometry) != len(trajectories):
+        raise _solid.SolidError(f"{len(odometry)} odometries for {len(trajectories)} sessions")
+    sessions = [Session.of(t) if own_frames else Session.of(t, np.eye(4)[:3]) for t in trajectories]
     out = []
-    for i, traj in enumerate(trajectories):
+    for i, (traj, sess) in enumerate(zip(trajectories, sessions)):
         d = Path(directory) / f"session_{i}"
-        write_sequence(d, world, sensor, traj)
+        odom = None if odometry is None else odometry[i].in_frame(sess.frame)
+        n = write_sequence(d, world, sensor, traj, odometry=odom)
+        if own_frames:
+            _solid._sim_write_poses(d / ANCHOR_FILE, sess.anchor(sessions[0])[None])
+            # The scans are the same; only the frame of the poses changes.
+            _solid._sim_write_poses(d / "poses.txt", sess.trajectory.poses)
+        assert n == len(traj)
         out.append(d)
     return out
 

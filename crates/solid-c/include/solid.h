@@ -207,7 +207,8 @@ typedef struct SolidLoop {
    */
   double heading_deg;
   /**
-   * The score the loop was accepted with: the distance, or with verification `1 - fitness`.
+   * The score the loop was accepted with: the distance, or with verification `|t| / (1 + |t|)`
+   * (the loop's length mapped into [0, 1)).
    */
   double score;
   /**

@@ -42,7 +42,8 @@ pub struct SolidLoop {
     /// Heading of the query relative to the candidate, degrees in (-180, 180]: the yaw of `pose`
     /// when verified, else the A-SOLiD estimate.
     pub heading_deg: f64,
-    /// The score the loop was accepted with: the distance, or with verification `1 - fitness`.
+    /// The score the loop was accepted with: the distance, or with verification `|t| / (1 + |t|)`
+    /// (the loop's length mapped into [0, 1)).
     pub score: f64,
     /// Whether registration verified the loop; `pose`, `information`, `fitness` and `rmse` are
     /// NaN when it did not.

@@ -8,7 +8,12 @@
 //! Definitions ([spec §5](crate::spec#5-evaluating-loop-closure-against-poses)), with `eligible` the entries a query could be matched with (ids
 //! `0..eligible`: the prior map plus its own session minus the exclusion window):
 //! - a query is **GT-positive** when some eligible entry lies within `radius` metres;
-//! - its top-1 is **correct** when the best candidate lies within `radius`;
+//! - its top-1 is **correct** when the best candidate lies within `radius` (**place-correct**)
+//!   and, when the detector estimated a metric pose for it, that pose is within the pose
+//!   tolerance ([`Truth`], default 1 m and 5°) of the true `inv(T_world_query)·T_world_candidate`:
+//!   a loop is only worth having when the pose handed to a pose graph is right. An accepted
+//!   top-1 that is not correct is **place-false** (the candidate lies beyond `radius`) or
+//!   **pose-false** (the place is right, the pose is not);
 //! - **Recall@N** = GT-positive queries with a correct candidate among their first N / GT-positive
 //!   queries;
 //! - the **precision-recall curve** accepts a query's top-1 when its score ≤ τ, for τ over every
@@ -54,6 +59,34 @@ pub const NO_CANDIDATE: u32 = u32::MAX;
 /// Default radius (metres) within which a match is correct ([spec §5](crate::spec#5-evaluating-loop-closure-against-poses)).
 pub const DEFAULT_RADIUS: f64 = 5.0;
 
+/// What counts as a correct loop: its candidate within `radius` metres of the query and its
+/// estimated pose (when it has one) within `translation_m` and `rotation_deg` of the true one.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Truth {
+    /// A candidate is the same place within this many metres.
+    pub radius: f64,
+    /// Largest translation error (metres) of a correct loop's pose.
+    pub translation_m: f64,
+    /// Largest rotation error (degrees) of a correct loop's pose.
+    pub rotation_deg: f64,
+}
+
+/// Default [`Truth::translation_m`].
+pub const DEFAULT_POSE_TOLERANCE_M: f64 = 1.0;
+/// Default [`Truth::rotation_deg`].
+pub const DEFAULT_POSE_TOLERANCE_DEG: f64 = 5.0;
+
+impl Truth {
+    /// The truth at `radius` with the default pose tolerance.
+    pub const fn at(radius: f64) -> Truth {
+        Truth {
+            radius,
+            translation_m: DEFAULT_POSE_TOLERANCE_M,
+            rotation_deg: DEFAULT_POSE_TOLERANCE_DEG,
+        }
+    }
+}
+
 /// The candidates a detector produced, one row per query (struct of arrays).
 #[derive(Debug, Clone, Copy)]
 pub struct Queries<'a> {
@@ -79,10 +112,15 @@ pub struct Queries<'a> {
 pub struct Evaluation {
     /// `radius` of the evaluation, metres.
     pub radius: f64,
+    /// The pose tolerance of a correct loop.
+    pub truth: Truth,
     /// Whether some eligible entry lies within `radius` of the query.
     pub gt_positive: Vec<bool>,
-    /// Whether the best candidate lies within `radius`.
+    /// Whether the best candidate lies within `radius` and its estimated pose, if any, within
+    /// the tolerance of [`Evaluation::truth`].
     pub correct: Vec<bool>,
+    /// Whether the best candidate lies within `radius` (whatever its pose).
+    pub place_correct: Vec<bool>,
     /// 1-based rank of the first candidate within `radius` (0: none).
     pub first_hit: Vec<u32>,
     /// Distance in metres from the query to its best candidate (NaN: no candidate).
@@ -108,14 +146,28 @@ fn same(what: &'static str, left: usize, right: usize) -> Result<(), Error> {
 }
 
 /// Scores `q` against `poses` (row-major 3×4 `T_world_sensor`, one per entry id, all in one
-/// world frame) at `radius` metres.
+/// world frame) at `radius` metres, with the default pose tolerance ([`score_with`]).
+///
+/// # Errors
+/// As [`score_with`].
+pub fn score(q: &Queries<'_>, poses: &[[f64; 12]], radius: f64) -> Result<Evaluation, Error> {
+    score_with(q, poses, &Truth::at(radius))
+}
+
+/// Scores `q` against `poses` (row-major 3×4 `T_world_sensor`, one per entry id, all in one
+/// world frame) by `truth`.
 ///
 /// # Errors
 /// [`Error::LengthMismatch`] when the rows of `q` disagree in length; [`Error::InvalidParameter`]
-/// for a radius that is not finite and positive, a query or candidate id outside the poses, a
-/// candidate that is not eligible, an `eligible` of 0 or beyond the poses, or a non-finite
-/// position.
-pub fn score(q: &Queries<'_>, poses: &[[f64; 12]], radius: f64) -> Result<Evaluation, Error> {
+/// for a radius or tolerance that is not finite and positive, a query or candidate id outside the
+/// poses, a candidate that is not eligible, an `eligible` of 0 or beyond the poses, or a
+/// non-finite position.
+pub fn score_with(
+    q: &Queries<'_>,
+    poses: &[[f64; 12]],
+    truth: &Truth,
+) -> Result<Evaluation, Error> {
+    let (radius, tol) = (truth.radius, *truth);
     let nq = q.query.len();
     same("eligible vs queries", q.eligible.len(), nq)?;
     same("score vs queries", q.score.len(), nq)?;
@@ -134,6 +186,14 @@ pub fn score(q: &Queries<'_>, poses: &[[f64; 12]], radius: f64) -> Result<Evalua
             "a finite number of metres > 0",
         ));
     }
+    for (name, v) in [
+        ("pose_tolerance_m", truth.translation_m),
+        ("pose_tolerance_deg", truth.rotation_deg),
+    ] {
+        if !(v.is_finite() && v > 0.0) {
+            return Err(Error::invalid(name, v, "a finite number > 0"));
+        }
+    }
     let n = poses.len();
     if let Some(p) = poses
         .iter()
@@ -149,8 +209,10 @@ pub fn score(q: &Queries<'_>, poses: &[[f64; 12]], radius: f64) -> Result<Evalua
     let grid = Grid::new(poses, radius)?;
     let mut e = Evaluation {
         radius,
+        truth: *truth,
         gt_positive: Vec::new(),
         correct: Vec::new(),
+        place_correct: Vec::new(),
         first_hit: Vec::new(),
         candidate_distance_m: Vec::new(),
         true_heading_deg: Vec::new(),
@@ -204,7 +266,6 @@ pub fn score(q: &Queries<'_>, poses: &[[f64; 12]], radius: f64) -> Result<Evalua
         };
         e.gt_positive
             .push(grid.any_within(pos(query), eligible, radius));
-        e.correct.push(cand_m <= radius);
         e.first_hit.push(first_hit);
         e.candidate_distance_m.push(cand_m);
         e.true_heading_deg.push(truth);
@@ -214,6 +275,10 @@ pub fn score(q: &Queries<'_>, poses: &[[f64; 12]], radius: f64) -> Result<Evalua
             }
             _ => (f64::NAN, f64::NAN),
         };
+        // NaN errors (no pose) pass: a loop without a metric pose is judged by its place.
+        let pose_ok = !(em > tol.translation_m || ed > tol.rotation_deg);
+        e.place_correct.push(cand_m <= radius);
+        e.correct.push(cand_m <= radius && pose_ok);
         e.pose_error_m.push(em);
         e.pose_error_deg.push(ed);
     }
@@ -368,6 +433,23 @@ impl Evaluation {
             f64::NAN
         };
         (acc, tp, precision, recall)
+    }
+
+    /// The wrong top-1s accepted with a score ≤ `threshold`: `(place-false, pose-false)`, those
+    /// whose candidate lies beyond the radius and those whose place is right but whose pose is
+    /// outside the tolerance.
+    pub fn false_at_threshold(&self, threshold: f64) -> (usize, usize) {
+        let (mut place, mut pose) = (0usize, 0usize);
+        for i in 0..self.len() {
+            if self.score[i] <= threshold && !self.correct[i] {
+                if self.place_correct[i] {
+                    pose += 1;
+                } else {
+                    place += 1;
+                }
+            }
+        }
+        (place, pose)
     }
 
     /// The ROC curve of correct against incorrect top-1s: `(thresholds, false-positive rate,
@@ -625,5 +707,54 @@ mod tests {
         off[3] += 0.3;
         let (m, _) = pose_error(&off, &q, &c);
         assert!((m - 0.3).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_loop_at_the_right_place_with_a_wrong_pose_is_pose_false() {
+        // Places 1 m apart on a line; queries 2 and 3 both match the place one metre back, the
+        // first with its true pose, the second with a pose 3 m off and one turned by 10°.
+        let poses = line(5);
+        let mut good = [0.0; 16];
+        for i in 0..4 {
+            good[5 * i] = 1.0;
+        }
+        good[3] = -1.0;
+        let mut far = good;
+        far[3] = 2.0;
+        let (s, c) = (libm::sin(10f64.to_radians()), libm::cos(10f64.to_radians()));
+        let mut turned = good;
+        turned[..2].copy_from_slice(&[c, -s]);
+        turned[4..6].copy_from_slice(&[s, c]);
+        let q = Queries {
+            query: &[2, 3, 4],
+            eligible: &[2, 3, 4],
+            k: 1,
+            ids: &[1, 2, 3],
+            score: &[0.1, 0.2, 0.3],
+            heading_deg: &[0.0, 0.0, 10.0],
+            pose: &[good, far, turned],
+        };
+        let e = score(&q, &poses, 5.0).unwrap();
+        assert_eq!(e.place_correct, vec![true, true, true]);
+        assert_eq!(e.correct, vec![true, false, false]);
+        assert_eq!(e.false_at_threshold(1.0), (0, 2));
+        assert_eq!(e.at_threshold(1.0).1, 1);
+        // Looser tolerances let them through; tighter radii make them place-false.
+        let loose = Truth {
+            radius: 5.0,
+            translation_m: 4.0,
+            rotation_deg: 15.0,
+        };
+        assert_eq!(
+            score_with(&q, &poses, &loose).unwrap().correct,
+            vec![true; 3]
+        );
+        let near = score_with(&q, &poses, &Truth::at(0.5)).unwrap();
+        assert_eq!(near.false_at_threshold(1.0), (3, 0));
+        let bad = Truth {
+            rotation_deg: f64::NAN,
+            ..loose
+        };
+        assert!(score_with(&q, &poses, &bad).is_err());
     }
 }

@@ -23,6 +23,8 @@ use alloc::boxed::Box;
 use alloc::format;
 use alloc::string::{String, ToString};
 
+use crate::Error;
+
 /// One pool, in a list that only grows.
 struct Entry {
     /// The process that started it.
@@ -219,4 +221,69 @@ pub(crate) fn work() -> Option<Threads> {
 /// [`work`]'s: see the module); `None`: scan on this thread.
 pub(crate) fn scan_helpers() -> Option<Threads> {
     parallel("solid-helper")
+}
+
+/// The threads of the pool for a batch of `jobs` jobs when a caller asks for `threads` (`None`:
+/// one per core), or `None` when one thread does (a single job or a single thread): at most one
+/// per core, since more only adds switching. The pool has the threads asked for even when there
+/// are fewer jobs (the jobs then take fewer of them): one pool per size asked, not one per batch
+/// length. Ask [`pool_of`] for it.
+///
+/// # Errors
+/// [`Error::InvalidParameter`] for `threads = Some(0)`.
+pub fn batch_threads(threads: Option<usize>, jobs: usize) -> Result<Option<usize>, Error> {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    batch_threads_of(threads, jobs, cores)
+}
+
+/// [`batch_threads`] on a machine of `cores` cores.
+fn batch_threads_of(
+    threads: Option<usize>,
+    jobs: usize,
+    cores: usize,
+) -> Result<Option<usize>, Error> {
+    let threads = match threads {
+        Some(0) => {
+            return Err(Error::invalid(
+                "threads",
+                0.0,
+                "at least 1 (or None for every core)",
+            ))
+        }
+        Some(t) => t.min(cores),
+        None => cores,
+    };
+    Ok((threads.min(jobs) > 1).then_some(threads))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_batch_gets_the_threads_asked_for_at_most_one_per_core() {
+        assert_eq!(batch_threads_of(None, 100, 8), Ok(Some(8)));
+        assert_eq!(batch_threads_of(Some(3), 100, 8), Ok(Some(3)));
+        assert_eq!(batch_threads_of(Some(64), 100, 8), Ok(Some(8)));
+        // Fewer jobs than threads: the pool of the size asked (one per size, not per batch).
+        assert_eq!(batch_threads_of(None, 2, 8), Ok(Some(8)));
+    }
+
+    #[test]
+    fn one_job_or_one_thread_runs_on_the_caller() {
+        assert_eq!(batch_threads_of(None, 1, 8), Ok(None));
+        assert_eq!(batch_threads_of(None, 0, 8), Ok(None));
+        assert_eq!(batch_threads_of(Some(1), 100, 8), Ok(None));
+        assert_eq!(batch_threads_of(None, 100, 1), Ok(None));
+    }
+
+    #[test]
+    fn zero_threads_are_refused_by_name() {
+        let e = batch_threads_of(Some(0), 100, 8).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "invalid threads = 0: expected at least 1 (or None for every core)"
+        );
+        assert!(batch_threads(Some(0), 1).is_err());
+    }
 }

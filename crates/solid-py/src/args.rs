@@ -6,7 +6,7 @@ use pyo3::exceptions::{PyMemoryError, PyOverflowError, PyTypeError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyByteArray, PyBytes, PyMemoryView};
 
-use crate::ConfigError;
+use crate::errors::ConfigError;
 
 /// An integer argument `name` in `lo..=hi`. A bool or anything that is not an integer is a
 /// `TypeError`; an integer out of the range (negative, say, or beyond 64 bits) is a
@@ -68,6 +68,11 @@ pub fn type_name(v: &Bound<'_, PyAny>) -> String {
         .name()
         .map(|n| n.to_string())
         .unwrap_or_default()
+}
+
+/// A timestamp argument: NaN for none.
+pub fn timestamp(t: Option<f64>) -> f64 {
+    t.unwrap_or(f64::NAN)
 }
 
 /// An empty vector with room for `n` elements; `MemoryError` (naming `what`) when that much

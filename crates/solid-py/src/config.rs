@@ -14,8 +14,8 @@ use solid_lidar::reg::{Gate, RegConfig};
 use solid_lidar::{Config, PRESETS};
 
 use crate::args;
-use crate::reg::{reg_err, PyRegistration};
-use crate::{core_err, ConfigError};
+use crate::reg::PyRegistration;
+use crate::{core_err, core_err as reg_err, ConfigError};
 
 /// A table value as a Python object.
 fn to_py<'py>(py: Python<'py>, v: Value<'_>) -> PyResult<Bound<'py, PyAny>> {

@@ -7,6 +7,9 @@ use numpy::{
 use pyo3::prelude::*;
 use solid_lidar::eval::{self, Evaluation, Queries, NO_CANDIDATE};
 
+use crate::args;
+use crate::errors::{core_err, SolidError};
+
 /// The per-query outcomes and the summary metrics of one scored run (docs/spec.md §5).
 #[pyclass(name = "Scores", module = "solid", frozen)]
 pub struct PyScores {
@@ -33,10 +36,26 @@ impl PyScores {
     fn gt_positive<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<bool>> {
         PyArray1::from_slice(py, &self.inner.gt_positive)
     }
-    /// Whether the best candidate lies within the radius, per query (bool array).
+    /// Whether the best candidate lies within the radius and its estimated pose, if any, within
+    /// the pose tolerance, per query (bool array).
     #[getter]
     fn correct<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<bool>> {
         PyArray1::from_slice(py, &self.inner.correct)
+    }
+    /// Whether the best candidate lies within the radius, whatever its pose (bool array).
+    #[getter]
+    fn place_correct<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<bool>> {
+        PyArray1::from_slice(py, &self.inner.place_correct)
+    }
+    /// Largest translation error (metres) of a correct loop's pose.
+    #[getter]
+    fn pose_tolerance_m(&self) -> f64 {
+        self.inner.truth.translation_m
+    }
+    /// Largest rotation error (degrees) of a correct loop's pose.
+    #[getter]
+    fn pose_tolerance_deg(&self) -> f64 {
+        self.inner.truth.rotation_deg
     }
     /// 1-based rank of the first candidate within the radius (0: none), per query.
     #[getter]
@@ -59,7 +78,7 @@ impl PyScores {
         self.inner.n_gt()
     }
     /// Recall@n (NaN without GT-positive queries).
-    fn recall_at(&self, #[pyo3(from_py_with = crate::args::n)] n: usize) -> f64 {
+    fn recall_at(&self, #[pyo3(from_py_with = args::n)] n: usize) -> f64 {
         opt(self.inner.recall_at(n))
     }
     /// (thresholds, precision, recall) arrays of the PR curve.
@@ -100,6 +119,10 @@ impl PyScores {
     fn at_threshold(&self, threshold: f64) -> (usize, usize, f64, f64) {
         self.inner.at_threshold(threshold)
     }
+    /// (place-false, pose-false) among the top-1s accepted with scores <= threshold.
+    fn false_at_threshold(&self, threshold: f64) -> (usize, usize) {
+        self.inner.false_at_threshold(threshold)
+    }
     /// Translation error (metres) of each query's estimated pose (NaN: none).
     #[getter]
     fn pose_error_m<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
@@ -122,7 +145,7 @@ impl PyScores {
 /// The rows of `N` values of a flat C-contiguous array, copied (MemoryError naming `what` when
 /// they do not fit).
 fn rows<const N: usize>(flat: &[f64], what: &str) -> PyResult<Vec<[f64; N]>> {
-    let mut out = crate::args::try_vec(flat.len() / N, what)?;
+    let mut out = args::try_vec(flat.len() / N, what)?;
     out.extend(flat.chunks_exact(N).map(|c| {
         let mut m = [0.0; N];
         m.copy_from_slice(c);
@@ -133,7 +156,7 @@ fn rows<const N: usize>(flat: &[f64], what: &str) -> PyResult<Vec<[f64; N]>> {
 
 /// Scores candidates against poses (docs/spec.md §5); see `solid.evaluation` for the friendly form.
 #[pyfunction]
-#[pyo3(signature = (query, eligible, ids, score, heading_deg, poses, radius, pose=None))]
+#[pyo3(signature = (query, eligible, ids, score, heading_deg, poses, radius, pose=None, pose_tolerance_m=eval::DEFAULT_POSE_TOLERANCE_M, pose_tolerance_deg=eval::DEFAULT_POSE_TOLERANCE_DEG))]
 #[allow(clippy::too_many_arguments)]
 fn score_candidates(
     py: Python<'_>,
@@ -145,9 +168,11 @@ fn score_candidates(
     poses: PyReadonlyArray3<'_, f64>,
     radius: f64,
     pose: Option<PyReadonlyArray3<'_, f64>>,
+    pose_tolerance_m: f64,
+    pose_tolerance_deg: f64,
 ) -> PyResult<PyScores> {
     let to_u32 = |name: &str, v: &[i64], allow_missing: bool| -> PyResult<Vec<u32>> {
-        let mut out = crate::args::try_vec(v.len(), name)?;
+        let mut out = args::try_vec(v.len(), name)?;
         for &x in v {
             out.push(if allow_missing && x < 0 {
                 NO_CANDIDATE
@@ -155,16 +180,14 @@ fn score_candidates(
                 u32::try_from(x)
                     .ok()
                     .filter(|&u| u != NO_CANDIDATE)
-                    .ok_or_else(|| {
-                        crate::SolidError::new_err(format!("{name}: {x} is not a valid id"))
-                    })?
+                    .ok_or_else(|| SolidError::new_err(format!("{name}: {x} is not a valid id")))?
             });
         }
         Ok(out)
     };
     let shape = poses.shape();
     if shape.len() != 3 || shape[1] != 3 || shape[2] != 4 {
-        return Err(crate::SolidError::new_err(format!(
+        return Err(SolidError::new_err(format!(
             "poses must have shape (N, 3, 4), got {shape:?}"
         )));
     }
@@ -179,7 +202,7 @@ fn score_candidates(
         Some(p) => {
             let sh = p.shape();
             if sh.len() != 3 || sh[0] != query.len() || sh[1] != 4 || sh[2] != 4 {
-                return Err(crate::SolidError::new_err(format!(
+                return Err(SolidError::new_err(format!(
                     "pose must have shape ({}, 4, 4), got {sh:?}",
                     query.len()
                 )));
@@ -197,14 +220,26 @@ fn score_candidates(
         heading_deg: heading,
     };
     let inner = py
-        .detach(|| eval::score(&q, &poses, radius))
-        .map_err(crate::core_err)?;
+        .detach(|| {
+            let truth = eval::Truth {
+                radius,
+                translation_m: pose_tolerance_m,
+                rotation_deg: pose_tolerance_deg,
+            };
+            eval::score_with(&q, &poses, &truth)
+        })
+        .map_err(core_err)?;
     Ok(PyScores { inner })
 }
 
 /// Registers the scoring function and class.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("DEFAULT_RADIUS", eval::DEFAULT_RADIUS)?;
+    m.add("DEFAULT_POSE_TOLERANCE_M", eval::DEFAULT_POSE_TOLERANCE_M)?;
+    m.add(
+        "DEFAULT_POSE_TOLERANCE_DEG",
+        eval::DEFAULT_POSE_TOLERANCE_DEG,
+    )?;
     m.add_class::<PyScores>()?;
     m.add_function(wrap_pyfunction!(score_candidates, m)?)?;
     Ok(())

@@ -4,7 +4,7 @@ use numpy::{PyArray1, PyArrayMethods};
 use pyo3::prelude::*;
 use solid_lidar::lzf;
 
-use crate::SolidError;
+use crate::errors::{core_err, SolidError};
 
 /// Decodes the LZF stream `data[start:stop]` into the caller's uint8 array `out` (C-contiguous,
 /// writable) with the GIL released, and returns the number of bytes written. The stream may not
@@ -32,7 +32,7 @@ fn _lzf_decompress_into(
         .as_slice_mut()
         .map_err(|_| SolidError::new_err("out must be a C-contiguous uint8 array"))?;
     py.detach(|| lzf::decompress_into(src, dst))
-        .map_err(|e| SolidError::new_err(e.to_string()))
+        .map_err(core_err)
 }
 
 /// The most bytes an LZF stream of `n` bytes can decode to.

@@ -15,19 +15,11 @@ use solid_lidar::reg::{
 };
 use solid_lidar::Points;
 
+use crate::args;
+use crate::arrays::{borrow_points, pose_array, Borrowed, PointSlice};
 use crate::config::PyRegConfig;
-use crate::{args, borrow_points, core_err, PointSlice, PyDescriptor, SolidError};
-
-pub(crate) fn reg_err(e: RegError) -> PyErr {
-    match e {
-        RegError::Core(c) => core_err(c),
-        // Corrupt or foreign bytes, as for a database or a place.
-        RegError::Format { .. } => {
-            Python::attach(|py| crate::engine::database_error(py, e.to_string()))
-        }
-        other => SolidError::new_err(other.to_string()),
-    }
-}
+use crate::describe::{comparable, PyDescriptor};
+use crate::errors::{core_err, SolidError};
 
 /// A cloud prepared for registration, exposed as `solid.PreparedCloud` (immutable).
 #[pyclass(name = "PreparedCloud", module = "solid", frozen)]
@@ -45,8 +37,7 @@ fn prepare_slice(s: &PointSlice<'_>, cfg: &RegConfig) -> Result<PreparedCloud, R
 
 fn points_array<'py>(py: Python<'py>, pts: &[[f64; 3]]) -> PyResult<Bound<'py, PyArray2<f64>>> {
     let flat = args::try_copy(pts.as_flattened(), "cloud points")?;
-    let a = Array2::from_shape_vec((pts.len(), 3), flat)
-        .map_err(|e| SolidError::new_err(e.to_string()))?;
+    let a = Array2::from_shape_vec((pts.len(), 3), flat).map_err(core_err)?;
     Ok(a.into_pyarray(py))
 }
 
@@ -67,7 +58,9 @@ impl PyPrepared {
         let cfg = config_or_default(config);
         let borrowed = borrow_points(points, "points")?;
         let slice = borrowed.slice();
-        let inner = py.detach(|| prepare_slice(&slice, &cfg)).map_err(reg_err)?;
+        let inner = py
+            .detach(|| prepare_slice(&slice, &cfg))
+            .map_err(core_err)?;
         Ok(PyPrepared {
             inner: Arc::new(inner),
             cfg,
@@ -90,7 +83,7 @@ impl PyPrepared {
             .detach(|| {
                 decode_cloud(data).and_then(|pts| PreparedCloud::from_downsampled(&pts, &cfg))
             })
-            .map_err(reg_err)?;
+            .map_err(core_err)?;
         Ok(PyPrepared {
             inner: Arc::new(inner),
             cfg,
@@ -110,7 +103,7 @@ impl PyPrepared {
         } else {
             0.5
         };
-        let bytes = encode_cloud(&self.inner.fine.points, grid, bits).map_err(reg_err)?;
+        let bytes = encode_cloud(&self.inner.fine.points, grid, bits).map_err(core_err)?;
         Ok(PyBytes::new(py, &bytes))
     }
 
@@ -142,10 +135,6 @@ impl PyPrepared {
             self.inner.coarse.as_ref().map_or(0, |c| c.len())
         )
     }
-}
-
-fn pose_array<'py>(py: Python<'py>, p: &Pose) -> Bound<'py, PyArray2<f64>> {
-    Array2::from_shape_fn((4, 4), |(i, j)| p[i][j]).into_pyarray(py)
 }
 
 /// One initial yaw of a multi-hypothesis registration, exposed as `solid.Hypothesis`.
@@ -291,7 +280,7 @@ impl PyRegistration {
 /// A cloud argument: a `PreparedCloud` (its config must match) or raw points to prepare.
 enum CloudArg<'py> {
     Prepared(Arc<PreparedCloud>),
-    Raw(crate::Borrowed<'py>),
+    Raw(Borrowed<'py>),
 }
 
 fn cloud_arg<'py>(v: &Bound<'py, PyAny>, what: &str, cfg: &RegConfig) -> PyResult<CloudArg<'py>> {
@@ -388,7 +377,7 @@ fn register(
             }
         }
     });
-    out.map_err(reg_err)
+    out.map_err(core_err)
 }
 
 /// Initial yaws (degrees) worth trying for a pair of places: 0° then the local minima of the
@@ -400,7 +389,7 @@ fn hypothesis_yaws(
     candidate: &PyDescriptor,
     #[pyo3(from_py_with = args::n)] n: usize,
 ) -> PyResult<Vec<f64>> {
-    crate::comparable(query, candidate)?;
+    comparable(query, candidate)?;
     let mut out = vec![0.0; n.min(solid_lidar::MAX_MINIMA + 1)];
     let k = core_yaws(&query.inner.a, &candidate.inner.a, &mut out).map_err(core_err)?;
     out.truncate(k);
@@ -433,7 +422,7 @@ fn encode_cloud_py<'py>(
     }
     let bytes = py
         .detach(|| encode_cloud(&pts, grid, bits))
-        .map_err(reg_err)?;
+        .map_err(core_err)?;
     Ok(PyBytes::new(py, &bytes))
 }
 
@@ -446,7 +435,7 @@ fn decode_cloud_py<'py>(
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
     let data = args::bytes_arg(data, "data")?;
     let data = data.as_bytes();
-    let pts = py.detach(|| decode_cloud(data)).map_err(reg_err)?;
+    let pts = py.detach(|| decode_cloud(data)).map_err(core_err)?;
     points_array(py, &pts)
 }
 

@@ -2,27 +2,15 @@
 //! `_SimWorld` / `_SimSensor` classes; the typed API is `solid.sim` (python/solid/sim.py).
 
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
-use pyo3::exceptions::PyMemoryError;
 use pyo3::prelude::*;
-use solid_lidar_sim::{Pose, RouteOptions, Sensor, SimError, Trajectory, World, WorldConfig};
+use solid_lidar_sim::{
+    CorridorConfig, DriftOptions, Layout, Pose, RoomConfig, RouteOptions, Sensor, Trajectory,
+    TurnOptions, World, WorldConfig,
+};
 use std::path::PathBuf;
 
-use crate::{args, ConfigError, SolidError};
-
-/// Maps a simulator error: invalid parameters and unknown names to `solid.ConfigError`, I/O
-/// errors to `OSError`, exhausted memory to `MemoryError`.
-fn sim_err(e: SimError) -> PyErr {
-    match e {
-        SimError::Io(io) => crate::io_err(&io, None),
-        SimError::OutOfMemory { .. } => PyMemoryError::new_err(e.to_string()),
-        other => ConfigError::new_err(other.to_string()),
-    }
-}
-
-/// A shape or layout problem of an array argument.
-fn shape_err(msg: impl Into<String>) -> PyErr {
-    SolidError::new_err(msg.into())
-}
+use crate::args;
+use crate::errors::{core_err, ConfigError, SolidError};
 
 /// A generated world (immutable).
 #[pyclass(name = "_SimWorld", module = "solid._solid", frozen)]
@@ -58,6 +46,15 @@ impl PySimWorld {
         let b = self.inner.bounds();
         (b[0], b[1], b[2], b[3])
     }
+    /// Which generator made the world: "city", "corridors" or "room".
+    #[getter]
+    fn layout(&self) -> &'static str {
+        match self.inner.layout() {
+            Layout::Corridors(_) => "corridors",
+            Layout::Room(_) => "room",
+            _ => "city",
+        }
+    }
     /// Number of primitives.
     fn __len__(&self) -> usize {
         self.inner.primitives().len()
@@ -86,7 +83,8 @@ impl PySimWorld {
     fn __repr__(&self) -> String {
         let c = self.inner.config();
         format!(
-            "_SimWorld(seed={}, blocks={}, block_pitch={}, primitives={})",
+            "_SimWorld(layout={:?}, seed={}, blocks={}, block_pitch={}, primitives={})",
+            self.layout(),
             c.seed,
             c.blocks,
             c.block_pitch,
@@ -204,7 +202,71 @@ fn _sim_world(
         repetition,
         cell_size,
     };
-    let inner = py.detach(|| World::new(cfg)).map_err(sim_err)?;
+    let inner = py.detach(|| World::new(cfg)).map_err(core_err)?;
+    Ok(PySimWorld { inner })
+}
+
+/// A count argument of the indoor worlds (the simulator checks the range).
+fn count(name: &'static str) -> impl Fn(&Bound<'_, PyAny>) -> PyResult<usize> {
+    move |v| args::int_arg(v, name, 0, usize::MAX as i128)
+}
+
+fn modules(v: &Bound<'_, PyAny>) -> PyResult<usize> {
+    count("modules")(v)
+}
+
+fn furniture(v: &Bound<'_, PyAny>) -> PyResult<usize> {
+    count("furniture")(v)
+}
+
+#[pyfunction]
+#[pyo3(signature = (seed = 0, blocks = 1, modules = 4, module_length = 45.0, width = 6.0, height = 3.0, jitter = 0.15, dropout = 0.1, cell_size = 4.0))]
+#[allow(clippy::too_many_arguments)]
+fn _sim_corridor_world(
+    py: Python<'_>,
+    #[pyo3(from_py_with = args::seed)] seed: u64,
+    #[pyo3(from_py_with = args::blocks)] blocks: usize,
+    #[pyo3(from_py_with = modules)] modules: usize,
+    module_length: f64,
+    width: f64,
+    height: f64,
+    jitter: f64,
+    dropout: f64,
+    cell_size: f64,
+) -> PyResult<PySimWorld> {
+    let cfg = CorridorConfig {
+        seed,
+        blocks,
+        modules,
+        module_length,
+        width,
+        height,
+        jitter,
+        dropout,
+        cell_size,
+    };
+    let inner = py.detach(|| World::corridors(cfg)).map_err(core_err)?;
+    Ok(PySimWorld { inner })
+}
+
+#[pyfunction]
+#[pyo3(signature = (seed = 0, size = (6.0, 4.5), height = 2.6, furniture = 8, cell_size = 1.0))]
+fn _sim_room_world(
+    py: Python<'_>,
+    #[pyo3(from_py_with = args::seed)] seed: u64,
+    size: (f64, f64),
+    height: f64,
+    #[pyo3(from_py_with = furniture)] furniture: usize,
+    cell_size: f64,
+) -> PyResult<PySimWorld> {
+    let cfg = RoomConfig {
+        seed,
+        size: [size.0, size.1],
+        height,
+        furniture,
+        cell_size,
+    };
+    let inner = py.detach(|| World::room(cfg)).map_err(core_err)?;
     Ok(PySimWorld { inner })
 }
 
@@ -222,7 +284,7 @@ fn _sim_sensor(
     #[pyo3(from_py_with = args::seed)] seed: u64,
     #[pyo3(from_py_with = args::points)] points: Option<usize>,
 ) -> PyResult<PySimSensor> {
-    let mut s = Sensor::preset(name).map_err(sim_err)?;
+    let mut s = Sensor::preset(name).map_err(core_err)?;
     if let Some(w) = h_fov {
         s.h_fov_deg = w;
     }
@@ -248,7 +310,7 @@ fn _sim_sensor(
             }
         }
     }
-    s.validate().map_err(sim_err)?;
+    s.validate().map_err(core_err)?;
     Ok(PySimSensor { inner: s })
 }
 
@@ -258,11 +320,13 @@ fn read_poses(poses: &PyReadonlyArrayDyn<'_, f64>) -> PyResult<Vec<Pose>> {
     let ok = (shape.len() == 3 && shape[1] == 3 && shape[2] == 4)
         || (shape.len() == 2 && shape == [3, 4]);
     if !ok || !poses.is_c_contiguous() {
-        return Err(shape_err(format!(
+        return Err(SolidError::new_err(format!(
             "poses must be a C-contiguous float64 array of shape (M, 3, 4) or (3, 4), got shape {shape:?}"
         )));
     }
-    let data = poses.as_slice().map_err(|e| shape_err(e.to_string()))?;
+    let data = poses
+        .as_slice()
+        .map_err(|e| SolidError::new_err(e.to_string()))?;
     let mut out = args::try_vec(data.len() / 12, "poses")?;
     for chunk in data.chunks_exact(12) {
         if chunk.iter().any(|v| !v.is_finite()) {
@@ -304,12 +368,12 @@ fn _sim_scan<'py>(
 ) -> PyResult<Bound<'py, PyAny>> {
     let poses = read_poses(&pose)?;
     if poses.len() != 1 {
-        return Err(shape_err("pose must have shape (3, 4)"));
+        return Err(SolidError::new_err("pose must have shape (3, 4)"));
     }
     let (w, s) = (world.get(), sensor.get());
     let pts = py
         .detach(|| s.inner.scan(&w.inner, &poses[0], frame))
-        .map_err(sim_err)?;
+        .map_err(core_err)?;
     points_array(py, pts)
 }
 
@@ -335,7 +399,7 @@ fn _sim_scans<'py>(
                 })
                 .collect::<Result<Vec<_>, _>>()
         })
-        .map_err(sim_err)?;
+        .map_err(core_err)?;
     scans.into_iter().map(|p| points_array(py, p)).collect()
 }
 
@@ -360,7 +424,7 @@ fn _sim_trajectory<'py>(
         speed,
         mount_height,
     };
-    let t = Trajectory::by_name(&world.get().inner, kind, laps, &opts).map_err(sim_err)?;
+    let t = Trajectory::by_name(&world.get().inner, kind, laps, &opts).map_err(core_err)?;
     trajectory_arrays(py, t)
 }
 
@@ -385,7 +449,7 @@ fn _sim_route<'py>(
         mount_height,
     };
     let wps: Vec<[f64; 2]> = waypoints.into_iter().map(|(x, y)| [x, y]).collect();
-    let t = Trajectory::from_waypoints(&world.get().inner, &wps, &opts).map_err(sim_err)?;
+    let t = Trajectory::from_waypoints(&world.get().inner, &wps, &opts).map_err(core_err)?;
     trajectory_arrays(py, t)
 }
 
@@ -412,6 +476,95 @@ fn _sim_spin<'py>(
 }
 
 #[pyfunction]
+#[pyo3(signature = (world, x, y, start = 0.0, sweep = 330.0, step = 2.0, wobble = 0.0, seed = 0, mount_height = 1.2, period = 0.1))]
+#[allow(clippy::too_many_arguments, clippy::type_complexity)]
+fn _sim_turn<'py>(
+    py: Python<'py>,
+    world: &Bound<'py, PySimWorld>,
+    x: f64,
+    y: f64,
+    start: f64,
+    sweep: f64,
+    step: f64,
+    wobble: f64,
+    #[pyo3(from_py_with = args::seed)] seed: u64,
+    mount_height: f64,
+    period: f64,
+) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyArray1<f64>>)> {
+    let opts = TurnOptions {
+        start_deg: start,
+        sweep_deg: sweep,
+        step_deg: step,
+        wobble,
+        seed,
+        mount_height,
+        period_s: period,
+    };
+    let t = Trajectory::turn_in_place(&world.get().inner, x, y, &opts).map_err(core_err)?;
+    trajectory_arrays(py, t)
+}
+
+#[pyfunction]
+#[pyo3(signature = (poses, times, yaw_bias_deg_per_m = 0.0, yaw_bias_deg_per_frame = 0.0, scale_error = 0.0, translation_noise = 0.0, rotation_noise_deg = 0.0, seed = 0))]
+#[allow(clippy::too_many_arguments, clippy::type_complexity)]
+fn _sim_odometry<'py>(
+    py: Python<'py>,
+    poses: PyReadonlyArrayDyn<'py, f64>,
+    times: Vec<f64>,
+    yaw_bias_deg_per_m: f64,
+    yaw_bias_deg_per_frame: f64,
+    scale_error: f64,
+    translation_noise: f64,
+    rotation_noise_deg: f64,
+    #[pyo3(from_py_with = args::seed)] seed: u64,
+) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyArray1<f64>>)> {
+    let truth = Trajectory {
+        poses: read_poses(&poses)?,
+        times,
+    };
+    let opts = DriftOptions {
+        yaw_bias_deg_per_m,
+        yaw_bias_deg_per_frame,
+        scale_error,
+        translation_noise,
+        rotation_noise_deg,
+        seed,
+    };
+    let t = py.detach(|| truth.odometry(&opts)).map_err(core_err)?;
+    trajectory_arrays(py, t)
+}
+
+#[pyfunction]
+#[pyo3(signature = (poses, frame))]
+fn _sim_in_frame<'py>(
+    py: Python<'py>,
+    poses: PyReadonlyArrayDyn<'py, f64>,
+    frame: PyReadonlyArrayDyn<'py, f64>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let frame = read_poses(&frame)?;
+    if frame.len() != 1 {
+        return Err(SolidError::new_err("frame must have shape (3, 4)"));
+    }
+    let traj = Trajectory {
+        poses: read_poses(&poses)?,
+        times: Vec::new(),
+    };
+    Ok(trajectory_arrays(py, traj.in_frame(&frame[0]))?.0)
+}
+
+#[pyfunction]
+#[pyo3(signature = (path, poses))]
+fn _sim_write_poses<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    poses: PyReadonlyArrayDyn<'py, f64>,
+) -> PyResult<()> {
+    let poses = read_poses(&poses)?;
+    py.detach(|| solid_lidar_sim::write_poses(&path, &poses))
+        .map_err(core_err)
+}
+
+#[pyfunction]
 #[pyo3(signature = (directory, world, sensor, poses, times))]
 fn _sim_write_sequence<'py>(
     py: Python<'py>,
@@ -427,7 +580,7 @@ fn _sim_write_sequence<'py>(
     };
     let (w, s) = (world.get(), sensor.get());
     py.detach(|| solid_lidar_sim::write_sequence(&directory, &w.inner, &s.inner, &traj, |_, _| {}))
-        .map_err(sim_err)
+        .map_err(core_err)
 }
 
 #[pyfunction]
@@ -444,11 +597,13 @@ fn _sim_write_scans<'py>(
     for (i, s) in scans.iter().enumerate() {
         let shape = s.shape();
         if shape.len() != 2 || shape[1] != 4 || !s.is_c_contiguous() {
-            return Err(shape_err(format!(
+            return Err(SolidError::new_err(format!(
                 "scan {i} must be a C-contiguous float32 array of shape (N, 4), got {shape:?}"
             )));
         }
-        let data = s.as_slice().map_err(|e| shape_err(e.to_string()))?;
+        let data = s
+            .as_slice()
+            .map_err(|e| SolidError::new_err(e.to_string()))?;
         owned.push(
             data.chunks_exact(4)
                 .map(|c| [c[0], c[1], c[2], c[3]])
@@ -456,7 +611,7 @@ fn _sim_write_scans<'py>(
         );
     }
     py.detach(|| solid_lidar_sim::write_scans(&directory, &owned, &poses, &times))
-        .map_err(sim_err)
+        .map_err(core_err)
 }
 
 /// Adds the simulator's classes and functions to the extension module.
@@ -480,5 +635,11 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(_sim_spin, m)?)?;
     m.add_function(wrap_pyfunction!(_sim_write_sequence, m)?)?;
     m.add_function(wrap_pyfunction!(_sim_write_scans, m)?)?;
+    m.add_function(wrap_pyfunction!(_sim_corridor_world, m)?)?;
+    m.add_function(wrap_pyfunction!(_sim_room_world, m)?)?;
+    m.add_function(wrap_pyfunction!(_sim_turn, m)?)?;
+    m.add_function(wrap_pyfunction!(_sim_odometry, m)?)?;
+    m.add_function(wrap_pyfunction!(_sim_in_frame, m)?)?;
+    m.add_function(wrap_pyfunction!(_sim_write_poses, m)?)?;
     Ok(())
 }

@@ -93,3 +93,14 @@ pub(crate) fn check(
         })
     }
 }
+
+/// Checks `lo <= value <= hi` (and finiteness), naming the parameter on failure.
+pub(crate) fn check_in(
+    name: &'static str,
+    value: f64,
+    lo: f64,
+    hi: f64,
+    expected: &'static str,
+) -> Result<(), SimError> {
+    check(name, value, (lo..=hi).contains(&value), expected)
+}

@@ -34,14 +34,24 @@ fn scan_bytes(points: &[[f32; 4]]) -> Vec<u8> {
     out
 }
 
-fn write_meta(dir: &Path, poses: &[Pose], times: &[f64]) -> Result<(), SimError> {
+/// Writes `poses` to the file `path` in the KITTI layout (one row-major 3×4 matrix per line, 12
+/// numbers), through a temporary file and a rename: the simulator writes the truth as
+/// `poses.txt` and a drifting odometry ([`crate::Trajectory::odometry`]) as `odometry.txt`.
+///
+/// # Errors
+/// [`SimError::Io`] on I/O failure.
+pub fn write_poses(path: &Path, poses: &[Pose]) -> Result<(), SimError> {
     let mut text = String::with_capacity(poses.len() * 200);
     for p in poses {
         let line: Vec<String> = p.m.iter().map(|v| format!("{v:.12e}")).collect();
         text.push_str(&line.join(" "));
         text.push('\n');
     }
-    write_atomic(&dir.join("poses.txt"), text.as_bytes())?;
+    write_atomic(path, text.as_bytes())
+}
+
+fn write_meta(dir: &Path, poses: &[Pose], times: &[f64]) -> Result<(), SimError> {
+    write_poses(&dir.join("poses.txt"), poses)?;
     let mut text = String::with_capacity(times.len() * 20);
     for t in times {
         text.push_str(&format!("{t:.6e}\n"));

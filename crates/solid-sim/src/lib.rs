@@ -24,6 +24,7 @@
 
 mod error;
 mod io;
+mod odometry;
 mod pose;
 mod prim;
 pub mod rng;
@@ -37,9 +38,12 @@ mod world;
 pub struct ReadmeDoctests;
 
 pub use error::SimError;
-pub use io::{write_scans, write_sequence};
+pub use io::{write_poses, write_scans, write_sequence};
+pub use odometry::DriftOptions;
 pub use pose::Pose;
 pub use prim::{Hit, Kind, Primitive, Shape};
 pub use sensor::{hdl64_elevations, wrap180, Pattern, Sensor, SENSOR_PRESETS};
-pub use trajectory::{RouteOptions, Trajectory, MAX_FRAMES, TRAJECTORY_KINDS};
-pub use world::{RayHit, World, WorldConfig, GROUND_REFLECTIVITY};
+pub use trajectory::{RouteOptions, Trajectory, TurnOptions, MAX_FRAMES, TRAJECTORY_KINDS};
+pub use world::{
+    CorridorConfig, Layout, RayHit, RoomConfig, World, WorldConfig, GROUND_REFLECTIVITY,
+};

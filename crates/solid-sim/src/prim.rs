@@ -17,6 +17,10 @@ pub enum Kind {
     Wall,
     /// A fence post or rail.
     Fence,
+    /// Indoor furniture: benches, cabinets, shelves, tables.
+    Furniture,
+    /// An indoor ceiling or a ceiling beam.
+    Ceiling,
 }
 
 impl Kind {
@@ -30,6 +34,8 @@ impl Kind {
             Kind::Car => "car",
             Kind::Wall => "wall",
             Kind::Fence => "fence",
+            Kind::Furniture => "furniture",
+            Kind::Ceiling => "ceiling",
         }
     }
 }

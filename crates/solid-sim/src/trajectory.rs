@@ -1,6 +1,6 @@
 //! Trajectories: routes along the world's roads, sampled at a fixed spacing, with exact poses.
 
-use crate::error::{check, try_vec, SimError};
+use crate::error::{check, check_in, try_vec, SimError};
 use crate::pose::Pose;
 use crate::world::World;
 use core::f64::consts::{FRAC_PI_2, PI};
@@ -474,6 +474,113 @@ impl Trajectory {
                 .collect(),
             times: (0..headings_deg.len()).map(|i| i as f64).collect(),
         }
+    }
+}
+
+/// How [`Trajectory::turn_in_place`] turns.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TurnOptions {
+    /// Heading of the first frame, degrees.
+    pub start_deg: f64,
+    /// Total turn, degrees (negative: clockwise); nonzero, |sweep| <= 3600.
+    pub sweep_deg: f64,
+    /// Turn between consecutive frames, degrees ((0, 180]).
+    pub step_deg: f64,
+    /// Largest distance of any frame from the turning point, metres ([0, 5]): the position
+    /// wanders smoothly inside this disc, as a hand-held or walking sensor does.
+    pub wobble: f64,
+    /// Seed of the wobble's path.
+    pub seed: u64,
+    /// Height of the sensor above the ground, metres ([0, 10]).
+    pub mount_height: f64,
+    /// Time between frames, seconds ((0, 3600]).
+    pub period_s: f64,
+}
+
+impl Default for TurnOptions {
+    fn default() -> Self {
+        TurnOptions {
+            start_deg: 0.0,
+            sweep_deg: 330.0,
+            step_deg: 2.0,
+            wobble: 0.0,
+            seed: 0,
+            mount_height: 1.2,
+            period_s: 0.1,
+        }
+    }
+}
+
+impl Trajectory {
+    /// A sensor standing at (x, y) and turning through `opts.sweep_deg` in steps of
+    /// `opts.step_deg` (the first frame at `opts.start_deg`), its position wandering within
+    /// `opts.wobble` metres of (x, y); time stamps `opts.period_s` apart.
+    ///
+    /// # Errors
+    /// [`SimError::InvalidParameter`] for a non-finite point or an option outside its range.
+    pub fn turn_in_place(
+        world: &World,
+        x: f64,
+        y: f64,
+        opts: &TurnOptions,
+    ) -> Result<Trajectory, SimError> {
+        check("x", x, true, "finite")?;
+        check("y", y, true, "finite")?;
+        check("start_deg", opts.start_deg, true, "finite")?;
+        check(
+            "sweep_deg",
+            opts.sweep_deg,
+            opts.sweep_deg != 0.0 && opts.sweep_deg.abs() <= 3600.0,
+            "nonzero, |sweep| <= 3600",
+        )?;
+        check(
+            "step_deg",
+            opts.step_deg,
+            opts.step_deg > 0.0 && opts.step_deg <= 180.0,
+            "(0, 180]",
+        )?;
+        check_in("wobble", opts.wobble, 0.0, 5.0, "[0, 5] m")?;
+        check_in("mount_height", opts.mount_height, 0.0, 10.0, "[0, 10] m")?;
+        check(
+            "period_s",
+            opts.period_s,
+            opts.period_s > 0.0 && opts.period_s <= 3600.0,
+            "(0, 3600] s",
+        )?;
+        let frames = (opts.sweep_deg.abs() / opts.step_deg + 1e-9).floor() + 1.0;
+        check(
+            "frames",
+            frames,
+            frames <= MAX_FRAMES as f64,
+            "at most 1000000 frames (|sweep| / step + 1): increase the step",
+        )?;
+        let n = frames as usize;
+        let sign = opts.sweep_deg.signum();
+        let mut rng = crate::rng::Rng::new(crate::rng::mix_seed(&[opts.seed, 40]));
+        let (f1, f2) = (rng.range(0.6, 1.6), rng.range(0.6, 1.6));
+        let (p1, p2) = (
+            rng.range(0.0, core::f64::consts::TAU),
+            rng.range(0.0, core::f64::consts::TAU),
+        );
+        // Each axis within wobble/√2, so the offset stays within the wobble disc.
+        let amp = opts.wobble * core::f64::consts::FRAC_1_SQRT_2;
+        let mut poses = try_vec(n, "trajectory poses")?;
+        let mut times = try_vec(n, "trajectory times")?;
+        for k in 0..n {
+            let u = k as f64 / n.max(2).saturating_sub(1) as f64;
+            let ox = amp * libm::sin(core::f64::consts::TAU * f1 * u + p1);
+            let oy = amp * libm::sin(core::f64::consts::TAU * f2 * u + p2);
+            let heading = opts.start_deg + sign * k as f64 * opts.step_deg;
+            poses.push(Self::pose_on_ground(
+                world,
+                x + ox,
+                y + oy,
+                heading.to_radians(),
+                opts.mount_height,
+            ));
+            times.push(k as f64 * opts.period_s);
+        }
+        Ok(Trajectory { poses, times })
     }
 }
 

@@ -5,8 +5,10 @@ use crate::error::{check, SimError};
 use crate::prim::{slab, Hit, Kind, Primitive};
 use crate::rng::{mix_seed, Rng};
 use build::{fill_block, fill_street_side, Builder};
+pub use indoor::{CorridorConfig, RoomConfig};
 
 mod build;
+mod indoor;
 
 /// Parameters of a procedural world. `World::new` validates them.
 #[derive(Clone, Debug, PartialEq)]
@@ -143,10 +145,23 @@ impl Grid {
     }
 }
 
+/// Which generator made a world.
+#[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
+pub enum Layout {
+    /// The procedural city of [`World::new`].
+    City,
+    /// The look-alike corridor grid of [`World::corridors`].
+    Corridors(CorridorConfig),
+    /// The small furnished room of [`World::room`].
+    Room(RoomConfig),
+}
+
 /// A deterministic procedural world.
 #[derive(Clone, Debug)]
 pub struct World {
     config: WorldConfig,
+    layout: Layout,
     prims: Vec<Primitive>,
     roads: Vec<f64>,
     z_top: f64,
@@ -283,23 +298,41 @@ impl World {
                 }
             }
         }
+        Ok(World::assemble(config, Layout::City, prims, roads))
+    }
+
+    /// A world of the given primitives, with its acceleration grid.
+    fn assemble(
+        config: WorldConfig,
+        layout: Layout,
+        prims: Vec<Primitive>,
+        roads: Vec<f64>,
+    ) -> World {
         let z_top = prims
             .iter()
             .map(|p| p.shape.top())
             .fold(f64::NEG_INFINITY, f64::max);
-        let grid = Grid::build(&prims, c.cell_size);
-        Ok(World {
+        let grid = Grid::build(&prims, config.cell_size);
+        World {
             config,
+            layout,
             prims,
             roads,
             z_top,
             grid,
-        })
+        }
     }
 
-    /// The configuration the world was generated from.
+    /// The road grid and ground of the world: for [`World::new`] the configuration it was
+    /// generated from; for the corridor and room worlds the equivalent grid the trajectory
+    /// builders drive on (corridors are its roads, the ground is flat; a room has no roads).
     pub fn config(&self) -> &WorldConfig {
         &self.config
+    }
+
+    /// Which generator made the world, with its parameters.
+    pub fn layout(&self) -> &Layout {
+        &self.layout
     }
 
     /// All primitives.

@@ -19,8 +19,9 @@ What a dataset knows (``open_dataset``):
 * a KITTI sequence folder (``velodyne/`` beside ``times.txt``/``calib.txt``): its times, its
   calibration, and ``../../poses/NN.txt`` when present (:mod:`.kitti`);
 * a folder of scans (or a folder holding ``velodyne/``, ``Scans/``, ``scans/``,
-  ``velodyne_points/data/``, ``pointclouds/`` or ``lidar/``), in natural order; NCLT and HeLiPR
-  scans are named by their time (µs, ns), which become the timestamps;
+  ``velodyne_points/data/``, ``pointclouds/`` or ``lidar/``), in natural order, with the
+  ``times.txt`` beside such a sub-folder as its timestamps; NCLT and HeLiPR scans are named by
+  their time (µs, ns), which become the timestamps;
 * a ROS 1 bag, ROS 2 bag or MCAP file with ``sensor_msgs/PointCloud2`` or Livox ``CustomMsg``
   (:mod:`.rosbag`);
 * one scan file (a dataset of one scan).
@@ -297,6 +298,9 @@ class Dataset:
                 root = self.path
                 if kitti.is_sequence(self.path):
                     found = kitti.sequence_files(self.path)
+                elif self.scan_folder != self.path and (self.path / "times.txt").is_file():
+                    # A recording folder with its scans in Scans/ (or velodyne/) and their times beside.
+                    found["times"] = self.path / "times.txt"
             else:
                 self.files = [self.path]
                 root = self.path.parent

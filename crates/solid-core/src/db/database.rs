@@ -56,6 +56,8 @@ pub struct Database {
     /// Rows the searches scanned by brute force only because they were beyond the index, since
     /// it last covered every entry ([`Database::index_due`]).
     unindexed: Tally,
+    /// Whether the searches build the index when it is due ([`super::IndexPolicy::BySearches`]).
+    pub(super) index_by_searches: bool,
     /// The compact clouds of the entries that have one (for verification).
     pub(super) clouds: Clouds,
 }
@@ -83,6 +85,7 @@ impl Database {
             params: Vec::new(),
             observed: Observed::timed(),
             unindexed: Tally::default(),
+            index_by_searches: false,
             clouds: Clouds::default(),
         })
     }

@@ -38,10 +38,10 @@ pub struct DetectorConfig {
 /// registration passes the [`Gate`]. A verified loop carries the metric pose `T_query_candidate`
 /// (SPEC §3) and its heading is that pose's yaw.
 ///
-/// With verification on, a candidate's score is `1 − fitness` when it passed the gate (in
-/// `[0, 1]`) and `1.5 + distance / 2` otherwise (in `[1.5, 2]`): candidates are ranked by it, a
-/// step's best candidate is a loop exactly when it passed the gate, and a precision-recall curve
-/// over the scores first sweeps the verified loops by overlap, then the rest by R-SOLiD distance.
+/// With verification on, a candidate's score is its loop's length `|t| / (1 + |t|)` when it
+/// passed the gate (in `[0, 1)`) and `1.5 + distance / 2` otherwise (in `[1.5, 2]`): candidates
+/// are ranked by it, a step's loop is its nearest verified place, and a precision-recall curve
+/// over the scores first sweeps the verified loops by length, then the rest by R-SOLiD distance.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct VerifyConfig {
     /// Verify at all (the scans' points must then be given, see [`LoopDetector::detect_scan`](super::LoopDetector::detect_scan)).

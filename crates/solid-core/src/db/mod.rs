@@ -5,7 +5,7 @@
 //! and a byte sketch) so that every search is exact over every entry added so far; entries can
 //! be added and searched one at a time or in batches ([`Database::add_batch`],
 //! [`Database::search_batch`]; a bulk add may leave the index to be built when the searches have
-//! paid for it, [`Database::index_due`]). [`Database::to_bytes`] / [`Database::from_bytes`] (and, with `std`, [`Database::save`] /
+//! paid for it, [`Database::index_due`], by the searches themselves, [`IndexPolicy`]). [`Database::to_bytes`] / [`Database::from_bytes`] (and, with `std`, [`Database::save`] /
 //! [`Database::load`]) give a checksummed little-endian file format. [`LoopDetector`] wraps a
 //! database for online loop closure, and [`encode_place`] / [`decode_place`] give a compact wire
 //! form for exchanging one place between robots.
@@ -39,6 +39,7 @@ mod detector;
 mod detector_config;
 mod exclusion;
 pub mod format;
+mod index_policy;
 mod room;
 pub mod wire;
 
@@ -54,6 +55,7 @@ pub use detector_config::{
     DEFAULT_RERANK, DEFAULT_TOP_K, DEFAULT_VERIFY_CANDIDATES, MAX_TOP_K,
 };
 pub use exclusion::visible_own_places;
+pub use index_policy::IndexPolicy;
 pub use wire::{decode_place, encode_place, Place};
 
 /// How [`Database::search`] searches; every method returns the same results (see

@@ -46,7 +46,7 @@ impl LoopDetector {
                 let c = &mut cands[*i];
                 c.verification = r;
                 if let Some(r) = r.filter(|r| r.accepted) {
-                    c.score = 1.0 - r.registration.fitness;
+                    c.score = loop_length_score(&r.registration);
                     c.heading_deg = r.registration.yaw_degrees();
                 }
             }
@@ -91,6 +91,16 @@ impl LoopDetector {
             }
         }
     }
+}
+
+/// The score of a candidate that passed the gate: its loop's length `|t|` mapped into `[0, 1)`
+/// as `|t| / (1 + |t|)`, so that a step's nearest verified place is its loop (the shortest loop
+/// constrains a pose graph best: it has the most overlap) and sweeping the scores sweeps the
+/// loops by length (docs/performance.md#loop-length-score).
+fn loop_length_score(r: &reg::Registration) -> f64 {
+    let t = r.translation();
+    let len = libm::sqrt(t[0] * t[0] + t[1] * t[1] + t[2] * t[2]);
+    len / (1.0 + len)
 }
 
 /// Score of a candidate that was not verified or failed the gate: above every verified score.
