@@ -178,7 +178,8 @@ typecheck: wheel
 	$(PY) tools/readme_examples.py README.md build/readme_blocks.py
 	$(PY) tools/readme_examples.py docs/describe.md build/docs_describe_blocks.py
 	$(PY) tools/readme_examples.py docs/loops.md build/docs_loops_blocks.py
-	$(VENV)/bin/mypy --strict python/solid tests tools build/readme_blocks.py build/docs_describe_blocks.py build/docs_loops_blocks.py
+	$(PY) tools/readme_examples.py docs/slam.md build/docs_slam_blocks.py
+	$(VENV)/bin/mypy --strict python/solid tests tools build/readme_blocks.py build/docs_describe_blocks.py build/docs_loops_blocks.py build/docs_slam_blocks.py
 	$(VENV)/bin/mypy --strict fuzz/python
 	$(PY) -m mypy.stubtest solid._solid
 

@@ -30,6 +30,12 @@ class Loop:
     @property
     def rmse(self) -> float | None:
         """Inlier RMSE of the verifying registration, metres (None when not verified)."""
+    @property
+    def information(self) -> npt.NDArray[np.float64] | None:
+        """The (6, 6) information matrix of `pose` for a pose graph (translation first, g2o's
+        order; the error on the right of the measurement, as g2o's EDGE_SE3:QUAT and GTSAM's
+        BetweenFactor): the registration's Hessian carried over and calibrated (docs/slam.md).
+        None when the loop was not verified."""
     def __eq__(self, other: object, /) -> bool: ...
 
 

@@ -121,6 +121,14 @@ class Registration:
     def degeneracy_translation(self) -> float:
         """Smallest eigenvalue of the translation block, per correspondence (low: a corridor)."""
     @property
+    def hessian(self) -> npt.NDArray[np.float64]:
+        """The Gauss–Newton Hessian JᵀWJ at the fine level at the final pose, (6, 6): rotation
+        first, a perturbation on the left in the query's frame, unscaled."""
+    @property
+    def information(self) -> npt.NDArray[np.float64]:
+        """The (6, 6) information matrix of `pose` for a pose graph, translation first (as
+        `Loop.information`); zeros when there is no Hessian."""
+    @property
     def yaw(self) -> float:
         """Yaw of the pose, degrees in (-180, 180]: the heading of docs/spec.md §3."""
     @property

@@ -224,12 +224,13 @@ def test_eval_accepted_rows_are_exactly_detects_loops(capsys: pytest.CaptureFixt
     assert read_csv(tmp_path / "e" / "loops.csv") == loops
     m = json.loads((tmp_path / "e" / "metrics.json").read_text())
     assert m["accepted"] == len(loops) and m["pose_error_m_median"] < 0.1
-    # The g2o file has one EDGE_SE3:QUAT per verified loop, with the same pose.
+    # Without poses, the g2o file has one EDGE_SE3:QUAT per verified loop, between frame
+    # numbers (issue 27), with the same pose.
     edges = (tmp_path / "loops.g2o").read_text().splitlines()
     assert len(edges) == len(loops)
     for e, r in zip(edges, loops):
         f = e.split()
-        assert f[0] == "EDGE_SE3:QUAT" and (f[1], f[2]) == (r["query"], r["candidate"]) and len(f) == 3 + 7 + 21
+        assert f[0] == "EDGE_SE3:QUAT" and (f[1], f[2]) == (r["query_frame"], r["candidate_frame"]) and len(f) == 3 + 7 + 21
         assert [float(x) for x in f[3:10]] == pytest.approx([float(r[k]) for k in ("x", "y", "z", "qx", "qy", "qz", "qw")], abs=1e-6)
     # and the library's detector, run by hand on the same frames, made the same decisions
     cfg = solid.config.PipelineConfig.preset("avia", radius=3.0, detector={"gate": {"max_translation": 3.0}})

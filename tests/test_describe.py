@@ -196,7 +196,7 @@ def test_fortran_input_is_never_read_wrongly() -> None:
         ({"voxel_size": -0.1}, "voxel_size"),
     ],
 )
-def test_invalid_config_names_the_parameter(kwargs: dict[str, float], name: str) -> None:
+def test_invalid_config_names_the_parameter(kwargs: dict[str, Any], name: str) -> None:
     with pytest.raises(solid.ConfigError, match=name):
         solid.SolidConfig.preset("hdl64", **kwargs)
     with pytest.raises(solid.ConfigError, match=name):
@@ -210,7 +210,7 @@ def test_config_construction_and_presets() -> None:
     with pytest.raises(TypeError):
         solid.SolidConfig(fov_up=2.0, fov_down=-24.8)  # type: ignore[call-arg]
     with pytest.raises(TypeError, match="max_rnge"):
-        solid.SolidConfig.preset("avia", max_rnge=40.0)
+        solid.SolidConfig.preset("avia", max_rnge=40.0)  # type: ignore[call-arg]
     with pytest.raises(solid.ConfigError, match="hdl64, hdl32, vlp16, os1-64, avia, aeva"):
         solid.SolidConfig.preset("velodyne")
     presets = solid.presets()

@@ -92,7 +92,7 @@ def _bag(ext: str) -> Callable[[bytes], None]:
         path.write_bytes(data)
 
         def run() -> None:
-            for p in sio.Sequence(path, xyz_only=False):
+            for p in sio.Dataset(path, xyz_only=False):
                 _check_points(p, path.name)
 
         _guard(path, run)

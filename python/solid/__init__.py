@@ -86,7 +86,7 @@ __all__ = [
 #: The package's submodules, imported on first use (``solid.datasets.open_dataset(...)`` works after
 #: a plain ``import solid``) so that ``import solid`` stays light.
 _SUBMODULES = frozenset(
-    {"commands", "config", "datasets", "errors", "evaluation", "io", "outputs", "pipeline", "plots", "records", "scancontext", "sim", "transforms"}
+    {"commands", "config", "datasets", "errors", "evaluation", "io", "outputs", "pipeline", "plots", "records", "scancontext", "sim", "slam", "transforms"}
 )
 
 

@@ -1298,6 +1298,12 @@ class Loop:
     @property
     def rmse(self) -> float | None:
         """Inlier RMSE of the verifying registration, metres (None when not verified)."""
+    @property
+    def information(self) -> npt.NDArray[np.float64] | None:
+        """The (6, 6) information matrix of `pose` for a pose graph (translation first, g2o's
+        order; the error on the right of the measurement, as g2o's EDGE_SE3:QUAT and GTSAM's
+        BetweenFactor): the registration's Hessian carried over and calibrated (docs/slam.md).
+        None when the loop was not verified."""
     def __eq__(self, other: object, /) -> bool: ...
 
 
@@ -1907,6 +1913,14 @@ class Registration:
     @property
     def degeneracy_translation(self) -> float:
         """Smallest eigenvalue of the translation block, per correspondence (low: a corridor)."""
+    @property
+    def hessian(self) -> npt.NDArray[np.float64]:
+        """The Gauss–Newton Hessian JᵀWJ at the fine level at the final pose, (6, 6): rotation
+        first, a perturbation on the left in the query's frame, unscaled."""
+    @property
+    def information(self) -> npt.NDArray[np.float64]:
+        """The (6, 6) information matrix of `pose` for a pose graph, translation first (as
+        `Loop.information`); zeros when there is no Hessian."""
     @property
     def yaw(self) -> float:
         """Yaw of the pose, degrees in (-180, 180]: the heading of docs/spec.md §3."""

@@ -30,6 +30,7 @@ examples:
   solid eval    ~/kitti/00 --poses poses.txt --calib calib.txt --preset hdl64 --radius 10
   solid map build run1/ --preset avia --poses run1/poses.txt -o run1.soliddb
   solid eval    run2/ --poses run2/poses.txt --map run1.soliddb
+  solid optimize run/ --poses odom.txt --preset avia -o out/   # loops + odometry → a consistent trajectory
   solid config dump --preset avia --max-range 40 > avia40.json
   solid bench   ~/data/kitti/00/velodyne --preset hdl64
 
@@ -218,7 +219,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("sequence", type=Path)
     p.add_argument("-o", "--output", type=Path, default=None, help="output folder (must not exist or be empty)")
     p.add_argument("--map", type=Path, metavar="FILE", help="a map from `solid map build`: query this recording against it")
-    p.add_argument("--g2o", type=Path, metavar="FILE", help="also write the verified loops as g2o EDGE_SE3:QUAT edges (must not exist)")
+    p.add_argument("--g2o", type=Path, metavar="FILE", help="also write the pose graph (a vertex per frame, odometry and loop edges; needs --poses) in g2o form (must not exist)")
     _add_config_args(p)
     _add_detector_args(p)
     _add_input_args(p)
@@ -238,11 +239,44 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("sequence", type=Path)
     p.add_argument("-o", "--output", type=Path, default=None, help="output folder (must not exist or be empty)")
     p.add_argument("--map", type=Path, metavar="FILE", help="a map from `solid map build` (with poses): score against it too")
+    w = p.add_mutually_exclusive_group()
+    w.add_argument("--anchor", type=Path, metavar="FILE", help="with --map: this session's world → the map's world (anchor.txt of `solid optimize --map`; default: estimated from the verified loops into the map)")
+    w.add_argument("--same-world", action="store_true", help="with --map: this session's poses are already in the map's world")
     _add_truth_args(p)
     p.add_argument("--baseline", action="append", choices=["scancontext"], default=[], help="also evaluate this baseline on the same queries")
     p.add_argument("--sc-max-range", type=pos_float, default=None, metavar="M", help="Scan Context max range (default 80, as the reference)")
     p.add_argument("--sc-lidar-height", type=any_float, default=None, metavar="M", help="added to z before the max height (default 2.0)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    _add_config_args(p)
+    _add_detector_args(p)
+    _add_input_args(p, poses_required=True)
+    _add_common(p)
+
+    p = sub.add_parser(
+        "optimize",
+        help="loops + odometry in a robust pose-graph optimisation: a corrected trajectory (pip install solid-lidar[slam])",
+        formatter_class=fmt,
+        epilog="examples:\n"
+        "  solid optimize hku1-avia --poses odom_poses.txt --preset avia -o out/\n"
+        "  solid optimize run2/ --poses odom.txt --map run1.soliddb -o out2/   # anchored in a saved map\n"
+        "  solid optimize seq/ --poses odom.txt --truth gt.txt --preset vlp16   # with ATE/RPE\n"
+        "\nWrites trajectory.kitti/.tum (optimised, in the frame of --poses), graph.g2o, loops.csv,\n"
+        "trajectory.png, metrics.json; with --map also anchor.txt and trajectory_map.kitti/.tum. See docs/slam.md.\n",
+    )
+    p.add_argument("sequence", type=Path)
+    p.add_argument("-o", "--output", type=Path, default=None, help="output folder (must not exist or be empty)")
+    p.add_argument("--map", type=Path, metavar="FILE", help="a map from `solid map build` (with poses): anchor this session in its world")
+    p.add_argument("--truth", type=Path, metavar="FILE", help="ground-truth poses of the recording (KITTI or TUM): ATE and RPE in metrics.json")
+    from .slam import ROBUST_SCHEMES, OdometryNoise
+
+    p.add_argument("--robust", choices=ROBUST_SCHEMES, default=None, help=f"robust scheme for the loop edges (default: {ROBUST_SCHEMES[0]}; docs/slam.md)")
+    on = OdometryNoise()
+    g = p.add_argument_group("odometry noise (σ per axis grows with the step between frames)")
+    g.add_argument("--odom-sigma-m", type=pos_float, default=None, metavar="M", help=f"translation σ floor, metres (default {on.translation_floor_m:g})")
+    g.add_argument("--odom-sigma-fraction", type=_number(float, "a finite number >= 0", lambda v: math.isfinite(v) and v >= 0), default=None, metavar="F", help=f"translation σ per metre travelled (default {on.translation_fraction:g})")
+    g.add_argument("--odom-sigma-deg", type=pos_float, default=None, metavar="DEG", help=f"rotation σ floor, degrees (default {on.rotation_floor_deg:g})")
+    g.add_argument("--odom-sigma-deg-per-m", type=_number(float, "a finite number >= 0", lambda v: math.isfinite(v) and v >= 0), default=None, metavar="DEG", help=f"rotation σ per metre travelled, degrees (default {on.rotation_deg_per_m:g})")
+    p.add_argument("--no-plots", action="store_true", help="skip the PNG plot")
     _add_config_args(p)
     _add_detector_args(p)
     _add_input_args(p, poses_required=True)
@@ -305,6 +339,7 @@ def build_parser() -> argparse.ArgumentParser:
         epilog="example:\n  solid map merge run1.soliddb run2.soliddb -o both.soliddb\n",
     )
     mm.add_argument("maps", type=Path, nargs="+")
+    mm.add_argument("--anchor", type=Path, action="append", default=None, metavar="FILE", help="per map after the first, in order: its world → the first map's world (anchor.txt of `solid optimize --map`); or 'same' for a map already in the first one's world")
     mm.add_argument("-o", "--output", type=Path, required=True, help="the map file to write (must not exist)")
     _add_common(mm)
     mi = msub.add_parser("info", help="what a map file holds", formatter_class=fmt, epilog="example:\n  solid map info run1.soliddb\n")
@@ -428,9 +463,14 @@ def cmd_eval(args: argparse.Namespace, out: TextIO) -> int:
             threads=args.threads,
             progress=bar.update,
             command_hint=hint,
+            anchor=_anchor_arg(args),
         )
     _print_table(out, run.evaluations)
     m = run.metrics
+    a = m.get("anchor")
+    if a is not None:
+        how = {"estimated": f"estimated from {a.get('inlier_loops')} of {a.get('cross_session_loops')} verified loops into the map", "given": f"from {args.anchor}"}
+        out.write(f"session placed in the map's world: {how.get(a['source'], a['source'])}\n")
     excl = m.get("exclusion_median_m")
     if excl is not None:
         out.write(f"exclusion: {cfg.detector.exclude_frames} frames ≈ {excl:.1f} m travelled on this sequence (median)\n")
@@ -447,6 +487,49 @@ def cmd_eval(args: argparse.Namespace, out: TextIO) -> int:
         out.write(f"best F1 {commands.fmt_metric(m['f1_max'])} at threshold {m['best_threshold']:.6g}, past what the gate accepts: no detector setting reproduces it\n")
     out.write(f"wrote {run.folder}\n")
     return 0
+
+
+def cmd_optimize(args: argparse.Namespace, out: TextIO) -> int:
+    from . import commands
+    from .slam import OdometryNoise, require_gtsam
+
+    require_gtsam()  # before the detector runs: say how to install it at once
+    cfg, map_db = commands.config_and_map(args)
+    ds, inputs = _open(args, sys.stderr)
+    d = OdometryNoise()
+    noise = OdometryNoise(
+        translation_fraction=d.translation_fraction if args.odom_sigma_fraction is None else args.odom_sigma_fraction,
+        translation_floor_m=args.odom_sigma_m or d.translation_floor_m,
+        rotation_deg_per_m=d.rotation_deg_per_m if args.odom_sigma_deg_per_m is None else args.odom_sigma_deg_per_m,
+        rotation_floor_deg=args.odom_sigma_deg or d.rotation_floor_deg,
+    )
+    with _progress(args, len(ds), "optimize") as bar:
+        run = commands.optimize(
+            ds, cfg, inputs, output=args.output, map_db=map_db, truth=args.truth, robust=args.robust,
+            noise=noise, plots=not args.no_plots, threads=args.threads, progress=bar.update,
+        )  # fmt: skip
+    m = run.metrics
+    out.write(f"{len(run.result.frames)} frames, {m['loop_edges']} loop edges ({m['loop_edges_kept']} kept by the {m['robust']} optimum)\n")
+    for name in ("odometry", "optimized"):
+        if name in m:
+            e = m[name]
+            out.write(f"{name:<10} ATE {e['ate_m']:.3f} m, RPE {e['rpe_m']:.3f} m / {e['rpe_deg']:.3f}° per frame\n")
+    if "anchor" in m:
+        a = m["anchor"]
+        out.write("anchor: none (no verified loop into the map)\n" if a is None else f"anchor: from {a['inlier_loops']} of {a['cross_session_loops']} loops into the map\n")
+    out.write(f"wrote {run.folder}\n")
+    return 0
+
+
+def _anchor_arg(args: argparse.Namespace) -> Any:
+    """eval's --anchor FILE (a 4×4), --same-world ("same") or neither (None: estimated)."""
+    from .commands import read_anchor
+
+    if getattr(args, "anchor", None) is not None:
+        if args.map is None:
+            raise ValueError("--anchor places a session in a map: give --map too")
+        return read_anchor(args.anchor)
+    return "same" if getattr(args, "same_world", False) else None
 
 
 def _print_table(out: TextIO, evals: AbcSequence[Any]) -> None:
@@ -562,6 +645,7 @@ def main(argv: AbcSequence[str] | None = None) -> int:
         "demo": cmd_demo,
         "detect": cmd_detect,
         "eval": cmd_eval,
+        "optimize": cmd_optimize,
         "presets": cmd_presets,
         "config": cmd_config,
         "map": cmd_map,

@@ -41,6 +41,7 @@ __all__ = [
     "map_info",
     "merge_maps",
     "open_recording",
+    "optimize",
     "write_g2o",
 ]
 
@@ -227,7 +228,7 @@ def detect(
     g2o: Path | None = None,
 ) -> tuple[PipelineResult, Path]:
     """``solid detect``: the accepted loops in ``loops.csv``, the run in ``summary.json``; with
-    ``g2o``, the verified loops as pose-graph edges in that file too (:func:`write_g2o`)."""
+    ``g2o``, the run's pose graph in that file too (:func:`write_g2o`)."""
     if g2o is not None and Path(g2o).exists():
         raise FileExistsError(f"{g2o} exists: choose another file name or remove it")
     result = _run(dataset, config, map_db, threads, progress)
@@ -235,37 +236,26 @@ def detect(
         _write_common(out, result)
         write_json(out.work / "summary.json", _summary(result, inputs, "detect"))
         if g2o is not None:
-            write_g2o(out.work / "loops.g2o", result.loops())
+            write_g2o(out.work / "loops.g2o", result, calib=_extrinsic(inputs))
     if g2o is not None:
         atomic_write_bytes(Path(g2o), (out.final / "loops.g2o").read_bytes())
     return result, out.final
 
 
-def write_g2o(path: Path, loops: AbcSequence[Any]) -> int:
-    """The verified loops as g2o ``EDGE_SE3:QUAT`` lines, ready to add to a pose graph whose
-    vertex ids are the database's place ids: ``EDGE_SE3:QUAT query candidate x y z qx qy qz qw``
-    and the upper triangle of the 6×6 information matrix (translation first). The measurement is
-    ``T_query_candidate`` (docs/spec.md §3). The information is diagonal: ``1/σ²`` with
-    σ = the registration's inlier RMSE (at least 1 cm) for each translation axis and σ = that
-    RMSE over 10 m (the typical lever arm of the points) in radians for each rotation axis —
-    a plain, documented default; scale it to your odometry's weights. Returns the edges written
-    (loops without a pose are skipped)."""
-    lines = []
-    for lp in loops:
-        if lp.pose is None:
-            continue
-        P = np.asarray(lp.pose, dtype=np.float64)
-        qx, qy, qz, qw = quaternion(P[:3, :3])
-        sig_t = max(float(lp.rmse or 0.0), 0.01)
-        sig_r = sig_t / 10.0
-        info = np.diag([1 / sig_t**2] * 3 + [1 / sig_r**2] * 3)
-        upper = " ".join(f"{info[i, j]:.6g}" for i in range(6) for j in range(i, 6))
-        lines.append(
-            f"EDGE_SE3:QUAT {int(lp.query)} {int(lp.candidate)} {P[0, 3]:.6f} {P[1, 3]:.6f} {P[2, 3]:.6f} "
-            f"{qx:.9f} {qy:.9f} {qz:.9f} {qw:.9f} {upper}"
-        )
-    path.write_text("".join(line + "\n" for line in lines), encoding="utf-8")
-    return len(lines)
+def write_g2o(path: Path, result: PipelineResult, calib: Any | None = None, noise: Any | None = None) -> int:
+    """The run's whole pose graph in g2o's text form (:class:`solid.slam.PoseGraph`): a
+    ``VERTEX_SE3:QUAT`` per frame (id = its frame index, as in ``loops.csv``; initial value = its
+    pose), ``EDGE_SE3:QUAT`` odometry edges between consecutive frames (``noise``, a
+    :class:`solid.slam.OdometryNoise`) and one per verified loop with the registration's
+    information (:attr:`solid.Loop.information`). With ``calib`` (the sensor → pose-frame
+    extrinsic, 4×4), in the frame of the given poses. Without poses, the loop edges alone (ids
+    still frame indices). Returns the edges written."""
+    from . import slam
+
+    graph = slam.graph_from_run(result, noise)
+    if calib is not None:
+        graph = graph.in_frame(calib)
+    return graph.write_g2o(path)
 
 
 @dataclass
@@ -292,13 +282,15 @@ def evaluate(
     command_hint: AbcSequence[str] | None = None,
     extra: dict[str, Any] | None = None,
     write_more: Callable[[Path, PipelineResult, list[Evaluation]], None] | None = None,
+    anchor: Any | None = None,
 ) -> EvalRun:
     """``solid eval``: the pipeline's own candidates scored against poses (docs/spec.md §5).
 
     ``scancontext`` (a :class:`solid.scancontext.ScanContextConfig`) adds the baseline, asked the
     same questions (the same queries, each with the same places to choose from). ``extra`` is
     added to ``metrics.json``; ``write_more(folder, result, evaluations)`` writes further files
-    into the output folder before it appears.
+    into the output folder before it appears. Against a map, the session is placed in the map's
+    world first (:func:`place_in_map` with ``anchor``), and ``metrics.json`` says how.
     """
     if getattr(dataset, "poses", None) is None:
         raise _solid.ConfigError("evaluation needs poses (give --poses)")
@@ -313,6 +305,9 @@ def evaluate(
             sc_desc.append(sc.describe(pts, scancontext))
 
     result = _run(dataset, config, map_db, threads, progress, on_scan)
+    placed = None
+    if map_db is not None:
+        result, placed = place_in_map(result, anchor)
     main = result.evaluate()
     if main.query.size == 0:
         raise _solid.ConfigError(
@@ -338,6 +333,8 @@ def evaluate(
     f1, best = main.f1_max()
     if best is not None:
         metrics["best_threshold"] = best
+    if placed is not None:
+        metrics["anchor"] = placed
     if extra:
         metrics.update(extra)
     if len(evals) > 1:
@@ -541,3 +538,172 @@ def bench(
             f"search     {nq / t_np:10.1f} Hz   (numpy brute force baseline, top-1 over {size} entries, {t_np / t_s:.1f}x solid's time)",
         ]
     )
+
+
+def _extrinsic(inputs: Inputs) -> Any | None:
+    """The sensor → pose-frame extrinsic of a run given with a calibration (None without)."""
+    if inputs.calib is None:
+        return None
+    from .datasets.poses import load_extrinsic
+
+    return load_extrinsic(inputs.calib)
+
+
+def read_anchor(path: Path) -> Any:
+    """An anchor file (one KITTI 3×4 row, ``T_map_session``) as a 4×4 matrix."""
+    from .datasets.poses import load_poses
+
+    P, _ = load_poses(path)
+    if len(P) != 1:
+        raise _solid.ConfigError(f"{path}: an anchor is one KITTI 3×4 row, found {len(P)} poses")
+    T = np.eye(4)
+    T[:3] = P[0]
+    return T
+
+
+class _AnchoredDatabase:
+    """A database seen with this session's places carried into the map's world by an anchor
+    (``T_map_session``); everything else is the database's."""
+
+    def __init__(self, db: Any, T_map_session: Any, map_size: int) -> None:
+        from .slam import as4
+
+        self._db = db
+        P = as4(np.asarray(db.poses, dtype=np.float64))
+        P[map_size:] = as4(T_map_session) @ P[map_size:]
+        self.poses = np.ascontiguousarray(P[:, :3, :])
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._db, name)
+
+    def __len__(self) -> int:
+        return len(self._db)
+
+
+def place_in_map(result: PipelineResult, anchor: Any) -> tuple[PipelineResult, dict[str, Any]]:
+    """A run against a map with its session's poses in the map's world, and how that world was
+    known: ``anchor`` is a 4×4 ``T_map_session`` (given), ``"same"`` (the user says the poses
+    already are in the map's world), or None: estimated from the run's verified loops into the
+    map (:func:`solid.slam.estimate_anchor`), an error when there is none."""
+    import dataclasses
+
+    from . import slam
+
+    if isinstance(anchor, str) and anchor == "same":
+        return result, {"source": "same world (as given)"}
+    base = result.map_size
+    if anchor is None:
+        if result.poses is None:
+            raise _solid.ConfigError("placing a session in a map needs its poses")
+        stored = slam.as4(np.asarray(result.database.poses, dtype=np.float64)[:base])
+        ok = [lp for lp in result.loops() if lp.pose is not None and int(lp.candidate) < base and np.isfinite(stored[int(lp.candidate)]).all()]
+        est = slam.estimate_anchor(
+            result.poses,
+            stored,
+            [int(lp.query) - base for lp in ok],
+            [int(lp.candidate) for lp in ok],
+            np.stack([lp.pose for lp in ok]) if ok else np.zeros((0, 4, 4)),
+        )
+        if est is None:
+            raise _solid.ConfigError(
+                "no verified loop into the map, so nothing says where this session lies in the map's world: "
+                "give --anchor FILE (anchor.txt of `solid optimize --map`) or --same-world"
+            )
+        T = est.T_map_session
+        how: dict[str, Any] = {"source": "estimated", "inlier_loops": est.inliers, "cross_session_loops": est.loops}
+    else:
+        T = slam.as4(np.asarray(anchor, dtype=np.float64))
+        how = {"source": "given"}
+    how["T_map_session"] = T[:3].tolist()
+    poses = None if result.poses is None else (T @ slam.as4(result.poses))[:, :3, :]
+    return dataclasses.replace(result, database=_AnchoredDatabase(result.database, T, base), poses=poses), how
+
+
+@dataclass
+class OptimizeRun:
+    """What ``solid optimize`` produced."""
+
+    result: PipelineResult
+    slam: Any
+    folder: Path
+    metrics: dict[str, Any]
+
+
+def optimize(
+    dataset: Any,
+    config: PipelineConfig,
+    inputs: Inputs,
+    *,
+    output: Path | None = None,
+    map_db: Any | None = None,
+    truth: Path | None = None,
+    robust: str | None = None,
+    noise: Any | None = None,
+    plots: bool = True,
+    threads: int | None = None,
+    progress: Callable[[int], None] | None = None,
+) -> OptimizeRun:
+    """``solid optimize``: the detector's loops and the odometry in a robust pose-graph
+    optimisation (:func:`solid.slam.optimize_run`). Writes ``trajectory.kitti`` and
+    ``trajectory.tum`` (the optimised poses, one per frame, in the frame of the given poses),
+    ``graph.g2o`` (the whole graph, initial values = the given poses), ``loops.csv``,
+    ``trajectory.png`` (before and after, with the loops) and ``metrics.json``; with ``truth``
+    (a pose file of the recording), ATE and RPE of the odometry and of the optimum; with a map,
+    ``anchor.txt`` (one KITTI 3×4 row, this session's world → the map's world) and
+    ``trajectory_map.kitti``/``.tum`` (the optimised poses in the map's world)."""
+    from . import slam
+    from .datasets.poses import load_poses, match_rows
+
+    if getattr(dataset, "poses", None) is None:
+        raise _solid.ConfigError("optimize needs the odometry's poses (give --poses)")
+    robust = robust or slam.ROBUST_SCHEMES[0]
+    slam.require_gtsam()
+    result = _run(dataset, config, map_db, threads, progress)
+    run = slam.optimize_run(result, robust=robust, noise=noise)
+    T = _extrinsic(inputs)
+
+    def to_input(P: Any) -> Any:
+        """Poses of the run's (LiDAR) frame in the frame of the given poses."""
+        return P if T is None else T @ P @ slam.inv(T)
+
+    odo, opt = to_input(run.odometry), to_input(run.optimized)
+    times = result.timestamps if result.timestamps is not None else np.asarray(result.frame_ids, dtype=np.float64)
+    metrics = _summary(result, inputs, "optimize")
+    metrics["robust"] = robust
+    metrics["odometry_noise"] = vars(noise or slam.OdometryNoise())
+    loops = run.graph.loops()
+    metrics["loop_edges"] = len(loops)
+    metrics["loop_edges_kept"] = run.trusted_loops()
+    gt = None
+    if truth is not None:
+        G, _ = load_poses(truth)
+        rows = match_rows(Path(truth), len(G), len(dataset), getattr(dataset, "frame_ids", None), "truth")
+        gt = slam.as4(G[rows][result.frames])
+        for name, P in (("odometry", odo), ("optimized", opt)):
+            t, r = slam.relative_pose_error(P, gt)
+            metrics[name] = {"ate_m": slam.absolute_trajectory_error(P, gt), "rpe_m": t, "rpe_deg": r}
+    if run.anchor is not None:
+        metrics["anchor"] = {
+            "T_map_session": run.anchor.T_map_session[:3].tolist(),
+            "inlier_loops": run.anchor.inliers,
+            "cross_session_loops": run.anchor.loops,
+        }
+    elif map_db is not None:
+        metrics["anchor"] = None
+    with output_folder(output, "optimize", inputs.sequence.name) as out:
+        _write_common(out, result)
+        graph = run.graph if T is None else run.graph.in_frame(T)
+        graph.write_g2o(out.work / "graph.g2o")
+        slam.write_kitti(out.work / "trajectory.kitti", opt)
+        slam.write_tum(out.work / "trajectory.tum", times, opt)
+        if run.anchor is not None and run.map_poses is not None:
+            slam.write_kitti(out.work / "anchor.txt", run.anchor.T_map_session[None])
+            slam.write_kitti(out.work / "trajectory_map.kitti", run.map_poses)
+            slam.write_tum(out.work / "trajectory_map.tum", times, run.map_poses)
+        write_json(out.work / "metrics.json", metrics)
+        if plots:
+            from . import plots as pl
+
+            edges = [(int(run.graph.edge_from[e]), int(run.graph.edge_to[e]), bool(w > 0.5)) for e, w in zip(loops, run.loop_weights)]
+            pl.plot_before_after(out.work / "trajectory.png", odo, opt, edges, f"{inputs.sequence.name}: robust {robust}", truth=gt)
+    return OptimizeRun(result, run, out.final, metrics)

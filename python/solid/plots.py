@@ -180,3 +180,34 @@ def plot_heading(path: Path, ev: Any, subtitle: str) -> Path:
     ax.grid(alpha=0.3)
     ax.legend(loc="upper left", fontsize=7)
     return save(fig, path)
+
+
+def plot_before_after(
+    path: Path,
+    before: npt.NDArray[np.float64],
+    after: npt.NDArray[np.float64],
+    edges: AbcSequence[tuple[int, int, bool]],
+    subtitle: str,
+    truth: npt.NDArray[np.float64] | None = None,
+) -> Path:
+    """Two panels from above: the odometry and the optimised trajectory (with the truth when
+    given), each with its loop edges (kept by the optimum in green, rejected in red)."""
+    fig = figure(10.0, 5.0)
+    for k, (P, name) in enumerate(((before, "odometry"), (after, "optimised"))):
+        ax = fig.add_subplot(1, 2, k + 1)
+        xy = P[:, :2, 3]
+        if truth is not None:
+            ax.plot(truth[:, 0, 3], truth[:, 1, 3], color="#999999", lw=2.0, alpha=0.6, label="truth")
+        ax.plot(xy[:, 0], xy[:, 1], color=PATH, lw=1.0, label=name)
+        kept = sum(1 for _, _, ok in edges if ok)
+        for i, j, ok in edges:
+            ax.plot([xy[i, 0], xy[j, 0]], [xy[i, 1], xy[j, 1]], color=TRUE if ok else FALSE, lw=0.8, alpha=0.7, zorder=3)
+        ax.plot([], [], color=TRUE, label=f"loop kept ({kept})")
+        ax.plot([], [], color=FALSE, label=f"loop rejected ({len(edges) - kept})")
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
+        ax.set_title(f"{name}\n{subtitle}", fontsize=9)
+        ax.legend(loc="best", fontsize=7)
+        ax.grid(alpha=0.3)
+    return save(fig, path)

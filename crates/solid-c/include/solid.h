@@ -224,10 +224,11 @@ typedef struct SolidLoop {
   double pose[16];
   /**
    * The 6x6 information matrix of `pose`, row-major, translation first (x, y, z, then
-   * rotation about x, y, z: g2o's order; GTSAM's Pose3 puts rotation first). Diagonal:
-   * `1/s^2` with `s` = the registration's inlier RMSE (at least 0.01 m) for each translation
-   * axis and `s / 10 m` (radians) for each rotation axis, as `solid detect --g2o` writes it.
-   * Scale it to your odometry's weights.
+   * rotation about x, y, z in radians: g2o's order; GTSAM's Pose3 puts rotation first), for
+   * the error `Exp(xi) = inv(pose) * inv(T_world_query) * T_world_candidate` (on the right of
+   * the measurement, as g2o's EDGE_SE3:QUAT and GTSAM's BetweenFactor): the registration's
+   * Gauss-Newton Hessian carried over and scaled so that true loops' errors weigh as chi-square
+   * with 6 degrees of freedom (docs/slam.md), the same matrix as `solid detect --g2o` writes.
    */
   double information[36];
   /**

@@ -53,10 +53,11 @@ pub struct SolidLoop {
     /// `T_world_query` and `T_world_candidate` measures `inv(T_world_query) * T_world_candidate`.
     pub pose: [f64; 16],
     /// The 6x6 information matrix of `pose`, row-major, translation first (x, y, z, then
-    /// rotation about x, y, z: g2o's order; GTSAM's Pose3 puts rotation first). Diagonal:
-    /// `1/s^2` with `s` = the registration's inlier RMSE (at least 0.01 m) for each translation
-    /// axis and `s / 10 m` (radians) for each rotation axis, as `solid detect --g2o` writes it.
-    /// Scale it to your odometry's weights.
+    /// rotation about x, y, z in radians: g2o's order; GTSAM's Pose3 puts rotation first), for
+    /// the error `Exp(xi) = inv(pose) * inv(T_world_query) * T_world_candidate` (on the right of
+    /// the measurement, as g2o's EDGE_SE3:QUAT and GTSAM's BetweenFactor): the registration's
+    /// Gauss-Newton Hessian carried over and scaled so that true loops' errors weigh as chi-square
+    /// with 6 degrees of freedom (docs/slam.md), the same matrix as `solid detect --g2o` writes.
     pub information: [f64; 36],
     /// Overlap of the registered clouds, in [0, 1].
     pub fitness: f64,
@@ -80,12 +81,8 @@ impl SolidLoop {
         };
         if let Some(pose) = &lp.pose {
             let rmse = lp.rmse.unwrap_or(0.0);
-            let sig_t = rmse.max(0.01);
-            let sig_r = sig_t / 10.0;
-            out.information = [0.0; 36];
-            for i in 0..6 {
-                let s = if i < 3 { sig_t } else { sig_r };
-                out.information[i * 6 + i] = 1.0 / (s * s);
+            if let Some(info) = &lp.information {
+                out.information = flat6(info);
             }
             out.verified = true;
             out.pose = flat_pose(pose);
@@ -94,6 +91,11 @@ impl SolidLoop {
         }
         out
     }
+}
+
+/// A row-major 6×6 matrix as 36 numbers.
+fn flat6(m: &[[f64; 6]; 6]) -> [f64; 36] {
+    core::array::from_fn(|k| m[k / 6][k % 6])
 }
 
 fn detector(det: LoopDetector) -> SolidDetector {

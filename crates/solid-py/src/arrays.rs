@@ -239,3 +239,8 @@ pub fn parse_poses(poses: Option<&Bound<'_, PyAny>>, n: usize) -> PyResult<Optio
 pub fn pose_array<'py>(py: Python<'py>, p: &Pose) -> Bound<'py, PyArray2<f64>> {
     Array2::from_shape_fn((4, 4), |(i, j)| p[i][j]).into_pyarray(py)
 }
+
+/// A (6, 6) float64 array of a Hessian or an information matrix.
+pub fn matrix6<'py>(py: Python<'py>, m: &[[f64; 6]; 6]) -> Bound<'py, PyArray2<f64>> {
+    Array2::from_shape_fn((6, 6), |(i, j)| m[i][j]).into_pyarray(py)
+}

@@ -11,7 +11,9 @@ use solid_lidar::db::{self, DbError, DetectorConfig, LoopDetector};
 use solid_lidar::{Config, Descriptor};
 
 use crate::args;
-use crate::arrays::{borrow_points, borrow_scans, parse_pose, pose_array, Borrowed, PointSlice};
+use crate::arrays::{
+    borrow_points, borrow_scans, matrix6, parse_pose, pose_array, Borrowed, PointSlice,
+};
 use crate::config::{detector_overrides, PyConfig, PyDetectorConfig};
 use crate::database::{check_fingerprint, read, write, PyDatabase};
 use crate::describe::{batch_map, batch_pool, describe_points, describe_slice, PyDescriptor};
@@ -44,6 +46,7 @@ pub struct PyLoop {
     #[pyo3(get)]
     pub rmse: Option<f64>,
     pose_: Option<solid_lidar::reg::Pose>,
+    information_: Option<solid_lidar::reg::Information>,
 }
 
 #[pymethods]
@@ -53,6 +56,13 @@ impl PyLoop {
     #[getter]
     fn pose<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray2<f64>>> {
         self.pose_.map(|p| pose_array(py, &p))
+    }
+
+    /// The 6×6 information matrix of `pose` for a pose graph (translation first, g2o's order;
+    /// the error on the right of the measurement), or None when the loop was not verified.
+    #[getter]
+    fn information<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray2<f64>>> {
+        self.information_.map(|m| matrix6(py, &m))
     }
 
     /// Whether the loop was verified by registration.
@@ -89,6 +99,7 @@ impl From<db::Loop> for PyLoop {
             fitness: l.fitness,
             rmse: l.rmse,
             pose_: l.pose,
+            information_: l.information,
         }
     }
 }

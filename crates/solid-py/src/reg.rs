@@ -16,7 +16,7 @@ use solid_lidar::reg::{
 use solid_lidar::Points;
 
 use crate::args;
-use crate::arrays::{borrow_points, pose_array, Borrowed, PointSlice};
+use crate::arrays::{borrow_points, matrix6, pose_array, Borrowed, PointSlice};
 use crate::config::PyRegConfig;
 use crate::describe::{comparable, PyDescriptor};
 use crate::errors::{core_err, SolidError};
@@ -242,6 +242,17 @@ impl PyRegistration {
     #[getter]
     fn degeneracy_translation(&self) -> f64 {
         self.inner.degeneracy.translation
+    }
+    /// The Gauss-Newton Hessian at the fine level, (6, 6): rotation first, perturbation on the
+    /// left in the query's frame, unscaled.
+    #[getter]
+    fn hessian<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        matrix6(py, &self.inner.hessian)
+    }
+    /// The information matrix of `pose` for a pose graph, (6, 6), translation first.
+    #[getter]
+    fn information<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        matrix6(py, &self.inner.information())
     }
     /// Yaw of the pose, degrees in (-180, 180]: the heading of SPEC §3.
     #[getter]

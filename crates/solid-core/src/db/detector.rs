@@ -79,6 +79,8 @@ pub struct Loop {
     pub fitness: Option<f64>,
     /// Inlier RMSE (metres) of a verified loop's registration.
     pub rmse: Option<f64>,
+    /// The information matrix of `pose` for a pose graph ([`Registration::information`]).
+    pub information: Option<reg::Information>,
 }
 
 /// Everything one detector step decided.
@@ -585,6 +587,7 @@ impl LoopDetector {
             pose: reg.map(|r| r.pose),
             fitness: reg.map(|r| r.fitness),
             rmse: reg.map(|r| r.rmse),
+            information: reg.map(|r| r.information()),
         })
     }
 

@@ -68,6 +68,7 @@
 
 mod cloud;
 mod gate;
+mod information;
 pub mod kdtree;
 mod solve;
 pub mod wire;
@@ -77,6 +78,7 @@ use crate::params::{field, Field, Kind, ParamType, Params, Value, FINITE};
 pub use crate::error::RegError;
 pub use cloud::{Level, PreparedCloud, MIN_NEIGHBORS, PLANE_EPSILON};
 pub use gate::{Gate, Rejection};
+pub use information::{Information, LOOP_SIGMA_M};
 pub use kdtree::{KdTree3, Nearest};
 pub use solve::{
     agreement, hypothesis_yaws, pose_distance, register, register_hypotheses, Hypotheses,
@@ -423,6 +425,12 @@ pub struct Registration {
     pub converged: bool,
     /// How well the pose is constrained.
     pub degeneracy: Degeneracy,
+    /// The Gauss–Newton Hessian `JᵀWJ` at the fine level at the final pose (robust weights
+    /// applied), row-major, in the solver's coordinates: `δ = (ω, v)`, rotation first, a
+    /// perturbation `T ← Exp(δ)·T` in the query's frame. Unscaled (GICP's Mahalanobis units);
+    /// zeros when the fine level had no final linearisation. [`Registration::information`] turns
+    /// it into a pose graph's information matrix.
+    pub hessian: Information,
 }
 
 impl Registration {
@@ -450,6 +458,7 @@ impl Registration {
             iterations: 0,
             converged: false,
             degeneracy: Degeneracy::default(),
+            hessian: [[0.0; 6]; 6],
         }
     }
 }

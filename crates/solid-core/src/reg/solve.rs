@@ -428,6 +428,9 @@ fn fine_from(
         iterations,
         converged: o.converged && o.last.is_some(),
         degeneracy,
+        hessian: o.last.as_ref().map_or([[0.0; 6]; 6], |lin| {
+            core::array::from_fn(|i| core::array::from_fn(|j| lin.h[(i, j)]))
+        }),
     }
 }
 

@@ -1,0 +1,484 @@
+"""From loops to a consistent map: the pose graph of a run, its robust optimisation, and anchors.
+
+A :class:`PoseGraph` holds one vertex per frame (id = the frame's index in its recording, as in
+``loops.csv``; initial value = its given pose ``T_world_sensor``), an odometry edge between
+consecutive frames (information from :class:`OdometryNoise`) and a loop edge per verified loop
+(``T_query_candidate``, information from the registration: :attr:`solid.Loop.information`).
+:meth:`PoseGraph.write_g2o` writes it whole; :func:`optimize_graph` optimises it with GTSAM
+(``pip install solid-lidar[slam]``) under a robust scheme; :func:`estimate_anchor` places a
+session in a saved map's world from its verified cross-session loops. docs/slam.md shows the
+whole path and the frame conventions.
+
+Every information matrix here is in g2o's order, translation first, for the error ``ξ`` of an
+edge ``i → j`` measuring ``Z``: ``Exp(ξ) = Z⁻¹ · T_world_i⁻¹ · T_world_j`` (on the right of the
+measurement, as g2o's ``EDGE_SE3:QUAT`` and GTSAM's ``BetweenFactor<Pose3>``), rotation in radians.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence as AbcSequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from .transforms import quaternion
+
+__all__ = [
+    "ROBUST_SCHEMES",
+    "Anchor",
+    "OdometryNoise",
+    "PoseGraph",
+    "SlamResult",
+    "absolute_trajectory_error",
+    "adjoint",
+    "estimate_anchor",
+    "graph_from_run",
+    "optimize_graph",
+    "optimize_run",
+    "relative_pose_error",
+    "require_gtsam",
+    "write_kitti",
+    "write_tum",
+]
+
+F64 = npt.NDArray[np.float64]
+I64 = npt.NDArray[np.int64]
+
+#: The robust schemes :func:`optimize_graph` offers; the first is the default (chosen by
+#: measurement on the simulator with false loops injected: docs/slam.md#robust-back-end).
+ROBUST_SCHEMES = ("gnc-tls", "cauchy", "dcs", "huber", "gnc-gm", "none")
+
+_INSTALL = "the pose-graph back-end needs GTSAM: pip install 'solid-lidar[slam]' (or pip install gtsam)"
+
+
+def require_gtsam() -> Any:
+    """The ``gtsam`` module, or an ImportError that says how to install it."""
+    try:
+        import gtsam
+    except ImportError as e:
+        raise ImportError(_INSTALL) from e
+    return gtsam
+
+
+def as4(P: npt.ArrayLike) -> F64:
+    """Poses (..., 3, 4) or (..., 4, 4) as (..., 4, 4)."""
+    a = np.asarray(P, dtype=np.float64)
+    if a.shape[-2:] == (4, 4):
+        return a.copy()
+    if a.shape[-2:] != (3, 4):
+        raise ValueError(f"poses must have shape (..., 3, 4) or (..., 4, 4), got {a.shape}")
+    out = np.zeros(a.shape[:-2] + (4, 4))
+    out[..., :3, :] = a
+    out[..., 3, 3] = 1.0
+    return out
+
+
+def inv(T: F64) -> F64:
+    """Inverse of rigid transforms (..., 4, 4)."""
+    R = T[..., :3, :3]
+    out = np.zeros_like(T)
+    Rt = np.swapaxes(R, -1, -2)
+    out[..., :3, :3] = Rt
+    out[..., :3, 3] = -np.einsum("...ij,...j->...i", Rt, T[..., :3, 3])
+    out[..., 3, 3] = 1.0
+    return out
+
+
+def _skew(v: F64) -> F64:
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def adjoint(T: npt.ArrayLike) -> F64:
+    """The adjoint of a rigid transform in g2o's order (translation first): ``T·Exp(ξ)·T⁻¹ =
+    Exp(adjoint(T)·ξ)`` for ``ξ = (v, ω)``."""
+    M = as4(T)
+    R, t = M[:3, :3], M[:3, 3]
+    A = np.zeros((6, 6))
+    A[:3, :3] = R
+    A[3:, 3:] = R
+    A[:3, 3:] = _skew(t) @ R
+    return A
+
+
+@dataclass(frozen=True)
+class OdometryNoise:
+    """The odometry edges' noise: standard deviations per axis that grow with the step.
+
+    ``σ_t = translation_floor_m + translation_fraction × step`` (metres, each axis) and
+    ``σ_r = rotation_floor_deg + rotation_deg_per_m × step`` (degrees, each axis), ``step`` the
+    distance between the two frames' given poses. The defaults are those of a LiDAR(-inertial)
+    odometry drifting about 1 % of the distance travelled (docs/slam.md#odometry-noise).
+    """
+
+    translation_fraction: float = 0.02
+    translation_floor_m: float = 0.01
+    rotation_deg_per_m: float = 0.2
+    rotation_floor_deg: float = 0.02
+
+    def __post_init__(self) -> None:
+        for k, v in vars(self).items():
+            if not (math.isfinite(v) and v >= 0):
+                raise ValueError(f"OdometryNoise.{k} must be a finite value >= 0, got {v}")
+        if self.translation_floor_m <= 0 or self.rotation_floor_deg <= 0:
+            raise ValueError("OdometryNoise floors must be > 0 (an edge needs a finite information)")
+
+    def information(self, step_m: float) -> F64:
+        """The 6×6 information (translation first) of an odometry edge over ``step_m`` metres."""
+        st = self.translation_floor_m + self.translation_fraction * step_m
+        sr = math.radians(self.rotation_floor_deg + self.rotation_deg_per_m * step_m)
+        return np.diag([1 / st**2] * 3 + [1 / sr**2] * 3)
+
+
+@dataclass
+class PoseGraph:
+    """A pose graph: vertices (``ids``, initial ``poses`` ``T_world_sensor`` (N, 4, 4)) and edges
+    ``i → j`` (indices into the vertices) measuring ``T_i⁻¹·T_j`` with an information matrix."""
+
+    ids: I64
+    poses: F64
+    edge_from: I64 = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    edge_to: I64 = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    measurements: F64 = field(default_factory=lambda: np.zeros((0, 4, 4)))
+    information: F64 = field(default_factory=lambda: np.zeros((0, 6, 6)))
+    #: "odometry" or "loop", per edge.
+    kinds: list[str] = field(default_factory=list)
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+    def add_edge(self, i: int, j: int, measurement: npt.ArrayLike, information: npt.ArrayLike, kind: str) -> None:
+        """Append the edge ``i → j`` (vertex indices)."""
+        info = np.asarray(information, dtype=np.float64)
+        if info.shape != (6, 6) or not np.isfinite(info).all():
+            raise ValueError(f"an edge's information must be a finite 6×6 matrix, got shape {info.shape}")
+        self.edge_from = np.r_[self.edge_from, i].astype(np.int64)
+        self.edge_to = np.r_[self.edge_to, j].astype(np.int64)
+        self.measurements = np.concatenate([self.measurements, as4(measurement)[None]])
+        self.information = np.concatenate([self.information, (info + info.T)[None] / 2])
+        self.kinds.append(kind)
+
+    def loops(self) -> list[int]:
+        """Indices of the loop edges."""
+        return [k for k, s in enumerate(self.kinds) if s == "loop"]
+
+    def in_frame(self, T_new_old: npt.ArrayLike) -> PoseGraph:
+        """The same graph with every pose re-expressed by ``X ↦ T·X·T⁻¹`` (vertices and edges;
+        informations carried by the adjoint): e.g. from the LiDAR frame back into the frame of
+        poses given with a calibration."""
+        T = as4(T_new_old)
+        Ti = inv(T)
+        A = np.linalg.inv(adjoint(T))
+        return PoseGraph(
+            ids=self.ids.copy(),
+            poses=T @ self.poses @ Ti,
+            edge_from=self.edge_from.copy(),
+            edge_to=self.edge_to.copy(),
+            measurements=T @ self.measurements @ Ti,
+            information=np.einsum("ji,ejk,kl->eil", A, self.information, A),
+            kinds=list(self.kinds),
+        )
+
+    def g2o_lines(self, poses: F64 | None = None) -> list[str]:
+        """The graph in g2o's text form: ``VERTEX_SE3:QUAT id x y z qx qy qz qw`` per vertex
+        (``poses`` or the initial values), then ``EDGE_SE3:QUAT from to x y z qx qy qz qw`` and the
+        upper triangle of the information, translation first. Vertices without a pose (a run
+        without poses) are left out."""
+        P = self.poses if poses is None else poses
+        lines = [f"VERTEX_SE3:QUAT {int(v)} {_pose_text(p)}" for v, p in zip(self.ids, P) if np.isfinite(p).all()]
+        for i, j, Z, info in zip(self.edge_from, self.edge_to, self.measurements, self.information):
+            upper = " ".join(f"{info[a, b]:.9g}" for a in range(6) for b in range(a, 6))
+            lines.append(f"EDGE_SE3:QUAT {int(self.ids[i])} {int(self.ids[j])} {_pose_text(Z)} {upper}")
+        return lines
+
+    def write_g2o(self, path: Path | str, poses: F64 | None = None) -> int:
+        """Write :meth:`g2o_lines` to ``path``; returns the number of edges."""
+        Path(path).write_text("".join(s + "\n" for s in self.g2o_lines(poses)), encoding="utf-8")
+        return len(self.kinds)
+
+
+def _pose_text(P: F64) -> str:
+    qx, qy, qz, qw = quaternion(P[:3, :3])
+    return f"{P[0, 3]:.9f} {P[1, 3]:.9f} {P[2, 3]:.9f} {qx:.12f} {qy:.12f} {qz:.12f} {qw:.12f}"
+
+
+def graph_from_run(
+    result: Any,
+    noise: OdometryNoise | None = None,
+    poses: npt.ArrayLike | None = None,
+) -> PoseGraph:
+    """The pose graph of a :class:`solid.pipeline.PipelineResult`: a vertex per frame of the
+    run (its pose: ``poses`` or the run's), odometry edges between consecutive frames, and a
+    loop edge per verified loop between two frames of the run (loops into a prior map are left
+    to :func:`estimate_anchor`)."""
+    noise = noise or OdometryNoise()
+    if poses is None and result.poses is None:
+        # Without poses: no vertex values and no odometry, the loop edges alone.
+        P = np.full((len(result.frames), 4, 4), np.nan)
+    else:
+        P = as4(result.poses if poses is None else poses)
+    if P.shape[0] != len(result.frames):
+        raise ValueError(f"{P.shape[0]} poses for {len(result.frames)} frames")
+    g = PoseGraph(ids=np.asarray(result.frame_ids, dtype=np.int64).copy(), poses=P)
+    for k in range(len(P) - 1 if np.isfinite(P).all() else 0):
+        Z = inv(P[k]) @ P[k + 1]
+        g.add_edge(k, k + 1, Z, noise.information(float(np.linalg.norm(Z[:3, 3]))), "odometry")
+    base = int(result.map_size)
+    for lp in result.loops():
+        if lp.pose is None or lp.information is None or int(lp.candidate) < base:
+            continue
+        g.add_edge(int(lp.query) - base, int(lp.candidate) - base, lp.pose, lp.information, "loop")
+    return g
+
+
+# ---- optimisation ---------------------------------------------------------------------------------
+
+
+def _gtsam_info(info_g2o: F64) -> F64:
+    """g2o's order (translation first) → GTSAM's Pose3 order (rotation first)."""
+    k = [3, 4, 5, 0, 1, 2]
+    return np.asarray(info_g2o[np.ix_(k, k)], dtype=np.float64)
+
+
+#: Kernel widths, in units of the whitened error (√χ²). A true loop, honestly weighed, has
+#: √χ² around √6; a false one tens to thousands.
+_KERNEL_WIDTH = {"cauchy": 3.0, "dcs": 3.0, "huber": 3.0}
+#: GNC's inlier threshold: the χ² (6 degrees of freedom) exceeded by 1 in 1000 true edges.
+_GNC_CHI2 = 22.46
+
+
+def _factors(gtsam: Any, graph: PoseGraph, robust: str) -> tuple[Any, list[int]]:
+    fg = gtsam.NonlinearFactorGraph()
+    prior = gtsam.noiseModel.Diagonal.Sigmas(np.full(6, 1e-6))
+    fg.add(gtsam.PriorFactorPose3(int(graph.ids[0]), gtsam.Pose3(graph.poses[0]), prior))
+    known = [0]
+    for e, (i, j, Z, info, kind) in enumerate(
+        zip(graph.edge_from, graph.edge_to, graph.measurements, graph.information, graph.kinds)
+    ):
+        model: Any = gtsam.noiseModel.Gaussian.Information(_gtsam_info(info))
+        if kind == "loop" and robust in _KERNEL_WIDTH:
+            m = gtsam.noiseModel.mEstimator
+            kernel = {"cauchy": m.Cauchy, "dcs": m.DCS, "huber": m.Huber}[robust].Create(_KERNEL_WIDTH[robust])
+            model = gtsam.noiseModel.Robust.Create(kernel, model)
+        fg.add(gtsam.BetweenFactorPose3(int(graph.ids[i]), int(graph.ids[j]), gtsam.Pose3(Z), model))
+        if kind != "loop":
+            known.append(e + 1)
+    return fg, known
+
+
+def optimize_graph(graph: PoseGraph, robust: str = ROBUST_SCHEMES[0], *, max_iterations: int = 100) -> tuple[F64, F64]:
+    """Optimise ``graph`` with GTSAM (Levenberg–Marquardt) from its initial values, the first
+    vertex held at its pose. ``robust`` (one of :data:`ROBUST_SCHEMES`) treats the loop edges:
+    ``gnc-tls``/``gnc-gm`` graduated non-convexity with a truncated-least-squares / Geman–McClure
+    cost (odometry known to be inliers), ``cauchy``/``dcs``/``huber`` an M-estimator kernel,
+    ``none`` plain least squares. Returns the optimised poses (N, 4, 4) and each loop edge's
+    weight in [0, 1] (how much the optimum trusts it; 1 without a robust scheme)."""
+    if robust not in ROBUST_SCHEMES:
+        raise ValueError(f"robust must be one of {', '.join(ROBUST_SCHEMES)}, got {robust!r}")
+    gtsam = require_gtsam()
+    if len(graph) == 0:
+        return np.zeros((0, 4, 4)), np.zeros(0)
+    fg, known = _factors(gtsam, graph, robust)
+    init = gtsam.Values()
+    for v, P in zip(graph.ids, graph.poses):
+        init.insert(int(v), gtsam.Pose3(P))
+    lm = gtsam.LevenbergMarquardtParams()
+    lm.setMaxIterations(max_iterations)
+    loops = graph.loops()
+    weights = np.ones(len(loops))
+    if robust.startswith("gnc") and loops:
+        params = gtsam.GncLMParams(lm)
+        params.setLossType(gtsam.GncLossType.TLS if robust == "gnc-tls" else gtsam.GncLossType.GM)
+        params.setKnownInliers(known)
+        opt = gtsam.GncLMOptimizer(fg, init, params)
+        opt.setInlierCostThresholds(_GNC_CHI2 / 2)  # GTSAM's factor error is χ²/2
+        values = opt.optimize()
+        w = np.asarray(opt.getWeights())
+        weights = np.array([w[e + 1] for e in loops])
+    else:
+        values = gtsam.LevenbergMarquardtOptimizer(fg, init, lm).optimize()
+        if robust in _KERNEL_WIDTH:
+            for n, e in enumerate(loops):
+                f = fg.at(e + 1)
+                whitened = math.sqrt(2 * f.error(values))
+                weights[n] = float(f.noiseModel().robust().weight(whitened))
+    out = np.stack([np.asarray(values.atPose3(int(v)).matrix()) for v in graph.ids])
+    return out, weights
+
+
+# ---- errors ---------------------------------------------------------------------------------------
+
+
+def _umeyama(src: F64, dst: F64) -> F64:
+    """The rigid transform (4, 4) best mapping points ``src`` onto ``dst`` (least squares)."""
+    mu_s, mu_d = src.mean(0), dst.mean(0)
+    U, _, Vt = np.linalg.svd((dst - mu_d).T @ (src - mu_s))
+    S = np.eye(3)
+    S[2, 2] = np.sign(np.linalg.det(U @ Vt)) or 1.0
+    T = np.eye(4)
+    T[:3, :3] = U @ S @ Vt
+    T[:3, 3] = mu_d - T[:3, :3] @ mu_s
+    return T
+
+
+def absolute_trajectory_error(estimate: npt.ArrayLike, truth: npt.ArrayLike, align: bool = True) -> float:
+    """ATE: the RMS distance (metres) between the positions of ``estimate`` and ``truth`` (both
+    (N, 3|4, 4)), after the rigid alignment that minimises it (``align``; as ``evo_ape -a``)."""
+    E, G = as4(estimate)[:, :3, 3], as4(truth)[:, :3, 3]
+    if align and len(E) >= 3:
+        T = _umeyama(E, G)
+        E = E @ T[:3, :3].T + T[:3, 3]
+    return float(np.sqrt(np.mean(np.sum((E - G) ** 2, axis=1))))
+
+
+def relative_pose_error(estimate: npt.ArrayLike, truth: npt.ArrayLike, delta: int = 1) -> tuple[float, float]:
+    """RPE over ``delta`` frames: the RMS translation (metres) and rotation (degrees) of
+    ``(G_i⁻¹G_{i+δ})⁻¹ · (E_i⁻¹E_{i+δ})``."""
+    E, G = as4(estimate), as4(truth)
+    if len(E) <= delta:
+        return float("nan"), float("nan")
+    dE = inv(E[:-delta]) @ E[delta:]
+    dG = inv(G[:-delta]) @ G[delta:]
+    err = inv(dG) @ dE
+    t = np.linalg.norm(err[:, :3, 3], axis=1)
+    c = np.clip((np.trace(err[:, :3, :3], axis1=1, axis2=2) - 1) / 2, -1.0, 1.0)
+    r = np.degrees(np.arccos(c))
+    return float(np.sqrt(np.mean(t**2))), float(np.sqrt(np.mean(r**2)))
+
+
+# ---- anchors --------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Anchor:
+    """Where a session sits in a map: ``T_map_session`` maps the session's world coordinates into
+    the map's world; ``inliers`` of ``loops`` cross-session loops agreed on it."""
+
+    T_map_session: F64
+    inliers: int
+    loops: int
+
+
+def estimate_anchor(
+    session_poses: npt.ArrayLike,
+    map_poses: npt.ArrayLike,
+    query_index: AbcSequence[int],
+    candidate_index: AbcSequence[int],
+    loop_poses: npt.ArrayLike,
+    *,
+    tolerance_m: float = 1.0,
+    tolerance_deg: float = 3.0,
+) -> Anchor | None:
+    """The session's world → the map's world, from verified cross-session loops, robustly.
+
+    Loop ``k`` joins the session's frame ``query_index[k]`` (pose in ``session_poses``) to the
+    map's place ``candidate_index[k]`` (pose in ``map_poses``) by ``T_query_candidate``
+    ``loop_poses[k]``; each proposes ``T_map_candidate · T_qc⁻¹ · T_session_query⁻¹``. The
+    largest set of proposals that agree within the tolerances with one of them wins (a false
+    loop proposes a world far off); the anchor is the rigid transform that best maps, over that
+    set, where the session puts each candidate onto where the map has it (orientations averaged
+    when the candidates are too few or collinear to fix a rotation). None without a loop."""
+    S, M, L = as4(session_poses), as4(map_poses), as4(loop_poses)
+    q = np.asarray(query_index, dtype=np.int64)
+    c = np.asarray(candidate_index, dtype=np.int64)
+    if len(q) == 0:
+        return None
+    cand_in_session = S[q] @ L  # where the session puts each candidate
+    proposals = M[c] @ inv(cand_in_session)
+    best: npt.NDArray[np.bool_] = np.zeros(len(q), dtype=bool)
+    for P in proposals:
+        d = inv(P)[None] @ proposals
+        dt = np.linalg.norm(d[:, :3, 3], axis=1)
+        da = np.degrees(np.arccos(np.clip((np.trace(d[:, :3, :3], axis1=1, axis2=2) - 1) / 2, -1, 1)))
+        agree = (dt <= tolerance_m) & (da <= tolerance_deg)
+        if agree.sum() > best.sum():
+            best = agree
+    src, dst = cand_in_session[best, :3, 3], M[c[best], :3, 3]
+    spread = np.linalg.svd(src - src.mean(0), compute_uv=False) if len(src) >= 3 else np.zeros(3)
+    if spread[1] > 1.0:  # candidates spread in two directions fix the rotation
+        T = _umeyama(src, dst)
+    else:
+        R = _mean_rotation(proposals[best, :3, :3])
+        T = np.eye(4)
+        T[:3, :3] = R
+        T[:3, 3] = np.mean(dst - src @ R.T, axis=0)
+    return Anchor(T, int(best.sum()), len(q))
+
+
+def _mean_rotation(Rs: F64) -> F64:
+    U, _, Vt = np.linalg.svd(Rs.sum(0))
+    S = np.eye(3)
+    S[2, 2] = np.sign(np.linalg.det(U @ Vt)) or 1.0
+    return np.asarray(U @ S @ Vt, dtype=np.float64)
+
+
+# ---- a whole run ----------------------------------------------------------------------------------
+
+
+@dataclass
+class SlamResult:
+    """What :func:`optimize_run` produced; poses ``T_world_sensor`` (N, 4, 4) in the run's frame
+    (the LiDAR's, calibration applied); ``anchor`` and ``map_poses`` with a map."""
+
+    graph: PoseGraph
+    odometry: F64
+    optimized: F64
+    loop_weights: F64
+    robust: str
+    anchor: Anchor | None = None
+    map_poses: F64 | None = None
+
+    def trusted_loops(self) -> int:
+        """Loop edges the optimum kept (weight above one half)."""
+        return int(np.sum(self.loop_weights > 0.5))
+
+
+def optimize_run(
+    result: Any,
+    *,
+    robust: str = ROBUST_SCHEMES[0],
+    noise: OdometryNoise | None = None,
+) -> SlamResult:
+    """The pose graph of a pipeline run (:func:`graph_from_run`), optimised
+    (:func:`optimize_graph`); with a map, the session anchored in the map's world
+    (:func:`estimate_anchor`, from the optimised poses) and its poses there."""
+    if result.poses is None:
+        raise ValueError("a pose graph needs the odometry's poses (give --poses)")
+    graph = graph_from_run(result, noise)
+    optimized, weights = optimize_graph(graph, robust)
+    out = SlamResult(graph, graph.poses.copy(), optimized, weights, robust)
+    base = int(result.map_size)
+    cross = [lp for lp in result.loops() if lp.pose is not None and int(lp.candidate) < base]
+    if base > 0:
+        stored = as4(np.asarray(result.database.poses)[:base])
+        ok = [lp for lp in cross if np.isfinite(stored[int(lp.candidate)]).all()]
+        anchor = estimate_anchor(
+            optimized,
+            stored,
+            [int(lp.query) - base for lp in ok],
+            [int(lp.candidate) for lp in ok],
+            np.stack([lp.pose for lp in ok]) if ok else np.zeros((0, 4, 4)),
+        )
+        out.anchor = anchor
+        if anchor is not None:
+            out.map_poses = anchor.T_map_session @ optimized
+    return out
+
+
+def write_kitti(path: Path | str, poses: npt.ArrayLike) -> None:
+    """One row-major 3×4 ``[R | t]`` per line (KITTI's odometry format)."""
+    P = as4(poses)[:, :3, :].reshape(-1, 12)
+    Path(path).write_text("".join(" ".join(f"{v:.9g}" for v in row) + "\n" for row in P), encoding="utf-8")
+
+
+def write_tum(path: Path | str, times: npt.ArrayLike, poses: npt.ArrayLike) -> None:
+    """``t x y z qx qy qz qw`` per line (TUM's format, as evo reads it)."""
+    P = as4(poses)
+    lines = []
+    for t, M in zip(np.asarray(times, dtype=np.float64), P):
+        qx, qy, qz, qw = quaternion(M[:3, :3])
+        lines.append(f"{t:.9f} {M[0, 3]:.9f} {M[1, 3]:.9f} {M[2, 3]:.9f} {qx:.12f} {qy:.12f} {qz:.12f} {qw:.12f}\n")
+    Path(path).write_text("".join(lines), encoding="utf-8")
