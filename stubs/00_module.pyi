@@ -5,7 +5,7 @@ API reference of the documentation site is generated from them (tests/test_docs.
 """
 
 import os
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from os import PathLike
 from typing import Any, final
 

@@ -297,7 +297,8 @@ class Database:
             Its wire form (decode it with `solid.decode_cloud`), or None when it has none.
 
         Raises:
-            IndexError: No place has this id.
+            ConfigError: No place has this id (negative, beyond 64 bits, or `len(db)` and up).
+            TypeError: An id that is not an integer (or a bool).
         """
     @property
     def sessions(self) -> npt.NDArray[np.uint32]:

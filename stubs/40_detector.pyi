@@ -258,16 +258,20 @@ class LoopDetector:
         timestamps: Sequence[float | None] | npt.ArrayLike | None = None,
         poses: Sequence[npt.ArrayLike | None] | npt.ArrayLike | None = None,
         threads: int | None = None,
+        progress: Callable[[int], object] | None = None,
     ) -> list[Detection]:
-        """`detect` for many scans in order, in one call (the GIL is released once): point arrays
-        are described (and, when the detector verifies, their clouds prepared) in parallel, then
-        the steps run in order. Every input is checked before the first is added: on error
-        nothing is added.
+        """`detect` for many scans in order, in one call (the GIL is released but for a moment
+        between steps): point arrays are described (and, when the detector verifies, their clouds
+        prepared) in parallel, then the steps run in order. Every input is checked before the first
+        is added: on error nothing is added. Ctrl-C raises KeyboardInterrupt within a step (or a
+        few scans of the preparation): the steps done before it are kept, each whole.
 
         Args:
             scans: Point arrays (as `solid.describe` accepts), or Descriptors made with the
                 detector's configuration (verification off).
             threads: Workers describing and preparing the scans (None: every core).
+            progress: Called with 1 after each step (for a progress bar); what it raises stops
+                the batch there, as an interrupt does.
             timestamps: One per scan (None entries: none), or None for none at all.
             poses: One per scan (3×4 or 12 floats; None entries: none), an (N, 3, 4) array,
                 or None for none at all.
@@ -329,6 +333,7 @@ class LoopDetector:
 
         Raises:
             DatabaseError: A descriptor made with another configuration.
+            ConfigError: A Descriptor given to a verifying detector (it needs the points).
             SolidError: Points of the wrong shape or layout.
             TypeError: Points of the wrong type or dtype.
         """

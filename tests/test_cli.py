@@ -279,21 +279,6 @@ def test_eval_transforms_change_the_input(capsys: pytest.CaptureFixture[str], tm
     assert distances("f") == distances("a")
 
 
-def test_fov_center_defaults_to_where_the_points_are(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
-    """The trap of issue 8: --fov clipped around +x even when +x is a blocked, empty sector."""
-    world = sim.World(seed=2)
-    # A sensor looking left (+y): nothing at all around +x.
-    sens = sim.Sensor("vlp16", h_fov=120.0, h_centre=90.0)
-    traj = sim.Trajectory.loop(world, laps=0.3, spacing=3.0)
-    sim.write_sequence(tmp_path / "seq", world, sens, traj)
-    code, _, err = run(capsys, "detect", str(tmp_path / "seq"), "--preset", "vlp16", "--fov", "60", "-o", str(tmp_path / "out"), "-q")
-    assert code == 0, err
-    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
-    assert 60 <= summary["fov_center_deg"] <= 120
-    pts = transforms.clip_fov(sim.simulate(world, sens, traj[:1]).scans[0], 60.0, summary["fov_center_deg"])
-    assert pts.shape[0] > 1000
-
-
 def test_output_folders_are_fresh_and_whole(capsys: pytest.CaptureFixture[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     seq = str(data_dir() / "hku1-avia")
     args = ["detect", seq, "--preset", "avia", "--frames", "0:80", "-q"]

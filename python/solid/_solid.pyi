@@ -6,7 +6,7 @@ API reference of the documentation site is generated from them (tests/test_docs.
 # Written by `make stubs` (tools/stubgen.py) from stubs/*.pyi and the core's parameter tables: edit those.
 
 import os
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from os import PathLike
 from typing import Any, final
 
@@ -271,6 +271,7 @@ class DetectorConfig:
         cloud_bits: int = 8,
         cache_bytes: int = 268435456,
         verify_threads: int = 0,
+        verify_step_points: int = 4000000,
         registration: RegistrationConfig | dict[str, Any] | None = None,
         gate: AcceptanceGate | dict[str, Any] | None = None,
     ) -> DetectorConfig:
@@ -290,6 +291,7 @@ class DetectorConfig:
             cloud_bits: Bits per axis of the compact clouds stored with the places (an integer in 1..=16; default 8).
             cache_bytes: Memory for prepared clouds kept between steps, bytes (an integer >= 0; default 268435456).
             verify_threads: Threads registering a step's candidates at once (0: one per core) (an integer >= 0; default 0).
+            verify_step_points: Work budget of one step, in points: each candidate costs its hypotheses times the two clouds' points; the best is always registered (an integer >= 1; default 4000000).
             registration: The registration parameters (an object, or a dict of overrides of the current ones).
             gate: The acceptance gate (an object, or a dict of overrides of the current one).
 
@@ -314,6 +316,7 @@ class DetectorConfig:
         cloud_bits: int | None = None,
         cache_bytes: int | None = None,
         verify_threads: int | None = None,
+        verify_step_points: int | None = None,
         registration: RegistrationConfig | dict[str, Any] | None = None,
         gate: AcceptanceGate | dict[str, Any] | None = None,
     ) -> DetectorConfig:
@@ -334,6 +337,7 @@ class DetectorConfig:
             cloud_bits: Bits per axis of the compact clouds stored with the places (an integer in 1..=16; default 8).
             cache_bytes: Memory for prepared clouds kept between steps, bytes (an integer >= 0; default 268435456).
             verify_threads: Threads registering a step's candidates at once (0: one per core) (an integer >= 0; default 0).
+            verify_step_points: Work budget of one step, in points: each candidate costs its hypotheses times the two clouds' points; the best is always registered (an integer >= 1; default 4000000).
             registration: The registration parameters (an object, or a dict of overrides of the current ones).
             gate: The acceptance gate (an object, or a dict of overrides of the current one).
 
@@ -360,6 +364,7 @@ class DetectorConfig:
         cloud_bits: int | None = None,
         cache_bytes: int | None = None,
         verify_threads: int | None = None,
+        verify_step_points: int | None = None,
         registration: RegistrationConfig | dict[str, Any] | None = None,
         gate: AcceptanceGate | dict[str, Any] | None = None,
     ) -> DetectorConfig:
@@ -379,6 +384,7 @@ class DetectorConfig:
             cloud_bits: Bits per axis of the compact clouds stored with the places (an integer in 1..=16; default 8).
             cache_bytes: Memory for prepared clouds kept between steps, bytes (an integer >= 0; default 268435456).
             verify_threads: Threads registering a step's candidates at once (0: one per core) (an integer >= 0; default 0).
+            verify_step_points: Work budget of one step, in points: each candidate costs its hypotheses times the two clouds' points; the best is always registered (an integer >= 1; default 4000000).
             registration: The registration parameters (an object, or a dict of overrides of the current ones).
             gate: The acceptance gate (an object, or a dict of overrides of the current one).
 
@@ -390,7 +396,7 @@ class DetectorConfig:
             TypeError: An unknown parameter, or a value of the wrong type.
         """
     def to_dict(self) -> dict[str, Any]:
-        """The parameters by name (exclude_frames, exclude_meters, exclude_seconds, threshold, top_k, rerank, verify, verify_candidates, verify_hypotheses, verify_fan_deg, cloud_bits, cache_bytes, verify_threads, registration, gate): what `DetectorConfig(**d)` takes back.
+        """The parameters by name (exclude_frames, exclude_meters, exclude_seconds, threshold, top_k, rerank, verify, verify_candidates, verify_hypotheses, verify_fan_deg, cloud_bits, cache_bytes, verify_threads, verify_step_points, registration, gate): what `DetectorConfig(**d)` takes back.
 
         Returns:
             A new dict.
@@ -434,6 +440,9 @@ class DetectorConfig:
     @property
     def verify_threads(self) -> int:
         """Threads registering a step's candidates at once (0: one per core) (an integer >= 0; default 0)."""
+    @property
+    def verify_step_points(self) -> int:
+        """Work budget of one step, in points: each candidate costs its hypotheses times the two clouds' points; the best is always registered (an integer >= 1; default 4000000)."""
     # end of generated
     @property
     def registration(self) -> RegistrationConfig:
@@ -1209,7 +1218,8 @@ class Database:
             Its wire form (decode it with `solid.decode_cloud`), or None when it has none.
 
         Raises:
-            IndexError: No place has this id.
+            ConfigError: No place has this id (negative, beyond 64 bits, or `len(db)` and up).
+            TypeError: An id that is not an integer (or a bool).
         """
     @property
     def sessions(self) -> npt.NDArray[np.uint32]:
@@ -1516,16 +1526,20 @@ class LoopDetector:
         timestamps: Sequence[float | None] | npt.ArrayLike | None = None,
         poses: Sequence[npt.ArrayLike | None] | npt.ArrayLike | None = None,
         threads: int | None = None,
+        progress: Callable[[int], object] | None = None,
     ) -> list[Detection]:
-        """`detect` for many scans in order, in one call (the GIL is released once): point arrays
-        are described (and, when the detector verifies, their clouds prepared) in parallel, then
-        the steps run in order. Every input is checked before the first is added: on error
-        nothing is added.
+        """`detect` for many scans in order, in one call (the GIL is released but for a moment
+        between steps): point arrays are described (and, when the detector verifies, their clouds
+        prepared) in parallel, then the steps run in order. Every input is checked before the first
+        is added: on error nothing is added. Ctrl-C raises KeyboardInterrupt within a step (or a
+        few scans of the preparation): the steps done before it are kept, each whole.
 
         Args:
             scans: Point arrays (as `solid.describe` accepts), or Descriptors made with the
                 detector's configuration (verification off).
             threads: Workers describing and preparing the scans (None: every core).
+            progress: Called with 1 after each step (for a progress bar); what it raises stops
+                the batch there, as an interrupt does.
             timestamps: One per scan (None entries: none), or None for none at all.
             poses: One per scan (3×4 or 12 floats; None entries: none), an (N, 3, 4) array,
                 or None for none at all.
@@ -1587,6 +1601,7 @@ class LoopDetector:
 
         Raises:
             DatabaseError: A descriptor made with another configuration.
+            ConfigError: A Descriptor given to a verifying detector (it needs the points).
             SolidError: Points of the wrong shape or layout.
             TypeError: Points of the wrong type or dtype.
         """

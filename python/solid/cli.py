@@ -159,7 +159,7 @@ def _add_input_args(p: argparse.ArgumentParser, poses_required: bool = False) ->
     g.add_argument("--frames", default=None, metavar="SPEC", help="frames to use, e.g. 0:60,284:314 (Python slices)")
     g.add_argument("--subsample-m", type=pos_float, default=None, metavar="M", help="keep one frame per M metres travelled")
     g.add_argument("--fov", type=degrees, default=None, metavar="DEG", help="clip every scan to this horizontal FOV")
-    g.add_argument("--fov-center", type=any_float, default=None, metavar="DEG", help="centre of --fov (default: where the first scan has its points; 0 = +x)")
+    g.add_argument("--fov-center", type=any_float, default=None, metavar="DEG", help="centre of --fov (default 0 = +x, the same for every run; a warning says when the first scan has nothing there)")
     g.add_argument("--occlude", type=degrees, default=None, metavar="DEG", help="remove a sector this wide from every scan")
     g.add_argument("--occlude-center", type=any_float, default=None, metavar="DEG")
     g.add_argument("--threads", type=pos_int, default=None, help="threads for describing (default: every core)")
@@ -328,6 +328,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     b.add_argument("sequence", type=Path)
     b.add_argument("-o", "--output", type=Path, required=True, help="the map file to write (must not exist)")
+    b.add_argument("--detect", action="store_true", help="also run the loop detector within the session (not needed for a map: off by default)")
     _add_config_args(b)
     _add_input_args(b)
     _add_common(b)
@@ -367,14 +368,17 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _progress(args: argparse.Namespace, total: int | None, desc: str, unit: str = "scan") -> Any:
+    """A bar that moves with every scan, with its rate and the time left."""
     from tqdm import tqdm
 
-    return tqdm(total=total, desc=desc, unit=unit, disable=bool(args.quiet), file=sys.stderr, dynamic_ncols=True, leave=False)
+    return tqdm(total=total, desc=desc, unit=unit, disable=bool(args.quiet), file=sys.stderr, dynamic_ncols=True, leave=False, mininterval=0.2)
 
 
-def _open(args: argparse.Namespace, err: TextIO) -> tuple[Any, Any]:
-    """The dataset and the record of its inputs; prints which reader was chosen."""
+def _open(args: argparse.Namespace, err: TextIO, cfg: Any = None) -> tuple[Any, Any]:
+    """The dataset and the record of its inputs, every option checked against it before any scan
+    is read (:func:`solid.pipeline.check_run`); prints which reader was chosen."""
     from .commands import open_recording
+    from .pipeline import check_run
 
     ds, inputs = open_recording(
         args.sequence,
@@ -384,7 +388,10 @@ def _open(args: argparse.Namespace, err: TextIO) -> tuple[Any, Any]:
         timestamps=getattr(args, "timestamps", None),
         calib=getattr(args, "calib", None),
         map=getattr(args, "map", None),
+        frames=None if cfg is None else cfg.input.frames,
     )
+    if cfg is not None:
+        check_run(ds, cfg)
     if not args.quiet:
         err.write(f"solid: {inputs.sequence}: {len(ds)} scans, reader {inputs.reader}\n")
     return ds, inputs
@@ -410,7 +417,7 @@ def cmd_detect(args: argparse.Namespace, out: TextIO) -> int:
     from . import commands
 
     cfg, map_db = commands.config_and_map(args)
-    ds, inputs = _open(args, sys.stderr)
+    ds, inputs = _open(args, sys.stderr, cfg)
     with _progress(args, len(ds), "detect") as bar:
         result, folder = commands.detect(ds, cfg, inputs, output=args.output, map_db=map_db, threads=args.threads, progress=bar.update, g2o=args.g2o)
     total = result.timings["detect_s"]
@@ -430,7 +437,7 @@ def cmd_eval(args: argparse.Namespace, out: TextIO) -> int:
     from . import commands
 
     cfg, map_db = commands.config_and_map(args)
-    ds, inputs = _open(args, sys.stderr)
+    ds, inputs = _open(args, sys.stderr, cfg)
     sc_cfg = None
     if "scancontext" in args.baseline:
         from .scancontext import ScanContextConfig
@@ -546,7 +553,14 @@ def _print_table(out: TextIO, evals: AbcSequence[Any]) -> None:
 def cmd_demo(args: argparse.Namespace, out: TextIO) -> int:
     from . import sim
 
-    m = sim.run_demo(args.output, seed=args.seed, sensor=args.sensor, h_fov=args.fov, laps=args.laps, threshold=args.threshold, plots=not args.no_plots)
+    if not args.quiet:
+        sys.stderr.write(
+            f"solid demo: simulating {args.laps:g} laps around a block (world seed {args.seed}) seen by a {args.sensor} "
+            f"clipped to a {args.fov:g}° field of view, then detecting loops and scoring them against the true poses\n"
+        )
+    m = sim.run_demo(
+        args.output, seed=args.seed, sensor=args.sensor, h_fov=args.fov, laps=args.laps, threshold=args.threshold, plots=not args.no_plots, progress=not args.quiet
+    )
     out.write(sim.demo_summary(m))
     return 0
 
@@ -585,9 +599,9 @@ def cmd_map(args: argparse.Namespace, out: TextIO) -> int:
 
     if args.map_command == "build":
         cfg = commands.make_config(args)
-        ds, _ = _open(args, sys.stderr)
+        ds, _ = _open(args, sys.stderr, cfg)
         with _progress(args, len(ds), "map build") as bar:
-            db, result = commands.build_map(ds, cfg, args.output, threads=args.threads, progress=bar.update)
+            db, result = commands.build_map(ds, cfg, args.output, threads=args.threads, progress=bar.update, detect=args.detect)
         with_pose = int(sum(1 for p in db.poses if math.isfinite(float(p[0][0]))))
         out.write(f"{len(db)} places ({with_pose} with poses), session {result.session}: wrote {args.output}\n")
         return 0
@@ -637,8 +651,16 @@ def main(argv: AbcSequence[str] | None = None) -> int:
         "map": cmd_map,
         "bench": cmd_bench,
     }
+    import warnings
+
+    def one_line(message: Any, category: Any, filename: str, lineno: int, file: Any = None, line: Any = None) -> None:
+        print(f"solid {args.command}: warning: {message}", file=sys.stderr)
+
     try:
-        return handlers[args.command](args, out)
+        with warnings.catch_warnings():
+            warnings.simplefilter("default", UserWarning)
+            warnings.showwarning = one_line
+            return handlers[args.command](args, out)
     except KeyboardInterrupt:
         print("solid: interrupted (no partial results were left)", file=sys.stderr)
         return 130

@@ -25,7 +25,7 @@ from .datasets import Dataset, detect_format, open_dataset, read_points
 from .datasets.selection import iter_selected
 from .evaluation import Evaluation
 from .outputs import Output, atomic_write_bytes, output_folder, write_csv, write_json
-from .pipeline import LoopClosurePipeline, PipelineResult
+from .pipeline import LoopClosurePipeline, PipelineResult, Progress
 from .records import LOOP_COLUMNS, QUERY_COLUMNS
 from .transforms import quaternion
 
@@ -83,10 +83,12 @@ def open_recording(
     timestamps: Path | str | None = None,
     calib: Path | str | None = None,
     map: Path | None = None,
+    frames: str | None = None,
 ) -> tuple[Dataset, Inputs]:
-    """Opens a recording for the pipeline (:func:`solid.datasets.open_dataset`); returns it and the
-    record of its inputs: the reader chosen and the absolute paths of every file used."""
-    ds = open_dataset(sequence, format=format, topic=topic, poses=poses, timestamps=timestamps, calib=calib)
+    """Opens a recording for the pipeline (:func:`solid.datasets.open_dataset`; only the
+    ``frames`` a run reads need poses); returns it and the record of its inputs: the reader
+    chosen and the absolute paths of every file used."""
+    ds = open_dataset(sequence, format=format, topic=topic, poses=poses, timestamps=timestamps, calib=calib, frames=frames)
     inputs = Inputs(
         sequence=Path(ds.path),
         reader=ds.reader,
@@ -166,7 +168,7 @@ def _run(
     config: PipelineConfig,
     map_db: Any | None,
     threads: int | None,
-    progress: Callable[[int], None] | None,
+    progress: Progress,
     on_scan: Callable[[int, Any], None] | None = None,
 ) -> PipelineResult:
     return LoopClosurePipeline(dataset, config, map=map_db, threads=threads, progress=progress, on_scan=on_scan).run()
@@ -222,7 +224,7 @@ def detect(
     output: Path | None = None,
     map_db: Any | None = None,
     threads: int | None = None,
-    progress: Callable[[int], None] | None = None,
+    progress: Progress = None,
     g2o: Path | None = None,
 ) -> tuple[PipelineResult, Path]:
     """``solid detect``: the accepted loops in ``loops.csv``, the run in ``summary.json``; with
@@ -276,7 +278,7 @@ def evaluate(
     scancontext: Any | None = None,
     plots: bool = True,
     threads: int | None = None,
-    progress: Callable[[int], None] | None = None,
+    progress: Progress = None,
     command_hint: AbcSequence[str] | None = None,
     extra: dict[str, Any] | None = None,
     write_more: Callable[[Path, PipelineResult, list[Evaluation]], None] | None = None,
@@ -383,14 +385,20 @@ def build_map(
     output_file: Path,
     *,
     threads: int | None = None,
-    progress: Callable[[int], None] | None = None,
+    progress: Progress = None,
     session_of: Any | None = None,
+    detect: bool = False,
 ) -> tuple[Any, PipelineResult]:
-    """``solid map build``: every scan becomes a place (with its pose and time when known),
-    saved as a database file (written atomically; an existing file is refused)."""
+    """``solid map build``: every scan becomes a place (with its pose and time when known, and
+    its compact cloud when the detector verifies), saved as a database file (written atomically;
+    an existing file is refused). A map needs no detection within its own session: no scan is
+    searched or verified against the others unless ``detect`` is set (``--detect``)."""
     out = Path(output_file)
     if out.exists():
         raise FileExistsError(f"{out} exists: choose another file name or remove it")
+    if not detect:
+        # Every own place excluded as recent: each step only describes, prepares and stores.
+        config = config.replace(detector=config.detector.replace(exclude_frames=max(len(dataset), 1), exclude_meters=0.0, exclude_seconds=0.0))
     result = _run(dataset, config, None, threads, progress)
     db = result.database
     db.save(out)

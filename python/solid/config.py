@@ -89,8 +89,8 @@ class InputOptions:
     """What the pipeline does to the input before describing it (all off by default).
 
     ``fov``/``fov_center``: keep only the horizontal sector ``fov`` degrees wide around
-    ``fov_center`` (None: centred on where the scans have points, chosen from the first scan;
-    0 is +x). ``occlude``/``occlude_center``: remove a sector. ``frames``: a selection such as
+    ``fov_center`` (None: :data:`solid.pipeline.DEFAULT_FOV_CENTER`, 0° = +x, for every run, with a
+    warning when the first scan has no point there). ``occlude``/``occlude_center``: remove a sector. ``frames``: a selection such as
     ``"0:60,284:314"`` (Python slices). ``subsample_m``: keep one frame per this many metres
     travelled (needs poses).
     """

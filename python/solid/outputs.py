@@ -17,6 +17,7 @@ import json
 import math
 import os
 import shutil
+import tempfile
 import time
 from collections.abc import Iterable, Iterator, Sequence as AbcSequence
 from contextlib import contextmanager
@@ -64,10 +65,14 @@ def write_json(path: Path, doc: Any) -> Path:
 
 
 def atomic_write_bytes(path: Path, data: bytes) -> None:
-    """Write ``data`` to a temporary file beside ``path``, then rename it over ``path``."""
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    """Write ``data`` to a temporary file beside ``path``, then rename it over ``path``. Every call
+    creates its own temporary file (exclusively), so that calls from several threads or
+    processes writing one path never share one: the last rename wins, whole."""
+    path = Path(path)
+    fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    tmp = Path(name)
     try:
-        with open(tmp, "wb") as f:
+        with open(fd, "wb") as f:
             f.write(data)
             f.flush()
             os.fsync(f.fileno())
@@ -114,6 +119,15 @@ def _check_empty(out: Path) -> None:
         )
 
 
+def _remove_empty(folders: list[Path]) -> None:
+    """Remove the folders this run created (innermost first) while they are empty."""
+    for d in folders:
+        try:
+            d.rmdir()
+        except OSError:
+            return
+
+
 @dataclass(frozen=True)
 class Output:
     """Where to write (``work``, hidden until done) and where it will appear (``final``)."""
@@ -132,9 +146,14 @@ def output_folder(output: Path | None, command: str, name: str, root: Path = DEF
     """
     final = Path(output) if output is not None else _fresh_default(root, command, name)
     _check_empty(final)
+    made = [p for p in [final.parent, *final.parent.parents] if not p.exists()]
     final.parent.mkdir(parents=True, exist_ok=True)
-    work = final.parent / f".{final.name}.partial-{os.getpid()}-{time.monotonic_ns()}"
-    work.mkdir()
+    try:
+        work = final.parent / f".{final.name}.partial-{os.getpid()}-{time.monotonic_ns()}"
+        work.mkdir()
+    except BaseException:
+        _remove_empty(made)
+        raise
     try:
         yield Output(work, final)
         _check_empty(final)  # nothing appeared there meanwhile
@@ -143,6 +162,7 @@ def output_folder(output: Path | None, command: str, name: str, root: Path = DEF
         os.replace(work, final)
     except BaseException:
         shutil.rmtree(work, ignore_errors=True)
+        _remove_empty(made)  # a failed run leaves no empty solid_results/ either
         raise
     if output is None:
         link = root / "latest"

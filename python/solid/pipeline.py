@@ -20,10 +20,13 @@ the accepted loops, and the evaluation scores the same candidates against poses
 
 from __future__ import annotations
 
+import sys
 import time
+import warnings
 from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any, Protocol, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -33,9 +36,56 @@ from .config import PipelineConfig
 from .datasets.selection import iter_selected, select_frames
 from .evaluation import evaluate_detections
 from .records import LOOP_COLUMNS, loop_row
-from .transforms import auto_fov_center, clip_fov, occlude_sector
+from .transforms import clip_fov, occlude_sector
 
-__all__ = ["LOOP_COLUMNS", "LoopClosurePipeline", "PipelineResult", "ScanSource"]
+__all__ = ["DEFAULT_FOV_CENTER", "LOOP_COLUMNS", "LoopClosurePipeline", "PipelineResult", "Progress", "ScanSource", "check_run", "progress_bar"]
+
+#: The centre of ``input.fov`` when none is given (degrees; 0 = +x, the sensor's forward axis): the
+#: same for every run, so that a map and the runs queried against it clip the same sector.
+DEFAULT_FOV_CENTER = 0.0
+
+#: What a long call takes as ``progress``: a callable given the number of scans done since its
+#: last call, ``True`` (a progress bar on stderr), ``False`` (none) or ``None`` (a bar when stderr
+#: is a terminal: interactive use).
+Progress = Union[Callable[[int], None], bool, None]
+
+
+@contextmanager
+def progress_bar(progress: Progress, total: int | None, desc: str) -> Iterator[Callable[[int], None] | None]:
+    """The callable a long call reports its scans to, for a ``progress`` argument (:data:`Progress`)."""
+    if callable(progress):
+        yield progress
+        return
+    if progress is False or (progress is None and not sys.stderr.isatty()):
+        yield None
+        return
+    from tqdm import tqdm
+
+    with tqdm(total=total, desc=desc, unit="scan", file=sys.stderr, dynamic_ncols=True, leave=False) as bar:
+
+        def update(n: int) -> None:
+            bar.update(n)
+
+        yield update
+
+
+def check_run(dataset: Any, config: PipelineConfig) -> list[int]:
+    """Every check a run needs, before its first scan is read: the frames and subsampling select
+    something, and what the detector's exclusion needs (poses, timestamps) is there. Returns the
+    frames the run reads."""
+    poses = getattr(dataset, "poses", None)
+    times = getattr(dataset, "timestamps", None)
+    det = config.detector
+    if det.exclude_meters > 0 and poses is None:
+        raise _solid.ConfigError(f"exclude_meters = {det.exclude_meters:g} (--exclude-m) needs poses: give --poses, or set it to 0")
+    if det.exclude_seconds > 0 and times is None:
+        raise _solid.ConfigError(f"exclude_seconds = {det.exclude_seconds:g} (--exclude-s) needs timestamps: give --timestamps, or set it to 0")
+    opts = config.input
+    idx = select_frames(len(dataset), None if poses is None else np.asarray(poses, dtype=np.float64), opts.frames, opts.subsample_m)
+    for what, a in (("poses", poses), ("timestamps", times)):
+        if a is not None and idx and not np.isfinite(np.asarray(a, dtype=np.float64)[idx].reshape(len(idx), -1)).all():
+            raise _solid.ConfigError(f"a selected frame has no row in the {what} file")
+    return idx
 
 F32 = npt.NDArray[np.float32]
 F64 = npt.NDArray[np.float64]
@@ -112,8 +162,12 @@ class LoopClosurePipeline:
     ``map`` (a :class:`solid.Database`, e.g. from ``solid map build``) makes the run query this
     recording against a prior session: the map's places are candidates from the first scan on and
     never excluded; the recording's own scans are added as a new session, with the exclusion
-    window applying among them. ``progress`` is called with the number of scans done; ``on_scan``
-    with each scan as described (after the input options), e.g. to describe it for a baseline.
+    window applying among them. ``progress`` (:data:`Progress`) hears of every scan done: a
+    callable is called with the number done since its last call, ``True`` shows a bar on stderr,
+    ``None`` (the default) shows one in interactive use. ``on_scan`` is called with each scan as
+    described (after the input options), e.g. to describe it for a baseline. Everything is checked
+    before the first scan is read (:func:`check_run`); Ctrl-C raises ``KeyboardInterrupt`` within
+    a step.
     """
 
     def __init__(
@@ -123,7 +177,7 @@ class LoopClosurePipeline:
         *,
         map: Any | None = None,
         threads: int | None = None,
-        progress: Callable[[int], None] | None = None,
+        progress: Progress = None,
         on_scan: Callable[[int, F32], None] | None = None,
         chunk: int = 64,
     ) -> None:
@@ -143,6 +197,7 @@ class LoopClosurePipeline:
                 f"the map was built with {map.config!r}, this run uses {config.descriptor!r}: "
                 "descriptors of different configurations cannot be compared"
             )
+        check_run(dataset, config)
 
     def _detector(self) -> Any:
         if self.map is not None:
@@ -154,12 +209,17 @@ class LoopClosurePipeline:
         opts = self.config.input
         poses_all: F64 | None = None if getattr(ds, "poses", None) is None else np.asarray(ds.poses, dtype=np.float64)
         times_all: F64 | None = None if getattr(ds, "timestamps", None) is None else np.asarray(ds.timestamps, dtype=np.float64)
-        idx = select_frames(len(ds), poses_all, opts.frames, opts.subsample_m)
+        idx = check_run(ds, self.config)
+        with progress_bar(self.progress, len(idx), "scans") as report:
+            return self._run(ds, idx, poses_all, times_all, report)
+
+    def _run(self, ds: Any, idx: list[int], poses_all: F64 | None, times_all: F64 | None, report: Callable[[int], None] | None) -> PipelineResult:
+        opts = self.config.input
         det = self._detector()
         detections: list[Any] = []
         batch: list[F32] = []
         batch_idx: list[int] = []
-        fov_center = opts.fov_center
+        fov_center = DEFAULT_FOV_CENTER if opts.fov is not None and opts.fov_center is None else opts.fov_center
         t_detect = 0.0
 
         def flush() -> None:
@@ -170,19 +230,24 @@ class LoopClosurePipeline:
             ts = None if times_all is None else [float(times_all[i]) for i in batch_idx]
             ps = None if poses_all is None else [poses_all[i] for i in batch_idx]
             # The detector describes (and, when it verifies, prepares the clouds of) the batch on
-            # every core, then runs its steps in order.
-            detections.extend(det.detect_many(batch, ts, ps, threads=self.threads))
+            # every core, then runs its steps in order, reporting each.
+            detections.extend(det.detect_many(batch, ts, ps, threads=self.threads, progress=report))
             t_detect += time.perf_counter() - t0
-            if self.progress is not None:
-                self.progress(len(batch))
             batch.clear()
             batch_idx.clear()
 
-        for i, pts in zip(idx, iter_selected(ds, idx)):
-            if opts.fov is not None:
-                if fov_center is None:
-                    fov_center = auto_fov_center(pts, opts.fov)
-                pts = clip_fov(pts, opts.fov, fov_center)
+        for k, (i, pts) in enumerate(zip(idx, iter_selected(ds, idx))):
+            if opts.fov is not None and fov_center is not None:
+                clipped = clip_fov(pts, opts.fov, fov_center)
+                # Empty, or nearly (a tenth of what a sensor seeing all around would put there).
+                if k == 0 and clipped.shape[0] < 0.1 * pts.shape[0] * opts.fov / 360.0:
+                    warnings.warn(
+                        f"the first scan has {clipped.shape[0]} of its {pts.shape[0]} points within the --fov {opts.fov:g}° sector centred on "
+                        f"{fov_center:g}° (0 = +x); give --fov-center (input.fov_center) where the sensor sees",
+                        UserWarning,
+                        stacklevel=2,
+                    )
+                pts = clipped
             if opts.occlude is not None:
                 pts = occlude_sector(pts, opts.occlude, opts.occlude_center)
             xyz = np.ascontiguousarray(pts[:, :3])

@@ -32,13 +32,16 @@ import os
 from collections.abc import Callable, Iterator, Sequence as AbcSequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Union, overload
+from typing import TYPE_CHECKING, Any, Union, overload
 
 import numpy as np
 import numpy.typing as npt
 
 from . import _solid
 from .transforms import wrap_degrees, yaw_degrees
+
+if TYPE_CHECKING:
+    from .pipeline import Progress
 
 __all__ = [
     "ANCHOR_FILE",
@@ -761,14 +764,16 @@ def run_demo(
     radius: float = 5.0,
     threshold: float | None = None,
     plots: bool = True,
+    progress: Progress = None,
 ) -> dict[str, Any]:
     """Simulate a drive with a loop under a narrow field of view and run the loop-closure pipeline
     on it (:class:`solid.pipeline.LoopClosurePipeline`, the preset's detector, ``threshold`` when
     given), scored against the simulator's exact poses by the same evaluation as ``solid eval``.
     Writes ``metrics.json``, ``queries.csv``, ``loops.csv``, ``config.json`` and (with ``plots``)
     the evaluation plots and ``map.png`` into a fresh folder (``out_dir``, or one under
-    ``solid_results/``). Returns the metrics dictionary plus ``"simulation"`` (the settings) and
-    ``"folder"``; :func:`demo_summary` formats it."""
+    ``solid_results/``). ``progress`` (:data:`solid.pipeline.Progress`) reports each scan, by
+    default with a bar in interactive use. Returns the metrics dictionary plus ``"simulation"``
+    (the settings) and ``"folder"``; :func:`demo_summary` formats it."""
     from .commands import Inputs, evaluate
     from .config import PipelineConfig
 
@@ -803,6 +808,7 @@ def run_demo(
         plots=plots,
         extra={"simulation": settings},
         write_more=map_png,
+        progress=progress,
     )
     out = dict(run.metrics)
     out.update(heading_of_true_loops(run.evaluations[0]))

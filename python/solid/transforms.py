@@ -16,6 +16,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ._solid import ConfigError
+
 __all__ = [
     "auto_fov_center",
     "azimuth_degrees",
@@ -76,7 +78,7 @@ def azimuth_degrees(points: npt.NDArray[Any]) -> F64:
 def clip_fov(points: npt.NDArray[Any], width_deg: float, center_deg: float = 0.0) -> npt.NDArray[Any]:
     """Keep points whose azimuth lies within ±width/2 of ``center_deg`` (0 = +x forward, CCW)."""
     if not 0.0 < width_deg <= 360.0 or not math.isfinite(center_deg):
-        raise ValueError(f"width_deg must be in (0, 360] and center_deg finite, got {width_deg}, {center_deg}")
+        raise ConfigError(f"width_deg must be in (0, 360] and center_deg finite, got {width_deg}, {center_deg}")
     if width_deg >= 360.0:
         return points.copy()
     off = wrap_degrees(azimuth_degrees(points) - center_deg)
@@ -86,7 +88,7 @@ def clip_fov(points: npt.NDArray[Any], width_deg: float, center_deg: float = 0.0
 def occlude_sector(points: npt.NDArray[Any], width_deg: float, center_deg: float = 0.0) -> npt.NDArray[Any]:
     """Remove the points whose azimuth lies within ±width/2 of ``center_deg`` (a blocked sector)."""
     if not 0.0 <= width_deg <= 360.0 or not math.isfinite(center_deg):
-        raise ValueError(f"width_deg must be in [0, 360] and center_deg finite, got {width_deg}, {center_deg}")
+        raise ConfigError(f"width_deg must be in [0, 360] and center_deg finite, got {width_deg}, {center_deg}")
     if width_deg == 0.0:
         return points.copy()
     off = wrap_degrees(azimuth_degrees(points) - center_deg)
@@ -132,8 +134,8 @@ def subsample_by_distance(poses: npt.ArrayLike, step_m: float) -> I64:
     P = np.asarray(poses, dtype=np.float64)
     if P.ndim != 3 or P.shape[1:] not in ((3, 4), (4, 4)):
         raise ValueError(f"poses must have shape (N, 3, 4), got {P.shape}")
-    if not step_m > 0:
-        raise ValueError(f"step_m must be > 0, got {step_m}")
+    if not (step_m > 0 and math.isfinite(step_m)):
+        raise ConfigError(f"step_m must be a finite number > 0, got {step_m}")
     if P.shape[0] == 0:
         return np.zeros(0, dtype=np.int64)
     t = P[:, :3, 3]

@@ -482,13 +482,20 @@ impl PyDatabase {
 
     /// The compact cloud stored with place `id` (the wire form of `solid.encode_cloud`; decode
     /// it with `solid.decode_cloud`), or None.
-    fn cloud<'py>(&self, py: Python<'py>, id: u32) -> PyResult<Option<Bound<'py, PyBytes>>> {
+    fn cloud<'py>(
+        &self,
+        py: Python<'py>,
+        id: &Bound<'_, PyAny>,
+    ) -> PyResult<Option<Bound<'py, PyBytes>>> {
         let n = self.with(py, Database::len);
-        if id as usize >= n {
-            return Err(pyo3::exceptions::PyIndexError::new_err(format!(
-                "place {id} does not exist (the database has {n})"
+        if n == 0 {
+            args::int_arg::<i128>(id, "id", 0, i128::MAX)?; // a bool or a non-integer: TypeError
+            return Err(ConfigError::new_err(format!(
+                "place {} does not exist: the database is empty",
+                id.str()?
             )));
         }
+        let id: u32 = args::int_arg(id, "id", 0, n as i128 - 1)?;
         let c = self.with(py, |db| db.cloud(id).map(<[u8]>::to_vec));
         Ok(c.map(|b| PyBytes::new(py, &b)))
     }

@@ -4,7 +4,7 @@
 use std::cell::RefCell;
 
 use numpy::PyArray1;
-use pyo3::exceptions::PyTypeError;
+use pyo3::exceptions::{PyMemoryError, PyTypeError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
 use solid_lidar::pool;
@@ -227,20 +227,33 @@ pub(crate) fn batch_pool(
         .map_err(|e| SolidError::new_err(format!("cannot start describe workers: {e}")))
 }
 
-/// `f` of every item, in order: on `pool`'s workers ([`batch_pool`]), else on this thread.
+/// `f` of every item, in order: on `pool`'s workers ([`batch_pool`]), else on this thread; a
+/// chunk at a time, and between chunks the GIL is taken back briefly to check for signals, so
+/// that Ctrl-C stops a long batch within a chunk's time (`Err`: the signal handler's exception).
+/// Call it with the GIL released.
 pub(crate) fn batch_map<T: Sync, R: Send>(
     pool: Option<&rayon::ThreadPool>,
     items: &[T],
     f: impl Fn(&T) -> R + Sync + Send,
-) -> Vec<R> {
+) -> PyResult<Vec<R>> {
     use rayon::prelude::*;
-    match pool {
-        Some(p) => p.install(|| items.par_iter().map(f).collect()),
-        None => items.iter().map(f).collect(),
+    // A few items per worker: enough to balance uneven scans, short enough to answer a signal.
+    let chunk = 4 * pool.map_or(1, rayon::ThreadPool::current_num_threads);
+    let mut out = Vec::new();
+    out.try_reserve_exact(items.len())
+        .map_err(|_| PyMemoryError::new_err("no memory for the batch's results"))?;
+    for part in items.chunks(chunk) {
+        Python::attach(|py| py.check_signals())?;
+        match pool {
+            Some(p) => out.extend(p.install(|| part.par_iter().map(&f).collect::<Vec<_>>())),
+            None => out.extend(part.iter().map(&f)),
+        }
     }
+    Ok(out)
 }
 
-/// Describes many scans in parallel (every core by default), GIL released once for the batch.
+/// Describes many scans in parallel (every core by default), GIL released for the batch but
+/// for a signal check between chunks (Ctrl-C raises KeyboardInterrupt within a chunk's time).
 #[pyfunction]
 #[pyo3(signature = (scans, config, threads=None))]
 fn describe_batch(
@@ -263,7 +276,7 @@ fn describe_batch(
     let slices: Vec<PointSlice<'_>> = borrowed.iter().map(Borrowed::slice).collect();
     let cfg = config.inner;
     let pool = batch_pool(threads, slices.len())?;
-    py.detach(|| batch_map(pool, &slices, |s| describe_slice(s, &cfg)))
+    py.detach(|| batch_map(pool, &slices, |s| describe_slice(s, &cfg)))?
         .into_iter()
         .map(|r| r.map(|d| PyDescriptor::new(d, cfg)).map_err(core_err))
         .collect()

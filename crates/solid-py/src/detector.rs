@@ -447,9 +447,9 @@ impl PyLoopDetector {
 
     /// `detect` for many scans in order, in one call: point arrays (described and prepared in
     /// parallel, `threads` workers, every core by default) or Descriptors (verification off).
-    /// The GIL is released once. Every input is checked before the first is added: on error
-    /// nothing is added.
-    #[pyo3(signature = (scans, timestamps=None, poses=None, threads=None))]
+    /// The GIL is released but for a moment between steps (Ctrl-C and `progress`). Every input
+    /// is checked before the first is added: on error nothing is added.
+    #[pyo3(signature = (scans, timestamps=None, poses=None, threads=None, progress=None))]
     fn detect_many(
         &self,
         py: Python<'_>,
@@ -457,6 +457,7 @@ impl PyLoopDetector {
         timestamps: Option<&Bound<'_, PyAny>>,
         poses: Option<&Bound<'_, PyAny>>,
         #[pyo3(from_py_with = args::threads)] threads: Option<usize>,
+        progress: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Vec<PyDetection>> {
         let items: Vec<Bound<'_, PyAny>> = scans
             .try_iter()
@@ -479,18 +480,47 @@ impl PyLoopDetector {
         let slices: Vec<PointSlice<'_>> = borrowed.iter().map(Borrowed::slice).collect();
         let cfg = self.cfg;
         let pool = batch_pool(threads, slices.len())?;
+        let progress = progress
+            .filter(|p| !p.is_none())
+            .map(|p| p.clone().unbind());
+        let mut stopped: Option<PyErr> = None;
         let found = py
             .detach(|| -> Result<Vec<db::Detection>, DbError> {
                 let scans: Vec<db::Scan> = {
                     let det = read(&self.inner);
                     let prep = |s: &PointSlice<'_>| prepare_slice(&det, s, &cfg);
-                    batch_map(pool, &slices, prep)
-                        .into_iter()
-                        .collect::<Result<_, _>>()?
+                    match batch_map(pool, &slices, prep) {
+                        Ok(v) => v.into_iter().collect::<Result<_, _>>()?,
+                        Err(e) => {
+                            stopped = Some(e);
+                            return Ok(Vec::new());
+                        }
+                    }
                 };
-                write(&self.inner).detect_scans(scans, &ts, &ps)
+                // Between steps, the GIL is taken back briefly: Ctrl-C and progress.
+                let mut each = |i: usize| {
+                    let r = Python::attach(|py| -> PyResult<()> {
+                        py.check_signals()?;
+                        match &progress {
+                            Some(f) if i > 0 => f.call1(py, (1,)).map(drop),
+                            _ => Ok(()),
+                        }
+                    });
+                    r.map_err(|e| stopped = Some(e)).is_ok()
+                };
+                let found = write(&self.inner).detect_scans_each(scans, &ts, &ps, &mut each)?;
+                if stopped.is_none() && !found.is_empty() {
+                    if let Some(f) = &progress {
+                        Python::attach(|py| f.call1(py, (1,)).map(drop))
+                            .unwrap_or_else(|e| stopped = Some(e));
+                    }
+                }
+                Ok(found)
             })
             .map_err(core_err)?;
+        if let Some(e) = stopped {
+            return Err(e);
+        }
         Ok(found.into_iter().map(PyDetection::from).collect())
     }
 
@@ -519,13 +549,25 @@ impl PyLoopDetector {
     }
 
     /// Searches the scan against every place without adding it (localisation in a prior map).
+    /// With verification on (the default), points are described, prepared and the best
+    /// candidates registered, as a step would; a Descriptor needs verification off.
     fn query(
         &self,
         py: Python<'_>,
         points_or_descriptor: &Bound<'_, PyAny>,
     ) -> PyResult<Option<PyLoop>> {
-        let d = self.descriptor(py, points_or_descriptor)?;
-        let found = self.with(py, |det| det.query(&d)).map_err(core_err)?;
+        let verifies = self.with(py, |det| det.config().verify.enabled);
+        let found =
+            match self.input(py, points_or_descriptor)? {
+                Input::Scan(scan) if verifies => py.detach(|| write(&self.inner).query_scan(&scan)),
+                Input::Scan(scan) => self.with(py, |det| det.query(&scan.descriptor)),
+                Input::Descriptor(_) if verifies => return Err(crate::ConfigError::new_err(
+                    "query() with a Descriptor needs verification off (verify=False): a verifying \
+                     detector registers the scan, so give its points",
+                )),
+                Input::Descriptor(d) => self.with(py, |det| det.query(&d)),
+            }
+            .map_err(core_err)?;
         Ok(found.map(PyLoop::from))
     }
 

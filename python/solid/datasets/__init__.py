@@ -45,8 +45,9 @@ import numpy as np
 
 from . import helipr, kitti, nclt, npy, pcd, ply, rosbag
 from ._bin import BinLayout, sniff
-from ..errors import ReadError
+from ..errors import ConfigError, ReadError
 from ._common import F32, F64, I64, Cloud, PathLike, file_size, natural_key, read_bytes
+from .selection import parse_frames
 from .poses import (
     interpolate_poses,
     load_extrinsic,
@@ -54,6 +55,7 @@ from .poses import (
     load_timestamps,
     match_rows,
     resolve,
+    take_rows,
     sensor_poses_in_sensor_world,
 )
 
@@ -250,6 +252,7 @@ class Dataset:
         timestamps: PathLike | None = None,
         calib: PathLike | None = None,
         xyz_only: bool = True,
+        frames: str | None = None,
     ) -> None:
         self.path = Path(os.path.abspath(path))
         if not self.path.exists():
@@ -281,6 +284,8 @@ class Dataset:
             self.timestamps = np.array(self._bag.times_ns, dtype=np.float64) * 1e-9
             root = self.scan_folder
         else:
+            if topic is not None:
+                raise ConfigError(f"{self.path}: topic= ({topic!r}) applies to a bag; this is not one")
             if self.path.is_dir():
                 self.scan_folder = _scan_folder(self.path)
                 files = [p for p in self.scan_folder.iterdir() if p.is_file() and p.suffix.lower() in SCAN_EXTENSIONS]
@@ -310,6 +315,8 @@ class Dataset:
         self._reader = READERS[self.reader]
         self._n = n
         self.frame_ids: I64 = numbers if numbers is not None else np.arange(n, dtype=np.int64)
+        # Only the scans a run reads need a pose and a time (the frames are checked first).
+        self._wanted = parse_frames(frames, n) if frames else None
 
         if timestamps is not None:
             self.timestamp_source = resolve(timestamps, root, "timestamps")
@@ -317,7 +324,7 @@ class Dataset:
             self.timestamp_source = found["times"]
         if self.timestamp_source is not None:
             t = load_timestamps(self.timestamp_source)
-            self.timestamps = t[match_rows(self.timestamp_source, t.shape[0], n, numbers, "timestamps")]
+            self.timestamps = take_rows(t, match_rows(self.timestamp_source, t.shape[0], n, numbers, "timestamps", self._wanted))
 
         if poses is not None:
             self.pose_source = resolve(poses, root, "poses")
@@ -343,11 +350,11 @@ class Dataset:
                 f"{P.shape[0]} TUM poses for {self._n} scans, and the scans have no timestamps to match "
                 "them by: pass timestamps=",
             )
-        rows = match_rows(src, P.shape[0], self._n, numbers, "poses")
+        rows = match_rows(src, P.shape[0], self._n, numbers, "poses", self._wanted)
         if tum_t is not None:
-            self.timestamps = tum_t
+            self.timestamps = take_rows(tum_t, rows)
             self.timestamp_source = src
-        return np.ascontiguousarray(P[rows])
+        return take_rows(P, rows)
 
     @property
     def is_bag(self) -> bool:
@@ -408,6 +415,7 @@ def open_dataset(
     timestamps: PathLike | None = None,
     calib: PathLike | None = None,
     xyz_only: bool = True,
+    frames: str | None = None,
 ) -> Dataset:
     """Open a recording (folder of scans, KITTI sequence, bag, or one scan file).
 
@@ -420,10 +428,12 @@ def open_dataset(
         calib: the sensor → pose-frame extrinsic (a KITTI ``calib.txt`` or 12/16 numbers), applied
             to ``poses``.
         xyz_only: scans as (N, 3) x y z (the default) or with every column of the file.
+        frames: the scans a run will read (``"0:60,284:314"``, :func:`.selection.parse_frames`):
+            only they need a row in ``poses``/``timestamps`` (the others get NaN).
 
     Raises:
         FileNotFoundError: ``path`` or a given file does not exist.
         ReadError: the recording or a file is malformed, or the files do not fit together.
         ValueError: an unknown ``format``.
     """
-    return Dataset(path, format=format, topic=topic, poses=poses, timestamps=timestamps, calib=calib, xyz_only=xyz_only)
+    return Dataset(path, format=format, topic=topic, poses=poses, timestamps=timestamps, calib=calib, xyz_only=xyz_only, frames=frames)

@@ -29,11 +29,12 @@ class Cloud:
     fields: tuple[str, ...]
 
 
-def file_size(path: PathLike) -> int:
-    """Size of a regular file in bytes; a folder, FIFO or device is a :class:`ReadError`."""
+def file_size(path: PathLike, what: str = "point-cloud file") -> int:
+    """Size of a regular file in bytes; a folder, FIFO or device is a :class:`ReadError` (before
+    anything is read: a FIFO would block the reader)."""
     st = os.stat(path)
     if stat.S_ISDIR(st.st_mode):
-        raise ReadError(path, "is a folder, not a point-cloud file")
+        raise ReadError(path, f"is a folder, not a {what}")
     if not stat.S_ISREG(st.st_mode):
         raise ReadError(path, "is not a regular file (a FIFO, device or socket)")
     return st.st_size

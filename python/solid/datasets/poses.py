@@ -26,10 +26,11 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import ReadError
-from ._common import F64, I64, PathLike
+from ._common import F64, I64, PathLike, file_size
 
 
 def _rows(path: PathLike, what: str) -> list[list[str]]:
+    file_size(path, f"{what} file")  # a FIFO or device would block: refused in one line
     try:
         with open(path, encoding="utf-8") as f:
             return [ln.replace(",", " ").split() for ln in f if ln.strip() and not ln.lstrip().startswith("#")]
@@ -131,6 +132,7 @@ def load_extrinsic(path: PathLike) -> F64:
     Accepts a KITTI ``calib.txt`` (the ``Tr:`` or ``Tr_velo_to_cam:`` line: Velodyne → left
     camera, the frame of KITTI's poses) or a file holding exactly 12 (row-major 3×4) or 16 numbers.
     """
+    file_size(path, "calibration file")
     try:
         with open(path, encoding="utf-8") as f:
             lines = [ln.strip() for ln in f if ln.strip() and not ln.lstrip().startswith("#")]
@@ -217,15 +219,21 @@ def resolve(p: PathLike, root: Path, what: str) -> Path:
 
 
 def match_rows(
-    path: Path, n_rows: int, n_scans: int, frame_numbers: I64 | None, what: str
+    path: Path, n_rows: int, n_scans: int, frame_numbers: I64 | None, what: str, wanted: list[int] | None = None
 ) -> npt.NDArray[np.intp] | slice:
     """The rows of a per-frame file (poses or timestamps) that belong to the scans.
 
     One row per scan; or, with more rows than scans and scans named by frame number, the rows of
-    those frames.
+    those frames. With ``wanted`` (the scans a run reads, ``--frames``), only those need a row:
+    the others get row -1 (none; see :func:`take_rows`).
     """
     if n_rows == n_scans:
         return slice(None)
+    if wanted is not None and n_scans > 0:
+        rows = frame_numbers.astype(np.intp) if frame_numbers is not None and n_rows > n_scans else np.arange(n_scans, dtype=np.intp)
+        has = (rows >= 0) & (rows < n_rows)
+        if has[np.asarray(wanted, dtype=np.intp)].all():
+            return np.where(has, rows, -1)
     if frame_numbers is not None and n_rows > n_scans and n_scans > 0:
         hi = int(frame_numbers.max())
         if int(frame_numbers.min()) >= 0 and hi < n_rows:
@@ -233,6 +241,15 @@ def match_rows(
         raise ReadError(path, f"{n_rows} {what} for {n_scans} scans, and scan frame number {hi} has no row")
     hint = "" if frame_numbers is not None else " (scan names are not frame numbers, so rows cannot be picked by frame)"
     raise ReadError(path, f"{n_rows} {what} for {n_scans} scans{hint}")
+
+
+def take_rows(a: F64, rows: npt.NDArray[np.intp] | slice) -> F64:
+    """``a[rows]`` where row -1 (a scan without a row, see :func:`match_rows`) is NaN."""
+    if isinstance(rows, slice):
+        return np.ascontiguousarray(a[rows])
+    out = np.ascontiguousarray(a[np.maximum(rows, 0)])
+    out[rows < 0] = np.nan
+    return out
 
 
 def interpolate_poses(path: Path, pose_times: F64, poses: F64, scan_times: F64) -> F64:

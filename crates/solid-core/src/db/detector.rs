@@ -305,9 +305,25 @@ impl LoopDetector {
         timestamps: &[f64],
         poses: &[Option<[f64; 12]>],
     ) -> Result<Vec<Detection>, DbError> {
+        self.detect_scans_each(scans, timestamps, poses, &mut |_| true)
+    }
+
+    /// [`LoopDetector::detect_scans`] that calls `each(i)` before step `i` (after every input
+    /// was checked): when it returns false, the steps stop there and the detections of the
+    /// steps before it are returned (each step is whole). For interrupts and progress.
+    ///
+    /// # Errors
+    /// As [`LoopDetector::detect_many`].
+    pub fn detect_scans_each(
+        &mut self,
+        scans: Vec<Scan>,
+        timestamps: &[f64],
+        poses: &[Option<[f64; 12]>],
+        each: &mut dyn FnMut(usize) -> bool,
+    ) -> Result<Vec<Detection>, DbError> {
         let (descriptors, clouds): (Vec<Descriptor>, Vec<Option<PreparedCloud>>) =
             scans.into_iter().map(|s| (s.descriptor, s.cloud)).unzip();
-        self.detect_all(&descriptors, clouds, timestamps, poses)
+        self.detect_all(&descriptors, clouds, timestamps, poses, each)
     }
 
     /// [`LoopDetector::detect`] for many scans in order, in one call. Every input is checked
@@ -323,7 +339,7 @@ impl LoopDetector {
         poses: &[Option<[f64; 12]>],
     ) -> Result<Vec<Detection>, DbError> {
         self.no_verification("detect_many")?;
-        self.detect_all(descriptors, Vec::new(), timestamps, poses)
+        self.detect_all(descriptors, Vec::new(), timestamps, poses, &mut |_| true)
     }
 
     fn detect_all(
@@ -332,6 +348,7 @@ impl LoopDetector {
         clouds: Vec<Option<PreparedCloud>>,
         timestamps: &[f64],
         poses: &[Option<[f64; 12]>],
+        each: &mut dyn FnMut(usize) -> bool,
     ) -> Result<Vec<Detection>, DbError> {
         let n = descriptors.len();
         for (what, len) in [("timestamps", timestamps.len()), ("poses", poses.len())] {
@@ -368,7 +385,10 @@ impl LoopDetector {
         let mut out = Vec::new();
         out.try_reserve_exact(n).map_err(|_| DbError::OutOfMemory)?;
         let mut clouds = clouds.into_iter();
-        for (d, s) in descriptors.iter().zip(steps) {
+        for (i, (d, s)) in descriptors.iter().zip(steps).enumerate() {
+            if !each(i) {
+                break;
+            }
             out.push(self.detect_checked(d, clouds.next().flatten(), s)?);
         }
         Ok(out)

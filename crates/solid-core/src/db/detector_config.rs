@@ -62,6 +62,10 @@ pub struct VerifyConfig {
     /// thread). Needs the `parallel` feature (a default); without it, candidates are registered one
     /// by one.
     pub threads: usize,
+    /// The work one step may spend registering, in points: each candidate costs its yaw
+    /// hypotheses times the query's plus its own fine points; the best candidate is always
+    /// registered, the next ones while the sum stays within this, the rest stay unverified.
+    pub step_points: usize,
     /// The registration parameters (the stored clouds use its `voxel_size`).
     pub registration: RegConfig,
     /// What a registration must meet to be a loop; its `max_translation` is the largest loop
@@ -83,6 +87,7 @@ impl Default for VerifyConfig {
             cloud_bits: 8,
             cache_bytes: 256 << 20,
             threads: 0,
+            step_points: DEFAULT_STEP_POINTS,
             registration: RegConfig::default(),
             gate: Gate {
                 max_translation: DEFAULT_MAX_LOOP_DISTANCE,
@@ -94,6 +99,10 @@ impl Default for VerifyConfig {
 
 /// Default [`VerifyConfig::candidates`].
 pub const DEFAULT_VERIFY_CANDIDATES: usize = 5;
+
+/// Default [`VerifyConfig::step_points`]: room for every default candidate of the largest
+/// real scans measured, so that it binds only on outsized clouds (docs/performance.md#work-budgets).
+pub const DEFAULT_STEP_POINTS: usize = 4_000_000;
 
 impl VerifyConfig {
     /// Checks the registration parameters and the gate (the detector's own fields are in
@@ -196,6 +205,8 @@ impl Params for DetectorConfig {
             "Memory for prepared clouds kept between steps, bytes."),
         field!(DetectorConfig, "verify_threads", verify.threads, COUNT, "an integer >= 0",
             "Threads registering a step's candidates at once (0: one per core)."),
+        field!(DetectorConfig, "verify_step_points", verify.step_points, Kind::at_least(1), "an integer >= 1",
+            "Work budget of one step, in points: each candidate costs its hypotheses times the two clouds' points; the best is always registered."),
     ];
 
     fn defaults() -> DetectorConfig {

@@ -132,7 +132,8 @@ impl Database {
     /// # Errors
     /// [`DbError::Format`] (with `file: None`) naming what is wrong: not a SOLiD database,
     /// a newer format version, truncated, trailing bytes, checksum mismatch, invalid config,
-    /// negative or non-finite vector values, infinite timestamps, non-finite poses;
+    /// negative or non-finite vector values, infinite timestamps, non-finite poses, a stored
+    /// cloud that [`crate::reg::decode_cloud`] refuses (its own checksum);
     /// [`DbError::OutOfMemory`] when the entries do not fit in
     /// memory.
     pub fn from_bytes(bytes: &[u8]) -> Result<Database, DbError> {
@@ -229,6 +230,15 @@ impl Database {
             lengths.extend((0..n).map(|_| rd.u32()));
             let data = &bytes[rd.at..rd.at + (cloud_section - lengths_len) as usize];
             clouds = Clouds::from_parts(&lengths, data)?;
+            // Each cloud is decoded once here: a corrupt one is refused with the file, never
+            // merged and re-signed, nor found out only when a step verifies against it.
+            for id in 0..n {
+                if let Some(Err(e)) = clouds.get(id).map(crate::reg::decode_cloud) {
+                    return Err(bad(format!(
+                        "the stored cloud of place {id} is invalid: {e}"
+                    )));
+                }
+            }
         }
         db.load_entries(&r, &a, sessions, timestamps, poses, clouds)?;
         Ok(db)

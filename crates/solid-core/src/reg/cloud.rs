@@ -210,10 +210,27 @@ fn filtered<T: Coord>(
     }
 }
 
+/// Most points the fine level of a [`PreparedCloud`] keeps. A cloud with more after voxel
+/// downsampling (a dense scan, or far more points than any sensor gives) keeps an evenly spread
+/// subset of this many (every k-th point in the voxel grid's order): the work of preparing and
+/// registering one cloud is bounded (docs/performance.md#work-budgets).
+pub const MAX_LEVEL_POINTS: usize = 200_000;
+
+/// `fine` thinned to at most [`MAX_LEVEL_POINTS`]: every `ceil(n / MAX)`-th point.
+fn within_budget(fine: Vec<[f64; 3]>) -> Vec<[f64; 3]> {
+    let n = fine.len();
+    if n <= MAX_LEVEL_POINTS {
+        return fine;
+    }
+    let step = n.div_ceil(MAX_LEVEL_POINTS);
+    fine.into_iter().step_by(step).collect()
+}
+
 impl PreparedCloud {
     /// Prepares raw points (sensor frame): drops non-finite points and points outside
-    /// `(min_range, max_range)`, voxel-downsamples to the fine level, voxelises the fine points
-    /// again for the coarse level, and builds each level's kd-tree and covariances.
+    /// `(min_range, max_range)`, voxel-downsamples to the fine level (thinned to
+    /// [`MAX_LEVEL_POINTS`] beyond it), voxelises the fine points again for the coarse level,
+    /// and builds each level's kd-tree and covariances.
     ///
     /// # Errors
     /// [`RegError::Core`] when `cfg` is invalid, or with [`crate::Error::OutOfMemory`] when the
@@ -243,14 +260,7 @@ impl PreparedCloud {
     }
 
     fn build(fine: Vec<[f64; 3]>, cfg: &RegConfig) -> Result<PreparedCloud, RegError> {
-        if fine.len() > u32::MAX as usize {
-            return Err(crate::Error::InvalidParameter {
-                name: "points",
-                value: fine.len() as f64,
-                expected: "at most 2^32 - 1 points after filtering",
-            }
-            .into());
-        }
+        let fine = within_budget(fine);
         let coarse = if cfg.coarse_voxel_size > 0.0 {
             // No lower range bound, as in `from_downsampled`.
             let pts = Points::new(fine.as_flattened(), 3)?;

@@ -434,6 +434,10 @@ fn fine_from(
     }
 }
 
+/// Most initial yaws one [`register_hypotheses`] call takes: each costs a coarse registration,
+/// so a call's work is bounded (a sweep in 5° steps fits; docs/performance.md#work-budgets).
+pub const MAX_HYPOTHESES: usize = 72;
+
 /// One initial yaw of [`register_hypotheses`] and where the coarse level took it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Hypothesis {
@@ -486,7 +490,8 @@ pub struct Hypotheses {
 ///
 /// # Errors
 /// As [`register`]; [`Error::Empty`] (what `yaws_deg`) for no yaw,
-/// [`Error::InvalidParameter`] (name `yaws_deg`) for a non-finite one, and
+/// [`Error::InvalidParameter`] (name `yaws_deg`) for a non-finite one or more than
+/// [`MAX_HYPOTHESES`], and
 /// [`Error::BufferTooSmall`] (buffer `out`) when `out` is shorter than `yaws_deg`.
 pub fn register_hypotheses(
     query: &PreparedCloud,
@@ -503,6 +508,14 @@ pub fn register_hypotheses(
     let base = Rigid::from_pose(init)?;
     if yaws_deg.is_empty() {
         return Err(Error::Empty { what: "yaws_deg" }.into());
+    }
+    if yaws_deg.len() > MAX_HYPOTHESES {
+        return Err(Error::InvalidParameter {
+            name: "yaws_deg",
+            value: yaws_deg.len() as f64,
+            expected: "at most MAX_HYPOTHESES (72) initial yaws",
+        }
+        .into());
     }
     if let Some(&y) = yaws_deg.iter().find(|y| !y.is_finite()) {
         return Err(Error::InvalidParameter {

@@ -25,8 +25,15 @@ impl LoopDetector {
             // The clouds first (the cache needs `&mut self`), then the registrations, which are
             // independent of each other: in parallel where threads exist.
             let mut jobs: Vec<(usize, Arc<PreparedCloud>)> = Vec::new();
+            let mut work = 0usize;
             for (i, c) in cands.iter().enumerate().take(v.candidates) {
                 if let Some(cp) = self.prepared_cloud(c.id) {
+                    // The step's budget (VerifyConfig::step_points): the best always fits.
+                    let cost = (q.fine.len() + cp.fine.len()).saturating_mul(v.hypotheses);
+                    work = work.saturating_add(cost);
+                    if !jobs.is_empty() && work > v.step_points {
+                        break;
+                    }
                     jobs.push((i, cp));
                 }
             }
