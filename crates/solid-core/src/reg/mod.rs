@@ -76,13 +76,13 @@ pub mod wire;
 use crate::params::{field, Field, Kind, ParamType, Params, Value, FINITE};
 
 pub use crate::error::RegError;
-pub use cloud::{Level, PreparedCloud, MIN_NEIGHBORS, PLANE_EPSILON};
+pub use cloud::{Level, PreparedCloud, MAX_LEVEL_POINTS, MIN_NEIGHBORS, PLANE_EPSILON};
 pub use gate::{Gate, Rejection};
 pub use information::{Information, LOOP_SIGMA_M};
 pub use kdtree::{KdTree3, Nearest};
 pub use solve::{
     agreement, hypothesis_yaws, pose_distance, register, register_hypotheses, Hypotheses,
-    Hypothesis, HORIZONTAL, ROTATION_TOLERANCE,
+    Hypothesis, HORIZONTAL, MAX_HYPOTHESES, ROTATION_TOLERANCE,
 };
 pub use wire::{decode_cloud, encode_cloud};
 
