@@ -229,10 +229,11 @@ def test_the_detector_parameter_table_is_detector_config() -> None:
                 for bad in (lo - 1, hi + 1):
                     with pytest.raises(solid.ConfigError, match=name):
                         _detector(**{name: bad})
-            elif clause == "an integer ≥ 0":
-                _detector(**{name: 0})
+            elif m := re.fullmatch(r"an integer ≥ (\d+)", clause):
+                lo = int(m.group(1))
+                _detector(**{name: lo})
                 with pytest.raises(solid.SolidError, match=name):
-                    _detector(**{name: -1})
+                    _detector(**{name: lo - 1})
             elif clause == "finite":
                 for nonfinite in (math.nan, math.inf):
                     with pytest.raises(solid.ConfigError, match=name):
