@@ -118,9 +118,7 @@ def make_config(args: argparse.Namespace, base: Any | None = None) -> Any:
     gate = {f: getattr(args, "gate_" + f) for f in base.detector.gate.to_dict() if getattr(args, "gate_" + f, None) is not None}
     if gate:
         det["gate"] = gate  # overrides of the configuration's gate
-    if getattr(args, "threshold", None) is not None and not det.get("verify", base.detector.verify):
-        pass
-    elif getattr(args, "threshold", None) is not None:
+    if getattr(args, "threshold", None) is not None and det.get("verify", base.detector.verify):
         raise _solid.ConfigError(
             "--threshold applies without verification (--no-verify): a verified loop is accepted by the gate; "
             "tighten it with --gate-min-fitness and the other --gate-* options"
