@@ -129,17 +129,20 @@ def test_special_files_are_refused_before_any_work(drive: Path, tmp_path: Path, 
 
 
 def test_options_are_checked_before_the_first_frame(capsys: pytest.CaptureFixture[str], drive: Path, tmp_path: Path) -> None:
-    """Why: "Small traps" — `config dump … --exclude-m 20` then `detect --config` without poses failed
+    """Why: "Small traps" — a config that needs poses (then `--exclude-m`, since issue 26 applied
+    only where poses exist; here `input.subsample_m`) run by `detect --config` without poses failed
     only after the progress bar had started; and "Contract leaks" — `--topic` was ignored for a folder."""
-    code, out, _ = run(capsys, "config", "dump", "--preset", "vlp16", "--exclude-m", "20")
+    code, out, _ = run(capsys, "config", "dump", "--preset", "vlp16")
     assert code == 0
-    (tmp_path / "c.json").write_text(out)
+    cfg = json.loads(out)
+    cfg["input"]["subsample_m"] = 2.0
+    (tmp_path / "c.json").write_text(json.dumps(cfg))
     seq = tmp_path / "noposes"
     seq.mkdir()
     for f in sorted((drive / "velodyne").iterdir())[:60]:
         (seq / f.name).write_bytes(f.read_bytes())
     code, _, err = run(capsys, "detect", str(seq), "--config", str(tmp_path / "c.json"), "-o", str(tmp_path / "o"))
-    assert code == 1 and "exclude" in err and "poses" in err, err
+    assert code == 1 and "subsample_m" in err and "poses" in err, err
     assert "%|" not in err and "scan/s" not in err and "it/s" not in err, err  # no bar was started
     code, _, err = run(capsys, "detect", str(seq), "--preset", "vlp16", "--topic", "/points", "-o", str(tmp_path / "o"))
     assert code == 1 and "topic" in err, err

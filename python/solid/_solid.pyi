@@ -259,7 +259,7 @@ class DetectorConfig:
         cls,
         *,
         exclude_frames: int = 50,
-        exclude_meters: float = 0.0,
+        exclude_meters: float = 30.0,
         exclude_seconds: float = 0.0,
         threshold: float = 0.034,
         top_k: int = 10,
@@ -279,8 +279,8 @@ class DetectorConfig:
 
         Args:
             exclude_frames: Skip the places of the own session added in the last this many steps (an integer >= 0; default 50; formerly exclude_recent).
-            exclude_meters: Also skip own places fewer than this many metres back along the path (0: off; needs poses) (a finite number >= 0; default 0.0).
-            exclude_seconds: Also skip own places fewer than this many seconds back (0: off; needs timestamps) (a finite number >= 0; default 0.0).
+            exclude_meters: Also skip own places fewer than this many metres back along the path, for scans with a pose (0: off) (a finite number >= 0; default 30.0).
+            exclude_seconds: Also skip own places fewer than this many seconds back, for scans with a timestamp (0: off) (a finite number >= 0; default 0.0).
             threshold: Without verification, the largest R-SOLiD cosine distance accepted as a loop (a number in [0, 1] (a cosine distance); default 0.034).
             top_k: Candidates each step returns (an integer in 1..=1000; default 10).
             rerank: Re-rank the candidates by R-SOLiD plus rotation-aligned A-SOLiD distance (a bool; default False).
@@ -325,8 +325,8 @@ class DetectorConfig:
         Args:
             name: A preset name (`solid.presets()`): "hdl64", "hdl32", "vlp16", "os1-64", "avia", "aeva".
             exclude_frames: Skip the places of the own session added in the last this many steps (an integer >= 0; default 50; formerly exclude_recent).
-            exclude_meters: Also skip own places fewer than this many metres back along the path (0: off; needs poses) (a finite number >= 0; default 0.0).
-            exclude_seconds: Also skip own places fewer than this many seconds back (0: off; needs timestamps) (a finite number >= 0; default 0.0).
+            exclude_meters: Also skip own places fewer than this many metres back along the path, for scans with a pose (0: off) (a finite number >= 0; default 30.0).
+            exclude_seconds: Also skip own places fewer than this many seconds back, for scans with a timestamp (0: off) (a finite number >= 0; default 0.0).
             threshold: Without verification, the largest R-SOLiD cosine distance accepted as a loop (a number in [0, 1] (a cosine distance); default 0.034).
             top_k: Candidates each step returns (an integer in 1..=1000; default 10).
             rerank: Re-rank the candidates by R-SOLiD plus rotation-aligned A-SOLiD distance (a bool; default False).
@@ -372,8 +372,8 @@ class DetectorConfig:
 
         Args:
             exclude_frames: Skip the places of the own session added in the last this many steps (an integer >= 0; default 50; formerly exclude_recent).
-            exclude_meters: Also skip own places fewer than this many metres back along the path (0: off; needs poses) (a finite number >= 0; default 0.0).
-            exclude_seconds: Also skip own places fewer than this many seconds back (0: off; needs timestamps) (a finite number >= 0; default 0.0).
+            exclude_meters: Also skip own places fewer than this many metres back along the path, for scans with a pose (0: off) (a finite number >= 0; default 30.0).
+            exclude_seconds: Also skip own places fewer than this many seconds back, for scans with a timestamp (0: off) (a finite number >= 0; default 0.0).
             threshold: Without verification, the largest R-SOLiD cosine distance accepted as a loop (a number in [0, 1] (a cosine distance); default 0.034).
             top_k: Candidates each step returns (an integer in 1..=1000; default 10).
             rerank: Re-rank the candidates by R-SOLiD plus rotation-aligned A-SOLiD distance (a bool; default False).
@@ -406,10 +406,10 @@ class DetectorConfig:
         """Skip the places of the own session added in the last this many steps (an integer >= 0; default 50; formerly exclude_recent)."""
     @property
     def exclude_meters(self) -> float:
-        """Also skip own places fewer than this many metres back along the path (0: off; needs poses) (a finite number >= 0; default 0.0)."""
+        """Also skip own places fewer than this many metres back along the path, for scans with a pose (0: off) (a finite number >= 0; default 30.0)."""
     @property
     def exclude_seconds(self) -> float:
-        """Also skip own places fewer than this many seconds back (0: off; needs timestamps) (a finite number >= 0; default 0.0)."""
+        """Also skip own places fewer than this many seconds back, for scans with a timestamp (0: off) (a finite number >= 0; default 0.0)."""
     @property
     def threshold(self) -> float:
         """Without verification, the largest R-SOLiD cosine distance accepted as a loop (a number in [0, 1] (a cosine distance); default 0.034)."""

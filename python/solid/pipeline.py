@@ -71,15 +71,10 @@ def progress_bar(progress: Progress, total: int | None, desc: str) -> Iterator[C
 
 def check_run(dataset: Any, config: PipelineConfig) -> list[int]:
     """Every check a run needs, before its first scan is read: the frames and subsampling select
-    something, and what the detector's exclusion needs (poses, timestamps) is there. Returns the
-    frames the run reads."""
+    something, and every selected frame has its pose and time when the files give them. Returns
+    the frames the run reads."""
     poses = getattr(dataset, "poses", None)
     times = getattr(dataset, "timestamps", None)
-    det = config.detector
-    if det.exclude_meters > 0 and poses is None:
-        raise _solid.ConfigError(f"exclude_meters = {det.exclude_meters:g} (--exclude-m) needs poses: give --poses, or set it to 0")
-    if det.exclude_seconds > 0 and times is None:
-        raise _solid.ConfigError(f"exclude_seconds = {det.exclude_seconds:g} (--exclude-s) needs timestamps: give --timestamps, or set it to 0")
     opts = config.input
     idx = select_frames(len(dataset), None if poses is None else np.asarray(poses, dtype=np.float64), opts.frames, opts.subsample_m)
     for what, a in (("poses", poses), ("timestamps", times)):

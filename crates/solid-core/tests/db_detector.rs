@@ -73,10 +73,24 @@ fn detector_excludes_by_frames_metres_and_seconds_within_its_own_session() {
     let c = cfg();
     let base = DetectorConfig {
         exclude_frames: 0,
+        exclude_meters: 0.0,
         threshold: 1.0,
         top_k: 3,
         ..unverified()
     };
+    // The metres window is on by default: within 30 m of path, a 2 m walk sees nothing.
+    let mut det = LoopDetector::new(c, unverified()).unwrap();
+    let d = det
+        .detect(&desc(&c, 0), f64::NAN, Some(pose_at(0.0)))
+        .unwrap();
+    assert_eq!(d.eligible, 0);
+    for i in 1..60 {
+        let d = det
+            .detect(&desc(&c, i), f64::NAN, Some(pose_at(0.2 * f64::from(i))))
+            .unwrap();
+        // Past 50 frames, the frames window alone would let the first places through.
+        assert_eq!(d.eligible, 0, "step {i}");
+    }
     // Ten scans 0.2 m and 1 s apart.
     let run = |dc: DetectorConfig| -> Vec<u32> {
         let mut det = LoopDetector::new(c, dc).unwrap();
@@ -118,17 +132,35 @@ fn detector_excludes_by_frames_metres_and_seconds_within_its_own_session() {
     };
     assert_eq!(run(all), [0, 0, 0, 0, 0, 1, 2, 3, 4, 5]);
 
-    // Exclusion by metres needs poses, by seconds timestamps that do not go back; on error
-    // nothing is added.
+    // Exclusion by metres applies to the scans that carry a pose, by seconds to those with a
+    // time: a scan without one is excluded by frames only, and the path goes on from the last
+    // pose (the places without one sit where the path stood).
     let mut det = LoopDetector::new(c, metres).unwrap();
-    assert!(det.detect(&desc(&c, 0), 0.0, None).is_err());
-    assert_eq!(det.database().len(), 0);
+    let steps: Vec<u32> = [Some(0.0), Some(0.2), None, Some(0.6), Some(1.2), None]
+        .iter()
+        .enumerate()
+        .map(|(i, x)| {
+            det.detect(&desc(&c, i as u32), f64::NAN, x.map(pose_at))
+                .unwrap()
+                .eligible
+        })
+        .collect();
+    // Query 3 at 0.6 m sees nothing; query 4 at 1.2 m sees the places at 0 and 0.2 m and the
+    // pose-less one, which sits at 0.2 m; query 5 has no pose: it sees every earlier place.
+    assert_eq!(steps, [0, 0, 2, 0, 3, 5]);
+    // Time must not go back; on error nothing is added.
     let mut det = LoopDetector::new(c, seconds).unwrap();
     det.detect(&desc(&c, 0), 5.0, None).unwrap();
     assert!(det.detect(&desc(&c, 1), 4.0, None).is_err());
-    assert!(det.detect(&desc(&c, 1), f64::NAN, None).is_err());
     assert!(det.detect(&desc(&c, 1), f64::INFINITY, None).is_err());
     assert_eq!(det.database().len(), 1);
+    // A scan without a time is not excluded by seconds.
+    assert_eq!(
+        det.detect(&desc(&c, 1), f64::NAN, None).unwrap().eligible,
+        1
+    );
+    det.detect(&desc(&c, 1), 5.5, None).unwrap();
+    assert_eq!(det.database().len(), 3);
     // A pose that is not a rotation is refused.
     let mut skew = pose_at(0.0);
     skew[1] = 0.5;
@@ -136,11 +168,11 @@ fn detector_excludes_by_frames_metres_and_seconds_within_its_own_session() {
     // detect_many checks everything first: a bad timestamp in the middle adds nothing.
     let ds: Vec<Descriptor> = (0..4).map(|i| desc(&c, i)).collect();
     assert!(det.detect_many(&ds, &[6.0, 7.0, 3.0, 8.0], &[]).is_err());
-    assert_eq!(det.database().len(), 1);
+    assert_eq!(det.database().len(), 3);
     let steps = det.detect_many(&ds, &[6.0, 7.0, 8.0, 9.0], &[]).unwrap();
     assert_eq!(
         steps.iter().map(|s| s.query).collect::<Vec<_>>(),
-        [1, 2, 3, 4]
+        [3, 4, 5, 6]
     );
 }
 

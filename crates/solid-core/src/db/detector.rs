@@ -107,10 +107,13 @@ pub struct LoopDetector {
     /// Id of the first entry of the own session: entries below it (a prior map) are never
     /// excluded.
     session_start: usize,
-    /// Metres travelled along the own session's path at each of its entries (NaN without poses).
+    /// Metres travelled along the own session's path at each of its entries (NaN before its
+    /// first pose).
     travelled: Vec<f64>,
-    /// Position of the own session's last entry, when it had a pose.
-    last_position: Option<[f64; 3]>,
+    /// The latest timestamp of the own session at each of its entries (NaN before its first).
+    latest_time: Vec<f64>,
+    /// Where the own session's path stands after its last entry.
+    trail: Trail,
     /// Prepared clouds of recent places, for verification (least recently used evicted).
     prepared: BTreeMap<u32, (u64, Arc<PreparedCloud>)>,
     /// Bytes held by `prepared`.
@@ -134,7 +137,49 @@ pub struct Scan {
 struct Step {
     timestamp: f64,
     pose: Option<[f64; 12]>,
+    /// The session's path after this scan.
+    trail: Trail,
+}
+
+/// Where a session's path stands: the position of its last pose, the metres travelled through
+/// its poses and its latest timestamp (NaN before the first). Scans without a pose (time) leave
+/// it as it is, so the values stored per place never decrease.
+#[derive(Debug, Clone, Copy)]
+struct Trail {
+    position: Option<[f64; 3]>,
     travelled: f64,
+    clock: f64,
+}
+
+impl Trail {
+    const START: Trail = Trail {
+        position: None,
+        travelled: f64::NAN,
+        clock: f64::NAN,
+    };
+
+    /// The trail after a scan with this timestamp (NaN: none) and pose.
+    fn after(self, timestamp: f64, pose: Option<&[f64; 12]>) -> Trail {
+        let (position, travelled) = match (pose, self.position) {
+            (Some(p), Some(q)) => {
+                let (dx, dy, dz) = (p[3] - q[0], p[7] - q[1], p[11] - q[2]);
+                let step = libm::sqrt(dx * dx + dy * dy + dz * dz);
+                (Some([p[3], p[7], p[11]]), self.travelled + step)
+            }
+            (Some(p), None) => (Some([p[3], p[7], p[11]]), 0.0),
+            (None, _) => (self.position, self.travelled),
+        };
+        let clock = if timestamp.is_nan() {
+            self.clock
+        } else {
+            timestamp
+        };
+        Trail {
+            position,
+            travelled,
+            clock,
+        }
+    }
 }
 
 impl LoopDetector {
@@ -172,7 +217,8 @@ impl LoopDetector {
             config: detector,
             session,
             travelled: Vec::new(),
-            last_position: None,
+            latest_time: Vec::new(),
+            trail: Trail::START,
             prepared: BTreeMap::new(),
             prepared_bytes: 0,
             clock: 0,
@@ -232,7 +278,7 @@ impl LoopDetector {
     ) -> Result<Detection, DbError> {
         self.db.check_fingerprint(d.fingerprint)?;
         self.no_verification("detect")?;
-        let step = self.step(timestamp, pose, self.last_position, self.last_travelled())?;
+        let step = self.step(timestamp, pose, self.trail)?;
         self.detect_checked(d, None, step)
     }
 
@@ -365,21 +411,14 @@ impl LoopDetector {
         steps
             .try_reserve_exact(n)
             .map_err(|_| DbError::OutOfMemory)?;
-        let (mut last_position, mut last_travelled) = (self.last_position, self.last_travelled());
+        // The time and path checks need the previous scans of this batch.
+        let mut trail = self.trail;
         for (i, d) in descriptors.iter().enumerate() {
             self.db.check_fingerprint(d.fingerprint)?;
             let t = timestamps.get(i).copied().unwrap_or(f64::NAN);
             let p = poses.get(i).copied().flatten();
-            let s = self.step(t, p, last_position, last_travelled)?;
-            // The time and path checks need the previous scan of this batch.
-            if self.config.exclude_seconds > 0.0 && i > 0 {
-                let prev = steps.last().map_or(f64::NAN, |s: &Step| s.timestamp);
-                if s.timestamp < prev {
-                    return Err(backwards_time(s.timestamp, prev));
-                }
-            }
-            last_position = p.map(|p| [p[3], p[7], p[11]]).or(last_position);
-            last_travelled = s.travelled;
+            let s = self.step(t, p, trail)?;
+            trail = s.trail;
             steps.push(s);
         }
         let mut out = Vec::new();
@@ -415,7 +454,7 @@ impl LoopDetector {
         pose: Option<[f64; 12]>,
     ) -> Result<Vec<Candidate>, DbError> {
         self.db.check_fingerprint(d.fingerprint)?;
-        let step = self.step(timestamp, pose, self.last_position, self.last_travelled())?;
+        let step = self.step(timestamp, pose, self.trail)?;
         let eligible = self.eligible(&step)?;
         self.rank(&d.r, &d.a, eligible, k)
     }
@@ -447,18 +486,9 @@ impl LoopDetector {
         Ok(self.accept(&cands, self.db.len() as u32))
     }
 
-    fn last_travelled(&self) -> f64 {
-        self.travelled.last().copied().unwrap_or(0.0)
-    }
-
-    /// Checks the timestamp and pose of the next scan and works out its path length.
-    fn step(
-        &self,
-        timestamp: f64,
-        pose: Option<[f64; 12]>,
-        last_position: Option<[f64; 3]>,
-        last_travelled: f64,
-    ) -> Result<Step, DbError> {
+    /// Checks the timestamp and pose of the next scan (`trail`: the session's path before it)
+    /// and works out the path after it.
+    fn step(&self, timestamp: f64, pose: Option<[f64; 12]>, trail: Trail) -> Result<Step, DbError> {
         if timestamp.is_infinite() {
             return Err(Error::InvalidParameter {
                 name: "timestamp",
@@ -470,42 +500,19 @@ impl LoopDetector {
         if let Some(p) = &pose {
             check_pose(p)?;
         }
-        if self.config.exclude_seconds > 0.0 {
-            if timestamp.is_nan() {
-                return Err(Error::InvalidParameter {
-                    name: "timestamp",
-                    value: timestamp,
-                    expected: "a timestamp with every scan (exclude_seconds is set)",
-                }
-                .into());
-            }
-            let own = &self.db.timestamps()[self.session_start..];
-            if let Some(&prev) = own.last() {
-                if timestamp < prev {
-                    return Err(backwards_time(timestamp, prev));
-                }
-            }
-        }
-        let travelled = match (pose, last_position) {
-            (Some(p), Some(q)) => {
-                let (dx, dy, dz) = (p[3] - q[0], p[7] - q[1], p[11] - q[2]);
-                last_travelled + libm::sqrt(dx * dx + dy * dy + dz * dz)
-            }
-            (Some(_), None) if self.db.len() == self.session_start => 0.0,
-            _ => f64::NAN,
-        };
-        if self.config.exclude_meters > 0.0 && travelled.is_nan() {
+        // Exclusion by seconds needs time to run forward; a scan without one is not checked.
+        if self.config.exclude_seconds > 0.0 && timestamp < trail.clock {
             return Err(Error::InvalidParameter {
-                name: "pose",
-                value: f64::NAN,
-                expected: "a pose with every scan (exclude_meters is set)",
+                name: "timestamp",
+                value: timestamp,
+                expected: "timestamps that do not decrease within a session (exclude_seconds is on: set it to 0 to ignore time)",
             }
             .into());
         }
         Ok(Step {
             timestamp,
             pose,
-            travelled,
+            trail: trail.after(timestamp, pose.as_ref()),
         })
     }
 
@@ -520,8 +527,16 @@ impl LoopDetector {
                 c.exclude_frames,
                 c.exclude_meters,
                 c.exclude_seconds,
-                (&self.travelled, s.travelled),
-                (&self.db.timestamps()[start..], s.timestamp),
+                // The query's own place on the path, only when it says where (when) it is.
+                (
+                    &self.travelled,
+                    if s.pose.is_some() {
+                        s.trail.travelled
+                    } else {
+                        f64::NAN
+                    },
+                ),
+                (&self.latest_time, s.timestamp),
             ))
     }
 
@@ -549,13 +564,15 @@ impl LoopDetector {
         self.travelled
             .try_reserve(1)
             .map_err(|_| DbError::OutOfMemory)?;
+        self.latest_time
+            .try_reserve(1)
+            .map_err(|_| DbError::OutOfMemory)?;
         let id = self
             .db
             .add_with_cloud(d, self.session, s.timestamp, s.pose, stored.as_deref())?;
-        self.travelled.push(s.travelled);
-        if let Some(p) = s.pose {
-            self.last_position = Some([p[3], p[7], p[11]]);
-        }
+        self.travelled.push(s.trail.travelled);
+        self.latest_time.push(s.trail.clock);
+        self.trail = s.trail;
         if let Some(c) = cloud {
             self.remember(id, c);
         }
@@ -644,13 +661,4 @@ impl LoopDetector {
         ranked.sort_by(|x, y| x.0.total_cmp(&y.0));
         Ok(ranked.into_iter().map(|(_, c)| c).collect())
     }
-}
-
-fn backwards_time(t: f64, _prev: f64) -> DbError {
-    Error::InvalidParameter {
-        name: "timestamp",
-        value: t,
-        expected: "timestamps that do not decrease within a session (exclude_seconds is set)",
-    }
-    .into()
 }

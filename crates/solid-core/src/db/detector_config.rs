@@ -13,11 +13,13 @@ pub struct DetectorConfig {
     /// Skip the places of the own session added in the last `exclude_frames` steps ([spec §5](crate::spec#5-evaluating-loop-closure-against-poses):
     /// query q sees frames `< q − exclude_frames`). Default 50.
     pub exclude_frames: usize,
-    /// Also skip places of the own session fewer than this many metres back along the path
-    /// (needs a pose with every scan); 0 turns it off (the default).
+    /// Also skip places of the own session fewer than this many metres back along the path,
+    /// for every scan that has a pose (a scan without one is excluded by frames and seconds
+    /// only); 0 turns it off. Default [`DEFAULT_EXCLUDE_METERS`].
     pub exclude_meters: f64,
-    /// Also skip places of the own session fewer than this many seconds back (needs
-    /// non-decreasing timestamps); 0 turns it off (the default).
+    /// Also skip places of the own session fewer than this many seconds back, for every scan
+    /// that has a timestamp (they must then not decrease within a session); 0 turns it off (the
+    /// default: a time window means another distance at every speed).
     pub exclude_seconds: f64,
     /// A step's best candidate is a loop when its score is at most this (the score is the
     /// R-SOLiD cosine distance, [spec §3](crate::spec#3-comparing-descriptors)). Default: the preset's measured threshold
@@ -120,6 +122,10 @@ impl VerifyConfig {
 
 /// Default [`DetectorConfig::exclude_frames`] ([spec §5](crate::spec#5-evaluating-loop-closure-against-poses)).
 pub const DEFAULT_EXCLUDE_FRAMES: usize = 50;
+/// Default [`DetectorConfig::exclude_meters`]: 50 keyframes are 10 m of a walk and 50 m of a drive;
+/// metres of path mean the same on both. 30 m keeps a walk's return to its start and drops the
+/// places where its path only folds back (docs/performance.md#exclusion).
+pub const DEFAULT_EXCLUDE_METERS: f64 = 30.0;
 /// Default [`DetectorConfig::top_k`].
 pub const DEFAULT_TOP_K: usize = 10;
 /// Largest [`DetectorConfig::top_k`].
@@ -135,7 +141,7 @@ impl Default for DetectorConfig {
     fn default() -> Self {
         DetectorConfig {
             exclude_frames: DEFAULT_EXCLUDE_FRAMES,
-            exclude_meters: 0.0,
+            exclude_meters: DEFAULT_EXCLUDE_METERS,
             exclude_seconds: 0.0,
             threshold: PRESETS.iter().map(|p| p.loop_threshold).fold(0.0, f64::max),
             top_k: DEFAULT_TOP_K,
@@ -182,9 +188,9 @@ impl Params for DetectorConfig {
             "Skip the places of the own session added in the last this many steps.",
             aliases = ["exclude_recent"]),
         field!(DetectorConfig, "exclude_meters", exclude_meters, Kind::closed(0.0, FINITE), "a finite number >= 0",
-            "Also skip own places fewer than this many metres back along the path (0: off; needs poses)."),
+            "Also skip own places fewer than this many metres back along the path, for scans with a pose (0: off)."),
         field!(DetectorConfig, "exclude_seconds", exclude_seconds, Kind::closed(0.0, FINITE), "a finite number >= 0",
-            "Also skip own places fewer than this many seconds back (0: off; needs timestamps)."),
+            "Also skip own places fewer than this many seconds back, for scans with a timestamp (0: off)."),
         field!(DetectorConfig, "threshold", threshold, Kind::closed(0.0, 1.0), "a number in [0, 1] (a cosine distance)",
             "Without verification, the largest R-SOLiD cosine distance accepted as a loop."),
         field!(DetectorConfig, "top_k", top_k, Kind::Int { min: 1, max: MAX_TOP_K as u64 }, "an integer in 1..=1000",

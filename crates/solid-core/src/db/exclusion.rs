@@ -7,10 +7,11 @@
 /// `meters > 0`) within `meters` metres of path, or (when `seconds > 0`) within `seconds`
 /// seconds. Places of other sessions (a prior map, another robot) are never excluded.
 ///
-/// `travelled` is the path length in metres at each of the session's places (NaN: added without
-/// a pose, which counts as far) and at the query; `timestamps` the time in seconds at each place
-/// (non-decreasing) and at the query. Each is read only when its window is on (pass `(&[], NaN)`
-/// otherwise).
+/// `travelled` is the path length in metres at each of the session's places (non-decreasing; NaN
+/// for the places added before the session's first pose, which count as far) and at the query;
+/// `timestamps` the time in seconds at each place (likewise) and at the query. A query without a
+/// pose (time), given as NaN, is not excluded by metres (seconds): nothing says where (when) it
+/// is. Each is read only when its window is on (pass `(&[], NaN)` otherwise).
 ///
 /// ```
 /// use solid_lidar::db::visible_own_places;
@@ -20,6 +21,8 @@
 /// // Within 5 m of path: the places at 0, 2 and 4 m are visible from 10 m, not the one at 6 m.
 /// let path = [0.0, 2.0, 4.0, 6.0];
 /// assert_eq!(visible_own_places(4, 0, 5.0, 0.0, (&path, 10.0), (&[], f64::NAN)), 3);
+/// // A query without a pose: only the frames rule applies.
+/// assert_eq!(visible_own_places(4, 0, 5.0, 0.0, (&path, f64::NAN), (&[], f64::NAN)), 4);
 /// ```
 pub fn visible_own_places(
     places: usize,
@@ -30,15 +33,11 @@ pub fn visible_own_places(
     timestamps: (&[f64], f64),
 ) -> usize {
     let mut visible = places.saturating_sub(frames);
-    if meters > 0.0 {
-        let (path, at) = travelled;
-        let limit = at - meters;
-        visible = visible.min(path.partition_point(|&t| t.is_nan() || t <= limit));
-    }
-    if seconds > 0.0 {
-        let (times, at) = timestamps;
-        let limit = at - seconds;
-        visible = visible.min(times.partition_point(|&t| t <= limit));
+    for (window, (along, at)) in [(meters, travelled), (seconds, timestamps)] {
+        if window > 0.0 && !at.is_nan() {
+            let limit = at - window;
+            visible = visible.min(along.partition_point(|&t| t.is_nan() || t <= limit));
+        }
     }
     visible
 }
