@@ -18,7 +18,7 @@ from conftest import data_dir
 import solid
 from solid import io as sio
 from solid import sim, transforms
-from solid.cli import main
+from solid.cli import build_parser, main
 from solid.records import LOOP_COLUMNS
 
 
@@ -78,6 +78,15 @@ def test_out_of_range_options_are_usage_errors(capsys: pytest.CaptureFixture[str
     code, _, err = run(capsys, *argv)
     assert code == 2, err
     assert "Traceback" not in err and err.strip().splitlines()[-1].startswith("solid ")
+
+
+def test_threads_zero_is_one_per_core_as_in_the_api() -> None:
+    """Issue 29: --threads reads as every API's thread count (0, the default: one per core)."""
+    parser = build_parser()
+    for command in (["detect", "s", "--preset", "avia"], ["bench", "s", "--preset", "avia"]):
+        assert parser.parse_args(command).threads == 0
+        assert parser.parse_args([*command, "--threads", "0"]).threads == 0
+        assert parser.parse_args([*command, "--threads", "3"]).threads == 3
 
 
 def test_presets_and_config_dump(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:

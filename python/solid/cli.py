@@ -162,7 +162,7 @@ def _add_input_args(p: argparse.ArgumentParser, poses_required: bool = False) ->
     g.add_argument("--fov-center", type=any_float, default=None, metavar="DEG", help="centre of --fov (default 0 = +x, the same for every run; a warning says when the first scan has nothing there)")
     g.add_argument("--occlude", type=degrees, default=None, metavar="DEG", help="remove a sector this wide from every scan")
     g.add_argument("--occlude-center", type=any_float, default=None, metavar="DEG")
-    g.add_argument("--threads", type=pos_int, default=None, help="threads for describing (default: every core)")
+    g.add_argument("--threads", type=nonneg_int, default=0, help="threads for describing (default 0: one per core)")
 
 
 def _formats() -> list[str]:
@@ -356,7 +356,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("sequence", type=Path)
     p.add_argument("--scans", dest="n_frames", type=pos_int, default=200, help="scans to load, from the first (default 200)")
     p.add_argument("--db-size", type=pos_int, default=None, help="search a database of this many entries (descriptors repeated)")
-    p.add_argument("--threads", type=pos_int, default=None, help="threads for the batch describe (default: every core)")
+    p.add_argument("--threads", type=nonneg_int, default=0, help="threads for the batch describe (default 0: one per core)")
     p.add_argument("--format", choices=_formats(), help="force the scan reader")
     p.add_argument("--topic", help="point-cloud topic of a bag")
     _add_config_args(p)
