@@ -212,11 +212,10 @@ class PipelineConfig:
             inp = InputOptions(**sections["input"])
         except TypeError as e:
             raise _solid.ConfigError(f"{where}: {e}") from None
-        evaluation = dict(sections["evaluation"])
-        for k, v in evaluation.items():
-            if not (_is_number(v) and math.isfinite(v) and v > 0):
-                raise _solid.ConfigError(f"{where}: invalid evaluation.{k} = {v!r}: expected {_EVALUATION_KEYS[k]}")
-        return cls(descriptor=desc, detector=det, input=inp, preset_name=preset, **evaluation)
+        try:  # __post_init__ checks the evaluation keys; the message gains the file's name
+            return cls(descriptor=desc, detector=det, input=inp, preset_name=preset, **sections["evaluation"])
+        except _solid.ConfigError as e:
+            raise _solid.ConfigError(f"{where}: {e}") from None
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON layout of the module docstring, every field written out."""
