@@ -92,27 +92,18 @@ def _table_type(f: dict[str, Any]) -> Callable[[str], Any]:
     return _number(float, f["expected"], lambda v: (v > lo if lo_open else v >= lo) and v <= hi)
 
 
-def _default_text(f: dict[str, Any], per_preset: set[str]) -> str:
-    if f["name"] in per_preset:
-        return "the preset's"
-    v = f["default"]
-    if isinstance(v, bool):
-        return "on" if v else "off"
-    return f"{v:g}" if isinstance(v, float) else str(v)
-
-
 def _add_table_args(g: Any, table: str, per_preset: AbcSet[str] = frozenset(), prefix: str = "", defaults: dict[str, Any] | None = None) -> None:
     """One flag per field of a core parameter table (`--prefix-name-with-dashes`, dest
     `prefix_name`), with its doc line, true default (`defaults` where given, else the table's) and
     range; switches get `--name` and `--no-name`."""
-    from .config import param_table
+    from .config import default_text, param_table
 
     for f in param_table(table):
         if defaults is not None and f["name"] in defaults:
             f = {**f, "default": defaults[f["name"]]}
         dest = prefix + f["name"]
         flags = ["--" + dest.replace("_", "-"), *_FLAG_ALIASES.get(dest, [])]
-        help = f"{f['doc'].rstrip('.')} (default: {_default_text(f, set(per_preset))})"
+        help = f"{f['doc'].rstrip('.')} (default: {default_text(f, per_preset)})"
         if f["type"] == "bool":
             g.add_argument(*flags, dest=dest, action=argparse.BooleanOptionalAction, default=None, help=help)
         elif f["type"] == "str":
