@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import csv
 import json
 import os
 import signal
@@ -13,27 +12,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import data_dir
+from conftest import data_dir, read_csv, run
 
 import solid
 from solid import io as sio
 from solid import sim, transforms
-from solid.cli import build_parser, main
+from solid.cli import build_parser
 from solid.records import LOOP_COLUMNS
-
-
-def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
-    try:
-        code = main(list(argv))
-    except SystemExit as e:
-        code = int(e.code) if isinstance(e.code, int) else 1
-    cap = capsys.readouterr()
-    return code, cap.out, cap.err
-
-
-def read_csv(path: Path) -> list[dict[str, str]]:
-    with open(path, newline="") as f:
-        return list(csv.DictReader(f))
 
 
 def test_help_and_usage_errors(capsys: pytest.CaptureFixture[str]) -> None:
