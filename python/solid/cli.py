@@ -167,6 +167,22 @@ def _add_common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--debug", action="store_true", help="show tracebacks for errors")
 
 
+def _add_run_head(p: argparse.ArgumentParser, map_help: str) -> None:
+    """The first arguments of a command that runs the detector over a recording (detect, eval,
+    optimize): the recording, the output folder and a prior map (what it is for: `map_help`)."""
+    p.add_argument("sequence", type=Path)
+    p.add_argument("-o", "--output", type=Path, default=None, help="output folder (must not exist or be empty)")
+    p.add_argument("--map", type=Path, metavar="FILE", help=map_help)
+
+
+def _add_run_tail(p: argparse.ArgumentParser, *, poses_required: bool) -> None:
+    """The option groups of such a command: descriptor, detector, input, common."""
+    _add_config_args(p)
+    _add_detector_args(p)
+    _add_input_args(p, poses_required=poses_required)
+    _add_common(p)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argparse parser of the ``solid`` command."""
     try:
@@ -207,14 +223,9 @@ def build_parser() -> argparse.ArgumentParser:
         "  solid detect run.bag --topic /points --preset os1-64 --threshold 0.08 -o out/\n"
         "  solid detect run2/ --map run1.soliddb          # against a prior session's map\n",
     )
-    p.add_argument("sequence", type=Path)
-    p.add_argument("-o", "--output", type=Path, default=None, help="output folder (must not exist or be empty)")
-    p.add_argument("--map", type=Path, metavar="FILE", help="a map from `solid map build`: query this recording against it")
+    _add_run_head(p, "a map from `solid map build`: query this recording against it")
     p.add_argument("--g2o", type=Path, metavar="FILE", help="also write the pose graph (a vertex per frame, odometry and loop edges; needs --poses) in g2o form (must not exist)")
-    _add_config_args(p)
-    _add_detector_args(p)
-    _add_input_args(p)
-    _add_common(p)
+    _add_run_tail(p, poses_required=False)
 
     p = sub.add_parser(
         "eval",
@@ -227,9 +238,7 @@ def build_parser() -> argparse.ArgumentParser:
         "\nThe exclusion window counts frames of the evaluated selection (after --frames/--subsample-m).\n"
         "A relative --poses path is looked up inside SEQUENCE when it is not in the current folder.\n",
     )
-    p.add_argument("sequence", type=Path)
-    p.add_argument("-o", "--output", type=Path, default=None, help="output folder (must not exist or be empty)")
-    p.add_argument("--map", type=Path, metavar="FILE", help="a map from `solid map build` (with poses): score against it too")
+    _add_run_head(p, "a map from `solid map build` (with poses): score against it too")
     w = p.add_mutually_exclusive_group()
     w.add_argument("--anchor", type=Path, metavar="FILE", help="with --map: this session's world → the map's world (anchor.txt of `solid optimize --map`; default: estimated from the verified loops into the map)")
     w.add_argument("--same-world", action="store_true", help="with --map: this session's poses are already in the map's world")
@@ -238,10 +247,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--sc-max-range", type=pos_float, default=None, metavar="M", help="Scan Context max range (default 80, as the reference)")
     p.add_argument("--sc-lidar-height", type=any_float, default=None, metavar="M", help="added to z before the max height (default 2.0)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
-    _add_config_args(p)
-    _add_detector_args(p)
-    _add_input_args(p, poses_required=True)
-    _add_common(p)
+    _add_run_tail(p, poses_required=True)
 
     p = sub.add_parser(
         "optimize",
@@ -254,9 +260,7 @@ def build_parser() -> argparse.ArgumentParser:
         "\nWrites trajectory.kitti/.tum (optimised, in the frame of --poses), graph.g2o, loops.csv,\n"
         "trajectory.png, metrics.json; with --map also anchor.txt and trajectory_map.kitti/.tum. See docs/slam.md.\n",
     )
-    p.add_argument("sequence", type=Path)
-    p.add_argument("-o", "--output", type=Path, default=None, help="output folder (must not exist or be empty)")
-    p.add_argument("--map", type=Path, metavar="FILE", help="a map from `solid map build` (with poses): anchor this session in its world")
+    _add_run_head(p, "a map from `solid map build` (with poses): anchor this session in its world")
     p.add_argument("--truth", type=Path, metavar="FILE", help="ground-truth poses of the recording (KITTI or TUM): ATE and RPE in metrics.json")
     from .slam import ROBUST_SCHEMES, OdometryNoise
 
@@ -268,10 +272,7 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--odom-sigma-deg", type=pos_float, default=None, metavar="DEG", help=f"rotation σ floor, degrees (default {on.rotation_floor_deg:g})")
     g.add_argument("--odom-sigma-deg-per-m", type=_number(float, "a finite number >= 0", lambda v: math.isfinite(v) and v >= 0), default=None, metavar="DEG", help=f"rotation σ per metre travelled, degrees (default {on.rotation_deg_per_m:g})")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plot")
-    _add_config_args(p)
-    _add_detector_args(p)
-    _add_input_args(p, poses_required=True)
-    _add_common(p)
+    _add_run_tail(p, poses_required=True)
 
     p = sub.add_parser(
         "demo",
