@@ -269,7 +269,7 @@ class LoopDetector:
         Args:
             scans: Point arrays (as `solid.describe` accepts), or Descriptors made with the
                 detector's configuration (verification off).
-            threads: Workers describing and preparing the scans (None: every core).
+            threads: Workers describing and preparing the scans (None or 0: one per core).
             progress: Called with 1 after each step (for a progress bar); what it raises stops
                 the batch there, as an interrupt does.
             timestamps: One per scan (None entries: none), or None for none at all.

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv
 import multiprocessing
 import os
 import warnings
@@ -63,3 +64,20 @@ def in_forked_child(target: Callable[..., None], *args: Any, what: str, timeout:
         pytest.fail(f"{what} hung in a forked child")
     assert child.exitcode == 0
     return ours.recv()
+
+
+def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
+    """``solid ARGV`` in this process: its exit code (1 for an exit without a number), stdout, stderr."""
+    from solid.cli import main
+
+    try:
+        code = main(list(argv))
+    except SystemExit as e:
+        code = int(e.code) if isinstance(e.code, int) else 1
+    cap = capsys.readouterr()
+    return code, cap.out, cap.err
+
+
+def read_csv(path: Path) -> list[dict[str, str]]:
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import csv
 import json
 import os
 import signal
@@ -13,27 +12,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import data_dir
+from conftest import data_dir, read_csv, run
 
 import solid
 from solid import io as sio
 from solid import sim, transforms
-from solid.cli import main
+from solid.cli import build_parser
 from solid.records import LOOP_COLUMNS
-
-
-def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
-    try:
-        code = main(list(argv))
-    except SystemExit as e:
-        code = int(e.code) if isinstance(e.code, int) else 1
-    cap = capsys.readouterr()
-    return code, cap.out, cap.err
-
-
-def read_csv(path: Path) -> list[dict[str, str]]:
-    with open(path, newline="") as f:
-        return list(csv.DictReader(f))
 
 
 def test_help_and_usage_errors(capsys: pytest.CaptureFixture[str]) -> None:
@@ -78,6 +63,15 @@ def test_out_of_range_options_are_usage_errors(capsys: pytest.CaptureFixture[str
     code, _, err = run(capsys, *argv)
     assert code == 2, err
     assert "Traceback" not in err and err.strip().splitlines()[-1].startswith("solid ")
+
+
+def test_threads_zero_is_one_per_core_as_in_the_api() -> None:
+    """Issue 29: --threads reads as every API's thread count (0, the default: one per core)."""
+    parser = build_parser()
+    for command in (["detect", "s", "--preset", "avia"], ["bench", "s", "--preset", "avia"]):
+        assert parser.parse_args(command).threads == 0
+        assert parser.parse_args([*command, "--threads", "0"]).threads == 0
+        assert parser.parse_args([*command, "--threads", "3"]).threads == 3
 
 
 def test_presets_and_config_dump(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:

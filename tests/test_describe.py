@@ -315,7 +315,18 @@ def test_describe_batch_names_the_bad_scan() -> None:
     with pytest.raises(solid.SolidError, match=r"scans\[1\]"):
         solid.describe_batch([good, np.zeros((5, 2), np.float32)], HDL64)
     with pytest.raises(solid.SolidError, match="threads"):
-        solid.describe_batch([good], HDL64, threads=0)
+        solid.describe_batch([good], HDL64, threads=-1)
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self/task"), reason="reads thread names from Linux's /proc")
+def test_zero_threads_mean_one_per_core_as_everywhere(data: Path) -> None:
+    # Issue 29: one meaning of a thread count (as verify_threads and the CLI's --threads): 0 is
+    # None's pool, one worker per core.
+    scans = [read_kitti(p) for p in sorted((data / "kitti00" / "velodyne").glob("*.bin"))]
+    want = [d.r.tolist() for d in solid.describe_batch(scans, HDL64)]
+    workers = _describe_workers()
+    assert [d.r.tolist() for d in solid.describe_batch(scans, HDL64, threads=0)] == want
+    assert _describe_workers() == workers, "threads=0 started another pool than None's"
 
 
 def test_python_threads_share_the_extension_safely(data: Path) -> None:

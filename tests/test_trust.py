@@ -4,7 +4,6 @@ is honoured or refused, eval's suggestion reproduces what eval counted)."""
 
 from __future__ import annotations
 
-import csv
 import json
 import shlex
 from pathlib import Path
@@ -12,30 +11,16 @@ from typing import Any
 
 import numpy as np
 import pytest
-from conftest import data_dir
+from conftest import data_dir, read_csv, run
 
 import solid
-from solid.cli import build_parser, main
+from solid.cli import build_parser
 from solid.config import PipelineConfig, param_table, per_preset_fields
 from solid.evaluation import evaluate_candidates
 from solid.pipeline import LoopClosurePipeline
 from solid.records import LOOP_COLUMNS
 
 STRETCH = ["--frames", "0:40,260:314"]
-
-
-def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
-    try:
-        code = main(list(argv))
-    except SystemExit as e:
-        code = int(e.code) if isinstance(e.code, int) else 1
-    cap = capsys.readouterr()
-    return code, cap.out, cap.err
-
-
-def read_csv(path: Path) -> list[dict[str, str]]:
-    with open(path, newline="") as f:
-        return list(csv.DictReader(f))
 
 
 def _line(i: float) -> list[list[float]]:

@@ -26,7 +26,7 @@ from pathlib import Path
 from collections.abc import Callable
 from typing import Any
 
-from solid.config import param_table, per_preset_fields
+from solid.config import default_text, param_table, per_preset_fields
 
 ROOT = Path(__file__).resolve().parent.parent
 STUB = ROOT / "python" / "solid" / "_solid.pyi"
@@ -158,16 +158,13 @@ def render(text: str) -> str:
 
 
 def _doc_default(f: dict[str, Any], per_preset: set[str]) -> str:
+    """`default_text` (as the flags' help says it), with where the sensor's and the presets' are."""
     if f["required"]:
         return "none (the sensor's)"
-    if f["name"] in per_preset:
-        return "the preset's loop threshold (§4)" if f["name"] == "threshold" else "the preset's (§4)"
-    v = f["default"]
-    if isinstance(v, bool):
-        return "on" if v else "off"
-    if isinstance(v, float) and math.isinf(v):
-        return "∞ (no limit)"
-    return repr(v)
+    if f["name"] == "threshold" and f["name"] in per_preset:
+        return "the preset's loop threshold (§4)"
+    text = default_text(f, per_preset)
+    return f"{text} (§4)" if f["name"] in per_preset else text
 
 
 def _num(x: float) -> str:

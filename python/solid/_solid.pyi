@@ -855,7 +855,7 @@ def describe_batch(
         Args:
             scans: Point arrays, each as `describe` accepts (float32 and float64 may be mixed).
             config: The descriptor configuration.
-            threads: Worker threads, at most one per core; None uses every core, 1 the
+            threads: Worker threads, at most one per core; None or 0 one per core, 1 the
                 calling thread. The workers persist from one call to the next, each keeping its
                 scratch buffers.
 
@@ -865,7 +865,7 @@ def describe_batch(
         Raises:
             TypeError: `scans` is not iterable, or an element is not a float32/float64 numpy array.
             SolidError: An element has the wrong shape or layout (named as `scans[i]`), or
-                `threads` is 0.
+                `threads` is negative.
     """
 
 
@@ -1537,7 +1537,7 @@ class LoopDetector:
         Args:
             scans: Point arrays (as `solid.describe` accepts), or Descriptors made with the
                 detector's configuration (verification off).
-            threads: Workers describing and preparing the scans (None: every core).
+            threads: Workers describing and preparing the scans (None or 0: one per core).
             progress: Called with 1 after each step (for a progress bar); what it raises stops
                 the batch there, as an interrupt does.
             timestamps: One per scan (None entries: none), or None for none at all.

@@ -92,27 +92,18 @@ def _table_type(f: dict[str, Any]) -> Callable[[str], Any]:
     return _number(float, f["expected"], lambda v: (v > lo if lo_open else v >= lo) and v <= hi)
 
 
-def _default_text(f: dict[str, Any], per_preset: set[str]) -> str:
-    if f["name"] in per_preset:
-        return "the preset's"
-    v = f["default"]
-    if isinstance(v, bool):
-        return "on" if v else "off"
-    return f"{v:g}" if isinstance(v, float) else str(v)
-
-
 def _add_table_args(g: Any, table: str, per_preset: AbcSet[str] = frozenset(), prefix: str = "", defaults: dict[str, Any] | None = None) -> None:
     """One flag per field of a core parameter table (`--prefix-name-with-dashes`, dest
     `prefix_name`), with its doc line, true default (`defaults` where given, else the table's) and
     range; switches get `--name` and `--no-name`."""
-    from .config import param_table
+    from .config import default_text, param_table
 
     for f in param_table(table):
         if defaults is not None and f["name"] in defaults:
             f = {**f, "default": defaults[f["name"]]}
         dest = prefix + f["name"]
         flags = ["--" + dest.replace("_", "-"), *_FLAG_ALIASES.get(dest, [])]
-        help = f"{f['doc'].rstrip('.')} (default: {_default_text(f, set(per_preset))})"
+        help = f"{f['doc'].rstrip('.')} (default: {default_text(f, per_preset)})"
         if f["type"] == "bool":
             g.add_argument(*flags, dest=dest, action=argparse.BooleanOptionalAction, default=None, help=help)
         elif f["type"] == "str":
@@ -162,7 +153,7 @@ def _add_input_args(p: argparse.ArgumentParser, poses_required: bool = False) ->
     g.add_argument("--fov-center", type=any_float, default=None, metavar="DEG", help="centre of --fov (default 0 = +x, the same for every run; a warning says when the first scan has nothing there)")
     g.add_argument("--occlude", type=degrees, default=None, metavar="DEG", help="remove a sector this wide from every scan")
     g.add_argument("--occlude-center", type=any_float, default=None, metavar="DEG")
-    g.add_argument("--threads", type=pos_int, default=None, help="threads for describing (default: every core)")
+    g.add_argument("--threads", type=nonneg_int, default=0, help="threads for describing (default 0: one per core)")
 
 
 def _formats() -> list[str]:
@@ -174,6 +165,22 @@ def _formats() -> list[str]:
 def _add_common(p: argparse.ArgumentParser) -> None:
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
     p.add_argument("--debug", action="store_true", help="show tracebacks for errors")
+
+
+def _add_run_head(p: argparse.ArgumentParser, map_help: str) -> None:
+    """The first arguments of a command that runs the detector over a recording (detect, eval,
+    optimize): the recording, the output folder and a prior map (what it is for: `map_help`)."""
+    p.add_argument("sequence", type=Path)
+    p.add_argument("-o", "--output", type=Path, default=None, help="output folder (must not exist or be empty)")
+    p.add_argument("--map", type=Path, metavar="FILE", help=map_help)
+
+
+def _add_run_tail(p: argparse.ArgumentParser, *, poses_required: bool) -> None:
+    """The option groups of such a command: descriptor, detector, input, common."""
+    _add_config_args(p)
+    _add_detector_args(p)
+    _add_input_args(p, poses_required=poses_required)
+    _add_common(p)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -216,14 +223,9 @@ def build_parser() -> argparse.ArgumentParser:
         "  solid detect run.bag --topic /points --preset os1-64 --threshold 0.08 -o out/\n"
         "  solid detect run2/ --map run1.soliddb          # against a prior session's map\n",
     )
-    p.add_argument("sequence", type=Path)
-    p.add_argument("-o", "--output", type=Path, default=None, help="output folder (must not exist or be empty)")
-    p.add_argument("--map", type=Path, metavar="FILE", help="a map from `solid map build`: query this recording against it")
+    _add_run_head(p, "a map from `solid map build`: query this recording against it")
     p.add_argument("--g2o", type=Path, metavar="FILE", help="also write the pose graph (a vertex per frame, odometry and loop edges; needs --poses) in g2o form (must not exist)")
-    _add_config_args(p)
-    _add_detector_args(p)
-    _add_input_args(p)
-    _add_common(p)
+    _add_run_tail(p, poses_required=False)
 
     p = sub.add_parser(
         "eval",
@@ -236,9 +238,7 @@ def build_parser() -> argparse.ArgumentParser:
         "\nThe exclusion window counts frames of the evaluated selection (after --frames/--subsample-m).\n"
         "A relative --poses path is looked up inside SEQUENCE when it is not in the current folder.\n",
     )
-    p.add_argument("sequence", type=Path)
-    p.add_argument("-o", "--output", type=Path, default=None, help="output folder (must not exist or be empty)")
-    p.add_argument("--map", type=Path, metavar="FILE", help="a map from `solid map build` (with poses): score against it too")
+    _add_run_head(p, "a map from `solid map build` (with poses): score against it too")
     w = p.add_mutually_exclusive_group()
     w.add_argument("--anchor", type=Path, metavar="FILE", help="with --map: this session's world → the map's world (anchor.txt of `solid optimize --map`; default: estimated from the verified loops into the map)")
     w.add_argument("--same-world", action="store_true", help="with --map: this session's poses are already in the map's world")
@@ -247,10 +247,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--sc-max-range", type=pos_float, default=None, metavar="M", help="Scan Context max range (default 80, as the reference)")
     p.add_argument("--sc-lidar-height", type=any_float, default=None, metavar="M", help="added to z before the max height (default 2.0)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
-    _add_config_args(p)
-    _add_detector_args(p)
-    _add_input_args(p, poses_required=True)
-    _add_common(p)
+    _add_run_tail(p, poses_required=True)
 
     p = sub.add_parser(
         "optimize",
@@ -263,9 +260,7 @@ def build_parser() -> argparse.ArgumentParser:
         "\nWrites trajectory.kitti/.tum (optimised, in the frame of --poses), graph.g2o, loops.csv,\n"
         "trajectory.png, metrics.json; with --map also anchor.txt and trajectory_map.kitti/.tum. See docs/slam.md.\n",
     )
-    p.add_argument("sequence", type=Path)
-    p.add_argument("-o", "--output", type=Path, default=None, help="output folder (must not exist or be empty)")
-    p.add_argument("--map", type=Path, metavar="FILE", help="a map from `solid map build` (with poses): anchor this session in its world")
+    _add_run_head(p, "a map from `solid map build` (with poses): anchor this session in its world")
     p.add_argument("--truth", type=Path, metavar="FILE", help="ground-truth poses of the recording (KITTI or TUM): ATE and RPE in metrics.json")
     from .slam import ROBUST_SCHEMES, OdometryNoise
 
@@ -277,10 +272,7 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--odom-sigma-deg", type=pos_float, default=None, metavar="DEG", help=f"rotation σ floor, degrees (default {on.rotation_floor_deg:g})")
     g.add_argument("--odom-sigma-deg-per-m", type=_number(float, "a finite number >= 0", lambda v: math.isfinite(v) and v >= 0), default=None, metavar="DEG", help=f"rotation σ per metre travelled, degrees (default {on.rotation_deg_per_m:g})")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plot")
-    _add_config_args(p)
-    _add_detector_args(p)
-    _add_input_args(p, poses_required=True)
-    _add_common(p)
+    _add_run_tail(p, poses_required=True)
 
     p = sub.add_parser(
         "demo",
@@ -356,7 +348,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("sequence", type=Path)
     p.add_argument("--scans", dest="n_frames", type=pos_int, default=200, help="scans to load, from the first (default 200)")
     p.add_argument("--db-size", type=pos_int, default=None, help="search a database of this many entries (descriptors repeated)")
-    p.add_argument("--threads", type=pos_int, default=None, help="threads for the batch describe (default: every core)")
+    p.add_argument("--threads", type=nonneg_int, default=0, help="threads for the batch describe (default 0: one per core)")
     p.add_argument("--format", choices=_formats(), help="force the scan reader")
     p.add_argument("--topic", help="point-cloud topic of a bag")
     _add_config_args(p)

@@ -34,13 +34,14 @@ import math
 import os
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
+from collections.abc import Set as AbcSet
 from typing import Any, Union
 
 from . import _solid
 from .errors import ConfigFileError
 from .outputs import atomic_write_bytes
 
-__all__ = ["ConfigFileError", "InputOptions", "PipelineConfig", "descriptor_fields", "detector_fields", "param_table", "per_preset_fields"]
+__all__ = ["ConfigFileError", "InputOptions", "PipelineConfig", "default_text", "descriptor_fields", "detector_fields", "param_table", "per_preset_fields"]
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -62,6 +63,22 @@ def param_table(name: str) -> list[dict[str, Any]]:
     ``min_open`` or ``choices``), ``expected`` (the range in words), ``rule``, ``required``,
     ``default`` and ``doc``. The command-line flags and the stub are made from it."""
     return _solid._param_table(name)
+
+
+def default_text(field: dict[str, Any], per_preset: AbcSet[str] = frozenset()) -> str:
+    """A table field's default as the flags' help and the docs' tables write it: "the preset's"
+    for a field each preset sets, on/off for a switch, "∞ (no limit)", a name in double quotes,
+    else the number in its shortest exact form (3, 0.5)."""
+    if field["name"] in per_preset:
+        return "the preset's"
+    v = field["default"]
+    if isinstance(v, bool):
+        return "on" if v else "off"
+    if isinstance(v, float):
+        if math.isinf(v):
+            return "∞ (no limit)"
+        return f"{v:g}" if float(f"{v:g}") == v else repr(v)
+    return json.dumps(v) if isinstance(v, str) else str(v)
 
 
 def per_preset_fields() -> set[str]:
@@ -212,11 +229,10 @@ class PipelineConfig:
             inp = InputOptions(**sections["input"])
         except TypeError as e:
             raise _solid.ConfigError(f"{where}: {e}") from None
-        evaluation = dict(sections["evaluation"])
-        for k, v in evaluation.items():
-            if not (_is_number(v) and math.isfinite(v) and v > 0):
-                raise _solid.ConfigError(f"{where}: invalid evaluation.{k} = {v!r}: expected {_EVALUATION_KEYS[k]}")
-        return cls(descriptor=desc, detector=det, input=inp, preset_name=preset, **evaluation)
+        try:  # __post_init__ checks the evaluation keys; the message gains the file's name
+            return cls(descriptor=desc, detector=det, input=inp, preset_name=preset, **sections["evaluation"])
+        except _solid.ConfigError as e:
+            raise _solid.ConfigError(f"{where}: {e}") from None
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON layout of the module docstring, every field written out."""

@@ -176,8 +176,8 @@ class LoopClosurePipeline:
         on_scan: Callable[[int, F32], None] | None = None,
         chunk: int = 64,
     ) -> None:
-        if threads is not None and threads < 1:
-            raise _solid.ConfigError(f"threads must be >= 1, got {threads}")
+        if threads is not None and threads < 0:
+            raise _solid.ConfigError(f"threads must be >= 0 (0: one per core), got {threads}")
         if chunk < 1:
             raise _solid.ConfigError(f"chunk must be >= 1, got {chunk}")
         self.dataset = dataset

@@ -9,7 +9,7 @@ use solid_lidar::params::{Field, Kind, Params, Value};
 use solid_lidar::reg::{Gate, RegConfig};
 use solid_lidar::Config;
 
-use crate::{guard, nonnull, out, release, string, Failure, SolidStatus};
+use crate::{guard, new_handle, nonnull, out, put, release, string, Failure, SolidStatus};
 
 /// A parameter set whose fields C reads and writes by name: the core's tables
 /// ([`solid_lidar::params`]), and for the detector, its registration and gate tables under
@@ -51,37 +51,33 @@ fn slot<'a, P: Params>(set: &'a mut P, name: &str) -> Option<Box<dyn AnySlot + '
     Some(Box::new(Slot { set, field }))
 }
 
-impl Named for Config {
-    fn slot<'a>(&'a mut self, name: &str) -> Option<Box<dyn AnySlot + 'a>> {
-        slot(self, name)
-    }
-    fn check(&self) -> Result<(), Failure> {
-        Ok(self.validate()?)
-    }
+/// `Named` for parameter sets with a `validate` method, the field `$name` found by `$slot`.
+macro_rules! named {
+    ($($set:ty => |$me:ident, $name:ident| $slot:expr;)*) => {$(
+        impl Named for $set {
+            fn slot<'a>(&'a mut self, $name: &str) -> Option<Box<dyn AnySlot + 'a>> {
+                let $me = self;
+                $slot
+            }
+            fn check(&self) -> Result<(), Failure> {
+                Ok(self.validate()?)
+            }
+        }
+    )*};
 }
 
-impl Named for RegConfig {
-    fn slot<'a>(&'a mut self, name: &str) -> Option<Box<dyn AnySlot + 'a>> {
-        slot(self, name)
-    }
-    fn check(&self) -> Result<(), Failure> {
-        Ok(self.validate()?)
-    }
-}
-
-impl Named for DetectorConfig {
-    fn slot<'a>(&'a mut self, name: &str) -> Option<Box<dyn AnySlot + 'a>> {
+named! {
+    Config => |set, name| slot(set, name);
+    RegConfig => |set, name| slot(set, name);
+    DetectorConfig => |set, name| {
         if let Some(n) = name.strip_prefix("registration.") {
-            return slot(&mut self.verify.registration, n);
+            return slot(&mut set.verify.registration, n);
         }
         if let Some(n) = name.strip_prefix("gate.") {
-            return slot::<Gate>(&mut self.verify.gate, n);
+            return slot::<Gate>(&mut set.verify.gate, n);
         }
-        slot(self, name)
-    }
-    fn check(&self) -> Result<(), Failure> {
-        Ok(self.validate()?)
-    }
+        slot(set, name)
+    };
 }
 
 fn unknown(name: &str) -> Failure {
@@ -141,6 +137,68 @@ fn get_by_name<P: Named>(p: &P, name: &str) -> Result<f64, Failure> {
     }
 }
 
+/// A configuration handle: the parameter set it holds.
+trait Handle {
+    type Set: Named;
+    fn params(&self) -> &Self::Set;
+    fn params_mut(&mut self) -> &mut Self::Set;
+}
+
+macro_rules! handles {
+    ($($handle:ty => $set:ty;)*) => {$(
+        impl Handle for $handle {
+            type Set = $set;
+            fn params(&self) -> &$set {
+                &self.cfg
+            }
+            fn params_mut(&mut self) -> &mut $set {
+                &mut self.cfg
+            }
+        }
+    )*};
+}
+
+handles! {
+    SolidConfig => Config;
+    SolidDetectorConfig => DetectorConfig;
+    SolidRegConfig => RegConfig;
+}
+
+/// The body of the `*_set` and `*_set_name` entry points `what`: parameter `name` of `handle`
+/// set by `set` to `value()` (taken before the name, as the messages expect).
+unsafe fn set_entry<H: Handle, V>(
+    what: &str,
+    handle: *mut H,
+    name: *const c_char,
+    value: impl FnOnce() -> Result<V, Failure>,
+    set: fn(&mut H::Set, &str, V) -> Result<(), Failure>,
+) -> SolidStatus {
+    guard(what, || {
+        let c = out(handle, "config")?;
+        let v = value()?;
+        set(c.params_mut(), string(name, "name")?, v)
+    })
+}
+
+/// A name argument of a `*_set_name` entry point, as a parameter value.
+unsafe fn name_value<'a>(value: *const c_char) -> Result<Value<'a>, Failure> {
+    Ok(Value::Name(string(value, "value")?))
+}
+
+/// The body of the `*_get` entry point `what`: parameter `name` of `handle` into `*value`.
+unsafe fn get_entry<H: Handle>(
+    what: &str,
+    handle: *const H,
+    name: *const c_char,
+    value: *mut f64,
+) -> SolidStatus {
+    guard(what, || {
+        let c = nonnull(handle, "config")?;
+        let v = get_by_name(c.params(), string(name, "name")?)?;
+        put(value, "value", v)
+    })
+}
+
 /// The descriptor's parameters (docs/spec.md §1: `n_range`, `n_azimuth`, `n_elevation`, `fov_up`,
 /// `fov_down`, `min_range`, `max_range`, `voxel_size`).
 ///
@@ -175,11 +233,9 @@ pub unsafe extern "C" fn solid_config_new(
     preset: *const c_char,
     out_config: *mut *mut SolidConfig,
 ) -> SolidStatus {
-    guard("solid_config_new", || {
-        let o = out(out_config, "out_config")?;
+    new_handle("solid_config_new", out_config, "out_config", || {
         let cfg = Config::preset(string(preset, "preset")?)?;
-        crate::give(o, SolidConfig { cfg });
-        Ok(())
+        Ok(SolidConfig { cfg })
     })
 }
 
@@ -198,10 +254,7 @@ pub unsafe extern "C" fn solid_config_set(
     name: *const c_char,
     value: f64,
 ) -> SolidStatus {
-    guard("solid_config_set", || {
-        let c = out(config, "config")?;
-        set_by_name(&mut c.cfg, string(name, "name")?, value)
-    })
+    set_entry("solid_config_set", config, name, || Ok(value), set_by_name)
 }
 
 /// Reads descriptor parameter `name` into `*value`.
@@ -211,12 +264,7 @@ pub unsafe extern "C" fn solid_config_get(
     name: *const c_char,
     value: *mut f64,
 ) -> SolidStatus {
-    guard("solid_config_get", || {
-        let c = nonnull(config, "config")?;
-        let v = get_by_name(&c.cfg, string(name, "name")?)?;
-        *out(value, "value")? = v;
-        Ok(())
-    })
+    get_entry("solid_config_get", config, name, value)
 }
 
 /// The lengths of the R-SOLiD (`n_range`) and A-SOLiD (`n_azimuth`) vectors of this
@@ -242,12 +290,15 @@ pub unsafe extern "C" fn solid_detector_config_new(
     preset: *const c_char,
     out_config: *mut *mut SolidDetectorConfig,
 ) -> SolidStatus {
-    guard("solid_detector_config_new", || {
-        let o = out(out_config, "out_config")?;
-        let cfg = DetectorConfig::for_preset(string(preset, "preset")?)?;
-        crate::give(o, SolidDetectorConfig { cfg });
-        Ok(())
-    })
+    new_handle(
+        "solid_detector_config_new",
+        out_config,
+        "out_config",
+        || {
+            let cfg = DetectorConfig::for_preset(string(preset, "preset")?)?;
+            Ok(SolidDetectorConfig { cfg })
+        },
+    )
 }
 
 /// Releases a detector configuration (NULL: nothing).
@@ -264,10 +315,13 @@ pub unsafe extern "C" fn solid_detector_config_set(
     name: *const c_char,
     value: f64,
 ) -> SolidStatus {
-    guard("solid_detector_config_set", || {
-        let c = out(config, "config")?;
-        set_by_name(&mut c.cfg, string(name, "name")?, value)
-    })
+    set_entry(
+        "solid_detector_config_set",
+        config,
+        name,
+        || Ok(value),
+        set_by_name,
+    )
 }
 
 /// Reads detector parameter `name` into `*value` (booleans as 0 or 1).
@@ -277,12 +331,7 @@ pub unsafe extern "C" fn solid_detector_config_get(
     name: *const c_char,
     value: *mut f64,
 ) -> SolidStatus {
-    guard("solid_detector_config_get", || {
-        let c = nonnull(config, "config")?;
-        let v = get_by_name(&c.cfg, string(name, "name")?)?;
-        *out(value, "value")? = v;
-        Ok(())
-    })
+    get_entry("solid_detector_config_get", config, name, value)
 }
 
 /// Sets detector parameter `name`, whose values are names, to `value` (such as
@@ -293,25 +342,22 @@ pub unsafe extern "C" fn solid_detector_config_set_name(
     name: *const c_char,
     value: *const c_char,
 ) -> SolidStatus {
-    guard("solid_detector_config_set_name", || {
-        let c = out(config, "config")?;
-        let v = Value::Name(string(value, "value")?);
-        set_value(&mut c.cfg, string(name, "name")?, v)
-    })
+    set_entry(
+        "solid_detector_config_set_name",
+        config,
+        name,
+        || name_value(value),
+        set_value,
+    )
 }
 
 /// Makes registration's defaults in `*out`; release it with [`solid_reg_config_free`].
 #[no_mangle]
 pub unsafe extern "C" fn solid_reg_config_new(out_config: *mut *mut SolidRegConfig) -> SolidStatus {
-    guard("solid_reg_config_new", || {
-        let o = out(out_config, "out_config")?;
-        crate::give(
-            o,
-            SolidRegConfig {
-                cfg: RegConfig::default(),
-            },
-        );
-        Ok(())
+    new_handle("solid_reg_config_new", out_config, "out_config", || {
+        Ok(SolidRegConfig {
+            cfg: RegConfig::default(),
+        })
     })
 }
 
@@ -328,10 +374,13 @@ pub unsafe extern "C" fn solid_reg_config_set(
     name: *const c_char,
     value: f64,
 ) -> SolidStatus {
-    guard("solid_reg_config_set", || {
-        let c = out(config, "config")?;
-        set_by_name(&mut c.cfg, string(name, "name")?, value)
-    })
+    set_entry(
+        "solid_reg_config_set",
+        config,
+        name,
+        || Ok(value),
+        set_by_name,
+    )
 }
 
 /// Sets registration parameter `name`, whose values are names, to `value` (`factor`: `"gicp"`
@@ -342,11 +391,13 @@ pub unsafe extern "C" fn solid_reg_config_set_name(
     name: *const c_char,
     value: *const c_char,
 ) -> SolidStatus {
-    guard("solid_reg_config_set_name", || {
-        let c = out(config, "config")?;
-        let v = Value::Name(string(value, "value")?);
-        set_value(&mut c.cfg, string(name, "name")?, v)
-    })
+    set_entry(
+        "solid_reg_config_set_name",
+        config,
+        name,
+        || name_value(value),
+        set_value,
+    )
 }
 
 /// Reads registration parameter `name` into `*value`.
@@ -356,10 +407,5 @@ pub unsafe extern "C" fn solid_reg_config_get(
     name: *const c_char,
     value: *mut f64,
 ) -> SolidStatus {
-    guard("solid_reg_config_get", || {
-        let c = nonnull(config, "config")?;
-        let v = get_by_name(&c.cfg, string(name, "name")?)?;
-        *out(value, "value")? = v;
-        Ok(())
-    })
+    get_entry("solid_reg_config_get", config, name, value)
 }

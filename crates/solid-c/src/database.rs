@@ -7,7 +7,8 @@ use std::sync::RwLock;
 use solid_lidar::db::{Database, Method};
 
 use crate::config::SolidConfig;
-use crate::{guard, nonnull, out, pose_3x4, read, release, slice, slice_mut, string, write};
+use crate::{guard, new_handle, nonnull, out, pose_3x4, put, read, release, slice, slice_mut};
+use crate::{string, write};
 use crate::{Failure, SolidStatus};
 
 /// A growable database of places with exact search at every size.
@@ -15,6 +16,14 @@ use crate::{Failure, SolidStatus};
 /// Threads: may be shared; searches run in parallel, an add waits for them and runs alone.
 pub struct SolidDatabase {
     pub(crate) db: RwLock<Database>,
+}
+
+impl From<Database> for SolidDatabase {
+    fn from(db: Database) -> SolidDatabase {
+        SolidDatabase {
+            db: RwLock::new(db),
+        }
+    }
 }
 
 /// One neighbour found by [`solid_database_search`].
@@ -34,16 +43,8 @@ pub unsafe extern "C" fn solid_database_new(
     config: *const SolidConfig,
     out_database: *mut *mut SolidDatabase,
 ) -> SolidStatus {
-    guard("solid_database_new", || {
-        let o = out(out_database, "out_database")?;
-        let db = Database::new(nonnull(config, "config")?.cfg)?;
-        crate::give(
-            o,
-            SolidDatabase {
-                db: RwLock::new(db),
-            },
-        );
-        Ok(())
+    new_handle("solid_database_new", out_database, "out_database", || {
+        Ok(Database::new(nonnull(config, "config")?.cfg)?.into())
     })
 }
 
@@ -60,16 +61,8 @@ pub unsafe extern "C" fn solid_database_load(
     path: *const c_char,
     out_database: *mut *mut SolidDatabase,
 ) -> SolidStatus {
-    guard("solid_database_load", || {
-        let o = out(out_database, "out_database")?;
-        let db = Database::load(string(path, "path")?)?;
-        crate::give(
-            o,
-            SolidDatabase {
-                db: RwLock::new(db),
-            },
-        );
-        Ok(())
+    new_handle("solid_database_load", out_database, "out_database", || {
+        Ok(Database::load(string(path, "path")?)?.into())
     })
 }
 
@@ -95,8 +88,7 @@ pub unsafe extern "C" fn solid_database_len(
 ) -> SolidStatus {
     guard("solid_database_len", || {
         let n = read(&nonnull(database, "database")?.db)?.len();
-        *out(len, "len")? = n;
-        Ok(())
+        put(len, "len", n)
     })
 }
 

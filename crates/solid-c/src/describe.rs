@@ -7,7 +7,7 @@ use solid_lidar::{cosine_distance, describe, describe_scratch_len, heading, head
 use solid_lidar::{Config, Scratch};
 
 use crate::config::SolidConfig;
-use crate::{guard, nonnull, out, points, release, slice, slice_mut, with_points};
+use crate::{guard, new_handle, nonnull, points, put, release, slice, slice_mut, with_points};
 use crate::{Failure, SolidPoints, SolidStatus};
 
 /// What one description kept of the scan.
@@ -39,19 +39,19 @@ pub unsafe extern "C" fn solid_describer_new(
     config: *const SolidConfig,
     out_describer: *mut *mut SolidDescriber,
 ) -> SolidStatus {
-    guard("solid_describer_new", || {
-        let o = out(out_describer, "out_describer")?;
-        let cfg = nonnull(config, "config")?.cfg;
-        cfg.validate()?;
-        crate::give(
-            o,
-            SolidDescriber {
+    new_handle(
+        "solid_describer_new",
+        out_describer,
+        "out_describer",
+        || {
+            let cfg = nonnull(config, "config")?.cfg;
+            cfg.validate()?;
+            Ok(SolidDescriber {
                 cfg,
                 scratch: Mutex::new(Vec::new()),
-            },
-        );
-        Ok(())
-    })
+            })
+        },
+    )
 }
 
 /// Releases a describer (NULL: nothing).
@@ -116,11 +116,8 @@ pub unsafe extern "C" fn solid_distance(
     distance: *mut f64,
 ) -> SolidStatus {
     guard("solid_distance", || {
-        let q = slice(r_query, len, "r_query")?;
-        let c = slice(r_candidate, len, "r_candidate")?;
-        let d = cosine_distance(q, c)?;
-        *out(distance, "distance")? = d;
-        Ok(())
+        let (q, c) = pair(r_query, r_candidate, len, ["r_query", "r_candidate"])?;
+        put(distance, "distance", cosine_distance(q, c)?)
     })
 }
 
@@ -137,14 +134,28 @@ pub unsafe extern "C" fn solid_heading(
     heading_deg: *mut f64,
 ) -> SolidStatus {
     guard("solid_heading", || {
-        let q = slice(a_query, len, "a_query")?;
-        let c = slice(a_candidate, len, "a_candidate")?;
+        let (q, c) = pair(a_query, a_candidate, len, ["a_query", "a_candidate"])?;
         let h = if refine {
             heading_refined(q, c)?
         } else {
             heading(q, c)?
         };
-        *out(heading_deg, "heading_deg")? = h.degrees;
-        Ok(())
+        put(heading_deg, "heading_deg", h.degrees)
     })
+}
+
+/// The query's and the candidate's vectors of `len` values, named as the arguments.
+///
+/// # Safety
+/// As [`slice`].
+unsafe fn pair<'a>(
+    query: *const f32,
+    candidate: *const f32,
+    len: usize,
+    names: [&str; 2],
+) -> Result<(&'a [f32], &'a [f32]), Failure> {
+    Ok((
+        slice(query, len, names[0])?,
+        slice(candidate, len, names[1])?,
+    ))
 }

@@ -10,7 +10,8 @@ use solid_lidar::db::{Loop, LoopDetector, Scan};
 
 use crate::config::{SolidConfig, SolidDetectorConfig};
 use crate::database::{entry, optional_pose, SolidDatabase};
-use crate::{flat_pose, guard, nonnull, out, points, read, release, string, with_points, write};
+use crate::{flat_pose, guard, new_handle, nonnull, out, points, put, read, release, string};
+use crate::{with_points, write};
 use crate::{Failure, SolidPoints, SolidStatus};
 
 /// A loop detector and its database of places.
@@ -98,9 +99,11 @@ fn flat6(m: &[[f64; 6]; 6]) -> [f64; 36] {
     core::array::from_fn(|k| m[k / 6][k % 6])
 }
 
-fn detector(det: LoopDetector) -> SolidDetector {
-    SolidDetector {
-        det: RwLock::new(det),
+impl From<LoopDetector> for SolidDetector {
+    fn from(det: LoopDetector) -> SolidDetector {
+        SolidDetector {
+            det: RwLock::new(det),
+        }
     }
 }
 
@@ -113,12 +116,10 @@ pub unsafe extern "C" fn solid_detector_new(
     detector_config: *const SolidDetectorConfig,
     out_detector: *mut *mut SolidDetector,
 ) -> SolidStatus {
-    guard("solid_detector_new", || {
-        let o = out(out_detector, "out_detector")?;
+    new_handle("solid_detector_new", out_detector, "out_detector", || {
         let cfg = nonnull(config, "config")?.cfg;
         let dcfg = nonnull(detector_config, "detector_config")?.cfg;
-        crate::give(o, detector(LoopDetector::new(cfg, dcfg)?));
-        Ok(())
+        Ok(LoopDetector::new(cfg, dcfg)?.into())
     })
 }
 
@@ -131,13 +132,16 @@ pub unsafe extern "C" fn solid_detector_from_database(
     detector_config: *const SolidDetectorConfig,
     out_detector: *mut *mut SolidDetector,
 ) -> SolidStatus {
-    guard("solid_detector_from_database", || {
-        let o = out(out_detector, "out_detector")?;
-        let db = read(&nonnull(database, "database")?.db)?.clone();
-        let dcfg = nonnull(detector_config, "detector_config")?.cfg;
-        crate::give(o, detector(LoopDetector::with_database(db, dcfg)?));
-        Ok(())
-    })
+    new_handle(
+        "solid_detector_from_database",
+        out_detector,
+        "out_detector",
+        || {
+            let db = read(&nonnull(database, "database")?.db)?.clone();
+            let dcfg = nonnull(detector_config, "detector_config")?.cfg;
+            Ok(LoopDetector::with_database(db, dcfg)?.into())
+        },
+    )
 }
 
 /// Releases a detector (NULL: nothing).
@@ -155,11 +159,9 @@ pub unsafe extern "C" fn solid_detector_prepare(
     points_in: *const SolidPoints,
     out_scan: *mut *mut SolidScan,
 ) -> SolidStatus {
-    guard("solid_detector_prepare", || {
-        let o = out(out_scan, "out_scan")?;
+    new_handle("solid_detector_prepare", out_scan, "out_scan", || {
         let scan = prepare(nonnull(detector, "detector")?, points_in)?;
-        crate::give(o, SolidScan { scan });
-        Ok(())
+        Ok(SolidScan { scan })
     })
 }
 
@@ -248,8 +250,7 @@ pub unsafe extern "C" fn solid_detector_len(
 ) -> SolidStatus {
     guard("solid_detector_len", || {
         let n = read(&nonnull(detector, "detector")?.det)?.database().len();
-        *out(len, "len")? = n;
-        Ok(())
+        put(len, "len", n)
     })
 }
 

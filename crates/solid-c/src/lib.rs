@@ -318,15 +318,38 @@ pub(crate) unsafe fn string<'a>(p: *const c_char, name: &str) -> Result<&'a str,
         .map_err(|_| Failure::arg(format!("{name} is not UTF-8")))
 }
 
-/// Moves `value` into a new handle written to `*out`.
-pub(crate) fn give<T>(out: &mut *mut T, value: T) {
-    *out = Box::into_raw(Box::new(value));
-}
-
-/// Releases a handle made by [`give`] (NULL: nothing).
+/// Writes `value` to the output `p` named `name`.
 ///
 /// # Safety
-/// `p` is NULL or came from [`give`] and is not used afterwards.
+/// As [`out`].
+pub(crate) unsafe fn put<T>(p: *mut T, name: &str, value: T) -> Result<(), Failure> {
+    *out(p, name)? = value;
+    Ok(())
+}
+
+/// The body of the entry point `what` that makes a handle: checks the output `handle` named
+/// `name` (nothing is made for NULL), then writes to it a new handle holding what `make` returns
+/// (see [`guard`]). Release it with [`release`].
+///
+/// # Safety
+/// As [`out`].
+pub(crate) unsafe fn new_handle<T>(
+    what: &str,
+    handle: *mut *mut T,
+    name: &str,
+    make: impl FnOnce() -> Result<T, Failure>,
+) -> SolidStatus {
+    guard(what, || {
+        let o = out(handle, name)?;
+        *o = Box::into_raw(Box::new(make()?));
+        Ok(())
+    })
+}
+
+/// Releases a handle made by [`new_handle`] (NULL: nothing).
+///
+/// # Safety
+/// `p` is NULL or came from [`new_handle`] and is not used afterwards.
 pub(crate) unsafe fn release<T>(p: *mut T) {
     if !p.is_null() {
         drop(Box::from_raw(p));

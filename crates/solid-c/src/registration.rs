@@ -5,7 +5,7 @@ use solid_lidar::reg::{register, PreparedCloud, RegConfig, IDENTITY};
 
 use crate::config::SolidRegConfig;
 use crate::SolidStatus;
-use crate::{flat_pose, guard, nonnull, out, points, pose_3x4, release, with_points};
+use crate::{flat_pose, guard, new_handle, nonnull, out, points, pose_3x4, release, with_points};
 
 /// A point cloud prepared for registration (about 105 bytes a point kept).
 ///
@@ -56,13 +56,11 @@ pub unsafe extern "C" fn solid_cloud_new(
     config: *const SolidRegConfig,
     out_cloud: *mut *mut SolidCloud,
 ) -> SolidStatus {
-    guard("solid_cloud_new", || {
-        let o = out(out_cloud, "out_cloud")?;
+    new_handle("solid_cloud_new", out_cloud, "out_cloud", || {
         let cfg = reg_config(config);
         let pts = points(points_in)?;
         let cloud = with_points!(pts, |p| PreparedCloud::new(p, &cfg))?;
-        crate::give(o, SolidCloud { cloud });
-        Ok(())
+        Ok(SolidCloud { cloud })
     })
 }
 

@@ -23,8 +23,6 @@ use alloc::boxed::Box;
 use alloc::format;
 use alloc::string::{String, ToString};
 
-use crate::Error;
-
 /// One pool, in a list that only grows.
 struct Entry {
     /// The process that started it.
@@ -223,37 +221,42 @@ pub(crate) fn scan_helpers() -> Option<Threads> {
     parallel("solid-helper")
 }
 
-/// The threads of the pool for a batch of `jobs` jobs when a caller asks for `threads` (`None`:
-/// one per core), or `None` when one thread does (a single job or a single thread): at most one
-/// per core, since more only adds switching. The pool has the threads asked for even when there
-/// are fewer jobs (the jobs then take fewer of them): one pool per size asked, not one per batch
-/// length. Ask [`pool_of`] for it.
-///
-/// # Errors
-/// [`Error::InvalidParameter`] for `threads = Some(0)`.
-pub fn batch_threads(threads: Option<usize>, jobs: usize) -> Result<Option<usize>, Error> {
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    batch_threads_of(threads, jobs, cores)
+/// What a count of threads means in every API (Rust, the Python keywords, the C setters, the CLI
+/// flags): 0 asks for one thread per core, any other number for that many.
+pub const ONE_PER_CORE: usize = 0;
+
+/// The threads a count asks for on this machine: its cores for [`ONE_PER_CORE`], else the count.
+pub fn threads_asked(threads: usize) -> usize {
+    threads_on(threads, cores())
+}
+
+/// This machine's cores (1 when unknown).
+fn cores() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get())
+}
+
+/// [`threads_asked`] on a machine of `cores` cores.
+fn threads_on(threads: usize, cores: usize) -> usize {
+    if threads == ONE_PER_CORE {
+        cores
+    } else {
+        threads
+    }
+}
+
+/// The threads of the pool for a batch of `jobs` jobs when a caller asks for `threads`
+/// ([`ONE_PER_CORE`] or a count), or `None` when one thread does (a single job or a single
+/// thread): at most one per core, since more only adds switching. The pool has the threads asked
+/// for even when there are fewer jobs (the jobs then take fewer of them): one pool per size
+/// asked, not one per batch length. Ask [`pool_of`] for it.
+pub fn batch_threads(threads: usize, jobs: usize) -> Option<usize> {
+    batch_threads_of(threads, jobs, cores())
 }
 
 /// [`batch_threads`] on a machine of `cores` cores.
-fn batch_threads_of(
-    threads: Option<usize>,
-    jobs: usize,
-    cores: usize,
-) -> Result<Option<usize>, Error> {
-    let threads = match threads {
-        Some(0) => {
-            return Err(Error::invalid(
-                "threads",
-                0.0,
-                "at least 1 (or None for every core)",
-            ))
-        }
-        Some(t) => t.min(cores),
-        None => cores,
-    };
-    Ok((threads.min(jobs) > 1).then_some(threads))
+fn batch_threads_of(threads: usize, jobs: usize, cores: usize) -> Option<usize> {
+    let threads = threads_on(threads, cores).min(cores);
+    (threads.min(jobs) > 1).then_some(threads)
 }
 
 #[cfg(test)]
@@ -262,28 +265,28 @@ mod tests {
 
     #[test]
     fn a_batch_gets_the_threads_asked_for_at_most_one_per_core() {
-        assert_eq!(batch_threads_of(None, 100, 8), Ok(Some(8)));
-        assert_eq!(batch_threads_of(Some(3), 100, 8), Ok(Some(3)));
-        assert_eq!(batch_threads_of(Some(64), 100, 8), Ok(Some(8)));
+        assert_eq!(batch_threads_of(ONE_PER_CORE, 100, 8), Some(8));
+        assert_eq!(batch_threads_of(3, 100, 8), Some(3));
+        assert_eq!(batch_threads_of(64, 100, 8), Some(8));
         // Fewer jobs than threads: the pool of the size asked (one per size, not per batch).
-        assert_eq!(batch_threads_of(None, 2, 8), Ok(Some(8)));
+        assert_eq!(batch_threads_of(ONE_PER_CORE, 2, 8), Some(8));
     }
 
     #[test]
     fn one_job_or_one_thread_runs_on_the_caller() {
-        assert_eq!(batch_threads_of(None, 1, 8), Ok(None));
-        assert_eq!(batch_threads_of(None, 0, 8), Ok(None));
-        assert_eq!(batch_threads_of(Some(1), 100, 8), Ok(None));
-        assert_eq!(batch_threads_of(None, 100, 1), Ok(None));
+        assert_eq!(batch_threads_of(ONE_PER_CORE, 1, 8), None);
+        assert_eq!(batch_threads_of(ONE_PER_CORE, 0, 8), None);
+        assert_eq!(batch_threads_of(1, 100, 8), None);
+        assert_eq!(batch_threads_of(ONE_PER_CORE, 100, 1), None);
     }
 
     #[test]
-    fn zero_threads_are_refused_by_name() {
-        let e = batch_threads_of(Some(0), 100, 8).unwrap_err();
-        assert_eq!(
-            e.to_string(),
-            "invalid threads = 0: expected at least 1 (or None for every core)"
-        );
-        assert!(batch_threads(Some(0), 1).is_err());
+    fn zero_threads_ask_for_one_per_core() {
+        assert_eq!(ONE_PER_CORE, 0);
+        assert_eq!(threads_on(0, 6), 6);
+        assert_eq!(threads_on(1, 6), 1);
+        assert_eq!(threads_on(9, 6), 9);
+        assert!(threads_asked(0) >= 1);
+        assert_eq!(threads_asked(0), cores());
     }
 }

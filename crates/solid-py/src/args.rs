@@ -170,7 +170,7 @@ int_args! {
 }
 
 opt_int_args! {
-    /// Worker threads (None: every core).
+    /// Worker threads (None or 0: one per core, `solid_lidar::pool::ONE_PER_CORE`).
     threads: usize = "threads" in 0, usize::MAX;
     /// Points per frame of the rosette sensor.
     points: usize = "points" in 0, usize::MAX;

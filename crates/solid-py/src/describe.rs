@@ -205,7 +205,7 @@ fn describe(
 }
 
 /// The persistent pool of [`describe_batch`] (and the detector's batch) for `jobs` jobs asked to
-/// run on `threads` threads (None: every core), as the core sizes it
+/// run on `threads` threads (None or 0: one per core), as the core sizes it
 /// ([`solid_lidar::pool::batch_threads`]); `None`: run on this thread.
 ///
 /// A pool is built on first use and kept: a batch starts no thread, and each worker keeps its
@@ -219,7 +219,7 @@ pub(crate) fn batch_pool(
     threads: Option<usize>,
     jobs: usize,
 ) -> PyResult<Option<&'static rayon::ThreadPool>> {
-    let Some(threads) = pool::batch_threads(threads, jobs).map_err(core_err)? else {
+    let Some(threads) = pool::batch_threads(threads.unwrap_or(pool::ONE_PER_CORE), jobs) else {
         return Ok(None);
     };
     pool::pool_of("solid-describe", threads)
