@@ -105,9 +105,10 @@ def test_scoring_refuses_bad_input() -> None:
 
 
 def hku_pipeline(**detector: float) -> PipelineResult:
-    """The pipeline on hku1 (verification off unless asked: these tests are about the search)."""
+    """The pipeline on hku1 (verification off and the frames-only exclusion of docs/spec.md §5
+    unless asked: these tests are about the search and the protocol)."""
     seq = sio.Dataset(data_dir() / "hku1-avia", poses="odom_poses.txt")
-    return LoopClosurePipeline(seq, PipelineConfig.preset("avia", detector={"verify": False, **detector})).run()
+    return LoopClosurePipeline(seq, PipelineConfig.preset("avia", detector={"verify": False, "exclude_meters": 0.0, **detector})).run()
 
 
 def test_ground_truth_counts_match_the_data_readme() -> None:

@@ -20,7 +20,8 @@ from solid.evaluation import evaluate_candidates
 from solid.pipeline import LoopClosurePipeline
 from solid.records import LOOP_COLUMNS
 
-STRETCH = ["--frames", "0:40,260:314"]
+# The walk's start and its return: the path between them is not given, so no metres window.
+STRETCH = ["--frames", "0:40,260:314", "--exclude-m", "0"]
 
 
 def _line(i: float) -> list[list[float]]:
@@ -89,6 +90,7 @@ def test_evals_suggestion_reproduces_its_accepted_rows_exactly(capsys: pytest.Ca
     assert command in out
     argv = shlex.split(command)
     assert argv[:2] == ["solid", "detect"] and ("--gate-max-translation" in argv) == verify
+    assert argv[argv.index("--poses") + 1] == "odom_poses.txt"  # what the metres window reads
     assert run(capsys, *argv[1:], "-q", "-o", str(tmp_path / "d"))[0] == 0
     # queries.csv rounds scores to 6 decimals: membership at the best threshold is told by the
     # exact count eval made there, and by the rows' order of score.

@@ -441,6 +441,10 @@ def cmd_eval(args: argparse.Namespace, out: TextIO) -> int:
             kw["lidar_height"] = args.sc_lidar_height
         sc_cfg = ScanContextConfig(**kw)
     hint = ["solid", "detect", str(args.sequence)]
+    # The files the detector reads beside the scans (poses feed its metres window): the same run.
+    for name in ("format", "topic", "poses", "timestamps", "calib"):
+        if getattr(args, name) is not None:
+            hint += [f"--{name}", str(getattr(args, name))]
     if map_db is not None:
         hint += ["--map", str(args.map)]
     with _progress(args, len(ds), "eval") as bar:
