@@ -481,7 +481,8 @@ impl PyDatabase {
     }
 
     /// The compact cloud stored with place `id` (the wire form of `solid.encode_cloud`; decode
-    /// it with `solid.decode_cloud`), or None.
+    /// it with `solid.decode_cloud`), or None. A map loaded from a file reads it from the file
+    /// now, its checksum checked: a corrupt cloud raises DatabaseError naming the place.
     fn cloud<'py>(
         &self,
         py: Python<'py>,
@@ -496,7 +497,9 @@ impl PyDatabase {
             )));
         }
         let id: u32 = args::int_arg(id, "id", 0, n as i128 - 1)?;
-        let c = self.with(py, |db| db.cloud(id).map(<[u8]>::to_vec));
+        let c = self
+            .with(py, |db| db.try_cloud(id).map(|c| c.map(|b| b.into_owned())))
+            .map_err(core_err)?;
         Ok(c.map(|b| PyBytes::new(py, &b)))
     }
 
