@@ -46,6 +46,7 @@ class Database:
         session: int = 0,
         timestamp: float | None = None,
         pose: npt.ArrayLike | None = None,
+        cloud: bytes | bytearray | memoryview | None = None,
     ) -> int:
         """Adds one place, with the GIL released.
 
@@ -54,12 +55,15 @@ class Database:
                     session: The robot or run it comes from (an unsigned 32-bit integer).
                     timestamp: Seconds, or None for none (stored as NaN).
                     pose: `T_world_sensor` as a 3×4 array or 12 floats (row-major [R|t]), or None.
+                    cloud: The place's compact cloud for verification (`solid.encode_cloud` or
+                        `PreparedCloud.encode`, as `cloud` returns it), or None.
 
                 Returns:
                     The new entry's id.
 
                 Raises:
-                    DatabaseError: The descriptor was made with another configuration.
+                    DatabaseError: The descriptor was made with another configuration, or the
+                        cloud is not a valid compact cloud (its checksum).
                     ConfigError: A session outside 0..2**32-1, an infinite timestamp, or a pose
                         that is not finite or whose 3×3 part is not a rotation.
                     SolidError: A pose that is not 12 values or a 3×4 array.

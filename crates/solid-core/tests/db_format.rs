@@ -396,6 +396,15 @@ fn a_loaded_map_reads_its_clouds_on_demand_and_finds_a_corrupt_one_at_first_use(
     );
     assert_eq!(broken.cloud(3), None);
     assert_eq!(broken.cloud(4), db.cloud(4));
+    // Nor can it be added to a database.
+    let mut fresh = Database::new(cfg()).unwrap();
+    let mut corrupt = cloud.clone();
+    corrupt[cloud.len() / 2] ^= 0xFF;
+    let why = fresh
+        .add_with_cloud(&desc(&cfg(), 0), 0, f64::NAN, None, Some(&corrupt))
+        .unwrap_err()
+        .to_string();
+    assert!(why.contains("checksum") && fresh.is_empty(), "{why}");
     // Nothing copies it under a fresh checksum: saving or merging and saving is refused, and
     // the error names the place as the corrupt file numbers it.
     let out = dir.join("out.soliddb");

@@ -194,8 +194,8 @@ impl PyDatabase {
         Ok(PyDatabase::wrap(inner))
     }
 
-    /// Adds a descriptor; returns its id.
-    #[pyo3(signature = (descriptor, session=0, timestamp=None, pose=None))]
+    /// Adds a descriptor (with its compact cloud for verification, if given); returns its id.
+    #[pyo3(signature = (descriptor, session=0, timestamp=None, pose=None, cloud=None))]
     fn add(
         &self,
         py: Python<'_>,
@@ -203,11 +203,16 @@ impl PyDatabase {
         #[pyo3(from_py_with = args::session)] session: u32,
         timestamp: Option<f64>,
         pose: Option<&Bound<'_, PyAny>>,
+        cloud: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<u32> {
         let pose = parse_pose(pose)?;
         let d = &descriptor.inner;
-        py.detach(|| write(&self.inner).add(d, session, args::timestamp(timestamp), pose))
-            .map_err(core_err)
+        let cloud = cloud.map(|c| args::bytes_arg(c, "cloud")).transpose()?;
+        let cloud = cloud.as_ref().map(|c| c.as_bytes());
+        py.detach(|| {
+            write(&self.inner).add_with_cloud(d, session, args::timestamp(timestamp), pose, cloud)
+        })
+        .map_err(core_err)
     }
 
     /// Adds N entries at once: R-SOLiDs `r` (N, n_range) and A-SOLiDs `a` (N, n_azimuth)

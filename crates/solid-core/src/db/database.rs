@@ -130,7 +130,8 @@ impl Database {
     /// [`crate::reg::encode_cloud`]; see [`super::clouds`]).
     ///
     /// # Errors
-    /// As [`Database::add`]; on error nothing is added.
+    /// As [`Database::add`], and [`DbError::Format`] when [`crate::reg::check_cloud`] refuses
+    /// the cloud (a corrupt cloud is never stored); on error nothing is added.
     pub fn add_with_cloud(
         &mut self,
         d: &Descriptor,
@@ -140,6 +141,12 @@ impl Database {
         cloud: Option<&[u8]>,
     ) -> Result<u32, DbError> {
         self.check_fingerprint(d.fingerprint)?;
+        if let Some(Err(e)) = cloud.filter(|c| !c.is_empty()).map(crate::reg::check_cloud) {
+            return Err(DbError::Format {
+                file: None,
+                reason: alloc::format!("the cloud given with the place is invalid: {e}"),
+            });
+        }
         let id = self.len();
         self.clouds.push(id, cloud)?;
         self.add_vectors(&d.r, &d.a, session, timestamp, pose)
@@ -610,23 +617,41 @@ pub(super) struct Columns {
 impl Database {
     /// Takes the columns read from a file (checked by the reader, but for the R-SOLiDs: each
     /// value a bin can hold, each scale the one [`crate::search::inverse_norm`] gives, to the
-    /// bit); builds the index. Returns the entry of the first bad R-SOLiD and what is wrong.
+    /// bit); leaves the index to the searches ([`super::IndexPolicy::BySearches`]). Returns the
+    /// entry of the first bad R-SOLiD and what is wrong.
     pub(super) fn load_columns(
         &mut self,
         c: Columns,
     ) -> Result<Result<(), (usize, &'static str)>, DbError> {
         let nr = self.config.n_range;
-        for (i, (row, &scale)) in c.r.chunks_exact(nr).zip(&c.r_scale).enumerate() {
+        let bad_row = |row: &[f32], scale: f32| {
             if !row.iter().all(|v| super::format::is_bin_value(*v)) {
-                return Ok(Err((i, "negative or non-finite value in its R-SOLiD")));
+                return Some("negative or non-finite value in its R-SOLiD");
             }
             match crate::search::inverse_norm(row) {
-                Ok(want) if want.to_bits() == scale.to_bits() => {}
-                _ => {
-                    return Ok(Err((
-                        i,
-                        "its stored R-SOLiD norm does not match its values",
-                    )))
+                Ok(want) if want.to_bits() == scale.to_bits() => None,
+                _ => Some("its stored R-SOLiD norm does not match its values"),
+            }
+        };
+        // In chunks on every core; the first bad entry is looked for only when there is one.
+        let chunks =
+            c.r.chunks(CHUNK_ROWS * nr)
+                .zip(c.r_scale.chunks(CHUNK_ROWS));
+        let checked = in_chunks(chunks, c.r_scale.len(), |(rows, scales)| {
+            let bad = rows
+                .chunks_exact(nr)
+                .zip(scales)
+                .any(|(r, &s)| bad_row(r, s).is_some());
+            if bad {
+                Err(Error::Empty { what: "r_solid" })
+            } else {
+                Ok(())
+            }
+        });
+        if checked.is_err() {
+            for (i, (row, &scale)) in c.r.chunks_exact(nr).zip(&c.r_scale).enumerate() {
+                if let Some(why) = bad_row(row, scale) {
+                    return Ok(Err((i, why)));
                 }
             }
         }
@@ -639,7 +664,9 @@ impl Database {
         self.a_scale = c.a_scale;
         self.clouds = c.clouds;
         self.metadata = c.metadata;
-        self.build_index()?;
+        // As after a bulk add: the searches build the index once they have paid for it, a
+        // detector at its start; a map opened to be summed up, merged or saved never builds it.
+        self.index_by_searches = true;
         Ok(Ok(()))
     }
 }

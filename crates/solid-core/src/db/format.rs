@@ -383,7 +383,10 @@ impl Database {
     /// foreign, truncated or padded file is refused after reading at most its header (and, in
     /// version 3, its section table). In version 3 each section is read once, straight into the
     /// column it becomes, and the clouds stay in the file: the database keeps it open and reads a
-    /// place's cloud when it is asked for ([`Database::try_cloud`]).
+    /// place's cloud when it is asked for ([`Database::try_cloud`]). Its search index is left to
+    /// the searches, as after a bulk add ([`super::IndexPolicy::BySearches`]; a
+    /// [`super::LoopDetector`] builds it at its start): a map opened to be summed up, merged or
+    /// saved never builds it, and the searches before it are exact.
     ///
     /// # Errors
     /// [`DbError::Io`] naming the file when it cannot be read (for example, it does not exist,

@@ -340,6 +340,63 @@ fn read_section(
         each(&buf)?;
         done += take as u64;
     }
+    check_crc(src, sec, crc)
+}
+
+/// A value a column holds, stored little-endian.
+trait Le: bytemuck::Pod {
+    /// The value of the little-endian bytes `self` was read as (or the little-endian bytes of
+    /// `self`: swapping is its own inverse).
+    fn swap_le(self) -> Self;
+}
+
+macro_rules! le {
+    ($($t:ty => $bits:ty),*) => {$(
+        impl Le for $t {
+            fn swap_le(self) -> Self {
+                <$t>::from_bits(<$bits>::from_le(self.to_bits()))
+            }
+        }
+    )*};
+}
+le!(f32 => u32, f64 => u64);
+
+impl Le for u8 {
+    fn swap_le(self) -> Self {
+        self
+    }
+}
+
+impl Le for u64 {
+    fn swap_le(self) -> Self {
+        u64::from_le(self)
+    }
+}
+
+/// The column that section `sec` holds, read straight into its memory (huge pages for a large
+/// one, see `room`), a MiB at a time, each piece folded into the CRC while it is in the cache.
+fn column<T: Le>(src: &(impl Source + ?Sized), sec: Section) -> Result<Vec<T>, DbError> {
+    let n = sec.len as usize / core::mem::size_of::<T>();
+    let mut out: Vec<T> = Vec::new();
+    super::room::reserve(&mut out, n).map_err(|_| DbError::OutOfMemory)?;
+    out.resize(n, T::zeroed());
+    let bytes: &mut [u8] = bytemuck::cast_slice_mut(&mut out);
+    let mut crc = Crc32::default();
+    for (k, piece) in bytes.chunks_mut(CHUNK).enumerate() {
+        src.read_at(sec.offset + (k * CHUNK) as u64, piece)?;
+        crc.update(piece);
+    }
+    check_crc(src, sec, crc)?;
+    if cfg!(target_endian = "big") {
+        for v in &mut out {
+            *v = v.swap_le();
+        }
+    }
+    Ok(out)
+}
+
+/// Compares the CRC of section `sec`'s bytes with the one stored after them.
+fn check_crc(src: &(impl Source + ?Sized), sec: Section, crc: Crc32) -> Result<(), DbError> {
     let mut stored = [0u8; 4];
     src.read_at(sec.offset + sec.len, &mut stored)?;
     let (stored, actual) = (u32::from_le_bytes(stored), crc.finish());
@@ -350,24 +407,6 @@ fn read_section(
         )));
     }
     Ok(())
-}
-
-/// A column of little-endian `N`-byte values read from section `sec`.
-fn column<T, const N: usize>(
-    src: &(impl Source + ?Sized),
-    sec: Section,
-    from: fn([u8; N]) -> T,
-) -> Result<Vec<T>, DbError> {
-    let mut out = try_vec::<T>(sec.len as usize / N)?;
-    read_section(src, sec, N, |b| {
-        out.extend(b.chunks_exact(N).map(|c| {
-            let mut v = [0u8; N];
-            v.copy_from_slice(c);
-            from(v)
-        }));
-        Ok(())
-    })?;
-    Ok(out)
 }
 
 fn runs_of(src: &(impl Source + ?Sized), sec: Section) -> Result<Vec<Run>, DbError> {
@@ -419,17 +458,17 @@ pub(super) fn decode(
             .ok_or_else(|| bad(format!("the {} section is missing", name(k))))
     };
     let runs = runs_of(src, sec(SESSIONS)?)?;
-    let r = column(src, sec(R)?, f32::from_le_bytes)?;
-    let r_scale = column(src, sec(R_SCALE)?, f32::from_le_bytes)?;
-    let a_codes = column(src, sec(A_CODES)?, |[b]: [u8; 1]| b)?;
-    let a_scale = column(src, sec(A_STEP)?, f32::from_le_bytes)?;
+    let r = column::<f32>(src, sec(R)?)?;
+    let r_scale = column::<f32>(src, sec(R_SCALE)?)?;
+    let a_codes = column::<u8>(src, sec(A_CODES)?)?;
+    let a_scale = column::<f32>(src, sec(A_STEP)?)?;
     if let Some(i) = a_scale.iter().position(|s| !is_bin_value(*s)) {
         return Err(bad(format!(
             "entry {i}: negative or non-finite value in its A-SOLiD"
         )));
     }
     let timestamps = match l.get(TIMES) {
-        Some(s) => column(src, s, f64::from_le_bytes)?,
+        Some(s) => column::<f64>(src, s)?,
         None => {
             let mut t = try_vec::<f64>(n)?;
             t.resize(n, f64::NAN);
@@ -466,7 +505,7 @@ pub(super) fn decode(
     let sessions = sessions_of(&runs, n, &timestamps, &poses)?;
     let clouds = match (l.get(CLOUD_OFFSETS), l.get(CLOUDS)) {
         (Some(o), Some(c)) => {
-            let offsets = column(src, o, u64::from_le_bytes)?;
+            let offsets = column::<u64>(src, o)?;
             let ok = offsets.first() == Some(&0)
                 && offsets.windows(2).all(|w| w[0] <= w[1])
                 && offsets.last() == Some(&c.len);
@@ -739,20 +778,20 @@ pub(super) fn encode(
                     w.put(&b)?;
                 }
             }
-            R => w.values(db.r_all(), |v| v.to_le_bytes())?,
-            R_SCALE => w.values(db.r_scales(), |v| v.to_le_bytes())?,
+            R => w.values(db.r_all())?,
+            R_SCALE => w.values(db.r_scales())?,
             A_CODES => w.put(db.a_codes())?,
-            A_STEP => w.values(db.a_steps(), |v| v.to_le_bytes())?,
-            TIMES => w.values(db.timestamps(), |v| v.to_le_bytes())?,
+            A_STEP => w.values(db.a_steps())?,
+            TIMES => w.values(db.timestamps())?,
             POSES => {
                 for id in 0..db.len() as u32 {
                     if let Some(p) = db.pose(id) {
                         w.put(&id.to_le_bytes())?;
-                        w.values(&p, |v| v.to_le_bytes())?;
+                        w.values(&p)?;
                     }
                 }
             }
-            CLOUD_OFFSETS => w.values(db.clouds.offsets(), |v| v.to_le_bytes())?,
+            CLOUD_OFFSETS => w.values(db.clouds.offsets())?,
             CLOUDS => db.clouds.each(|b| w.put(b))?,
             _ => w.put(db.metadata().as_bytes())?,
         }
@@ -795,16 +834,17 @@ impl<'a> SectionWriter<'a> {
         self.buf.extend_from_slice(b);
         Ok(())
     }
-    fn values<T: Copy, const N: usize>(
-        &mut self,
-        v: &[T],
-        to: fn(T) -> [u8; N],
-    ) -> Result<(), DbError> {
-        for &x in v {
-            if self.buf.len() + N > CHUNK {
-                self.flush()?;
+    /// Writes `v` little-endian (as it is in memory on a little-endian machine).
+    fn values<T: Le>(&mut self, v: &[T]) -> Result<(), DbError> {
+        if cfg!(target_endian = "little") {
+            for piece in v.chunks(CHUNK / core::mem::size_of::<T>().max(1)) {
+                self.put(bytemuck::cast_slice(piece))?;
             }
-            self.buf.extend_from_slice(&to(x));
+            return Ok(());
+        }
+        for &x in v {
+            // Swapping the bytes is its own inverse.
+            self.put(bytemuck::bytes_of(&x.swap_le()))?;
         }
         Ok(())
     }
