@@ -317,7 +317,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_truth_args(d)
     _add_common(d)
 
-    p = sub.add_parser("map", help="saved maps: build one from a recording, merge, inspect", formatter_class=fmt)
+    p = sub.add_parser("map", help="saved maps: build one from a recording, merge, inspect, upgrade", formatter_class=fmt)
     msub = p.add_subparsers(dest="map_command", metavar="ACTION", parser_class=_Parser)
     msub.required = True
     b = msub.add_parser(
