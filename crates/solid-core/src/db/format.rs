@@ -1,6 +1,6 @@
 //! The database file format: checksummed, little-endian, written atomically.
 //!
-//! Version 3 is written ([`super::lean`]: the columns as the database holds them, sections found
+//! Version 3 is written (docs/spec.md §13: the columns as the database holds them, sections found
 //! through a table, clouds read on demand); versions 2 and 1 are still read, and version 2 is
 //! written on request ([`Database::to_bytes_version`]).
 //!

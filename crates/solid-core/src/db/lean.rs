@@ -855,7 +855,8 @@ impl<'a> SectionWriter<'a> {
     }
 }
 
-/// What a database file holds, from its header and small sections alone (see [`summary`]).
+/// What a database file holds, from its header and small sections alone (see
+/// [`Database::summary`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Summary {
     /// Format version of the file.
