@@ -46,6 +46,7 @@ class Database:
         session: int = 0,
         timestamp: float | None = None,
         pose: npt.ArrayLike | None = None,
+        cloud: bytes | bytearray | memoryview | None = None,
     ) -> int:
         """Adds one place, with the GIL released.
 
@@ -54,12 +55,15 @@ class Database:
                     session: The robot or run it comes from (an unsigned 32-bit integer).
                     timestamp: Seconds, or None for none (stored as NaN).
                     pose: `T_world_sensor` as a 3×4 array or 12 floats (row-major [R|t]), or None.
+                    cloud: The place's compact cloud for verification (`solid.encode_cloud` or
+                        `PreparedCloud.encode`, as `cloud` returns it), or None.
 
                 Returns:
                     The new entry's id.
 
                 Raises:
-                    DatabaseError: The descriptor was made with another configuration.
+                    DatabaseError: The descriptor was made with another configuration, or the
+                        cloud is not a valid compact cloud (its checksum).
                     ConfigError: A session outside 0..2**32-1, an infinite timestamp, or a pose
                         that is not finite or whose 3×3 part is not a rotation.
                     SolidError: A pose that is not 12 values or a 3×4 array.
@@ -220,19 +224,54 @@ class Database:
         Raises:
             DatabaseError: `other` has another configuration.
         """
-    def save(self, path: str | PathLike[str]) -> None:
+    def save(self, path: str | PathLike[str], version: int = 3) -> None:
         """Writes the database to `path` (docs/spec.md §9), atomically: a temporary file in the
-                same folder, then a rename.
+                same folder, then a rename. Written as it is encoded: no copy of the whole file in
+                memory.
 
                 Args:
                     path: The file to write (replaced if it exists).
+                    version: The file format: 3 (the current one), or 2 for older readers (which
+                        keeps no `metadata`).
 
                 Raises:
+                    ConfigError: Another version.
+                    DatabaseError: A stored cloud read from the file this map was loaded from is
+                        corrupt (it is never written again under a fresh checksum); nothing is written.
                     OSError: The file cannot be written (the subclass matches the cause, with `filename`).
         """
     @staticmethod
+    def summary(path: str | PathLike[str]) -> dict[str, Any]:
+        """What a database file holds, read from its header, section table and small sections
+        alone in format 3 (neither descriptors nor clouds: fast at any size); older files are read
+        whole.
+
+        Args:
+            path: The file to read.
+
+        Returns:
+            A dict: ``version``, ``config`` (SolidConfig), ``fingerprint``, ``places``,
+            ``places_with_cloud``, ``cloud_bytes``, ``sessions`` (per session, by number: a dict of
+            ``session``, ``places``, ``with_pose``, ``first_time`` and ``last_time``, NaN when it has
+            no timestamp) and ``metadata``.
+
+        Raises:
+            DatabaseError: As `load`.
+            OSError: As `load`.
+        """
+    @property
+    def metadata(self) -> str:
+        """Free-form text saved with the database (format 3): `solid map build` records there how
+        its scans were clipped, as JSON. "" when none; set it to replace it (at most 1 MiB)."""
+    @metadata.setter
+    def metadata(self, text: str) -> None: ...
+    @staticmethod
     def load(path: str | PathLike[str]) -> Database:
         """Reads a database written by `save`, checking everything (docs/spec.md §9).
+
+                A file in format 3 is read in one pass, section by section, and its stored clouds
+                stay in the file: the database keeps it open and reads a place's cloud when
+                verification (or `cloud`) asks for it, checking that cloud's checksum then.
 
                 Args:
                     path: The file to read.
@@ -245,11 +284,18 @@ class Database:
                         (checksum), or invalid content; the message names the file and the reason.
                     OSError: The file cannot be read (FileNotFoundError, PermissionError, ...).
         """
-    def to_bytes(self) -> bytes:
+    def to_bytes(self, version: int = 3) -> bytes:
         """The database in its file format (docs/spec.md §9).
+
+                Args:
+                    version: The file format: 3 (the current one), or 2 for older readers.
 
                 Returns:
                     The bytes `save` would write.
+
+                Raises:
+                    ConfigError: Another version.
+                    DatabaseError: A stored cloud read from the map's file is corrupt.
         """
     @staticmethod
     def from_bytes(data: bytes | bytearray | memoryview) -> Database:
@@ -294,9 +340,11 @@ class Database:
             id: The place's id.
 
         Returns:
-            Its wire form (decode it with `solid.decode_cloud`), or None when it has none.
+            Its wire form (decode it with `solid.decode_cloud`), or None when it has none. A map
+            loaded from a file in format 3 reads it from the file now.
 
         Raises:
+            DatabaseError: The stored cloud is corrupt (its checksum), named by place and file.
             ConfigError: No place has this id (negative, beyond 64 bits, or `len(db)` and up).
             TypeError: An id that is not an integer (or a bool).
         """

@@ -373,3 +373,38 @@ def test_map_build_and_eval_across_two_simulated_sessions(capsys: pytest.Capture
     assert code == 1 and "run1.soliddb" in err
     code, out, err = run(capsys, "map", "build", str(s1), "--preset", "vlp16", "-o", str(tmp_path / "run1.soliddb"), "-q")
     assert code == 1 and "exists" in err
+
+
+def test_a_map_records_how_its_scans_were_clipped_and_upgrades_from_format_2(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """Issue 30 ("maps forget how they were made") and issue 31 (`map info` from the header,
+    `map upgrade`): the clip of `map build` is stored in the map, printed by `map info`, and a
+    query run that clips otherwise is warned."""
+    world = sim.World(seed=3)
+    sim.write_sequence(tmp_path / "seq", world, sim.Sensor("vlp16"), sim.Trajectory.loop(world, laps=0.1, spacing=3.0))
+    m = tmp_path / "m.soliddb"
+    code, out, err = run(capsys, "map", "build", str(tmp_path / "seq"), "--preset", "vlp16", "--fov", "90", "-o", str(m), "-q")
+    assert code == 0, err
+    code, out, err = run(capsys, "map", "info", str(m), "--json")
+    info = json.loads(out)
+    assert info["format_version"] == 3
+    assert info["clip"] == {"fov_deg": 90.0, "fov_center_deg": 0.0, "occlude_deg": None, "occlude_center_deg": None}
+    code, out, err = run(capsys, "map", "info", str(m))
+    assert "scans clipped: --fov 90° centred on 0°" in out, out
+    # The same clip: no warning; another: one warning naming both.
+    code, out, err = run(capsys, "detect", str(tmp_path / "seq"), "--map", str(m), "--fov", "90", "-o", str(tmp_path / "a"), "-q")
+    assert code == 0 and "was built with scans clipped" not in err, err
+    code, out, err = run(capsys, "detect", str(tmp_path / "seq"), "--map", str(m), "-o", str(tmp_path / "b"), "-q")
+    assert code == 0 and "was built with scans clipped as --fov 90° centred on 0°" in err and "none (full scans)" in err, err
+    # A map in format 2 holds no record; `map upgrade` rewrites it in format 3, same places.
+    db = solid.Database.load(m)
+    old = tmp_path / "old.soliddb"
+    db.save(old, version=2)
+    code, out, err = run(capsys, "map", "info", str(old), "--json")
+    assert json.loads(out)["format_version"] == 2 and json.loads(out)["clip"] is None
+    code, out, err = run(capsys, "map", "upgrade", str(old), "-o", str(tmp_path / "new.soliddb"))
+    assert code == 0 and "format 2 → 3" in out, err
+    new = solid.Database.load(tmp_path / "new.soliddb")
+    assert len(new) == len(db) and np.array_equal(new.r, db.r) and new.cloud(1) == db.cloud(1)
+    assert (tmp_path / "new.soliddb").stat().st_size < old.stat().st_size
+    code, out, err = run(capsys, "map", "upgrade", str(old))
+    assert code == 0 and json.loads(run(capsys, "map", "info", str(old), "--json")[1])["format_version"] == 3

@@ -135,7 +135,7 @@ def test_preparing_a_40m_point_cloud_under_4_gib_is_a_memory_error() -> None:
 def test_loading_a_1m_entry_file_under_1_gib_is_a_memory_error(tmp_path: Path, cfg: solid.SolidConfig) -> None:
     path = tmp_path / "big.soliddb"
     n, chunk = 1_000_000, 50_000
-    head = bytearray(solid.Database(cfg).to_bytes()[:96])
+    head = bytearray(solid.Database(cfg).to_bytes(version=2)[:96])  # a format-2 file, written by hand
     head[80:88] = struct.pack("<Q", n)
     crc = zlib.crc32(bytes(head))
     with open(path, "wb") as f:
@@ -312,7 +312,7 @@ def test_the_reserved_header_word_is_checked(cfg: solid.SolidConfig) -> None:
 @pytest.mark.parametrize("where", ["r", "a"])
 def test_from_bytes_refuses_negative_vectors(cfg: solid.SolidConfig, where: str) -> None:
     n = 3
-    b = bytearray(database(cfg, n).to_bytes())
+    b = bytearray(database(cfg, n).to_bytes(version=2))  # format-2 offsets
     at = 96 + n * 112 if where == "r" else len(b) - 8
     b[at : at + 4] = struct.pack("<f", -1.0)
     with pytest.raises(solid.DatabaseError, match="negative"):
@@ -322,7 +322,7 @@ def test_from_bytes_refuses_negative_vectors(cfg: solid.SolidConfig, where: str)
 
 
 def test_from_bytes_refuses_infinite_timestamps(cfg: solid.SolidConfig) -> None:
-    b = bytearray(database(cfg, 2).to_bytes())
+    b = bytearray(database(cfg, 2).to_bytes(version=2))  # format-2 offsets
     b[104:112] = struct.pack("<d", float("inf"))
     with pytest.raises(solid.DatabaseError, match="infinite timestamp"):
         solid.Database.from_bytes(with_crc(b))

@@ -250,32 +250,59 @@ def test_describe_output_uses_a_temporary_file_per_call(tmp_path: Path) -> None:
     assert errors == [] and [p.name for p in tmp_path.iterdir()] == ["d.json"]
 
 
-def _map_with_clouds(drive: Path, path: Path) -> solid.Database:
+def _map_with_clouds(drive: Path, path: Path, version: int = 3) -> solid.Database:
     ds = open_dataset(drive)
     det = solid.LoopDetector(solid.SolidConfig.preset("vlp16"))
     det.detect_many([ds[i] for i in range(6)])
     db = det.database
-    db.save(path)
+    db.save(path, version=version)
     return db
+
+
+def _corrupt_cloud_3(db: solid.Database, good: Path, bad: Path) -> None:
+    """Writes ``good`` with one byte of place 3's stored cloud flipped to ``bad``, every checksum of
+    the file itself right (format 2's whole-file CRC recomputed; format 3 does not cover the clouds
+    by a checksum it checks at load: each cloud has its own)."""
+    cloud = db.cloud(3)
+    assert cloud is not None
+    raw = bytearray(good.read_bytes())
+    at = bytes(raw).find(cloud)
+    raw[at + len(cloud) // 2] ^= 0xFF
+    if raw[8:12] == struct.pack("<I", 2):
+        raw[-4:] = struct.pack("<I", zlib.crc32(bytes(raw[:-4])))  # the file's own checksum is right again
+    bad.write_bytes(bytes(raw))
 
 
 def test_a_corrupt_inner_cloud_is_refused(capsys: pytest.CaptureFixture[str], drive: Path, tmp_path: Path) -> None:
     """Why: "A map with a corrupt inner cloud is accepted" by load, `map info`, `map merge` (which
-    re-signed it) and `detect --map`."""
-    db = _map_with_clouds(drive, tmp_path / "m.soliddb")
-    cloud = db.cloud(3)
-    assert cloud is not None
-    raw = bytearray((tmp_path / "m.soliddb").read_bytes())
-    at = bytes(raw).find(cloud)
-    raw[at + len(cloud) // 2] ^= 0xFF
-    raw[-4:] = struct.pack("<I", zlib.crc32(bytes(raw[:-4])))  # the file's own checksum is right again
+    re-signed it) and `detect --map`. (A map in format 2; format 3 finds it at first use, below.)"""
+    db = _map_with_clouds(drive, tmp_path / "m.soliddb", version=2)
     bad = tmp_path / "bad.soliddb"
-    bad.write_bytes(bytes(raw))
+    _corrupt_cloud_3(db, tmp_path / "m.soliddb", bad)
     with pytest.raises(solid.DatabaseError, match="cloud of place 3"):
         solid.Database.load(bad)
     for argv in (["map", "info", str(bad)], ["map", "merge", str(tmp_path / "m.soliddb"), str(bad), "-o", str(tmp_path / "merged.soliddb")]):
         code, _, err = run(capsys, *argv)
         assert code == 1 and "cloud of place 3" in err, err
+    assert not (tmp_path / "merged.soliddb").exists()
+
+
+def test_a_corrupt_inner_cloud_is_found_at_first_use(capsys: pytest.CaptureFixture[str], drive: Path, tmp_path: Path) -> None:
+    """Issue 31: a map in format 3 keeps its clouds in the file and reads one when verification
+    needs it, its checksum checked then: the map loads and `map info` reads only the header, but the
+    corrupt cloud is an error naming its place, and `map merge` (which copies clouds) still refuses
+    rather than sign it again."""
+    db = _map_with_clouds(drive, tmp_path / "m.soliddb")
+    bad = tmp_path / "bad.soliddb"
+    _corrupt_cloud_3(db, tmp_path / "m.soliddb", bad)
+    loaded = solid.Database.load(bad)
+    assert len(loaded) == len(db) and loaded.cloud(2) == db.cloud(2)
+    with pytest.raises(solid.DatabaseError, match="cloud of place 3"):
+        loaded.cloud(3)
+    code, out, err = run(capsys, "map", "info", str(bad))
+    assert code == 0 and f"{len(db)} places" in out, err
+    code, _, err = run(capsys, "map", "merge", str(tmp_path / "m.soliddb"), str(bad), "-o", str(tmp_path / "merged.soliddb"))
+    assert code == 1 and "cloud of place 3" in err, err
     assert not (tmp_path / "merged.soliddb").exists()
 
 

@@ -1,7 +1,7 @@
 """docs/spec.md and the library say the same thing wherever a machine can check it.
 
 The parameter table (§1: defaults and every validity rule), the fingerprint (§1), the presets
-(§4), the loop detector's rule (§8) and both binary layouts (§9, §10) are read from the page and
+(§4), the loop detector's rule (§8) and the binary layouts (§9, §10, §13) are read from the page and
 compared with what the library accepts and writes. A rule the page states in words this test does
 not know fails the test, so the page cannot say something that goes unchecked.
 """
@@ -334,6 +334,18 @@ def layout(n: int) -> list[tuple[str, str]]:
     return [(row[0], row[1]) for row in table(section(n))]
 
 
+def _five_places(session: Callable[[int], int]) -> tuple[solid.SolidConfig, solid.Database]:
+    """Five random places, the odd ones with a pose, place 3 without a timestamp."""
+    cfg = solid.SolidConfig.preset("avia", max_range=40.0)
+    db = solid.Database(cfg)
+    rng = np.random.default_rng(9)
+    for i in range(5):
+        d = _desc(cfg, rng.uniform(0, 3, cfg.n_range), rng.uniform(0, 3, cfg.n_azimuth))
+        pose = np.hstack([np.eye(3), np.array([[i], [2.0], [0.5]])]) if i % 2 else None
+        db.add(d, session=session(i), timestamp=None if i == 3 else 10.0 + i, pose=pose)
+    return cfg, db
+
+
 def test_the_database_file_is_laid_out_as_specified() -> None:
     assert layout(9) == [
         ("0", "8"),
@@ -351,14 +363,8 @@ def test_the_database_file_is_laid_out_as_specified() -> None:
         ("end − 4", "4"),
     ], "the §9 table changed: update the reader below to the new layout"
     magic = re.search(r"magic `(\w+)\\0`", section(9)).group(1).encode() + b"\0"  # type: ignore[union-attr]
-    cfg = solid.SolidConfig.preset("avia", max_range=40.0)
-    db = solid.Database(cfg)
-    rng = np.random.default_rng(9)
-    for i in range(5):
-        d = _desc(cfg, rng.uniform(0, 3, cfg.n_range), rng.uniform(0, 3, cfg.n_azimuth))
-        pose = np.hstack([np.eye(3), np.array([[i], [2.0], [0.5]])]) if i % 2 else None
-        db.add(d, session=i % 2, timestamp=None if i == 3 else 10.0 + i, pose=pose)
-    b = db.to_bytes()
+    cfg, db = _five_places(lambda i: i % 2)
+    b = db.to_bytes(version=2)
     n, nr, na = len(db), cfg.n_range, cfg.n_azimuth
 
     assert b[0:8] == magic
@@ -380,6 +386,55 @@ def test_the_database_file_is_laid_out_as_specified() -> None:
     np.testing.assert_array_equal(a, db.a)
     assert len(b) == at + 4 * n * (nr + na) + 4
     assert struct.unpack_from("<I", b, len(b) - 4)[0] == zlib.crc32(b[:-4])
+
+
+def test_the_database_file_version_3_is_laid_out_as_specified() -> None:
+    header, sections = section(13).split("| kind |", 1)
+    assert [(row[0], row[1]) for row in table(header)] == [
+        ("0", "8"),
+        ("8", "4"),
+        ("12", "4"),
+        ("16", "16"),
+        ("32", "40"),
+        ("72", "8"),
+        ("80", "8"),
+        ("88", "4"),
+        ("92", "4"),
+        ("96", "S × 32"),
+        ("96 + 32S", "4"),
+        ("100 + 32S", "…"),
+    ], "the §13 table changed: update the reader below to the new layout"
+    kinds = {int(row[0]): row[1] for row in table("| kind |" + sections)}
+    assert kinds == {1: "sessions", 2: "r", 3: "r_scale", 4: "a_codes", 5: "a_step", 6: "times", 7: "poses", 8: "cloud_offsets", 9: "clouds", 10: "metadata"}
+    cfg, db = _five_places(lambda i: i // 3)
+    db.metadata = "{}"
+    b = db.to_bytes()
+    n, nr, na = len(db), cfg.n_range, cfg.n_azimuth
+    assert struct.unpack_from("<3I", b, 8)[:2] == (3, 0)
+    assert struct.unpack_from("<4I", b, 16) == (nr, na, cfg.n_elevation, 0)
+    assert struct.unpack_from("<2Q", b, 72) == (cfg.fingerprint, n)
+    s, zero = struct.unpack_from("<2I", b, 88)
+    assert zero == 0 and struct.unpack_from("<I", b, 96 + 32 * s)[0] == zlib.crc32(b[: 96 + 32 * s])
+    at, got = 100 + 32 * s, {}
+    for k in range(s):
+        kind, zero, offset, length, items = struct.unpack_from("<2I3Q", b, 96 + 32 * k)
+        assert zero == 0 and offset == at
+        body = b[offset : offset + length]
+        assert struct.unpack_from("<I", b, offset + length)[0] == zlib.crc32(body)
+        got[kinds[kind]] = (body, items)
+        at = offset + length + 4
+    assert at == len(b) and list(got) == ["sessions", "r", "r_scale", "a_codes", "a_step", "times", "poses", "metadata"]
+    runs = [struct.unpack_from("<4I2d", got["sessions"][0], 32 * k) for k in range(got["sessions"][1])]
+    assert [r[:4] for r in runs] == [(0, 3, 1, 0), (1, 2, 1, 0)] and runs[1][4:] == (14.0, 14.0)
+    np.testing.assert_array_equal(np.frombuffer(got["r"][0], "<f4").reshape(n, nr), db.r)
+    norms = np.frombuffer(got["r_scale"][0], "<f4")
+    np.testing.assert_allclose(norms, 1 / np.linalg.norm(db.r.astype(np.float64), axis=1), rtol=1e-6)
+    codes = np.frombuffer(got["a_codes"][0], "u1").reshape(n, na)
+    steps = np.frombuffer(got["a_step"][0], "<f4")
+    np.testing.assert_array_equal(codes * steps[:, None], db.a)
+    np.testing.assert_array_equal(np.frombuffer(got["times"][0], "<f8"), db.timestamps)
+    assert got["poses"][1] == 2 and struct.unpack_from("<I12d", got["poses"][0], 100)[0] == 3
+    assert got["metadata"][0] == b"{}"
 
 
 def test_the_place_wire_form_is_laid_out_as_specified() -> None:

@@ -10,13 +10,20 @@ fuzz_target!(|data: &[u8]| {
     let Ok(db) = Database::from_bytes(data) else {
         return;
     };
-    let bytes = db.to_bytes();
+    // A stored cloud is checked when it is read: one that is corrupt is refused by the encoder.
+    let Ok(bytes) = db.to_bytes() else {
+        return;
+    };
     assert_eq!(bytes.len(), db.encoded_len());
-    assert_eq!(
-        bytes.len(),
-        data.len(),
-        "a database is exactly its announced length"
-    );
+    let version = u32::from_le_bytes([data[8], data[9], data[10], data[11]]);
+    if version == 2 {
+        let again = db.to_bytes_version(2).expect("its clouds were read once");
+        assert_eq!(
+            again.len(),
+            data.len(),
+            "a database is exactly its announced length"
+        );
+    }
     let back = Database::from_bytes(&bytes).expect("what to_bytes writes reads back");
     assert_eq!(back.len(), db.len());
     assert_eq!(back.r_all(), db.r_all());

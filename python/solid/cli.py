@@ -309,7 +309,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_truth_args(d)
     _add_common(d)
 
-    p = sub.add_parser("map", help="saved maps: build one from a recording, merge, inspect", formatter_class=fmt)
+    p = sub.add_parser("map", help="saved maps: build one from a recording, merge, inspect, upgrade", formatter_class=fmt)
     msub = p.add_subparsers(dest="map_command", metavar="ACTION", parser_class=_Parser)
     msub.required = True
     b = msub.add_parser(
@@ -334,10 +334,19 @@ def build_parser() -> argparse.ArgumentParser:
     mm.add_argument("--anchor", type=Path, action="append", default=None, metavar="FILE", help="per map after the first, in order: its world → the first map's world (anchor.txt of `solid optimize --map`); or 'same' for a map already in the first one's world")
     mm.add_argument("-o", "--output", type=Path, required=True, help="the map file to write (must not exist)")
     _add_common(mm)
-    mi = msub.add_parser("info", help="what a map file holds", formatter_class=fmt, epilog="example:\n  solid map info run1.soliddb\n")
+    mi = msub.add_parser("info", help="what a map file holds (read from its header: fast at any size)", formatter_class=fmt, epilog="example:\n  solid map info run1.soliddb\n")
     mi.add_argument("map", type=Path)
     mi.add_argument("--json", action="store_true", help="print JSON")
     _add_common(mi)
+    mu = msub.add_parser(
+        "upgrade",
+        help="rewrite a map in the current file format (in place, atomically, unless -o is given)",
+        formatter_class=fmt,
+        epilog="example:\n  solid map upgrade old.soliddb\n",
+    )
+    mu.add_argument("map", type=Path)
+    mu.add_argument("-o", "--output", type=Path, default=None, help="write the upgraded map here instead (must not exist)")
+    _add_common(mu)
 
     p = sub.add_parser(
         "bench",
@@ -605,14 +614,20 @@ def cmd_map(args: argparse.Namespace, out: TextIO) -> int:
         db = commands.merge_maps(args.maps, args.output)
         out.write(f"{len(db)} places in {len(set(int(s) for s in db.sessions))} sessions: wrote {args.output}\n")
         return 0
+    if args.map_command == "upgrade":
+        done = commands.upgrade_map(args.map, args.output)
+        b, a = done["before"], done["after"]
+        out.write(f"{a['file']}: format {b['format_version']} → {a['format_version']}, {b['bytes']} → {a['bytes']} bytes, {a['places']} places\n")
+        return 0
     info = commands.map_info(args.map)
     if args.json:
         out.write(json.dumps(info, indent=1) + "\n")
         return 0
-    out.write(f"{info['file']}: {info['places']} places, {info['bytes']} bytes, config fingerprint {info['fingerprint']}\n")
+    out.write(f"{info['file']}: {info['places']} places, {info['bytes']} bytes (format {info['format_version']}), config fingerprint {info['fingerprint']}\n")
     if info["places_with_cloud"]:
         out.write(f"clouds for verification: {info['places_with_cloud']} places, {info['cloud_bytes_per_place']:.0f} bytes per place\n")
     out.write("config: " + ", ".join(f"{k}={v}" for k, v in info["config"].items()) + "\n")
+    out.write(f"scans clipped: {commands.describe_clip(info['clip'])}\n")
     for s in info["sessions"]:
         span = s["time_span_s"]
         span_s = f", times {span[0]:.3f}–{span[1]:.3f} s" if span else ""

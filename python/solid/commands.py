@@ -10,8 +10,10 @@ from __future__ import annotations
 
 import argparse
 import math
+import json
 import shlex
 import time
+import warnings
 from collections.abc import Callable, Sequence as AbcSequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -25,7 +27,7 @@ from .datasets import Dataset, detect_format, open_dataset, read_points
 from .datasets.selection import iter_selected
 from .evaluation import Evaluation
 from .outputs import Output, atomic_write_bytes, output_folder, write_csv, write_json
-from .pipeline import LoopClosurePipeline, PipelineResult, Progress
+from .pipeline import DEFAULT_FOV_CENTER, LoopClosurePipeline, PipelineResult, Progress
 from .records import LOOP_COLUMNS, QUERY_COLUMNS
 from .transforms import quaternion
 
@@ -40,6 +42,7 @@ __all__ = [
     "make_config",
     "map_info",
     "merge_maps",
+    "upgrade_map",
     "open_recording",
     "optimize",
     "write_g2o",
@@ -158,6 +161,7 @@ def config_and_map(args: argparse.Namespace) -> tuple[Any, Any]:
         cfg = make_config(args)
     if m.config != cfg.descriptor:
         raise _solid.ConfigError(f"{args.map} was built with {m.config!r}; this run asks for {cfg.descriptor!r}")
+    check_map_clip(args.map, m, cfg.input)
     return cfg, m
 
 
@@ -399,6 +403,7 @@ def build_map(
         config = config.replace(detector=config.detector.replace(exclude_frames=max(len(dataset), 1), exclude_meters=0.0, exclude_seconds=0.0))
     result = _run(dataset, config, None, threads, progress)
     db = result.database
+    db.metadata = json.dumps({"clip": clip_record(config.input, result.fov_center)})
     db.save(out)
     return db, result
 
@@ -413,42 +418,107 @@ def merge_maps(inputs: AbcSequence[Path], output_file: Path) -> Any:
         raise _solid.ConfigError("give at least one map to merge")
     db = _solid.Database.load(inputs[0])
     for p in inputs[1:]:
-        db.merge(_solid.Database.load(p), new_sessions=True)
+        other = _solid.Database.load(p)
+        if map_clip(other.metadata) != map_clip(db.metadata):
+            warnings.warn(
+                f"{p} records scans clipped as {describe_clip(map_clip(other.metadata))}, {inputs[0]} as "
+                f"{describe_clip(map_clip(db.metadata))}: the merged map keeps the latter's record",
+                UserWarning,
+                stacklevel=2,
+            )
+        db.merge(other, new_sessions=True)
     db.save(out)
     return db
 
 
 def map_info(path: Path) -> dict[str, Any]:
-    """``solid map info``: what a database file holds."""
-    db = _solid.Database.load(path)
-    sessions = np.asarray(db.sessions)
-    times = np.asarray(db.timestamps)
-    poses = np.asarray(db.poses)
-    has_pose = np.isfinite(poses[:, 0, 0]) if len(db) else np.zeros(0, dtype=bool)
-    per = []
-    for s in np.unique(sessions):
-        m = sessions == s
-        t = times[m]
-        t = t[np.isfinite(t)]
-        per.append(
-            {
-                "session": int(s),
-                "places": int(m.sum()),
-                "with_pose": int(has_pose[m].sum()),
-                "time_span_s": [float(t.min()), float(t.max())] if t.size else None,
-            }
-        )
+    """``solid map info``: what a database file holds, from its header, section table and small
+    sections alone (format 3: neither descriptors nor clouds are read; older files are read
+    whole)."""
+    s = _solid.Database.summary(path)
+    places, with_cloud, cloud_bytes = s["places"], s["places_with_cloud"], s["cloud_bytes"]
+    per = [
+        {
+            "session": x["session"],
+            "places": x["places"],
+            "with_pose": x["with_pose"],
+            "time_span_s": None if math.isnan(x["first_time"]) else [x["first_time"], x["last_time"]],
+        }
+        for x in s["sessions"]
+    ]
     return {
         "file": str(Path(path).absolute()),
         "bytes": Path(path).stat().st_size,
-        "places": len(db),
-        "places_with_cloud": int(db.clouds_stored),
-        "cloud_bytes": int(db.cloud_bytes),
-        "cloud_bytes_per_place": round(db.cloud_bytes / db.clouds_stored, 1) if db.clouds_stored else None,
-        "config": db.config.to_dict(),
-        "fingerprint": f"{db.config.fingerprint:#018x}",
+        "format_version": s["version"],
+        "places": places,
+        "places_with_cloud": with_cloud,
+        "cloud_bytes": cloud_bytes,
+        "cloud_bytes_per_place": round(cloud_bytes / with_cloud, 1) if with_cloud else None,
+        "config": s["config"].to_dict(),
+        "fingerprint": f"{s['fingerprint']:#018x}",
         "sessions": per,
+        "clip": map_clip(s["metadata"]),
     }
+
+
+def clip_record(opts: InputOptions, fov_center: float | None) -> dict[str, Any]:
+    """How a run clipped its scans (``fov_center``: the centre it used), as a map records it."""
+    return {
+        "fov_deg": opts.fov,
+        "fov_center_deg": fov_center if opts.fov is not None else None,
+        "occlude_deg": opts.occlude,
+        "occlude_center_deg": opts.occlude_center if opts.occlude is not None else None,
+    }
+
+
+def map_clip(metadata: str) -> dict[str, Any] | None:
+    """The clip a map's metadata records (None: not recorded, as in maps of format 2)."""
+    try:
+        doc = json.loads(metadata) if metadata else {}
+    except ValueError:
+        return None
+    clip = doc.get("clip") if isinstance(doc, dict) else None
+    return clip if isinstance(clip, dict) else None
+
+
+def describe_clip(clip: dict[str, Any] | None) -> str:
+    """A clip record in words."""
+    if clip is None:
+        return "not recorded (a map written before format 3, or by other means)"
+    parts = []
+    if clip.get("fov_deg") is not None:
+        parts.append(f"--fov {clip['fov_deg']:g}° centred on {clip['fov_center_deg']:g}°")
+    if clip.get("occlude_deg") is not None:
+        parts.append(f"--occlude {clip['occlude_deg']:g}° centred on {clip['occlude_center_deg']:g}°")
+    return ", ".join(parts) if parts else "none (full scans)"
+
+
+def check_map_clip(map_path: Path, map_db: Any, opts: InputOptions) -> None:
+    """Warns when a map records another clip than this run's (its places and this run's scans
+    would then cover different sectors)."""
+    recorded = map_clip(map_db.metadata)
+    if recorded is None:
+        return
+    centre = DEFAULT_FOV_CENTER if opts.fov is not None and opts.fov_center is None else opts.fov_center
+    mine = clip_record(opts, centre)
+    if recorded != mine:
+        warnings.warn(
+            f"{map_path} was built with scans clipped as {describe_clip(recorded)}; this run clips them as "
+            f"{describe_clip(mine)}: give the same --fov/--fov-center/--occlude options to compare the same sectors",
+            UserWarning,
+            stacklevel=2,
+        )
+
+
+def upgrade_map(path: Path, output_file: Path | None = None) -> dict[str, Any]:
+    """``solid map upgrade``: rewrites a map in the current file format (in place, atomically,
+    unless ``output_file`` is given); returns its ``map_info`` before and after."""
+    before = map_info(path)
+    out = Path(output_file) if output_file is not None else Path(path)
+    if output_file is not None and out.exists():
+        raise FileExistsError(f"{out} exists: choose another file name or remove it")
+    _solid.Database.load(path).save(out)
+    return {"before": before, "after": map_info(out)}
 
 
 def fmt_metric(v: Any) -> str:

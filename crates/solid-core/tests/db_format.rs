@@ -10,7 +10,7 @@ use solid_lidar::search::Neighbor;
 #[test]
 fn bytes_round_trip_and_search_agree() {
     let db = sample_db(300);
-    let back = Database::from_bytes(&db.to_bytes()).unwrap();
+    let back = Database::from_bytes(&db.to_bytes().unwrap()).unwrap();
     same(&db, &back);
     let c = cfg();
     for q in 0..20 {
@@ -75,7 +75,7 @@ fn file_round_trip_is_atomic_and_names_the_file_on_errors() {
 
 #[test]
 fn every_truncation_is_rejected_as_truncated() {
-    let bytes = sample_db(4).to_bytes();
+    let bytes = sample_db(4).to_bytes().unwrap();
     for len in 0..bytes.len() {
         let reason = format_reason(Database::from_bytes(&bytes[..len]).unwrap_err());
         assert!(
@@ -90,7 +90,7 @@ fn every_truncation_is_rejected_as_truncated() {
 
 #[test]
 fn every_single_byte_corruption_is_rejected() {
-    let bytes = sample_db(3).to_bytes();
+    let bytes = sample_db(3).to_bytes().unwrap();
     for i in 0..bytes.len() {
         for flip in [0x01u8, 0x80, 0xff] {
             let mut b = bytes.clone();
@@ -107,12 +107,12 @@ fn foreign_and_newer_files_are_rejected_with_the_reason() {
         format_reason(Database::from_bytes(b"PK\x03\x04 a zip file, not a database").unwrap_err());
     assert!(reason.contains("not a SOLiD database"), "{reason}");
     assert!(format_reason(Database::from_bytes(&[]).unwrap_err()).contains("not a SOLiD database"));
-    let mut bytes = sample_db(2).to_bytes();
-    bytes[8..12].copy_from_slice(&3u32.to_le_bytes());
+    let mut bytes = sample_db(2).to_bytes().unwrap();
+    bytes[8..12].copy_from_slice(&4u32.to_le_bytes());
     let reason = format_reason(Database::from_bytes(&bytes).unwrap_err());
-    assert!(reason.contains("version 3 is newer"), "{reason}");
+    assert!(reason.contains("version 4 is newer"), "{reason}");
     // A header that announces an absurd number of entries.
-    let mut bytes = sample_db(2).to_bytes();
+    let mut bytes = sample_db(2).to_bytes().unwrap();
     bytes[80..88].copy_from_slice(&u64::MAX.to_le_bytes());
     let reason = format_reason(Database::from_bytes(&bytes).unwrap_err());
     assert!(
@@ -124,7 +124,7 @@ fn foreign_and_newer_files_are_rejected_with_the_reason() {
 /// The same database in format version 1 (no cloud-section field, no clouds).
 fn as_version_1(db: &Database) -> Vec<u8> {
     assert!(!db.has_clouds());
-    let v2 = db.to_bytes();
+    let v2 = db.to_bytes_version(2).unwrap();
     let mut v1 = Vec::new();
     v1.extend_from_slice(&v2[..8]);
     v1.extend_from_slice(&1u32.to_le_bytes());
@@ -154,7 +154,7 @@ fn version_1_files_still_load_and_clouds_round_trip() {
         with.add_with_cloud(&desc(&c, i), 0, f64::from(i), None, cloud)
             .unwrap();
     }
-    let back = Database::from_bytes(&with.to_bytes()).unwrap();
+    let back = Database::from_bytes(&with.to_bytes().unwrap()).unwrap();
     for i in 0..6u32 {
         assert_eq!(back.cloud(i), with.cloud(i));
         assert_eq!(back.cloud(i).is_some(), i % 2 == 1);
@@ -165,7 +165,7 @@ fn version_1_files_still_load_and_clouds_round_trip() {
     assert_eq!(merged.cloud(0), None);
     assert_eq!(merged.cloud(3 + 5), with.cloud(5));
     // A cloud section that cannot hold its lengths is refused.
-    let mut bytes = with.to_bytes();
+    let mut bytes = with.to_bytes_version(2).unwrap();
     bytes[88..96].copy_from_slice(&3u64.to_le_bytes());
     assert!(Database::from_bytes(&bytes).is_err());
 }
@@ -219,10 +219,215 @@ proptest! {
             });
             db.add_vectors(r, a, *s, *t, pose).unwrap();
         }
-        let back = Database::from_bytes(&db.to_bytes()).unwrap();
+        let back = Database::from_bytes(&db.to_bytes().unwrap()).unwrap();
         same(&db, &back);
         let k = entries.len().min(5);
         let want: Vec<Neighbor> = db.search(&q, k, 0, Method::Brute).unwrap();
         prop_assert_eq!(back.search(&q, k, 0, Method::KdTree).unwrap(), want);
     }
+}
+
+/// Where section `kind` of a file in format version 3 lies: (offset, length).
+fn section(bytes: &[u8], kind: u32) -> (usize, usize) {
+    let s = u32::from_le_bytes(bytes[88..92].try_into().unwrap()) as usize;
+    (0..s)
+        .map(|i| &bytes[96 + 32 * i..128 + 32 * i])
+        .find(|row| u32::from_le_bytes(row[..4].try_into().unwrap()) == kind)
+        .map(|row| {
+            let at = |k: usize| u64::from_le_bytes(row[k..k + 8].try_into().unwrap()) as usize;
+            (at(8), at(16))
+        })
+        .expect("no such section")
+}
+
+/// Signs section `kind` again after an edit (its trailing CRC-32).
+fn resign(bytes: &mut [u8], kind: u32) {
+    let (at, len) = section(bytes, kind);
+    let crc = solid_lidar::db::crc32(&bytes[at..at + len]);
+    bytes[at + len..at + len + 4].copy_from_slice(&crc.to_le_bytes());
+}
+
+/// A database whose places 1, 3 and 4 have real clouds.
+fn db_with_clouds() -> Database {
+    let c = cfg();
+    let mut db = Database::new(c).unwrap();
+    for i in 0..6u32 {
+        let points: Vec<[f64; 3]> = (0..20 + i * 7)
+            .map(|k| [f64::from(k), 1.0, f64::from(i)])
+            .collect();
+        let cloud = solid_lidar::reg::encode_cloud(&points, 0.1, 8).unwrap();
+        let with = [1, 3, 4].contains(&i);
+        db.add_with_cloud(
+            &desc(&c, i),
+            i / 3,
+            f64::from(i),
+            None,
+            with.then_some(&cloud[..]),
+        )
+        .unwrap();
+    }
+    db
+}
+
+#[test]
+fn version_2_files_still_load_and_every_version_round_trips() {
+    for db in [sample_db(9), db_with_clouds()] {
+        for version in [2, 3] {
+            let back = Database::from_bytes(&db.to_bytes_version(version).unwrap()).unwrap();
+            same(&db, &back);
+            for id in 0..db.len() as u32 {
+                assert_eq!(
+                    back.cloud(id),
+                    db.cloud(id),
+                    "version {version}, place {id}"
+                );
+            }
+        }
+    }
+    assert!(sample_db(1).to_bytes_version(1).is_err());
+    assert!(sample_db(1).to_bytes_version(4).is_err());
+}
+
+#[test]
+fn version_3_keeps_an_entry_in_under_300_bytes_beside_its_cloud() {
+    let c = cfg();
+    let mut db = Database::new(c).unwrap();
+    for i in 0..1000u32 {
+        db.add(&desc(&c, i), i / 100, f64::from(i), None).unwrap();
+    }
+    let (v3, v2) = (db.encoded_len(), db.to_bytes_version(2).unwrap().len());
+    let per_entry = |len: usize| (len - 1024) / 1000;
+    assert!(per_entry(v3) <= 300, "{} bytes per entry", per_entry(v3));
+    assert!(v3 < v2 / 2, "version 3: {v3} bytes, version 2: {v2}");
+    // The metadata travels with the file (version 3 only).
+    db.set_metadata("{\"fov_deg\": 90}").unwrap();
+    let back = Database::from_bytes(&db.to_bytes().unwrap()).unwrap();
+    assert_eq!(back.metadata(), "{\"fov_deg\": 90}");
+    assert!(db.set_metadata(&"x".repeat((1 << 20) + 1)).is_err());
+}
+
+#[test]
+fn version_3_refuses_what_no_database_holds_in_each_section() {
+    let db = sample_db(5);
+    let good = db.to_bytes().unwrap();
+    let (r, _) = section(&good, 2);
+    let cases: [(u32, usize, Vec<u8>, &str); 4] = [
+        (
+            2,
+            r + 4,
+            (-1.0f32).to_le_bytes().to_vec(),
+            "negative or non-finite",
+        ),
+        (
+            3,
+            section(&good, 3).0,
+            0.5f32.to_le_bytes().to_vec(),
+            "norm does not match",
+        ),
+        (
+            6,
+            section(&good, 6).0 + 8,
+            f64::INFINITY.to_le_bytes().to_vec(),
+            "infinite timestamp",
+        ),
+        (
+            1,
+            section(&good, 1).0 + 4,
+            9u32.to_le_bytes().to_vec(),
+            "sessions",
+        ),
+    ];
+    for (kind, at, value, why) in cases {
+        let mut b = good.clone();
+        b[at..at + value.len()].copy_from_slice(&value);
+        assert!(format_reason(Database::from_bytes(&b).unwrap_err()).contains("checksum"));
+        resign(&mut b, kind);
+        let reason = format_reason(Database::from_bytes(&b).unwrap_err());
+        assert!(reason.contains(why), "section {kind}: {reason}");
+    }
+    // A table that does not fit the entries is refused before any section is read.
+    let mut b = good.clone();
+    b[80..88].copy_from_slice(&4u64.to_le_bytes());
+    assert!(Database::from_bytes(&b).is_err());
+}
+
+#[test]
+fn a_loaded_map_reads_its_clouds_on_demand_and_finds_a_corrupt_one_at_first_use() {
+    let dir = std::env::temp_dir().join(format!("solid-lean-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (path, bad) = (dir.join("m.soliddb"), dir.join("bad.soliddb"));
+    let db = db_with_clouds();
+    db.save(&path).unwrap();
+    let loaded = Database::load(&path).unwrap();
+    same(&db, &loaded);
+    // The clouds stay in the file until asked for.
+    assert!(loaded.memory_bytes() + db.cloud_bytes() / 2 < db.memory_bytes());
+    for id in 0..6 {
+        assert_eq!(loaded.cloud(id), db.cloud(id));
+    }
+    let s = Database::summary(&path).unwrap();
+    assert_eq!(
+        (s.version, s.places, s.places_with_cloud, s.cloud_bytes),
+        (3, 6, 3, db.cloud_bytes() as u64)
+    );
+    assert_eq!(
+        s.sessions
+            .iter()
+            .map(|x| (x.session, x.places))
+            .collect::<Vec<_>>(),
+        [(0, 3), (1, 3)]
+    );
+    assert_eq!(
+        (s.sessions[1].first_time, s.sessions[1].last_time),
+        (3.0, 5.0)
+    );
+    // One byte of place 3's cloud flipped: the file still loads (its header and sections are
+    // whole), place 3's cloud is an error naming it, the others are read.
+    let mut raw = std::fs::read(&path).unwrap();
+    let cloud = db.cloud(3).unwrap().into_owned();
+    let at = raw.windows(cloud.len()).position(|w| w == cloud).unwrap();
+    raw[at + cloud.len() / 2] ^= 0xFF;
+    std::fs::write(&bad, &raw).unwrap();
+    let broken = Database::load(&bad).unwrap();
+    let why = broken.try_cloud(3).unwrap_err().to_string();
+    assert!(
+        why.contains("cloud of place 3") && why.contains("bad.soliddb") && why.contains("checksum"),
+        "{why}"
+    );
+    assert_eq!(broken.cloud(3), None);
+    assert_eq!(broken.cloud(4), db.cloud(4));
+    // Nor can it be added to a database.
+    let mut fresh = Database::new(cfg()).unwrap();
+    let mut corrupt = cloud.clone();
+    corrupt[cloud.len() / 2] ^= 0xFF;
+    let why = fresh
+        .add_with_cloud(&desc(&cfg(), 0), 0, f64::NAN, None, Some(&corrupt))
+        .unwrap_err()
+        .to_string();
+    assert!(why.contains("checksum") && fresh.is_empty(), "{why}");
+    // Nothing copies it under a fresh checksum: saving or merging and saving is refused, and
+    // the error names the place as the corrupt file numbers it.
+    let out = dir.join("out.soliddb");
+    assert!(broken.save(&out).is_err() && !out.exists());
+    let mut merged = Database::load(&path).unwrap();
+    merged.merge(&broken).unwrap();
+    let why = merged.save(&out).unwrap_err().to_string();
+    assert!(
+        why.contains("place 9") && why.contains("cloud of place 3 in"),
+        "{why}"
+    );
+    assert!(!out.exists());
+    assert_eq!(
+        std::fs::read_dir(&dir).unwrap().count(),
+        2,
+        "no temporary file is left"
+    );
+    // A map saved again from its own file keeps its clouds (read from the old file).
+    let again = dir.join("again.soliddb");
+    loaded.save(&again).unwrap();
+    assert_eq!(
+        std::fs::read(&again).unwrap(),
+        std::fs::read(&path).unwrap()
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
 }

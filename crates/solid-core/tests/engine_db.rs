@@ -126,7 +126,7 @@ fn batch_add_equals_adding_one_by_one() {
     }
     batch.build_index().unwrap();
     same(&one, &batch);
-    assert_eq!(one.to_bytes(), batch.to_bytes());
+    assert_eq!(one.to_bytes().unwrap(), batch.to_bytes().unwrap());
     // A batch with one bad value adds nothing.
     let mut bad = r[..2 * c.n_range].to_vec();
     bad[c.n_range + 3] = f32::NAN;
@@ -236,8 +236,11 @@ fn entries_take_at_most_300_bytes_and_a_solid_is_kept_to_half_a_step() {
         .is_err());
     assert_eq!(db.len(), n as usize);
     // Saving writes the A-SOLiDs as stored: loading and saving again gives the same bytes.
-    let bytes = db.to_bytes();
-    assert_eq!(Database::from_bytes(&bytes).unwrap().to_bytes(), bytes);
+    let bytes = db.to_bytes().unwrap();
+    assert_eq!(
+        Database::from_bytes(&bytes).unwrap().to_bytes().unwrap(),
+        bytes
+    );
 }
 
 #[test]
@@ -249,7 +252,7 @@ fn a_bad_value_deep_in_a_large_batch_leaves_the_database_as_it_was() {
     let mut db = Database::new(c).unwrap();
     db.add_batch(&r[..5 * nr], &a[..5 * na], 0, None, None, true)
         .unwrap();
-    let before = db.to_bytes();
+    let before = db.to_bytes().unwrap();
     for (which, at) in [("r", 4000 * nr + 7), ("a", 3000 * na + 1)] {
         let (mut rb, mut ab) = (r.clone(), a.clone());
         match which {
@@ -260,7 +263,7 @@ fn a_bad_value_deep_in_a_large_batch_leaves_the_database_as_it_was() {
             db.add_batch(&rb, &ab, 1, None, None, true).is_err(),
             "{which}"
         );
-        assert_eq!(db.to_bytes(), before, "{which}");
+        assert_eq!(db.to_bytes().unwrap(), before, "{which}");
     }
     // The database still works as if the failed batches never happened.
     db.add_batch(&r[5 * nr..], &a[5 * na..], 0, None, None, false)
@@ -497,7 +500,7 @@ fn growth_through_every_path_and_block_boundary_searches_as_brute_force() {
     add(&mut m, 4700, 4721, true);
     m.merge(&tail).unwrap();
     check_methods(&m, "merged");
-    let back = Database::from_bytes(&tail.to_bytes()).unwrap();
+    let back = Database::from_bytes(&tail.to_bytes().unwrap()).unwrap();
     check_methods(&back, "from bytes");
     m.merge_as_new_sessions(&back).unwrap();
     check_methods(&m, "merged as new sessions");

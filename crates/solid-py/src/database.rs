@@ -194,8 +194,8 @@ impl PyDatabase {
         Ok(PyDatabase::wrap(inner))
     }
 
-    /// Adds a descriptor; returns its id.
-    #[pyo3(signature = (descriptor, session=0, timestamp=None, pose=None))]
+    /// Adds a descriptor (with its compact cloud for verification, if given); returns its id.
+    #[pyo3(signature = (descriptor, session=0, timestamp=None, pose=None, cloud=None))]
     fn add(
         &self,
         py: Python<'_>,
@@ -203,11 +203,16 @@ impl PyDatabase {
         #[pyo3(from_py_with = args::session)] session: u32,
         timestamp: Option<f64>,
         pose: Option<&Bound<'_, PyAny>>,
+        cloud: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<u32> {
         let pose = parse_pose(pose)?;
         let d = &descriptor.inner;
-        py.detach(|| write(&self.inner).add(d, session, args::timestamp(timestamp), pose))
-            .map_err(core_err)
+        let cloud = cloud.map(|c| args::bytes_arg(c, "cloud")).transpose()?;
+        let cloud = cloud.as_ref().map(|c| c.as_bytes());
+        py.detach(|| {
+            write(&self.inner).add_with_cloud(d, session, args::timestamp(timestamp), pose, cloud)
+        })
+        .map_err(core_err)
     }
 
     /// Adds N entries at once: R-SOLiDs `r` (N, n_range) and A-SOLiDs `a` (N, n_azimuth)
@@ -379,9 +384,54 @@ impl PyDatabase {
         .map_err(core_err)
     }
 
-    /// Saves atomically (temporary file in the same directory, then rename).
-    fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
-        py.detach(|| read(&self.inner).save(&path))
+    /// Saves atomically (temporary file in the same directory, then rename), in format
+    /// `version` (3, or 2 for older readers).
+    #[pyo3(signature = (path, version=3))]
+    fn save(&self, py: Python<'_>, path: PathBuf, version: u32) -> PyResult<()> {
+        py.detach(|| read(&self.inner).save_version(&path, version))
+            .map_err(core_err)
+    }
+
+    /// What the database file at `path` holds, from its header and small sections alone (format
+    /// 3; older files are read whole): a dict of version, config, fingerprint, places,
+    /// places_with_cloud, cloud_bytes, sessions (a list of dicts: session, places, with_pose,
+    /// first_time, last_time, NaN when none) and metadata.
+    #[staticmethod]
+    fn summary<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, pyo3::types::PyDict>> {
+        use pyo3::types::PyDict;
+        let s = py.detach(|| Database::summary(&path)).map_err(core_err)?;
+        let d = PyDict::new(py);
+        d.set_item("version", s.version)?;
+        d.set_item("config", PyConfig::new_unchecked(s.config))?;
+        d.set_item("fingerprint", s.fingerprint)?;
+        d.set_item("places", s.places)?;
+        d.set_item("places_with_cloud", s.places_with_cloud)?;
+        d.set_item("cloud_bytes", s.cloud_bytes)?;
+        let sessions = pyo3::types::PyList::empty(py);
+        for x in &s.sessions {
+            let e = PyDict::new(py);
+            e.set_item("session", x.session)?;
+            e.set_item("places", x.places)?;
+            e.set_item("with_pose", x.with_pose)?;
+            e.set_item("first_time", x.first_time)?;
+            e.set_item("last_time", x.last_time)?;
+            sessions.append(e)?;
+        }
+        d.set_item("sessions", sessions)?;
+        d.set_item("metadata", s.metadata)?;
+        Ok(d)
+    }
+
+    /// Free-form text saved with the database (format 3), such as how its scans were clipped
+    /// ("": none).
+    #[getter]
+    fn metadata(&self, py: Python<'_>) -> String {
+        self.with(py, |db| db.metadata().to_owned())
+    }
+
+    #[setter]
+    fn set_metadata(&self, py: Python<'_>, text: &str) -> PyResult<()> {
+        py.detach(|| write(&self.inner).set_metadata(text))
             .map_err(core_err)
     }
 
@@ -392,21 +442,32 @@ impl PyDatabase {
         Ok(PyDatabase::wrap(inner))
     }
 
-    /// The database in the file format, as bytes (encoded straight into the bytes object).
-    fn to_bytes<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyBytes>> {
+    /// The database in the file format `version` (3, or 2 for older readers), as bytes (version 3
+    /// encoded straight into the bytes object).
+    #[pyo3(signature = (version=3))]
+    fn to_bytes<'py>(&self, py: Python<'py>, version: u32) -> PyResult<Bound<'py, PyBytes>> {
+        if version != 3 {
+            let b = self
+                .with(py, |db| db.to_bytes_version(version))
+                .map_err(core_err)?;
+            return Ok(PyBytes::new(py, &b));
+        }
         loop {
             let len = self.with(py, Database::encoded_len);
-            let mut whole = false;
+            let mut encoded = None;
             let bytes = PyBytes::new_with(py, len, |buf| {
                 // An add between measuring and encoding changes the length: measure again.
-                whole = py.detach(|| {
+                encoded = py.detach(|| {
                     let db = read(&self.inner);
-                    db.encoded_len() == buf.len() && db.encode_into(buf).is_ok()
+                    (db.encoded_len() == buf.len()).then(|| db.encode_into(buf))
                 });
                 Ok(())
             })?;
-            if whole {
-                return Ok(bytes);
+            match encoded {
+                Some(Ok(_)) => return Ok(bytes),
+                // A stored cloud that is corrupt or cannot be read from the map's file.
+                Some(Err(e)) => return Err(core_err(e)),
+                None => {}
             }
         }
     }
@@ -481,7 +542,8 @@ impl PyDatabase {
     }
 
     /// The compact cloud stored with place `id` (the wire form of `solid.encode_cloud`; decode
-    /// it with `solid.decode_cloud`), or None.
+    /// it with `solid.decode_cloud`), or None. A map loaded from a file reads it from the file
+    /// now, its checksum checked: a corrupt cloud raises DatabaseError naming the place.
     fn cloud<'py>(
         &self,
         py: Python<'py>,
@@ -496,7 +558,9 @@ impl PyDatabase {
             )));
         }
         let id: u32 = args::int_arg(id, "id", 0, n as i128 - 1)?;
-        let c = self.with(py, |db| db.cloud(id).map(<[u8]>::to_vec));
+        let c = self
+            .with(py, |db| db.try_cloud(id).map(|c| c.map(|b| b.into_owned())))
+            .map_err(core_err)?;
         Ok(c.map(|b| PyBytes::new(py, &b)))
     }
 

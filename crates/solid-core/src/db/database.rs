@@ -15,6 +15,7 @@ mod query;
 pub use index::INDEX_AFTER_PASSES;
 pub use query::{BatchResults, SearchOptions};
 
+use alloc::borrow::Cow;
 use alloc::vec;
 use alloc::vec::Vec;
 
@@ -60,6 +61,8 @@ pub struct Database {
     pub(super) index_by_searches: bool,
     /// The compact clouds of the entries that have one (for verification).
     pub(super) clouds: Clouds,
+    /// See [`Database::metadata`].
+    pub(super) metadata: alloc::string::String,
 }
 
 impl Database {
@@ -87,6 +90,7 @@ impl Database {
             unindexed: Tally::default(),
             index_by_searches: false,
             clouds: Clouds::default(),
+            metadata: alloc::string::String::new(),
         })
     }
 
@@ -126,7 +130,8 @@ impl Database {
     /// [`crate::reg::encode_cloud`]; see [`super::clouds`]).
     ///
     /// # Errors
-    /// As [`Database::add`]; on error nothing is added.
+    /// As [`Database::add`], and [`DbError::Format`] when [`crate::reg::check_cloud`] refuses
+    /// the cloud (a corrupt cloud is never stored); on error nothing is added.
     pub fn add_with_cloud(
         &mut self,
         d: &Descriptor,
@@ -136,6 +141,12 @@ impl Database {
         cloud: Option<&[u8]>,
     ) -> Result<u32, DbError> {
         self.check_fingerprint(d.fingerprint)?;
+        if let Some(Err(e)) = cloud.filter(|c| !c.is_empty()).map(crate::reg::check_cloud) {
+            return Err(DbError::Format {
+                file: None,
+                reason: alloc::format!("the cloud given with the place is invalid: {e}"),
+            });
+        }
         let id = self.len();
         self.clouds.push(id, cloud)?;
         self.add_vectors(&d.r, &d.a, session, timestamp, pose)
@@ -442,9 +453,48 @@ impl Database {
     }
 
     /// The compact cloud stored with entry `id` for verification (the wire form of
-    /// [`crate::reg::encode_cloud`]), if any.
-    pub fn cloud(&self, id: u32) -> Option<&[u8]> {
+    /// [`crate::reg::encode_cloud`]), if any; `None` too when it cannot be had whole (a corrupt
+    /// cloud is never handed out: [`Database::try_cloud`] says why). A database loaded from a
+    /// file in format version 3 reads it from the file now (clouds on demand).
+    pub fn cloud(&self, id: u32) -> Option<Cow<'_, [u8]>> {
+        self.try_cloud(id).ok().flatten()
+    }
+
+    /// [`Database::cloud`], with the reason when the cloud cannot be had: its checksum is
+    /// checked ([`crate::reg::check_cloud`]) each time it is read.
+    ///
+    /// # Errors
+    /// [`DbError::Format`] naming the place (and the file it is read from) when its cloud is
+    /// corrupt; [`DbError::Io`] when the file cannot be read.
+    pub fn try_cloud(&self, id: u32) -> Result<Option<Cow<'_, [u8]>>, DbError> {
         self.clouds.get(id as usize)
+    }
+
+    /// Free-form text stored with the database, such as how its scans were clipped (empty:
+    /// none). Saved in format version 3 only.
+    pub fn metadata(&self) -> &str {
+        &self.metadata
+    }
+
+    /// Sets [`Database::metadata`] (at most [`super::format::MAX_METADATA`] bytes).
+    ///
+    /// # Errors
+    /// [`DbError::Core`] with [`Error::InvalidParameter`] when it is longer.
+    pub fn set_metadata(&mut self, text: &str) -> Result<(), DbError> {
+        if text.len() > super::format::MAX_METADATA {
+            return Err(Error::InvalidParameter {
+                name: "metadata",
+                value: text.len() as f64,
+                expected: "at most 1 MiB of text",
+            }
+            .into());
+        }
+        let mut m = alloc::string::String::new();
+        m.try_reserve_exact(text.len())
+            .map_err(|_| DbError::OutOfMemory)?;
+        m.push_str(text);
+        self.metadata = m;
+        Ok(())
     }
 
     /// Whether any entry has a cloud.
@@ -460,6 +510,26 @@ impl Database {
     /// Number of entries that have a cloud.
     pub fn clouds_stored(&self) -> usize {
         self.clouds.count()
+    }
+
+    /// Number of entries that have a pose.
+    pub fn poses_stored(&self) -> usize {
+        self.poses.len()
+    }
+
+    /// Per entry, the scale of its R-SOLiD (see [`Database::r`]).
+    pub(super) fn r_scales(&self) -> &[f32] {
+        &self.r_scale
+    }
+
+    /// The A-SOLiDs' 8-bit codes, row-major (see [`Database::a`]).
+    pub(super) fn a_codes(&self) -> &[u8] {
+        &self.a_codes
+    }
+
+    /// Per entry, the A-SOLiD's step (see [`Database::a`]).
+    pub(super) fn a_steps(&self) -> &[f32] {
+        &self.a_scale
     }
 
     /// Per-entry sessions.
@@ -506,6 +576,7 @@ impl Database {
             + held(&self.codes)
             + held(&self.params)
             + self.clouds.heap_bytes()
+            + self.metadata.capacity()
     }
 
     /// Adds entries read from a file (checked by the reader): the vectors, sessions, timestamps
@@ -526,6 +597,77 @@ impl Database {
         self.clouds = clouds;
         self.append_vectors(r, a)?;
         self.build_index()
+    }
+}
+
+/// The columns of a file in format version 3, as the database holds them (see
+/// [`Database::load_columns`]).
+pub(super) struct Columns {
+    pub(super) sessions: Vec<u32>,
+    pub(super) timestamps: Vec<f64>,
+    pub(super) poses: Vec<(u32, [f64; 12])>,
+    pub(super) r: Vec<f32>,
+    pub(super) r_scale: Vec<f32>,
+    pub(super) a_codes: Vec<u8>,
+    pub(super) a_scale: Vec<f32>,
+    pub(super) clouds: Clouds,
+    pub(super) metadata: alloc::string::String,
+}
+
+impl Database {
+    /// Takes the columns read from a file (checked by the reader, but for the R-SOLiDs: each
+    /// value a bin can hold, each scale the one [`crate::search::inverse_norm`] gives, to the
+    /// bit); leaves the index to the searches ([`super::IndexPolicy::BySearches`]). Returns the
+    /// entry of the first bad R-SOLiD and what is wrong.
+    pub(super) fn load_columns(
+        &mut self,
+        c: Columns,
+    ) -> Result<Result<(), (usize, &'static str)>, DbError> {
+        let nr = self.config.n_range;
+        let bad_row = |row: &[f32], scale: f32| {
+            if !row.iter().all(|v| super::format::is_bin_value(*v)) {
+                return Some("negative or non-finite value in its R-SOLiD");
+            }
+            match crate::search::inverse_norm(row) {
+                Ok(want) if want.to_bits() == scale.to_bits() => None,
+                _ => Some("its stored R-SOLiD norm does not match its values"),
+            }
+        };
+        // In chunks on every core; the first bad entry is looked for only when there is one.
+        let chunks =
+            c.r.chunks(CHUNK_ROWS * nr)
+                .zip(c.r_scale.chunks(CHUNK_ROWS));
+        let checked = in_chunks(chunks, c.r_scale.len(), |(rows, scales)| {
+            let bad = rows
+                .chunks_exact(nr)
+                .zip(scales)
+                .any(|(r, &s)| bad_row(r, s).is_some());
+            if bad {
+                Err(Error::Empty { what: "r_solid" })
+            } else {
+                Ok(())
+            }
+        });
+        if checked.is_err() {
+            for (i, (row, &scale)) in c.r.chunks_exact(nr).zip(&c.r_scale).enumerate() {
+                if let Some(why) = bad_row(row, scale) {
+                    return Ok(Err((i, why)));
+                }
+            }
+        }
+        self.sessions = c.sessions;
+        self.timestamps = c.timestamps;
+        self.poses = c.poses;
+        self.r = c.r;
+        self.r_scale = c.r_scale;
+        self.a_codes = c.a_codes;
+        self.a_scale = c.a_scale;
+        self.clouds = c.clouds;
+        self.metadata = c.metadata;
+        // As after a bulk add: the searches build the index once they have paid for it, a
+        // detector at its start; a map opened to be summed up, merged or saved never builds it.
+        self.index_by_searches = true;
+        Ok(Ok(()))
     }
 }
 

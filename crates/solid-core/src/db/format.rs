@@ -1,6 +1,10 @@
 //! The database file format: checksummed, little-endian, written atomically.
 //!
-//! # Version 2 (written), version 1 (still read)
+//! Version 3 is written (docs/spec.md §13: the columns as the database holds them, sections found
+//! through a table, clouds read on demand); versions 2 and 1 are still read, and version 2 is
+//! written on request ([`Database::to_bytes_version`]).
+//!
+//! # Version 2, version 1
 //! All numbers little-endian. Version 1 is version 2 without the field at offset 88 and without
 //! the cloud section (its entries start at offset 88).
 //! ```text
@@ -25,49 +29,66 @@
 
 use alloc::format;
 use alloc::string::String;
-use alloc::vec;
 use alloc::vec::Vec;
 
 use super::clouds::Clouds;
+use super::lean;
 use super::{Database, DbError};
 use crate::Config;
 
+pub use super::lean::{SessionSummary, Summary, MAX_METADATA};
 pub use crate::checksum::crc32;
 
 impl Database {
-    /// Serialises the database in the file format above (allocates [`Database::encoded_len`]
-    /// bytes; [`Database::encode_into`] writes into a buffer of the caller's).
-    pub fn to_bytes(&self) -> Vec<u8> {
-        let mut out = vec![0u8; self.encoded_len()];
-        let written = self.encode_into(&mut out);
-        debug_assert_eq!(written.ok(), Some(out.len()));
-        out
+    /// Serialises the database in the current format, version 3 (allocates
+    /// [`Database::encoded_len`] bytes; [`Database::encode_into`] writes into a buffer of the
+    /// caller's).
+    ///
+    /// # Errors
+    /// As [`Database::to_bytes_version`].
+    pub fn to_bytes(&self) -> Result<Vec<u8>, DbError> {
+        self.to_bytes_version(lean::VERSION)
     }
 
-    /// Length of the database in the file format, in bytes.
-    pub fn encoded_len(&self) -> usize {
-        let c = &self.config;
-        HEADER_LEN
-            + self.len() * (ENTRY_LEN + (c.n_range + c.n_azimuth) * 4)
-            + self.cloud_section_len()
-            + 4
-    }
-
-    /// Length of the cloud section (0 when no entry has a cloud).
-    fn cloud_section_len(&self) -> usize {
-        if self.clouds.any() {
-            4 * self.len() + self.clouds.bytes().len()
+    /// Serialises the database in format `version`: 3 (the current one) or 2 (what solid
+    /// before format 3 reads; it holds no [`Database::metadata`]).
+    ///
+    /// # Errors
+    /// [`DbError::Core`] with [`crate::Error::InvalidParameter`] for another version;
+    /// [`DbError::Format`] naming the place when a stored cloud is corrupt (it is never copied
+    /// under a fresh checksum); [`DbError::Io`] when a cloud cannot be read from the file the
+    /// database was loaded from; [`DbError::OutOfMemory`].
+    pub fn to_bytes_version(&self, version: u32) -> Result<Vec<u8>, DbError> {
+        let len = match version {
+            2 => self.encoded_len_v2(),
+            3 => self.encoded_len(),
+            _ => return Err(bad_version(version)),
+        };
+        let mut out = try_vec::<u8>(len)?;
+        if version == 2 {
+            out.resize(len, 0);
+            self.encode_v2_into(&mut out)?;
         } else {
-            0
+            lean::encode(self, &mut |b| {
+                out.extend_from_slice(b);
+                Ok(())
+            })?;
         }
+        debug_assert_eq!(out.len(), len);
+        Ok(out)
     }
 
-    /// Writes the database in the file format above into `out`; returns the bytes written
+    /// Length of the database in the current file format, in bytes.
+    pub fn encoded_len(&self) -> usize {
+        lean::encoded_len(self)
+    }
+
+    /// Writes the database in the current file format into `out`; returns the bytes written
     /// ([`Database::encoded_len`]).
     ///
     /// # Errors
     /// [`DbError::Core`] with [`crate::Error::BufferTooSmall`] when `out` is shorter than
-    /// [`Database::encoded_len`].
+    /// [`Database::encoded_len`]; otherwise as [`Database::to_bytes_version`].
     pub fn encode_into(&self, out: &mut [u8]) -> Result<usize, DbError> {
         let len = self.encoded_len();
         if out.len() < len {
@@ -78,11 +99,40 @@ impl Database {
             }
             .into());
         }
+        let mut at = 0;
+        lean::encode(self, &mut |b| {
+            out[at..at + b.len()].copy_from_slice(b);
+            at += b.len();
+            Ok(())
+        })?;
+        Ok(at)
+    }
+
+    /// Length of the database in format version 2, in bytes.
+    fn encoded_len_v2(&self) -> usize {
+        let c = &self.config;
+        HEADER_LEN
+            + self.len() * (ENTRY_LEN + (c.n_range + c.n_azimuth) * 4)
+            + self.cloud_section_len()
+            + 4
+    }
+
+    /// Length of the cloud section (0 when no entry has a cloud).
+    fn cloud_section_len(&self) -> usize {
+        if self.clouds.any() {
+            4 * self.len() + self.clouds.data_len()
+        } else {
+            0
+        }
+    }
+
+    /// Writes the database in format version 2 into `out`, of [`Database::encoded_len_v2`] bytes.
+    fn encode_v2_into(&self, out: &mut [u8]) -> Result<usize, DbError> {
         let mut w = Writer { b: out, at: 0 };
         let n = self.len();
         let c = &self.config;
         w.put(&MAGIC);
-        w.put(&FORMAT_VERSION.to_le_bytes());
+        w.put(&2u32.to_le_bytes());
         w.put(&0u32.to_le_bytes());
         for v in [c.n_range, c.n_azimuth, c.n_elevation, 0] {
             w.put(&(v as u32).to_le_bytes());
@@ -119,15 +169,22 @@ impl Database {
             for l in self.clouds.lengths(n) {
                 w.put(&l.to_le_bytes());
             }
-            w.put(self.clouds.bytes());
+            self.clouds.each(|b| {
+                w.put(b);
+                Ok(())
+            })?;
         }
         let crc = crc32(&w.b[..w.at]);
         w.put(&crc.to_le_bytes());
         Ok(w.at)
     }
 
-    /// Reads a database written by [`Database::to_bytes`], checking everything: the magic, the
-    /// version, the reserved header fields, the length, the checksum, the config and every value.
+    /// Reads a database written by [`Database::to_bytes`] (any format version), checking
+    /// everything: the magic, the version, the reserved header fields, the length, the checksums
+    /// (of the file in versions 1 and 2, of the header and of each section in version 3), the
+    /// config and every value. The stored clouds are checked when they are read
+    /// ([`Database::try_cloud`]), in version 3 by their own checksums only: a corrupt one is an
+    /// error for its place, not for the file. (Versions 1 and 2 decode every cloud here.)
     ///
     /// # Errors
     /// [`DbError::Format`] (with `file: None`) naming what is wrong: not a SOLiD database,
@@ -138,6 +195,13 @@ impl Database {
     /// memory.
     pub fn from_bytes(bytes: &[u8]) -> Result<Database, DbError> {
         let bad = |reason: String| DbError::Format { file: None, reason };
+        if version_of(bytes).map_err(bad)? >= lean::VERSION {
+            return lean::decode(
+                bytes,
+                #[cfg(feature = "std")]
+                None,
+            );
+        }
         let header = Header::parse(bytes).map_err(bad)?;
         header.check_len(bytes.len()).map_err(bad)?;
         let expected = bytes.len();
@@ -155,18 +219,7 @@ impl Database {
             )));
         }
         let (config, fingerprint, count) = (header.config, header.fingerprint, header.count);
-        if let Err(e) = config.validate() {
-            return Err(bad(format!("invalid config in header: {e}")));
-        }
-        if config.fingerprint() != fingerprint {
-            return Err(bad(format!(
-                "config fingerprint {fingerprint:#018x} does not match the stored config ({:#018x})",
-                config.fingerprint()
-            )));
-        }
-        if count >= u32::MAX as u64 {
-            return Err(bad(format!("too many entries ({count})")));
-        }
+        check_config(&config, fingerprint, count).map_err(bad)?;
         let n = count as usize;
         let (nr, na) = (config.n_range, config.n_azimuth);
         let mut rd = Reader {
@@ -233,7 +286,14 @@ impl Database {
             // Each cloud is decoded once here: a corrupt one is refused with the file, never
             // merged and re-signed, nor found out only when a step verifies against it.
             for id in 0..n {
-                if let Some(Err(e)) = clouds.get(id).map(crate::reg::decode_cloud) {
+                let decoded = clouds.get(id).map_err(|e| format!("{e}")).and_then(|c| {
+                    c.map_or(Ok(()), |c| {
+                        crate::reg::decode_cloud(c)
+                            .map(|_| ())
+                            .map_err(|e| format!("{e}"))
+                    })
+                });
+                if let Err(e) = decoded {
                     return Err(bad(format!(
                         "the stored cloud of place {id} is invalid: {e}"
                     )));
@@ -256,6 +316,20 @@ impl Database {
     /// removed); [`DbError::OutOfMemory`] when the encoded file does not fit in memory.
     #[cfg(feature = "std")]
     pub fn save<P: AsRef<std::path::Path>>(&self, path: P) -> Result<(), DbError> {
+        self.save_version(path, lean::VERSION)
+    }
+
+    /// [`Database::save`] in format `version` (see [`Database::to_bytes_version`]). Version 3 is
+    /// written as it is encoded, with no buffer of the whole file.
+    ///
+    /// # Errors
+    /// As [`Database::save`] and [`Database::to_bytes_version`] (nothing is written then).
+    #[cfg(feature = "std")]
+    pub fn save_version<P: AsRef<std::path::Path>>(
+        &self,
+        path: P,
+        version: u32,
+    ) -> Result<(), DbError> {
         use std::io::Write;
         let path = path.as_ref();
         let io = |source| DbError::Io {
@@ -265,19 +339,28 @@ impl Database {
         let name = path
             .file_name()
             .ok_or_else(|| io(std::io::Error::other("the path names no file")))?;
-        let mut bytes = try_vec::<u8>(self.encoded_len())?;
-        bytes.resize(self.encoded_len(), 0);
-        self.encode_into(&mut bytes)?;
-        let (mut f, tmp) = create_temp(path, name).map_err(io)?;
+        let bytes = match version {
+            2 => Some(self.to_bytes_version(2)?),
+            3 => None,
+            _ => return Err(bad_version(version)),
+        };
+        let (f, tmp) = create_temp(path, name).map_err(io)?;
+        let mut out = std::io::BufWriter::with_capacity(1 << 20, f);
+        let written = match &bytes {
+            Some(b) => out.write_all(b).map_err(io),
+            None => lean::encode(self, &mut |b| out.write_all(b).map_err(io)),
+        };
         let write = || -> std::io::Result<()> {
-            f.write_all(&bytes)?;
+            let f = out
+                .into_inner()
+                .map_err(std::io::IntoInnerError::into_error)?;
             f.sync_all()?;
             drop(f);
             std::fs::rename(&tmp, path)
         };
-        if let Err(e) = write() {
+        if let Err(e) = written.and_then(|()| write().map_err(io)) {
             let _ = std::fs::remove_file(&tmp);
-            return Err(io(e));
+            return Err(e);
         }
         // Make the rename durable where the platform allows it (best effort).
         if let Some(dir) = path.parent() {
@@ -293,11 +376,17 @@ impl Database {
         Ok(())
     }
 
-    /// Reads a database saved by [`Database::save`].
+    /// Reads a database saved by [`Database::save`] (any format version).
     ///
     /// Only regular files are read (a FIFO, a device or a directory is refused before it is
     /// opened), and the header is checked against the file's size before the body is read: a
-    /// foreign, truncated or padded file is refused after reading at most its header (the first 100 bytes).
+    /// foreign, truncated or padded file is refused after reading at most its header (and, in
+    /// version 3, its section table). In version 3 each section is read once, straight into the
+    /// column it becomes, and the clouds stay in the file: the database keeps it open and reads a
+    /// place's cloud when it is asked for ([`Database::try_cloud`]). Its search index is left to
+    /// the searches, as after a bulk add ([`super::IndexPolicy::BySearches`]; a
+    /// [`super::LoopDetector`] builds it at its start): a map opened to be summed up, merged or
+    /// saved never builds it, and the searches before it are exact.
     ///
     /// # Errors
     /// [`DbError::Io`] naming the file when it cannot be read (for example, it does not exist,
@@ -308,21 +397,40 @@ impl Database {
     pub fn load<P: AsRef<std::path::Path>>(path: P) -> Result<Database, DbError> {
         let path = path.as_ref();
         let file = path.display().to_string();
-        let named = |e| match e {
-            DbError::Format { reason, .. } => DbError::Format {
-                file: Some(file.clone()),
-                reason,
-            },
-            other => other,
-        };
-        let bytes = read_checked(path).map_err(|e| match e {
-            ReadError::Io(source) => DbError::Io {
-                file: file.clone(),
-                source,
-            },
-            ReadError::Db(e) => named(e),
-        })?;
-        Database::from_bytes(&bytes).map_err(named)
+        let (f, size, version) = open_checked(path).map_err(|e| e.named(&file))?;
+        if version >= lean::VERSION {
+            let src = lean::FileSource {
+                file: &f,
+                size,
+                name: &file,
+            };
+            return lean::decode(&src, Some((&f, &file))).map_err(|e| named(e, &file));
+        }
+        let bytes = read_checked(f, size).map_err(|e| e.named(&file))?;
+        Database::from_bytes(&bytes).map_err(|e| named(e, &file))
+    }
+
+    /// What the database file at `path` holds (places, sessions, clouds, metadata), read from its
+    /// header, section table and small sections alone in format version 3 (neither descriptors
+    /// nor clouds), from the whole file in versions 1 and 2.
+    ///
+    /// # Errors
+    /// As [`Database::load`].
+    #[cfg(feature = "std")]
+    pub fn summary<P: AsRef<std::path::Path>>(path: P) -> Result<Summary, DbError> {
+        let path = path.as_ref();
+        let file = path.display().to_string();
+        let (f, size, version) = open_checked(path).map_err(|e| e.named(&file))?;
+        if version >= lean::VERSION {
+            let src = lean::FileSource {
+                file: &f,
+                size,
+                name: &file,
+            };
+            return lean::summary(&src).map_err(|e| named(e, &file));
+        }
+        drop(f);
+        Ok(lean::summary_of(&Database::load(path)?, version))
     }
 }
 
@@ -344,31 +452,14 @@ impl Header {
     /// the magic, the version, the flags and the reserved field. Needs the version's header and
     /// checksum (fewer is "truncated", or "not a SOLiD database" when even the magic is missing).
     fn parse(bytes: &[u8]) -> Result<Header, String> {
-        if bytes.len() < MAGIC.len() || bytes[..MAGIC.len()] != MAGIC {
-            return Err(String::from(
-                "not a SOLiD database (wrong magic number at the start of the file)",
-            ));
-        }
+        let version = version_of(bytes)?;
+        debug_assert!(version < lean::VERSION, "version 3 has a header of its own");
         let truncated = |need: usize| {
             format!(
                 "truncated: {} bytes, shorter than the {need}-byte header",
                 bytes.len()
             )
         };
-        if bytes.len() < HEADER_LEN_V1 + 4 {
-            return Err(truncated(HEADER_LEN_V1 + 4));
-        }
-        let mut rd = Reader { b: bytes, at: 8 };
-        let version = rd.u32();
-        if version > FORMAT_VERSION {
-            return Err(format!(
-                "format version {version} is newer than this library reads (up to {FORMAT_VERSION}); \
-                 upgrade solid"
-            ));
-        }
-        if version == 0 {
-            return Err(String::from("invalid format version 0"));
-        }
         let header_len = if version >= 2 {
             HEADER_LEN
         } else {
@@ -377,28 +468,9 @@ impl Header {
         if bytes.len() < header_len + 4 {
             return Err(truncated(header_len + 4));
         }
-        let flags = rd.u32();
-        if flags != 0 {
-            return Err(format!("unknown header flags {flags:#x}"));
-        }
-        let (n_range, n_azimuth, n_elevation, reserved) = (rd.u32(), rd.u32(), rd.u32(), rd.u32());
-        if reserved != 0 {
-            return Err(format!(
-                "corrupted header: reserved field is {reserved:#x}, not 0"
-            ));
-        }
-        let config = Config {
-            n_range: n_range as usize,
-            n_azimuth: n_azimuth as usize,
-            n_elevation: n_elevation as usize,
-            fov_up: rd.f64(),
-            fov_down: rd.f64(),
-            min_range: rd.f64(),
-            max_range: rd.f64(),
-            voxel_size: rd.f64(),
-        };
-        let fingerprint = rd.u64();
-        let count = rd.u64();
+        let (config, fingerprint, count) = fixed_header(&bytes[..88])?;
+        let (n_range, n_azimuth) = (config.n_range, config.n_azimuth);
+        let mut rd = Reader { b: bytes, at: 88 };
         let cloud_section = if version >= 2 { rd.u64() } else { 0 };
         let per_entry = (n_range as u64 + n_azimuth as u64) * 4 + ENTRY_LEN as u64;
         let len = count
@@ -434,6 +506,90 @@ impl Header {
     }
 }
 
+/// The format version of a file starting with `bytes`, after its magic: refused when it is
+/// newer than this library reads, or 0. Needs 12 bytes (fewer is "truncated", or "not a SOLiD
+/// database" when even the magic is missing).
+pub(super) fn version_of(bytes: &[u8]) -> Result<u32, String> {
+    if bytes.len() < MAGIC.len() || bytes[..MAGIC.len()] != MAGIC {
+        return Err(String::from(
+            "not a SOLiD database (wrong magic number at the start of the file)",
+        ));
+    }
+    if bytes.len() < 12 {
+        return Err(format!(
+            "truncated: {} bytes, shorter than the {}-byte header",
+            bytes.len(),
+            HEADER_LEN_V1 + 4
+        ));
+    }
+    let version = u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]);
+    if version > lean::VERSION {
+        return Err(format!(
+            "format version {version} is newer than this library reads (up to {}); upgrade solid",
+            lean::VERSION
+        ));
+    }
+    if version == 0 {
+        return Err(String::from("invalid format version 0"));
+    }
+    Ok(version)
+}
+
+/// The fields every version's header starts with (bytes 12..88: flags, dimensions, reserved
+/// word, config, fingerprint, entry count), the flags and the reserved word checked.
+pub(super) fn fixed_header(b: &[u8]) -> Result<(Config, u64, u64), String> {
+    let mut rd = Reader { b, at: 12 };
+    let flags = rd.u32();
+    if flags != 0 {
+        return Err(format!("unknown header flags {flags:#x}"));
+    }
+    let (n_range, n_azimuth, n_elevation, reserved) = (rd.u32(), rd.u32(), rd.u32(), rd.u32());
+    if reserved != 0 {
+        return Err(format!(
+            "corrupted header: reserved field is {reserved:#x}, not 0"
+        ));
+    }
+    let config = Config {
+        n_range: n_range as usize,
+        n_azimuth: n_azimuth as usize,
+        n_elevation: n_elevation as usize,
+        fov_up: rd.f64(),
+        fov_down: rd.f64(),
+        min_range: rd.f64(),
+        max_range: rd.f64(),
+        voxel_size: rd.f64(),
+    };
+    Ok((config, rd.u64(), rd.u64()))
+}
+
+/// Checks what the header says of the config (valid, and the one its fingerprint names) and the
+/// entry count (below `u32::MAX`).
+pub(super) fn check_config(config: &Config, fingerprint: u64, count: u64) -> Result<(), String> {
+    if let Err(e) = config.validate() {
+        return Err(format!("invalid config in header: {e}"));
+    }
+    if config.fingerprint() != fingerprint {
+        return Err(format!(
+            "config fingerprint {fingerprint:#018x} does not match the stored config ({:#018x})",
+            config.fingerprint()
+        ));
+    }
+    if count >= u32::MAX as u64 {
+        return Err(format!("too many entries ({count})"));
+    }
+    Ok(())
+}
+
+/// The error for a format version that cannot be written.
+fn bad_version(version: u32) -> DbError {
+    crate::Error::InvalidParameter {
+        name: "version",
+        value: f64::from(version),
+        expected: "a format version this library writes: 2 or 3",
+    }
+    .into()
+}
+
 /// A value a descriptor bin can hold: finite and non-negative (SPEC §3).
 pub(super) fn is_bin_value(v: f32) -> bool {
     v.is_finite() && v >= 0.0
@@ -454,18 +610,42 @@ enum ReadError {
 }
 
 #[cfg(feature = "std")]
+impl ReadError {
+    /// The error of reading `file`.
+    fn named(self, file: &str) -> DbError {
+        match self {
+            ReadError::Io(source) => DbError::Io {
+                file: String::from(file),
+                source,
+            },
+            ReadError::Db(e) => named(e, file),
+        }
+    }
+}
+
+/// A format error `e` of reading `file`, naming it.
+#[cfg(feature = "std")]
+fn named(e: DbError, file: &str) -> DbError {
+    match e {
+        DbError::Format { reason, .. } => DbError::Format {
+            file: Some(String::from(file)),
+            reason,
+        },
+        other => other,
+    }
+}
+
+#[cfg(feature = "std")]
 impl From<std::io::Error> for ReadError {
     fn from(e: std::io::Error) -> Self {
         ReadError::Io(e)
     }
 }
 
-/// The bytes of the database file at `path`: refuses what is not a regular file before opening
-/// it, reads the header, checks the size it implies against the file's, and only then reads the
-/// body into one buffer allocated once.
+/// The database file at `path`, open, with its size and format version: refuses what is not a
+/// regular file before opening it, and reads the first 12 bytes only.
 #[cfg(feature = "std")]
-fn read_checked(path: &std::path::Path) -> Result<Vec<u8>, ReadError> {
-    use std::io::Read;
+fn open_checked(path: &std::path::Path) -> Result<(std::fs::File, u64, u32), ReadError> {
     let not_regular = |meta: &std::fs::Metadata| -> Option<ReadError> {
         let kind = meta.file_type();
         if kind.is_file() {
@@ -492,7 +672,20 @@ fn read_checked(path: &std::path::Path) -> Result<Vec<u8>, ReadError> {
     if let Some(e) = not_regular(&meta) {
         return Err(e);
     }
-    let size = meta.len();
+    let mut head = [0u8; 12];
+    let got = read_up_to(&mut f, &mut head)?;
+    let db = |reason| ReadError::Db(DbError::Format { file: None, reason });
+    let version = version_of(&head[..got]).map_err(db)?;
+    Ok((f, meta.len(), version))
+}
+
+/// The bytes of an open database file in format version 1 or 2 of `size` bytes, read after its
+/// first 12 ([`open_checked`]): reads the header, checks the size it implies against the file's,
+/// and only then reads the body into one buffer allocated once.
+#[cfg(feature = "std")]
+fn read_checked(mut f: std::fs::File, size: u64) -> Result<Vec<u8>, ReadError> {
+    use std::io::{Read, Seek};
+    f.seek(std::io::SeekFrom::Start(0))?;
     let db = |reason| ReadError::Db(DbError::Format { file: None, reason });
     let mut head = [0u8; HEADER_LEN + 4];
     let got = read_up_to(&mut f, &mut head)?;
@@ -577,8 +770,7 @@ fn create_temp(
     }
 }
 
-const MAGIC: [u8; 8] = *b"SOLiDdb\0";
-const FORMAT_VERSION: u32 = 2;
+pub(super) const MAGIC: [u8; 8] = *b"SOLiDdb\0";
 const HEADER_LEN_V1: usize = 88;
 const HEADER_LEN: usize = 96;
 const ENTRY_LEN: usize = 4 + 4 + 8 + 96;

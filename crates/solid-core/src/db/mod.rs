@@ -24,7 +24,7 @@
 //! }
 //! let hits = db.search(&r, 2, 0, Method::Auto).unwrap();
 //! assert_eq!(hits[0].id, 4);
-//! let copy = Database::from_bytes(&db.to_bytes()).unwrap();
+//! let copy = Database::from_bytes(&db.to_bytes().unwrap()).unwrap();
 //! assert_eq!(copy.len(), 5);
 //! ```
 //!
@@ -40,6 +40,7 @@ mod detector_config;
 mod exclusion;
 pub mod format;
 mod index_policy;
+mod lean;
 mod room;
 pub mod wire;
 

@@ -84,7 +84,7 @@ pub use solve::{
     agreement, hypothesis_yaws, pose_distance, register, register_hypotheses, Hypotheses,
     Hypothesis, HORIZONTAL, MAX_HYPOTHESES, ROTATION_TOLERANCE,
 };
-pub use wire::{decode_cloud, encode_cloud};
+pub use wire::{check_cloud, decode_cloud, encode_cloud};
 
 use crate::Error;
 

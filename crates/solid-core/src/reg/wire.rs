@@ -174,12 +174,12 @@ pub fn encode_cloud(points: &[[f64; 3]], grid: f64, bits: u8) -> Result<Vec<u8>,
     Ok(out)
 }
 
-/// Decodes a cloud encoded by [`encode_cloud`] (points in Morton order of their cells).
+/// Checks what says a cloud's bytes are whole, without decoding them: the magic, the version and
+/// the checksum (what a store of clouds checks before it hands one out or copies it).
 ///
 /// # Errors
-/// [`RegError::Format`] naming the reason: not a cloud, an unknown version, a bad header, a
-/// wrong length, a checksum mismatch.
-pub fn decode_cloud(bytes: &[u8]) -> Result<Vec<[f64; 3]>, RegError> {
+/// [`RegError::Format`] naming the reason, as [`decode_cloud`].
+pub fn check_cloud(bytes: &[u8]) -> Result<(), RegError> {
     let bad = |reason: &'static str| RegError::Format { reason };
     if bytes.len() < HEADER + 4 || bytes[..2] != MAGIC {
         return Err(bad("wrong magic or too short"));
@@ -196,6 +196,18 @@ pub fn decode_cloud(bytes: &[u8]) -> Result<Vec<[f64; 3]>, RegError> {
     if crc32(&bytes[..bytes.len() - 4]) != stored {
         return Err(bad("checksum mismatch: the cloud is corrupted"));
     }
+    Ok(())
+}
+
+/// Decodes a cloud encoded by [`encode_cloud`] (points in Morton order of their cells).
+///
+/// # Errors
+/// [`RegError::Format`] naming the reason: not a cloud, an unknown version, a bad header, a
+/// wrong length, a checksum mismatch.
+pub fn decode_cloud<B: AsRef<[u8]>>(bytes: B) -> Result<Vec<[f64; 3]>, RegError> {
+    let bytes = bytes.as_ref();
+    let bad = |reason: &'static str| RegError::Format { reason };
+    check_cloud(bytes)?;
     let bits = bytes[3];
     if !(1..=16).contains(&bits) {
         return Err(bad("offset bits outside 1..=16"));
@@ -313,7 +325,7 @@ mod tests {
                 assert!(best <= tol, "bits {bits}: {best} > {tol}");
             }
         }
-        assert!(decode_cloud(&encode_cloud(&[], 0.5, 8).unwrap())
+        assert!(decode_cloud(encode_cloud(&[], 0.5, 8).unwrap())
             .unwrap()
             .is_empty());
     }
