@@ -98,7 +98,11 @@ def block(results: Rows) -> str:
         f"(the detector's largest loop is {v5['config']['detector']['gate']['max_translation']:g} m; F1 max sweeps the loops by length)."
     )
     lines.append("")
-    lines.append("Every method answers the same queries (263, exclusion 50 keyframes ≈ 10 m here) and is scored by")
+    det = v3["config"]["detector"]
+    lines.append(
+        f"Every method answers the same queries ({v3['queries']}; the detector's exclusion: {det['exclude_frames']} keyframes "
+        f"and {det['exclude_meters']:g} m of path) and is scored by"
+    )
     lines.append("the same code (docs/spec.md §5, in the Rust core). Regenerate this block with")
     lines.append("`python tools/readme_results.py`; the rows are what `" + COMMAND.format(r="R") + "` prints, with and")
     lines.append("without `--no-verify`.")
