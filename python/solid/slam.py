@@ -39,6 +39,7 @@ __all__ = [
     "estimate_anchor",
     "graph_from_run",
     "optimize_graph",
+    "optimize_in_map",
     "optimize_run",
     "relative_pose_error",
     "require_gtsam",
@@ -147,6 +148,9 @@ class PoseGraph:
     information: F64 = field(default_factory=lambda: np.zeros((0, 6, 6)))
     #: "odometry" or "loop", per edge.
     kinds: list[str] = field(default_factory=list)
+    #: The vertices (indices) the optimisation holds at their poses: the first by default, a
+    #: saved map's places when a session is optimised into the map (:func:`optimize_in_map`).
+    fixed: list[int] = field(default_factory=lambda: [0])
 
     def __len__(self) -> int:
         return len(self.ids)
@@ -181,6 +185,7 @@ class PoseGraph:
             measurements=T @ self.measurements @ Ti,
             information=np.einsum("ji,ejk,kl->eil", A, self.information, A),
             kinds=list(self.kinds),
+            fixed=list(self.fixed),
         )
 
     def g2o_lines(self, poses: F64 | None = None) -> list[str]:
@@ -254,8 +259,9 @@ GNC_INLIER_CHI2 = 22.46
 def _factors(gtsam: Any, graph: PoseGraph, robust: str) -> tuple[Any, list[int]]:
     fg = gtsam.NonlinearFactorGraph()
     prior = gtsam.noiseModel.Diagonal.Sigmas(np.full(6, 1e-6))
-    fg.add(gtsam.PriorFactorPose3(int(graph.ids[0]), gtsam.Pose3(graph.poses[0]), prior))
-    known = [0]
+    for v in graph.fixed:
+        fg.add(gtsam.PriorFactorPose3(int(graph.ids[v]), gtsam.Pose3(graph.poses[v]), prior))
+    known = list(range(len(graph.fixed)))
     for e, (i, j, Z, info, kind) in enumerate(
         zip(graph.edge_from, graph.edge_to, graph.measurements, graph.information, graph.kinds)
     ):
@@ -266,13 +272,13 @@ def _factors(gtsam: Any, graph: PoseGraph, robust: str) -> tuple[Any, list[int]]
             model = gtsam.noiseModel.Robust.Create(kernel, model)
         fg.add(gtsam.BetweenFactorPose3(int(graph.ids[i]), int(graph.ids[j]), gtsam.Pose3(Z), model))
         if kind != "loop":
-            known.append(e + 1)
+            known.append(len(graph.fixed) + e)
     return fg, known
 
 
 def optimize_graph(graph: PoseGraph, robust: str = ROBUST_SCHEMES[0], *, max_iterations: int = 100) -> tuple[F64, F64]:
-    """Optimise ``graph`` with GTSAM (Levenberg–Marquardt) from its initial values, the first
-    vertex held at its pose. ``robust`` (one of :data:`ROBUST_SCHEMES`) treats the loop edges:
+    """Optimise ``graph`` with GTSAM (Levenberg–Marquardt) from its initial values, the
+    vertices :attr:`PoseGraph.fixed` held at their poses. ``robust`` (one of :data:`ROBUST_SCHEMES`) treats the loop edges:
     ``gnc-tls``/``gnc-gm`` graduated non-convexity with a truncated-least-squares / Geman–McClure
     cost (odometry known to be inliers), ``cauchy``/``dcs``/``huber`` an M-estimator kernel,
     ``none`` plain least squares. Returns the optimised poses (N, 4, 4) and each loop edge's
@@ -298,12 +304,12 @@ def optimize_graph(graph: PoseGraph, robust: str = ROBUST_SCHEMES[0], *, max_ite
         opt.setInlierCostThresholds(GNC_INLIER_CHI2 / 2)  # GTSAM's factor error is χ²/2
         values = opt.optimize()
         w = np.asarray(opt.getWeights())
-        weights = np.array([w[e + 1] for e in loops])
+        weights = np.array([w[len(graph.fixed) + e] for e in loops])
     else:
         values = gtsam.LevenbergMarquardtOptimizer(fg, init, lm).optimize()
         if robust in _KERNEL_WIDTH:
             for n, e in enumerate(loops):
-                f = fg.at(e + 1)
+                f = fg.at(len(graph.fixed) + e)
                 whitened = math.sqrt(2 * f.error(values))
                 weights[n] = float(f.noiseModel().robust().weight(whitened))
     out = np.stack([np.asarray(values.atPose3(int(v)).matrix()) for v in graph.ids])
@@ -409,6 +415,54 @@ def estimate_anchor(
     return Anchor(T, int(best.sum()), len(q))
 
 
+def optimize_in_map(
+    graph: PoseGraph,
+    map_poses: npt.ArrayLike,
+    query_index: AbcSequence[int],
+    candidate_index: AbcSequence[int],
+    loop_poses: npt.ArrayLike,
+    loop_information: npt.ArrayLike,
+    initial: Anchor,
+    robust: str = ROBUST_SCHEMES[0],
+    start: npt.ArrayLike | None = None,
+) -> tuple[Anchor, F64, F64]:
+    """A session's graph optimised into a saved map, the map's places held where the map has
+    them: the session's vertices (started at ``initial.T_map_session`` · ``start``, by default
+    their poses; e.g. the session optimised alone) and
+    edges, and a loop edge per cross-session loop ``k`` from the session's vertex
+    ``query_index[k]`` to the map's place ``candidate_index[k]`` (pose in ``map_poses``), all
+    loops under ``robust``. The anchor is where the optimum puts the session's first frame:
+    ``T_map_session = Y₀ · X₀⁻¹`` (``X₀`` its pose in the session's world, ``Y₀`` in the map's),
+    so it is fixed by the loops and the odometry together rather than fitted on poses that
+    drift away from the session's start. Returns the anchor (``inliers``: the cross-session
+    loops the optimum kept), the session's poses in the map's world and the weights of the
+    session's own loop edges."""
+    M = as4(map_poses)
+    c = np.asarray(candidate_index, dtype=np.int64)
+    places = np.unique(c)
+    n = len(graph)
+    # The map's places become vertices after the session's, with ids past the session's.
+    first_id = int(graph.ids.max()) + 1 if n else 0
+    joint = PoseGraph(
+        ids=np.r_[graph.ids, first_id + places].astype(np.int64),
+        poses=np.concatenate([initial.T_map_session @ as4(graph.poses if start is None else start), M[places]]),
+        edge_from=graph.edge_from.copy(),
+        edge_to=graph.edge_to.copy(),
+        measurements=graph.measurements.copy(),
+        information=graph.information.copy(),
+        kinds=list(graph.kinds),
+        fixed=list(range(n, n + len(places))),
+    )
+    vertex = {int(m): n + k for k, m in enumerate(places)}
+    for q, m, Z, info in zip(query_index, c, as4(loop_poses), np.asarray(loop_information, dtype=np.float64)):
+        joint.add_edge(int(q), vertex[int(m)], Z, info, "loop")
+    Y, w = optimize_graph(joint, robust)
+    own = len(graph.loops())
+    T = Y[0] @ inv(graph.poses[0])
+    anchor = Anchor(T, int(np.sum(w[own:] > 0.5)), len(c))
+    return anchor, Y[:n], w[:own]
+
+
 def _mean_rotation(Rs: F64) -> F64:
     U, _, Vt = np.linalg.svd(Rs.sum(0))
     S = np.eye(3)
@@ -444,28 +498,34 @@ def optimize_run(
     noise: OdometryNoise | None = None,
 ) -> SlamResult:
     """The pose graph of a pipeline run (:func:`graph_from_run`), optimised
-    (:func:`optimize_graph`); with a map, the session anchored in the map's world
-    (:func:`estimate_anchor`, from the optimised poses) and its poses there."""
+    (:func:`optimize_graph`); with a map and loops into it, the session optimised into the
+    map's world with the map's places held (:func:`optimize_in_map`, started from the
+    consensus of :func:`estimate_anchor`), which gives the anchor, the poses in the map's world
+    and, carried back by the anchor, the session's optimised poses."""
     if result.poses is None:
         raise ValueError("a pose graph needs the odometry's poses (give --poses)")
     graph = graph_from_run(result, noise)
     optimized, weights = optimize_graph(graph, robust)
     out = SlamResult(graph, graph.poses.copy(), optimized, weights, robust)
     base = int(result.map_size)
-    cross = [lp for lp in result.loops() if lp.pose is not None and int(lp.candidate) < base]
-    if base > 0:
-        stored = as4(np.asarray(result.database.poses)[:base])
-        ok = [lp for lp in cross if np.isfinite(stored[int(lp.candidate)]).all()]
-        anchor = estimate_anchor(
-            optimized,
-            stored,
-            [int(lp.query) - base for lp in ok],
-            [int(lp.candidate) for lp in ok],
-            np.stack([lp.pose for lp in ok]) if ok else np.zeros((0, 4, 4)),
-        )
-        out.anchor = anchor
-        if anchor is not None:
-            out.map_poses = anchor.T_map_session @ optimized
+    if base == 0:
+        return out
+    stored = as4(np.asarray(result.database.poses)[:base])
+    ok = [
+        lp
+        for lp in result.loops()
+        if lp.pose is not None and lp.information is not None and int(lp.candidate) < base and np.isfinite(stored[int(lp.candidate)]).all()
+    ]
+    q = [int(lp.query) - base for lp in ok]
+    c = [int(lp.candidate) for lp in ok]
+    Z = np.stack([lp.pose for lp in ok]) if ok else np.zeros((0, 4, 4))
+    initial = estimate_anchor(optimized, stored, q, c, Z)
+    if initial is None:
+        return out
+    info = np.stack([lp.information for lp in ok])
+    anchor, in_map, out.loop_weights = optimize_in_map(graph, stored, q, c, Z, info, initial, robust, optimized)
+    out.anchor, out.map_poses = anchor, in_map
+    out.optimized = inv(anchor.T_map_session) @ in_map
     return out
 
 
