@@ -152,7 +152,8 @@ def test_g2o_loads_in_gtsam_as_a_full_graph_with_the_same_optimum(hku1_optimized
 
 
 def test_eval_against_a_map_in_another_world_is_refused_or_anchored(tmp_path: Path) -> None:
-    """eval --map never assumes one world: without a loop into the map it asks for an anchor."""
+    """eval --map never assumes one world: without a loop into the map it asks for an anchor;
+    map merge asks to be told."""
     world = sim.World(seed=1)
     lap, second = sim.session_routes(world, spacing=4.0)
     s0, s1 = sim.write_sessions(tmp_path / "sim", world, sim.Sensor("vlp16"), [lap[:10], second[:6]])
@@ -164,6 +165,14 @@ def test_eval_against_a_map_in_another_world_is_refused_or_anchored(tmp_path: Pa
     m = json.loads((tmp_path / "b" / "metrics.json").read_text())
     assert m["anchor"]["source"] == "given"
     assert main([*args, "--same-world", "-o", str(tmp_path / "c")]) == 0
+    # Nor does map merge: two maps with poses are joined only when told their worlds are one.
+    assert main(["map", "build", str(s1), "--preset", "vlp16", "--poses", "poses.txt", "-o", str(tmp_path / "m1.soliddb"), "-q"]) == 0
+    merge = ["map", "merge", str(tmp_path / "m.soliddb"), str(tmp_path / "m1.soliddb"), "-q"]
+    assert main([*merge, "-o", str(tmp_path / "both.soliddb")]) == 1
+    assert main([*merge, "--anchor", str(tmp_path / "anchor.txt"), "-o", str(tmp_path / "both.soliddb")]) == 1  # not yet
+    assert not (tmp_path / "both.soliddb").exists()
+    assert main([*merge, "--anchor", "same", "-o", str(tmp_path / "both.soliddb")]) == 0
+    assert sorted(set(solid.Database.load(tmp_path / "both.soliddb").sessions.tolist())) == [0, 1]
 
 
 def test_information_is_the_cores() -> None:
