@@ -148,6 +148,19 @@ def test_g2o_loads_in_gtsam_as_a_full_graph_with_the_same_optimum(hku1_optimized
     assert np.abs(ours[:, :, 3] - P[:, :, 3]).max() < 0.005
 
 
+def test_a_runs_graph_is_optimised_again_from_its_g2o_file(hku1_optimized: Path) -> None:
+    """A run's loops are reused without the detector: graph.g2o read back gives the same graph
+    (odometry and loop edges told apart) and the same optimum."""
+    graph = slam.PoseGraph.read_g2o(hku1_optimized / "graph.g2o")
+    m = json.loads((hku1_optimized / "metrics.json").read_text())
+    P, _ = load_poses(hku1_optimized / "trajectory.kitti")
+    assert len(graph) == len(P) and len(graph.loops()) == m["loop_edges"]
+    assert graph.kinds.count("odometry") == len(P) - 1
+    opt, w = slam.optimize_graph(graph)
+    assert int(np.sum(w > 0.5)) == m["loop_edges_kept"]
+    assert np.abs(opt[:, :3, 3] - P[:, :, 3]).max() < 1e-3
+
+
 # ---- two sessions: a map in another world ------------------------------------------------------
 
 

@@ -205,6 +205,50 @@ class PoseGraph:
         Path(path).write_text("".join(s + "\n" for s in self.g2o_lines(poses)), encoding="utf-8")
         return len(self.kinds)
 
+    @classmethod
+    def read_g2o(cls, path: Path | str) -> PoseGraph:
+        """The graph of a g2o file :meth:`write_g2o` wrote (``solid detect --g2o``, ``solid
+        optimize``'s ``graph.g2o``), to optimise again without running the detector: vertices in
+        the file's order, each edge ``i → j`` with its measurement and information; an edge
+        between two vertices next to each other in that order is odometry, any other a loop (a
+        loop never joins consecutive frames: the detector excludes recent ones)."""
+        from .datasets.poses import quat_to_matrix
+
+        def pose(v: list[float]) -> F64:
+            T = np.eye(4)
+            T[:3, :3] = quat_to_matrix(np.asarray(v[3:7])[None])[0]
+            T[:3, 3] = v[:3]
+            return T
+
+        ids: list[int] = []
+        poses: list[F64] = []
+        edges: list[tuple[int, int, F64, F64]] = []
+        for n, line in enumerate(Path(path).read_text(encoding="utf-8").splitlines(), 1):
+            f = line.split()
+            try:
+                if f and f[0] == "VERTEX_SE3:QUAT" and len(f) == 9:
+                    ids.append(int(f[1]))
+                    poses.append(pose([float(x) for x in f[2:]]))
+                elif f and f[0] == "EDGE_SE3:QUAT" and len(f) == 31:
+                    upper = iter(float(x) for x in f[10:])
+                    info = np.zeros((6, 6))
+                    for a in range(6):
+                        for b in range(a, 6):
+                            info[a, b] = info[b, a] = next(upper)
+                    edges.append((int(f[1]), int(f[2]), pose([float(x) for x in f[3:10]]), info))
+                elif f and not f[0].startswith("#"):
+                    raise ValueError(f"not a VERTEX_SE3:QUAT (9 fields) or EDGE_SE3:QUAT (31 fields) line: {f[0]}, {len(f)} fields")
+            except ValueError as e:
+                raise ValueError(f"{path}, line {n}: {e}") from None
+        index = {v: k for k, v in enumerate(ids)}
+        g = cls(ids=np.asarray(ids, dtype=np.int64), poses=np.stack(poses) if poses else np.zeros((0, 4, 4)))
+        for i, j, Z, info in edges:
+            if i not in index or j not in index:
+                raise ValueError(f"{path}: the edge {i} → {j} joins a vertex the file does not hold")
+            a, b = index[i], index[j]
+            g.add_edge(a, b, Z, info, "odometry" if abs(a - b) == 1 else "loop")
+        return g
+
 
 def _pose_text(P: F64) -> str:
     qx, qy, qz, qw = quaternion(P[:3, :3])
