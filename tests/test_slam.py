@@ -188,6 +188,27 @@ def test_eval_against_a_map_in_another_world_is_refused_or_anchored(tmp_path: Pa
     assert sorted(set(solid.Database.load(tmp_path / "both.soliddb").sessions.tolist())) == [0, 1]
 
 
+def test_a_session_whose_loops_into_the_map_contradict_each_other_stays_unanchored() -> None:
+    """The joint optimisation's anchor is only as good as the loops it keeps: two loops that put
+    the map 50 m apart leave nothing to trust; two that agree give the anchor exactly."""
+    X = np.stack([np.eye(4)] * 10)
+    X[:, 0, 3] = np.arange(10) * 2.0
+    graph = slam.PoseGraph(ids=np.arange(10), poses=X)
+    for k in range(9):
+        graph.add_edge(k, k + 1, inv(X[k]) @ X[k + 1], slam.OdometryNoise().information(2.0), "odometry")
+    loops = ([0, 9], [0, 1], np.stack([np.eye(4)] * 2), np.stack([np.eye(6) * 1e4] * 2))
+    start = slam.Anchor(np.eye(4), 1, 2)
+    apart = X[[0, 9]].copy()
+    apart[1, 0, 3] += 50.0
+    anchor, _, _ = slam.optimize_in_map(graph, apart, *loops, start)
+    assert anchor is None
+    north = X[[0, 9]].copy()
+    north[:, 1, 3] += 5.0
+    anchor, in_map, _ = slam.optimize_in_map(graph, north, *loops, start)
+    assert anchor is not None and anchor.inliers == 2
+    assert np.allclose(anchor.T_map_session[:3, 3], [0.0, 5.0, 0.0], atol=1e-6)
+    assert np.allclose(in_map, anchor.T_map_session @ X, atol=1e-6)
+
 def test_information_is_the_cores() -> None:
     """Loop.information is the registration's, carried over: symmetric positive definite."""
     world = sim.World(seed=3)

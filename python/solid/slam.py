@@ -469,7 +469,7 @@ def optimize_in_map(
     initial: Anchor,
     robust: str = ROBUST_SCHEMES[0],
     start: npt.ArrayLike | None = None,
-) -> tuple[Anchor, F64, F64]:
+) -> tuple[Anchor | None, F64, F64]:
     """A session's graph optimised into a saved map, the map's places held where the map has
     them: the session's vertices (started at ``initial.T_map_session`` · ``start``, by default
     their poses; e.g. the session optimised alone) and
@@ -479,8 +479,9 @@ def optimize_in_map(
     ``T_map_session = Y₀ · X₀⁻¹`` (``X₀`` its pose in the session's world, ``Y₀`` in the map's),
     so it is fixed by the loops and the odometry together rather than fitted on poses that
     drift away from the session's start. Returns the anchor (``inliers``: the cross-session
-    loops the optimum kept), the session's poses in the map's world and the weights of the
-    session's own loop edges."""
+    loops the optimum kept; None when it kept none, since nothing then ties the session to the
+    map), the session's poses in the map's world and the weights of the session's own loop
+    edges."""
     M = as4(map_poses)
     c = np.asarray(candidate_index, dtype=np.int64)
     places = np.unique(c)
@@ -502,8 +503,8 @@ def optimize_in_map(
         joint.add_edge(int(q), vertex[int(m)], Z, info, "loop")
     Y, w = optimize_graph(joint, robust)
     own = len(graph.loops())
-    T = Y[0] @ inv(graph.poses[0])
-    anchor = Anchor(T, int(np.sum(w[own:] > 0.5)), len(c))
+    kept = int(np.sum(w[own:] > 0.5))
+    anchor = Anchor(Y[0] @ inv(graph.poses[0]), kept, len(c)) if kept else None
     return anchor, Y[:n], w[:own]
 
 
@@ -545,7 +546,8 @@ def optimize_run(
     (:func:`optimize_graph`); with a map and loops into it, the session optimised into the
     map's world with the map's places held (:func:`optimize_in_map`, started from the
     consensus of :func:`estimate_anchor`), which gives the anchor, the poses in the map's world
-    and, carried back by the anchor, the session's optimised poses."""
+    and, carried back by the anchor, the session's optimised poses. When that optimum trusts
+    no loop into the map, the session stays unanchored (``anchor`` None)."""
     if result.poses is None:
         raise ValueError("a pose graph needs the odometry's poses (give --poses)")
     graph = graph_from_run(result, noise)
@@ -567,8 +569,10 @@ def optimize_run(
     if initial is None:
         return out
     info = np.stack([lp.information for lp in ok])
-    anchor, in_map, out.loop_weights = optimize_in_map(graph, stored, q, c, Z, info, initial, robust, optimized)
-    out.anchor, out.map_poses = anchor, in_map
+    anchor, in_map, own_weights = optimize_in_map(graph, stored, q, c, Z, info, initial, robust, optimized)
+    if anchor is None:
+        return out
+    out.anchor, out.map_poses, out.loop_weights = anchor, in_map, own_weights
     out.optimized = inv(anchor.T_map_session) @ in_map
     return out
 
