@@ -408,7 +408,8 @@ def merge_maps(inputs: AbcSequence[Path], output_file: Path, anchors: AbcSequenc
     the previous ones (so that runs stay apart). Poses are only comparable within one world:
     ``anchors`` holds, for each map after the first, ``"same"`` when its poses already are in
     the first map's world; two maps with poses and nothing said about their worlds are refused
-    (carrying a map into another's world by an anchor file is not supported yet)."""
+    (carrying a map into another's world by an anchor file is not supported yet). Nothing is
+    written when a map is refused."""
     out = Path(output_file)
     if out.exists():
         raise FileExistsError(f"{out} exists: choose another file name or remove it")
@@ -424,16 +425,21 @@ def merge_maps(inputs: AbcSequence[Path], output_file: Path, anchors: AbcSequenc
                 "merge maps whose poses share one world (--anchor same), or query the second session against the first map "
                 "(solid optimize --map writes its anchor)"
             )
-    maps = [_solid.Database.load(p) for p in inputs]
-    posed = [p for p, db in zip(inputs, maps) if np.isfinite(np.asarray(db.poses)).all(axis=(1, 2)).any()]
-    if len(posed) >= 2 and not given:
-        raise _solid.ConfigError(
-            f"{posed[0]} and {posed[1]} both hold poses, each in the world of the run that made it, and nothing says "
-            "those worlds are one: give --anchor same for each map after the first if they are (one ground truth, "
-            "one SLAM map); otherwise keep the maps apart"
-        )
-    db = maps[0]
-    for other in maps[1:]:
+    def posed(db: Any) -> bool:
+        return bool(np.isfinite(np.asarray(db.poses)).all(axis=(1, 2)).any())
+
+    db = _solid.Database.load(inputs[0])
+    first_posed = inputs[0] if posed(db) else None
+    for p in inputs[1:]:
+        other = _solid.Database.load(p)
+        if posed(other):
+            if first_posed is not None and not given:
+                raise _solid.ConfigError(
+                    f"{first_posed} and {p} both hold poses, each in the world of the run that made it, and nothing says "
+                    "those worlds are one: give --anchor same for each map after the first if they are (one ground truth, "
+                    "one SLAM map); otherwise keep the maps apart"
+                )
+            first_posed = first_posed or p
         db.merge(other, new_sessions=True)
     db.save(out)
     return db

@@ -322,7 +322,8 @@ def _factors(gtsam: Any, graph: PoseGraph, robust: str) -> tuple[Any, list[int]]
 
 def optimize_graph(graph: PoseGraph, robust: str = ROBUST_SCHEMES[0], *, max_iterations: int = 100) -> tuple[F64, F64]:
     """Optimise ``graph`` with GTSAM (Levenberg–Marquardt) from its initial values, the
-    vertices :attr:`PoseGraph.fixed` held at their poses. ``robust`` (one of :data:`ROBUST_SCHEMES`) treats the loop edges:
+    vertices :attr:`PoseGraph.fixed` held at their poses. ``robust`` (one of
+    :data:`ROBUST_SCHEMES`) treats the loop edges:
     ``gnc-tls``/``gnc-gm`` graduated non-convexity with a truncated-least-squares / Geman–McClure
     cost (odometry known to be inliers), ``cauchy``/``dcs``/``huber`` an M-estimator kernel,
     ``none`` plain least squares. Returns the optimised poses (N, 4, 4) and each loop edge's
@@ -472,10 +473,9 @@ def optimize_in_map(
 ) -> tuple[Anchor | None, F64, F64]:
     """A session's graph optimised into a saved map, the map's places held where the map has
     them: the session's vertices (started at ``initial.T_map_session`` · ``start``, by default
-    their poses; e.g. the session optimised alone) and
-    edges, and a loop edge per cross-session loop ``k`` from the session's vertex
-    ``query_index[k]`` to the map's place ``candidate_index[k]`` (pose in ``map_poses``), all
-    loops under ``robust``. The anchor is where the optimum puts the session's first frame:
+    their poses; e.g. the session optimised alone) and edges, and a loop edge per
+    cross-session loop ``k`` from the session's vertex ``query_index[k]`` to the map's place
+    ``candidate_index[k]`` (pose in ``map_poses``), all loops under ``robust``. The anchor is where the optimum puts the session's first frame:
     ``T_map_session = Y₀ · X₀⁻¹`` (``X₀`` its pose in the session's world, ``Y₀`` in the map's),
     so it is fixed by the loops and the odometry together rather than fitted on poses that
     drift away from the session's start. Returns the anchor (``inliers``: the cross-session
