@@ -350,6 +350,15 @@ def optimize_graph(graph: PoseGraph, robust: str = ROBUST_SCHEMES[0], *, max_ite
         values = opt.optimize()
         w = np.asarray(opt.getWeights())
         weights = np.array([w[len(graph.fixed) + e] for e in loops])
+        if robust == "gnc-tls":
+            # TLS stops with weights within a tolerance of 0 or 1, but a loop's information so
+            # outweighs a long odometry chain's that a "0" of 1e-5 still bends the map: the
+            # optimum returned is that of the loops kept.
+            kept = gtsam.NonlinearFactorGraph()
+            for k in range(fg.size()):
+                if w[k] > 0.5:
+                    kept.add(fg.at(k))
+            values = gtsam.LevenbergMarquardtOptimizer(kept, init, lm).optimize()
     else:
         values = gtsam.LevenbergMarquardtOptimizer(fg, init, lm).optimize()
         if robust in _KERNEL_WIDTH:
