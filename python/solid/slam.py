@@ -118,7 +118,7 @@ class OdometryNoise:
 
     translation_fraction: float = 0.02
     translation_floor_m: float = 0.01
-    rotation_deg_per_m: float = 0.2
+    rotation_deg_per_m: float = 0.04
     rotation_floor_deg: float = 0.02
 
     def __post_init__(self) -> None:
