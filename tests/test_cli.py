@@ -364,7 +364,7 @@ def test_map_build_and_eval_across_two_simulated_sessions(capsys: pytest.Capture
     assert code == 0, err and f"map of {len(lap)} places" in out
     code, out, err = run(capsys, "map", "build", str(s1), "--preset", "vlp16", "--poses", "poses.txt", "-o", str(tmp_path / "run2.soliddb"), "-q")
     assert code == 0, err
-    code, out, err = run(capsys, "map", "merge", str(tmp_path / "run1.soliddb"), str(tmp_path / "run2.soliddb"), "-o", str(tmp_path / "both.soliddb"), "-q")
+    code, out, err = run(capsys, "map", "merge", str(tmp_path / "run1.soliddb"), str(tmp_path / "run2.soliddb"), "--anchor", "same", "-o", str(tmp_path / "both.soliddb"), "-q")
     assert code == 0, err
     both = solid.Database.load(tmp_path / "both.soliddb")
     assert len(both) == len(lap) + len(second) and sorted(set(both.sessions.tolist())) == [0, 1]

@@ -328,10 +328,10 @@ def build_parser() -> argparse.ArgumentParser:
         "merge",
         help="merge maps into one (each input's sessions renumbered after the previous ones)",
         formatter_class=fmt,
-        epilog="example:\n  solid map merge run1.soliddb run2.soliddb -o both.soliddb\n",
+        epilog="example:\n  solid map merge run1.soliddb run2.soliddb --anchor same -o both.soliddb\n",
     )
     mm.add_argument("maps", type=Path, nargs="+")
-    mm.add_argument("--anchor", type=Path, action="append", default=None, metavar="FILE", help="per map after the first, in order: its world → the first map's world (anchor.txt of `solid optimize --map`); or 'same' for a map already in the first one's world")
+    mm.add_argument("--anchor", action="append", default=None, metavar="same", help="per map after the first, in order: 'same' when its poses are in the first map's world (required when two maps hold poses; anchor files are not supported yet)")
     mm.add_argument("-o", "--output", type=Path, required=True, help="the map file to write (must not exist)")
     _add_common(mm)
     mi = msub.add_parser("info", help="what a map file holds (read from its header: fast at any size)", formatter_class=fmt, epilog="example:\n  solid map info run1.soliddb\n")
@@ -611,7 +611,7 @@ def cmd_map(args: argparse.Namespace, out: TextIO) -> int:
         out.write(f"{len(db)} places ({with_pose} with poses), session {result.session}: wrote {args.output}\n")
         return 0
     if args.map_command == "merge":
-        db = commands.merge_maps(args.maps, args.output)
+        db = commands.merge_maps(args.maps, args.output, args.anchor)
         out.write(f"{len(db)} places in {len(set(int(s) for s in db.sessions))} sessions: wrote {args.output}\n")
         return 0
     if args.map_command == "upgrade":

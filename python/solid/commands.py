@@ -408,15 +408,34 @@ def build_map(
     return db, result
 
 
-def merge_maps(inputs: AbcSequence[Path], output_file: Path) -> Any:
+def merge_maps(inputs: AbcSequence[Path], output_file: Path, anchors: AbcSequence[Path | str] | None = None) -> Any:
     """``solid map merge``: one database from several, each input's sessions renumbered to follow
-    the previous ones (so that runs stay apart)."""
+    the previous ones (so that runs stay apart). Poses are only comparable within one world:
+    ``anchors`` holds, for each map after the first, ``"same"`` when its poses already are in
+    the first map's world; two maps with poses and nothing said about their worlds are refused
+    (carrying a map into another's world by an anchor file is not supported yet). Nothing is
+    written when a map is refused."""
     out = Path(output_file)
     if out.exists():
         raise FileExistsError(f"{out} exists: choose another file name or remove it")
     if not inputs:
         raise _solid.ConfigError("give at least one map to merge")
+    given = list(anchors or [])
+    if given and len(given) != len(inputs) - 1:
+        raise _solid.ConfigError(f"give one --anchor per map after the first: {len(inputs) - 1} maps, {len(given)} anchors")
+    for a in given:
+        if str(a) != "same":
+            raise _solid.ConfigError(
+                f"--anchor {a}: carrying a map into another's world by an anchor file is not supported yet; "
+                "merge maps whose poses share one world (--anchor same), or query the second session against the first map "
+                "(solid optimize --map writes its anchor)"
+            )
+
+    def posed(db: Any) -> bool:
+        return bool(np.isfinite(np.asarray(db.poses)).all(axis=(1, 2)).any())
+
     db = _solid.Database.load(inputs[0])
+    first_posed = inputs[0] if posed(db) else None
     for p in inputs[1:]:
         other = _solid.Database.load(p)
         if map_clip(other.metadata) != map_clip(db.metadata):
@@ -426,6 +445,14 @@ def merge_maps(inputs: AbcSequence[Path], output_file: Path) -> Any:
                 UserWarning,
                 stacklevel=2,
             )
+        if posed(other):
+            if first_posed is not None and not given:
+                raise _solid.ConfigError(
+                    f"{first_posed} and {p} both hold poses, each in the world of the run that made it, and nothing says "
+                    "those worlds are one: give --anchor same for each map after the first if they are (one ground truth, "
+                    "one SLAM map); otherwise keep the maps apart"
+                )
+            first_posed = first_posed or p
         db.merge(other, new_sessions=True)
     db.save(out)
     return db

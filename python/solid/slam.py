@@ -39,6 +39,7 @@ __all__ = [
     "estimate_anchor",
     "graph_from_run",
     "optimize_graph",
+    "optimize_in_map",
     "optimize_run",
     "relative_pose_error",
     "require_gtsam",
@@ -117,7 +118,7 @@ class OdometryNoise:
 
     translation_fraction: float = 0.02
     translation_floor_m: float = 0.01
-    rotation_deg_per_m: float = 0.2
+    rotation_deg_per_m: float = 0.04
     rotation_floor_deg: float = 0.02
 
     def __post_init__(self) -> None:
@@ -147,6 +148,9 @@ class PoseGraph:
     information: F64 = field(default_factory=lambda: np.zeros((0, 6, 6)))
     #: "odometry" or "loop", per edge.
     kinds: list[str] = field(default_factory=list)
+    #: The vertices (indices) the optimisation holds at their poses: the first by default, a
+    #: saved map's places when a session is optimised into the map (:func:`optimize_in_map`).
+    fixed: list[int] = field(default_factory=lambda: [0])
 
     def __len__(self) -> int:
         return len(self.ids)
@@ -181,6 +185,7 @@ class PoseGraph:
             measurements=T @ self.measurements @ Ti,
             information=np.einsum("ji,ejk,kl->eil", A, self.information, A),
             kinds=list(self.kinds),
+            fixed=list(self.fixed),
         )
 
     def g2o_lines(self, poses: F64 | None = None) -> list[str]:
@@ -199,6 +204,50 @@ class PoseGraph:
         """Write :meth:`g2o_lines` to ``path``; returns the number of edges."""
         Path(path).write_text("".join(s + "\n" for s in self.g2o_lines(poses)), encoding="utf-8")
         return len(self.kinds)
+
+    @classmethod
+    def read_g2o(cls, path: Path | str) -> PoseGraph:
+        """The graph of a g2o file :meth:`write_g2o` wrote (``solid detect --g2o``, ``solid
+        optimize``'s ``graph.g2o``), to optimise again without running the detector: vertices in
+        the file's order, each edge ``i → j`` with its measurement and information; an edge
+        between two vertices next to each other in that order is odometry, any other a loop (a
+        loop never joins consecutive frames: the detector excludes recent ones)."""
+        from .datasets.poses import quat_to_matrix
+
+        def pose(v: list[float]) -> F64:
+            T = np.eye(4)
+            T[:3, :3] = quat_to_matrix(np.asarray(v[3:7])[None])[0]
+            T[:3, 3] = v[:3]
+            return T
+
+        ids: list[int] = []
+        poses: list[F64] = []
+        edges: list[tuple[int, int, F64, F64]] = []
+        for n, line in enumerate(Path(path).read_text(encoding="utf-8").splitlines(), 1):
+            f = line.split()
+            try:
+                if f and f[0] == "VERTEX_SE3:QUAT" and len(f) == 9:
+                    ids.append(int(f[1]))
+                    poses.append(pose([float(x) for x in f[2:]]))
+                elif f and f[0] == "EDGE_SE3:QUAT" and len(f) == 31:
+                    upper = iter(float(x) for x in f[10:])
+                    info = np.zeros((6, 6))
+                    for a in range(6):
+                        for b in range(a, 6):
+                            info[a, b] = info[b, a] = next(upper)
+                    edges.append((int(f[1]), int(f[2]), pose([float(x) for x in f[3:10]]), info))
+                elif f and not f[0].startswith("#"):
+                    raise ValueError(f"not a VERTEX_SE3:QUAT (9 fields) or EDGE_SE3:QUAT (31 fields) line: {f[0]}, {len(f)} fields")
+            except ValueError as e:
+                raise ValueError(f"{path}, line {n}: {e}") from None
+        index = {v: k for k, v in enumerate(ids)}
+        g = cls(ids=np.asarray(ids, dtype=np.int64), poses=np.stack(poses) if poses else np.zeros((0, 4, 4)))
+        for i, j, Z, info in edges:
+            if i not in index or j not in index:
+                raise ValueError(f"{path}: the edge {i} → {j} joins a vertex the file does not hold")
+            a, b = index[i], index[j]
+            g.add_edge(a, b, Z, info, "odometry" if abs(a - b) == 1 else "loop")
+        return g
 
 
 def _pose_text(P: F64) -> str:
@@ -254,8 +303,9 @@ GNC_INLIER_CHI2 = 22.46
 def _factors(gtsam: Any, graph: PoseGraph, robust: str) -> tuple[Any, list[int]]:
     fg = gtsam.NonlinearFactorGraph()
     prior = gtsam.noiseModel.Diagonal.Sigmas(np.full(6, 1e-6))
-    fg.add(gtsam.PriorFactorPose3(int(graph.ids[0]), gtsam.Pose3(graph.poses[0]), prior))
-    known = [0]
+    for v in graph.fixed:
+        fg.add(gtsam.PriorFactorPose3(int(graph.ids[v]), gtsam.Pose3(graph.poses[v]), prior))
+    known = list(range(len(graph.fixed)))
     for e, (i, j, Z, info, kind) in enumerate(
         zip(graph.edge_from, graph.edge_to, graph.measurements, graph.information, graph.kinds)
     ):
@@ -266,13 +316,14 @@ def _factors(gtsam: Any, graph: PoseGraph, robust: str) -> tuple[Any, list[int]]
             model = gtsam.noiseModel.Robust.Create(kernel, model)
         fg.add(gtsam.BetweenFactorPose3(int(graph.ids[i]), int(graph.ids[j]), gtsam.Pose3(Z), model))
         if kind != "loop":
-            known.append(e + 1)
+            known.append(len(graph.fixed) + e)
     return fg, known
 
 
 def optimize_graph(graph: PoseGraph, robust: str = ROBUST_SCHEMES[0], *, max_iterations: int = 100) -> tuple[F64, F64]:
-    """Optimise ``graph`` with GTSAM (Levenberg–Marquardt) from its initial values, the first
-    vertex held at its pose. ``robust`` (one of :data:`ROBUST_SCHEMES`) treats the loop edges:
+    """Optimise ``graph`` with GTSAM (Levenberg–Marquardt) from its initial values, the
+    vertices :attr:`PoseGraph.fixed` held at their poses. ``robust`` (one of
+    :data:`ROBUST_SCHEMES`) treats the loop edges:
     ``gnc-tls``/``gnc-gm`` graduated non-convexity with a truncated-least-squares / Geman–McClure
     cost (odometry known to be inliers), ``cauchy``/``dcs``/``huber`` an M-estimator kernel,
     ``none`` plain least squares. Returns the optimised poses (N, 4, 4) and each loop edge's
@@ -298,12 +349,21 @@ def optimize_graph(graph: PoseGraph, robust: str = ROBUST_SCHEMES[0], *, max_ite
         opt.setInlierCostThresholds(GNC_INLIER_CHI2 / 2)  # GTSAM's factor error is χ²/2
         values = opt.optimize()
         w = np.asarray(opt.getWeights())
-        weights = np.array([w[e + 1] for e in loops])
+        weights = np.array([w[len(graph.fixed) + e] for e in loops])
+        if robust == "gnc-tls":
+            # TLS stops with weights within a tolerance of 0 or 1, but a loop's information so
+            # outweighs a long odometry chain's that a "0" of 1e-5 still bends the map: the
+            # optimum returned is that of the loops kept.
+            kept = gtsam.NonlinearFactorGraph()
+            for k in range(fg.size()):
+                if w[k] > 0.5:
+                    kept.add(fg.at(k))
+            values = gtsam.LevenbergMarquardtOptimizer(kept, init, lm).optimize()
     else:
         values = gtsam.LevenbergMarquardtOptimizer(fg, init, lm).optimize()
         if robust in _KERNEL_WIDTH:
             for n, e in enumerate(loops):
-                f = fg.at(e + 1)
+                f = fg.at(len(graph.fixed) + e)
                 whitened = math.sqrt(2 * f.error(values))
                 weights[n] = float(f.noiseModel().robust().weight(whitened))
     out = np.stack([np.asarray(values.atPose3(int(v)).matrix()) for v in graph.ids])
@@ -409,6 +469,54 @@ def estimate_anchor(
     return Anchor(T, int(best.sum()), len(q))
 
 
+def optimize_in_map(
+    graph: PoseGraph,
+    map_poses: npt.ArrayLike,
+    query_index: AbcSequence[int],
+    candidate_index: AbcSequence[int],
+    loop_poses: npt.ArrayLike,
+    loop_information: npt.ArrayLike,
+    initial: Anchor,
+    robust: str = ROBUST_SCHEMES[0],
+    start: npt.ArrayLike | None = None,
+) -> tuple[Anchor | None, F64, F64]:
+    """A session's graph optimised into a saved map, the map's places held where the map has
+    them: the session's vertices (started at ``initial.T_map_session`` · ``start``, by default
+    their poses; e.g. the session optimised alone) and edges, and a loop edge per
+    cross-session loop ``k`` from the session's vertex ``query_index[k]`` to the map's place
+    ``candidate_index[k]`` (pose in ``map_poses``), all loops under ``robust``. The anchor is where the optimum puts the session's first frame:
+    ``T_map_session = Y₀ · X₀⁻¹`` (``X₀`` its pose in the session's world, ``Y₀`` in the map's),
+    so it is fixed by the loops and the odometry together rather than fitted on poses that
+    drift away from the session's start. Returns the anchor (``inliers``: the cross-session
+    loops the optimum kept; None when it kept none, since nothing then ties the session to the
+    map), the session's poses in the map's world and the weights of the session's own loop
+    edges."""
+    M = as4(map_poses)
+    c = np.asarray(candidate_index, dtype=np.int64)
+    places = np.unique(c)
+    n = len(graph)
+    # The map's places become vertices after the session's, with ids past the session's.
+    first_id = int(graph.ids.max()) + 1 if n else 0
+    joint = PoseGraph(
+        ids=np.r_[graph.ids, first_id + places].astype(np.int64),
+        poses=np.concatenate([initial.T_map_session @ as4(graph.poses if start is None else start), M[places]]),
+        edge_from=graph.edge_from.copy(),
+        edge_to=graph.edge_to.copy(),
+        measurements=graph.measurements.copy(),
+        information=graph.information.copy(),
+        kinds=list(graph.kinds),
+        fixed=list(range(n, n + len(places))),
+    )
+    vertex = {int(m): n + k for k, m in enumerate(places)}
+    for q, m, Z, info in zip(query_index, c, as4(loop_poses), np.asarray(loop_information, dtype=np.float64)):
+        joint.add_edge(int(q), vertex[int(m)], Z, info, "loop")
+    Y, w = optimize_graph(joint, robust)
+    own = len(graph.loops())
+    kept = int(np.sum(w[own:] > 0.5))
+    anchor = Anchor(Y[0] @ inv(graph.poses[0]), kept, len(c)) if kept else None
+    return anchor, Y[:n], w[:own]
+
+
 def _mean_rotation(Rs: F64) -> F64:
     U, _, Vt = np.linalg.svd(Rs.sum(0))
     S = np.eye(3)
@@ -444,28 +552,37 @@ def optimize_run(
     noise: OdometryNoise | None = None,
 ) -> SlamResult:
     """The pose graph of a pipeline run (:func:`graph_from_run`), optimised
-    (:func:`optimize_graph`); with a map, the session anchored in the map's world
-    (:func:`estimate_anchor`, from the optimised poses) and its poses there."""
+    (:func:`optimize_graph`); with a map and loops into it, the session optimised into the
+    map's world with the map's places held (:func:`optimize_in_map`, started from the
+    consensus of :func:`estimate_anchor`), which gives the anchor, the poses in the map's world
+    and, carried back by the anchor, the session's optimised poses. When that optimum trusts
+    no loop into the map, the session stays unanchored (``anchor`` None)."""
     if result.poses is None:
         raise ValueError("a pose graph needs the odometry's poses (give --poses)")
     graph = graph_from_run(result, noise)
     optimized, weights = optimize_graph(graph, robust)
     out = SlamResult(graph, graph.poses.copy(), optimized, weights, robust)
     base = int(result.map_size)
-    cross = [lp for lp in result.loops() if lp.pose is not None and int(lp.candidate) < base]
-    if base > 0:
-        stored = as4(np.asarray(result.database.poses)[:base])
-        ok = [lp for lp in cross if np.isfinite(stored[int(lp.candidate)]).all()]
-        anchor = estimate_anchor(
-            optimized,
-            stored,
-            [int(lp.query) - base for lp in ok],
-            [int(lp.candidate) for lp in ok],
-            np.stack([lp.pose for lp in ok]) if ok else np.zeros((0, 4, 4)),
-        )
-        out.anchor = anchor
-        if anchor is not None:
-            out.map_poses = anchor.T_map_session @ optimized
+    if base == 0:
+        return out
+    stored = as4(np.asarray(result.database.poses)[:base])
+    ok = [
+        lp
+        for lp in result.loops()
+        if lp.pose is not None and lp.information is not None and int(lp.candidate) < base and np.isfinite(stored[int(lp.candidate)]).all()
+    ]
+    q = [int(lp.query) - base for lp in ok]
+    c = [int(lp.candidate) for lp in ok]
+    Z = np.stack([lp.pose for lp in ok]) if ok else np.zeros((0, 4, 4))
+    initial = estimate_anchor(optimized, stored, q, c, Z)
+    if initial is None:
+        return out
+    info = np.stack([lp.information for lp in ok])
+    anchor, in_map, own_weights = optimize_in_map(graph, stored, q, c, Z, info, initial, robust, optimized)
+    if anchor is None:
+        return out
+    out.anchor, out.map_poses, out.loop_weights = anchor, in_map, own_weights
+    out.optimized = inv(anchor.T_map_session) @ in_map
     return out
 
 
