@@ -170,7 +170,7 @@ def test_eval_end_to_end_hku(capsys: pytest.CaptureFixture[str], tmp_path: Path)
     seq_dir = data_dir() / "hku1-avia"
     out_dir = tmp_path / "ev"
     code, out, err = run(
-        capsys, "eval", str(seq_dir), *HKU, "--frames", "0:60,284:314", "--exclude", "20", "--radius", "5",
+        capsys, "eval", str(seq_dir), *HKU, "--frames", "0:60,284:314", "--exclude", "20", "--exclude-m", "0", "--radius", "5",
         "--baseline", "scancontext", "--output", str(out_dir), "--quiet",
     )  # fmt: skip
     assert code == 0, err
@@ -206,7 +206,7 @@ def test_eval_accepted_rows_are_exactly_detects_loops(capsys: pytest.CaptureFixt
     """One configuration (verification on): the rows of eval's queries.csv with accepted true are
     detect's loops.csv, poses included, and the library's detector made the same decisions."""
     seq = str(data_dir() / "hku1-avia")
-    common = ["--preset", "avia", "--frames", "0:40,260:314", "-q"]
+    common = ["--preset", "avia", "--frames", "0:40,260:314", "--exclude-m", "0", "-q"]
     code, _, err = run(capsys, "detect", seq, *common, "--max-loop-distance", "3", "-o", str(tmp_path / "d"), "--g2o", str(tmp_path / "loops.g2o"))
     assert code == 0, err
     code, _, err = run(capsys, "eval", seq, *common, "--max-loop-distance", "3", "--radius", "3", "--poses", "odom_poses.txt", "--no-plots", "-o", str(tmp_path / "e"))
@@ -239,7 +239,7 @@ def test_eval_accepted_rows_are_exactly_detects_loops(capsys: pytest.CaptureFixt
 
 def test_eval_transforms_change_the_input(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     seq_dir = data_dir() / "hku1-avia"
-    base = ["eval", str(seq_dir), *HKU, "--frames", "0:30,290:314", "--exclude", "10", "--no-plots", "-q"]
+    base = ["eval", str(seq_dir), *HKU, "--frames", "0:30,290:314", "--exclude", "10", "--exclude-m", "0", "--no-plots", "-q"]
     code, _, err = run(capsys, *base, "--output", str(tmp_path / "a"))
     assert code == 0, err
     code, _, err = run(capsys, *base, "--output", str(tmp_path / "b"), "--fov", "30", "--fov-center", "0", "--occlude", "10", "--occlude-center", "5")

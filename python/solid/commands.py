@@ -314,7 +314,10 @@ def evaluate(
     if main.query.size == 0:
         raise _solid.ConfigError(
             f"no query: none of the {len(result.frames)} frames has a place to be matched with "
-            f"(exclude {config.detector.exclude_frames} frames leaves none); use fewer --exclude or more frames"
+            f"(exclude {config.detector.exclude_frames} frames"
+            + (f" and {config.detector.exclude_meters:g} m of path" if config.detector.exclude_meters > 0 and result.poses is not None else "")
+            + " leaves none; the path of --frames with gaps runs straight across them); use fewer --exclude-frames, "
+            "a smaller --exclude-m or more frames"
         )
     evals = [main]
     if scancontext is not None:
