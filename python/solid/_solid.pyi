@@ -277,6 +277,7 @@ class DetectorConfig:
         odometry_drift: float = 0.02,
         odometry_rotation_deg: float = 3.0,
         odometry_rotation_deg_per_m: float = 0.15,
+        unique: bool = True,
         support_window: int = 20,
         min_support: int = 1,
         registration: RegistrationConfig | dict[str, Any] | None = None,
@@ -304,6 +305,7 @@ class DetectorConfig:
             odometry_drift: Translation the odometry may drift per metre travelled between the two places (a fraction; the rotation difference adds angle · path / 2) (a finite number >= 0; default 0.02).
             odometry_rotation_deg: Rotation a loop may differ from the poses' relative rotation by at no path, degrees (degrees in [0, 180]; default 3.0).
             odometry_rotation_deg_per_m: Rotation the odometry may drift per metre travelled between the two places, degrees (a finite number >= 0; default 0.15).
+            unique: Reject verified candidates of a step that disagree with another verified one through the poses (a bool; default True).
             support_window: Consistency over time: the previous steps that may support a loop (0: off) (an integer >= 0; default 20).
             min_support: Fewest of the previous support_window steps whose verified candidates must agree with a loop (0: off) (an integer >= 0; default 1).
             registration: The registration parameters (an object, or a dict of overrides of the current ones).
@@ -336,6 +338,7 @@ class DetectorConfig:
         odometry_drift: float | None = None,
         odometry_rotation_deg: float | None = None,
         odometry_rotation_deg_per_m: float | None = None,
+        unique: bool | None = None,
         support_window: int | None = None,
         min_support: int | None = None,
         registration: RegistrationConfig | dict[str, Any] | None = None,
@@ -364,6 +367,7 @@ class DetectorConfig:
             odometry_drift: Translation the odometry may drift per metre travelled between the two places (a fraction; the rotation difference adds angle · path / 2) (a finite number >= 0; default 0.02).
             odometry_rotation_deg: Rotation a loop may differ from the poses' relative rotation by at no path, degrees (degrees in [0, 180]; default 3.0).
             odometry_rotation_deg_per_m: Rotation the odometry may drift per metre travelled between the two places, degrees (a finite number >= 0; default 0.15).
+            unique: Reject verified candidates of a step that disagree with another verified one through the poses (a bool; default True).
             support_window: Consistency over time: the previous steps that may support a loop (0: off) (an integer >= 0; default 20).
             min_support: Fewest of the previous support_window steps whose verified candidates must agree with a loop (0: off) (an integer >= 0; default 1).
             registration: The registration parameters (an object, or a dict of overrides of the current ones).
@@ -398,6 +402,7 @@ class DetectorConfig:
         odometry_drift: float | None = None,
         odometry_rotation_deg: float | None = None,
         odometry_rotation_deg_per_m: float | None = None,
+        unique: bool | None = None,
         support_window: int | None = None,
         min_support: int | None = None,
         registration: RegistrationConfig | dict[str, Any] | None = None,
@@ -425,6 +430,7 @@ class DetectorConfig:
             odometry_drift: Translation the odometry may drift per metre travelled between the two places (a fraction; the rotation difference adds angle · path / 2) (a finite number >= 0; default 0.02).
             odometry_rotation_deg: Rotation a loop may differ from the poses' relative rotation by at no path, degrees (degrees in [0, 180]; default 3.0).
             odometry_rotation_deg_per_m: Rotation the odometry may drift per metre travelled between the two places, degrees (a finite number >= 0; default 0.15).
+            unique: Reject verified candidates of a step that disagree with another verified one through the poses (a bool; default True).
             support_window: Consistency over time: the previous steps that may support a loop (0: off) (an integer >= 0; default 20).
             min_support: Fewest of the previous support_window steps whose verified candidates must agree with a loop (0: off) (an integer >= 0; default 1).
             registration: The registration parameters (an object, or a dict of overrides of the current ones).
@@ -438,7 +444,7 @@ class DetectorConfig:
             TypeError: An unknown parameter, or a value of the wrong type.
         """
     def to_dict(self) -> dict[str, Any]:
-        """The parameters by name (exclude_frames, exclude_meters, exclude_seconds, threshold, top_k, rerank, verify, verify_candidates, verify_hypotheses, verify_fan_deg, cloud_bits, cache_bytes, verify_threads, verify_step_points, odometry_check, odometry_translation_m, odometry_drift, odometry_rotation_deg, odometry_rotation_deg_per_m, support_window, min_support, registration, gate): what `DetectorConfig(**d)` takes back.
+        """The parameters by name (exclude_frames, exclude_meters, exclude_seconds, threshold, top_k, rerank, verify, verify_candidates, verify_hypotheses, verify_fan_deg, cloud_bits, cache_bytes, verify_threads, verify_step_points, odometry_check, odometry_translation_m, odometry_drift, odometry_rotation_deg, odometry_rotation_deg_per_m, unique, support_window, min_support, registration, gate): what `DetectorConfig(**d)` takes back.
 
         Returns:
             A new dict.
@@ -500,6 +506,9 @@ class DetectorConfig:
     @property
     def odometry_rotation_deg_per_m(self) -> float:
         """Rotation the odometry may drift per metre travelled between the two places, degrees (a finite number >= 0; default 0.15)."""
+    @property
+    def unique(self) -> bool:
+        """Reject verified candidates of a step that disagree with another verified one through the poses (a bool; default True)."""
     @property
     def support_window(self) -> int:
         """Consistency over time: the previous steps that may support a loop (0: off) (an integer >= 0; default 20)."""

@@ -90,6 +90,12 @@ pub struct VerifyConfig {
     pub odometry_rotation_deg: f64,
     /// Rotation the odometry may drift per metre travelled between the two places (degrees).
     pub odometry_rotation_deg_per_m: f64,
+    /// Uniqueness: when the query has a pose, a candidate that passed is rejected
+    /// ([`Rejection::Ambiguous`](crate::reg::Rejection::Ambiguous)) when another candidate of
+    /// the step passed too and the two disagree through their places' poses (the drift bounds
+    /// above, the path being the metres between the two candidates): look-alike places and
+    /// slid registrations, of which at most one is right.
+    pub unique: bool,
     /// Consistency over time: a candidate that passed the gate (and the odometry check) is a
     /// loop only when at least `min_support` of the previous `support_window` steps had a
     /// candidate that passed too and agrees with it (see [`VerifyConfig::min_support`]).
@@ -129,6 +135,7 @@ impl Default for VerifyConfig {
             odometry_drift: 0.02,
             odometry_rotation_deg: 3.0,
             odometry_rotation_deg_per_m: 0.15,
+            unique: true,
             support_window: 20,
             min_support: 1,
         }
@@ -255,6 +262,8 @@ impl Params for DetectorConfig {
             "degrees in [0, 180]", "Rotation a loop may differ from the poses' relative rotation by at no path, degrees."),
         field!(DetectorConfig, "odometry_rotation_deg_per_m", verify.odometry_rotation_deg_per_m, Kind::closed(0.0, FINITE),
             "a finite number >= 0", "Rotation the odometry may drift per metre travelled between the two places, degrees."),
+        field!(DetectorConfig, "unique", verify.unique, Kind::Bool, "a bool",
+            "Reject verified candidates of a step that disagree with another verified one through the poses."),
         field!(DetectorConfig, "support_window", verify.support_window, COUNT, "an integer >= 0",
             "Consistency over time: the previous steps that may support a loop (0: off)."),
         field!(DetectorConfig, "min_support", verify.min_support, COUNT, "an integer >= 0",

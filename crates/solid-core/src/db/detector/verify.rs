@@ -87,15 +87,27 @@ impl LoopDetector {
                 }
             }
         }
-        if v.support_window == 0 || v.min_support == 0 {
-            self.recent.clear();
-            return Ok(());
-        }
         let mut mine = Vec::new();
         mine.try_reserve_exact(cands.iter().filter(|c| passed(c)).count())
             .map_err(|_| DbError::OutOfMemory)?;
         for c in cands.iter().filter(|c| passed(c)) {
             mine.extend(c.verification.map(|r| (c.id, r.registration.pose)));
+        }
+        if let (true, Some(q)) = (v.unique, at.pose) {
+            for c in cands.iter_mut().filter(|c| passed(c)) {
+                let Some(r) = c.verification else { continue };
+                let me = (&q, c.id, &r.registration.pose);
+                let disagree = mine.iter().any(|&(c2, ref t2)| {
+                    c2 != c.id && self.agree_through_poses(me, (&q, c2, t2)) == Some(false)
+                });
+                if disagree {
+                    reject(c, Rejection::Ambiguous);
+                }
+            }
+        }
+        if v.support_window == 0 || v.min_support == 0 {
+            self.recent.clear();
+            return Ok(());
         }
         for c in cands.iter_mut().filter(|c| passed(c)) {
             if self.support(at, c) < v.min_support {
@@ -161,32 +173,31 @@ impl LoopDetector {
             .iter()
             .filter(|(q2, list)| {
                 list.iter().any(|&(c2, t2)| {
-                    self.agree_through_poses(at, c.id, &r.registration.pose, *q2, c2, &t2)
+                    let poses = at.pose.zip(self.db.pose(*q2));
+                    poses
+                        .and_then(|(q, pq2)| {
+                            self.agree_through_poses(
+                                (&q, c.id, &r.registration.pose),
+                                (&pq2, c2, &t2),
+                            )
+                        })
                         .unwrap_or(c2.abs_diff(c.id) <= near)
                 })
             })
             .count()
     }
 
-    /// Whether loop `(q, c, t)` agrees with loop `(q2, c2, t2)` through the four places' poses:
-    /// `inv(T_wq)·T_wq2·t2·inv(T_wc2)·T_wc` against `t` (None when a pose is missing).
+    /// Whether loop `(q, c, t)` agrees with loop `(q2, c2, t2)` through the four places' poses
+    /// (`q`, `q2` given): `inv(T_wq)·T_wq2·t2·inv(T_wc2)·T_wc` against `t` (None when a
+    /// candidate has no pose).
     fn agree_through_poses(
         &self,
-        at: &QueryPlace,
-        c: u32,
-        t: &Pose,
-        q2: u32,
-        c2: u32,
-        t2: &Pose,
+        (q, c, t): (&[f64; 12], u32, &Pose),
+        (q2, c2, t2): (&[f64; 12], u32, &Pose),
     ) -> Option<bool> {
-        let (q, pq2, pc2, pc) = (
-            at.pose?,
-            self.db.pose(q2)?,
-            self.db.pose(c2)?,
-            self.db.pose(c)?,
-        );
-        let expected = mul(&mul(&relative(&q, &pq2), t2), &relative(&pc2, &pc));
-        let path = distance(&q, &pq2) + distance(&pc2, &pc);
+        let (pc2, pc) = (self.db.pose(c2)?, self.db.pose(c)?);
+        let expected = mul(&mul(&relative(q, q2), t2), &relative(&pc2, &pc));
+        let path = distance(q, q2) + distance(&pc2, &pc);
         Some(self.within_drift(&expected, t, path))
     }
 
@@ -507,9 +518,24 @@ mod tests {
         // Off: the same candidates pass.
         let mut det = detector_with_path(10, |v| {
             v.odometry_check = false;
+            v.unique = false;
             v.support_window = 0;
         });
         let mut cands = [verified(2, off), verified(4, turned)];
+        det.check_after_gate(&q, &mut cands).unwrap();
+        assert!(cands.iter().all(|c| rejection(c).is_none()));
+        // With uniqueness, the two disagree through their places' poses: neither is kept.
+        let mut det = detector_with_path(10, |v| {
+            v.odometry_check = false;
+            v.support_window = 0;
+        });
+        let mut cands = [verified(2, off), verified(4, turned), verified(3, truth(3))];
+        det.check_after_gate(&q, &mut cands).unwrap();
+        assert!(cands
+            .iter()
+            .all(|c| rejection(c) == Some(Rejection::Ambiguous)));
+        // Candidates that agree with each other are kept.
+        let mut cands = [verified(3, near), verified(4, truth(4))];
         det.check_after_gate(&q, &mut cands).unwrap();
         assert!(cands.iter().all(|c| rejection(c).is_none()));
     }
@@ -520,6 +546,7 @@ mod tests {
             v.support_window = 3;
             v.min_support = 1;
             v.odometry_check = false;
+            v.unique = false;
         });
         // Step 12 sees place 2 correctly: the first of its revisit, unsupported.
         let q = at(&det, 12.0);
