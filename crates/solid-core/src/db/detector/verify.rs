@@ -80,17 +80,24 @@ impl LoopDetector {
     ) -> Result<(), DbError> {
         let v = self.config.verify;
         let passed = |c: &Candidate| c.verification.is_some_and(|r| r.accepted);
+        // Uniqueness and support compare with every registration that met the gate's quality
+        // checks, whatever its length: a loop then does not depend on the largest loop asked
+        // for (`max_translation`, eval's suggestion), only the lengths accepted do.
+        let registered = |c: &Candidate| {
+            c.verification
+                .is_some_and(|r| r.accepted || r.rejection == Some(Rejection::TooFar))
+        };
         if v.odometry_check {
-            for c in cands.iter_mut().filter(|c| passed(c)) {
+            for c in cands.iter_mut().filter(|c| registered(c)) {
                 if !self.agrees_with_odometry(at, c) {
                     reject(c, Rejection::OdometryDisagrees);
                 }
             }
         }
         let mut mine = Vec::new();
-        mine.try_reserve_exact(cands.iter().filter(|c| passed(c)).count())
+        mine.try_reserve_exact(cands.iter().filter(|c| registered(c)).count())
             .map_err(|_| DbError::OutOfMemory)?;
-        for c in cands.iter().filter(|c| passed(c)) {
+        for c in cands.iter().filter(|c| registered(c)) {
             mine.extend(c.verification.map(|r| (c.id, r.registration.pose)));
         }
         if let (true, Some(q)) = (v.unique, at.pose) {
@@ -239,7 +246,7 @@ impl LoopDetector {
     }
 }
 
-/// Marks a candidate that passed the gate as rejected by a later check.
+/// Marks a candidate as rejected by a check after the gate.
 fn reject(c: &mut Candidate, why: Rejection) {
     if let Some(r) = c.verification.as_mut() {
         r.accepted = false;
@@ -534,6 +541,16 @@ mod tests {
         assert!(cands
             .iter()
             .all(|c| rejection(c) == Some(Rejection::Ambiguous)));
+        // A candidate rejected only as too long a loop counts too: the loop must not depend
+        // on the largest loop length asked for.
+        let mut far = verified(3, truth(3));
+        if let Some(r) = far.verification.as_mut() {
+            r.accepted = false;
+            r.rejection = Some(Rejection::TooFar);
+        }
+        let mut cands = [verified(2, off), far];
+        det.check_after_gate(&q, &mut cands).unwrap();
+        assert_eq!(rejection(&cands[0]), Some(Rejection::Ambiguous));
         // Candidates that agree with each other are kept.
         let mut cands = [verified(3, near), verified(4, truth(4))];
         det.check_after_gate(&q, &mut cands).unwrap();
