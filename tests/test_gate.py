@@ -52,7 +52,7 @@ def wrong_poses(ev: Any) -> int:
     return int(np.sum(ev.accepted & ((em > TOL_M) | (ed > TOL_DEG))))
 
 
-@pytest.fixture(scope="module", params=VIEWS, ids=[f"{n}-{sim.Sensor(n, h_fov=f).effective_h_fov:g}-seed{s}" for n, f, s in VIEWS])
+@pytest.fixture(scope="module", params=VIEWS, ids=[f"{n}-{'own' if f is None else f'{f:g}'}-seed{s}" for n, f, s in VIEWS])
 def corridors(request: pytest.FixtureRequest) -> tuple[str, Any]:
     """One view's run through the corridors with true poses: (sensor, evaluation)."""
     name, fov, seed = request.param
