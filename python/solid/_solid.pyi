@@ -272,6 +272,14 @@ class DetectorConfig:
         cache_bytes: int = 268435456,
         verify_threads: int = 0,
         verify_step_points: int = 4000000,
+        odometry_check: bool = True,
+        odometry_translation_m: float = 1.0,
+        odometry_drift: float = 0.02,
+        odometry_rotation_deg: float = 3.0,
+        odometry_rotation_deg_per_m: float = 0.15,
+        unique: bool = True,
+        support_window: int = 20,
+        min_support: int = 1,
         registration: RegistrationConfig | dict[str, Any] | None = None,
         gate: AcceptanceGate | dict[str, Any] | None = None,
     ) -> DetectorConfig:
@@ -292,6 +300,14 @@ class DetectorConfig:
             cache_bytes: Memory for prepared clouds kept between steps, bytes (an integer >= 0; default 268435456).
             verify_threads: Threads registering a step's candidates at once (0: one per core) (an integer >= 0; default 0).
             verify_step_points: Work budget of one step, in points: each candidate costs its hypotheses times the two clouds' points; the best is always registered (an integer >= 1; default 4000000).
+            odometry_check: Reject a verified loop whose pose disagrees with the poses of its two places (same session) beyond the drift bounds (a bool; default True).
+            odometry_translation_m: Translation a loop may differ from the poses' relative pose by at no path, metres (a finite number >= 0; default 1.0).
+            odometry_drift: Translation the odometry may drift per metre travelled between the two places (a fraction; the rotation difference adds angle · path / 2) (a finite number >= 0; default 0.02).
+            odometry_rotation_deg: Rotation a loop may differ from the poses' relative rotation by at no path, degrees (degrees in [0, 180]; default 3.0).
+            odometry_rotation_deg_per_m: Rotation the odometry may drift per metre travelled between the two places, degrees (a finite number >= 0; default 0.15).
+            unique: Reject verified candidates of a step that disagree with another verified one through the poses (a bool; default True).
+            support_window: Consistency over time: the previous steps that may support a loop (0: off) (an integer >= 0; default 20).
+            min_support: Fewest of the previous support_window steps whose verified candidates must agree with a loop (0: off) (an integer >= 0; default 1).
             registration: The registration parameters (an object, or a dict of overrides of the current ones).
             gate: The acceptance gate (an object, or a dict of overrides of the current one).
 
@@ -317,6 +333,14 @@ class DetectorConfig:
         cache_bytes: int | None = None,
         verify_threads: int | None = None,
         verify_step_points: int | None = None,
+        odometry_check: bool | None = None,
+        odometry_translation_m: float | None = None,
+        odometry_drift: float | None = None,
+        odometry_rotation_deg: float | None = None,
+        odometry_rotation_deg_per_m: float | None = None,
+        unique: bool | None = None,
+        support_window: int | None = None,
+        min_support: int | None = None,
         registration: RegistrationConfig | dict[str, Any] | None = None,
         gate: AcceptanceGate | dict[str, Any] | None = None,
     ) -> DetectorConfig:
@@ -338,6 +362,14 @@ class DetectorConfig:
             cache_bytes: Memory for prepared clouds kept between steps, bytes (an integer >= 0; default 268435456).
             verify_threads: Threads registering a step's candidates at once (0: one per core) (an integer >= 0; default 0).
             verify_step_points: Work budget of one step, in points: each candidate costs its hypotheses times the two clouds' points; the best is always registered (an integer >= 1; default 4000000).
+            odometry_check: Reject a verified loop whose pose disagrees with the poses of its two places (same session) beyond the drift bounds (a bool; default True).
+            odometry_translation_m: Translation a loop may differ from the poses' relative pose by at no path, metres (a finite number >= 0; default 1.0).
+            odometry_drift: Translation the odometry may drift per metre travelled between the two places (a fraction; the rotation difference adds angle · path / 2) (a finite number >= 0; default 0.02).
+            odometry_rotation_deg: Rotation a loop may differ from the poses' relative rotation by at no path, degrees (degrees in [0, 180]; default 3.0).
+            odometry_rotation_deg_per_m: Rotation the odometry may drift per metre travelled between the two places, degrees (a finite number >= 0; default 0.15).
+            unique: Reject verified candidates of a step that disagree with another verified one through the poses (a bool; default True).
+            support_window: Consistency over time: the previous steps that may support a loop (0: off) (an integer >= 0; default 20).
+            min_support: Fewest of the previous support_window steps whose verified candidates must agree with a loop (0: off) (an integer >= 0; default 1).
             registration: The registration parameters (an object, or a dict of overrides of the current ones).
             gate: The acceptance gate (an object, or a dict of overrides of the current one).
 
@@ -365,6 +397,14 @@ class DetectorConfig:
         cache_bytes: int | None = None,
         verify_threads: int | None = None,
         verify_step_points: int | None = None,
+        odometry_check: bool | None = None,
+        odometry_translation_m: float | None = None,
+        odometry_drift: float | None = None,
+        odometry_rotation_deg: float | None = None,
+        odometry_rotation_deg_per_m: float | None = None,
+        unique: bool | None = None,
+        support_window: int | None = None,
+        min_support: int | None = None,
         registration: RegistrationConfig | dict[str, Any] | None = None,
         gate: AcceptanceGate | dict[str, Any] | None = None,
     ) -> DetectorConfig:
@@ -385,6 +425,14 @@ class DetectorConfig:
             cache_bytes: Memory for prepared clouds kept between steps, bytes (an integer >= 0; default 268435456).
             verify_threads: Threads registering a step's candidates at once (0: one per core) (an integer >= 0; default 0).
             verify_step_points: Work budget of one step, in points: each candidate costs its hypotheses times the two clouds' points; the best is always registered (an integer >= 1; default 4000000).
+            odometry_check: Reject a verified loop whose pose disagrees with the poses of its two places (same session) beyond the drift bounds (a bool; default True).
+            odometry_translation_m: Translation a loop may differ from the poses' relative pose by at no path, metres (a finite number >= 0; default 1.0).
+            odometry_drift: Translation the odometry may drift per metre travelled between the two places (a fraction; the rotation difference adds angle · path / 2) (a finite number >= 0; default 0.02).
+            odometry_rotation_deg: Rotation a loop may differ from the poses' relative rotation by at no path, degrees (degrees in [0, 180]; default 3.0).
+            odometry_rotation_deg_per_m: Rotation the odometry may drift per metre travelled between the two places, degrees (a finite number >= 0; default 0.15).
+            unique: Reject verified candidates of a step that disagree with another verified one through the poses (a bool; default True).
+            support_window: Consistency over time: the previous steps that may support a loop (0: off) (an integer >= 0; default 20).
+            min_support: Fewest of the previous support_window steps whose verified candidates must agree with a loop (0: off) (an integer >= 0; default 1).
             registration: The registration parameters (an object, or a dict of overrides of the current ones).
             gate: The acceptance gate (an object, or a dict of overrides of the current one).
 
@@ -396,7 +444,7 @@ class DetectorConfig:
             TypeError: An unknown parameter, or a value of the wrong type.
         """
     def to_dict(self) -> dict[str, Any]:
-        """The parameters by name (exclude_frames, exclude_meters, exclude_seconds, threshold, top_k, rerank, verify, verify_candidates, verify_hypotheses, verify_fan_deg, cloud_bits, cache_bytes, verify_threads, verify_step_points, registration, gate): what `DetectorConfig(**d)` takes back.
+        """The parameters by name (exclude_frames, exclude_meters, exclude_seconds, threshold, top_k, rerank, verify, verify_candidates, verify_hypotheses, verify_fan_deg, cloud_bits, cache_bytes, verify_threads, verify_step_points, odometry_check, odometry_translation_m, odometry_drift, odometry_rotation_deg, odometry_rotation_deg_per_m, unique, support_window, min_support, registration, gate): what `DetectorConfig(**d)` takes back.
 
         Returns:
             A new dict.
@@ -443,6 +491,30 @@ class DetectorConfig:
     @property
     def verify_step_points(self) -> int:
         """Work budget of one step, in points: each candidate costs its hypotheses times the two clouds' points; the best is always registered (an integer >= 1; default 4000000)."""
+    @property
+    def odometry_check(self) -> bool:
+        """Reject a verified loop whose pose disagrees with the poses of its two places (same session) beyond the drift bounds (a bool; default True)."""
+    @property
+    def odometry_translation_m(self) -> float:
+        """Translation a loop may differ from the poses' relative pose by at no path, metres (a finite number >= 0; default 1.0)."""
+    @property
+    def odometry_drift(self) -> float:
+        """Translation the odometry may drift per metre travelled between the two places (a fraction; the rotation difference adds angle · path / 2) (a finite number >= 0; default 0.02)."""
+    @property
+    def odometry_rotation_deg(self) -> float:
+        """Rotation a loop may differ from the poses' relative rotation by at no path, degrees (degrees in [0, 180]; default 3.0)."""
+    @property
+    def odometry_rotation_deg_per_m(self) -> float:
+        """Rotation the odometry may drift per metre travelled between the two places, degrees (a finite number >= 0; default 0.15)."""
+    @property
+    def unique(self) -> bool:
+        """Reject verified candidates of a step that disagree with another verified one through the poses (a bool; default True)."""
+    @property
+    def support_window(self) -> int:
+        """Consistency over time: the previous steps that may support a loop (0: off) (an integer >= 0; default 20)."""
+    @property
+    def min_support(self) -> int:
+        """Fewest of the previous support_window steps whose verified candidates must agree with a loop (0: off) (an integer >= 0; default 1)."""
     # end of generated
     @property
     def registration(self) -> RegistrationConfig:
@@ -1380,7 +1452,7 @@ class Candidate:
         """Whether its registration passed the gate."""
     @property
     def rejection(self) -> str | None:
-        """Why the gate rejected its registration (None when accepted or not registered)."""
+        """Why the gate, or the detector's checks after it (odometry, uniqueness, support), rejected its registration (None when accepted or not registered)."""
     @property
     def pose(self) -> npt.NDArray[np.float64] | None:
         """`T_query_candidate` (4, 4) of its registration (None when not registered)."""

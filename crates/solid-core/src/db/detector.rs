@@ -6,7 +6,7 @@
 //! returns its ranked [`Candidate`]s, so that an evaluation scores exactly what the detector
 //! decided ([`crate::eval`]).
 
-use alloc::collections::BTreeMap;
+use alloc::collections::{BTreeMap, VecDeque};
 use alloc::sync::Arc;
 use alloc::vec;
 use alloc::vec::Vec;
@@ -120,6 +120,9 @@ pub struct LoopDetector {
     prepared_bytes: usize,
     /// Use counter for `prepared`.
     clock: u64,
+    /// The candidates (id, pose) that passed the gate and the odometry check in each of the
+    /// last `support_window` steps, by query id: the support of the next loops.
+    recent: VecDeque<(u32, Vec<(u32, reg::Pose)>)>,
 }
 
 /// One scan ready for a detector step: its descriptor and, for verification, its prepared cloud
@@ -222,6 +225,7 @@ impl LoopDetector {
             prepared: BTreeMap::new(),
             prepared_bytes: 0,
             clock: 0,
+            recent: VecDeque::new(),
         })
     }
 
@@ -481,7 +485,7 @@ impl LoopDetector {
         self.db.check_fingerprint(d.fingerprint)?;
         let mut cands = self.rank(&d.r, &d.a, self.db.len(), self.config.top_k)?;
         if self.config.verify.enabled {
-            self.verify_candidates(&d.a, scan.cloud.as_ref(), &mut cands)?;
+            self.verify_candidates(&d.a, scan.cloud.as_ref(), None, &mut cands)?;
         }
         Ok(self.accept(&cands, self.db.len() as u32))
     }
@@ -559,7 +563,12 @@ impl LoopDetector {
             _ => (None, None),
         };
         if v.enabled {
-            self.verify_candidates(&d.a, cloud.as_deref(), &mut candidates)?;
+            let at = verify::QueryPlace {
+                id: self.db.len() as u32,
+                pose: s.pose,
+                travelled: s.travelled,
+            };
+            self.verify_candidates(&d.a, cloud.as_deref(), Some(at), &mut candidates)?;
         }
         self.travelled
             .try_reserve(1)

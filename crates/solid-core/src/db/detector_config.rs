@@ -73,6 +73,43 @@ pub struct VerifyConfig {
     /// What a registration must meet to be a loop; its `max_translation` is the largest loop
     /// (metres between the places).
     pub gate: Gate,
+    /// Check a verified loop against the poses, when the query and the candidate both have one
+    /// and belong to the same session: its registered `T_query_candidate` must lie within the
+    /// drift bounds below of `inv(T_world_query)·T_world_candidate`, or the candidate is
+    /// rejected ([`Rejection::OdometryDisagrees`](crate::reg::Rejection::OdometryDisagrees)) and
+    /// the next one may win. A false loop between look-alike places is metres to tens of metres
+    /// off the poses; a drifting odometry drifts with the path.
+    pub odometry_check: bool,
+    /// Translation a loop may differ from the poses' relative pose by at no path (metres): the
+    /// registration's own error and the odometry's noise.
+    pub odometry_translation_m: f64,
+    /// Translation the odometry may drift per metre travelled between the two places (a
+    /// fraction: 0.02 allows 2 m of disagreement after 100 m), its scale error. The rotation
+    /// the loop and the poses differ by (within its bound) adds `angle · path / 2`: the
+    /// displacement a rotation drift causes along the path.
+    pub odometry_drift: f64,
+    /// Rotation a loop may differ from the poses' relative rotation by at no path (degrees).
+    pub odometry_rotation_deg: f64,
+    /// Rotation the odometry may drift per metre travelled between the two places (degrees).
+    pub odometry_rotation_deg_per_m: f64,
+    /// Uniqueness: when the query has a pose, a candidate that passed is rejected
+    /// ([`Rejection::Ambiguous`](crate::reg::Rejection::Ambiguous)) when another candidate of
+    /// the step passed too and the two disagree through their places' poses (the drift bounds
+    /// above, the path being the metres between the two candidates): look-alike places and
+    /// slid registrations, of which at most one is right.
+    pub unique: bool,
+    /// Consistency over time: a candidate that passed the gate (and the odometry check) is a
+    /// loop only when at least `min_support` of the previous `support_window` steps had a
+    /// candidate that passed too and agrees with it (see [`VerifyConfig::min_support`]).
+    /// Backward-looking: a step's loop is final at that step, and the first `min_support` steps
+    /// of a revisit give none. 0 turns it off.
+    pub support_window: usize,
+    /// Fewest of the previous `support_window` steps that must support a loop. Step q' supports
+    /// loop (q, c) when one of its verified candidates c' agrees with it: when the four places
+    /// have poses, through the poses (`inv(T_wq)·T_wq'·T_q'c'·inv(T_wc')·T_wc` against `T_qc`
+    /// within the drift bounds above, the path being the metres between q and q' plus between
+    /// c and c'); without, when c' lies within `2·support_window` places of c. 0 turns it off.
+    pub min_support: usize,
 }
 
 /// Default [`Gate::max_translation`] of a detector: a loop joins places at most this many metres
@@ -95,6 +132,14 @@ impl Default for VerifyConfig {
                 max_translation: DEFAULT_MAX_LOOP_DISTANCE,
                 ..Gate::default()
             },
+            odometry_check: true,
+            odometry_translation_m: 1.0,
+            odometry_drift: 0.02,
+            odometry_rotation_deg: 3.0,
+            odometry_rotation_deg_per_m: 0.15,
+            unique: true,
+            support_window: 20,
+            min_support: 1,
         }
     }
 }
@@ -213,6 +258,22 @@ impl Params for DetectorConfig {
             "Threads registering a step's candidates at once (0: one per core)."),
         field!(DetectorConfig, "verify_step_points", verify.step_points, Kind::at_least(1), "an integer >= 1",
             "Work budget of one step, in points: each candidate costs its hypotheses times the two clouds' points; the best is always registered."),
+        field!(DetectorConfig, "odometry_check", verify.odometry_check, Kind::Bool, "a bool",
+            "Reject a verified loop whose pose disagrees with the poses of its two places (same session) beyond the drift bounds."),
+        field!(DetectorConfig, "odometry_translation_m", verify.odometry_translation_m, Kind::closed(0.0, FINITE),
+            "a finite number >= 0", "Translation a loop may differ from the poses' relative pose by at no path, metres."),
+        field!(DetectorConfig, "odometry_drift", verify.odometry_drift, Kind::closed(0.0, FINITE),
+            "a finite number >= 0", "Translation the odometry may drift per metre travelled between the two places (a fraction; the rotation difference adds angle · path / 2)."),
+        field!(DetectorConfig, "odometry_rotation_deg", verify.odometry_rotation_deg, Kind::closed(0.0, 180.0),
+            "degrees in [0, 180]", "Rotation a loop may differ from the poses' relative rotation by at no path, degrees."),
+        field!(DetectorConfig, "odometry_rotation_deg_per_m", verify.odometry_rotation_deg_per_m, Kind::closed(0.0, FINITE),
+            "a finite number >= 0", "Rotation the odometry may drift per metre travelled between the two places, degrees."),
+        field!(DetectorConfig, "unique", verify.unique, Kind::Bool, "a bool",
+            "Reject verified candidates of a step that disagree with another verified one through the poses."),
+        field!(DetectorConfig, "support_window", verify.support_window, COUNT, "an integer >= 0",
+            "Consistency over time: the previous steps that may support a loop (0: off)."),
+        field!(DetectorConfig, "min_support", verify.min_support, COUNT, "an integer >= 0",
+            "Fewest of the previous support_window steps whose verified candidates must agree with a loop (0: off)."),
     ];
 
     fn defaults() -> DetectorConfig {

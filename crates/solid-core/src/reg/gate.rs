@@ -7,7 +7,8 @@ use super::{agreement, Hypothesis, Registration};
 use crate::params::{field, Field, Kind, Params, FINITE};
 use crate::Error;
 
-/// Why [`Gate::check`] rejected a registration, in the order the checks run.
+/// Why [`Gate::check`] rejected a registration, in the order the checks run; the last three
+/// come from a loop detector's checks that follow the gate ([`crate::db::VerifyConfig`]).
 #[non_exhaustive]
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Rejection {
@@ -27,6 +28,14 @@ pub enum Rejection {
     Disagreement,
     /// The two places are farther apart than `max_translation`.
     TooFar,
+    /// The pose disagrees with the relative pose of the two places' poses beyond the
+    /// odometry's drift bounds.
+    OdometryDisagrees,
+    /// Another candidate of the same step passed too and disagrees with this one through the
+    /// poses: at most one of them is right.
+    Ambiguous,
+    /// Too few of the previous steps had a verified candidate that agrees with this loop.
+    Unsupported,
 }
 
 impl fmt::Display for Rejection {
@@ -40,6 +49,9 @@ impl fmt::Display for Rejection {
             Rejection::DegenerateRotation => "degenerate rotation",
             Rejection::Disagreement => "hypotheses disagree",
             Rejection::TooFar => "too far apart",
+            Rejection::OdometryDisagrees => "disagrees with the odometry",
+            Rejection::Ambiguous => "another candidate disagrees",
+            Rejection::Unsupported => "not supported by the previous steps",
         })
     }
 }

@@ -6,15 +6,26 @@ use alloc::vec::Vec;
 
 use super::{Candidate, LoopDetector, Verification};
 use crate::db::{DbError, VerifyConfig};
-use crate::reg::{self, Hypothesis, PreparedCloud};
+use crate::reg::{self, Hypothesis, Pose, PreparedCloud, Rejection};
+
+/// The query of a step, for the checks after the gate: its id, pose and metres travelled.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct QueryPlace {
+    pub id: u32,
+    pub pose: Option<[f64; 12]>,
+    pub travelled: f64,
+}
 
 impl LoopDetector {
     /// Registers the query's cloud with its best candidates' and scores every candidate (see
-    /// [`VerifyConfig`]); candidates end sorted by score.
+    /// [`VerifyConfig`]); candidates end sorted by score. With `at` (a step that adds the query),
+    /// the candidates that passed the gate are checked against the poses and the previous
+    /// steps, and remembered for the next steps.
     pub(super) fn verify_candidates(
         &mut self,
         a_query: &[f32],
         query: Option<&PreparedCloud>,
+        at: Option<QueryPlace>,
         cands: &mut [Candidate],
     ) -> Result<(), DbError> {
         let v = self.config.verify;
@@ -43,9 +54,13 @@ impl LoopDetector {
             };
             let results: Vec<Option<Verification>> = run_jobs(&jobs, v.threads, verify_one)?;
             for ((i, _), r) in jobs.iter().zip(results) {
-                let c = &mut cands[*i];
-                c.verification = r;
-                if let Some(r) = r.filter(|r| r.accepted) {
+                cands[*i].verification = r;
+            }
+            if let Some(at) = at {
+                self.check_after_gate(&at, cands)?;
+            }
+            for c in cands.iter_mut() {
+                if let Some(r) = c.verification.filter(|r| r.accepted) {
                     c.score = loop_length_score(&r.registration);
                     c.heading_deg = r.registration.yaw_degrees();
                 }
@@ -53,6 +68,144 @@ impl LoopDetector {
         }
         cands.sort_by(|x, y| x.score.total_cmp(&y.score));
         Ok(())
+    }
+
+    /// The odometry check, then the support of the previous steps ([`VerifyConfig`]), on the
+    /// candidates that passed the gate; remembers the step's candidates that passed the odometry
+    /// check for the next steps' support.
+    fn check_after_gate(
+        &mut self,
+        at: &QueryPlace,
+        cands: &mut [Candidate],
+    ) -> Result<(), DbError> {
+        let v = self.config.verify;
+        let passed = |c: &Candidate| c.verification.is_some_and(|r| r.accepted);
+        // Uniqueness and support compare with every registration that met the gate's quality
+        // checks, whatever its length: a loop then does not depend on the largest loop asked
+        // for (`max_translation`, eval's suggestion), only the lengths accepted do.
+        let registered = |c: &Candidate| {
+            c.verification
+                .is_some_and(|r| r.accepted || r.rejection == Some(Rejection::TooFar))
+        };
+        if v.odometry_check {
+            for c in cands.iter_mut().filter(|c| registered(c)) {
+                if !self.agrees_with_odometry(at, c) {
+                    reject(c, Rejection::OdometryDisagrees);
+                }
+            }
+        }
+        let mut mine = Vec::new();
+        mine.try_reserve_exact(cands.iter().filter(|c| registered(c)).count())
+            .map_err(|_| DbError::OutOfMemory)?;
+        for c in cands.iter().filter(|c| registered(c)) {
+            mine.extend(c.verification.map(|r| (c.id, r.registration.pose)));
+        }
+        if let (true, Some(q)) = (v.unique, at.pose) {
+            for c in cands.iter_mut().filter(|c| passed(c)) {
+                let Some(r) = c.verification else { continue };
+                let me = (&q, c.id, &r.registration.pose);
+                let disagree = mine.iter().any(|&(c2, ref t2)| {
+                    c2 != c.id && self.agree_through_poses(me, (&q, c2, t2)) == Some(false)
+                });
+                if disagree {
+                    reject(c, Rejection::Ambiguous);
+                }
+            }
+        }
+        if v.support_window == 0 || v.min_support == 0 {
+            self.recent.clear();
+            return Ok(());
+        }
+        for c in cands.iter_mut().filter(|c| passed(c)) {
+            if self.support(at, c) < v.min_support {
+                reject(c, Rejection::Unsupported);
+            }
+        }
+        while self
+            .recent
+            .front()
+            .is_some_and(|(q, _)| at.id.saturating_sub(*q) >= v.support_window as u32)
+        {
+            self.recent.pop_front();
+        }
+        self.recent
+            .try_reserve(1)
+            .map_err(|_| DbError::OutOfMemory)?;
+        self.recent.push_back((at.id, mine));
+        Ok(())
+    }
+
+    /// Whether a candidate's registered pose agrees with its place's and the query's poses
+    /// within the drift bounds (true when they have no poses or are of different sessions).
+    fn agrees_with_odometry(&self, at: &QueryPlace, c: &Candidate) -> bool {
+        let start = self.session_start;
+        let (Some(q), Some(r)) = (at.pose, c.verification) else {
+            return true;
+        };
+        let Some(p) = (c.id as usize)
+            .checked_sub(start)
+            .and_then(|k| self.travelled.get(k))
+        else {
+            return true;
+        };
+        let Some(cp) = self.db.pose(c.id) else {
+            return true;
+        };
+        let path = libm::fabs(at.travelled - p);
+        self.within_drift(&relative(&q, &cp), &r.registration.pose, path)
+    }
+
+    /// Whether `pose` is within the drift bounds after `path` metres of `expected`; a NaN path
+    /// (unknown) counts as none. The rotation they differ by (within its bound) also allows
+    /// `angle · path / 2` metres: a rotation drift accumulated along a path displaces its end
+    /// by that much (a constant drift along a straight path), so the translation bound itself
+    /// needs only the scale drift.
+    fn within_drift(&self, expected: &Pose, pose: &Pose, path: f64) -> bool {
+        let v = &self.config.verify;
+        let path = if path.is_nan() { 0.0 } else { path };
+        reg::pose_distance(expected, pose).is_some_and(|(m, deg)| {
+            deg <= v.odometry_rotation_deg + v.odometry_rotation_deg_per_m * path
+                && m <= v.odometry_translation_m
+                    + v.odometry_drift * path
+                    + deg.to_radians() * path / 2.0
+        })
+    }
+
+    /// How many of the remembered previous steps had a candidate that agrees with `c`.
+    fn support(&self, at: &QueryPlace, c: &Candidate) -> usize {
+        let v = &self.config.verify;
+        let Some(r) = c.verification else { return 0 };
+        let near = 2 * v.support_window as u32;
+        self.recent
+            .iter()
+            .filter(|(q2, list)| {
+                list.iter().any(|&(c2, t2)| {
+                    let poses = at.pose.zip(self.db.pose(*q2));
+                    poses
+                        .and_then(|(q, pq2)| {
+                            self.agree_through_poses(
+                                (&q, c.id, &r.registration.pose),
+                                (&pq2, c2, &t2),
+                            )
+                        })
+                        .unwrap_or(c2.abs_diff(c.id) <= near)
+                })
+            })
+            .count()
+    }
+
+    /// Whether loop `(q, c, t)` agrees with loop `(q2, c2, t2)` through the four places' poses
+    /// (`q`, `q2` given): `inv(T_wq)·T_wq2·t2·inv(T_wc2)·T_wc` against `t` (None when a
+    /// candidate has no pose).
+    fn agree_through_poses(
+        &self,
+        (q, c, t): (&[f64; 12], u32, &Pose),
+        (q2, c2, t2): (&[f64; 12], u32, &Pose),
+    ) -> Option<bool> {
+        let (pc2, pc) = (self.db.pose(c2)?, self.db.pose(c)?);
+        let expected = mul(&mul(&relative(q, q2), t2), &relative(&pc2, &pc));
+        let path = distance(q, q2) + distance(&pc2, &pc);
+        Some(self.within_drift(&expected, t, path))
     }
 
     /// The prepared cloud of place `id`: from the cache, or prepared from its stored compact
@@ -91,6 +244,46 @@ impl LoopDetector {
             }
         }
     }
+}
+
+/// Marks a candidate as rejected by a check after the gate.
+fn reject(c: &mut Candidate, why: Rejection) {
+    if let Some(r) = c.verification.as_mut() {
+        r.accepted = false;
+        r.rejection = Some(why);
+    }
+}
+
+/// `inv(a)·b` of two row-major 3×4 poses `[R|t]`.
+fn relative(a: &[f64; 12], b: &[f64; 12]) -> Pose {
+    let mut out = reg::IDENTITY;
+    for i in 0..3 {
+        for j in 0..3 {
+            out[i][j] = (0..3).map(|k| a[4 * k + i] * b[4 * k + j]).sum();
+        }
+        out[i][3] = (0..3)
+            .map(|k| a[4 * k + i] * (b[4 * k + 3] - a[4 * k + 3]))
+            .sum();
+    }
+    out
+}
+
+/// `a·b` of two rigid transforms.
+fn mul(a: &Pose, b: &Pose) -> Pose {
+    let mut out = reg::IDENTITY;
+    for i in 0..3 {
+        for j in 0..4 {
+            out[i][j] =
+                (0..3).map(|k| a[i][k] * b[k][j]).sum::<f64>() + if j == 3 { a[i][3] } else { 0.0 };
+        }
+    }
+    out
+}
+
+/// Metres between the positions of two row-major 3×4 poses.
+fn distance(a: &[f64; 12], b: &[f64; 12]) -> f64 {
+    let (x, y, z) = (a[3] - b[3], a[7] - b[7], a[11] - b[11]);
+    libm::sqrt(x * x + y * y + z * z)
 }
 
 /// The score of a candidate that passed the gate: its loop's length `|t|` mapped into `[0, 1)`
@@ -198,4 +391,206 @@ fn run_jobs<J: Sync, R: Send>(
     }
     let _ = threads;
     jobs.iter().map(f).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::db::DetectorConfig;
+    use crate::reg::{Degeneracy, Registration};
+    use crate::{Config, Descriptor, Stats};
+
+    /// Row-major 3×4 pose: yaw (degrees) about z, then at (x, y).
+    fn pose(yaw_deg: f64, x: f64, y: f64) -> [f64; 12] {
+        let (s, c) = libm::sincos(yaw_deg.to_radians());
+        [c, -s, 0.0, x, s, c, 0.0, y, 0.0, 0.0, 1.0, 0.0]
+    }
+
+    fn close(a: &Pose, b: &Pose) -> bool {
+        reg::pose_distance(a, b).is_some_and(|(m, deg)| m < 1e-9 && deg < 1e-6)
+    }
+
+    #[test]
+    fn relative_poses_compose() {
+        let (a, b, c) = (
+            pose(10.0, 1.0, 2.0),
+            pose(-35.0, 4.0, -1.0),
+            pose(100.0, -3.0, 0.5),
+        );
+        assert!(close(
+            &mul(&relative(&a, &b), &relative(&b, &c)),
+            &relative(&a, &c)
+        ));
+        assert!(close(&relative(&a, &a), &reg::IDENTITY));
+        // The candidate 2 m ahead along the query's x, turned 90°: in the query's frame.
+        let r = relative(&pose(90.0, 0.0, 0.0), &pose(90.0, 0.0, 2.0));
+        assert!(close(
+            &r,
+            &[
+                [1.0, 0.0, 0.0, 2.0],
+                [0.0, 1.0, 0.0, 0.0],
+                [0.0, 0.0, 1.0, 0.0],
+                [0.0, 0.0, 0.0, 1.0]
+            ]
+        ));
+        assert!((distance(&a, &b) - libm::sqrt(18.0)).abs() < 1e-12);
+    }
+
+    fn verified(id: u32, pose: Pose) -> Candidate {
+        let registration = Registration {
+            pose,
+            fitness: 1.0,
+            overlap_query: 1.0,
+            overlap_candidate: 1.0,
+            structure_fitness: 1.0,
+            rmse: 0.0,
+            inliers: 100,
+            iterations: 1,
+            converged: true,
+            degeneracy: Degeneracy::default(),
+            hessian: Default::default(),
+        };
+        Candidate {
+            id,
+            distance: 0.1,
+            heading_deg: 0.0,
+            score: 0.0,
+            verification: Some(Verification {
+                registration,
+                accepted: true,
+                rejection: None,
+                hypotheses: 1,
+                agreement: 1,
+            }),
+        }
+    }
+
+    /// A detector (verification on) whose own session holds `n` places 1 m apart along x,
+    /// facing +x, with poses; the next query is at x = `n`.
+    fn detector_with_path(n: u32, tweak: impl Fn(&mut VerifyConfig)) -> LoopDetector {
+        let c = Config::preset("hdl64").unwrap();
+        let mut dc = DetectorConfig::default();
+        dc.verify.enabled = false;
+        let mut det = LoopDetector::new(c, dc).unwrap();
+        for i in 0..n {
+            let d = Descriptor {
+                r: alloc::vec![1.0 + i as f32; c.n_range],
+                a: alloc::vec![1.0; c.n_azimuth],
+                stats: Stats::default(),
+                fingerprint: c.fingerprint(),
+            };
+            det.detect(&d, f64::NAN, Some(pose(0.0, f64::from(i), 0.0)))
+                .unwrap();
+        }
+        dc.verify.enabled = true;
+        tweak(&mut dc.verify);
+        det.set_config(dc).unwrap();
+        det
+    }
+
+    fn at(det: &LoopDetector, x: f64) -> QueryPlace {
+        QueryPlace {
+            id: det.database().len() as u32,
+            pose: Some(pose(0.0, x, 0.0)),
+            travelled: x,
+        }
+    }
+
+    fn rejection(c: &Candidate) -> Option<Rejection> {
+        c.verification.and_then(|v| v.rejection)
+    }
+
+    #[test]
+    fn a_loop_off_the_odometry_is_rejected_and_the_next_candidate_can_win() {
+        let mut det = detector_with_path(10, |v| v.support_window = 0);
+        let q = at(&det, 10.0);
+        let truth = |c: u32| relative(&q.pose.unwrap(), &pose(0.0, f64::from(c), 0.0));
+        // A registration 3 m off the poses after 8 m of path; one 0.5 m off; the true one.
+        let mut off = truth(2);
+        off[0][3] += 3.0;
+        let mut near = truth(3);
+        near[1][3] += 0.5;
+        let mut cands = [verified(2, off), verified(3, near), verified(4, truth(4))];
+        det.check_after_gate(&q, &mut cands).unwrap();
+        assert_eq!(rejection(&cands[0]), Some(Rejection::OdometryDisagrees));
+        assert_eq!(rejection(&cands[1]), None);
+        assert_eq!(rejection(&cands[2]), None);
+        // A turn beyond the rotation bound (3° + 0.15°/m · 6 m).
+        let mut turned = truth(4);
+        let r = relative(&pose(0.0, 0.0, 0.0), &pose(4.5, 0.0, 0.0));
+        turned = mul(&turned, &r);
+        let mut cands = [verified(4, turned)];
+        det.check_after_gate(&q, &mut cands).unwrap();
+        assert_eq!(rejection(&cands[0]), Some(Rejection::OdometryDisagrees));
+        // Off: the same candidates pass.
+        let mut det = detector_with_path(10, |v| {
+            v.odometry_check = false;
+            v.unique = false;
+            v.support_window = 0;
+        });
+        let mut cands = [verified(2, off), verified(4, turned)];
+        det.check_after_gate(&q, &mut cands).unwrap();
+        assert!(cands.iter().all(|c| rejection(c).is_none()));
+        // With uniqueness, the two disagree through their places' poses: neither is kept.
+        let mut det = detector_with_path(10, |v| {
+            v.odometry_check = false;
+            v.support_window = 0;
+        });
+        let mut cands = [verified(2, off), verified(4, turned), verified(3, truth(3))];
+        det.check_after_gate(&q, &mut cands).unwrap();
+        assert!(cands
+            .iter()
+            .all(|c| rejection(c) == Some(Rejection::Ambiguous)));
+        // A candidate rejected only as too long a loop counts too: the loop must not depend
+        // on the largest loop length asked for.
+        let mut far = verified(3, truth(3));
+        if let Some(r) = far.verification.as_mut() {
+            r.accepted = false;
+            r.rejection = Some(Rejection::TooFar);
+        }
+        let mut cands = [verified(2, off), far];
+        det.check_after_gate(&q, &mut cands).unwrap();
+        assert_eq!(rejection(&cands[0]), Some(Rejection::Ambiguous));
+        // Candidates that agree with each other are kept.
+        let mut cands = [verified(3, near), verified(4, truth(4))];
+        det.check_after_gate(&q, &mut cands).unwrap();
+        assert!(cands.iter().all(|c| rejection(c).is_none()));
+    }
+
+    #[test]
+    fn a_loop_needs_the_support_of_a_previous_step_that_agrees_through_the_poses() {
+        let mut det = detector_with_path(12, |v| {
+            v.support_window = 3;
+            v.min_support = 1;
+            v.odometry_check = false;
+            v.unique = false;
+        });
+        // Step 12 sees place 2 correctly: the first of its revisit, unsupported.
+        let q = at(&det, 12.0);
+        let truth =
+            |q: &QueryPlace, c: u32| relative(&q.pose.unwrap(), &pose(0.0, f64::from(c), 0.0));
+        let mut cands = [verified(2, truth(&q, 2))];
+        det.check_after_gate(&q, &mut cands).unwrap();
+        assert_eq!(rejection(&cands[0]), Some(Rejection::Unsupported));
+        // Pretend the step added its place (the support looks up the query's pose).
+        let d = Descriptor {
+            r: alloc::vec![0.5; det.database().config().n_range],
+            a: alloc::vec![1.0; det.database().config().n_azimuth],
+            stats: Stats::default(),
+            fingerprint: det.database().config().fingerprint(),
+        };
+        det.db
+            .add_with_cloud(&d, det.session, f64::NAN, q.pose, None)
+            .unwrap();
+        det.travelled.push(12.0);
+        // Step 13: place 3 agrees with step 12's loop through the poses; a loop to place 3
+        // with a pose 2 m off does not.
+        let q = at(&det, 13.0);
+        let mut wrong = truth(&q, 3);
+        wrong[0][3] += 2.0;
+        let mut cands = [verified(3, truth(&q, 3)), verified(3, wrong)];
+        det.check_after_gate(&q, &mut cands).unwrap();
+        assert_eq!(rejection(&cands[0]), None);
+        assert_eq!(rejection(&cands[1]), Some(Rejection::Unsupported));
+    }
 }
