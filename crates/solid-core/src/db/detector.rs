@@ -566,7 +566,7 @@ impl LoopDetector {
             let at = verify::QueryPlace {
                 id: self.db.len() as u32,
                 pose: s.pose,
-                travelled: s.travelled,
+                travelled: s.trail.travelled,
             };
             self.verify_candidates(&d.a, cloud.as_deref(), Some(at), &mut candidates)?;
         }
