@@ -1257,7 +1257,15 @@ class Database:
         """Free-form text saved with the database (format 3): `solid map build` records there how
         its scans were clipped, as JSON. "" when none; set it to replace it (at most 1 MiB)."""
     @metadata.setter
-    def metadata(self, text: str) -> None: ...
+    def metadata(self, text: str) -> None:
+        """Replaces the text saved with the database.
+
+        Args:
+            text: The new text, at most 1 MiB of UTF-8.
+
+        Raises:
+            ConfigError: The text is longer than 1 MiB.
+        """
     @staticmethod
     def load(path: str | PathLike[str]) -> Database:
         """Reads a database written by `save`, checking everything (docs/spec.md §9).
