@@ -564,7 +564,7 @@ void solid_scan_free(struct SolidScan *scan);
 /**
  * One step with a prepared scan: searches it against the eligible places, verifies the best
  * candidates when verification is on, and adds it. `timestamp` is seconds (NaN: none); `pose`
- * NULL or `T_world_sensor` as a row-major 4x4 (16 doubles; needed by `exclude_meters`).
+ * NULL or `T_world_sensor` as a row-major 4x4 (16 doubles; stored with the place and used by `exclude_meters`).
  * `scan` is consumed, even on error. When a loop is found, `*found` is true and `*loop_out`
  * holds it; otherwise `*found` is false and `*loop_out` is not written (either may be NULL).
  * On error nothing is added.
