@@ -26,7 +26,7 @@ from solid.datasets.poses import load_poses
 from solid.pipeline import LoopClosurePipeline
 from solid.slam import as4, inv
 
-from conftest import data_dir
+from conftest import data_dir, read_csv
 
 gtsam = pytest.importorskip("gtsam", reason="the [slam] extra (gtsam) is not installed")
 
@@ -227,6 +227,61 @@ def test_a_runs_graph_is_optimised_again_from_its_g2o_file(hku1_optimized: Path)
     assert np.abs(opt[:, :3, 3] - P[:, :, 3]).max() < 1e-3
 
 
+def test_optimize_reuses_a_runs_loops_without_the_detector(hku1_optimized: Path, tmp_path: Path) -> None:
+    """`solid optimize --loops RUN` reads the run's graph.g2o, joins its loops to the odometry of
+    --poses and reaches the optimum of the run that detected them; loops measured with other
+    poses, or a map to anchor in, are refused."""
+    root = data_dir() / "hku1-avia"
+    drift = hku1_optimized.parent / "drift.txt"
+    args = ["optimize", str(root), "--poses", str(drift), "--truth", str(root / "odom_poses.txt"), "--preset", "avia", "--no-plots", "-q"]
+    assert main([*args, "--loops", str(hku1_optimized), "-o", str(tmp_path / "again")]) == 0
+    m0 = json.loads((hku1_optimized / "metrics.json").read_text())
+    m1 = json.loads((tmp_path / "again" / "metrics.json").read_text())
+    assert m1["loops_from"] == str(hku1_optimized.absolute()) and m1["timing"]["detect_s"] == 0
+    assert (m1["loop_edges"], m1["loop_edges_kept"]) == (m0["loop_edges"], m0["loop_edges_kept"])
+    assert m1["optimized"]["ate_m"] == pytest.approx(m0["optimized"]["ate_m"], abs=1e-6)
+    P0, _ = load_poses(hku1_optimized / "trajectory.kitti")
+    P1, _ = load_poses(tmp_path / "again" / "trajectory.kitti")
+    assert np.abs(P0 - P1).max() < 1e-6
+    # loops.csv names the same loops (frames and poses; the detector's scores are the run's).
+    key = ("query_frame", "candidate_frame", "x", "y", "z", "qw")
+    assert [tuple(r[k] for k in key) for r in read_csv(tmp_path / "again" / "loops.csv")] == [tuple(r[k] for k in key) for r in read_csv(hku1_optimized / "loops.csv")]
+    # The same loops against other poses (the truth): another frame, refused before anything is written.
+    other = [*args[:3], str(root / "odom_poses.txt"), *args[4:]]
+    assert main([*other, "--loops", str(hku1_optimized / "graph.g2o"), "-o", str(tmp_path / "other")]) == 1
+    assert main([*args, "--loops", str(tmp_path), "-o", str(tmp_path / "none")]) == 1  # a folder without a graph
+    assert not (tmp_path / "other").exists() and not (tmp_path / "none").exists()
+
+
+def test_detect_g2o_is_optimised_as_optimize_would(sim_runs: list[tuple[Any, F64, F64]], tmp_path: Path) -> None:
+    """The file `solid detect --g2o` writes (:func:`solid.commands.write_g2o`), given back to
+    `solid optimize --loops`, gives the optimum of `solid optimize` running the detector
+    (:func:`solid.slam.optimize_run` on the same run); a file without vertices (a run without
+    poses) is read as loop edges alone."""
+    from solid import commands
+
+    res, _, odo = sim_runs[0]
+    commands.write_g2o(tmp_path / "det.g2o", res)
+    world = sim.World(seed=0, repetition=0.9)
+    traj = sim.Trajectory.loop(world, laps=1.2, spacing=6.0)
+    odom = traj.odometry(yaw_bias_deg_per_m=0.025, scale_error=0.01, rotation_noise_deg=0.05, seed=0)
+    seq = dataclasses.replace(sim.simulate(world, sim.Sensor("vlp16"), traj), trajectory=odom)
+    assert np.allclose(as4(seq.poses), odo)
+    cfg = PipelineConfig.preset("vlp16")
+    run = commands.optimize(seq, cfg, commands.Inputs(tmp_path / "sim"), output=tmp_path / "out", plots=False, loops_from=tmp_path / "det.g2o")
+    expected = slam.optimize_run(res)
+    assert len(run.slam.graph.loops()) == len(expected.graph.loops()) > 0
+    assert run.slam.trusted_loops() == expected.trusted_loops()
+    assert np.abs(run.slam.optimized - expected.optimized).max() < 1e-6
+    # Without poses the detector's file holds its loop edges alone, between frame numbers.
+    loops_only = [s for s in (tmp_path / "det.g2o").read_text().splitlines() if s.startswith("EDGE") and abs(int(s.split()[1]) - int(s.split()[2])) > 1]
+    (tmp_path / "loops.g2o").write_text("".join(s + "\n" for s in loops_only))
+    graph = slam.PoseGraph.read_g2o(tmp_path / "loops.g2o")
+    assert graph.kinds == ["loop"] * len(loops_only) and not np.isfinite(graph.poses).any()
+    again = commands.optimize(seq, cfg, commands.Inputs(tmp_path / "sim"), output=tmp_path / "out2", plots=False, loops_from=tmp_path / "loops.g2o")
+    assert np.abs(again.slam.optimized - expected.optimized).max() < 1e-6
+
+
 # ---- two sessions: a map in another world ------------------------------------------------------
 
 
@@ -317,3 +372,4 @@ def test_a_drifting_session_is_anchored_in_a_map_by_a_joint_optimisation(tmp_pat
     assert m["anchor"]["inlier_loops"] >= m["anchor"]["cross_session_loops"] - 2
     # The map holds the session's shape too: better than its odometry against the truth.
     assert m["optimized"]["ate_m"] < m["odometry"]["ate_m"]
+

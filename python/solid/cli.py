@@ -257,11 +257,19 @@ def build_parser() -> argparse.ArgumentParser:
         "  solid optimize hku1-avia --poses odom_poses.txt --preset avia -o out/\n"
         "  solid optimize run2/ --poses odom.txt --map run1.soliddb -o out2/   # anchored in a saved map\n"
         "  solid optimize seq/ --poses odom.txt --truth gt.txt --preset vlp16   # with ATE/RPE\n"
+        "  solid optimize hku1-avia --poses odom_poses.txt --loops out/ --robust cauchy -o out_cauchy/   # the same loops again\n"
         "\nWrites trajectory.kitti/.tum (optimised, in the frame of --poses), graph.g2o, loops.csv,\n"
         "trajectory.png, metrics.json; with --map also anchor.txt and trajectory_map.kitti/.tum. See docs/slam.md.\n",
     )
     _add_run_head(p, "a map from `solid map build` (with poses): anchor this session in its world")
     p.add_argument("--truth", type=Path, metavar="FILE", help="ground-truth poses of the recording (KITTI or TUM): ATE and RPE in metrics.json")
+    p.add_argument(
+        "--loops",
+        type=Path,
+        metavar="G2O|RUN",
+        help="reuse a run's loops instead of running the detector: the g2o file of `solid detect --g2o FILE`, or a run folder "
+        "holding graph.g2o (`solid optimize`) or loops.g2o; give the same --poses, --calib and --frames as that run",
+    )
     from .slam import ROBUST_SCHEMES, OdometryNoise
 
     p.add_argument("--robust", choices=ROBUST_SCHEMES, default=None, help=f"robust scheme for the loop edges (default: {ROBUST_SCHEMES[0]}; docs/slam.md)")
@@ -508,10 +516,10 @@ def cmd_optimize(args: argparse.Namespace, out: TextIO) -> int:
         rotation_deg_per_m=d.rotation_deg_per_m if args.odom_sigma_deg_per_m is None else args.odom_sigma_deg_per_m,
         rotation_floor_deg=args.odom_sigma_deg or d.rotation_floor_deg,
     )
-    with _progress(args, len(ds), "optimize") as bar:
+    with _progress(args, 0 if args.loops else len(ds), "optimize") as bar:
         run = commands.optimize(
             ds, cfg, inputs, output=args.output, map_db=map_db, truth=args.truth, robust=args.robust,
-            noise=noise, plots=not args.no_plots, threads=args.threads, progress=bar.update,
+            noise=noise, plots=not args.no_plots, threads=args.threads, progress=bar.update, loops_from=args.loops,
         )  # fmt: skip
     m = run.metrics
     out.write(f"{len(run.result.frames)} frames, {m['loop_edges']} loop edges ({m['loop_edges_kept']} kept by the {m['robust']} optimum)\n")

@@ -28,7 +28,7 @@ from .datasets.selection import iter_selected
 from .evaluation import Evaluation
 from .outputs import Output, atomic_write_bytes, output_folder, write_csv, write_json
 from .pipeline import DEFAULT_FOV_CENTER, LoopClosurePipeline, PipelineResult, Progress
-from .records import LOOP_COLUMNS, QUERY_COLUMNS
+from .records import LOOP_COLUMNS, QUERY_COLUMNS, fmt_opt, pose_columns
 from .transforms import quaternion
 
 __all__ = [
@@ -740,6 +740,7 @@ def optimize(
     plots: bool = True,
     threads: int | None = None,
     progress: Callable[[int], None] | None = None,
+    loops_from: Path | None = None,
 ) -> OptimizeRun:
     """``solid optimize``: the detector's loops and the odometry in a robust pose-graph
     optimisation (:func:`solid.slam.optimize_run`). Writes ``trajectory.kitti`` and
@@ -748,7 +749,9 @@ def optimize(
     ``trajectory.png`` (before and after, with the loops) and ``metrics.json``; with ``truth``
     (a pose file of the recording), ATE and RPE of the odometry and of the optimum; with a map,
     ``anchor.txt`` (one KITTI 3×4 row, this session's world → the map's world) and
-    ``trajectory_map.kitti``/``.tum`` (the optimised poses in the map's world)."""
+    ``trajectory_map.kitti``/``.tum`` (the optimised poses in the map's world). With
+    ``loops_from`` (a run's g2o file or output folder: :func:`reused_loops`), the detector does
+    not run: that run's loop edges join this run's odometry."""
     from . import slam
     from .datasets.poses import load_poses, match_rows
 
@@ -756,9 +759,14 @@ def optimize(
         raise _solid.ConfigError("optimize needs the odometry's poses (give --poses)")
     robust = robust or slam.ROBUST_SCHEMES[0]
     slam.require_gtsam()
-    result = _run(dataset, config, map_db, threads, progress)
-    run = slam.optimize_run(result, robust=robust, noise=noise)
     T = _extrinsic(inputs)
+    if loops_from is None:
+        result = _run(dataset, config, map_db, threads, progress)
+        run = slam.optimize_run(result, robust=robust, noise=noise)
+    else:
+        if map_db is not None:
+            raise _solid.ConfigError("--loops reuses a run's own loops, and its graph holds none into a map: drop --map, or drop --loops to run the detector against the map")
+        result, run = _optimize_reused(dataset, config, loops_from, T, robust, noise)
 
     def to_input(P: Any) -> Any:
         """Poses of the run's (LiDAR) frame in the frame of the given poses."""
@@ -788,8 +796,15 @@ def optimize(
         }
     elif map_db is not None:
         metrics["anchor"] = None
+    if loops_from is not None:
+        metrics["loops"] = len(loops)
+        metrics["loops_from"] = str(Path(loops_from).absolute())
     with output_folder(output, "optimize", inputs.sequence.name) as out:
-        _write_common(out, result)
+        if loops_from is None:
+            _write_common(out, result)
+        else:
+            config.dump(out.work / "config.json")
+            write_csv(out.work / "loops.csv", LOOP_COLUMNS, _reused_loop_rows(run.graph, result.timestamps))
         graph = run.graph if T is None else run.graph.in_frame(T)
         graph.write_g2o(out.work / "graph.g2o")
         slam.write_kitti(out.work / "trajectory.kitti", opt)
@@ -805,3 +820,56 @@ def optimize(
             edges = [(int(run.graph.edge_from[e]), int(run.graph.edge_to[e]), bool(w > 0.5)) for e, w in zip(loops, run.loop_weights)]
             pl.plot_before_after(out.work / "trajectory.png", odo, opt, edges, f"{inputs.sequence.name}: robust {robust}", truth=gt)
     return OptimizeRun(result, run, out.final, metrics)
+
+
+def reused_loops(path: Path) -> Path:
+    """The g2o file of a run whose loops ``solid optimize --loops`` reuses: ``path`` itself, or
+    in a run's output folder ``graph.g2o`` (``solid optimize``) or ``loops.g2o`` (``solid detect
+    --g2o``)."""
+    p = Path(path)
+    if p.is_dir():
+        for name in ("graph.g2o", "loops.g2o"):
+            if (p / name).is_file():
+                return p / name
+        raise _solid.ConfigError(f"{p} holds no graph.g2o (solid optimize) nor loops.g2o (solid detect --g2o)")
+    if not p.is_file():
+        raise FileNotFoundError(f"{p}: no such g2o file or run folder")
+    return p
+
+
+def _optimize_reused(dataset: Any, config: PipelineConfig, loops_from: Path, T: Any | None, robust: str, noise: Any | None) -> tuple[PipelineResult, Any]:
+    """The frames the run selects, their odometry graph (no scan is read) with the loop edges of
+    ``loops_from``'s g2o file (in the frame of the given poses, as ``write_g2o`` wrote it)
+    carried into the run's (LiDAR) frame, optimised."""
+    from . import slam
+    from .pipeline import check_run
+
+    idx = check_run(dataset, config)
+    poses = np.asarray(dataset.poses, dtype=np.float64)[idx]
+    times = None if getattr(dataset, "timestamps", None) is None else np.asarray(dataset.timestamps, dtype=np.float64)[idx]
+    ids = np.asarray(getattr(dataset, "frame_ids", np.arange(len(dataset))), dtype=np.int64)[idx]
+    result = PipelineResult(config, [], None, idx, ids, times, poses, 0, 0, None)
+    path = reused_loops(loops_from)
+    saved = slam.PoseGraph.read_g2o(path)
+    if T is not None:
+        saved = saved.in_frame(slam.inv(T))
+    try:
+        graph = slam.odometry_graph(ids, poses, noise).with_loops_of(saved)
+    except ValueError as e:
+        raise _solid.ConfigError(f"{path}: {e}") from None
+    optimized, weights = slam.optimize_graph(graph, robust)
+    return result, slam.SlamResult(graph, graph.poses.copy(), optimized, weights, robust)
+
+
+def _reused_loop_rows(graph: Any, times: Any | None) -> list[dict[str, Any]]:
+    """``loops.csv`` rows for loops read from a g2o file: what it holds (the frames, the pose);
+    the detector's fields (distance, score, heading, fit) are in the run's own ``loops.csv``."""
+    rows = []
+    for e in graph.loops():
+        i, j = int(graph.edge_from[e]), int(graph.edge_to[e])
+        row = {k: "" for k in LOOP_COLUMNS} | pose_columns(graph.measurements[e], None, None)
+        row |= {"query": i, "candidate": j, "query_frame": int(graph.ids[i]), "candidate_frame": int(graph.ids[j])}
+        if times is not None:
+            row |= {"query_time": fmt_opt(float(times[i])), "candidate_time": fmt_opt(float(times[j]))}
+        rows.append(row)
+    return rows

@@ -38,6 +38,7 @@ __all__ = [
     "adjoint",
     "estimate_anchor",
     "graph_from_run",
+    "odometry_graph",
     "optimize_graph",
     "optimize_in_map",
     "optimize_run",
@@ -211,7 +212,9 @@ class PoseGraph:
         optimize``'s ``graph.g2o``), to optimise again without running the detector: vertices in
         the file's order, each edge ``i → j`` with its measurement and information; an edge
         between two vertices next to each other in that order is odometry, any other a loop (a
-        loop never joins consecutive frames: the detector excludes recent ones)."""
+        loop never joins consecutive frames: the detector excludes recent ones). A file without
+        vertices (``solid detect --g2o`` without poses) holds loops alone: its vertices are the
+        frames they join, without a pose (NaN)."""
         from .datasets.poses import quat_to_matrix
 
         def pose(v: list[float]) -> F64:
@@ -240,19 +243,74 @@ class PoseGraph:
                     raise ValueError(f"not a VERTEX_SE3:QUAT (9 fields) or EDGE_SE3:QUAT (31 fields) line: {f[0]}, {len(f)} fields")
             except ValueError as e:
                 raise ValueError(f"{path}, line {n}: {e}") from None
+        loops_only = not ids
+        if loops_only:
+            # `solid detect --g2o` without poses: loop edges alone, between frames without a value.
+            ids = sorted({v for i, j, _, _ in edges for v in (i, j)})
+            poses = [np.full((4, 4), np.nan)] * len(ids)
         index = {v: k for k, v in enumerate(ids)}
         g = cls(ids=np.asarray(ids, dtype=np.int64), poses=np.stack(poses) if poses else np.zeros((0, 4, 4)))
         for i, j, Z, info in edges:
             if i not in index or j not in index:
                 raise ValueError(f"{path}: the edge {i} → {j} joins a vertex the file does not hold")
             a, b = index[i], index[j]
-            g.add_edge(a, b, Z, info, "odometry" if abs(a - b) == 1 else "loop")
+            g.add_edge(a, b, Z, info, "odometry" if abs(a - b) == 1 and not loops_only else "loop")
         return g
+
+    def with_loops_of(self, other: PoseGraph, *, tolerance_m: float = 1e-3, tolerance_deg: float = 0.01) -> PoseGraph:
+        """This graph (vertices, odometry) with the loop edges of ``other`` (e.g. a run's graph
+        read back by :meth:`read_g2o`), matched by vertex id. Refused (ValueError) when a loop
+        joins a frame this graph does not hold, or when a vertex both hold has other poses in
+        ``other`` (beyond the tolerances): its loops were then measured in another frame
+        (another calibration) or for other frames."""
+        index = {int(v): k for k, v in enumerate(self.ids)}
+        for v, P in zip(other.ids, other.poses):
+            k = index.get(int(v))
+            if k is None or not np.isfinite(P).all():
+                continue
+            d = inv(self.poses[k]) @ P
+            # From the antisymmetric part: a pose file's rotations are orthonormal only to its digits.
+            w = np.array([d[2, 1] - d[1, 2], d[0, 2] - d[2, 0], d[1, 0] - d[0, 1]]) / 2
+            angle = math.degrees(math.atan2(float(np.linalg.norm(w)), (float(np.trace(d[:3, :3])) - 1) / 2))
+            if np.linalg.norm(d[:3, 3]) > tolerance_m or angle > tolerance_deg:
+                raise ValueError(
+                    f"frame {int(v)} has other poses in the two graphs ({np.linalg.norm(d[:3, 3]):.3g} m, {angle:.3g}° apart): "
+                    "the loops were measured with other poses or another calibration"
+                )
+        out = PoseGraph(
+            ids=self.ids.copy(),
+            poses=self.poses.copy(),
+            edge_from=self.edge_from.copy(),
+            edge_to=self.edge_to.copy(),
+            measurements=self.measurements.copy(),
+            information=self.information.copy(),
+            kinds=list(self.kinds),
+            fixed=list(self.fixed),
+        )
+        for e in other.loops():
+            i, j = int(other.ids[other.edge_from[e]]), int(other.ids[other.edge_to[e]])
+            for v in (i, j):
+                if v not in index:
+                    raise ValueError(f"the loop {i} → {j} joins frame {v}, which this graph does not hold (select the frames of the run that found it)")
+            out.add_edge(index[i], index[j], other.measurements[e], other.information[e], "loop")
+        return out
 
 
 def _pose_text(P: F64) -> str:
     qx, qy, qz, qw = quaternion(P[:3, :3])
     return f"{P[0, 3]:.9f} {P[1, 3]:.9f} {P[2, 3]:.9f} {qx:.12f} {qy:.12f} {qz:.12f} {qw:.12f}"
+
+
+def odometry_graph(ids: npt.ArrayLike, poses: npt.ArrayLike, noise: OdometryNoise | None = None) -> PoseGraph:
+    """A vertex per frame (``ids``, its pose ``T_world_sensor``) and an odometry edge between
+    consecutive frames (``noise``); no edge when a pose is missing (NaN)."""
+    noise = noise or OdometryNoise()
+    P = as4(poses)
+    g = PoseGraph(ids=np.asarray(ids, dtype=np.int64).copy(), poses=P)
+    for k in range(len(P) - 1 if np.isfinite(P).all() else 0):
+        Z = inv(P[k]) @ P[k + 1]
+        g.add_edge(k, k + 1, Z, noise.information(float(np.linalg.norm(Z[:3, 3]))), "odometry")
+    return g
 
 
 def graph_from_run(
@@ -264,7 +322,6 @@ def graph_from_run(
     run (its pose: ``poses`` or the run's), odometry edges between consecutive frames, and a
     loop edge per verified loop between two frames of the run (loops into a prior map are left
     to :func:`estimate_anchor`)."""
-    noise = noise or OdometryNoise()
     if poses is None and result.poses is None:
         # Without poses: no vertex values and no odometry, the loop edges alone.
         P = np.full((len(result.frames), 4, 4), np.nan)
@@ -272,10 +329,7 @@ def graph_from_run(
         P = as4(result.poses if poses is None else poses)
     if P.shape[0] != len(result.frames):
         raise ValueError(f"{P.shape[0]} poses for {len(result.frames)} frames")
-    g = PoseGraph(ids=np.asarray(result.frame_ids, dtype=np.int64).copy(), poses=P)
-    for k in range(len(P) - 1 if np.isfinite(P).all() else 0):
-        Z = inv(P[k]) @ P[k + 1]
-        g.add_edge(k, k + 1, Z, noise.information(float(np.linalg.norm(Z[:3, 3]))), "odometry")
+    g = odometry_graph(result.frame_ids, P, noise)
     base = int(result.map_size)
     for lp in result.loops():
         if lp.pose is None or lp.information is None or int(lp.candidate) < base:
