@@ -21,6 +21,7 @@ import pytest
 import solid
 from solid import sim, slam
 from solid.cli import main
+from solid.commands import map_info
 from solid.config import PipelineConfig
 from solid.datasets.poses import load_poses
 from solid.pipeline import LoopClosurePipeline
@@ -230,7 +231,7 @@ def test_a_runs_graph_is_optimised_again_from_its_g2o_file(hku1_optimized: Path)
 def test_optimize_reuses_a_runs_loops_without_the_detector(hku1_optimized: Path, tmp_path: Path) -> None:
     """`solid optimize --loops RUN` reads the run's graph.g2o, joins its loops to the odometry of
     --poses and reaches the optimum of the run that detected them; loops measured with other
-    poses, or a map to anchor in, are refused."""
+    poses are refused."""
     root = data_dir() / "hku1-avia"
     drift = hku1_optimized.parent / "drift.txt"
     args = ["optimize", str(root), "--poses", str(drift), "--truth", str(root / "odom_poses.txt"), "--preset", "avia", "--no-plots", "-q"]
@@ -303,10 +304,10 @@ def test_eval_against_a_map_in_another_world_is_refused_or_anchored(tmp_path: Pa
     assert main(["map", "build", str(s1), "--preset", "vlp16", "--poses", "poses.txt", "-o", str(tmp_path / "m1.soliddb"), "-q"]) == 0
     merge = ["map", "merge", str(tmp_path / "m.soliddb"), str(tmp_path / "m1.soliddb"), "-q"]
     assert main([*merge, "-o", str(tmp_path / "both.soliddb")]) == 1
-    assert main([*merge, "--anchor", str(tmp_path / "anchor.txt"), "-o", str(tmp_path / "both.soliddb")]) == 1  # not yet
     assert not (tmp_path / "both.soliddb").exists()
     assert main([*merge, "--anchor", "same", "-o", str(tmp_path / "both.soliddb")]) == 0
     assert sorted(set(solid.Database.load(tmp_path / "both.soliddb").sessions.tolist())) == [0, 1]
+    assert map_info(tmp_path / "both.soliddb")["anchors"] == [{"session": 1, "source": "same", "T_map_session": np.eye(4)[:3].tolist()}]
 
 
 def test_a_session_whose_loops_into_the_map_contradict_each_other_stays_unanchored() -> None:
@@ -373,3 +374,47 @@ def test_a_drifting_session_is_anchored_in_a_map_by_a_joint_optimisation(tmp_pat
     # The map holds the session's shape too: better than its odometry against the truth.
     assert m["optimized"]["ate_m"] < m["odometry"]["ate_m"]
 
+
+def test_a_map_merged_with_its_anchor_shares_the_first_maps_world(tmp_path: Path) -> None:
+    """Two simulated sessions, each in its own frame: the second is anchored in the first's map
+    by `solid optimize --map`, and `solid map merge --anchor anchor.txt` carries its map's poses
+    into the first's world, within 0.2 m and 1° of the truth at every place, and records the
+    anchor it applied."""
+    world = sim.World(seed=2)
+    lap, route = sim.session_routes(world, spacing=6.0)
+    gap = np.linalg.norm(route.positions[:, None, :2] - lap.positions[None, :, :2], axis=2).min(axis=1)
+    seen = np.flatnonzero(gap < 5.0)
+    second = route[int(seen[0]) : int(seen[-1]) + 11]
+    s0, s1 = sim.write_sessions(tmp_path / "sim", world, sim.Sensor("vlp16"), [lap, second], own_frames=True)
+    build = ["map", "build", "--preset", "vlp16", "--poses", "poses.txt", "-q"]
+    assert main([*build[:2], str(s0), *build[2:], "-o", str(tmp_path / "m0.soliddb")]) == 0
+    assert main([*build[:2], str(s1), *build[2:], "-o", str(tmp_path / "m1.soliddb")]) == 0
+    args = ["optimize", str(s1), "--poses", "poses.txt", "--map", str(tmp_path / "m0.soliddb"), "--preset", "vlp16",
+            "--verify-candidates", "2", "--no-plots", "-o", str(tmp_path / "opt"), "-q"]  # fmt: skip
+    assert main(args) == 0
+    merge = ["map", "merge", str(tmp_path / "m0.soliddb"), str(tmp_path / "m1.soliddb"), "-q"]
+    assert main([*merge, "--anchor", str(tmp_path / "opt" / "anchor.txt"), "-o", str(tmp_path / "both.soliddb")]) == 0
+    both = solid.Database.load(tmp_path / "both.soliddb")
+    m0 = solid.Database.load(tmp_path / "m0.soliddb")
+    sessions = both.sessions
+    assert sorted(set(sessions.tolist())) == [0, 1]
+    assert np.array_equal(both.poses[sessions == 0], m0.poses)  # the first map's world is the merged map's
+    (true,), _ = load_poses(s1 / sim.ANCHOR_FILE)
+    G, _ = load_poses(s1 / "poses.txt")
+    truth = as4(true) @ as4(G)
+    got = as4(both.poses[sessions == 1])
+    d = inv(truth) @ got
+    assert np.linalg.norm(got[:, :3, 3] - truth[:, :3, 3], axis=1).max() <= 0.2
+    assert np.degrees(np.arccos(np.clip((np.trace(d[:, :3, :3], axis1=1, axis2=2) - 1) / 2, -1, 1))).max() <= 1.0
+    # Everything else of the second map as it was: places, clouds, times.
+    m1 = solid.Database.load(tmp_path / "m1.soliddb")
+    assert np.array_equal(both.r[sessions == 1], m1.r) and np.array_equal(both.a[sessions == 1], m1.a)
+    assert both.clouds_stored == m0.clouds_stored + m1.clouds_stored
+    (est,), _ = load_poses(tmp_path / "opt" / "anchor.txt")
+    rec = map_info(tmp_path / "both.soliddb")["anchors"]
+    assert [a["session"] for a in rec] == [1] and np.allclose(rec[0]["T_map_session"], est)
+    assert rec[0]["source"] == str((tmp_path / "opt" / "anchor.txt").absolute())
+    # An anchor file that is not one 3×4 row is refused, and nothing is written.
+    (tmp_path / "two.txt").write_text((tmp_path / "opt" / "anchor.txt").read_text() * 2)
+    assert main([*merge, "--anchor", str(tmp_path / "two.txt"), "-o", str(tmp_path / "bad.soliddb")]) == 1
+    assert not (tmp_path / "bad.soliddb").exists()

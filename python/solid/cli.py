@@ -336,10 +336,20 @@ def build_parser() -> argparse.ArgumentParser:
         "merge",
         help="merge maps into one (each input's sessions renumbered after the previous ones)",
         formatter_class=fmt,
-        epilog="example:\n  solid map merge run1.soliddb run2.soliddb --anchor same -o both.soliddb\n",
+        epilog="examples:\n  solid map merge run1.soliddb run2.soliddb --anchor same -o both.soliddb\n"
+        "  solid optimize run2/ --poses odom.txt --map run1.soliddb -o opt2/   # writes opt2/anchor.txt\n"
+        "  solid map merge run1.soliddb run2.soliddb --anchor opt2/anchor.txt -o both.soliddb\n",
     )
     mm.add_argument("maps", type=Path, nargs="+")
-    mm.add_argument("--anchor", action="append", default=None, metavar="same", help="per map after the first, in order: 'same' when its poses are in the first map's world (required when two maps hold poses; anchor files are not supported yet)")
+    mm.add_argument(
+        "--anchor",
+        action="append",
+        default=None,
+        metavar="FILE|same",
+        help="per map after the first, in order: an anchor file (anchor.txt of `solid optimize --map`, one KITTI 3x4 row: that "
+        "map's world → the first map's) that carries its poses into the first map's world, or 'same' when they already are "
+        "there (one of them is required when two maps hold poses; the merged map records them)",
+    )
     mm.add_argument("-o", "--output", type=Path, required=True, help="the map file to write (must not exist)")
     _add_common(mm)
     mi = msub.add_parser("info", help="what a map file holds (read from its header: fast at any size)", formatter_class=fmt, epilog="example:\n  solid map info run1.soliddb\n")

@@ -415,9 +415,11 @@ def merge_maps(inputs: AbcSequence[Path], output_file: Path, anchors: AbcSequenc
     """``solid map merge``: one database from several, each input's sessions renumbered to follow
     the previous ones (so that runs stay apart). Poses are only comparable within one world:
     ``anchors`` holds, for each map after the first, ``"same"`` when its poses already are in
-    the first map's world; two maps with poses and nothing said about their worlds are refused
-    (carrying a map into another's world by an anchor file is not supported yet). Nothing is
-    written when a map is refused."""
+    the first map's world, or an anchor file (``anchor.txt`` of ``solid optimize --map``: one
+    KITTI 3×4 row, ``T_map_session``, that map's world → the first map's world) by which its
+    poses are carried into the first map's world. The merged map's metadata records, per
+    session, the anchor applied (:func:`map_anchors`). Two maps with poses and nothing said about
+    their worlds are refused; nothing is written when a map is refused."""
     out = Path(output_file)
     if out.exists():
         raise FileExistsError(f"{out} exists: choose another file name or remove it")
@@ -426,20 +428,16 @@ def merge_maps(inputs: AbcSequence[Path], output_file: Path, anchors: AbcSequenc
     given = list(anchors or [])
     if given and len(given) != len(inputs) - 1:
         raise _solid.ConfigError(f"give one --anchor per map after the first: {len(inputs) - 1} maps, {len(given)} anchors")
-    for a in given:
-        if str(a) != "same":
-            raise _solid.ConfigError(
-                f"--anchor {a}: carrying a map into another's world by an anchor file is not supported yet; "
-                "merge maps whose poses share one world (--anchor same), or query the second session against the first map "
-                "(solid optimize --map writes its anchor)"
-            )
+    # Each anchor read before any map is loaded: a wrong file refuses the merge at once.
+    transforms = [None if str(a) == "same" else read_anchor(Path(a)) for a in given]
 
     def posed(db: Any) -> bool:
         return bool(np.isfinite(np.asarray(db.poses)).all(axis=(1, 2)).any())
 
     db = _solid.Database.load(inputs[0])
     first_posed = inputs[0] if posed(db) else None
-    for p in inputs[1:]:
+    record = map_anchors(db.metadata)
+    for k, p in enumerate(inputs[1:]):
         other = _solid.Database.load(p)
         if map_clip(other.metadata) != map_clip(db.metadata):
             warnings.warn(
@@ -452,13 +450,56 @@ def merge_maps(inputs: AbcSequence[Path], output_file: Path, anchors: AbcSequenc
             if first_posed is not None and not given:
                 raise _solid.ConfigError(
                     f"{first_posed} and {p} both hold poses, each in the world of the run that made it, and nothing says "
-                    "those worlds are one: give --anchor same for each map after the first if they are (one ground truth, "
-                    "one SLAM map); otherwise keep the maps apart"
+                    "those worlds are one: give --anchor FILE for each map after the first (anchor.txt of `solid optimize "
+                    "--map` run on that session against the first map), or --anchor same if they are one world (one ground "
+                    "truth, one SLAM map); otherwise keep the maps apart"
                 )
             first_posed = first_posed or p
-        db.merge(other, new_sessions=True)
+        before = set(int(x) for x in db.sessions)
+        T = transforms[k] if given else None
+        db.merge(other if T is None else _anchored_copy(other, T), new_sessions=True)
+        if given:
+            source = "same" if T is None else str(Path(given[k]).absolute())
+            applied = (np.eye(4) if T is None else T)[:3].tolist()
+            record += [{"session": n, "source": source, "T_map_session": applied} for n in sorted(set(int(x) for x in db.sessions) - before)]
+    if record:
+        meta = json.loads(db.metadata) if db.metadata else {}
+        db.metadata = json.dumps((meta if isinstance(meta, dict) else {}) | {"anchors": record})
     db.save(out)
     return db
+
+
+def _anchored_copy(db: Any, T: Any) -> Any:
+    """``db`` with every pose carried into another world by ``T`` (``X ↦ T·X``); its places,
+    sessions, times, clouds and metadata as they are."""
+    from .slam import as4
+
+    moved = T @ as4(np.asarray(db.poses, dtype=np.float64))
+    times, sessions = np.asarray(db.timestamps), np.asarray(db.sessions)
+    cfg = db.config
+    out = _solid.Database(cfg)
+    for k, (r, a) in enumerate(zip(db.r, db.a)):
+        out.add(
+            _solid.Descriptor(r, a, cfg),
+            session=int(sessions[k]),
+            timestamp=float(times[k]) if math.isfinite(times[k]) else None,
+            pose=moved[k, :3] if np.isfinite(moved[k]).all() else None,
+            cloud=db.cloud(k),
+        )
+    out.metadata = db.metadata
+    return out
+
+
+def map_anchors(metadata: str) -> list[dict[str, Any]]:
+    """The anchors a merged map records (``solid map merge --anchor``): per session after the
+    first map's, ``T_map_session`` (the 3×4 its poses were carried by into the first map's
+    world; identity for ``same``) and ``source`` (the anchor file, or ``"same"``)."""
+    try:
+        doc = json.loads(metadata) if metadata else {}
+    except ValueError:
+        return []
+    got = doc.get("anchors") if isinstance(doc, dict) else None
+    return list(got) if isinstance(got, list) else []
 
 
 def map_info(path: Path) -> dict[str, Any]:
@@ -488,6 +529,7 @@ def map_info(path: Path) -> dict[str, Any]:
         "fingerprint": f"{s['fingerprint']:#018x}",
         "sessions": per,
         "clip": map_clip(s["metadata"]),
+        "anchors": map_anchors(s["metadata"]),
     }
 
 
