@@ -283,6 +283,38 @@ def test_detect_g2o_is_optimised_as_optimize_would(sim_runs: list[tuple[Any, F64
     assert np.abs(again.slam.optimized - expected.optimized).max() < 1e-6
 
 
+def test_calib_puts_the_graph_and_the_trajectory_in_the_frame_of_the_poses(sim_runs: list[tuple[Any, F64, F64]], tmp_path: Path) -> None:
+    """Poses of a body frame with `--calib` (T_body_lidar): `detect --g2o`'s graph
+    (:func:`solid.commands.write_g2o`) and `optimize`'s trajectory and graph are in the body's
+    frame, the optimum the LiDAR run's carried there; a graph written without the calibration is
+    refused with it."""
+    from solid import commands
+
+    res, _, odo = sim_runs[0]
+    E = np.eye(4)
+    c, s = np.cos(np.radians(10.0)), np.sin(np.radians(10.0))
+    E[:3, :3] = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]) @ np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+    E[:3, 3] = [0.3, -0.1, 0.5]
+    body = E @ odo @ inv(E)  # what the dataset turns back into `odo` with the calibration
+    world = sim.World(seed=0, repetition=0.9)
+    sim.write_sequence(tmp_path / "seq", world, sim.Sensor("vlp16"), sim.Trajectory.loop(world, laps=1.2, spacing=6.0))
+    np.savetxt(tmp_path / "body.txt", body[:, :3].reshape(-1, 12))
+    np.savetxt(tmp_path / "extrinsic.txt", E[:3].reshape(1, 12))
+    commands.write_g2o(tmp_path / "det.g2o", res, calib=E)
+    written = slam.PoseGraph.read_g2o(tmp_path / "det.g2o")
+    assert np.abs(written.poses - body).max() < 1e-6
+    args = ["optimize", str(tmp_path / "seq"), "--poses", str(tmp_path / "body.txt"), "--loops", str(tmp_path / "det.g2o"), "--preset", "vlp16", "--no-plots", "-q"]
+    assert main([*args, "--calib", str(tmp_path / "extrinsic.txt"), "-o", str(tmp_path / "out")]) == 0
+    P, _ = load_poses(tmp_path / "out" / "trajectory.kitti")
+    expected = E @ slam.optimize_run(res).optimized @ inv(E)
+    assert np.abs(as4(P) - expected).max() < 1e-5
+    assert np.abs(slam.PoseGraph.read_g2o(tmp_path / "out" / "graph.g2o").poses - body).max() < 1e-6
+    # A graph written without the calibration (in the LiDAR's frame) does not fit these poses.
+    commands.write_g2o(tmp_path / "lidar.g2o", res)
+    args[args.index("--loops") + 1] = str(tmp_path / "lidar.g2o")
+    assert main([*args, "--calib", str(tmp_path / "extrinsic.txt"), "-o", str(tmp_path / "mixed")]) == 1
+
+
 # ---- two sessions: a map in another world ------------------------------------------------------
 
 

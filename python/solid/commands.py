@@ -852,9 +852,11 @@ def optimize(
         slam.write_kitti(out.work / "trajectory.kitti", opt)
         slam.write_tum(out.work / "trajectory.tum", times, opt)
         if run.anchor is not None and run.map_poses is not None:
+            # The anchor in the frame maps store poses in (calibration applied), where `map merge`
+            # and `eval --anchor` apply it; the trajectory, like every other, in that of --poses.
             slam.write_kitti(out.work / "anchor.txt", run.anchor.T_map_session[None])
-            slam.write_kitti(out.work / "trajectory_map.kitti", run.map_poses)
-            slam.write_tum(out.work / "trajectory_map.tum", times, run.map_poses)
+            slam.write_kitti(out.work / "trajectory_map.kitti", to_input(run.map_poses))
+            slam.write_tum(out.work / "trajectory_map.tum", times, to_input(run.map_poses))
         write_json(out.work / "metrics.json", metrics)
         if plots:
             from . import plots as pl
