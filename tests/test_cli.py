@@ -408,3 +408,11 @@ def test_a_map_records_how_its_scans_were_clipped_and_upgrades_from_format_2(cap
     assert (tmp_path / "new.soliddb").stat().st_size < old.stat().st_size
     code, out, err = run(capsys, "map", "upgrade", str(old))
     assert code == 0 and json.loads(run(capsys, "map", "info", str(old), "--json")[1])["format_version"] == 3
+
+
+def test_optimize_without_the_slam_extra_says_how_to_install_it(capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    """Issue 27: without GTSAM, `solid optimize` stops before reading anything and names the extra."""
+    monkeypatch.setitem(sys.modules, "gtsam", None)  # `import gtsam` raises ImportError
+    code, _, err = run(capsys, "optimize", str(tmp_path), "--poses", "odom.txt", "-o", str(tmp_path / "out"), "-q")
+    assert code == 1 and "pip install 'solid-lidar[slam]'" in err
+    assert not (tmp_path / "out").exists()

@@ -428,6 +428,8 @@ def merge_maps(inputs: AbcSequence[Path], output_file: Path, anchors: AbcSequenc
     given = list(anchors or [])
     if given and len(given) != len(inputs) - 1:
         raise _solid.ConfigError(f"give one --anchor per map after the first: {len(inputs) - 1} maps, {len(given)} anchors")
+    from . import slam
+
     # Each anchor read before any map is loaded: a wrong file refuses the merge at once.
     transforms = [None if str(a) == "same" else read_anchor(Path(a)) for a in given]
 
@@ -457,7 +459,7 @@ def merge_maps(inputs: AbcSequence[Path], output_file: Path, anchors: AbcSequenc
             first_posed = first_posed or p
         before = set(int(x) for x in db.sessions)
         T = transforms[k] if given else None
-        db.merge(other if T is None else _anchored_copy(other, T), new_sessions=True)
+        db.merge(other if T is None else slam.anchored_database(other, T), new_sessions=True)
         if given:
             source = "same" if T is None else str(Path(given[k]).absolute())
             applied = (np.eye(4) if T is None else T)[:3].tolist()
@@ -467,27 +469,6 @@ def merge_maps(inputs: AbcSequence[Path], output_file: Path, anchors: AbcSequenc
         db.metadata = json.dumps((meta if isinstance(meta, dict) else {}) | {"anchors": record})
     db.save(out)
     return db
-
-
-def _anchored_copy(db: Any, T: Any) -> Any:
-    """``db`` with every pose carried into another world by ``T`` (``X ↦ T·X``); its places,
-    sessions, times, clouds and metadata as they are."""
-    from .slam import as4
-
-    moved = T @ as4(np.asarray(db.poses, dtype=np.float64))
-    times, sessions = np.asarray(db.timestamps), np.asarray(db.sessions)
-    cfg = db.config
-    out = _solid.Database(cfg)
-    for k, (r, a) in enumerate(zip(db.r, db.a)):
-        out.add(
-            _solid.Descriptor(r, a, cfg),
-            session=int(sessions[k]),
-            timestamp=float(times[k]) if math.isfinite(times[k]) else None,
-            pose=moved[k, :3] if np.isfinite(moved[k]).all() else None,
-            cloud=db.cloud(k),
-        )
-    out.metadata = db.metadata
-    return out
 
 
 def map_anchors(metadata: str) -> list[dict[str, Any]]:
@@ -882,9 +863,8 @@ def reused_loops(path: Path) -> Path:
 
 
 def _optimize_reused(dataset: Any, config: PipelineConfig, loops_from: Path, T: Any | None, robust: str, noise: Any | None) -> tuple[PipelineResult, Any]:
-    """The frames the run selects, their odometry graph (no scan is read) with the loop edges of
-    ``loops_from``'s g2o file (in the frame of the given poses, as ``write_g2o`` wrote it)
-    carried into the run's (LiDAR) frame, optimised."""
+    """The frames the run selects (no scan is read), optimised with the loops of ``loops_from``
+    (:func:`solid.slam.optimize_with_loops_of`)."""
     from . import slam
     from .pipeline import check_run
 
@@ -894,15 +874,10 @@ def _optimize_reused(dataset: Any, config: PipelineConfig, loops_from: Path, T: 
     ids = np.asarray(getattr(dataset, "frame_ids", np.arange(len(dataset))), dtype=np.int64)[idx]
     result = PipelineResult(config, [], None, idx, ids, times, poses, 0, 0, None)
     path = reused_loops(loops_from)
-    saved = slam.PoseGraph.read_g2o(path)
-    if T is not None:
-        saved = saved.in_frame(slam.inv(T))
     try:
-        graph = slam.odometry_graph(ids, poses, noise).with_loops_of(saved)
+        return result, slam.optimize_with_loops_of(path, ids, poses, calib=T, robust=robust, noise=noise)
     except ValueError as e:
         raise _solid.ConfigError(f"{path}: {e}") from None
-    optimized, weights = slam.optimize_graph(graph, robust)
-    return result, slam.SlamResult(graph, graph.poses.copy(), optimized, weights, robust)
 
 
 def _reused_loop_rows(graph: Any, times: Any | None) -> list[dict[str, Any]]:

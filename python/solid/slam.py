@@ -36,12 +36,14 @@ __all__ = [
     "SlamResult",
     "absolute_trajectory_error",
     "adjoint",
+    "anchored_database",
     "estimate_anchor",
     "graph_from_run",
     "odometry_graph",
     "optimize_graph",
     "optimize_in_map",
     "optimize_run",
+    "optimize_with_loops_of",
     "relative_pose_error",
     "require_gtsam",
     "write_kitti",
@@ -637,6 +639,50 @@ def optimize_run(
         return out
     out.anchor, out.map_poses, out.loop_weights = anchor, in_map, own_weights
     out.optimized = inv(anchor.T_map_session) @ in_map
+    return out
+
+
+def optimize_with_loops_of(
+    path: Path | str,
+    ids: npt.ArrayLike,
+    poses: npt.ArrayLike,
+    *,
+    calib: npt.ArrayLike | None = None,
+    robust: str = ROBUST_SCHEMES[0],
+    noise: OdometryNoise | None = None,
+) -> SlamResult:
+    """The frames ``ids`` at their ``poses`` (the run's, calibration applied), their odometry
+    edges, and the loop edges of a run's g2o file (``solid detect --g2o``, ``graph.g2o``; in the
+    frame of that run's given poses, so carried back by ``calib`` when it had one), optimised:
+    a run's loops reused without the detector (:meth:`PoseGraph.with_loops_of` refuses a file
+    written for other poses)."""
+    saved = PoseGraph.read_g2o(path)
+    if calib is not None:
+        saved = saved.in_frame(inv(as4(calib)))
+    graph = odometry_graph(ids, poses, noise).with_loops_of(saved)
+    optimized, weights = optimize_graph(graph, robust)
+    return SlamResult(graph, graph.poses.copy(), optimized, weights, robust)
+
+
+def anchored_database(db: Any, T_map_session: npt.ArrayLike) -> Any:
+    """A copy of a :class:`solid.Database` with every pose carried into a map's world
+    (``X ↦ T_map_session·X``); its places, sessions, times, clouds and metadata as they are
+    (``solid map merge --anchor FILE``)."""
+    from . import _solid
+
+    moved = as4(T_map_session) @ as4(np.asarray(db.poses, dtype=np.float64))
+    times, sessions = np.asarray(db.timestamps), np.asarray(db.sessions)
+    cfg = db.config
+    out = _solid.Database(cfg)
+    for k, (r, a) in enumerate(zip(db.r, db.a)):
+        out.add(
+            _solid.Descriptor(r, a, cfg),
+            session=int(sessions[k]),
+            timestamp=float(times[k]) if math.isfinite(times[k]) else None,
+            pose=moved[k, :3] if np.isfinite(moved[k]).all() else None,
+            cloud=db.cloud(k),
+        )
+    out.metadata = db.metadata
     return out
 
 
