@@ -24,6 +24,9 @@ pub enum Rejection {
     DegenerateTranslation,
     /// The rotation is poorly constrained.
     DegenerateRotation,
+    /// The translation is poorly constrained once the rotation is free: it can trade against a
+    /// rotation (one wall turned onto another).
+    WeakMarginalTranslation,
     /// Too few initial yaws reached the best pose.
     Disagreement,
     /// The two places are farther apart than `max_translation`.
@@ -47,6 +50,7 @@ impl fmt::Display for Rejection {
             Rejection::HighRmse => "high rmse",
             Rejection::DegenerateTranslation => "degenerate translation",
             Rejection::DegenerateRotation => "degenerate rotation",
+            Rejection::WeakMarginalTranslation => "translation trades against rotation",
             Rejection::Disagreement => "hypotheses disagree",
             Rejection::TooFar => "too far apart",
             Rejection::OdometryDisagrees => "disagrees with the odometry",
@@ -73,6 +77,9 @@ pub struct Gate {
     pub min_translation_information: f64,
     /// Smallest accepted [`super::Degeneracy::rotation`].
     pub min_rotation_information: f64,
+    /// Smallest accepted [`super::Degeneracy::marginal_translation`]: the translation's
+    /// information with the rotation marginalised, per correspondence.
+    pub min_marginal_translation_information: f64,
     /// Fewest hypotheses (the best included) that must reach the best pose, when hypotheses
     /// are given.
     pub min_agreement: usize,
@@ -98,6 +105,7 @@ impl Default for Gate {
             max_rmse: 0.30,
             min_translation_information: 1.5,
             min_rotation_information: 0.0,
+            min_marginal_translation_information: 0.0,
             min_agreement: 1,
             max_translation: f64::INFINITY,
             agree_translation: 0.5,
@@ -144,6 +152,12 @@ impl Gate {
         }
         if !at_least(reg.degeneracy.rotation, self.min_rotation_information) {
             return Err(Rejection::DegenerateRotation);
+        }
+        if !at_least(
+            reg.degeneracy.marginal_translation,
+            self.min_marginal_translation_information,
+        ) {
+            return Err(Rejection::WeakMarginalTranslation);
         }
         if !hypotheses.is_empty() && self.agreement(hypotheses, best) < self.min_agreement {
             return Err(Rejection::Disagreement);
@@ -232,6 +246,14 @@ impl Params for Gate {
             NUMBER,
             "a finite number",
             "Smallest accepted rotation information (degeneracy.rotation)."
+        ),
+        field!(
+            Gate,
+            "min_marginal_translation_information",
+            min_marginal_translation_information,
+            NUMBER,
+            "a finite number",
+            "Smallest accepted translation information with the rotation marginalised, per correspondence (degeneracy.marginal_translation)."
         ),
         field!(
             Gate,

@@ -120,6 +120,20 @@ pub enum Factor {
     PointToPlane,
 }
 
+/// What the coarse level's result is allowed to replace: the order of the levels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Schedule {
+    /// The coarse level, then the fine level from where it stopped.
+    CoarseFine,
+    /// The coarse level, then the fine level from whichever of the start and the coarse result
+    /// has the lower fine-level robust cost: a start that already fits is not dragged away by
+    /// the coarse level's wider correspondences.
+    KeepStart,
+    /// The fine level from the start and from the coarse result; the one ending at the lower
+    /// fine-level robust cost is kept (twice the fine level's work).
+    Both,
+}
+
 /// The robust kernel `ρ(s)` on a correspondence's squared Mahalanobis residual `s = eᵀWe`.
 ///
 /// Its scale `c` is `kernel_scale × max correspondence distance` of the level, in metres along
@@ -163,6 +177,8 @@ pub struct RegConfig {
     pub factor: Factor,
     /// The robust kernel.
     pub kernel: Kernel,
+    /// How the coarse level's result and the start are used by the fine level.
+    pub schedule: Schedule,
     /// Kernel scale as a fraction of the level's maximum correspondence distance, in `(0, 10]`.
     pub kernel_scale: f64,
     /// Distance (metres) within which a point counts as overlapping the other cloud, for the
@@ -188,6 +204,7 @@ impl Default for RegConfig {
             translation_eps: 1e-3,
             factor: Factor::Gicp,
             kernel: Kernel::GemanMcClure,
+            schedule: Schedule::CoarseFine,
             kernel_scale: 0.5,
             inlier_distance: 0.5,
         }
@@ -227,6 +244,9 @@ const FACTOR_NAMES: [&str; 2] = ["gicp", "point-to-plane"];
 /// [`Kernel`]'s values and their names.
 const KERNELS: [Kernel; 2] = [Kernel::GemanMcClure, Kernel::None];
 const KERNEL_NAMES: [&str; 2] = ["geman-mcclure", "none"];
+/// [`Schedule`]'s values and their names.
+const SCHEDULES: [Schedule; 3] = [Schedule::CoarseFine, Schedule::KeepStart, Schedule::Both];
+const SCHEDULE_NAMES: [&str; 3] = ["coarse-fine", "keep-start", "both"];
 
 /// The name of `v`, one of `values`.
 fn name_of<T: PartialEq>(values: &[T], names: &[&'static str], v: T) -> &'static str {
@@ -255,6 +275,15 @@ impl ParamType for Kernel {
     }
     fn from_value(v: Value<'_>) -> Self {
         by_name(&KERNELS, &KERNEL_NAMES, v)
+    }
+}
+
+impl ParamType for Schedule {
+    fn to_value(self) -> Value<'static> {
+        Value::Name(name_of(&SCHEDULES, &SCHEDULE_NAMES, self))
+    }
+    fn from_value(v: Value<'_>) -> Self {
+        by_name(&SCHEDULES, &SCHEDULE_NAMES, v)
     }
 }
 
@@ -362,6 +391,14 @@ impl Params for RegConfig {
         ),
         field!(
             RegConfig,
+            "schedule",
+            schedule,
+            Kind::Choice(&SCHEDULE_NAMES),
+            "\"coarse-fine\", \"keep-start\" or \"both\"",
+            "Which pose the fine level starts from: the coarse level's result (coarse-fine), the lower fine-level cost of the start and that result (keep-start), or both, keeping the lower final cost (both)."
+        ),
+        field!(
+            RegConfig,
             "kernel_scale",
             kernel_scale,
             Kind::open_closed(0.0, 10.0),
@@ -383,8 +420,8 @@ impl Params for RegConfig {
     }
 }
 
-/// How well the pose is constrained: the smallest eigenvalue of the rotation block and of the
-/// translation block of the final information matrix (the Gauss–Newton Hessian `JᵀWJ` at the
+/// How well the pose is constrained: the smallest eigenvalue of the rotation block, of the
+/// translation block and of the translation's marginal of the final information matrix (the Gauss–Newton Hessian `JᵀWJ` at the
 /// fine level, about the query's origin), each divided by the number of correspondences.
 ///
 /// A long corridor or a single wall leaves a direction unconstrained: its eigenvalue drops
@@ -395,6 +432,11 @@ pub struct Degeneracy {
     pub rotation: f64,
     /// Smallest eigenvalue of the 3×3 translation block, per correspondence (weight).
     pub translation: f64,
+    /// Smallest eigenvalue of the translation's marginal information (the Schur complement of
+    /// the rotation block: the rotation left free), per correspondence (weight). At most
+    /// `translation`: a pose whose translation can trade against a rotation (a wall turned
+    /// onto another) has a low one even when every direction of the block is well seen.
+    pub marginal_translation: f64,
 }
 
 /// The outcome of one registration.
