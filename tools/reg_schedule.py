@@ -90,22 +90,23 @@ def schedule_configs() -> dict[str, solid.RegistrationConfig]:
     return {name: solid.RegistrationConfig(**over) for name, over in SCHEDULES.items()}
 
 
-def hku1_pairs() -> tuple[list[np.ndarray], list[solid.Descriptor], list[tuple[int, int, F64]]]:
+def hku1_pairs(wide: bool = False) -> tuple[list[np.ndarray], list[solid.Descriptor], list[tuple[int, int, F64]]]:
+    """Each revisiting query with its nearest early keyframe within 5 m; `wide`: every third
+    query with every third early keyframe 2-8 m away (starts that overlap less)."""
     root = DATA / "hku1-avia"
     T = np.array([to4(p) for p in np.loadtxt(root / "odom_poses.txt").reshape(-1, 3, 4)])
     scans = [np.ascontiguousarray(read_points(root / "Scans" / f"{i:06d}.pcd")[:, :3]) for i in range(len(T))]
     desc = solid.describe_batch(scans, solid.SolidConfig.preset("avia"))
     pos = T[:, :3, 3]
     pairs = []
-    for q in range(260, len(T)):
+    for q in range(260, len(T), 3 if wide else 1):
         d = np.linalg.norm(pos[:61] - pos[q], axis=1)
-        c = int(np.argmin(d))
-        if d[c] <= 5.0:
-            pairs.append((q, c, np.linalg.inv(T[q]) @ T[c]))
+        near = [c for c in range(0, 61, 3) if 2.0 < d[c] <= 8.0] if wide else [int(np.argmin(d))] if d.min() <= 5.0 else []
+        pairs.extend((q, c, np.linalg.inv(T[q]) @ T[c]) for c in near)
     return scans, desc, pairs
 
 
-def sim_pairs(name: str, count: int = 24) -> tuple[list[np.ndarray], list[solid.Descriptor], list[tuple[int, int, F64]]]:
+def sim_pairs(name: str, count: int = 24, spread: float = 1.0) -> tuple[list[np.ndarray], list[solid.Descriptor], list[tuple[int, int, F64]]]:
     world = sim.World(seed=11)
     traj = sim.Trajectory.loop(world, laps=1.0, spacing=20.0)
     rng = np.random.default_rng(5)
@@ -115,10 +116,10 @@ def sim_pairs(name: str, count: int = 24) -> tuple[list[np.ndarray], list[solid.
     pairs = []
     for k in range(min(count, len(traj.poses))):
         Tc = to4(traj.poses[k])
-        yaw = np.radians(rng.uniform(-20.0, 20.0))
+        yaw = np.radians(rng.uniform(-20.0, 20.0) * spread)
         dT = np.eye(4)
         dT[:2, :2] = [[np.cos(yaw), -np.sin(yaw)], [np.sin(yaw), np.cos(yaw)]]
-        dT[:2, 3] = rng.uniform(-1.0, 1.0, size=2) * np.array([2.0, 1.0])
+        dT[:2, 3] = rng.uniform(-1.0, 1.0, size=2) * np.array([2.0, 1.0]) * spread
         Tq = Tc @ dT
         scans.append(sim.scan(world, sensor, Tq, frame=2 * k + 1)[:, :3].astype(np.float64))
         scans.append(sim.scan(world, sensor, Tc, frame=2 * k)[:, :3].astype(np.float64))
@@ -157,8 +158,11 @@ def run_schedules(label: str, scans: list[np.ndarray], desc: list[solid.Descript
 def schedules() -> None:
     print("schedules (true pairs; counts of registrations ending near the true relative pose):")
     run_schedules("hku1-avia revisits (keyframes 260.. with their nearest of 0..60 within 5 m)", *hku1_pairs())
+    run_schedules("hku1-avia wider revisits (every 3rd of 260.. with every 3rd of 0..60 2-8 m away)", *hku1_pairs(wide=True))
     for name in sim.SENSORS:
         run_schedules(f"simulator {name} (world seed 11, 0-2 m, up to 20° apart)", *sim_pairs(name))
+    for name in ("avia", "os1-64"):
+        run_schedules(f"simulator {name}, wider (0-5 m, up to 50° apart)", *sim_pairs(name, spread=2.5))
 
 
 # --- information -----------------------------------------------------------------------------
@@ -168,9 +172,10 @@ INFORMATION_TERMS = ("block min / n (today's term)", "marginal min / n", "block 
 
 
 def information_terms(r: solid.Registration) -> dict[str, float]:
-    """The translation block's smallest eigenvalue per correspondence (degeneracy.translation),
-    the same after marginalising the rotation (Schur complement), and the conditioning
-    (smallest / largest eigenvalue) of each."""
+    """The translation block's smallest eigenvalue per correspondence (degeneracy_translation),
+    the same after marginalising the rotation (degeneracy_marginal_translation, the Schur
+    complement of the rotation block), and the conditioning (smallest / largest eigenvalue) of
+    each, from the Hessian."""
     h = np.asarray(r.hessian)
     htt = h[3:, 3:]
     block = np.linalg.eigvalsh(htt)
@@ -178,10 +183,9 @@ def information_terms(r: solid.Registration) -> dict[str, float]:
         schur = np.linalg.eigvalsh(htt - h[3:, :3] @ np.linalg.solve(h[:3, :3], h[:3, 3:]))
     except np.linalg.LinAlgError:
         schur = np.zeros(3)
-    n = block[0] / r.degeneracy_translation if r.degeneracy_translation > 0 else np.inf
     return {
         "block min / n (today's term)": float(r.degeneracy_translation),
-        "marginal min / n": float(schur[0] / n),
+        "marginal min / n": float(r.degeneracy_marginal_translation),
         "block conditioning": float(block[0] / block[-1]) if block[-1] > 0 else 0.0,
         "marginal conditioning": float(schur[0] / schur[-1]) if schur[-1] > 0 else 0.0,
     }

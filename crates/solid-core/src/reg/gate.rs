@@ -105,7 +105,7 @@ impl Default for Gate {
             max_rmse: 0.30,
             min_translation_information: 1.5,
             min_rotation_information: 0.0,
-            min_marginal_translation_information: 0.0,
+            min_marginal_translation_information: 1.2,
             min_agreement: 1,
             max_translation: f64::INFINITY,
             agree_translation: 0.5,
@@ -291,5 +291,71 @@ impl Params for Gate {
 
     fn defaults() -> Gate {
         Gate::default()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::reg::Degeneracy;
+
+    /// A registration that passes every default threshold, with the given marginal information.
+    fn registration(marginal_translation: f64) -> Registration {
+        Registration {
+            fitness: 0.8,
+            structure_fitness: 0.8,
+            rmse: 0.1,
+            converged: true,
+            degeneracy: Degeneracy {
+                rotation: 50.0,
+                translation: 5.0,
+                marginal_translation,
+            },
+            ..Registration::default()
+        }
+    }
+
+    #[test]
+    fn the_marginal_translation_term_rejects_below_its_threshold_only() {
+        let gate = Gate {
+            min_marginal_translation_information: 1.0,
+            ..Gate::default()
+        };
+        assert_eq!(gate.check(&registration(1.0), &[], 0), Ok(()));
+        assert_eq!(gate.check(&registration(3.0), &[], 0), Ok(()));
+        for weak in [0.99, 0.0, f64::NAN] {
+            assert_eq!(
+                gate.check(&registration(weak), &[], 0),
+                Err(Rejection::WeakMarginalTranslation),
+                "{weak}"
+            );
+        }
+        // Off (0), a weak marginal passes; the block's own term still comes first.
+        let off = Gate {
+            min_marginal_translation_information: 0.0,
+            ..gate
+        };
+        assert_eq!(off.check(&registration(0.0), &[], 0), Ok(()));
+        let mut r = registration(0.0);
+        r.degeneracy.translation = 0.5;
+        assert_eq!(
+            gate.check(&r, &[], 0),
+            Err(Rejection::DegenerateTranslation)
+        );
+    }
+
+    #[test]
+    fn the_marginal_translation_threshold_is_a_table_parameter() {
+        let mut gate = Gate::default();
+        let f = Gate::field("min_marginal_translation_information").unwrap();
+        f.set(&mut gate, crate::params::Value::Float(0.7)).unwrap();
+        assert_eq!(gate.min_marginal_translation_information, 0.7);
+        assert!(f
+            .set(&mut gate, crate::params::Value::Float(f64::NAN))
+            .is_err());
+        assert_eq!(
+            Rejection::WeakMarginalTranslation.to_string(),
+            "translation trades against rotation"
+        );
     }
 }
