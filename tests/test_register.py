@@ -154,7 +154,7 @@ def test_config_is_validated_and_names_the_parameter() -> None:
     with pytest.raises(solid.ConfigError, match="min_fitness"):
         solid.AcceptanceGate(min_fitness=float("nan"))
     with pytest.raises(solid.ConfigError, match="schedule"):
-        solid.RegistrationConfig(schedule="fine-first")  # type: ignore[arg-type]
+        solid.RegistrationConfig(schedule="fine-first")
     g = solid.AcceptanceGate(min_fitness=0.9, min_agreement=2)
     assert g.min_fitness == 0.9 and g.min_agreement == 2 and g.max_rmse == solid.AcceptanceGate().max_rmse
 
@@ -171,6 +171,7 @@ def test_every_schedule_keeps_a_start_that_fits_and_keep_start_never_leaves_it_f
         # From a yaw 25° off the coarse level is needed, and each schedule still finds the pose.
         r = solid.register(q, c, yaws=[25.0, 0.0], config=cfg)
         assert pose_error(r.pose, t)[0] < 0.05, schedule
+        assert r.best_hypothesis is not None
         best = r.hypotheses[r.best_hypothesis]
         if schedule != "coarse-fine":
             # The 0° start lies within the fine level's reach: a hypothesis that kept its start

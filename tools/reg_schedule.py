@@ -14,7 +14,7 @@ detector does, from the identity with its yaw hypotheses (0°, the A-SOLiD minim
 counts the registrations that end within 0.5 m / 2° of the true relative pose, and those within
 1 m / 5° that the default gate accepts.
 
-information: the gate's information terms (see ``AcceptanceGate.min_translation_conditioning``)
+information: the gate's information terms (``AcceptanceGate.min_marginal_translation_information``)
 on the registrations of hku1's true loops (each query's top-5 SOLiD candidates, registered as the
 detector does, that end within 1 m / 5° of the truth between keyframes within 5 m) and on the
 simulator's wrong registrations that pass every other threshold of the gate: the look-alike
@@ -98,7 +98,7 @@ def hku1_pairs(wide: bool = False) -> tuple[list[np.ndarray], list[solid.Descrip
     scans = [np.ascontiguousarray(read_points(root / "Scans" / f"{i:06d}.pcd")[:, :3]) for i in range(len(T))]
     desc = solid.describe_batch(scans, solid.SolidConfig.preset("avia"))
     pos = T[:, :3, 3]
-    pairs = []
+    pairs: list[tuple[int, int, F64]] = []
     for q in range(260, len(T), 3 if wide else 1):
         d = np.linalg.norm(pos[:61] - pos[q], axis=1)
         near = [c for c in range(0, 61, 3) if 2.0 < d[c] <= 8.0] if wide else [int(np.argmin(d))] if d.min() <= 5.0 else []
@@ -113,7 +113,7 @@ def sim_pairs(name: str, count: int = 24, spread: float = 1.0) -> tuple[list[np.
     sensor = sim.Sensor(name)
     dcfg = solid.SolidConfig.preset(name)
     scans: list[np.ndarray] = []
-    pairs = []
+    pairs: list[tuple[int, int, F64]] = []
     for k in range(min(count, len(traj.poses))):
         Tc = to4(traj.poses[k])
         yaw = np.radians(rng.uniform(-20.0, 20.0) * spread)

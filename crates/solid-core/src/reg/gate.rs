@@ -95,8 +95,8 @@ pub struct Gate {
 
 impl Default for Gate {
     /// Thresholds from the measured distributions of correct and wrong registrations
-    /// (`tools/reg_measure.py`; figures in docs/performance.md#gate), tuned so that no wrong one
-    /// passes.
+    /// (`tools/reg_measure.py`, `tools/reg_schedule.py information`; figures in
+    /// docs/performance.md#gate), tuned so that no wrong one passes.
     fn default() -> Self {
         Gate {
             require_converged: false,

@@ -5,9 +5,9 @@
 //! to fine over voxel levels, with a robust kernel, and reports what a loop-closure gate needs:
 //! the overlap of each cloud with the other, the inlier RMSE, the iteration count, whether it
 //! converged, and how well the pose is constrained (the smallest eigenvalues of the rotation and
-//! translation blocks of the final information matrix). [`register_hypotheses`] runs it from
-//! several initial yaws (the local minima of the A-SOLiD shift cost,
-//! [`crate::heading_minima`], plus 0°) and [`Gate`] accepts or rejects the outcome.
+//! translation blocks of the final information matrix, and of the translation's marginal).
+//! [`register_hypotheses`] runs it from several initial yaws (the local minima of the A-SOLiD
+//! shift cost, [`crate::heading_minima`], plus 0°) and [`Gate`] accepts or rejects the outcome.
 //!
 //! Preprocessing (downsampling, kd-tree, covariances) is separate from the registration loop,
 //! as in koide3/small_gicp: a place is prepared once ([`PreparedCloud::new`]) and registered
@@ -53,6 +53,10 @@
 //! - **Coarse to fine**: 1 m voxels / 3 m correspondences, then 0.5 m / 1 m. With the same model
 //!   (no kernel, no range cut, fine level only) and the same start, the pose agrees with
 //!   small-gicp's (`tests/test_register.py`).
+//! - **The coarse level's result replaces the start** ([`Schedule::CoarseFine`]): from the
+//!   detector's starts the fine level alone finds half as many poses; the guards that keep a
+//!   start of lower fine-level cost ([`Schedule::KeepStart`], [`Schedule::Both`]) changed no
+//!   accepted registration on hku1 or the simulator.
 //! - **Yaw hypotheses** ([`register_hypotheses`]): each runs the coarse level only and is
 //!   ranked by the fine level's robust cost at its end; the fine level then continues from the
 //!   best. On the narrow Avia the A-SOLiD cost has a single minimum, near 0°: the fixed ±25°
@@ -421,8 +425,9 @@ impl Params for RegConfig {
 }
 
 /// How well the pose is constrained: the smallest eigenvalue of the rotation block, of the
-/// translation block and of the translation's marginal of the final information matrix (the Gauss–Newton Hessian `JᵀWJ` at the
-/// fine level, about the query's origin), each divided by the number of correspondences.
+/// translation block and of the translation's marginal of the final information matrix (the
+/// Gauss–Newton Hessian `JᵀWJ` at the fine level, about the query's origin), each divided by
+/// the number of correspondences.
 ///
 /// A long corridor or a single wall leaves a direction unconstrained: its eigenvalue drops
 /// towards 0 while the overlap can still look perfect.
