@@ -37,6 +37,8 @@ import solid
 from solid import sim
 from solid.io import read_points
 
+from reg_measure import pose_error
+
 F64 = npt.NDArray[np.float64]
 #: `SOLID_SHARED`/data, else <repo>/../shared/data (as the tests find it).
 DATA = Path(os.environ.get("SOLID_SHARED") or Path(__file__).resolve().parent.parent.parent / "shared") / "data"
@@ -52,13 +54,6 @@ def yaws_for(dq: solid.Descriptor, dc: solid.Descriptor) -> list[float]:
         if len(out) < HYPOTHESES and all(abs((y - o + 180.0) % 360.0 - 180.0) >= 6.0 for o in out):
             out.append(y)
     return out
-
-
-def pose_error(a: F64, b: F64) -> tuple[float, float]:
-    """Translation (m) and angle (deg) of inv(a) @ b."""
-    d = np.linalg.inv(a) @ b
-    c = float(np.clip((np.trace(d[:3, :3]) - 1.0) / 2.0, -1.0, 1.0))
-    return float(np.linalg.norm(d[:3, 3])), float(np.degrees(np.arccos(c)))
 
 
 def to4(p: F64) -> F64:

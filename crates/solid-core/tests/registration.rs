@@ -8,7 +8,7 @@ mod common;
 use common::{data_dir, read_scan};
 use solid_lidar::reg::{
     decode_cloud, encode_cloud, hypothesis_yaws, pose_distance, register, register_hypotheses,
-    Gate, Hypothesis, Pose, PreparedCloud, RegConfig, RegError, Rejection, IDENTITY,
+    Gate, Hypothesis, Pose, PreparedCloud, RegConfig, RegError, Registration, Rejection, IDENTITY,
 };
 use solid_lidar::{Config, Describer, Error, Points};
 
@@ -199,6 +199,17 @@ fn hku1_revisits_match_the_ground_truth_and_the_gate_lets_no_wrong_pose_through(
     assert!(m <= 0.05 && deg <= 0.3, "median error {m} m {deg} deg");
 }
 
+/// `xyz` registered (from the identity) to itself moved by `t`.
+fn register_moved(xyz: &[f64], t: &Pose, cfg: &RegConfig) -> Registration {
+    register(
+        &prepare(&apply(t, xyz), cfg),
+        &prepare(xyz, cfg),
+        &IDENTITY,
+        cfg,
+    )
+    .unwrap()
+}
+
 /// Two walls and a floor along x (a corridor), or three orthogonal planes (a corner).
 fn planes(corridor: bool) -> Vec<f64> {
     let mut xyz = vec![];
@@ -224,13 +235,7 @@ fn the_gate_rejects_a_corridor_and_accepts_a_corner() {
     for corridor in [true, false] {
         let xyz = planes(corridor);
         let t = pose(2.0, 0.0, [0.4, 0.1, 0.0]);
-        let r = register(
-            &prepare(&apply(&t, &xyz), &cfg),
-            &prepare(&xyz, &cfg),
-            &IDENTITY,
-            &cfg,
-        )
-        .unwrap();
+        let r = register_moved(&xyz, &t, &cfg);
         let check = gate.check(&r, &[], 0);
         if corridor {
             // Sliding along the corridor costs nothing: the translation block has a tiny
@@ -284,13 +289,7 @@ fn the_marginal_translation_information_sees_a_turn_the_translation_block_does_n
     for (k, room) in [true, false].into_iter().enumerate() {
         let xyz = if room { round_room() } else { planes(false) };
         let t = pose(2.0, 0.0, [0.3, 0.1, 0.0]);
-        let r = register(
-            &prepare(&apply(&t, &xyz), &cfg),
-            &prepare(&xyz, &cfg),
-            &IDENTITY,
-            &cfg,
-        )
-        .unwrap();
+        let r = register_moved(&xyz, &t, &cfg);
         let d = r.degeneracy;
         // Marginalising the rotation can only lose information.
         assert!(d.marginal_translation <= d.translation + 1e-9, "{r:?}");
