@@ -121,6 +121,10 @@ class Registration:
     def degeneracy_translation(self) -> float:
         """Smallest eigenvalue of the translation block, per correspondence (low: a corridor)."""
     @property
+    def degeneracy_marginal_translation(self) -> float:
+        """Smallest eigenvalue of the translation's information with the rotation marginalised
+        (Schur complement), per correspondence (low: the translation trades against a rotation)."""
+    @property
     def hessian(self) -> npt.NDArray[np.float64]:
         """The Gauss–Newton Hessian JᵀWJ at the fine level at the final pose, (6, 6): rotation
         first, a perturbation on the left in the query's frame, unscaled."""

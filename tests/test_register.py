@@ -53,6 +53,14 @@ def test_register_recovers_a_known_transform_and_follows_the_pose_convention(dat
     assert r.fitness == min(r.overlap_query, r.overlap_candidate) and r.fitness > 0.9
     assert 0.0 < r.rmse < 0.3 and r.inliers > 0
     assert r.degeneracy_translation > 1.5 and r.degeneracy_rotation > 0.0
+    # The marginal is the Schur complement of the Hessian's rotation block (rotation first),
+    # per correspondence as the block's term: n = block's smallest eigenvalue / its term.
+    h = r.hessian
+    block = np.linalg.eigvalsh(h[3:, 3:])[0]
+    schur = np.linalg.eigvalsh(h[3:, 3:] - h[3:, :3] @ np.linalg.solve(h[:3, :3], h[:3, 3:]))[0]
+    n = block / r.degeneracy_translation
+    assert r.degeneracy_marginal_translation == pytest.approx(schur / n, rel=1e-6)
+    assert 1.2 < r.degeneracy_marginal_translation <= r.degeneracy_translation
     assert abs(r.yaw - 8.0) < 0.1
     # p_query ≈ pose @ p_candidate (SPEC §3).
     moved = scan[:, :3] @ r.pose[:3, :3].T + r.pose[:3, 3]
@@ -145,8 +153,32 @@ def test_config_is_validated_and_names_the_parameter() -> None:
         solid.RegistrationConfig(voxel_size="big")  # type: ignore[arg-type]
     with pytest.raises(solid.ConfigError, match="min_fitness"):
         solid.AcceptanceGate(min_fitness=float("nan"))
+    with pytest.raises(solid.ConfigError, match="schedule"):
+        solid.RegistrationConfig(schedule="fine-first")
     g = solid.AcceptanceGate(min_fitness=0.9, min_agreement=2)
     assert g.min_fitness == 0.9 and g.min_agreement == 2 and g.max_rmse == solid.AcceptanceGate().max_rmse
+
+
+def test_every_schedule_keeps_a_start_that_fits_and_keep_start_never_leaves_it_for_a_worse_cost(data: Path) -> None:
+    scan = np.ascontiguousarray(hku1_scan(data, 100)[:, :3])
+    t = pose(3.0, (0.4, -0.2, 0.0))
+    query = apply(t, scan)
+    for schedule in ("coarse-fine", "keep-start", "both"):
+        cfg = solid.RegistrationConfig(schedule=schedule)
+        q, c = solid.PreparedCloud(query, cfg), solid.PreparedCloud(scan, cfg)
+        r = solid.register(q, c, t, config=cfg)
+        assert pose_error(r.pose, t)[0] < 0.05, schedule
+        # From a yaw 25° off the coarse level is needed, and each schedule still finds the pose.
+        r = solid.register(q, c, yaws=[25.0, 0.0], config=cfg)
+        assert pose_error(r.pose, t)[0] < 0.05, schedule
+        assert r.best_hypothesis is not None
+        best = r.hypotheses[r.best_hypothesis]
+        if schedule != "coarse-fine":
+            # The 0° start lies within the fine level's reach: a hypothesis that kept its start
+            # reports it as its pose, one moved by the coarse level reports a lower cost.
+            h0 = r.hypotheses[1]
+            assert np.array_equal(h0.pose, pose(0.0, (0.0, 0.0, 0.0))) or h0.cost <= best.cost + 1e-12
+        assert best.cost <= min(h.cost for h in r.hypotheses)
 
 
 def test_prepared_clouds_are_reused_and_travel_compactly(data: Path) -> None:

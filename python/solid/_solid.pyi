@@ -560,6 +560,7 @@ class RegistrationConfig:
         translation_eps: float = 0.001,
         factor: str = 'gicp',
         kernel: str = 'geman-mcclure',
+        schedule: str = 'coarse-fine',
         kernel_scale: float = 0.5,
         inlier_distance: float = 0.5,
     ) -> RegistrationConfig:
@@ -578,6 +579,7 @@ class RegistrationConfig:
             translation_eps: A level has converged when an update translates by less than this, metres (and rotates by less than rotation_eps_deg) (a finite value > 0 metres; default 0.001).
             factor: The residual: plane-to-plane GICP or point-to-plane ICP ("gicp" or "point-to-plane"; default 'gicp').
             kernel: The robust kernel ("geman-mcclure" or "none"; default 'geman-mcclure').
+            schedule: Which pose the fine level starts from: the coarse level's result (coarse-fine), the lower fine-level cost of the start and that result (keep-start), or both, keeping the lower final cost (both) ("coarse-fine", "keep-start" or "both"; default 'coarse-fine').
             kernel_scale: Kernel scale as a fraction of the level's maximum correspondence distance (a value in (0, 10]; default 0.5).
             inlier_distance: Distance (metres) within which a point overlaps the other cloud (overlaps, RMSE) (a finite value > 0 metres; default 0.5).
 
@@ -600,6 +602,7 @@ class RegistrationConfig:
         translation_eps: float | None = None,
         factor: str | None = None,
         kernel: str | None = None,
+        schedule: str | None = None,
         kernel_scale: float | None = None,
         inlier_distance: float | None = None,
     ) -> RegistrationConfig:
@@ -618,6 +621,7 @@ class RegistrationConfig:
             translation_eps: A level has converged when an update translates by less than this, metres (and rotates by less than rotation_eps_deg) (a finite value > 0 metres; default 0.001).
             factor: The residual: plane-to-plane GICP or point-to-plane ICP ("gicp" or "point-to-plane"; default 'gicp').
             kernel: The robust kernel ("geman-mcclure" or "none"; default 'geman-mcclure').
+            schedule: Which pose the fine level starts from: the coarse level's result (coarse-fine), the lower fine-level cost of the start and that result (keep-start), or both, keeping the lower final cost (both) ("coarse-fine", "keep-start" or "both"; default 'coarse-fine').
             kernel_scale: Kernel scale as a fraction of the level's maximum correspondence distance (a value in (0, 10]; default 0.5).
             inlier_distance: Distance (metres) within which a point overlaps the other cloud (overlaps, RMSE) (a finite value > 0 metres; default 0.5).
 
@@ -629,7 +633,7 @@ class RegistrationConfig:
             TypeError: An unknown parameter, or a value of the wrong type.
         """
     def to_dict(self) -> dict[str, Any]:
-        """The parameters by name (voxel_size, coarse_voxel_size, min_range, max_range, neighbors, max_correspondence, coarse_max_correspondence, max_iterations, rotation_eps_deg, translation_eps, factor, kernel, kernel_scale, inlier_distance): what `RegistrationConfig(**d)` takes back.
+        """The parameters by name (voxel_size, coarse_voxel_size, min_range, max_range, neighbors, max_correspondence, coarse_max_correspondence, max_iterations, rotation_eps_deg, translation_eps, factor, kernel, schedule, kernel_scale, inlier_distance): what `RegistrationConfig(**d)` takes back.
 
         Returns:
             A new dict.
@@ -671,6 +675,9 @@ class RegistrationConfig:
     def kernel(self) -> str:
         """The robust kernel ("geman-mcclure" or "none"; default 'geman-mcclure')."""
     @property
+    def schedule(self) -> str:
+        """Which pose the fine level starts from: the coarse level's result (coarse-fine), the lower fine-level cost of the start and that result (keep-start), or both, keeping the lower final cost (both) ("coarse-fine", "keep-start" or "both"; default 'coarse-fine')."""
+    @property
     def kernel_scale(self) -> float:
         """Kernel scale as a fraction of the level's maximum correspondence distance (a value in (0, 10]; default 0.5)."""
     @property
@@ -698,6 +705,7 @@ class AcceptanceGate:
         max_rmse: float = 0.3,
         min_translation_information: float = 1.5,
         min_rotation_information: float = 0.0,
+        min_marginal_translation_information: float = 1.2,
         min_agreement: int = 1,
         max_translation: float = ...,
         agree_translation: float = 0.5,
@@ -712,6 +720,7 @@ class AcceptanceGate:
             max_rmse: Largest accepted inlier RMSE, metres (a finite number; default 0.3).
             min_translation_information: Smallest accepted translation information (degeneracy.translation) (a finite number; default 1.5).
             min_rotation_information: Smallest accepted rotation information (degeneracy.rotation) (a finite number; default 0.0).
+            min_marginal_translation_information: Smallest accepted translation information with the rotation marginalised, per correspondence (degeneracy.marginal_translation) (a finite number; default 1.2).
             min_agreement: Fewest initial yaws (the best included) that must reach the best pose (an integer >= 0; default 1).
             max_translation: Largest accepted length of the translation, metres (metres > 0 (infinity: no limit); default inf).
             agree_translation: Two hypotheses agree when their translations differ by at most this, metres (and their rotations by agree_rotation_deg) (a finite number; default 0.5).
@@ -730,6 +739,7 @@ class AcceptanceGate:
         max_rmse: float | None = None,
         min_translation_information: float | None = None,
         min_rotation_information: float | None = None,
+        min_marginal_translation_information: float | None = None,
         min_agreement: int | None = None,
         max_translation: float | None = None,
         agree_translation: float | None = None,
@@ -744,6 +754,7 @@ class AcceptanceGate:
             max_rmse: Largest accepted inlier RMSE, metres (a finite number; default 0.3).
             min_translation_information: Smallest accepted translation information (degeneracy.translation) (a finite number; default 1.5).
             min_rotation_information: Smallest accepted rotation information (degeneracy.rotation) (a finite number; default 0.0).
+            min_marginal_translation_information: Smallest accepted translation information with the rotation marginalised, per correspondence (degeneracy.marginal_translation) (a finite number; default 1.2).
             min_agreement: Fewest initial yaws (the best included) that must reach the best pose (an integer >= 0; default 1).
             max_translation: Largest accepted length of the translation, metres (metres > 0 (infinity: no limit); default inf).
             agree_translation: Two hypotheses agree when their translations differ by at most this, metres (and their rotations by agree_rotation_deg) (a finite number; default 0.5).
@@ -757,7 +768,7 @@ class AcceptanceGate:
             TypeError: An unknown parameter, or a value of the wrong type.
         """
     def to_dict(self) -> dict[str, Any]:
-        """The parameters by name (require_converged, min_fitness, min_structure_fitness, max_rmse, min_translation_information, min_rotation_information, min_agreement, max_translation, agree_translation, agree_rotation_deg): what `AcceptanceGate(**d)` takes back.
+        """The parameters by name (require_converged, min_fitness, min_structure_fitness, max_rmse, min_translation_information, min_rotation_information, min_marginal_translation_information, min_agreement, max_translation, agree_translation, agree_rotation_deg): what `AcceptanceGate(**d)` takes back.
 
         Returns:
             A new dict.
@@ -780,6 +791,9 @@ class AcceptanceGate:
     @property
     def min_rotation_information(self) -> float:
         """Smallest accepted rotation information (degeneracy.rotation) (a finite number; default 0.0)."""
+    @property
+    def min_marginal_translation_information(self) -> float:
+        """Smallest accepted translation information with the rotation marginalised, per correspondence (degeneracy.marginal_translation) (a finite number; default 1.2)."""
     @property
     def min_agreement(self) -> int:
         """Fewest initial yaws (the best included) that must reach the best pose (an integer >= 0; default 1)."""
@@ -2041,6 +2055,10 @@ class Registration:
     @property
     def degeneracy_translation(self) -> float:
         """Smallest eigenvalue of the translation block, per correspondence (low: a corridor)."""
+    @property
+    def degeneracy_marginal_translation(self) -> float:
+        """Smallest eigenvalue of the translation's information with the rotation marginalised
+        (Schur complement), per correspondence (low: the translation trades against a rotation)."""
     @property
     def hessian(self) -> npt.NDArray[np.float64]:
         """The Gauss–Newton Hessian JᵀWJ at the fine level at the final pose, (6, 6): rotation

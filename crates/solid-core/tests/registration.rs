@@ -8,7 +8,7 @@ mod common;
 use common::{data_dir, read_scan};
 use solid_lidar::reg::{
     decode_cloud, encode_cloud, hypothesis_yaws, pose_distance, register, register_hypotheses,
-    Gate, Hypothesis, Pose, PreparedCloud, RegConfig, RegError, Rejection, IDENTITY,
+    Gate, Hypothesis, Pose, PreparedCloud, RegConfig, RegError, Registration, Rejection, IDENTITY,
 };
 use solid_lidar::{Config, Describer, Error, Points};
 
@@ -199,6 +199,17 @@ fn hku1_revisits_match_the_ground_truth_and_the_gate_lets_no_wrong_pose_through(
     assert!(m <= 0.05 && deg <= 0.3, "median error {m} m {deg} deg");
 }
 
+/// `xyz` registered (from the identity) to itself moved by `t`.
+fn register_moved(xyz: &[f64], t: &Pose, cfg: &RegConfig) -> Registration {
+    register(
+        &prepare(&apply(t, xyz), cfg),
+        &prepare(xyz, cfg),
+        &IDENTITY,
+        cfg,
+    )
+    .unwrap()
+}
+
 /// Two walls and a floor along x (a corridor), or three orthogonal planes (a corner).
 fn planes(corridor: bool) -> Vec<f64> {
     let mut xyz = vec![];
@@ -224,13 +235,7 @@ fn the_gate_rejects_a_corridor_and_accepts_a_corner() {
     for corridor in [true, false] {
         let xyz = planes(corridor);
         let t = pose(2.0, 0.0, [0.4, 0.1, 0.0]);
-        let r = register(
-            &prepare(&apply(&t, &xyz), &cfg),
-            &prepare(&xyz, &cfg),
-            &IDENTITY,
-            &cfg,
-        )
-        .unwrap();
+        let r = register_moved(&xyz, &t, &cfg);
         let check = gate.check(&r, &[], 0);
         if corridor {
             // Sliding along the corridor costs nothing: the translation block has a tiny
@@ -244,6 +249,70 @@ fn the_gate_rejects_a_corridor_and_accepts_a_corner() {
             assert!(m < 0.02 && deg < 0.1, "{m} {deg}");
         }
     }
+}
+
+/// A round room of radius 6 m (wall, floor and ceiling) seen from 3 m off its axis: every
+/// direction of the translation is seen, yet a turn about the room's axis changes nothing.
+fn round_room() -> Vec<f64> {
+    let (r, centre) = (6.0, [-3.0, 0.0]);
+    let mut xyz = vec![];
+    for i in 0..150 {
+        let a = i as f64 * core::f64::consts::TAU / 150.0;
+        let (x, y) = (centre[0] + r * a.cos(), centre[1] + r * a.sin());
+        for k in 0..12 {
+            xyz.extend([x, y, k as f64 * 0.25 - 1.5]);
+        }
+    }
+    for i in -24..=24 {
+        for j in -24..=24 {
+            let (u, v) = (i as f64 * 0.25, j as f64 * 0.25);
+            if u * u + v * v < (r - 0.3) * (r - 0.3) {
+                xyz.extend([centre[0] + u, centre[1] + v, -1.5]);
+                xyz.extend([centre[0] + u, centre[1] + v, 1.5]);
+            }
+        }
+    }
+    xyz
+}
+
+#[test]
+fn the_marginal_translation_information_sees_a_turn_the_translation_block_does_not() {
+    let cfg = RegConfig::default();
+    // Between the room's marginal (in-plane information only, about 1-2 per correspondence:
+    // GICP's plane covariances weigh an offset along a surface ~1000 times less than across)
+    // and the corner's.
+    let gate = Gate {
+        min_marginal_translation_information: 3.0,
+        ..Gate::default()
+    };
+    let mut marginals = [0.0; 2];
+    for (k, room) in [true, false].into_iter().enumerate() {
+        let xyz = if room { round_room() } else { planes(false) };
+        let t = pose(2.0, 0.0, [0.3, 0.1, 0.0]);
+        let r = register_moved(&xyz, &t, &cfg);
+        let d = r.degeneracy;
+        // Marginalising the rotation can only lose information.
+        assert!(d.marginal_translation <= d.translation + 1e-9, "{r:?}");
+        marginals[k] = d.marginal_translation;
+        if room {
+            // The block sees walls all round and passes the block's own term; a turn about
+            // the axis (a turn about the sensor plus a sideways step) is free: the marginal
+            // keeps under a tenth of the block, and the registration slides along that turn.
+            assert!(
+                d.translation > Gate::default().min_translation_information,
+                "{r:?}"
+            );
+            assert!(d.marginal_translation < d.translation / 10.0, "{r:?}");
+            assert_eq!(
+                gate.check(&r, &[], 0),
+                Err(Rejection::WeakMarginalTranslation),
+                "{r:?}"
+            );
+        } else {
+            assert_eq!(gate.check(&r, &[], 0), Ok(()), "{r:?}");
+        }
+    }
+    assert!(marginals[1] > 5.0 * marginals[0], "{marginals:?}");
 }
 
 #[test]

@@ -243,6 +243,12 @@ impl PyRegistration {
     fn degeneracy_translation(&self) -> f64 {
         self.inner.degeneracy.translation
     }
+    /// Smallest eigenvalue of the translation's information with the rotation marginalised, per
+    /// correspondence.
+    #[getter]
+    fn degeneracy_marginal_translation(&self) -> f64 {
+        self.inner.degeneracy.marginal_translation
+    }
     /// The Gauss-Newton Hessian at the fine level, (6, 6): rotation first, perturbation on the
     /// left in the query's frame, unscaled.
     #[getter]

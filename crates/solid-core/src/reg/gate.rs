@@ -24,6 +24,9 @@ pub enum Rejection {
     DegenerateTranslation,
     /// The rotation is poorly constrained.
     DegenerateRotation,
+    /// The translation is poorly constrained once the rotation is free: it can trade against a
+    /// rotation (one wall turned onto another).
+    WeakMarginalTranslation,
     /// Too few initial yaws reached the best pose.
     Disagreement,
     /// The two places are farther apart than `max_translation`.
@@ -47,6 +50,7 @@ impl fmt::Display for Rejection {
             Rejection::HighRmse => "high rmse",
             Rejection::DegenerateTranslation => "degenerate translation",
             Rejection::DegenerateRotation => "degenerate rotation",
+            Rejection::WeakMarginalTranslation => "translation trades against rotation",
             Rejection::Disagreement => "hypotheses disagree",
             Rejection::TooFar => "too far apart",
             Rejection::OdometryDisagrees => "disagrees with the odometry",
@@ -73,6 +77,9 @@ pub struct Gate {
     pub min_translation_information: f64,
     /// Smallest accepted [`super::Degeneracy::rotation`].
     pub min_rotation_information: f64,
+    /// Smallest accepted [`super::Degeneracy::marginal_translation`]: the translation's
+    /// information with the rotation marginalised, per correspondence.
+    pub min_marginal_translation_information: f64,
     /// Fewest hypotheses (the best included) that must reach the best pose, when hypotheses
     /// are given.
     pub min_agreement: usize,
@@ -88,8 +95,8 @@ pub struct Gate {
 
 impl Default for Gate {
     /// Thresholds from the measured distributions of correct and wrong registrations
-    /// (`tools/reg_measure.py`; figures in docs/performance.md#gate), tuned so that no wrong one
-    /// passes.
+    /// (`tools/reg_measure.py`, `tools/reg_schedule.py information`; figures in
+    /// docs/performance.md#gate), tuned so that no wrong one passes.
     fn default() -> Self {
         Gate {
             require_converged: false,
@@ -98,6 +105,7 @@ impl Default for Gate {
             max_rmse: 0.30,
             min_translation_information: 1.5,
             min_rotation_information: 0.0,
+            min_marginal_translation_information: 1.2,
             min_agreement: 1,
             max_translation: f64::INFINITY,
             agree_translation: 0.5,
@@ -144,6 +152,12 @@ impl Gate {
         }
         if !at_least(reg.degeneracy.rotation, self.min_rotation_information) {
             return Err(Rejection::DegenerateRotation);
+        }
+        if !at_least(
+            reg.degeneracy.marginal_translation,
+            self.min_marginal_translation_information,
+        ) {
+            return Err(Rejection::WeakMarginalTranslation);
         }
         if !hypotheses.is_empty() && self.agreement(hypotheses, best) < self.min_agreement {
             return Err(Rejection::Disagreement);
@@ -235,6 +249,14 @@ impl Params for Gate {
         ),
         field!(
             Gate,
+            "min_marginal_translation_information",
+            min_marginal_translation_information,
+            NUMBER,
+            "a finite number",
+            "Smallest accepted translation information with the rotation marginalised, per correspondence (degeneracy.marginal_translation)."
+        ),
+        field!(
+            Gate,
             "min_agreement",
             min_agreement,
             Kind::at_least(0),
@@ -269,5 +291,71 @@ impl Params for Gate {
 
     fn defaults() -> Gate {
         Gate::default()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::reg::Degeneracy;
+
+    /// A registration that passes every default threshold, with the given marginal information.
+    fn registration(marginal_translation: f64) -> Registration {
+        Registration {
+            fitness: 0.8,
+            structure_fitness: 0.8,
+            rmse: 0.1,
+            converged: true,
+            degeneracy: Degeneracy {
+                rotation: 50.0,
+                translation: 5.0,
+                marginal_translation,
+            },
+            ..Registration::default()
+        }
+    }
+
+    #[test]
+    fn the_marginal_translation_term_rejects_below_its_threshold_only() {
+        let gate = Gate {
+            min_marginal_translation_information: 1.0,
+            ..Gate::default()
+        };
+        assert_eq!(gate.check(&registration(1.0), &[], 0), Ok(()));
+        assert_eq!(gate.check(&registration(3.0), &[], 0), Ok(()));
+        for weak in [0.99, 0.0, f64::NAN] {
+            assert_eq!(
+                gate.check(&registration(weak), &[], 0),
+                Err(Rejection::WeakMarginalTranslation),
+                "{weak}"
+            );
+        }
+        // Off (0), a weak marginal passes; the block's own term still comes first.
+        let off = Gate {
+            min_marginal_translation_information: 0.0,
+            ..gate
+        };
+        assert_eq!(off.check(&registration(0.0), &[], 0), Ok(()));
+        let mut r = registration(0.0);
+        r.degeneracy.translation = 0.5;
+        assert_eq!(
+            gate.check(&r, &[], 0),
+            Err(Rejection::DegenerateTranslation)
+        );
+    }
+
+    #[test]
+    fn the_marginal_translation_threshold_is_a_table_parameter() {
+        let mut gate = Gate::default();
+        let f = Gate::field("min_marginal_translation_information").unwrap();
+        f.set(&mut gate, crate::params::Value::Float(0.7)).unwrap();
+        assert_eq!(gate.min_marginal_translation_information, 0.7);
+        assert!(f
+            .set(&mut gate, crate::params::Value::Float(f64::NAN))
+            .is_err());
+        assert_eq!(
+            Rejection::WeakMarginalTranslation.to_string(),
+            "translation trades against rotation"
+        );
     }
 }

@@ -5,9 +5,9 @@
 //! to fine over voxel levels, with a robust kernel, and reports what a loop-closure gate needs:
 //! the overlap of each cloud with the other, the inlier RMSE, the iteration count, whether it
 //! converged, and how well the pose is constrained (the smallest eigenvalues of the rotation and
-//! translation blocks of the final information matrix). [`register_hypotheses`] runs it from
-//! several initial yaws (the local minima of the A-SOLiD shift cost,
-//! [`crate::heading_minima`], plus 0°) and [`Gate`] accepts or rejects the outcome.
+//! translation blocks of the final information matrix, and of the translation's marginal).
+//! [`register_hypotheses`] runs it from several initial yaws (the local minima of the A-SOLiD
+//! shift cost, [`crate::heading_minima`], plus 0°) and [`Gate`] accepts or rejects the outcome.
 //!
 //! Preprocessing (downsampling, kd-tree, covariances) is separate from the registration loop,
 //! as in koide3/small_gicp: a place is prepared once ([`PreparedCloud::new`]) and registered
@@ -53,6 +53,10 @@
 //! - **Coarse to fine**: 1 m voxels / 3 m correspondences, then 0.5 m / 1 m. With the same model
 //!   (no kernel, no range cut, fine level only) and the same start, the pose agrees with
 //!   small-gicp's (`tests/test_register.py`).
+//! - **The coarse level's result replaces the start** ([`Schedule::CoarseFine`]): from the
+//!   detector's starts the fine level alone finds half as many poses; the guards that keep a
+//!   start of lower fine-level cost ([`Schedule::KeepStart`], [`Schedule::Both`]) changed no
+//!   accepted registration on hku1 or the simulator.
 //! - **Yaw hypotheses** ([`register_hypotheses`]): each runs the coarse level only and is
 //!   ranked by the fine level's robust cost at its end; the fine level then continues from the
 //!   best. On the narrow Avia the A-SOLiD cost has a single minimum, near 0°: the fixed ±25°
@@ -120,6 +124,20 @@ pub enum Factor {
     PointToPlane,
 }
 
+/// What the coarse level's result is allowed to replace: the order of the levels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Schedule {
+    /// The coarse level, then the fine level from where it stopped.
+    CoarseFine,
+    /// The coarse level, then the fine level from whichever of the start and the coarse result
+    /// has the lower fine-level robust cost: a start that already fits is not dragged away by
+    /// the coarse level's wider correspondences.
+    KeepStart,
+    /// The fine level from the start and from the coarse result; the one ending at the lower
+    /// fine-level robust cost is kept (twice the fine level's work).
+    Both,
+}
+
 /// The robust kernel `ρ(s)` on a correspondence's squared Mahalanobis residual `s = eᵀWe`.
 ///
 /// Its scale `c` is `kernel_scale × max correspondence distance` of the level, in metres along
@@ -163,6 +181,8 @@ pub struct RegConfig {
     pub factor: Factor,
     /// The robust kernel.
     pub kernel: Kernel,
+    /// How the coarse level's result and the start are used by the fine level.
+    pub schedule: Schedule,
     /// Kernel scale as a fraction of the level's maximum correspondence distance, in `(0, 10]`.
     pub kernel_scale: f64,
     /// Distance (metres) within which a point counts as overlapping the other cloud, for the
@@ -188,6 +208,7 @@ impl Default for RegConfig {
             translation_eps: 1e-3,
             factor: Factor::Gicp,
             kernel: Kernel::GemanMcClure,
+            schedule: Schedule::CoarseFine,
             kernel_scale: 0.5,
             inlier_distance: 0.5,
         }
@@ -227,6 +248,9 @@ const FACTOR_NAMES: [&str; 2] = ["gicp", "point-to-plane"];
 /// [`Kernel`]'s values and their names.
 const KERNELS: [Kernel; 2] = [Kernel::GemanMcClure, Kernel::None];
 const KERNEL_NAMES: [&str; 2] = ["geman-mcclure", "none"];
+/// [`Schedule`]'s values and their names.
+const SCHEDULES: [Schedule; 3] = [Schedule::CoarseFine, Schedule::KeepStart, Schedule::Both];
+const SCHEDULE_NAMES: [&str; 3] = ["coarse-fine", "keep-start", "both"];
 
 /// The name of `v`, one of `values`.
 fn name_of<T: PartialEq>(values: &[T], names: &[&'static str], v: T) -> &'static str {
@@ -255,6 +279,15 @@ impl ParamType for Kernel {
     }
     fn from_value(v: Value<'_>) -> Self {
         by_name(&KERNELS, &KERNEL_NAMES, v)
+    }
+}
+
+impl ParamType for Schedule {
+    fn to_value(self) -> Value<'static> {
+        Value::Name(name_of(&SCHEDULES, &SCHEDULE_NAMES, self))
+    }
+    fn from_value(v: Value<'_>) -> Self {
+        by_name(&SCHEDULES, &SCHEDULE_NAMES, v)
     }
 }
 
@@ -362,6 +395,14 @@ impl Params for RegConfig {
         ),
         field!(
             RegConfig,
+            "schedule",
+            schedule,
+            Kind::Choice(&SCHEDULE_NAMES),
+            "\"coarse-fine\", \"keep-start\" or \"both\"",
+            "Which pose the fine level starts from: the coarse level's result (coarse-fine), the lower fine-level cost of the start and that result (keep-start), or both, keeping the lower final cost (both)."
+        ),
+        field!(
+            RegConfig,
             "kernel_scale",
             kernel_scale,
             Kind::open_closed(0.0, 10.0),
@@ -383,9 +424,10 @@ impl Params for RegConfig {
     }
 }
 
-/// How well the pose is constrained: the smallest eigenvalue of the rotation block and of the
-/// translation block of the final information matrix (the Gauss–Newton Hessian `JᵀWJ` at the
-/// fine level, about the query's origin), each divided by the number of correspondences.
+/// How well the pose is constrained: the smallest eigenvalue of the rotation block, of the
+/// translation block and of the translation's marginal of the final information matrix (the
+/// Gauss–Newton Hessian `JᵀWJ` at the fine level, about the query's origin), each divided by
+/// the number of correspondences.
 ///
 /// A long corridor or a single wall leaves a direction unconstrained: its eigenvalue drops
 /// towards 0 while the overlap can still look perfect.
@@ -395,6 +437,11 @@ pub struct Degeneracy {
     pub rotation: f64,
     /// Smallest eigenvalue of the 3×3 translation block, per correspondence (weight).
     pub translation: f64,
+    /// Smallest eigenvalue of the translation's marginal information (the Schur complement of
+    /// the rotation block: the rotation left free), per correspondence (weight). At most
+    /// `translation`: a pose whose translation can trade against a rotation (a wall turned
+    /// onto another) has a low one even when every direction of the block is well seen.
+    pub marginal_translation: f64,
 }
 
 /// The outcome of one registration.

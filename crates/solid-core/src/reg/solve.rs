@@ -3,7 +3,7 @@
 use nalgebra::{Matrix3, Matrix6, SymmetricEigen, UnitQuaternion, Vector3, Vector6};
 
 use super::cloud::{Level, PreparedCloud};
-use super::{Degeneracy, Factor, Kernel, Pose, RegConfig, RegError, Registration};
+use super::{Degeneracy, Factor, Kernel, Pose, RegConfig, RegError, Registration, Schedule};
 use crate::Error;
 
 /// Fewest correspondences for a Gauss–Newton step (six unknowns).
@@ -336,6 +336,20 @@ fn min_eigenvalue(m: Matrix3<f64>) -> f64 {
     SymmetricEigen::new(m).eigenvalues.min()
 }
 
+/// The smallest eigenvalue of the translation's information once the rotation is marginalised
+/// (the Schur complement `H_tt − H_tr H_rr⁻¹ H_rt` of the rotation block): the inverse of the
+/// largest translation variance the Hessian allows when the rotation is free too. 0 when the
+/// rotation block is singular (the rotation is not constrained at all).
+pub(super) fn marginal_translation(h: &Matrix6<f64>) -> f64 {
+    let hrr = h.fixed_view::<3, 3>(0, 0).into_owned();
+    let hrt = h.fixed_view::<3, 3>(0, 3).into_owned();
+    let htt = h.fixed_view::<3, 3>(3, 3).into_owned();
+    match hrr.cholesky() {
+        Some(c) => min_eigenvalue(htt - hrt.transpose() * c.solve(&hrt)).max(0.0),
+        None => 0.0,
+    }
+}
+
 /// Registers `candidate` to `query`: estimates `T_query_candidate` (`p_query ≈ T · p_candidate`,
 /// SPEC §3) from the initial guess `init`, first on the coarse levels (when the config has them),
 /// then on the fine levels, and measures the result on the fine levels.
@@ -367,30 +381,54 @@ fn register_from(
     x: &mut Rigid,
     cfg: &RegConfig,
 ) -> Registration {
-    let mut iterations = 0;
-    if let (Some(qc), Some(cc)) = (&query.coarse, &candidate.coarse) {
-        let o = align_level(
-            qc,
-            cc,
-            x,
-            cfg.coarse_max_correspondence,
-            cfg,
-            COARSE_EPS_FACTOR,
-        );
-        iterations += o.iterations;
-    }
-    fine_from(query, candidate, x, cfg, iterations)
+    let (Some(qc), Some(cc)) = (&query.coarse, &candidate.coarse) else {
+        return fine_from(query, candidate, x, None, cfg, 0);
+    };
+    let start = *x;
+    let o = align_level(
+        qc,
+        cc,
+        x,
+        cfg.coarse_max_correspondence,
+        cfg,
+        COARSE_EPS_FACTOR,
+    );
+    let alt = match cfg.schedule {
+        Schedule::CoarseFine => None,
+        Schedule::KeepStart => {
+            if fine_cost(query, candidate, &start, cfg) <= fine_cost(query, candidate, x, cfg) {
+                *x = start;
+            }
+            None
+        }
+        Schedule::Both => Some(start),
+    };
+    fine_from(query, candidate, x, alt, cfg, o.iterations)
 }
 
-/// The fine level from `x`, then the measures of the result; `iterations` were spent before.
+/// The fine level's robust cost at `x` (correspondences found there).
+fn fine_cost(query: &PreparedCloud, candidate: &PreparedCloud, x: &Rigid, cfg: &RegConfig) -> f64 {
+    let robust = Robust::new(cfg, cfg.max_correspondence);
+    let d2 = cfg.max_correspondence * cfg.max_correspondence;
+    linearize(&query.fine, &candidate.fine, x, d2, &robust, cfg.factor).cost
+}
+
+/// The fine level's final robust cost, infinite without a final linearisation.
+fn final_cost(o: &LevelOutcome) -> f64 {
+    o.last.as_ref().map_or(f64::INFINITY, |l| l.cost)
+}
+
+/// The fine level from `x` (and from `alt` too when given, keeping the one that ends at the
+/// lower robust cost), then the measures of the result; `iterations` were spent before.
 fn fine_from(
     query: &PreparedCloud,
     candidate: &PreparedCloud,
     x: &mut Rigid,
+    alt: Option<Rigid>,
     cfg: &RegConfig,
     mut iterations: usize,
 ) -> Registration {
-    let o = align_level(
+    let mut o = align_level(
         &query.fine,
         &candidate.fine,
         x,
@@ -399,6 +437,21 @@ fn fine_from(
         1.0,
     );
     iterations += o.iterations;
+    if let Some(mut y) = alt {
+        let p = align_level(
+            &query.fine,
+            &candidate.fine,
+            &mut y,
+            cfg.max_correspondence,
+            cfg,
+            1.0,
+        );
+        iterations += p.iterations;
+        if final_cost(&p) < final_cost(&o) {
+            *x = y;
+            o = p;
+        }
+    }
     let oc = overlap(&query.fine, &candidate.fine, x, cfg.inlier_distance);
     let oq = overlap(
         &candidate.fine,
@@ -411,6 +464,7 @@ fn fine_from(
         Degeneracy {
             rotation: min_eigenvalue(lin.h.fixed_view::<3, 3>(0, 0).into_owned()) / n,
             translation: min_eigenvalue(lin.h.fixed_view::<3, 3>(3, 3).into_owned()) / n,
+            marginal_translation: marginal_translation(&lin.h) / n,
         }
     });
     Registration {
@@ -443,7 +497,9 @@ pub const MAX_HYPOTHESES: usize = 72;
 pub struct Hypothesis {
     /// The initial yaw (degrees) this hypothesis started from.
     pub yaw_deg: f64,
-    /// The pose after the coarse level (the fine level when the config has no coarse level).
+    /// The pose the fine level would go on from: after the coarse level (the fine level when
+    /// the config has no coarse level), or the start when the config's [`Schedule`] keeps a
+    /// start that fits the fine level better.
     pub pose: Pose,
     /// The robust cost there, normalised to `[0, 1]`: 0 when every candidate point sits on
     /// its match, 1 when none has one.
@@ -481,8 +537,9 @@ pub struct Hypotheses {
 ///
 /// Each hypothesis `k` starts from `yaw_pose(yaws_deg[k]) · init` and runs the coarse level
 /// only (the cheap one; the fine level when the config has no coarse level); its outcome goes
-/// to `out[k]`. The hypothesis with the lowest normalised cost is then registered in full,
-/// coarse then fine, from its initial pose. Hypotheses that end at the same pose from
+/// to `out[k]` (with [`Schedule::KeepStart`] or [`Schedule::Both`], its start instead when
+/// that has the lower fine-level cost). The fine level then goes on from the hypothesis with
+/// the lowest normalised cost. Hypotheses that end at the same pose from
 /// different yaws are evidence of a real match (see [`agreement`]); a wrong candidate scatters
 /// them. A verifying detector passes [`hypothesis_yaws`] of the two A-SOLiDs.
 ///
@@ -544,46 +601,57 @@ pub fn register_hypotheses(
         (Some(qc), Some(cc)) => (qc, cc, cfg.coarse_max_correspondence),
         _ => (&query.fine, &candidate.fine, cfg.max_correspondence),
     };
-    let fine_robust = Robust::new(cfg, cfg.max_correspondence);
-    let fine_ceiling = fine_robust.ceiling() * candidate.fine.len() as f64;
+    let has_coarse = query.coarse.is_some() && candidate.coarse.is_some();
+    let fine_ceiling =
+        Robust::new(cfg, cfg.max_correspondence).ceiling() * candidate.fine.len() as f64;
+    // The fine level's cost at a pose, normalised to [0, 1].
+    let normalised = |x: &Rigid| {
+        if fine_ceiling > 0.0 {
+            (fine_cost(query, candidate, x, cfg) / fine_ceiling).clamp(0.0, 1.0)
+        } else {
+            1.0
+        }
+    };
     let mut best = 0;
+    // The pose of the best hypothesis the schedule did not choose (its start or coarse result).
+    let mut best_other = base;
     for (k, &yaw) in yaws_deg.iter().enumerate() {
-        let mut x = start(yaw);
-        let eps = if query.coarse.is_some() && candidate.coarse.is_some() {
-            COARSE_EPS_FACTOR
+        let s = start(yaw);
+        let mut x = s;
+        let eps = if has_coarse { COARSE_EPS_FACTOR } else { 1.0 };
+        let o = align_level(qc, cc, &mut x, max_corr, cfg, eps);
+        let mut cost = if o.last.is_some() {
+            normalised(&x)
         } else {
             1.0
         };
-        let o = align_level(qc, cc, &mut x, max_corr, cfg, eps);
-        let fine = linearize(
-            &query.fine,
-            &candidate.fine,
-            &x,
-            cfg.max_correspondence * cfg.max_correspondence,
-            &fine_robust,
-            cfg.factor,
-        );
+        let mut other = s;
+        if has_coarse && cfg.schedule != Schedule::CoarseFine {
+            let at_start = normalised(&s);
+            if at_start <= cost {
+                (cost, other, x) = (at_start, x, s);
+            }
+        }
         out[k] = Hypothesis {
             yaw_deg: yaw,
             pose: x.to_pose(),
-            cost: if fine_ceiling > 0.0 && o.last.is_some() {
-                (fine.cost / fine_ceiling).clamp(0.0, 1.0)
-            } else {
-                1.0
-            },
+            cost,
             converged: o.converged,
             iterations: o.iterations,
         };
-        if out[k].cost < out[best].cost {
+        if k == 0 || out[k].cost < out[best].cost {
             best = k;
+            best_other = other;
         }
     }
-    // The fine level goes on from where the best hypothesis's coarse level stopped.
+    // The fine level goes on from the best hypothesis's pose (and from its other pose too when
+    // the schedule runs both).
     let mut x = Rigid::from_pose(&out[best].pose).unwrap_or(base);
+    let alt = (has_coarse && cfg.schedule == Schedule::Both).then_some(best_other);
     Ok(Hypotheses {
         count: yaws_deg.len(),
         best,
-        registration: fine_from(query, candidate, &mut x, cfg, out[best].iterations),
+        registration: fine_from(query, candidate, &mut x, alt, cfg, out[best].iterations),
     })
 }
 
