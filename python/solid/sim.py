@@ -32,12 +32,13 @@ import os
 from collections.abc import Callable, Iterator, Sequence as AbcSequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Union, overload
+from typing import TYPE_CHECKING, Any, overload
 
 import numpy as np
 import numpy.typing as npt
 
 from . import _solid
+from .arrays import F32, F64, PathLike
 from .transforms import wrap_degrees, yaw_degrees
 
 if TYPE_CHECKING:
@@ -64,9 +65,6 @@ __all__ = [
     "write_sessions",
 ]
 
-F32 = npt.NDArray[np.float32]
-F64 = npt.NDArray[np.float64]
-PathLike = Union[str, "os.PathLike[str]"]
 
 #: Sensor model names (read from the simulator crate); each matches the descriptor preset of the
 #: same name (``solid.presets()``).

@@ -45,8 +45,9 @@ import numpy as np
 
 from . import helipr, kitti, nclt, npy, pcd, ply, rosbag
 from ._bin import BinLayout, sniff
+from ..arrays import F32, F64, I64, PathLike
 from ..errors import ConfigError, ReadError
-from ._common import F32, F64, I64, Cloud, PathLike, file_size, natural_key, read_bytes
+from ._common import Cloud, file_size, natural_key, read_bytes
 from .selection import parse_frames
 from .poses import (
     interpolate_poses,
