@@ -41,6 +41,14 @@ def test_kitti_bin_matches_raw_floats() -> None:
     assert np.array_equal(xyz, raw[:, :3])
 
 
+def read_real(rel: str, fmt: str) -> tuple[bytes, Any]:
+    """The bytes of a real sample (a path under the data folder) and the cloud read from it, once
+    its format is detected as `fmt`."""
+    p = data_dir() / rel
+    assert sio.detect_format(p) == fmt
+    return p.read_bytes(), sio.read_cloud(p)
+
+
 @pytest.mark.parametrize(
     "rel, n",
     [
@@ -50,10 +58,7 @@ def test_kitti_bin_matches_raw_floats() -> None:
     ],
 )
 def test_pcd_binary_real(rel: str, n: int) -> None:
-    p = data_dir() / rel
-    raw = p.read_bytes()
-    c = sio.read_cloud(p)
-    assert sio.detect_format(p) == "pcd"
+    raw, c = read_real(rel, "pcd")
     assert c.points.shape[0] == n
     assert c.fields[:3] == ("x", "y", "z")
     ncol = len(c.fields)
@@ -62,10 +67,7 @@ def test_pcd_binary_real(rel: str, n: int) -> None:
 
 
 def test_helipr_aeva_records() -> None:
-    p = data_dir() / "solid-samples/helipr_aeva/000000.bin"
-    raw = p.read_bytes()
-    assert sio.detect_format(p) == "helipr-aeva"
-    c = sio.read_cloud(p)
+    raw, c = read_real("solid-samples/helipr_aeva/000000.bin", "helipr-aeva")
     assert c.points.shape == (len(raw) // 29, 8)
     assert c.fields == ("x", "y", "z", "reflectivity", "velocity", "time_offset_ns", "line_index", "intensity")
     for i in (0, 1234, c.points.shape[0] - 1):
@@ -79,10 +81,7 @@ def test_helipr_aeva_records() -> None:
 
 
 def test_helipr_avia_records() -> None:
-    p = data_dir() / "solid-samples/helipr_avia/000010.bin"
-    raw = p.read_bytes()
-    assert sio.detect_format(p) == "helipr-avia"
-    c = sio.read_cloud(p)
+    raw, c = read_real("solid-samples/helipr_avia/000010.bin", "helipr-avia")
     assert c.points.shape == (len(raw) // 19, 7)
     for i in (0, 777, c.points.shape[0] - 1):
         x, y, z, refl, tag, line, off = struct.unpack_from("<3f3BI", raw, 19 * i)
@@ -91,10 +90,7 @@ def test_helipr_avia_records() -> None:
 
 
 def test_nclt_scaled_uint16() -> None:
-    p = data_dir() / "misc/nclt_2012-01-15_1326652795280148_hdl32e.bin"
-    raw = p.read_bytes()
-    assert sio.detect_format(p) == "nclt"
-    c = sio.read_cloud(p)
+    raw, c = read_real("misc/nclt_2012-01-15_1326652795280148_hdl32e.bin", "nclt")
     assert c.points.shape == (23546, 5)
     for i in (0, 100, 23545):
         xr, yr, zr, inten, laser = struct.unpack_from("<3H2B", raw, 8 * i)
