@@ -23,8 +23,9 @@ from typing import Any, Final
 import numpy as np
 import numpy.typing as npt
 
+from ..arrays import F32
 from ..errors import ReadError
-from ._common import Cloud, F32, cloud_from_records, stack_columns
+from ._common import Cloud, cloud_from_records, stack_columns
 
 
 HINT: Final = "reading ROS bags and MCAP needs the optional 'rosbags' package: pip install solid-lidar[ros]"
