@@ -579,21 +579,13 @@ def _write_bags(tmp_path: Path, clouds: list[npt.NDArray[np.float32]]) -> list[P
     from rosbags.rosbag2 import StoragePlugin, Writer as Writer2
     from rosbags.typesys import Stores, get_typestore
 
+    from solid.datasets.rosbag import cloud_to_pointcloud2
+
     def message(ts: Any, pts: npt.NDArray[np.float32], sec: int) -> Any:
-        types = ts.types
-        pf = types["sensor_msgs/msg/PointField"]
-        hdr_t = types["std_msgs/msg/Header"]
-        stamp = types["builtin_interfaces/msg/Time"](sec=sec, nanosec=0)
-        hdr = hdr_t(seq=sec, stamp=stamp, frame_id="lidar") if "seq" in hdr_t.__dataclass_fields__ else hdr_t(stamp=stamp, frame_id="lidar")
         # x y z float32, a padding byte gap, then intensity as float64: point_step 24
-        fields = [pf(name=n, offset=4 * i, datatype=7, count=1) for i, n in enumerate("xyz")]
-        fields.append(pf(name="intensity", offset=16, datatype=8, count=1))
-        rec = np.zeros(pts.shape[0], dtype={"names": ["x", "y", "z", "i"], "formats": ["<f4", "<f4", "<f4", "<f8"], "offsets": [0, 4, 8, 16], "itemsize": 24})
-        rec["x"], rec["y"], rec["z"], rec["i"] = pts[:, 0], pts[:, 1], pts[:, 2], pts[:, 3]
-        return types["sensor_msgs/msg/PointCloud2"](
-            header=hdr, height=1, width=pts.shape[0], fields=fields, is_bigendian=False, point_step=24,
-            row_step=24 * pts.shape[0], data=np.frombuffer(rec.tobytes(), np.uint8), is_dense=True,
-        )
+        rec = np.zeros(pts.shape[0], dtype={"names": ["x", "y", "z", "intensity"], "formats": ["<f4", "<f4", "<f4", "<f8"], "offsets": [0, 4, 8, 16], "itemsize": 24})
+        rec["x"], rec["y"], rec["z"], rec["intensity"] = pts[:, 0], pts[:, 1], pts[:, 2], pts[:, 3]
+        return cloud_to_pointcloud2(ts, rec, sec, "lidar")
 
     msgtype = "sensor_msgs/msg/PointCloud2"
     out: list[Path] = []
