@@ -170,22 +170,7 @@ class LoopDetector:
 
         Args:
             database: The map; its configuration becomes the detector's.
-            exclude_recent: Frames of the own session never matched (the robot is still there);
-                None: 50. The same as `DetectorConfig.exclude_frames`.
-            threshold: Largest score (R-SOLiD cosine distance) accepted as a loop; None: the loop
-                threshold of the configuration's base preset (docs/spec.md §4), else the largest preset
-                threshold.
-            top_k: Candidates each step returns (1..=1000); None: 10.
-            rerank: Re-rank the candidates by R-SOLiD distance plus rotation-aligned A-SOLiD distance;
-                None: off.
-            exclude_meters: Also skip places of the own session fewer than this many metres back along
-                the path (every scan then needs a pose); None or 0: off.
-            exclude_seconds: Also skip places of the own session fewer than this many seconds back
-                (every scan then needs a non-decreasing timestamp); None or 0: off.
-            verify: Verify the best candidates by registration (None: on, the default); with it on,
-                scans must be given as points.
-            detector: Parameters to start from instead of the defaults; the other arguments override
-                them.
+            <Args of LoopDetector.__new__>
 
         Returns:
             The detector.
@@ -234,23 +219,13 @@ class LoopDetector:
         with the best candidates'; a Descriptor then raises ConfigError.
 
         Args:
-            points_or_descriptor: The scan's points (as `solid.describe` accepts) or its descriptor,
-                made with the detector's configuration.
-            timestamp: Seconds, or None.
-            pose: `T_world_sensor` as a 3×4 array or 12 floats (row-major [R|t]), or None; stored with
-                the place.
+            <Args of LoopDetector.add>
 
         Returns:
             The step's query id, eligible entries, ranked candidates and loop.
 
         Raises:
-            DatabaseError: A descriptor made with another configuration.
-            ConfigError: An infinite timestamp, a non-finite pose or one that is not a rotation, a pose
-                or timestamp missing when the exclusion needs it, a timestamp older than the previous
-                one when excluding by seconds. Nothing is added then.
-            SolidError: Points of the wrong shape or layout (as `solid.describe`).
-            TypeError: Points of the wrong type or dtype.
-            SolidError: A pose that is not 12 values or a 3×4 array.
+            <Raises of LoopDetector.add>
         """
     def detect_many(
         self,
@@ -280,13 +255,7 @@ class LoopDetector:
             One Detection per descriptor, in order.
 
         Raises:
-            DatabaseError: A descriptor made with another configuration.
-            ConfigError: An infinite timestamp, a non-finite pose or one that is not a rotation, a pose
-                or timestamp missing when the exclusion needs it, a timestamp older than the previous
-                one when excluding by seconds. Nothing is added then.
-            SolidError: Points of the wrong shape or layout (as `solid.describe`).
-            TypeError: Points of the wrong type or dtype.
-            SolidError: A pose that is not 12 values or a 3×4 array.
+            <Raises of LoopDetector.add>
             SolidError: `timestamps` or `poses` of another length than `scans`.
         """
     def candidates(
@@ -300,24 +269,14 @@ class LoopDetector:
         without adding it.
 
         Args:
-            points_or_descriptor: The scan's points (as `solid.describe` accepts) or its descriptor,
-                made with the detector's configuration.
-            timestamp: Seconds, or None.
-            pose: `T_world_sensor` as a 3×4 array or 12 floats (row-major [R|t]), or None; stored with
-                the place.
+            <Args of LoopDetector.add>
             k: At most this many; None: the detector's `top_k`.
 
         Returns:
             The candidates, best first.
 
         Raises:
-            DatabaseError: A descriptor made with another configuration.
-            ConfigError: An infinite timestamp, a non-finite pose or one that is not a rotation, a pose
-                or timestamp missing when the exclusion needs it, a timestamp older than the previous
-                one when excluding by seconds. Nothing is added then.
-            SolidError: Points of the wrong shape or layout (as `solid.describe`).
-            TypeError: Points of the wrong type or dtype.
-            SolidError: A pose that is not 12 values or a 3×4 array.
+            <Raises of LoopDetector.add>
         """
     def query(self, points_or_descriptor: Descriptor | npt.ArrayLike) -> Loop | None:
         """Searches one scan against every place without adding it and without excluding any

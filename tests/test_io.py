@@ -41,6 +41,14 @@ def test_kitti_bin_matches_raw_floats() -> None:
     assert np.array_equal(xyz, raw[:, :3])
 
 
+def read_real(rel: str, fmt: str) -> tuple[bytes, Any]:
+    """The bytes of a real sample (a path under the data folder) and the cloud read from it, once
+    its format is detected as `fmt`."""
+    p = data_dir() / rel
+    assert sio.detect_format(p) == fmt
+    return p.read_bytes(), sio.read_cloud(p)
+
+
 @pytest.mark.parametrize(
     "rel, n",
     [
@@ -50,10 +58,7 @@ def test_kitti_bin_matches_raw_floats() -> None:
     ],
 )
 def test_pcd_binary_real(rel: str, n: int) -> None:
-    p = data_dir() / rel
-    raw = p.read_bytes()
-    c = sio.read_cloud(p)
-    assert sio.detect_format(p) == "pcd"
+    raw, c = read_real(rel, "pcd")
     assert c.points.shape[0] == n
     assert c.fields[:3] == ("x", "y", "z")
     ncol = len(c.fields)
@@ -62,10 +67,7 @@ def test_pcd_binary_real(rel: str, n: int) -> None:
 
 
 def test_helipr_aeva_records() -> None:
-    p = data_dir() / "solid-samples/helipr_aeva/000000.bin"
-    raw = p.read_bytes()
-    assert sio.detect_format(p) == "helipr-aeva"
-    c = sio.read_cloud(p)
+    raw, c = read_real("solid-samples/helipr_aeva/000000.bin", "helipr-aeva")
     assert c.points.shape == (len(raw) // 29, 8)
     assert c.fields == ("x", "y", "z", "reflectivity", "velocity", "time_offset_ns", "line_index", "intensity")
     for i in (0, 1234, c.points.shape[0] - 1):
@@ -79,10 +81,7 @@ def test_helipr_aeva_records() -> None:
 
 
 def test_helipr_avia_records() -> None:
-    p = data_dir() / "solid-samples/helipr_avia/000010.bin"
-    raw = p.read_bytes()
-    assert sio.detect_format(p) == "helipr-avia"
-    c = sio.read_cloud(p)
+    raw, c = read_real("solid-samples/helipr_avia/000010.bin", "helipr-avia")
     assert c.points.shape == (len(raw) // 19, 7)
     for i in (0, 777, c.points.shape[0] - 1):
         x, y, z, refl, tag, line, off = struct.unpack_from("<3f3BI", raw, 19 * i)
@@ -91,10 +90,7 @@ def test_helipr_avia_records() -> None:
 
 
 def test_nclt_scaled_uint16() -> None:
-    p = data_dir() / "misc/nclt_2012-01-15_1326652795280148_hdl32e.bin"
-    raw = p.read_bytes()
-    assert sio.detect_format(p) == "nclt"
-    c = sio.read_cloud(p)
+    raw, c = read_real("misc/nclt_2012-01-15_1326652795280148_hdl32e.bin", "nclt")
     assert c.points.shape == (23546, 5)
     for i in (0, 100, 23545):
         xr, yr, zr, inten, laser = struct.unpack_from("<3H2B", raw, 8 * i)
@@ -583,21 +579,13 @@ def _write_bags(tmp_path: Path, clouds: list[npt.NDArray[np.float32]]) -> list[P
     from rosbags.rosbag2 import StoragePlugin, Writer as Writer2
     from rosbags.typesys import Stores, get_typestore
 
+    from solid.datasets.rosbag import cloud_to_pointcloud2
+
     def message(ts: Any, pts: npt.NDArray[np.float32], sec: int) -> Any:
-        types = ts.types
-        pf = types["sensor_msgs/msg/PointField"]
-        hdr_t = types["std_msgs/msg/Header"]
-        stamp = types["builtin_interfaces/msg/Time"](sec=sec, nanosec=0)
-        hdr = hdr_t(seq=sec, stamp=stamp, frame_id="lidar") if "seq" in hdr_t.__dataclass_fields__ else hdr_t(stamp=stamp, frame_id="lidar")
         # x y z float32, a padding byte gap, then intensity as float64: point_step 24
-        fields = [pf(name=n, offset=4 * i, datatype=7, count=1) for i, n in enumerate("xyz")]
-        fields.append(pf(name="intensity", offset=16, datatype=8, count=1))
-        rec = np.zeros(pts.shape[0], dtype={"names": ["x", "y", "z", "i"], "formats": ["<f4", "<f4", "<f4", "<f8"], "offsets": [0, 4, 8, 16], "itemsize": 24})
-        rec["x"], rec["y"], rec["z"], rec["i"] = pts[:, 0], pts[:, 1], pts[:, 2], pts[:, 3]
-        return types["sensor_msgs/msg/PointCloud2"](
-            header=hdr, height=1, width=pts.shape[0], fields=fields, is_bigendian=False, point_step=24,
-            row_step=24 * pts.shape[0], data=np.frombuffer(rec.tobytes(), np.uint8), is_dense=True,
-        )
+        rec = np.zeros(pts.shape[0], dtype={"names": ["x", "y", "z", "intensity"], "formats": ["<f4", "<f4", "<f4", "<f8"], "offsets": [0, 4, 8, 16], "itemsize": 24})
+        rec["x"], rec["y"], rec["z"], rec["intensity"] = pts[:, 0], pts[:, 1], pts[:, 2], pts[:, 3]
+        return cloud_to_pointcloud2(ts, rec, sec, "lidar")
 
     msgtype = "sensor_msgs/msg/PointCloud2"
     out: list[Path] = []

@@ -346,15 +346,13 @@ def _five_places(session: Callable[[int], int]) -> tuple[solid.SolidConfig, soli
     return cfg, db
 
 
+#: The rows (offset, size) that both file versions' header tables (§9, §13) begin with: magic,
+#: version, flags, the grid, the ranges, the fingerprint, the place count.
+SHARED_HEADER = [("0", "8"), ("8", "4"), ("12", "4"), ("16", "16"), ("32", "40"), ("72", "8"), ("80", "8")]
+
+
 def test_the_database_file_is_laid_out_as_specified() -> None:
-    assert layout(9) == [
-        ("0", "8"),
-        ("8", "4"),
-        ("12", "4"),
-        ("16", "16"),
-        ("32", "40"),
-        ("72", "8"),
-        ("80", "8"),
+    assert layout(9) == SHARED_HEADER + [
         ("88", "8"),
         ("96", "n × 112"),
         ("96 + 112n", "n × Nr × 4"),
@@ -390,14 +388,7 @@ def test_the_database_file_is_laid_out_as_specified() -> None:
 
 def test_the_database_file_version_3_is_laid_out_as_specified() -> None:
     header, sections = section(13).split("| kind |", 1)
-    assert [(row[0], row[1]) for row in table(header)] == [
-        ("0", "8"),
-        ("8", "4"),
-        ("12", "4"),
-        ("16", "16"),
-        ("32", "40"),
-        ("72", "8"),
-        ("80", "8"),
+    assert [(row[0], row[1]) for row in table(header)] == SHARED_HEADER + [
         ("88", "4"),
         ("92", "4"),
         ("96", "S × 32"),

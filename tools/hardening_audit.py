@@ -23,6 +23,7 @@ import sys
 import tempfile
 import textwrap
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -81,6 +82,24 @@ def run(code: str, timeout: float = 120.0) -> Outcome:
     return Outcome(head, rest)
 
 
+def refused_save(path: Path, places: int, accepted: str) -> str:
+    """Code for `run`: saving `places` places over the 5-place map at `path` must raise OSError
+    (else AssertionError(`accepted`)), and leave the old map whole and no temporary file."""
+    return textwrap.dedent(
+        f"""
+        path = {str(path)!r}
+        try:
+            small_db({places}).save(path)
+        except OSError as e:
+            print("refused:", e)
+        else:
+            raise AssertionError({accepted!r})
+        assert len(solid.Database.load(path)) == 5
+        assert os.listdir(os.path.dirname(path)) == ["map.soliddb"], os.listdir(os.path.dirname(path))
+        """
+    )
+
+
 CLEAN_EXC = ("MemoryError", "OSError", "FileNotFoundError", "IsADirectoryError", "PermissionError", "TypeError")
 
 
@@ -106,6 +125,13 @@ def record(results: Results, area: str, case: str, ok: bool, o: Outcome | str) -
     detail = o if isinstance(o, str) else f"{o.kind}: {o.detail}"
     results.setdefault(area, []).append((case, ok, detail))
     print(f"  [{'ok' if ok else 'WRONG'}] {area}: {case}: {detail[:150]}", flush=True)
+
+
+def run_cases(results: Results, area: str, cases: dict[str, str], ok: Callable[[Outcome], bool], timeout: float = 120.0) -> None:
+    """Runs each case's code (`run`) and records whether `ok` holds for its outcome."""
+    for case, code in cases.items():
+        o = run(code, timeout=timeout)
+        record(results, area, case, ok(o), o)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -155,10 +181,7 @@ def allocation(results: Results, tmp: Path) -> None:
         db = solid.Database.load({str(path)!r})
         print("loaded", len(db))
     """
-    for case, code in cases.items():
-        o = run(code, timeout=300)
-        ok = o.kind == "ok" or clean_exc(o, "MemoryError")
-        record(results, area, case, ok, o)
+    run_cases(results, area, cases, lambda o: o.kind == "ok" or clean_exc(o, "MemoryError"), timeout=300)
     big.unlink()
     path.unlink()
 
@@ -306,36 +329,22 @@ def files(results: Results, tmp: Path, quick: bool) -> None:
         "decode_place, negative value (CRC recomputed)": "b = bytearray(solid.encode_place(desc(1))); b[16:20] = struct.pack('<f', -2.0); solid.decode_place(recrc(b), cfg)",
         "decode_place, negative quantised scale (CRC recomputed)": "b = bytearray(solid.encode_place(desc(1), quantized=True)); b[16:20] = struct.pack('<f', -2.0); solid.decode_place(recrc(b), cfg)",
     }
-    for case, code in corrupt.items():
-        o = run(code)
-        record(results, area, case, package_error(o), o)
+    run_cases(results, area, corrupt, package_error)
     accepts = {
         "decode_place(bytearray)": "d = desc(1); assert solid.decode_place(bytearray(solid.encode_place(d)), cfg).distance(d) < 1e-6",
         "decode_place(memoryview)": "d = desc(1); assert solid.decode_place(memoryview(solid.encode_place(d)), cfg).distance(d) < 1e-6",
         "Database.from_bytes(bytearray)": "db = small_db(3); assert len(solid.Database.from_bytes(bytearray(db.to_bytes()))) == 3",
         "Database.from_bytes(memoryview)": "db = small_db(3); assert len(solid.Database.from_bytes(memoryview(db.to_bytes()))) == 3",
     }
-    for case, code in accepts.items():
-        o = run(code)
-        record(results, area, case, o.kind == "ok", o)
+    run_cases(results, area, accepts, lambda o: o.kind == "ok")
 
     # Disks that refuse the write: the old file stays whole, no temporary file is left.
     limit = tmp / "fsize"
     limit.mkdir()
+    path = limit / "map.soliddb"
     o = run(
-        f"""
-        path = {str(limit / "map.soliddb")!r}
-        small_db(5).save(path)
-        resource.setrlimit(resource.RLIMIT_FSIZE, (100_000, 100_000))
-        try:
-            small_db(1000).save(path)
-        except OSError as e:
-            print("refused:", e)
-        else:
-            raise AssertionError("a 240 kB save under a 100 kB file size limit succeeded")
-        assert len(solid.Database.load(path)) == 5
-        assert os.listdir(os.path.dirname(path)) == ["map.soliddb"], os.listdir(os.path.dirname(path))
-        """
+        f"small_db(5).save({str(path)!r})\nresource.setrlimit(resource.RLIMIT_FSIZE, (100_000, 100_000))\n"
+        + refused_save(path, 1000, "a 240 kB save under a 100 kB file size limit succeeded")
     )
     record(results, area, "save under ulimit -f (file size limit)", o.kind == "ok", o)
     if os.geteuid() == 0:
@@ -348,19 +357,7 @@ def files(results: Results, tmp: Path, quick: bool) -> None:
                 run(f"small_db(5).save({str(mnt / 'map.soliddb')!r})")
                 if remount:
                     subprocess.run(["mount", "-o", remount, str(mnt)], check=True)
-                o = run(
-                    f"""
-                    path = {str(mnt / "map.soliddb")!r}
-                    try:
-                        small_db(12000).save(path)
-                    except OSError as e:
-                        print("refused:", e)
-                    else:
-                        raise AssertionError("the save succeeded")
-                    assert len(solid.Database.load(path)) == 5
-                    assert os.listdir(os.path.dirname(path)) == ["map.soliddb"], os.listdir(os.path.dirname(path))
-                    """
-                )
+                o = run(refused_save(mnt / "map.soliddb", 12000, "the save succeeded"))
                 record(results, area, f"save on a {label}", o.kind == "ok", o)
             finally:
                 subprocess.run(["umount", str(mnt)])

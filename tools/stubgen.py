@@ -14,11 +14,17 @@ doc line; this script turns them into each class's constructor, ``preset``, ``re
 Everything outside the markers (class docstrings, other methods, the rest of the module) is
 written by hand, in ``stubs/``, where the markers stand with nothing between them. In Markdown the markers are ``<!-- generated: CLASS ... -->`` and
 ``<!-- end of generated -->`` around a table of the class's parameters.
+
+An argument or an error that means the same in several methods is described once: in a docstring
+of ``stubs/``, the line ``<Args of CLASS.METHOD>`` stands for the entries of that method's
+``Args:`` section naming arguments this method takes and has not described above the line, and
+``<Raises of CLASS.METHOD>`` for all of its ``Raises:`` section.
 """
 
 from __future__ import annotations
 
 import argparse
+import ast
 import math
 import re
 import sys
@@ -228,9 +234,75 @@ def render_doc(text: str) -> str:
 def assemble() -> str:
     """The stub: the parts of `stubs/` joined, the note after the module docstring, the regions filled."""
     parts = [p.read_text(encoding="utf-8").strip("\n") for p in sorted(PARTS.glob("*.pyi"))]
-    text = "\n\n\n".join(parts) + "\n"
+    text = expand_shared("\n\n\n".join(parts) + "\n")
     end = text.index('"""', 3) + 3  # the module docstring of the first part
     return render(text[:end] + "\n" + NOTE + text[end:])
+
+
+SHARED = re.compile(r"^(\s*)<(Args|Raises) of (\w+)\.(\w+)>$")
+ENTRY = re.compile(r"^(\s*)(\*{0,2}\w+): ")
+
+
+def _entries(lines: list[str], doc: range, section: str) -> list[tuple[str, list[str]]]:
+    """(name, lines) of each entry of a docstring's `section` (`doc`: the docstring's line indices)."""
+    head = next((i for i in doc if lines[i].strip() == f"{section}:"), None)
+    if head is None:
+        return []
+    depth = len(lines[head]) - len(lines[head].lstrip()) + 4
+    out: list[tuple[str, list[str]]] = []
+    for i in range(head + 1, doc.stop):
+        line = lines[i]
+        indent = len(line) - len(line.lstrip())
+        if not line.strip() or indent < depth:
+            break
+        if SHARED.match(line):
+            continue
+        m = ENTRY.match(line)
+        if indent == depth and m:
+            out.append((m.group(2), [line]))
+        elif out:
+            out[-1][1].append(line)
+    return out
+
+
+def expand_shared(text: str) -> str:
+    """`text` with each `<Args of C.M>` / `<Raises of C.M>` line replaced by those entries of C.M."""
+    lines = text.split("\n")
+    methods: dict[str, ast.FunctionDef] = {}
+    for node in ast.parse(text).body:
+        if isinstance(node, ast.ClassDef):
+            for item in node.body:
+                if isinstance(item, ast.FunctionDef):
+                    methods[f"{node.name}.{item.name}"] = item
+
+    def doc_range(fn: ast.FunctionDef) -> range:
+        first = fn.body[0]
+        return range(first.lineno - 1, first.end_lineno or first.lineno)
+
+    out: list[str] = []
+    for i, line in enumerate(lines):
+        m = SHARED.match(line)
+        if m is None:
+            out.append(line)
+            continue
+        indent, section, source = m.group(1), m.group(2), f"{m.group(3)}.{m.group(4)}"
+        if source not in methods:
+            raise SystemExit(f"stubgen: line {i + 1}: no method {source}")
+        src = doc_range(methods[source])
+        if any(SHARED.match(lines[k]) for k in src):
+            raise SystemExit(f"stubgen: line {i + 1}: {source} refers to another method itself: name the first one")
+        entries = _entries(lines, src, section)
+        if section == "Args":
+            here = next(fn for fn in methods.values() if i in doc_range(fn))
+            a = here.args
+            takes = {x.arg for x in a.posonlyargs + a.args + a.kwonlyargs}
+            done = {name for name, _ in _entries(lines, range(doc_range(here).start, i), section)}
+            entries = [(name, e) for name, e in entries if name in takes and name not in done]
+        if not entries:
+            raise SystemExit(f"stubgen: line {i + 1}: nothing to take from {section} of {source}")
+        depth = len(entries[0][1][0]) - len(entries[0][1][0].lstrip())
+        out += [indent + e[depth:] for _, block in entries for e in block]
+    return "\n".join(out)
 
 
 def _region_count(text: str, cls: str) -> int:

@@ -190,16 +190,10 @@ def _bag_seeds(kind: str) -> list[bytes]:
     c = _small_clouds()[0][:16]
 
     def message(ts: Any, sec: int) -> Any:
-        types = ts.types
-        pf = types["sensor_msgs/msg/PointField"]
-        hdr_t = types["std_msgs/msg/Header"]
-        stamp = types["builtin_interfaces/msg/Time"](sec=sec, nanosec=0)
-        hdr = hdr_t(seq=sec, stamp=stamp, frame_id="l") if "seq" in hdr_t.__dataclass_fields__ else hdr_t(stamp=stamp, frame_id="l")
-        fields = [pf(name=n, offset=4 * i, datatype=7, count=1) for i, n in enumerate("xyz")]
-        return types[msgtype](
-            header=hdr, height=1, width=c.shape[0], fields=fields, is_bigendian=False, point_step=12,
-            row_step=12 * c.shape[0], data=np.frombuffer(np.ascontiguousarray(c[:, :3]).tobytes(), np.uint8), is_dense=True,
-        )
+        from solid.datasets.rosbag import cloud_to_pointcloud2
+
+        rec = np.ascontiguousarray(c[:, :3], dtype="<f4").view([("x", "<f4"), ("y", "<f4"), ("z", "<f4")]).ravel()
+        return cloud_to_pointcloud2(ts, rec, sec, "l")
 
     def livox(ts: Any, sec: int) -> Any:
         types = ts.types

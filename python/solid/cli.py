@@ -162,6 +162,26 @@ def _formats() -> list[str]:
     return list(FORMATS)
 
 
+def _command(sub: Any, name: str, help: str, *examples: str, note: str = "") -> argparse.ArgumentParser:
+    """A subcommand of `sub` whose help ends with its examples (and a note after them)."""
+    epilog = ""
+    if examples:
+        epilog = f"example{'s' if len(examples) > 1 else ''}:\n" + "".join(f"  {e}\n" for e in examples)
+    parser: argparse.ArgumentParser = sub.add_parser(
+        name, help=help, formatter_class=argparse.RawDescriptionHelpFormatter, epilog=epilog + note or None
+    )
+    return parser
+
+
+def _actions(sub: Any, name: str, help: str) -> Any:
+    """A subcommand `name` made of actions (``solid NAME ACTION``): where the actions are added."""
+    actions = sub.add_parser(name, help=help, formatter_class=argparse.RawDescriptionHelpFormatter).add_subparsers(
+        dest=f"{name}_command", metavar="ACTION", parser_class=_Parser
+    )
+    actions.required = True
+    return actions
+
+
 def _add_common(p: argparse.ArgumentParser) -> None:
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
     p.add_argument("--debug", action="store_true", help="show tracebacks for errors")
@@ -201,13 +221,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"solid {version}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
-    fmt = argparse.RawDescriptionHelpFormatter
 
-    p = sub.add_parser(
-        "describe",
-        help="print the descriptor of one scan as JSON",
-        formatter_class=fmt,
-        epilog="examples:\n  solid describe 000000.bin --preset hdl64\n  solid describe scan.pcd --preset avia --max-range 40 -o d.json\n",
+    p = _command(
+        sub, "describe", "print the descriptor of one scan as JSON",
+        "solid describe 000000.bin --preset hdl64", "solid describe scan.pcd --preset avia --max-range 40 -o d.json",
     )
     p.add_argument("scan", type=Path, help="a scan file")
     p.add_argument("-o", "--output", type=Path, help="write the JSON here instead of stdout")
@@ -215,27 +232,22 @@ def build_parser() -> argparse.ArgumentParser:
     _add_config_args(p)
     _add_common(p)
 
-    p = sub.add_parser(
-        "detect",
-        help="run the online loop detector over a sequence; writes loops.csv",
-        formatter_class=fmt,
-        epilog="examples:\n  solid detect ~/kitti/00 --preset hdl64\n"
-        "  solid detect run.bag --topic /points --preset os1-64 --threshold 0.08 -o out/\n"
-        "  solid detect run2/ --map run1.soliddb          # against a prior session's map\n",
+    p = _command(
+        sub, "detect", "run the online loop detector over a sequence; writes loops.csv",
+        "solid detect ~/kitti/00 --preset hdl64",
+        "solid detect run.bag --topic /points --preset os1-64 --threshold 0.08 -o out/",
+        "solid detect run2/ --map run1.soliddb          # against a prior session's map",
     )
     _add_run_head(p, "a map from `solid map build`: query this recording against it")
     p.add_argument("--g2o", type=Path, metavar="FILE", help="also write the pose graph (a vertex per frame, odometry and loop edges; needs --poses) in g2o form (must not exist)")
     _add_run_tail(p, poses_required=False)
 
-    p = sub.add_parser(
-        "eval",
-        help=f"score the detector's candidates against poses ({_SPEC} §5): metrics, CSV, plots",
-        formatter_class=fmt,
-        epilog="examples:\n"
-        "  solid eval hku1-avia --poses odom_poses.txt --preset avia --radius 3 --baseline scancontext\n"
-        "  solid eval ~/kitti/00 --poses poses.txt --calib calib.txt --preset hdl64 --radius 10 --fov 60\n"
-        "  solid eval run2/ --poses run2/poses.txt --map run1.soliddb\n"
-        "\nThe exclusion window counts frames of the evaluated selection (after --frames/--subsample-m).\n"
+    p = _command(
+        sub, "eval", f"score the detector's candidates against poses ({_SPEC} §5): metrics, CSV, plots",
+        "solid eval hku1-avia --poses odom_poses.txt --preset avia --radius 3 --baseline scancontext",
+        "solid eval ~/kitti/00 --poses poses.txt --calib calib.txt --preset hdl64 --radius 10 --fov 60",
+        "solid eval run2/ --poses run2/poses.txt --map run1.soliddb",
+        note="\nThe exclusion window counts frames of the evaluated selection (after --frames/--subsample-m).\n"
         "A relative --poses path is looked up inside SEQUENCE when it is not in the current folder.\n",
     )
     _add_run_head(p, "a map from `solid map build` (with poses): score against it too")
@@ -249,16 +261,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     _add_run_tail(p, poses_required=True)
 
-    p = sub.add_parser(
-        "optimize",
-        help="loops + odometry in a robust pose-graph optimisation: a corrected trajectory (pip install solid-lidar[slam])",
-        formatter_class=fmt,
-        epilog="examples:\n"
-        "  solid optimize hku1-avia --poses odom_poses.txt --preset avia -o out/\n"
-        "  solid optimize run2/ --poses odom.txt --map run1.soliddb -o out2/   # anchored in a saved map\n"
-        "  solid optimize seq/ --poses odom.txt --truth gt.txt --preset vlp16   # with ATE/RPE\n"
-        "  solid optimize hku1-avia --poses odom_poses.txt --loops out/ --robust cauchy -o out_cauchy/   # the same loops again\n"
-        "\nWrites trajectory.kitti/.tum (optimised, in the frame of --poses), graph.g2o, loops.csv,\n"
+    p = _command(
+        sub, "optimize", "loops + odometry in a robust pose-graph optimisation: a corrected trajectory (pip install solid-lidar[slam])",
+        "solid optimize hku1-avia --poses odom_poses.txt --preset avia -o out/",
+        "solid optimize run2/ --poses odom.txt --map run1.soliddb -o out2/   # anchored in a saved map",
+        "solid optimize seq/ --poses odom.txt --truth gt.txt --preset vlp16   # with ATE/RPE",
+        "solid optimize hku1-avia --poses odom_poses.txt --loops out/ --robust cauchy -o out_cauchy/   # the same loops again",
+        note="\nWrites trajectory.kitti/.tum (optimised, in the frame of --poses), graph.g2o, loops.csv,\n"
         "trajectory.png, metrics.json; with --map also anchor.txt and trajectory_map.kitti/.tum. See docs/slam.md.\n",
     )
     _add_run_head(p, "a map from `solid map build` (with poses): anchor this session in its world")
@@ -282,11 +291,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plot")
     _add_run_tail(p, poses_required=True)
 
-    p = sub.add_parser(
-        "demo",
-        help="simulate a drive with a loop under a narrow FOV and score SOLiD against the truth",
-        formatter_class=fmt,
-        epilog="examples:\n  solid demo\n  solid demo --sensor os1-64 --fov 120 -o demo_out\n",
+    p = _command(
+        sub, "demo", "simulate a drive with a loop under a narrow FOV and score SOLiD against the truth",
+        "solid demo", "solid demo --sensor os1-64 --fov 120 -o demo_out",
     )
     from .sim import SENSORS
 
@@ -299,32 +306,24 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     _add_common(p)
 
-    p = sub.add_parser("presets", help="list the sensor presets", formatter_class=fmt, epilog="example:\n  solid presets --json\n")
+    p = _command(sub, "presets", "list the sensor presets", "solid presets --json")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
     _add_common(p)
 
-    p = sub.add_parser("config", help="configuration files", formatter_class=fmt)
-    csub = p.add_subparsers(dest="config_command", metavar="ACTION", parser_class=_Parser)
-    csub.required = True
-    d = csub.add_parser(
-        "dump",
-        help="print a whole pipeline configuration as JSON (to edit and pass back with --config)",
-        formatter_class=fmt,
-        epilog="example:\n  solid config dump --preset avia --max-range 40 --exclude-m 20 > avia40.json\n",
+    csub = _actions(sub, "config", "configuration files")
+    d = _command(
+        csub, "dump", "print a whole pipeline configuration as JSON (to edit and pass back with --config)",
+        "solid config dump --preset avia --max-range 40 --exclude-m 20 > avia40.json",
     )
     _add_config_args(d)
     _add_detector_args(d)
     _add_truth_args(d)
     _add_common(d)
 
-    p = sub.add_parser("map", help="saved maps: build one from a recording, merge, inspect, upgrade", formatter_class=fmt)
-    msub = p.add_subparsers(dest="map_command", metavar="ACTION", parser_class=_Parser)
-    msub.required = True
-    b = msub.add_parser(
-        "build",
-        help="describe every scan of a recording into a map file (places with poses and times)",
-        formatter_class=fmt,
-        epilog="example:\n  solid map build run1/ --preset avia --poses run1/poses.txt -o run1.soliddb\n",
+    msub = _actions(sub, "map", "saved maps: build one from a recording, merge, inspect, upgrade")
+    b = _command(
+        msub, "build", "describe every scan of a recording into a map file (places with poses and times)",
+        "solid map build run1/ --preset avia --poses run1/poses.txt -o run1.soliddb",
     )
     b.add_argument("sequence", type=Path)
     b.add_argument("-o", "--output", type=Path, required=True, help="the map file to write (must not exist)")
@@ -332,13 +331,11 @@ def build_parser() -> argparse.ArgumentParser:
     _add_config_args(b)
     _add_input_args(b)
     _add_common(b)
-    mm = msub.add_parser(
-        "merge",
-        help="merge maps into one (each input's sessions renumbered after the previous ones)",
-        formatter_class=fmt,
-        epilog="examples:\n  solid map merge run1.soliddb run2.soliddb --anchor same -o both.soliddb\n"
-        "  solid optimize run2/ --poses odom.txt --map run1.soliddb -o opt2/   # writes opt2/anchor.txt\n"
-        "  solid map merge run1.soliddb run2.soliddb --anchor opt2/anchor.txt -o both.soliddb\n",
+    mm = _command(
+        msub, "merge", "merge maps into one (each input's sessions renumbered after the previous ones)",
+        "solid map merge run1.soliddb run2.soliddb --anchor same -o both.soliddb",
+        "solid optimize run2/ --poses odom.txt --map run1.soliddb -o opt2/   # writes opt2/anchor.txt",
+        "solid map merge run1.soliddb run2.soliddb --anchor opt2/anchor.txt -o both.soliddb",
     )
     mm.add_argument("maps", type=Path, nargs="+")
     mm.add_argument(
@@ -352,25 +349,21 @@ def build_parser() -> argparse.ArgumentParser:
     )
     mm.add_argument("-o", "--output", type=Path, required=True, help="the map file to write (must not exist)")
     _add_common(mm)
-    mi = msub.add_parser("info", help="what a map file holds (read from its header: fast at any size)", formatter_class=fmt, epilog="example:\n  solid map info run1.soliddb\n")
+    mi = _command(msub, "info", "what a map file holds (read from its header: fast at any size)", "solid map info run1.soliddb")
     mi.add_argument("map", type=Path)
     mi.add_argument("--json", action="store_true", help="print JSON")
     _add_common(mi)
-    mu = msub.add_parser(
-        "upgrade",
-        help="rewrite a map in the current file format (in place, atomically, unless -o is given)",
-        formatter_class=fmt,
-        epilog="example:\n  solid map upgrade old.soliddb\n",
+    mu = _command(
+        msub, "upgrade", "rewrite a map in the current file format (in place, atomically, unless -o is given)",
+        "solid map upgrade old.soliddb",
     )
     mu.add_argument("map", type=Path)
     mu.add_argument("-o", "--output", type=Path, default=None, help="write the upgraded map here instead (must not exist)")
     _add_common(mu)
 
-    p = sub.add_parser(
-        "bench",
-        help="time reading, describing and searching on your data (prints Hz)",
-        formatter_class=fmt,
-        epilog="examples:\n  solid bench ~/kitti/00/velodyne --preset hdl64\n  solid bench scans/ --preset avia --scans 200 --db-size 5000\n",
+    p = _command(
+        sub, "bench", "time reading, describing and searching on your data (prints Hz)",
+        "solid bench ~/kitti/00/velodyne --preset hdl64", "solid bench scans/ --preset avia --scans 200 --db-size 5000",
     )
     p.add_argument("sequence", type=Path)
     p.add_argument("--scans", dest="n_frames", type=pos_int, default=200, help="scans to load, from the first (default 200)")

@@ -31,19 +31,17 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from collections.abc import Set as AbcSet
-from typing import Any, Union
+from typing import Any
 
 from . import _solid
+from .arrays import PathLike
 from .errors import ConfigFileError
 from .outputs import atomic_write_bytes
 
 __all__ = ["ConfigFileError", "InputOptions", "PipelineConfig", "default_text", "descriptor_fields", "detector_fields", "param_table", "per_preset_fields"]
-
-PathLike = Union[str, "os.PathLike[str]"]
 
 
 def descriptor_fields() -> dict[str, type]:

@@ -10,13 +10,12 @@ the module that raises it (``solid.datasets.ReadError``, ``solid.config.ConfigFi
 from __future__ import annotations
 
 import os
-from typing import Any, Union
+from typing import Any
 
 from ._solid import ConfigError, DatabaseError, SolidError
+from .arrays import PathLike
 
 __all__ = ["ConfigError", "ConfigFileError", "DatabaseError", "OutputExistsError", "ReadError", "SolidError"]
-
-PathLike = Union[str, "os.PathLike[str]"]
 
 
 class ReadError(SolidError):

@@ -27,13 +27,11 @@ import numpy as np
 import numpy.typing as npt
 
 from . import _solid
+from .arrays import B, F64, I64
 from .records import QUERY_COLUMNS, fmt_opt, pose_columns
 
 __all__ = ["QUERY_COLUMNS", "Evaluation", "evaluate_candidates", "evaluate_detections"]
 
-F64 = npt.NDArray[np.float64]
-I64 = npt.NDArray[np.int64]
-B = npt.NDArray[np.bool_]
 
 def _none_if_nan(v: float) -> float | None:
     return None if v is None or (isinstance(v, float) and math.isnan(v)) else float(v)

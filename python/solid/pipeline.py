@@ -29,9 +29,9 @@ from dataclasses import dataclass, field
 from typing import Any, Protocol, Union
 
 import numpy as np
-import numpy.typing as npt
 
 from . import _solid
+from .arrays import F32, F64, I64
 from .config import PipelineConfig
 from .datasets.selection import iter_selected, select_frames
 from .evaluation import evaluate_detections
@@ -81,10 +81,6 @@ def check_run(dataset: Any, config: PipelineConfig) -> list[int]:
         if a is not None and idx and not np.isfinite(np.asarray(a, dtype=np.float64)[idx].reshape(len(idx), -1)).all():
             raise _solid.ConfigError(f"a selected frame has no row in the {what} file")
     return idx
-
-F32 = npt.NDArray[np.float32]
-F64 = npt.NDArray[np.float64]
-I64 = npt.NDArray[np.int64]
 
 
 class ScanSource(Protocol):

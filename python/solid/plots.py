@@ -102,6 +102,20 @@ def plot_pr_roc(out: Path, evals: AbcSequence[Any], subtitle: str) -> dict[str, 
     return written
 
 
+def _draw_loops(ax: Any, xy: npt.NDArray[np.float64], loops: AbcSequence[tuple[int, int, bool]], names: tuple[str, str], lw: float, alpha: float) -> None:
+    """Loops (i, j, good) between positions `xy`, seen from above: good green, bad red, each kind
+    counted in the legend under its name; metres on both axes."""
+    good = 0
+    for i, j, ok in loops:
+        good += ok
+        ax.plot([xy[i, 0], xy[j, 0]], [xy[i, 1], xy[j, 1]], color=TRUE if ok else FALSE, lw=lw, alpha=alpha, zorder=3)
+    ax.plot([], [], color=TRUE, label=f"{names[0]} ({good})")
+    ax.plot([], [], color=FALSE, label=f"{names[1]} ({len(loops) - good})")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+
+
 def plot_trajectory(path: Path, ev: Any, poses: npt.NDArray[np.float64], sessions: npt.NDArray[Any], subtitle: str) -> Path:
     """Places from above (one line per session) and the accepted loops, true green, false red."""
     fig = figure(6.0, 5.6)
@@ -110,19 +124,8 @@ def plot_trajectory(path: Path, ev: Any, poses: npt.NDArray[np.float64], session
     for k, s in enumerate(np.unique(sessions)):
         m = (sessions == s) & np.isfinite(xy).all(axis=1)
         ax.plot(xy[m, 0], xy[m, 1], color=PATH if k == 0 else "#2c7bb6", lw=1.0, label=f"session {int(s)}")
-    acc = ev.accepted
-    n_true = n_false = 0
-    for i in np.nonzero(acc)[0]:
-        q, c = int(ev.query[i]), int(ev.ids[i, 0])
-        ok = bool(ev.correct[i])
-        n_true += ok
-        n_false += not ok
-        ax.plot([xy[q, 0], xy[c, 0]], [xy[q, 1], xy[c, 1]], color=TRUE if ok else FALSE, lw=1.0, alpha=0.8, zorder=3)
-    ax.plot([], [], color=TRUE, label=f"true loop ({n_true})")
-    ax.plot([], [], color=FALSE, label=f"false loop ({n_false})")
-    ax.set_aspect("equal", adjustable="datalim")
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
+    loops = [(int(ev.query[i]), int(ev.ids[i, 0]), bool(ev.correct[i])) for i in np.nonzero(ev.accepted)[0]]
+    _draw_loops(ax, xy, loops, ("true loop", "false loop"), lw=1.0, alpha=0.8)
     thr = "" if ev.threshold is None else f" at threshold {ev.threshold:g}"
     ax.set_title(f"Accepted loops{thr}\n{subtitle}", fontsize=9)
     ax.legend(loc="best", fontsize=7)
@@ -199,14 +202,7 @@ def plot_before_after(
         if truth is not None:
             ax.plot(truth[:, 0, 3], truth[:, 1, 3], color="#999999", lw=2.0, alpha=0.6, label="truth")
         ax.plot(xy[:, 0], xy[:, 1], color=PATH, lw=1.0, label=name)
-        kept = sum(1 for _, _, ok in edges if ok)
-        for i, j, ok in edges:
-            ax.plot([xy[i, 0], xy[j, 0]], [xy[i, 1], xy[j, 1]], color=TRUE if ok else FALSE, lw=0.8, alpha=0.7, zorder=3)
-        ax.plot([], [], color=TRUE, label=f"loop kept ({kept})")
-        ax.plot([], [], color=FALSE, label=f"loop rejected ({len(edges) - kept})")
-        ax.set_aspect("equal", adjustable="datalim")
-        ax.set_xlabel("x [m]")
-        ax.set_ylabel("y [m]")
+        _draw_loops(ax, xy, edges, ("loop kept", "loop rejected"), lw=0.8, alpha=0.7)
         ax.set_title(f"{name}\n{subtitle}", fontsize=9)
         ax.legend(loc="best", fontsize=7)
         ax.grid(alpha=0.3)

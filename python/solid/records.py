@@ -15,11 +15,11 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from .arrays import F64
 from .transforms import quaternion
 
 __all__ = ["LOOP_COLUMNS", "POSE_COLUMNS", "QUERY_COLUMNS", "fmt_opt", "loop_row", "pose_columns"]
 
-F64 = npt.NDArray[np.float64]
 
 #: The columns of a loop's pose (``loops.csv`` and ``queries.csv``), filled by :func:`pose_columns`.
 POSE_COLUMNS = ("verified", "x", "y", "z", "qx", "qy", "qz", "qw", "fitness", "rmse")

@@ -54,6 +54,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import _solid
+from .arrays import B, F64, I64
 from .evaluation import Evaluation, evaluate_candidates
 from .transforms import wrap_degrees
 
@@ -72,9 +73,6 @@ __all__ = [
     "sector_key",
 ]
 
-F64 = npt.NDArray[np.float64]
-I64 = npt.NDArray[np.int64]
-B = npt.NDArray[np.bool_]
 
 #: Which database entries a query may match. An ``int`` e: the frames ``< q − e`` (docs/spec.md §5). An
 #: (N, N) boolean array: row q marks the eligible entries of query q. A callable ``f(q)``: a boolean

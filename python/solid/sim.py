@@ -32,19 +32,23 @@ import os
 from collections.abc import Callable, Iterator, Sequence as AbcSequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Union, overload
+from typing import TYPE_CHECKING, Any, TypedDict, overload
 
 import numpy as np
 import numpy.typing as npt
 
 from . import _solid
+from .arrays import F32, F64, PathLike
 from .transforms import wrap_degrees, yaw_degrees
 
 if TYPE_CHECKING:
+    from typing_extensions import Unpack
+
     from .pipeline import Progress
 
 __all__ = [
     "ANCHOR_FILE",
+    "DriveOptions",
     "ODOMETRY_FILE",
     "SENSORS",
     "TRAJECTORIES",
@@ -64,9 +68,6 @@ __all__ = [
     "write_sessions",
 ]
 
-F32 = npt.NDArray[np.float32]
-F64 = npt.NDArray[np.float64]
-PathLike = Union[str, "os.PathLike[str]"]
 
 #: Sensor model names (read from the simulator crate); each matches the descriptor preset of the
 #: same name (``solid.presets()``).
@@ -311,6 +312,21 @@ class Sensor:
         return self._ext.n_rays(frame)
 
 
+class DriveOptions(TypedDict, total=False):
+    """How a :class:`Trajectory` builder drives; a key left out takes the simulator's default."""
+
+    #: Metres between frames, measured on the map (default 1.0).
+    spacing: float
+    #: Metres right of the road's centreline (default 1.75: the right-hand lane).
+    lane_offset: float
+    #: Radius of the arcs that round the corners, metres (default 8.0).
+    corner_radius: float
+    #: Metres per second, which sets the time stamps (default 10.0).
+    speed: float
+    #: Height of the sensor above the sloped ground, metres (default 1.73).
+    mount_height: float
+
+
 @dataclass(frozen=True)
 class Trajectory:
     """Sensor poses ``T_world_sensor`` (M, 3, 4) float64 and time stamps (M,) in seconds.
@@ -351,80 +367,42 @@ class Trajectory:
         return Trajectory(self.poses[index], self.times[index])
 
     @classmethod
-    def named(
-        cls,
-        world: World,
-        kind: str,
-        *,
-        laps: float = 1.0,
-        spacing: float = 1.0,
-        lane_offset: float = 1.75,
-        corner_radius: float = 8.0,
-        speed: float = 10.0,
-        mount_height: float = 1.73,
-    ) -> Trajectory:
+    def named(cls, world: World, kind: str, *, laps: float = 1.0, **options: Unpack[DriveOptions]) -> Trajectory:
         """One of :data:`TRAJECTORIES` (``laps`` applies to ``loop`` only)."""
-        poses, times = _solid._sim_trajectory(
-            world._ext,
-            kind,
-            spacing=spacing,
-            laps=laps,
-            lane_offset=lane_offset,
-            corner_radius=corner_radius,
-            speed=speed,
-            mount_height=mount_height,
-        )
-        return cls(poses, times)
+        return cls(*_solid._sim_trajectory(world._ext, kind, laps=laps, **options))
 
     @classmethod
-    def loop(cls, world: World, laps: float = 1.0, **options: float) -> Trajectory:
+    def loop(cls, world: World, laps: float = 1.0, **options: Unpack[DriveOptions]) -> Trajectory:
         """Counter-clockwise laps around the block south-west of the world's centre, starting
         mid-way along its southern street; 1.0 returns to the start, 1.5 repeats half the loop."""
         return cls.named(world, "loop", laps=laps, **options)
 
     @classmethod
-    def figure_eight(cls, world: World, **options: float) -> Trajectory:
+    def figure_eight(cls, world: World, **options: Unpack[DriveOptions]) -> Trajectory:
         """Around the north-east block, straight through the central intersection (90° to the
         first pass), around the south-west block, and on along the first street again."""
         return cls.named(world, "figure-eight", **options)
 
     @classmethod
-    def reverse(cls, world: World, **options: float) -> Trajectory:
+    def reverse(cls, world: World, **options: Unpack[DriveOptions]) -> Trajectory:
         """Two blocks east along the central street, a U-turn, and back in the opposite lane."""
         return cls.named(world, "reverse", **options)
 
     @classmethod
-    def crossing(cls, world: World, **options: float) -> Trajectory:
+    def crossing(cls, world: World, **options: Unpack[DriveOptions]) -> Trajectory:
         """Through the central intersection heading east, around the south-east block, and
         through it again heading north (a revisit at a 90° different heading)."""
         return cls.named(world, "crossing", **options)
 
     @classmethod
     def from_waypoints(
-        cls,
-        world: World,
-        waypoints: AbcSequence[tuple[float, float]] | npt.ArrayLike,
-        *,
-        spacing: float = 1.0,
-        lane_offset: float = 1.75,
-        corner_radius: float = 8.0,
-        speed: float = 10.0,
-        mount_height: float = 1.73,
+        cls, world: World, waypoints: AbcSequence[tuple[float, float]] | npt.ArrayLike, **options: Unpack[DriveOptions]
     ) -> Trajectory:
         """Drive along a centreline polyline (K, 2) in metres; 180° reversals become U-turns."""
         wp = np.asarray(waypoints, dtype=np.float64)
         if wp.ndim != 2 or wp.shape[1] != 2:
             raise _solid.SolidError(f"waypoints must have shape (K, 2), got {wp.shape}")
-        poses, times = _solid._sim_route(
-            world._ext,
-            [(float(x), float(y)) for x, y in wp],
-            spacing=spacing,
-            lane_offset=lane_offset,
-            corner_radius=corner_radius,
-            speed=speed,
-            mount_height=mount_height,
-        )
-        return cls(poses, times)
+        return cls(*_solid._sim_route(world._ext, [(float(x), float(y)) for x, y in wp], **options))
 
     @classmethod
     def spin(cls, world: World, x: float, y: float, headings: AbcSequence[float], mount_height: float = 1.73) -> Trajectory:

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from .arrays import F64, I64
 from .transforms import quaternion
 
 __all__ = [
@@ -50,8 +51,6 @@ __all__ = [
     "write_tum",
 ]
 
-F64 = npt.NDArray[np.float64]
-I64 = npt.NDArray[np.int64]
 
 #: The robust schemes :func:`optimize_graph` offers; the first is the default (chosen by
 #: measurement on the simulator with false loops injected: docs/slam.md#robust-back-end).

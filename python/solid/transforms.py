@@ -17,6 +17,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ._solid import ConfigError
+from .arrays import F64, I64
 
 __all__ = [
     "auto_fov_center",
@@ -29,9 +30,6 @@ __all__ = [
     "wrap_degrees",
     "yaw_degrees",
 ]
-
-F64 = npt.NDArray[np.float64]
-I64 = npt.NDArray[np.int64]
 
 
 def wrap_degrees(d: npt.ArrayLike) -> F64:

@@ -39,14 +39,15 @@ import os
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Final, TypeVar, overload
+from typing import TYPE_CHECKING, Final, TypedDict, TypeVar, overload
 
 import numpy as np
 
+from ..arrays import F32, F64, I64, PathLike
 from . import helipr, kitti, nclt, npy, pcd, ply, rosbag
 from ._bin import BinLayout, sniff
 from ..errors import ConfigError, ReadError
-from ._common import F32, F64, I64, Cloud, PathLike, file_size, natural_key, read_bytes
+from ._common import Cloud, file_size, natural_key, read_bytes
 from .selection import parse_frames
 from .poses import (
     interpolate_poses,
@@ -59,12 +60,16 @@ from .poses import (
     sensor_poses_in_sensor_world,
 )
 
+if TYPE_CHECKING:
+    from typing_extensions import Unpack
+
 __all__ = [
     "FORMATS",
     "READERS",
     "SCAN_EXTENSIONS",
     "Cloud",
     "Dataset",
+    "OpenOptions",
     "ReadError",
     "Reader",
     "available",
@@ -228,8 +233,32 @@ def _frame_numbers(files: list[Path]) -> I64 | None:
     return np.array(numbers, dtype=np.int64)
 
 
+class OpenOptions(TypedDict, total=False):
+    """How :class:`Dataset` (``open_dataset``) reads a recording; every key is optional.
+
+    Attributes:
+        format: force a reader (see :func:`available`; ``"rosbag"`` for a bag of either type).
+        topic: the bag topic to read (needed when a bag has several point-cloud topics).
+        poses: a poses file (KITTI rows, TUM or 4×4 rows; see :mod:`solid.datasets.poses`).
+        timestamps: a timestamps file (one time per scan, seconds; or per frame, see above).
+        calib: the sensor → pose-frame extrinsic (a KITTI ``calib.txt`` or 12/16 numbers), applied
+            to ``poses``.
+        xyz_only: scans as (N, 3) x y z (True, the default) or with every column of the file.
+        frames: the scans a run will read (``"0:60,284:314"``, :func:`.selection.parse_frames`):
+            only they need a row in ``poses``/``timestamps`` (the others get NaN).
+    """
+
+    format: str | None
+    topic: str | None
+    poses: PathLike | None
+    timestamps: PathLike | None
+    calib: PathLike | None
+    xyz_only: bool
+    frames: str | None
+
+
 class Dataset:
-    """A recording opened by :func:`open_dataset`: its scans, timestamps and poses.
+    """A recording and its scans, timestamps and poses (``open_dataset(path, ...)`` is another name).
 
     Attributes:
         path: absolute path of the sequence (folder, bag or file).
@@ -242,24 +271,31 @@ class Dataset:
         files: the scan files (empty for a bag).
     """
 
-    def __init__(
-        self,
-        path: PathLike,
-        *,
-        format: str | None = None,
-        topic: str | None = None,
-        poses: PathLike | None = None,
-        timestamps: PathLike | None = None,
-        calib: PathLike | None = None,
-        xyz_only: bool = True,
-        frames: str | None = None,
-    ) -> None:
+    def __init__(self, path: PathLike, **options: Unpack[OpenOptions]) -> None:
+        """Opens a recording (folder of scans, KITTI sequence, bag, or one scan file).
+
+        Args:
+            path: the sequence folder, bag, MCAP file or scan file.
+            **options: how to read it, by keyword (:class:`OpenOptions`: ``format``, ``topic``,
+                ``poses``, ``timestamps``, ``calib``, ``xyz_only``, ``frames``).
+
+        Raises:
+            FileNotFoundError: ``path`` or a given file does not exist.
+            ReadError: the recording or a file is malformed, or the files do not fit together.
+            ValueError: an unknown ``format``.
+            TypeError: an option that :class:`OpenOptions` does not name.
+        """
+        unknown = sorted(set(options) - set(OpenOptions.__annotations__))
+        if unknown:
+            raise TypeError(f"Dataset() got an unexpected keyword argument {unknown[0]!r}")
+        format, topic, frames = options.get("format"), options.get("topic"), options.get("frames")
+        poses, timestamps, calib = options.get("poses"), options.get("timestamps"), options.get("calib")
         self.path = Path(os.path.abspath(path))
         if not self.path.exists():
             raise FileNotFoundError(f"{self.path}: no such file or folder")
         self.format = format
         self.topic = topic
-        self.xyz_only = xyz_only
+        self.xyz_only = options.get("xyz_only", True)
         self.files: list[Path] = []
         self.scan_folder = self.path if self.path.is_dir() else self.path.parent
         self.timestamps: F64 | None = None
@@ -406,34 +442,5 @@ class Dataset:
         return f"Dataset({str(self.path)!r}, reader={self.reader!r}, scans={self._n})"
 
 
-def open_dataset(
-    path: PathLike,
-    *,
-    format: str | None = None,
-    topic: str | None = None,
-    poses: PathLike | None = None,
-    timestamps: PathLike | None = None,
-    calib: PathLike | None = None,
-    xyz_only: bool = True,
-    frames: str | None = None,
-) -> Dataset:
-    """Open a recording (folder of scans, KITTI sequence, bag, or one scan file).
-
-    Args:
-        path: the sequence folder, bag, MCAP file or scan file.
-        format: force a reader (see :func:`available`; ``"rosbag"`` for a bag of either type).
-        topic: the bag topic to read (needed when a bag has several point-cloud topics).
-        poses: a poses file (KITTI rows, TUM or 4×4 rows; see :mod:`solid.datasets.poses`).
-        timestamps: a timestamps file (one time per scan, seconds; or per frame, see above).
-        calib: the sensor → pose-frame extrinsic (a KITTI ``calib.txt`` or 12/16 numbers), applied
-            to ``poses``.
-        xyz_only: scans as (N, 3) x y z (the default) or with every column of the file.
-        frames: the scans a run will read (``"0:60,284:314"``, :func:`.selection.parse_frames`):
-            only they need a row in ``poses``/``timestamps`` (the others get NaN).
-
-    Raises:
-        FileNotFoundError: ``path`` or a given file does not exist.
-        ReadError: the recording or a file is malformed, or the files do not fit together.
-        ValueError: an unknown ``format``.
-    """
-    return Dataset(path, format=format, topic=topic, poses=poses, timestamps=timestamps, calib=calib, xyz_only=xyz_only, frames=frames)
+#: Opens a recording: another name of :class:`Dataset` (its constructor takes the arguments).
+open_dataset = Dataset

@@ -17,8 +17,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ..arrays import PathLike
 from ..errors import ReadError
-from ._common import Cloud, PathLike, cloud_from_records, records
+from ._common import Cloud, cloud_from_records, records
 
 #: A layout is taken when at least this fraction of the sampled records decode plausibly.
 PLAUSIBLE: float = 0.9

@@ -8,17 +8,13 @@ import os
 import re
 import stat
 from dataclasses import dataclass
-from typing import Any, Union
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
+from ..arrays import F32, PathLike
 from ..errors import ReadError
-
-F32 = npt.NDArray[np.float32]
-F64 = npt.NDArray[np.float64]
-I64 = npt.NDArray[np.int64]
-PathLike = Union[str, "os.PathLike[str]"]
 
 
 @dataclass(frozen=True)

@@ -7,7 +7,7 @@ from collections.abc import Sequence as AbcSequence
 import numpy as np
 import numpy.typing as npt
 
-from ._common import F32
+from ..arrays import F32
 
 
 def columns_to_write(points: npt.ArrayLike, fields: AbcSequence[str] | None) -> tuple[F32, list[str]]:

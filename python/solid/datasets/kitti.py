@@ -16,9 +16,10 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
+from ..arrays import PathLike
 from ._bin import BinLayout, plausible_coords
 from ..errors import ReadError
-from ._common import Cloud, PathLike
+from ._common import Cloud
 
 _DTYPE = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("reflectance", "<f4")])
 

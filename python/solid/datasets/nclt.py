@@ -7,8 +7,9 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
+from ..arrays import PathLike
 from ._bin import BinLayout
-from ._common import Cloud, PathLike, records
+from ._common import Cloud, records
 
 _DTYPE = np.dtype([("x", "<u2"), ("y", "<u2"), ("z", "<u2"), ("intensity", "u1"), ("laser_id", "u1")])
 assert _DTYPE.itemsize == 8

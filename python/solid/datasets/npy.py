@@ -14,8 +14,9 @@ from typing import IO, Any
 import numpy as np
 import numpy.typing as npt
 
+from ..arrays import PathLike
 from ..errors import ReadError
-from ._common import Cloud, PathLike, check_real, cloud_from_records, file_size
+from ._common import Cloud, check_real, cloud_from_records, file_size
 
 _NPZ_KEYS = ("points", "xyz", "pc", "arr_0")
 

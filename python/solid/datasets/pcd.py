@@ -10,9 +10,10 @@ from typing import Any, Final, Literal
 import numpy as np
 import numpy.typing as npt
 
+from ..arrays import PathLike
 from ..errors import ReadError
 from ..outputs import atomic_write_bytes
-from ._common import Cloud, PathLike, cloud_from_records, read_bytes, stack_columns, unique_names
+from ._common import Cloud, cloud_from_records, read_bytes, stack_columns, unique_names
 from ._write import columns_to_write
 from .lzf import decompress_array, lzf_compress
 

@@ -11,9 +11,10 @@ from typing import Any, Final, Literal
 import numpy as np
 import numpy.typing as npt
 
+from ..arrays import PathLike
 from ..errors import ReadError
 from ..outputs import atomic_write_bytes
-from ._common import Cloud, PathLike, cloud_from_records, read_bytes, stack_columns
+from ._common import Cloud, cloud_from_records, read_bytes, stack_columns
 from ._write import columns_to_write
 
 _TYPES: Final = {

@@ -25,8 +25,9 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
+from ..arrays import F64, I64, PathLike
 from ..errors import ReadError
-from ._common import F64, I64, PathLike, file_size
+from ._common import file_size
 
 
 def _rows(path: PathLike, what: str) -> list[list[str]]:

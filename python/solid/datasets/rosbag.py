@@ -23,8 +23,9 @@ from typing import Any, Final
 import numpy as np
 import numpy.typing as npt
 
+from ..arrays import F32
 from ..errors import ReadError
-from ._common import Cloud, F32, cloud_from_records, stack_columns
+from ._common import Cloud, cloud_from_records, stack_columns
 
 
 HINT: Final = "reading ROS bags and MCAP needs the optional 'rosbags' package: pip install solid-lidar[ros]"
@@ -121,6 +122,24 @@ def pointcloud2_to_cloud(msg: Any, where: str = "PointCloud2", xyz_only: bool = 
         rec = np.concatenate(rows) if rows else np.zeros(0, dtype=dt)
     return cloud_from_records(where, rec, xyz_only)
 
+
+def cloud_to_pointcloud2(ts: Any, records: npt.NDArray[np.void], sec: int, frame_id: str) -> Any:
+    """The ``sensor_msgs/PointCloud2`` message (of typestore ``ts``, ROS 1 or 2) that holds one
+    row of points: ``records``, a little-endian structured array, each named field a column at
+    its offset; stamped ``sec`` seconds. The inverse of :func:`pointcloud2_to_cloud`, for writing bags."""
+    types = ts.types
+    code_of = {v: k for k, v in _PC2_TYPES.items()}
+    pf = types["sensor_msgs/msg/PointField"]
+    fields = [pf(name=n, offset=off, datatype=code_of[dt.str[1:]], count=1) for n, (dt, off, *_) in (records.dtype.fields or {}).items()]
+    hdr_t = types["std_msgs/msg/Header"]
+    stamp = types["builtin_interfaces/msg/Time"](sec=sec, nanosec=0)
+    # ROS 1 headers carry a sequence number, ROS 2's do not.
+    hdr = hdr_t(seq=sec, stamp=stamp, frame_id=frame_id) if "seq" in hdr_t.__dataclass_fields__ else hdr_t(stamp=stamp, frame_id=frame_id)
+    step, n = records.dtype.itemsize, len(records)
+    return types[POINTCLOUD2](
+        header=hdr, height=1, width=n, fields=fields, is_bigendian=False, point_step=step, row_step=step * n,
+        data=np.frombuffer(records.tobytes(), np.uint8), is_dense=True,
+    )
 
 _LIVOX_NAMES: Final = ("offset_time", "x", "y", "z", "reflectivity", "tag", "line")
 _LIVOX_COLUMNS: Final = ("x", "y", "z", "reflectivity", "tag", "line", "offset_time")

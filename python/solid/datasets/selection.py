@@ -10,16 +10,11 @@ from __future__ import annotations
 from collections.abc import Iterator, Sequence as AbcSequence
 from typing import Any
 
-import numpy as np
-import numpy.typing as npt
-
+from ..arrays import F32, F64
 from ..errors import ConfigError
 from ..transforms import subsample_by_distance
 
 __all__ = ["iter_selected", "parse_frames", "select_frames"]
-
-F32 = npt.NDArray[np.float32]
-F64 = npt.NDArray[np.float64]
 
 
 def parse_frames(spec: str, n: int) -> list[int]:
