@@ -11,7 +11,7 @@ use pyo3::PyClass;
 use solid_lidar::db::DetectorConfig;
 use solid_lidar::params::{Field, Kind, Params, Value};
 use solid_lidar::reg::{Gate, RegConfig};
-use solid_lidar::{Config, PRESETS};
+use solid_lidar::{Config, Preset, PRESETS};
 
 use crate::args;
 use crate::reg::PyRegistration;
@@ -231,8 +231,8 @@ fn preset_names() -> String {
 }
 
 /// The preset called `name`, or a `ConfigError` listing them.
-fn find_preset(name: &str) -> PyResult<&'static solid_lidar::Preset> {
-    PRESETS.iter().find(|p| p.name == name).ok_or_else(|| {
+fn find_preset(name: &str) -> PyResult<&'static Preset> {
+    Preset::find(name).map_err(|_| {
         ConfigError::new_err(format!(
             "unknown preset {name:?}; available: {}",
             preset_names()
@@ -249,8 +249,9 @@ pub struct PyConfig {
     /// The validated core config.
     pub inner: Config,
     /// The preset it was made from (`SolidConfig.preset`), kept through `replace` and pickling:
-    /// it chooses the loop detector's default threshold. Not part of equality or hashing.
-    pub base_preset: Option<&'static str>,
+    /// it chooses the loop detector's defaults (`DetectorConfig::for_base_preset`). Not part of
+    /// equality or hashing.
+    pub base_preset: Option<&'static Preset>,
 }
 
 impl PartialEq for PyConfig {
@@ -282,12 +283,9 @@ impl PyConfig {
         }
     }
 
-    /// The detector defaults for this config: its base preset's loop threshold, else the
-    /// general default.
+    /// The detector defaults for this config (the core chooses them from its base preset).
     pub fn detector_defaults(&self) -> DetectorConfig {
-        self.base_preset
-            .and_then(|p| DetectorConfig::for_preset(p).ok())
-            .unwrap_or_default()
+        DetectorConfig::for_base_preset(self.base_preset)
     }
 
     /// `SolidConfig(...)` as Python's `repr` writes it.
@@ -328,7 +326,7 @@ impl PyConfig {
         let p = find_preset(name)?;
         Ok(PyConfig {
             inner: config_with(p.config, overrides)?,
-            base_preset: Some(p.name),
+            base_preset: Some(p),
         })
     }
 
@@ -345,7 +343,7 @@ impl PyConfig {
     /// chooses the loop detector's default threshold; it is not part of equality.
     #[getter]
     fn base_preset(&self) -> Option<&'static str> {
-        self.base_preset
+        self.base_preset.map(|p| p.name)
     }
 
     /// The parameters as a dict (what `SolidConfig(**d)` takes back).
@@ -374,7 +372,7 @@ impl PyConfig {
         let ctor = py.import("solid._solid")?.getattr("_config_from_dict")?;
         let d = slf.get().to_dict(py)?;
         if let Some(p) = slf.get().base_preset {
-            d.set_item("base_preset", p)?;
+            d.set_item("base_preset", p.name)?;
         }
         Ok((ctor, (d,)))
     }
@@ -395,7 +393,7 @@ fn _config_from_dict(d: &Bound<'_, PyDict>) -> PyResult<PyConfig> {
         Some(v) => {
             d.del_item("base_preset")?;
             let name: String = v.extract()?;
-            PRESETS.iter().find(|p| p.name == name).map(|p| p.name)
+            Preset::find(&name).ok()
         }
         None => None,
     };
@@ -459,8 +457,7 @@ impl PyDetectorConfig {
     #[staticmethod]
     #[pyo3(signature = (name, **params))]
     fn preset(name: &str, params: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
-        let p = find_preset(name)?;
-        let base = DetectorConfig::for_preset(p.name).map_err(core_err)?;
+        let base = DetectorConfig::for_base_preset(Some(find_preset(name)?));
         Ok(PyDetectorConfig {
             inner: detector_overrides(base, params)?,
         })

@@ -306,12 +306,12 @@ fn heading(query: &PyDescriptor, candidate: &PyDescriptor, refine: bool) -> PyRe
 #[pyfunction]
 fn presets<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
-    for p in PRESETS {
+    for p in PRESETS.iter() {
         d.set_item(
             p.name,
             PyConfig {
                 inner: p.config,
-                base_preset: Some(p.name),
+                base_preset: Some(p),
             },
         )?;
     }
