@@ -84,6 +84,24 @@ impl Error {
             expected,
         }
     }
+
+    /// `Ok` when a buffer of `got` elements holds the `needed` ones, else
+    /// [`Error::BufferTooSmall`] naming `buffer`.
+    #[inline]
+    pub(crate) const fn check_buffer(
+        buffer: &'static str,
+        needed: usize,
+        got: usize,
+    ) -> Result<(), Error> {
+        if got < needed {
+            return Err(Error::BufferTooSmall {
+                buffer,
+                needed,
+                got,
+            });
+        }
+        Ok(())
+    }
 }
 
 impl fmt::Display for Error {

@@ -244,15 +244,37 @@ fn check_query(query: &[f32], dim: usize) -> Result<(), Error> {
     Ok(())
 }
 
-fn check_out(out: &[Neighbor], k: usize) -> Result<(), Error> {
-    if out.len() < k {
-        return Err(Error::BufferTooSmall {
-            buffer: "out",
-            needed: k,
-            got: out.len(),
-        });
-    }
-    Ok(())
+/// The checks every search starts with: the query has the rows' dimension `dim`, `out` holds
+/// `k` neighbours and `exclude` covers the `n` rows.
+fn check_search(
+    query: &[f32],
+    dim: usize,
+    n: usize,
+    k: usize,
+    exclude: &Exclude<'_>,
+    out: &[Neighbor],
+) -> Result<(), Error> {
+    check_query(query, dim)?;
+    Error::check_buffer("out", k, out.len())?;
+    exclude.check(n)
+}
+
+/// An exact k-NN over `n` rows of dimension `dim` after [`check_search`]: `fill` offers rows
+/// to the `k` best, kept in `out`; returns how many it found.
+#[inline]
+fn exact_knn(
+    query: &[f32],
+    dim: usize,
+    n: usize,
+    k: usize,
+    exclude: &Exclude<'_>,
+    out: &mut [Neighbor],
+    fill: impl FnOnce(&mut Best<'_>),
+) -> Result<usize, Error> {
+    check_search(query, dim, n, k, exclude, out)?;
+    let mut best = Best::new(&mut out[..k]);
+    fill(&mut best);
+    Ok(best.finish())
 }
 
 #[cfg(test)]

@@ -6,7 +6,7 @@ use super::rows::avx2;
 use super::rows::dist4;
 #[cfg(feature = "parallel")]
 use super::Cost;
-use super::{check_out, check_query, Exclude, Neighbor, Rows};
+use super::{exact_knn, Exclude, Neighbor, Rows};
 use crate::Error;
 
 /// The k best candidates so far: a binary max-heap (worst at the root) in the caller's buffer.
@@ -123,12 +123,9 @@ pub fn brute_force(
     exclude: &Exclude<'_>,
     out: &mut [Neighbor],
 ) -> Result<usize, Error> {
-    check_query(query, rows.dim)?;
-    check_out(out, k)?;
-    exclude.check(rows.n)?;
-    let mut best = Best::new(&mut out[..k]);
-    scan(rows, 0, rows.n, query, exclude, f32::INFINITY, &mut best);
-    Ok(best.finish())
+    exact_knn(query, rows.dim, rows.n, k, exclude, out, |best| {
+        scan(rows, 0, rows.n, query, exclude, f32::INFINITY, best);
+    })
 }
 
 /// Offers the allowed ids of `lo..hi` whose distance is at most `bound` to `best`, computing

@@ -4,8 +4,8 @@ use core::sync::atomic::{AtomicU32, Ordering::Relaxed};
 
 use super::kdtree::{Walk, MAX_OFFSET_DIM};
 use super::{
-    check_out, check_query, scan, scan_threads, sketch_rows, Best, Exclude, Neighbor, OnlineIndex,
-    Rows, Sketch,
+    check_search, scan, scan_threads, sketch_rows, Best, Exclude, Neighbor, OnlineIndex, Rows,
+    Sketch,
 };
 use crate::Error;
 
@@ -454,9 +454,7 @@ impl<'a> Index<'a> {
         req: &Request<'_>,
         out: &mut [Neighbor],
     ) -> Result<Found, Error> {
-        check_query(query, self.rows.dim())?;
-        check_out(out, req.k)?;
-        req.exclude.check(self.len())?;
+        check_search(query, self.rows.dim(), self.len(), req.k, &req.exclude, out)?;
         if req.max_distance.is_nan() {
             return Err(Error::InvalidParameter {
                 name: "max_distance",

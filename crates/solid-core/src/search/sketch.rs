@@ -23,7 +23,7 @@ mod encode;
 use encode::{check_sketch, padded};
 pub use encode::{sketch_encode, sketch_len, sketch_rows};
 
-use super::{check_out, check_query, scan, Best, Cost, Exclude, Neighbor, Rows};
+use super::{exact_knn, scan, Best, Cost, Exclude, Neighbor, Rows};
 use crate::Error;
 
 /// Rows per block of a [`Sketch`] (the codes of a block are interleaved).
@@ -92,21 +92,18 @@ impl<'a> Sketch<'a> {
         exclude: &Exclude<'_>,
         out: &mut [Neighbor],
     ) -> Result<usize, Error> {
-        check_query(query, self.rows.dim())?;
-        check_out(out, k)?;
-        exclude.check(self.rows.len())?;
-        let mut best = Best::new(&mut out[..k]);
-        let mut cost = Cost::default();
-        let _ = self.scan(
-            query,
-            0,
-            exclude,
-            f32::INFINITY,
-            false,
-            &mut best,
-            &mut cost,
-        );
-        Ok(best.finish())
+        let (dim, n) = (self.rows.dim(), self.rows.len());
+        exact_knn(query, dim, n, k, exclude, out, |best| {
+            let _ = self.scan(
+                query,
+                0,
+                exclude,
+                f32::INFINITY,
+                false,
+                best,
+                &mut Cost::default(),
+            );
+        })
     }
 
     /// Offers every allowed row of ids `from..` within `bound` that the bytes cannot rule out to

@@ -39,21 +39,8 @@ pub(super) fn at(d: usize, lane: usize) -> usize {
 
 pub(super) fn check_sketch(n: usize, dim: usize, codes: usize, params: usize) -> Result<(), Error> {
     let (nc, np) = sketch_len(n, dim);
-    if codes < nc {
-        return Err(Error::BufferTooSmall {
-            buffer: "codes",
-            needed: nc,
-            got: codes,
-        });
-    }
-    if params < np {
-        return Err(Error::BufferTooSmall {
-            buffer: "params",
-            needed: np,
-            got: params,
-        });
-    }
-    Ok(())
+    Error::check_buffer("codes", nc, codes)?;
+    Error::check_buffer("params", np, params)
 }
 
 /// Encodes rows `from..n` of `rows` into the sketch buffers, which must be at least
