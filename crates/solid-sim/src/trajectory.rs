@@ -326,6 +326,14 @@ impl Trajectory {
         (c, c, world.config().block_pitch)
     }
 
+    /// [`Trajectory::centre`] of a world with the 2 blocks or more that a route around the
+    /// central intersection needs, else an error saying `expected` of `blocks`.
+    fn crossing(world: &World, expected: &'static str) -> Result<(f64, f64, f64), SimError> {
+        let blocks = world.config().blocks;
+        check("blocks", blocks as f64, blocks >= 2, expected)?;
+        Ok(Self::centre(world))
+    }
+
     /// Laps counter-clockwise around a rectangle of `bx × by` blocks near the world's centre,
     /// starting in the middle of its southern edge; `laps` may be fractional (1.0 returns to the
     /// start; 1.5 drives half of the loop a second time).
@@ -364,13 +372,7 @@ impl Trajectory {
     /// # Errors
     /// [`SimError::InvalidParameter`] for worlds with fewer than 2 blocks or invalid options.
     pub fn figure_eight(world: &World, opts: &RouteOptions) -> Result<Trajectory, SimError> {
-        check(
-            "blocks",
-            world.config().blocks as f64,
-            world.config().blocks >= 2,
-            ">= 2 for a figure-eight",
-        )?;
-        let (xc, yc, p) = Self::centre(world);
+        let (xc, yc, p) = Self::crossing(world, ">= 2 for a figure-eight")?;
         let wps = [
             [xc - p / 2.0, yc],
             [xc + p, yc],
@@ -418,13 +420,7 @@ impl Trajectory {
     /// # Errors
     /// [`SimError::InvalidParameter`] for worlds with fewer than 2 blocks or invalid options.
     pub fn heading_revisit(world: &World, opts: &RouteOptions) -> Result<Trajectory, SimError> {
-        check(
-            "blocks",
-            world.config().blocks as f64,
-            world.config().blocks >= 2,
-            ">= 2",
-        )?;
-        let (xc, yc, p) = Self::centre(world);
+        let (xc, yc, p) = Self::crossing(world, ">= 2")?;
         let wps = [
             [xc - p, yc],
             [xc + p, yc],

@@ -494,17 +494,25 @@ fn step(i: usize, s: i8, n: usize) -> Option<usize> {
 }
 
 #[cfg(test)]
+impl World {
+    /// The city grid of `blocks` blocks from `seed`, every other parameter its default.
+    pub(crate) fn city(seed: u64, blocks: usize) -> World {
+        World::new(WorldConfig {
+            seed,
+            blocks,
+            ..WorldConfig::default()
+        })
+        .unwrap()
+    }
+}
+
+#[cfg(test)]
 mod tests {
     use super::*;
 
     #[test]
     fn grid_matches_brute_force_on_random_rays() {
-        let world = World::new(WorldConfig {
-            seed: 11,
-            blocks: 2,
-            ..WorldConfig::default()
-        })
-        .unwrap();
+        let world = World::city(11, 2);
         assert!(world.primitives().len() > 200);
         let mut rng = Rng::new(5);
         let b = world.bounds();
@@ -534,12 +542,7 @@ mod tests {
 
     #[test]
     fn axis_parallel_rays_match_brute_force() {
-        let world = World::new(WorldConfig {
-            seed: 3,
-            blocks: 1,
-            ..WorldConfig::default()
-        })
-        .unwrap();
+        let world = World::city(3, 1);
         let mut rng = Rng::new(9);
         for _ in 0..2000 {
             let x = rng.range(-100.0, 100.0);
@@ -563,21 +566,12 @@ mod tests {
 
     #[test]
     fn same_seed_same_world_different_seed_different_world() {
-        let a = World::new(WorldConfig {
-            seed: 1,
-            ..WorldConfig::default()
-        })
-        .unwrap();
-        let b = World::new(WorldConfig {
-            seed: 1,
-            ..WorldConfig::default()
-        })
-        .unwrap();
-        let c = World::new(WorldConfig {
-            seed: 2,
-            ..WorldConfig::default()
-        })
-        .unwrap();
+        let blocks = WorldConfig::default().blocks;
+        let (a, b, c) = (
+            World::city(1, blocks),
+            World::city(1, blocks),
+            World::city(2, blocks),
+        );
         assert_eq!(a.primitives(), b.primitives());
         assert_ne!(a.primitives(), c.primitives());
     }
