@@ -14,8 +14,9 @@ use solid_lidar::reg::{Gate, RegConfig};
 use solid_lidar::{Config, Preset, PRESETS};
 
 use crate::args;
+use crate::errors::ToPyErr;
 use crate::reg::PyRegistration;
-use crate::{core_err, core_err as reg_err, ConfigError};
+use crate::{core_err, ConfigError};
 
 /// A table value as a Python object.
 fn to_py<'py>(py: Python<'py>, v: Value<'_>) -> PyResult<Bound<'py, PyAny>> {
@@ -106,6 +107,40 @@ fn apply<T: Params>(
     fields
         .into_iter()
         .try_for_each(|(f, v)| set_field(set, f, &v))
+}
+
+/// `set` with keyword overrides of its fields (a set with no nested sets), checked by `validate`.
+fn overridden<T: Params, E: ToPyErr>(
+    mut set: T,
+    kw: Option<&Bound<'_, PyDict>>,
+    validate: fn(&T) -> Result<(), E>,
+) -> PyResult<T> {
+    apply(&mut set, kw, &[], |_, _, _| Ok(()))?;
+    validate(&set).map_err(core_err)?;
+    Ok(set)
+}
+
+/// A set with keyword overrides, validated (`config_with`, `gate_with`, ...).
+type WithOverrides<T> = fn(T, Option<&Bound<'_, PyDict>>) -> PyResult<T>;
+
+/// The set an object of class `C` holds, or `with(base, dict)` for a dict of overrides; for
+/// anything else a `TypeError` saying `expected`.
+fn set_from<C: ParamClass>(
+    obj: &Bound<'_, PyAny>,
+    base: C::Set,
+    with: WithOverrides<C::Set>,
+    expected: &str,
+) -> PyResult<C::Set>
+where
+    C::Set: Copy,
+{
+    if let Ok(c) = obj.cast::<C>() {
+        return Ok(*c.get().params());
+    }
+    let d = obj
+        .cast::<PyDict>()
+        .map_err(|_| PyTypeError::new_err(expected.to_owned()))?;
+    with(base, Some(d))
 }
 
 /// The fields of `set` as a dict.
@@ -268,10 +303,8 @@ impl ParamClass for PyConfig {
 }
 
 /// `cfg` with keyword overrides, validated.
-fn config_with(mut cfg: Config, kw: Option<&Bound<'_, PyDict>>) -> PyResult<Config> {
-    apply(&mut cfg, kw, &[], |_, _, _| Ok(()))?;
-    cfg.validate().map_err(core_err)?;
-    Ok(cfg)
+fn config_with(cfg: Config, kw: Option<&Bound<'_, PyDict>>) -> PyResult<Config> {
+    overridden(cfg, kw, Config::validate)
 }
 
 impl PyConfig {
@@ -533,23 +566,14 @@ impl ParamClass for PyRegConfig {
 }
 
 /// `c` with keyword overrides, validated.
-fn reg_config_with(mut c: RegConfig, kw: Option<&Bound<'_, PyDict>>) -> PyResult<RegConfig> {
-    apply(&mut c, kw, &[], |_, _, _| Ok(()))?;
-    c.validate().map_err(reg_err)?;
-    Ok(c)
+fn reg_config_with(c: RegConfig, kw: Option<&Bound<'_, PyDict>>) -> PyResult<RegConfig> {
+    overridden(c, kw, RegConfig::validate)
 }
 
 /// A registration config from a `RegistrationConfig` or a dict of overrides of `base`.
 pub(crate) fn reg_config_from(obj: &Bound<'_, PyAny>, base: RegConfig) -> PyResult<RegConfig> {
-    if let Ok(c) = obj.cast::<PyRegConfig>() {
-        return Ok(c.get().inner);
-    }
-    let d = obj.cast::<PyDict>().map_err(|_| {
-        PyTypeError::new_err(
-            "registration must be a solid.RegistrationConfig or a dict of its parameters",
-        )
-    })?;
-    reg_config_with(base, Some(d))
+    let expected = "registration must be a solid.RegistrationConfig or a dict of its parameters";
+    set_from::<PyRegConfig>(obj, base, reg_config_with, expected)
 }
 
 #[pymethods]
@@ -599,21 +623,14 @@ impl ParamClass for PyGate {
 }
 
 /// `g` with keyword overrides, validated.
-fn gate_with(mut g: Gate, kw: Option<&Bound<'_, PyDict>>) -> PyResult<Gate> {
-    apply(&mut g, kw, &[], |_, _, _| Ok(()))?;
-    g.validate().map_err(core_err)?;
-    Ok(g)
+fn gate_with(g: Gate, kw: Option<&Bound<'_, PyDict>>) -> PyResult<Gate> {
+    overridden(g, kw, Gate::validate)
 }
 
 /// A gate from an `AcceptanceGate`, or a dict of overrides of `base`.
 pub(crate) fn gate_from(obj: &Bound<'_, PyAny>, base: Gate) -> PyResult<Gate> {
-    if let Ok(g) = obj.cast::<PyGate>() {
-        return Ok(g.get().inner);
-    }
-    let d = obj.cast::<PyDict>().map_err(|_| {
-        PyTypeError::new_err("gate must be a solid.AcceptanceGate or a dict of its thresholds")
-    })?;
-    gate_with(base, Some(d))
+    let expected = "gate must be a solid.AcceptanceGate or a dict of its thresholds";
+    set_from::<PyGate>(obj, base, gate_with, expected)
 }
 
 #[pymethods]
