@@ -589,6 +589,14 @@ mod tests {
         World::new(WorldConfig::default()).unwrap()
     }
 
+    /// The default route options with poses `spacing` metres apart.
+    fn spaced(spacing: f64) -> RouteOptions {
+        RouteOptions {
+            spacing,
+            ..RouteOptions::default()
+        }
+    }
+
     fn dist(a: &Pose, b: &Pose) -> f64 {
         let (p, q) = (a.translation(), b.translation());
         libm::sqrt((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2))
@@ -597,10 +605,7 @@ mod tests {
     #[test]
     fn routes_of_more_than_max_frames_are_refused_up_front() {
         let w = world();
-        let opts = RouteOptions {
-            spacing: 0.01,
-            ..RouteOptions::default()
-        };
+        let opts = spaced(0.01);
         // 1e9 m at 0.01 m would be 1e11 poses (10 TB): an error, not an allocation.
         match Trajectory::from_waypoints(&w, &[[0.0, 0.0], [1e9, 0.0]], &opts) {
             Err(SimError::InvalidParameter { name: "frames", .. }) => {}
@@ -680,11 +685,7 @@ mod tests {
     #[test]
     fn invalid_options_are_rejected() {
         let w = world();
-        let bad = RouteOptions {
-            spacing: 0.0,
-            ..RouteOptions::default()
-        };
-        assert!(Trajectory::figure_eight(&w, &bad).is_err());
+        assert!(Trajectory::figure_eight(&w, &spaced(0.0)).is_err());
         assert!(Trajectory::closed_loop(&w, 9, 1, 1.0, &RouteOptions::default()).is_err());
         assert!(Trajectory::by_name(&w, "spiral", 1.0, &RouteOptions::default()).is_err());
     }

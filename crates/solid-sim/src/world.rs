@@ -424,16 +424,7 @@ impl World {
         loop {
             let cell_exit = next_x.min(next_y).min(t_exit);
             for &id in g.cell_items(ix, iy) {
-                let p = &self.prims[id as usize];
-                if let Some(Hit { t, normal }) = p.shape.intersect(o, d, 0.0, limit) {
-                    limit = t;
-                    best = Some(RayHit {
-                        t,
-                        normal,
-                        reflectivity: p.reflectivity,
-                        kind: Some(p.kind),
-                    });
-                }
+                nearer(&self.prims[id as usize], o, d, &mut limit, &mut best);
             }
             if limit <= cell_exit || cell_exit >= t_exit {
                 break;
@@ -460,17 +451,24 @@ impl World {
         let mut best = self.ground_hit(o, d, t_max);
         let mut limit = best.map_or(t_max, |h| h.t);
         for p in &self.prims {
-            if let Some(Hit { t, normal }) = p.shape.intersect(o, d, 0.0, limit) {
-                limit = t;
-                best = Some(RayHit {
-                    t,
-                    normal,
-                    reflectivity: p.reflectivity,
-                    kind: Some(p.kind),
-                });
-            }
+            nearer(p, o, d, &mut limit, &mut best);
         }
         best
+    }
+}
+
+/// Makes the hit of the ray `o + t d` on `p` the `best` when it lies before `limit`, which
+/// then becomes its distance.
+#[inline]
+fn nearer(p: &Primitive, o: [f64; 3], d: [f64; 3], limit: &mut f64, best: &mut Option<RayHit>) {
+    if let Some(Hit { t, normal }) = p.shape.intersect(o, d, 0.0, *limit) {
+        *limit = t;
+        *best = Some(RayHit {
+            t,
+            normal,
+            reflectivity: p.reflectivity,
+            kind: Some(p.kind),
+        });
     }
 }
 

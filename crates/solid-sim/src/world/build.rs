@@ -15,6 +15,25 @@ pub(super) struct Builder<'a> {
 }
 
 impl Builder<'_> {
+    /// A wall along the lot's front edge (`u` in `0..w`, centred on `v`, `half_thick` thick on
+    /// each side, `height` tall), open between `u = gate - 2 gap` and `u = gate + gap`.
+    pub(super) fn add_gated_wall(
+        &mut self,
+        w: f64,
+        gate: f64,
+        gap: f64,
+        v: f64,
+        half_thick: f64,
+        height: f64,
+    ) {
+        let left = gate / 2.0 - gap;
+        let half = [(gate - 2.0 * gap) / 2.0, half_thick];
+        self.add_box(left, v, half, 0.0, 0.0, height, Kind::Wall, 0.35);
+        let rest = w - gate - gap;
+        let half = [rest / 2.0, half_thick];
+        self.add_box(w - rest / 2.0, v, half, 0.0, 0.0, height, Kind::Wall, 0.35);
+    }
+
     pub(super) fn ground(&self, x: f64, y: f64) -> f64 {
         self.slope[0] * x + self.slope[1] * y
     }
@@ -246,52 +265,12 @@ pub(super) fn fill_block(b: &mut Builder<'_>, w: f64, rng: &mut Rng) {
             b.add_cylinder(w / 2.0, v + 3.5, 0.15, 9.0, Kind::Pole, 0.7);
         }
         let gate = rng.range(0.2, 0.8) * w;
-        b.add_box(
-            gate / 2.0 - 2.5,
-            0.3,
-            [(gate - 5.0) / 2.0, 0.15],
-            0.0,
-            0.0,
-            0.9,
-            Kind::Wall,
-            0.35,
-        );
-        let rest = w - gate - 2.5;
-        b.add_box(
-            w - rest / 2.0,
-            0.3,
-            [rest / 2.0, 0.15],
-            0.0,
-            0.0,
-            0.9,
-            Kind::Wall,
-            0.35,
-        );
+        b.add_gated_wall(w, gate, 2.5, 0.3, 0.15, 0.9);
     } else {
         // Walled compound with one or two buildings.
         let h = rng.range(2.0, 3.0);
         let gate = rng.range(0.3, 0.7) * w;
-        b.add_box(
-            gate / 2.0 - 2.0,
-            0.2,
-            [(gate - 4.0) / 2.0, 0.2],
-            0.0,
-            0.0,
-            h,
-            Kind::Wall,
-            0.35,
-        );
-        let rest = w - gate - 2.0;
-        b.add_box(
-            w - rest / 2.0,
-            0.2,
-            [rest / 2.0, 0.2],
-            0.0,
-            0.0,
-            h,
-            Kind::Wall,
-            0.35,
-        );
+        b.add_gated_wall(w, gate, 2.0, 0.2, 0.2, h);
         b.add_box(
             w / 2.0,
             w - 0.2,
