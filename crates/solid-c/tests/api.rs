@@ -276,6 +276,18 @@ fn parameters_by_name_are_checked_and_kept_on_error() {
     }
 }
 
+/// Adds an hdl64 descriptor (R 40, A 60 values) to session 0 of `db`.
+unsafe fn add_hdl64(
+    db: *mut SolidDatabase,
+    r: &[f32; 40],
+    a: &[f32; 60],
+    timestamp: f64,
+    pose: *const f64,
+    id: *mut u32,
+) -> SolidStatus {
+    solid_database_add(db, r.as_ptr(), 40, a.as_ptr(), 60, 0, timestamp, pose, id)
+}
+
 #[test]
 fn database_adds_searches_saves_and_loads() {
     let cfg = config("hdl64");
@@ -293,17 +305,7 @@ fn database_adds_searches_saves_and_loads() {
             let pose = [
                 1.0, 0.0, 0.0, i as f64, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0,
             ];
-            let s = solid_database_add(
-                db,
-                r.as_ptr(),
-                40,
-                a.as_ptr(),
-                60,
-                0,
-                i as f64,
-                pose.as_ptr(),
-                &mut id,
-            );
+            let s = add_hdl64(db, &r, &a, i as f64, pose.as_ptr(), &mut id);
             assert_eq!((s, id), (SolidStatus::Ok, i as u32));
         }
         // A column-major pose (translation in the last row) is refused.
@@ -311,17 +313,7 @@ fn database_adds_searches_saves_and_loads() {
             1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 3.0, 0.0, 0.0, 1.0,
         ];
         let r = [1f32; 40];
-        let s = solid_database_add(
-            db,
-            r.as_ptr(),
-            40,
-            a.as_ptr(),
-            60,
-            0,
-            f64::NAN,
-            bad.as_ptr(),
-            null_mut(),
-        );
+        let s = add_hdl64(db, &r, &a, f64::NAN, bad.as_ptr(), null_mut());
         assert_eq!(s, SolidStatus::InvalidParameter);
         assert!(last_error().contains("column-major"), "{}", last_error());
         let mut q = [0f32; 40];
