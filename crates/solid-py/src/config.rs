@@ -696,8 +696,6 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     add_properties::<PyDetectorConfig>(m)?;
     add_properties::<PyRegConfig>(m)?;
     add_properties::<PyGate>(m)?;
-    m.add_function(wrap_pyfunction!(_config_from_dict, m)?)?;
-    m.add_function(wrap_pyfunction!(_detector_config_from_dict, m)?)?;
-    m.add_function(wrap_pyfunction!(_param_table, m)?)?;
+    add_functions! { m, _config_from_dict, _detector_config_from_dict, _param_table }
     Ok(())
 }

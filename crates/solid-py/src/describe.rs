@@ -331,11 +331,6 @@ fn preset_sensors<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
 /// Registers the descriptor's class and functions on the module.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyDescriptor>()?;
-    m.add_function(wrap_pyfunction!(describe, m)?)?;
-    m.add_function(wrap_pyfunction!(describe_batch, m)?)?;
-    m.add_function(wrap_pyfunction!(distance, m)?)?;
-    m.add_function(wrap_pyfunction!(heading, m)?)?;
-    m.add_function(wrap_pyfunction!(presets, m)?)?;
-    m.add_function(wrap_pyfunction!(preset_sensors, m)?)?;
+    add_functions! { m, describe, describe_batch, distance, heading, presets, preset_sensors }
     Ok(())
 }

@@ -234,6 +234,6 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
         eval::DEFAULT_POSE_TOLERANCE_DEG,
     )?;
     m.add_class::<PyScores>()?;
-    m.add_function(wrap_pyfunction!(score_candidates, m)?)?;
+    add_functions! { m, score_candidates }
     Ok(())
 }

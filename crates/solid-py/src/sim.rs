@@ -630,20 +630,11 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     )?;
     m.add_class::<PySimWorld>()?;
     m.add_class::<PySimSensor>()?;
-    m.add_function(wrap_pyfunction!(_sim_world, m)?)?;
-    m.add_function(wrap_pyfunction!(_sim_sensor, m)?)?;
-    m.add_function(wrap_pyfunction!(_sim_scan, m)?)?;
-    m.add_function(wrap_pyfunction!(_sim_scans, m)?)?;
-    m.add_function(wrap_pyfunction!(_sim_trajectory, m)?)?;
-    m.add_function(wrap_pyfunction!(_sim_route, m)?)?;
-    m.add_function(wrap_pyfunction!(_sim_spin, m)?)?;
-    m.add_function(wrap_pyfunction!(_sim_write_sequence, m)?)?;
-    m.add_function(wrap_pyfunction!(_sim_write_scans, m)?)?;
-    m.add_function(wrap_pyfunction!(_sim_corridor_world, m)?)?;
-    m.add_function(wrap_pyfunction!(_sim_room_world, m)?)?;
-    m.add_function(wrap_pyfunction!(_sim_turn, m)?)?;
-    m.add_function(wrap_pyfunction!(_sim_odometry, m)?)?;
-    m.add_function(wrap_pyfunction!(_sim_in_frame, m)?)?;
-    m.add_function(wrap_pyfunction!(_sim_write_poses, m)?)?;
+    add_functions! {
+        m,
+        _sim_world, _sim_sensor, _sim_scan, _sim_scans, _sim_trajectory, _sim_route, _sim_spin,
+        _sim_write_sequence, _sim_write_scans, _sim_corridor_world, _sim_room_world, _sim_turn,
+        _sim_odometry, _sim_in_frame, _sim_write_poses,
+    }
     Ok(())
 }
