@@ -59,6 +59,43 @@
 
 use crate::Error;
 
+/// `$avx2`, a call of a function compiled with `#[target_feature(enable = "avx2")]`, when `std`
+/// detects AVX2 on x86_64; `$portable` otherwise. The copies do the same operations, so they give
+/// the same bits.
+macro_rules! avx2_or {
+    ($avx2:expr, $portable:expr) => {
+        match () {
+            #[cfg(all(feature = "std", target_arch = "x86_64"))]
+            #[allow(unsafe_code)]
+            // SAFETY: the CPU supports AVX2 (checked by the guard), the only requirement for
+            // calling a function compiled with `#[target_feature(enable = "avx2")]`.
+            () if std::is_x86_feature_detected!("avx2") => unsafe { $avx2 },
+            () => $portable,
+        }
+    };
+}
+
+/// Defines `$avx2`, the function (or method, `self.$inner`) `$inner` inlined and compiled for
+/// AVX2, for [`avx2_or`].
+macro_rules! avx2_copy {
+    ($(#[$doc:meta])* $avx2:ident = self.$inner:ident($($arg:ident: $ty:ty),* $(,)?) $(-> $ret:ty)?) => {
+        $(#[$doc])*
+        #[cfg(all(feature = "std", target_arch = "x86_64"))]
+        #[target_feature(enable = "avx2")]
+        fn $avx2(&self, $($arg: $ty),*) $(-> $ret)? {
+            self.$inner($($arg),*)
+        }
+    };
+    ($(#[$doc:meta])* $avx2:ident = $inner:ident($($arg:ident: $ty:ty),* $(,)?) $(-> $ret:ty)?) => {
+        $(#[$doc])*
+        #[cfg(all(feature = "std", target_arch = "x86_64"))]
+        #[target_feature(enable = "avx2")]
+        fn $avx2($($arg: $ty),*) $(-> $ret)? {
+            $inner($($arg),*)
+        }
+    };
+}
+
 mod brute;
 mod index;
 mod kdtree;

@@ -317,14 +317,10 @@ pub(super) fn scan_part(
     bound: f32,
     best: &mut Best<'_>,
 ) {
-    #[cfg(all(feature = "std", target_arch = "x86_64"))]
-    if std::is_x86_feature_detected!("avx2") {
-        #[allow(unsafe_code)]
-        // SAFETY: the CPU supports AVX2 (checked just above), the only requirement for calling a
-        // function compiled with `#[target_feature(enable = "avx2")]`.
-        return unsafe { scan_avx2(rows, lo, hi, query, exclude, bound, best) };
-    }
-    scan_impl(rows, lo, hi, query, exclude, bound, best, dist4)
+    avx2_or!(
+        scan_avx2(rows, lo, hi, query, exclude, bound, best),
+        scan_impl(rows, lo, hi, query, exclude, bound, best, dist4)
+    )
 }
 
 #[cfg(all(feature = "std", target_arch = "x86_64"))]

@@ -277,21 +277,10 @@ fn check_buffers(n: usize, perm: usize, splits: usize) -> Result<(), Error> {
 /// when the CPU has it, and for the default dimension as a constant (the same operations, so
 /// the same choice): faster builds, the same trees (docs/performance.md#kd-tree).
 fn widest_dim(rows: Rows<'_>, perm: &[u32]) -> usize {
-    #[cfg(all(feature = "std", target_arch = "x86_64"))]
-    if std::is_x86_feature_detected!("avx2") {
-        #[allow(unsafe_code)]
-        // SAFETY: the CPU supports AVX2 (checked just above), the only requirement for calling
-        // a function compiled with `#[target_feature(enable = "avx2")]`.
-        return unsafe { widest_dim_avx2(rows, perm) };
-    }
-    widest_dim_dims(rows, perm)
+    avx2_or!(widest_dim_avx2(rows, perm), widest_dim_dims(rows, perm))
 }
 
-#[cfg(all(feature = "std", target_arch = "x86_64"))]
-#[target_feature(enable = "avx2")]
-fn widest_dim_avx2(rows: Rows<'_>, perm: &[u32]) -> usize {
-    widest_dim_dims(rows, perm)
-}
+avx2_copy!(widest_dim_avx2 = widest_dim_dims(rows: Rows<'_>, perm: &[u32]) -> usize);
 
 /// [`widest_dim_impl`] for the rows' dimension, the default one as a constant.
 #[inline(always)]

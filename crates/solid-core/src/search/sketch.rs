@@ -150,32 +150,25 @@ impl<'a> Sketch<'a> {
         best: &mut Best<'_>,
         cost: &mut Cost,
     ) -> bool {
-        #[cfg(all(feature = "std", target_arch = "x86_64"))]
-        if std::is_x86_feature_detected!("avx2") {
-            #[allow(unsafe_code)]
-            // SAFETY: the CPU supports AVX2 (checked just above), the only requirement for
-            // calling a function compiled with `#[target_feature(enable = "avx2")]`.
-            return unsafe { self.scan_avx2(query, from, to, exclude, bound, give_up, best, cost) };
-        }
-        self.scan_impl(query, from, to, exclude, bound, give_up, best, cost)
+        avx2_or!(
+            self.scan_avx2(query, from, to, exclude, bound, give_up, best, cost),
+            self.scan_impl(query, from, to, exclude, bound, give_up, best, cost)
+        )
     }
 
-    #[cfg(all(feature = "std", target_arch = "x86_64"))]
-    #[target_feature(enable = "avx2")]
-    #[allow(clippy::too_many_arguments)]
-    fn scan_avx2(
-        &self,
-        query: &[f32],
-        from: usize,
-        to: usize,
-        exclude: &Exclude<'_>,
-        bound: f32,
-        give_up: bool,
-        best: &mut Best<'_>,
-        cost: &mut Cost,
-    ) -> bool {
-        self.scan_impl(query, from, to, exclude, bound, give_up, best, cost)
-    }
+    avx2_copy!(
+        #[allow(clippy::too_many_arguments)]
+        scan_avx2 = self.scan_impl(
+            query: &[f32],
+            from: usize,
+            to: usize,
+            exclude: &Exclude<'_>,
+            bound: f32,
+            give_up: bool,
+            best: &mut Best<'_>,
+            cost: &mut Cost,
+        ) -> bool
+    );
 
     /// The body of [`Sketch::scan_part`], inlined into each of its compiled copies.
     #[inline(always)]
@@ -374,14 +367,7 @@ impl<'q> Bounds<'q> {
 /// dot products either way).
 #[inline(always)]
 fn block(b: &Bounds<'_>, codes: &[u8], params: &[f32]) -> [f32; SKETCH_BLOCK] {
-    #[cfg(all(feature = "std", target_arch = "x86_64"))]
-    if std::is_x86_feature_detected!("avx2") {
-        #[allow(unsafe_code)]
-        // SAFETY: the CPU supports AVX2 (checked just above), the only requirement for calling a
-        // function compiled with `#[target_feature(enable = "avx2")]`.
-        return b.finish(unsafe { avx2::dots(b, codes) }, params);
-    }
-    b.finish(dots(b, codes), params)
+    b.finish(avx2_or!(avx2::dots(b, codes), dots(b, codes)), params)
 }
 
 /// The integer dot products of the 16 rows of a block with the two query vectors.
