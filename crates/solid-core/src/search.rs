@@ -106,7 +106,7 @@ pub use brute::brute_force;
 pub(crate) use brute::scan_threads;
 #[cfg(feature = "parallel")]
 use brute::split_scan;
-use brute::{scan, Best};
+use brute::{scan, Best, Probe};
 pub use rows::{inverse_norm, normalized_distance, Rows};
 #[cfg(feature = "alloc")]
 pub(crate) use rows::{norm_scale, square_sums};

@@ -4,8 +4,8 @@ use core::sync::atomic::{AtomicU32, Ordering::Relaxed};
 
 use super::kdtree::{Walk, MAX_OFFSET_DIM};
 use super::{
-    check_search, scan, scan_threads, sketch_rows, Best, Exclude, Neighbor, OnlineIndex, Rows,
-    Sketch,
+    check_search, scan, scan_threads, sketch_rows, Best, Exclude, Neighbor, OnlineIndex, Probe,
+    Rows, Sketch,
 };
 use crate::Error;
 
@@ -463,6 +463,11 @@ impl<'a> Index<'a> {
             });
         }
         let (exclude, bound) = (&req.exclude, req.max_distance);
+        let probe = Probe {
+            query,
+            exclude,
+            bound,
+        };
         let mut best = Best::new(&mut out[..req.k]);
         let mut cost = Cost::default();
         let candidates = self.len().min(exclude.before_id);
@@ -470,7 +475,7 @@ impl<'a> Index<'a> {
         let tree_end = self.tree.len();
         let rows = |from: usize, best: &mut Best<'_>, cost: &mut Cost| {
             cost.exact_rows += candidates.saturating_sub(from);
-            scan(self.rows, from, candidates, query, exclude, bound, best);
+            scan(self.rows, from..candidates, probe, best);
         };
         if req.k > 0 && candidates > 0 {
             match req.plan {
@@ -584,7 +589,12 @@ impl<'a> Index<'a> {
             cost.exact_rows += candidates - from;
             // Whole passes only (the rows beyond the kd-tree run on fewer threads).
             let start = clock::start(timed && from == 0 && candidates >= TIMED_SCAN);
-            scan(self.rows, from, candidates, query, exclude, bound, best);
+            let probe = Probe {
+                query,
+                exclude,
+                bound,
+            };
+            scan(self.rows, from..candidates, probe, best);
             if let (Some(o), Some(ns)) = (req.observed, clock::ns(start)) {
                 o.note_scan(ns, candidates);
             }

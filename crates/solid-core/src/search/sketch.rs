@@ -23,7 +23,7 @@ mod encode;
 use encode::{check_sketch, padded};
 pub use encode::{sketch_encode, sketch_len, sketch_rows};
 
-use super::{exact_knn, scan, Best, Cost, Exclude, Neighbor, Rows};
+use super::{exact_knn, scan, Best, Cost, Exclude, Neighbor, Probe, Rows};
 use crate::Error;
 
 /// Rows per block of a [`Sketch`] (the codes of a block are interleaved).
@@ -207,7 +207,12 @@ impl<'a> Sketch<'a> {
                     let rest = (b * SKETCH_BLOCK).max(from);
                     cost.sketch_rows += scanned;
                     cost.exact_rows += exact + (end - rest);
-                    scan(self.rows, rest, end, query, exclude, bound, best);
+                    let p = Probe {
+                        query,
+                        exclude,
+                        bound,
+                    };
+                    scan(self.rows, rest..end, p, best);
                     return false;
                 }
                 (scanned_then, exact_then) = (scanned, exact);
