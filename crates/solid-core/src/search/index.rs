@@ -481,9 +481,7 @@ impl<'a> Index<'a> {
             match req.plan {
                 Plan::Brute => rows(0, &mut best, &mut cost),
                 Plan::Sketch => {
-                    let _ = self
-                        .sketch
-                        .scan(query, 0, exclude, bound, false, &mut best, &mut cost);
+                    let _ = self.sketch.scan(probe, 0, false, &mut best, &mut cost);
                     rows(self.sketch.len(), &mut best, &mut cost);
                 }
                 Plan::KdTree => {
@@ -560,15 +558,18 @@ impl<'a> Index<'a> {
         if from >= candidates {
             return;
         }
+        let probe = Probe {
+            query,
+            exclude,
+            bound,
+        };
         if matches!(walk, Depth::Normal | Depth::Short) && from < self.sketch.len() {
             let (start, exact, sketched) = (
                 clock::start(timed && from == 0),
                 cost.exact_rows,
                 cost.sketch_rows,
             );
-            let done = self
-                .sketch
-                .scan(query, from, exclude, bound, true, best, cost);
+            let done = self.sketch.scan(probe, from, true, best, cost);
             let ns = clock::ns(start);
             if let Some(o) = req.observed {
                 Observed::record(&o.sketch_misses, done);
@@ -589,11 +590,6 @@ impl<'a> Index<'a> {
             cost.exact_rows += candidates - from;
             // Whole passes only (the rows beyond the kd-tree run on fewer threads).
             let start = clock::start(timed && from == 0 && candidates >= TIMED_SCAN);
-            let probe = Probe {
-                query,
-                exclude,
-                bound,
-            };
             scan(self.rows, from..candidates, probe, best);
             if let (Some(o), Some(ns)) = (req.observed, clock::ns(start)) {
                 o.note_scan(ns, candidates);

@@ -25,6 +25,7 @@ pub use encode::{sketch_encode, sketch_len, sketch_rows};
 
 use super::{exact_knn, scan, Best, Cost, Exclude, Neighbor, Probe, Rows};
 use crate::Error;
+use core::ops::Range;
 
 /// Rows per block of a [`Sketch`] (the codes of a block are interleaved).
 pub const SKETCH_BLOCK: usize = 16;
@@ -94,15 +95,12 @@ impl<'a> Sketch<'a> {
     ) -> Result<usize, Error> {
         let (dim, n) = (self.rows.dim(), self.rows.len());
         exact_knn(query, dim, n, k, exclude, out, |best| {
-            let _ = self.scan(
+            let p = Probe {
                 query,
-                0,
                 exclude,
-                f32::INFINITY,
-                false,
-                best,
-                &mut Cost::default(),
-            );
+                bound: f32::INFINITY,
+            };
+            let _ = self.scan(p, 0, false, best, &mut Cost::default());
         })
     }
 
@@ -112,23 +110,27 @@ impl<'a> Sketch<'a> {
     /// bytes do not pay then: an exact distance out of order costs a few sequential ones);
     /// returns `false` then. With `parallel`, a long scan is cut into parts that the pool's
     /// threads share, their neighbours merged.
-    #[allow(clippy::too_many_arguments)]
     pub(super) fn scan(
         &self,
-        query: &[f32],
+        p: Probe<'_>,
         from: usize,
-        exclude: &Exclude<'_>,
-        bound: f32,
         give_up: bool,
         best: &mut Best<'_>,
         cost: &mut Cost,
     ) -> bool {
-        let end = self.rows.len().min(exclude.before_id);
+        let end = self.rows.len().min(p.exclude.before_id);
         // The parts after the first start from empty heaps: the neighbours `best` holds already
         // bound them all the same.
-        let bound = best.limit(bound);
+        let p = Probe {
+            bound: best.limit(p.bound),
+            ..p
+        };
+        // A part on this thread.
         let part = |from: usize, to: usize, best: &mut Best<'_>, cost: &mut Cost| {
-            self.scan_part(query, from, to, exclude, bound, give_up, best, cost)
+            avx2_or!(
+                self.scan_avx2(p, from..to, give_up, best, cost),
+                self.scan_impl(p, from..to, give_up, best, cost)
+            )
         };
         #[cfg(feature = "parallel")]
         if let Some(done) = super::split_scan(from, end, SKETCH_BLOCK, best, cost, part) {
@@ -137,56 +139,32 @@ impl<'a> Sketch<'a> {
         part(from, end, best, cost)
     }
 
-    /// [`Sketch::scan`] over ids `from..to`, on this thread.
-    #[allow(clippy::too_many_arguments)]
-    fn scan_part(
-        &self,
-        query: &[f32],
-        from: usize,
-        to: usize,
-        exclude: &Exclude<'_>,
-        bound: f32,
-        give_up: bool,
-        best: &mut Best<'_>,
-        cost: &mut Cost,
-    ) -> bool {
-        avx2_or!(
-            self.scan_avx2(query, from, to, exclude, bound, give_up, best, cost),
-            self.scan_impl(query, from, to, exclude, bound, give_up, best, cost)
-        )
-    }
-
     avx2_copy!(
-        #[allow(clippy::too_many_arguments)]
         scan_avx2 = self.scan_impl(
-            query: &[f32],
-            from: usize,
-            to: usize,
-            exclude: &Exclude<'_>,
-            bound: f32,
-            give_up: bool,
-            best: &mut Best<'_>,
-            cost: &mut Cost,
+            p: Probe<'_>, ids: Range<usize>, give_up: bool, best: &mut Best<'_>, cost: &mut Cost
         ) -> bool
     );
 
-    /// The body of [`Sketch::scan_part`], inlined into each of its compiled copies.
+    /// [`Sketch::scan`] over the ids `ids` on this thread, inlined into each of its compiled
+    /// copies.
     #[inline(always)]
-    #[allow(clippy::too_many_arguments)]
     fn scan_impl(
         &self,
-        query: &[f32],
-        from: usize,
-        end: usize,
-        exclude: &Exclude<'_>,
-        bound: f32,
+        p: Probe<'_>,
+        ids: Range<usize>,
         give_up: bool,
         best: &mut Best<'_>,
         cost: &mut Cost,
     ) -> bool {
+        let (from, end) = (ids.start, ids.end);
         if best.heap.is_empty() || from >= end {
             return true;
         }
+        let Probe {
+            query,
+            exclude,
+            bound,
+        } = p;
         let dim = self.rows.dim();
         let bounds = Bounds::new(query);
         let timed = exclude.not_newer_than.is_some();
@@ -207,11 +185,6 @@ impl<'a> Sketch<'a> {
                     let rest = (b * SKETCH_BLOCK).max(from);
                     cost.sketch_rows += scanned;
                     cost.exact_rows += exact + (end - rest);
-                    let p = Probe {
-                        query,
-                        exclude,
-                        bound,
-                    };
                     scan(self.rows, rest..end, p, best);
                     return false;
                 }
