@@ -7,9 +7,11 @@
 //! over (in cache, as criterion times it), on its 60° clip, and on the five shared KITTI frames
 //! in turn (out of cache, as in a batch).
 
-use criterion::{Criterion, Throughput};
+use criterion::measurement::WallTime;
+use criterion::{BenchmarkGroup, Criterion, Throughput};
 use solid_lidar::{
-    cosine_distance, describe, describe_scratch_len, heading_refined, Config, Points,
+    cosine_distance, describe, describe_scratch_len, heading_refined, Config, Coord, Points,
+    Scratch,
 };
 use solid_lidar_benches::kitti;
 use std::collections::HashMap;
@@ -58,75 +60,59 @@ fn bench_describe(c: &mut Criterion) {
         )
         .unwrap();
         let cent = &cent[..3 * m];
-        g.bench_function("bin_and_accumulate", |b| {
-            b.iter(|| {
-                describe(
-                    Points::new(black_box(cent), 3).unwrap(),
-                    &flat,
-                    &mut scratch,
-                    &mut r,
-                    &mut a,
-                )
-                .unwrap()
-            })
-        });
-        g.bench_function("describe_voxel0.5", |b| {
-            b.iter(|| {
-                describe(
-                    Points::new(black_box(&raw), 4).unwrap(),
-                    &cfg,
-                    &mut scratch,
-                    &mut r,
-                    &mut a,
-                )
-                .unwrap()
-            })
-        });
-        g.bench_function("describe_no_voxel", |b| {
-            b.iter(|| {
-                describe(
-                    Points::new(black_box(&raw), 4).unwrap(),
-                    &flat,
-                    &mut scratch,
-                    &mut r,
-                    &mut a,
-                )
-                .unwrap()
-            })
-        });
+        let mut out = (&mut scratch[..], &mut r[..], &mut a[..]);
+        bench_on(&mut g, "bin_and_accumulate", cent, 3, &flat, &mut out);
+        bench_on(&mut g, "describe_voxel0.5", &raw, 4, &cfg, &mut out);
+        bench_on(&mut g, "describe_no_voxel", &raw, 4, &flat, &mut out);
         g.finish();
     }
     let raw0 = kitti("kitti00/velodyne/000000.bin");
     let raw1 = kitti("kitti00/velodyne/000094.bin");
     let n = raw0.len().max(raw1.len()) / 4;
     let mut scratch = vec![0u64; describe_scratch_len(n, &cfg)];
-    let (mut r0, mut a0, mut r1, mut a1) = (
-        vec![0f32; 40],
-        vec![0f32; 60],
-        vec![0f32; 40],
-        vec![0f32; 60],
-    );
-    describe(
-        Points::new(&raw0, 4).unwrap(),
-        &cfg,
-        &mut scratch,
-        &mut r0,
-        &mut a0,
-    )
-    .unwrap();
-    describe(
-        Points::new(&raw1, 4).unwrap(),
-        &cfg,
-        &mut scratch,
-        &mut r1,
-        &mut a1,
-    )
-    .unwrap();
+    let mut described = |raw: &[f32]| {
+        let (mut r, mut a) = (vec![0f32; 40], vec![0f32; 60]);
+        describe(
+            Points::new(raw, 4).unwrap(),
+            &cfg,
+            &mut scratch,
+            &mut r,
+            &mut a,
+        )
+        .unwrap();
+        (r, a)
+    };
+    let ((r0, a0), (r1, a1)) = (described(&raw0), described(&raw1));
     c.bench_function("compare/distance", |b| {
         b.iter(|| cosine_distance(black_box(&r0), black_box(&r1)).unwrap())
     });
     c.bench_function("compare/heading_refined", |b| {
         b.iter(|| heading_refined(black_box(&a0), black_box(&a1)).unwrap())
+    });
+}
+
+/// Times `describe` of `data` (points of `stride` values) under `cfg` as `name`, into `out`
+/// (scratch, R, A).
+fn bench_on<T: Coord>(
+    g: &mut BenchmarkGroup<'_, WallTime>,
+    name: &str,
+    data: &[T],
+    stride: usize,
+    cfg: &Config,
+    out: &mut (&mut [Scratch], &mut [f32], &mut [f32]),
+) {
+    let (scratch, r, a) = out;
+    g.bench_function(name, |b| {
+        b.iter(|| {
+            describe(
+                Points::new(black_box(data), stride).unwrap(),
+                cfg,
+                scratch,
+                r,
+                a,
+            )
+            .unwrap()
+        })
     });
 }
 

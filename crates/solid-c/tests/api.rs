@@ -1,7 +1,7 @@
 //! The C ABI called as C calls it: statuses, messages, in-place points, and that its results are
 //! the core's.
 
-use std::ffi::{c_void, CStr, CString};
+use std::ffi::{c_char, c_void, CStr, CString};
 use std::ptr::{null, null_mut};
 
 use solid::config::*;
@@ -195,20 +195,28 @@ fn bad_point_buffers_are_named_errors() {
     }
 }
 
+/// Sets parameter `name` of `handle` to `value` with `set`, reads it back with `get`: both
+/// succeed and the value is kept.
+unsafe fn set_and_read<T>(
+    handle: *mut T,
+    set: unsafe extern "C" fn(*mut T, *const c_char, f64) -> SolidStatus,
+    get: unsafe extern "C" fn(*const T, *const c_char, *mut f64) -> SolidStatus,
+    name: &str,
+    value: f64,
+) {
+    let name = c(name);
+    assert_eq!(set(handle, name.as_ptr(), value), SolidStatus::Ok);
+    let mut v = f64::NAN;
+    assert_eq!(get(handle, name.as_ptr(), &mut v), SolidStatus::Ok);
+    assert_eq!(v, value);
+}
+
 #[test]
 fn parameters_by_name_are_checked_and_kept_on_error() {
     let cfg = config("avia");
     let mut v = 0.0;
     unsafe {
-        assert_eq!(
-            solid_config_set(cfg, c("max_range").as_ptr(), 40.0),
-            SolidStatus::Ok
-        );
-        assert_eq!(
-            solid_config_get(cfg, c("max_range").as_ptr(), &mut v),
-            SolidStatus::Ok
-        );
-        assert_eq!(v, 40.0);
+        set_and_read(cfg, solid_config_set, solid_config_get, "max_range", 40.0);
         assert_eq!(
             solid_config_set(cfg, c("n_range").as_ptr(), 0.0),
             SolidStatus::InvalidParameter
@@ -236,30 +244,14 @@ fn parameters_by_name_are_checked_and_kept_on_error() {
             solid_detector_config_new(c("avia").as_ptr(), &mut dc),
             SolidStatus::Ok
         );
-        assert_eq!(
-            solid_detector_config_set(dc, c("verify").as_ptr(), 0.0),
-            SolidStatus::Ok
-        );
-        assert_eq!(
-            solid_detector_config_get(dc, c("verify").as_ptr(), &mut v),
-            SolidStatus::Ok
-        );
-        assert_eq!(v, 0.0);
+        let (set, get) = (solid_detector_config_set, solid_detector_config_get);
+        set_and_read(dc, set, get, "verify", 0.0);
         assert_eq!(
             solid_detector_config_set(dc, c("verify").as_ptr(), 2.0),
             SolidStatus::InvalidParameter
         );
         // The registration and the gate of the detector, by prefix.
-        let gate = c("gate.max_translation");
-        assert_eq!(
-            solid_detector_config_set(dc, gate.as_ptr(), 3.0),
-            SolidStatus::Ok
-        );
-        assert_eq!(
-            solid_detector_config_get(dc, gate.as_ptr(), &mut v),
-            SolidStatus::Ok
-        );
-        assert_eq!(v, 3.0);
+        set_and_read(dc, set, get, "gate.max_translation", 3.0);
         let nb = c("registration.neighbors");
         assert_eq!(
             solid_detector_config_set(dc, nb.as_ptr(), 2.0),
@@ -284,6 +276,18 @@ fn parameters_by_name_are_checked_and_kept_on_error() {
     }
 }
 
+/// Adds an hdl64 descriptor (R 40, A 60 values) to session 0 of `db`.
+unsafe fn add_hdl64(
+    db: *mut SolidDatabase,
+    r: &[f32; 40],
+    a: &[f32; 60],
+    timestamp: f64,
+    pose: *const f64,
+    id: *mut u32,
+) -> SolidStatus {
+    solid_database_add(db, r.as_ptr(), 40, a.as_ptr(), 60, 0, timestamp, pose, id)
+}
+
 #[test]
 fn database_adds_searches_saves_and_loads() {
     let cfg = config("hdl64");
@@ -301,17 +305,7 @@ fn database_adds_searches_saves_and_loads() {
             let pose = [
                 1.0, 0.0, 0.0, i as f64, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0,
             ];
-            let s = solid_database_add(
-                db,
-                r.as_ptr(),
-                40,
-                a.as_ptr(),
-                60,
-                0,
-                i as f64,
-                pose.as_ptr(),
-                &mut id,
-            );
+            let s = add_hdl64(db, &r, &a, i as f64, pose.as_ptr(), &mut id);
             assert_eq!((s, id), (SolidStatus::Ok, i as u32));
         }
         // A column-major pose (translation in the last row) is refused.
@@ -319,17 +313,7 @@ fn database_adds_searches_saves_and_loads() {
             1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 3.0, 0.0, 0.0, 1.0,
         ];
         let r = [1f32; 40];
-        let s = solid_database_add(
-            db,
-            r.as_ptr(),
-            40,
-            a.as_ptr(),
-            60,
-            0,
-            f64::NAN,
-            bad.as_ptr(),
-            null_mut(),
-        );
+        let s = add_hdl64(db, &r, &a, f64::NAN, bad.as_ptr(), null_mut());
         assert_eq!(s, SolidStatus::InvalidParameter);
         assert!(last_error().contains("column-major"), "{}", last_error());
         let mut q = [0f32; 40];

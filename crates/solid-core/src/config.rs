@@ -102,6 +102,19 @@ pub(crate) const DEFAULT_N_RANGE: usize = 40;
 /// The default number of azimuth bins ([`Config::with_defaults`]), which every preset keeps.
 pub(crate) const DEFAULT_N_AZIMUTH: usize = 60;
 
+impl Preset {
+    /// The preset called `name` (`hdl64`, `hdl32`, `vlp16`, `os1-64`, `avia`, `aeva`).
+    ///
+    /// # Errors
+    /// [`Error::UnknownPreset`] for any other name.
+    pub fn find(name: &str) -> Result<&'static Preset, Error> {
+        PRESETS
+            .iter()
+            .find(|p| p.name == name)
+            .ok_or(Error::UnknownPreset)
+    }
+}
+
 impl Config {
     /// A config for a sensor's vertical field of view and channel count, with the [spec §1](crate::spec#1-parameters)
     /// defaults for everything else: 40 range bins, 60 azimuth bins, ranges (3, 80) m, voxel
@@ -124,11 +137,7 @@ impl Config {
     /// # Errors
     /// [`Error::UnknownPreset`] for any other name.
     pub fn preset(name: &str) -> Result<Config, Error> {
-        PRESETS
-            .iter()
-            .find(|p| p.name == name)
-            .map(|p| p.config)
-            .ok_or(Error::UnknownPreset)
+        Preset::find(name).map(|p| p.config)
     }
 
     /// Checks every parameter against [spec §1](crate::spec#1-parameters): each against its

@@ -331,13 +331,7 @@ fn check_buffers(
         ("r_out", cfg.n_range, r_out),
         ("a_out", cfg.n_azimuth, a_out),
     ] {
-        if got < needed {
-            return Err(Error::BufferTooSmall {
-                buffer,
-                needed,
-                got,
-            });
-        }
+        Error::check_buffer(buffer, needed, got)?;
     }
     Ok(())
 }
@@ -501,23 +495,10 @@ pub mod stages {
             });
         }
         let n = points.len();
-        let needed = describe_scratch_len(n, cfg);
-        if scratch.len() < needed {
-            return Err(Error::BufferTooSmall {
-                buffer: "scratch",
-                needed,
-                got: scratch.len(),
-            });
-        }
+        Error::check_buffer("scratch", describe_scratch_len(n, cfg), scratch.len())?;
         let (table, recs) = voxel_scratch(scratch, n);
         let (n_in, m) = voxelize_on(Isa::best(), points, cfg, table, recs);
-        if out_xyz.len() < 3 * m {
-            return Err(Error::BufferTooSmall {
-                buffer: "out_xyz",
-                needed: 3 * m,
-                got: out_xyz.len(),
-            });
-        }
+        Error::check_buffer("out_xyz", 3 * m, out_xyz.len())?;
         for (rec, out) in recs[..m].iter().zip(out_xyz.chunks_exact_mut(3)) {
             out.copy_from_slice(&centroid(rec, cfg.voxel_size));
         }

@@ -84,6 +84,24 @@ impl Error {
             expected,
         }
     }
+
+    /// `Ok` when a buffer of `got` elements holds the `needed` ones, else
+    /// [`Error::BufferTooSmall`] naming `buffer`.
+    #[inline]
+    pub(crate) const fn check_buffer(
+        buffer: &'static str,
+        needed: usize,
+        got: usize,
+    ) -> Result<(), Error> {
+        if got < needed {
+            return Err(Error::BufferTooSmall {
+                buffer,
+                needed,
+                got,
+            });
+        }
+        Ok(())
+    }
 }
 
 impl fmt::Display for Error {
@@ -142,12 +160,19 @@ pub enum RegError {
     },
 }
 
-#[cfg(feature = "alloc")]
-impl From<Error> for RegError {
-    fn from(e: Error) -> Self {
-        RegError::Core(e)
-    }
+/// `From<Error>` for an error layered on the core's: the core error as its `Core` variant.
+macro_rules! layered_on_core {
+    ($layer:ident) => {
+        #[cfg(feature = "alloc")]
+        impl From<Error> for $layer {
+            fn from(e: Error) -> Self {
+                $layer::Core(e)
+            }
+        }
+    };
 }
+
+layered_on_core!(RegError);
 
 #[cfg(feature = "alloc")]
 impl fmt::Display for RegError {
@@ -201,12 +226,7 @@ pub enum DbError {
     OutOfMemory,
 }
 
-#[cfg(feature = "alloc")]
-impl From<Error> for DbError {
-    fn from(e: Error) -> Self {
-        DbError::Core(e)
-    }
-}
+layered_on_core!(DbError);
 
 #[cfg(feature = "alloc")]
 impl fmt::Display for DbError {

@@ -628,18 +628,27 @@ mod tests {
         assert_eq!((acc, tp, prec), (2, 1, 0.5));
     }
 
+    /// Two queries whose one candidate is entry 0 at heading 0, with these scores; no poses.
+    fn two_finding_entry_0<'a>(
+        query: &'a [u32; 2],
+        eligible: &'a [u32; 2],
+        score: &'a [f64; 2],
+    ) -> Queries<'a> {
+        Queries {
+            query,
+            eligible,
+            k: 1,
+            ids: &[0, 0],
+            score,
+            heading_deg: &[0.0, 0.0],
+            pose: &[],
+        }
+    }
+
     #[test]
     fn ties_count_one_half_and_bad_input_is_refused() {
         let poses = line(4);
-        let q = Queries {
-            query: &[2, 3],
-            eligible: &[1, 2],
-            k: 1,
-            ids: &[0, 0],
-            score: &[0.5, 0.5],
-            heading_deg: &[0.0, 0.0],
-            pose: &[],
-        };
+        let q = two_finding_entry_0(&[2, 3], &[1, 2], &[0.5, 0.5]);
         let e = score(&q, &poses, 2.5).unwrap();
         assert_eq!(e.correct, vec![true, false]);
         assert_eq!(e.auc(), Some(0.5));
@@ -660,15 +669,7 @@ mod tests {
         let mut poses = line(3);
         poses[0][3] = 1e300;
         poses[2][7] = -1e300;
-        let q = Queries {
-            pose: &[],
-            query: &[1, 2],
-            eligible: &[1, 1],
-            k: 1,
-            ids: &[0, 0],
-            score: &[0.1, 0.2],
-            heading_deg: &[0.0, 0.0],
-        };
+        let q = two_finding_entry_0(&[1, 2], &[1, 1], &[0.1, 0.2]);
         for radius in [1.0, 1e-300] {
             let e = score(&q, &poses, radius).unwrap();
             assert_eq!(e.gt_positive, vec![false, false]);

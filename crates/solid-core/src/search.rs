@@ -59,6 +59,43 @@
 
 use crate::Error;
 
+/// `$avx2`, a call of a function compiled with `#[target_feature(enable = "avx2")]`, when `std`
+/// detects AVX2 on x86_64; `$portable` otherwise. The copies do the same operations, so they give
+/// the same bits.
+macro_rules! avx2_or {
+    ($avx2:expr, $portable:expr) => {
+        match () {
+            #[cfg(all(feature = "std", target_arch = "x86_64"))]
+            #[allow(unsafe_code)]
+            // SAFETY: the CPU supports AVX2 (checked by the guard), the only requirement for
+            // calling a function compiled with `#[target_feature(enable = "avx2")]`.
+            () if std::is_x86_feature_detected!("avx2") => unsafe { $avx2 },
+            () => $portable,
+        }
+    };
+}
+
+/// Defines `$avx2`, the function (or method, `self.$inner`) `$inner` inlined and compiled for
+/// AVX2, for [`avx2_or`].
+macro_rules! avx2_copy {
+    ($(#[$doc:meta])* $avx2:ident = self.$inner:ident($($arg:ident: $ty:ty),* $(,)?) $(-> $ret:ty)?) => {
+        $(#[$doc])*
+        #[cfg(all(feature = "std", target_arch = "x86_64"))]
+        #[target_feature(enable = "avx2")]
+        fn $avx2(&self, $($arg: $ty),*) $(-> $ret)? {
+            self.$inner($($arg),*)
+        }
+    };
+    ($(#[$doc:meta])* $avx2:ident = $inner:ident($($arg:ident: $ty:ty),* $(,)?) $(-> $ret:ty)?) => {
+        $(#[$doc])*
+        #[cfg(all(feature = "std", target_arch = "x86_64"))]
+        #[target_feature(enable = "avx2")]
+        fn $avx2($($arg: $ty),*) $(-> $ret)? {
+            $inner($($arg),*)
+        }
+    };
+}
+
 mod brute;
 mod index;
 mod kdtree;
@@ -69,7 +106,7 @@ pub use brute::brute_force;
 pub(crate) use brute::scan_threads;
 #[cfg(feature = "parallel")]
 use brute::split_scan;
-use brute::{scan, Best};
+use brute::{scan, Best, Probe};
 pub use rows::{inverse_norm, normalized_distance, Rows};
 #[cfg(feature = "alloc")]
 pub(crate) use rows::{norm_scale, square_sums};
@@ -244,15 +281,37 @@ fn check_query(query: &[f32], dim: usize) -> Result<(), Error> {
     Ok(())
 }
 
-fn check_out(out: &[Neighbor], k: usize) -> Result<(), Error> {
-    if out.len() < k {
-        return Err(Error::BufferTooSmall {
-            buffer: "out",
-            needed: k,
-            got: out.len(),
-        });
-    }
-    Ok(())
+/// The checks every search starts with: the query has the rows' dimension `dim`, `out` holds
+/// `k` neighbours and `exclude` covers the `n` rows.
+fn check_search(
+    query: &[f32],
+    dim: usize,
+    n: usize,
+    k: usize,
+    exclude: &Exclude<'_>,
+    out: &[Neighbor],
+) -> Result<(), Error> {
+    check_query(query, dim)?;
+    Error::check_buffer("out", k, out.len())?;
+    exclude.check(n)
+}
+
+/// An exact k-NN over `n` rows of dimension `dim` after [`check_search`]: `fill` offers rows
+/// to the `k` best, kept in `out`; returns how many it found.
+#[inline]
+fn exact_knn(
+    query: &[f32],
+    dim: usize,
+    n: usize,
+    k: usize,
+    exclude: &Exclude<'_>,
+    out: &mut [Neighbor],
+    fill: impl FnOnce(&mut Best<'_>),
+) -> Result<usize, Error> {
+    check_search(query, dim, n, k, exclude, out)?;
+    let mut best = Best::new(&mut out[..k]);
+    fill(&mut best);
+    Ok(best.finish())
 }
 
 #[cfg(test)]

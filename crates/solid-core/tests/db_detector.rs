@@ -212,3 +212,31 @@ fn a_prior_map_is_never_excluded_and_candidates_are_ranked() {
     assert_eq!(cands[0].id, 3);
     assert_eq!(det.database().len(), 7);
 }
+
+#[test]
+fn a_config_from_a_preset_gives_the_detector_that_presets_threshold() {
+    for p in &solid_lidar::PRESETS {
+        let d = DetectorConfig::for_base_preset(Some(p));
+        assert_eq!(d.threshold, p.loop_threshold, "{}", p.name);
+        assert_eq!(d, DetectorConfig::for_preset(p.name).unwrap());
+        assert_eq!(
+            DetectorConfig {
+                threshold: 0.0,
+                ..d
+            },
+            DetectorConfig {
+                threshold: 0.0,
+                ..DetectorConfig::default()
+            }
+        );
+    }
+    // A config made from no preset: the general default (the largest preset threshold).
+    let none = DetectorConfig::for_base_preset(None);
+    assert_eq!(none, DetectorConfig::default());
+    let largest = solid_lidar::PRESETS.iter().map(|p| p.loop_threshold);
+    assert_eq!(none.threshold, largest.fold(0.0, f64::max));
+    assert_eq!(
+        DetectorConfig::for_preset("hdl-64"),
+        Err(Error::UnknownPreset)
+    );
+}

@@ -2,7 +2,7 @@
 
 mod common;
 
-use solid_lidar::{Config, Describer, Points};
+use solid_lidar::{Config, Coord, Describer, Points, Scratch, Stats};
 
 fn vecf(v: &serde_json::Value) -> Vec<f64> {
     v.as_array()
@@ -27,13 +27,18 @@ fn rel_l1(ours: &[f32], golden: &[f64]) -> f64 {
     }
 }
 
+/// The shared folder and its golden/descriptors.json, when the shared data is there.
+fn golden() -> Option<(std::path::PathBuf, serde_json::Value)> {
+    let shared = common::shared()?;
+    let text = std::fs::read_to_string(shared.join("golden/descriptors.json")).unwrap();
+    Some((shared, serde_json::from_str(&text).unwrap()))
+}
+
 #[test]
 fn golden_descriptors_match() {
-    let Some(shared) = common::shared() else {
+    let Some((shared, doc)) = golden() else {
         return;
     };
-    let text = std::fs::read_to_string(shared.join("golden/descriptors.json")).unwrap();
-    let doc: serde_json::Value = serde_json::from_str(&text).unwrap();
     let cases = doc["cases"].as_array().unwrap();
     assert!(cases.len() >= 50, "only {} golden cases", cases.len());
     let mut worst: f64 = 0.0;
@@ -97,14 +102,30 @@ fn golden_descriptors_match() {
     );
 }
 
+/// The statistics and the bits of R and A from the dispatched `describe` or its portable copy.
+fn describe_bits<T: Coord>(
+    portable: bool,
+    points: Points<'_, T>,
+    cfg: &Config,
+    scratch: &mut [Scratch],
+) -> (Stats, Vec<u32>, Vec<u32>) {
+    let (mut r, mut a) = (vec![0f32; cfg.n_range], vec![0f32; cfg.n_azimuth]);
+    let describe = if portable {
+        solid_lidar::stages::describe_portable::<T>
+    } else {
+        solid_lidar::describe::<T>
+    };
+    let stats = describe(points, cfg, scratch, &mut r, &mut a).unwrap();
+    let bits = |v: Vec<f32>| v.iter().map(|x| x.to_bits()).collect();
+    (stats, bits(r), bits(a))
+}
+
 /// Every compiled copy of `describe` (AVX2 where the CPU has it, portable) gives the same bits.
 #[test]
 fn dispatched_and_portable_describe_give_the_same_bits() {
-    let Some(shared) = common::shared() else {
+    let Some((shared, doc)) = golden() else {
         return;
     };
-    let text = std::fs::read_to_string(shared.join("golden/descriptors.json")).unwrap();
-    let doc: serde_json::Value = serde_json::from_str(&text).unwrap();
     for case in doc["cases"].as_array().unwrap() {
         let file = case["file"].as_str().unwrap();
         let xyz = common::read_scan(&shared.join(file));
@@ -117,43 +138,11 @@ fn dispatched_and_portable_describe_give_the_same_bits() {
         };
         let mut scratch = vec![0u64; solid_lidar::describe_scratch_len(xyz.len() / 3, &cfg)];
         let run = |portable: bool, scratch: &mut [u64], wide: bool| {
-            let (mut r, mut a) = (vec![0f32; cfg.n_range], vec![0f32; cfg.n_azimuth]);
-            let stats = match (portable, wide) {
-                (true, true) => solid_lidar::stages::describe_portable(
-                    Points::new(&xyz, 3).unwrap(),
-                    &cfg,
-                    scratch,
-                    &mut r,
-                    &mut a,
-                ),
-                (false, true) => solid_lidar::describe(
-                    Points::new(&xyz, 3).unwrap(),
-                    &cfg,
-                    scratch,
-                    &mut r,
-                    &mut a,
-                ),
-                (true, false) => solid_lidar::stages::describe_portable(
-                    Points::new(&f32s, 3).unwrap(),
-                    &cfg,
-                    scratch,
-                    &mut r,
-                    &mut a,
-                ),
-                (false, false) => solid_lidar::describe(
-                    Points::new(&f32s, 3).unwrap(),
-                    &cfg,
-                    scratch,
-                    &mut r,
-                    &mut a,
-                ),
+            if wide {
+                describe_bits(portable, Points::new(&xyz, 3).unwrap(), &cfg, scratch)
+            } else {
+                describe_bits(portable, Points::new(&f32s, 3).unwrap(), &cfg, scratch)
             }
-            .unwrap();
-            (
-                stats,
-                r.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
-                a.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
-            )
         };
         for wide in [true, false] {
             assert_eq!(

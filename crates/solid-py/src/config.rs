@@ -11,11 +11,12 @@ use pyo3::PyClass;
 use solid_lidar::db::DetectorConfig;
 use solid_lidar::params::{Field, Kind, Params, Value};
 use solid_lidar::reg::{Gate, RegConfig};
-use solid_lidar::{Config, PRESETS};
+use solid_lidar::{Config, Preset, PRESETS};
 
 use crate::args;
+use crate::errors::ToPyErr;
 use crate::reg::PyRegistration;
-use crate::{core_err, core_err as reg_err, ConfigError};
+use crate::{core_err, ConfigError};
 
 /// A table value as a Python object.
 fn to_py<'py>(py: Python<'py>, v: Value<'_>) -> PyResult<Bound<'py, PyAny>> {
@@ -106,6 +107,40 @@ fn apply<T: Params>(
     fields
         .into_iter()
         .try_for_each(|(f, v)| set_field(set, f, &v))
+}
+
+/// `set` with keyword overrides of its fields (a set with no nested sets), checked by `validate`.
+fn overridden<T: Params, E: ToPyErr>(
+    mut set: T,
+    kw: Option<&Bound<'_, PyDict>>,
+    validate: fn(&T) -> Result<(), E>,
+) -> PyResult<T> {
+    apply(&mut set, kw, &[], |_, _, _| Ok(()))?;
+    validate(&set).map_err(core_err)?;
+    Ok(set)
+}
+
+/// A set with keyword overrides, validated (`config_with`, `gate_with`, ...).
+type WithOverrides<T> = fn(T, Option<&Bound<'_, PyDict>>) -> PyResult<T>;
+
+/// The set an object of class `C` holds, or `with(base, dict)` for a dict of overrides; for
+/// anything else a `TypeError` saying `expected`.
+fn set_from<C: ParamClass>(
+    obj: &Bound<'_, PyAny>,
+    base: C::Set,
+    with: WithOverrides<C::Set>,
+    expected: &str,
+) -> PyResult<C::Set>
+where
+    C::Set: Copy,
+{
+    if let Ok(c) = obj.cast::<C>() {
+        return Ok(*c.get().params());
+    }
+    let d = obj
+        .cast::<PyDict>()
+        .map_err(|_| PyTypeError::new_err(expected.to_owned()))?;
+    with(base, Some(d))
 }
 
 /// The fields of `set` as a dict.
@@ -231,8 +266,8 @@ fn preset_names() -> String {
 }
 
 /// The preset called `name`, or a `ConfigError` listing them.
-fn find_preset(name: &str) -> PyResult<&'static solid_lidar::Preset> {
-    PRESETS.iter().find(|p| p.name == name).ok_or_else(|| {
+fn find_preset(name: &str) -> PyResult<&'static Preset> {
+    Preset::find(name).map_err(|_| {
         ConfigError::new_err(format!(
             "unknown preset {name:?}; available: {}",
             preset_names()
@@ -249,8 +284,9 @@ pub struct PyConfig {
     /// The validated core config.
     pub inner: Config,
     /// The preset it was made from (`SolidConfig.preset`), kept through `replace` and pickling:
-    /// it chooses the loop detector's default threshold. Not part of equality or hashing.
-    pub base_preset: Option<&'static str>,
+    /// it chooses the loop detector's defaults (`DetectorConfig::for_base_preset`). Not part of
+    /// equality or hashing.
+    pub base_preset: Option<&'static Preset>,
 }
 
 impl PartialEq for PyConfig {
@@ -267,10 +303,8 @@ impl ParamClass for PyConfig {
 }
 
 /// `cfg` with keyword overrides, validated.
-fn config_with(mut cfg: Config, kw: Option<&Bound<'_, PyDict>>) -> PyResult<Config> {
-    apply(&mut cfg, kw, &[], |_, _, _| Ok(()))?;
-    cfg.validate().map_err(core_err)?;
-    Ok(cfg)
+fn config_with(cfg: Config, kw: Option<&Bound<'_, PyDict>>) -> PyResult<Config> {
+    overridden(cfg, kw, Config::validate)
 }
 
 impl PyConfig {
@@ -282,12 +316,9 @@ impl PyConfig {
         }
     }
 
-    /// The detector defaults for this config: its base preset's loop threshold, else the
-    /// general default.
+    /// The detector defaults for this config (the core chooses them from its base preset).
     pub fn detector_defaults(&self) -> DetectorConfig {
-        self.base_preset
-            .and_then(|p| DetectorConfig::for_preset(p).ok())
-            .unwrap_or_default()
+        DetectorConfig::for_base_preset(self.base_preset)
     }
 
     /// `SolidConfig(...)` as Python's `repr` writes it.
@@ -328,7 +359,7 @@ impl PyConfig {
         let p = find_preset(name)?;
         Ok(PyConfig {
             inner: config_with(p.config, overrides)?,
-            base_preset: Some(p.name),
+            base_preset: Some(p),
         })
     }
 
@@ -345,7 +376,7 @@ impl PyConfig {
     /// chooses the loop detector's default threshold; it is not part of equality.
     #[getter]
     fn base_preset(&self) -> Option<&'static str> {
-        self.base_preset
+        self.base_preset.map(|p| p.name)
     }
 
     /// The parameters as a dict (what `SolidConfig(**d)` takes back).
@@ -374,7 +405,7 @@ impl PyConfig {
         let ctor = py.import("solid._solid")?.getattr("_config_from_dict")?;
         let d = slf.get().to_dict(py)?;
         if let Some(p) = slf.get().base_preset {
-            d.set_item("base_preset", p)?;
+            d.set_item("base_preset", p.name)?;
         }
         Ok((ctor, (d,)))
     }
@@ -395,7 +426,7 @@ fn _config_from_dict(d: &Bound<'_, PyDict>) -> PyResult<PyConfig> {
         Some(v) => {
             d.del_item("base_preset")?;
             let name: String = v.extract()?;
-            PRESETS.iter().find(|p| p.name == name).map(|p| p.name)
+            Preset::find(&name).ok()
         }
         None => None,
     };
@@ -459,8 +490,7 @@ impl PyDetectorConfig {
     #[staticmethod]
     #[pyo3(signature = (name, **params))]
     fn preset(name: &str, params: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
-        let p = find_preset(name)?;
-        let base = DetectorConfig::for_preset(p.name).map_err(core_err)?;
+        let base = DetectorConfig::for_base_preset(Some(find_preset(name)?));
         Ok(PyDetectorConfig {
             inner: detector_overrides(base, params)?,
         })
@@ -536,23 +566,14 @@ impl ParamClass for PyRegConfig {
 }
 
 /// `c` with keyword overrides, validated.
-fn reg_config_with(mut c: RegConfig, kw: Option<&Bound<'_, PyDict>>) -> PyResult<RegConfig> {
-    apply(&mut c, kw, &[], |_, _, _| Ok(()))?;
-    c.validate().map_err(reg_err)?;
-    Ok(c)
+fn reg_config_with(c: RegConfig, kw: Option<&Bound<'_, PyDict>>) -> PyResult<RegConfig> {
+    overridden(c, kw, RegConfig::validate)
 }
 
 /// A registration config from a `RegistrationConfig` or a dict of overrides of `base`.
 pub(crate) fn reg_config_from(obj: &Bound<'_, PyAny>, base: RegConfig) -> PyResult<RegConfig> {
-    if let Ok(c) = obj.cast::<PyRegConfig>() {
-        return Ok(c.get().inner);
-    }
-    let d = obj.cast::<PyDict>().map_err(|_| {
-        PyTypeError::new_err(
-            "registration must be a solid.RegistrationConfig or a dict of its parameters",
-        )
-    })?;
-    reg_config_with(base, Some(d))
+    let expected = "registration must be a solid.RegistrationConfig or a dict of its parameters";
+    set_from::<PyRegConfig>(obj, base, reg_config_with, expected)
 }
 
 #[pymethods]
@@ -602,21 +623,14 @@ impl ParamClass for PyGate {
 }
 
 /// `g` with keyword overrides, validated.
-fn gate_with(mut g: Gate, kw: Option<&Bound<'_, PyDict>>) -> PyResult<Gate> {
-    apply(&mut g, kw, &[], |_, _, _| Ok(()))?;
-    g.validate().map_err(core_err)?;
-    Ok(g)
+fn gate_with(g: Gate, kw: Option<&Bound<'_, PyDict>>) -> PyResult<Gate> {
+    overridden(g, kw, Gate::validate)
 }
 
 /// A gate from an `AcceptanceGate`, or a dict of overrides of `base`.
 pub(crate) fn gate_from(obj: &Bound<'_, PyAny>, base: Gate) -> PyResult<Gate> {
-    if let Ok(g) = obj.cast::<PyGate>() {
-        return Ok(g.get().inner);
-    }
-    let d = obj.cast::<PyDict>().map_err(|_| {
-        PyTypeError::new_err("gate must be a solid.AcceptanceGate or a dict of its thresholds")
-    })?;
-    gate_with(base, Some(d))
+    let expected = "gate must be a solid.AcceptanceGate or a dict of its thresholds";
+    set_from::<PyGate>(obj, base, gate_with, expected)
 }
 
 #[pymethods]
@@ -682,8 +696,6 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     add_properties::<PyDetectorConfig>(m)?;
     add_properties::<PyRegConfig>(m)?;
     add_properties::<PyGate>(m)?;
-    m.add_function(wrap_pyfunction!(_config_from_dict, m)?)?;
-    m.add_function(wrap_pyfunction!(_detector_config_from_dict, m)?)?;
-    m.add_function(wrap_pyfunction!(_param_table, m)?)?;
+    add_functions! { m, _config_from_dict, _detector_config_from_dict, _param_table }
     Ok(())
 }

@@ -306,12 +306,12 @@ fn heading(query: &PyDescriptor, candidate: &PyDescriptor, refine: bool) -> PyRe
 #[pyfunction]
 fn presets<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
-    for p in PRESETS {
+    for p in PRESETS.iter() {
         d.set_item(
             p.name,
             PyConfig {
                 inner: p.config,
-                base_preset: Some(p.name),
+                base_preset: Some(p),
             },
         )?;
     }
@@ -331,11 +331,6 @@ fn preset_sensors<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
 /// Registers the descriptor's class and functions on the module.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyDescriptor>()?;
-    m.add_function(wrap_pyfunction!(describe, m)?)?;
-    m.add_function(wrap_pyfunction!(describe_batch, m)?)?;
-    m.add_function(wrap_pyfunction!(distance, m)?)?;
-    m.add_function(wrap_pyfunction!(heading, m)?)?;
-    m.add_function(wrap_pyfunction!(presets, m)?)?;
-    m.add_function(wrap_pyfunction!(preset_sensors, m)?)?;
+    add_functions! { m, describe, describe_batch, distance, heading, presets, preset_sensors }
     Ok(())
 }

@@ -24,6 +24,17 @@ fn opt(v: Option<f64>) -> f64 {
     v.unwrap_or(f64::NAN)
 }
 
+/// A curve as three float64 arrays (thresholds and the two rates).
+type Curve<'py> = (
+    Bound<'py, PyArray1<f64>>,
+    Bound<'py, PyArray1<f64>>,
+    Bound<'py, PyArray1<f64>>,
+);
+
+fn curve(py: Python<'_>, (t, x, y): (Vec<f64>, Vec<f64>, Vec<f64>)) -> Curve<'_> {
+    (t.into_pyarray(py), x.into_pyarray(py), y.into_pyarray(py))
+}
+
 #[pymethods]
 impl PyScores {
     /// Radius in metres.
@@ -82,30 +93,12 @@ impl PyScores {
         opt(self.inner.recall_at(n))
     }
     /// (thresholds, precision, recall) arrays of the PR curve.
-    #[allow(clippy::type_complexity)]
-    fn pr_curve<'py>(
-        &self,
-        py: Python<'py>,
-    ) -> (
-        Bound<'py, PyArray1<f64>>,
-        Bound<'py, PyArray1<f64>>,
-        Bound<'py, PyArray1<f64>>,
-    ) {
-        let (t, p, r) = self.inner.pr_curve();
-        (t.into_pyarray(py), p.into_pyarray(py), r.into_pyarray(py))
+    fn pr_curve<'py>(&self, py: Python<'py>) -> Curve<'py> {
+        curve(py, self.inner.pr_curve())
     }
     /// (thresholds, false-positive rate, true-positive rate) arrays of the ROC curve.
-    #[allow(clippy::type_complexity)]
-    fn roc_curve<'py>(
-        &self,
-        py: Python<'py>,
-    ) -> (
-        Bound<'py, PyArray1<f64>>,
-        Bound<'py, PyArray1<f64>>,
-        Bound<'py, PyArray1<f64>>,
-    ) {
-        let (t, f, tp) = self.inner.roc_curve();
-        (t.into_pyarray(py), f.into_pyarray(py), tp.into_pyarray(py))
+    fn roc_curve<'py>(&self, py: Python<'py>) -> Curve<'py> {
+        curve(py, self.inner.roc_curve())
     }
     /// (F1 max, its threshold); (NaN, NaN) for an empty curve.
     fn f1_max(&self) -> (f64, f64) {
@@ -241,6 +234,6 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
         eval::DEFAULT_POSE_TOLERANCE_DEG,
     )?;
     m.add_class::<PyScores>()?;
-    m.add_function(wrap_pyfunction!(score_candidates, m)?)?;
+    add_functions! { m, score_candidates }
     Ok(())
 }

@@ -43,7 +43,6 @@ fn _lzf_max_decompressed_len(n: usize) -> usize {
 
 /// Registers the readers' functions on the module.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
-    m.add_function(wrap_pyfunction!(_lzf_decompress_into, m)?)?;
-    m.add_function(wrap_pyfunction!(_lzf_max_decompressed_len, m)?)?;
+    add_functions! { m, _lzf_decompress_into, _lzf_max_decompressed_len }
     Ok(())
 }

@@ -9,6 +9,13 @@ pub use config::PyConfig;
 // The parameter classes (config.rs) name these from the crate root.
 pub(crate) use errors::{core_err, ConfigError, SolidError};
 
+/// Adds the `#[pyfunction]`s named to the module `m` (in a `PyResult` function).
+macro_rules! add_functions {
+    ($m:expr, $($f:ident),+ $(,)?) => {
+        $($m.add_function(pyo3::wrap_pyfunction!($f, $m)?)?;)+
+    };
+}
+
 mod args;
 mod arrays;
 mod config;

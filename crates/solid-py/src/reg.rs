@@ -461,9 +461,6 @@ pub fn register_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyPrepared>()?;
     m.add_class::<PyHypothesis>()?;
     m.add_class::<PyRegistration>()?;
-    m.add_function(wrap_pyfunction!(register, m)?)?;
-    m.add_function(wrap_pyfunction!(hypothesis_yaws, m)?)?;
-    m.add_function(wrap_pyfunction!(encode_cloud_py, m)?)?;
-    m.add_function(wrap_pyfunction!(decode_cloud_py, m)?)?;
+    add_functions! { m, register, hypothesis_yaws, encode_cloud_py, decode_cloud_py }
     Ok(())
 }

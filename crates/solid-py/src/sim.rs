@@ -346,10 +346,27 @@ fn points_array<'py>(py: Python<'py>, pts: Vec<[f32; 4]>) -> PyResult<Bound<'py,
     Ok(PyArray1::from_vec(py, flat).reshape([n, 4])?.into_any())
 }
 
-fn trajectory_arrays<'py>(
-    py: Python<'py>,
-    t: Trajectory,
-) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyArray1<f64>>)> {
+/// A path as Python receives it: the poses, (m, 4, 4), and their times.
+type PathArrays<'py> = (Bound<'py, PyAny>, Bound<'py, PyArray1<f64>>);
+
+/// How a route is driven, from the keywords of `_sim_trajectory` and `_sim_route`.
+fn route_options(
+    spacing: f64,
+    lane_offset: f64,
+    corner_radius: f64,
+    speed: f64,
+    mount_height: f64,
+) -> RouteOptions {
+    RouteOptions {
+        spacing,
+        lane_offset,
+        corner_radius,
+        speed,
+        mount_height,
+    }
+}
+
+fn trajectory_arrays(py: Python<'_>, t: Trajectory) -> PyResult<PathArrays<'_>> {
     let m = t.poses.len();
     let mut flat = args::try_vec(m.saturating_mul(12), "trajectory poses")?;
     flat.extend(t.poses.iter().flat_map(|p| p.m));
@@ -405,7 +422,7 @@ fn _sim_scans<'py>(
 
 #[pyfunction]
 #[pyo3(signature = (world, kind, spacing = 1.0, laps = 1.0, lane_offset = 1.75, corner_radius = 8.0, speed = 10.0, mount_height = 1.73))]
-#[allow(clippy::too_many_arguments, clippy::type_complexity)]
+#[allow(clippy::too_many_arguments)]
 fn _sim_trajectory<'py>(
     py: Python<'py>,
     world: &Bound<'py, PySimWorld>,
@@ -416,21 +433,15 @@ fn _sim_trajectory<'py>(
     corner_radius: f64,
     speed: f64,
     mount_height: f64,
-) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyArray1<f64>>)> {
-    let opts = RouteOptions {
-        spacing,
-        lane_offset,
-        corner_radius,
-        speed,
-        mount_height,
-    };
+) -> PyResult<PathArrays<'py>> {
+    let opts = route_options(spacing, lane_offset, corner_radius, speed, mount_height);
     let t = Trajectory::by_name(&world.get().inner, kind, laps, &opts).map_err(core_err)?;
     trajectory_arrays(py, t)
 }
 
 #[pyfunction]
 #[pyo3(signature = (world, waypoints, spacing = 1.0, lane_offset = 1.75, corner_radius = 8.0, speed = 10.0, mount_height = 1.73))]
-#[allow(clippy::too_many_arguments, clippy::type_complexity)]
+#[allow(clippy::too_many_arguments)]
 fn _sim_route<'py>(
     py: Python<'py>,
     world: &Bound<'py, PySimWorld>,
@@ -440,14 +451,8 @@ fn _sim_route<'py>(
     corner_radius: f64,
     speed: f64,
     mount_height: f64,
-) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyArray1<f64>>)> {
-    let opts = RouteOptions {
-        spacing,
-        lane_offset,
-        corner_radius,
-        speed,
-        mount_height,
-    };
+) -> PyResult<PathArrays<'py>> {
+    let opts = route_options(spacing, lane_offset, corner_radius, speed, mount_height);
     let wps: Vec<[f64; 2]> = waypoints.into_iter().map(|(x, y)| [x, y]).collect();
     let t = Trajectory::from_waypoints(&world.get().inner, &wps, &opts).map_err(core_err)?;
     trajectory_arrays(py, t)
@@ -455,7 +460,6 @@ fn _sim_route<'py>(
 
 #[pyfunction]
 #[pyo3(signature = (world, x, y, headings, mount_height = 1.73))]
-#[allow(clippy::type_complexity)]
 fn _sim_spin<'py>(
     py: Python<'py>,
     world: &Bound<'py, PySimWorld>,
@@ -463,7 +467,7 @@ fn _sim_spin<'py>(
     y: f64,
     headings: Vec<f64>,
     mount_height: f64,
-) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyArray1<f64>>)> {
+) -> PyResult<PathArrays<'py>> {
     if !(x.is_finite() && y.is_finite() && mount_height.is_finite())
         || headings.iter().any(|h| !h.is_finite())
     {
@@ -477,7 +481,7 @@ fn _sim_spin<'py>(
 
 #[pyfunction]
 #[pyo3(signature = (world, x, y, start = 0.0, sweep = 330.0, step = 2.0, wobble = 0.0, seed = 0, mount_height = 1.2, period = 0.1))]
-#[allow(clippy::too_many_arguments, clippy::type_complexity)]
+#[allow(clippy::too_many_arguments)]
 fn _sim_turn<'py>(
     py: Python<'py>,
     world: &Bound<'py, PySimWorld>,
@@ -490,7 +494,7 @@ fn _sim_turn<'py>(
     #[pyo3(from_py_with = args::seed)] seed: u64,
     mount_height: f64,
     period: f64,
-) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyArray1<f64>>)> {
+) -> PyResult<PathArrays<'py>> {
     let opts = TurnOptions {
         start_deg: start,
         sweep_deg: sweep,
@@ -506,7 +510,7 @@ fn _sim_turn<'py>(
 
 #[pyfunction]
 #[pyo3(signature = (poses, times, yaw_bias_deg_per_m = 0.0, yaw_bias_deg_per_frame = 0.0, scale_error = 0.0, translation_noise = 0.0, rotation_noise_deg = 0.0, seed = 0))]
-#[allow(clippy::too_many_arguments, clippy::type_complexity)]
+#[allow(clippy::too_many_arguments)]
 fn _sim_odometry<'py>(
     py: Python<'py>,
     poses: PyReadonlyArrayDyn<'py, f64>,
@@ -517,7 +521,7 @@ fn _sim_odometry<'py>(
     translation_noise: f64,
     rotation_noise_deg: f64,
     #[pyo3(from_py_with = args::seed)] seed: u64,
-) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyArray1<f64>>)> {
+) -> PyResult<PathArrays<'py>> {
     let truth = Trajectory {
         poses: read_poses(&poses)?,
         times,
@@ -626,20 +630,11 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     )?;
     m.add_class::<PySimWorld>()?;
     m.add_class::<PySimSensor>()?;
-    m.add_function(wrap_pyfunction!(_sim_world, m)?)?;
-    m.add_function(wrap_pyfunction!(_sim_sensor, m)?)?;
-    m.add_function(wrap_pyfunction!(_sim_scan, m)?)?;
-    m.add_function(wrap_pyfunction!(_sim_scans, m)?)?;
-    m.add_function(wrap_pyfunction!(_sim_trajectory, m)?)?;
-    m.add_function(wrap_pyfunction!(_sim_route, m)?)?;
-    m.add_function(wrap_pyfunction!(_sim_spin, m)?)?;
-    m.add_function(wrap_pyfunction!(_sim_write_sequence, m)?)?;
-    m.add_function(wrap_pyfunction!(_sim_write_scans, m)?)?;
-    m.add_function(wrap_pyfunction!(_sim_corridor_world, m)?)?;
-    m.add_function(wrap_pyfunction!(_sim_room_world, m)?)?;
-    m.add_function(wrap_pyfunction!(_sim_turn, m)?)?;
-    m.add_function(wrap_pyfunction!(_sim_odometry, m)?)?;
-    m.add_function(wrap_pyfunction!(_sim_in_frame, m)?)?;
-    m.add_function(wrap_pyfunction!(_sim_write_poses, m)?)?;
+    add_functions! {
+        m,
+        _sim_world, _sim_sensor, _sim_scan, _sim_scans, _sim_trajectory, _sim_route, _sim_spin,
+        _sim_write_sequence, _sim_write_scans, _sim_corridor_world, _sim_room_world, _sim_turn,
+        _sim_odometry, _sim_in_frame, _sim_write_poses,
+    }
     Ok(())
 }

@@ -124,17 +124,12 @@ pub fn write_sequence(
 mod tests {
     use super::*;
     use crate::trajectory::RouteOptions;
-    use crate::world::WorldConfig;
 
     #[test]
     fn writes_kitti_layout() {
         let dir = std::env::temp_dir().join(format!("solid-lidar-sim-io-{}", std::process::id()));
         let _ = fs::remove_dir_all(&dir);
-        let world = World::new(WorldConfig {
-            blocks: 2,
-            ..WorldConfig::default()
-        })
-        .unwrap();
+        let world = World::city(0, 2);
         let mut traj = Trajectory::figure_eight(
             &world,
             &RouteOptions {

@@ -296,6 +296,16 @@ impl Shape {
 mod tests {
     use super::*;
 
+    /// Where a ray from `o` along `d` first meets `shape` within 100 m (it must).
+    fn hit(shape: &Shape, o: [f64; 3], d: [f64; 3]) -> Hit {
+        shape.intersect(o, d, 0.0, 100.0).unwrap()
+    }
+
+    /// Whether that ray misses `shape` within 100 m.
+    fn misses(shape: &Shape, o: [f64; 3], d: [f64; 3]) -> bool {
+        shape.intersect(o, d, 0.0, 100.0).is_none()
+    }
+
     fn unit(v: [f64; 3]) -> [f64; 3] {
         normalize(v)
     }
@@ -308,31 +318,21 @@ mod tests {
             rot: [1.0, 0.0],
             z: [-1.0, 4.0],
         };
-        let h = b
-            .intersect([0.0, 0.0, 0.0], [1.0, 0.0, 0.0], 0.0, 100.0)
-            .unwrap();
+        let h = hit(&b, [0.0, 0.0, 0.0], [1.0, 0.0, 0.0]);
         assert_eq!(h.t, 8.0);
         assert_eq!(h.normal, [-1.0, 0.0, 0.0]);
         // Top face from above.
-        let h = b
-            .intersect([10.5, 1.0, 10.0], [0.0, 0.0, -1.0], 0.0, 100.0)
-            .unwrap();
+        let h = hit(&b, [10.5, 1.0, 10.0], [0.0, 0.0, -1.0]);
         assert_eq!(h.t, 6.0);
         assert_eq!(h.normal, [0.0, 0.0, 1.0]);
         // Miss above, miss because of t_max, miss behind.
-        assert!(b
-            .intersect([0.0, 0.0, 5.0], [1.0, 0.0, 0.0], 0.0, 100.0)
-            .is_none());
+        assert!(misses(&b, [0.0, 0.0, 5.0], [1.0, 0.0, 0.0]));
         assert!(b
             .intersect([0.0, 0.0, 0.0], [1.0, 0.0, 0.0], 0.0, 7.9)
             .is_none());
-        assert!(b
-            .intersect([0.0, 0.0, 0.0], [-1.0, 0.0, 0.0], 0.0, 100.0)
-            .is_none());
+        assert!(misses(&b, [0.0, 0.0, 0.0], [-1.0, 0.0, 0.0]));
         // From inside: exit face.
-        let h = b
-            .intersect([10.0, 0.0, 0.0], [0.0, 1.0, 0.0], 0.0, 100.0)
-            .unwrap();
+        let h = hit(&b, [10.0, 0.0, 0.0], [0.0, 1.0, 0.0]);
         assert_eq!(h.t, 3.0);
         assert_eq!(h.normal, [0.0, 1.0, 0.0]);
     }
@@ -347,14 +347,10 @@ mod tests {
             rot: [r, r],
             z: [-1.0, 1.0],
         };
-        let h = b
-            .intersect([0.0, 0.0, 0.0], [1.0, 0.0, 0.0], 0.0, 100.0)
-            .unwrap();
+        let h = hit(&b, [0.0, 0.0, 0.0], [1.0, 0.0, 0.0]);
         assert!((h.t - (10.0 - core::f64::consts::SQRT_2)).abs() < 1e-12);
         // Ray at y = 0.5 hits the face whose outward normal is (-r, -r) or (-r, r).
-        let h = b
-            .intersect([0.0, 0.5, 0.0], [1.0, 0.0, 0.0], 0.0, 100.0)
-            .unwrap();
+        let h = hit(&b, [0.0, 0.5, 0.0], [1.0, 0.0, 0.0]);
         assert!((h.t - (10.0 - core::f64::consts::SQRT_2 + 0.5)).abs() < 1e-12);
         assert!((h.normal[0] + r).abs() < 1e-12 && (h.normal[1] - r).abs() < 1e-12);
         let fp = b.footprint();
@@ -369,28 +365,20 @@ mod tests {
             radius: 0.5,
             z: [0.0, 3.0],
         };
-        let h = c
-            .intersect([0.0, 0.0, 1.0], [1.0, 0.0, 0.0], 0.0, 100.0)
-            .unwrap();
+        let h = hit(&c, [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]);
         assert!((h.t - 4.5).abs() < 1e-12);
         assert!((h.normal[0] + 1.0).abs() < 1e-12);
         // Offset ray: chord geometry t = 5 - sqrt(r² - y²).
-        let h = c
-            .intersect([0.0, 0.3, 1.0], [1.0, 0.0, 0.0], 0.0, 100.0)
-            .unwrap();
+        let h = hit(&c, [0.0, 0.3, 1.0], [1.0, 0.0, 0.0]);
         assert!((h.t - (5.0 - libm::sqrt(0.25 - 0.09))).abs() < 1e-12);
         // Above the top: miss; straight down onto the cap: hit the cap.
-        assert!(c
-            .intersect([0.0, 0.0, 3.5], [1.0, 0.0, 0.0], 0.0, 100.0)
-            .is_none());
-        let h = c
-            .intersect([5.1, 0.1, 10.0], [0.0, 0.0, -1.0], 0.0, 100.0)
-            .unwrap();
+        assert!(misses(&c, [0.0, 0.0, 3.5], [1.0, 0.0, 0.0]));
+        let h = hit(&c, [5.1, 0.1, 10.0], [0.0, 0.0, -1.0]);
         assert!((h.t - 7.0).abs() < 1e-12);
         assert_eq!(h.normal, [0.0, 0.0, 1.0]);
         // A slanted ray through the top cap rim: enters through the cap.
         let d = unit([1.0, 0.0, -1.0]);
-        let h = c.intersect([0.0, 0.0, 8.0], d, 0.0, 100.0).unwrap();
+        let h = hit(&c, [0.0, 0.0, 8.0], d);
         // Reaches z = 3 at x = 5 (inside the disc): t = 5·√2.
         assert!((h.t - 5.0 * core::f64::consts::SQRT_2).abs() < 1e-12);
         assert_eq!(h.normal, [0.0, 0.0, 1.0]);
@@ -402,25 +390,19 @@ mod tests {
             center: [0.0, 10.0, 5.0],
             radii: [2.0, 3.0, 4.0],
         };
-        let h = e
-            .intersect([0.0, 0.0, 5.0], [0.0, 1.0, 0.0], 0.0, 100.0)
-            .unwrap();
+        let h = hit(&e, [0.0, 0.0, 5.0], [0.0, 1.0, 0.0]);
         assert!((h.t - 7.0).abs() < 1e-12);
         assert!((h.normal[1] + 1.0).abs() < 1e-12);
-        let h = e
-            .intersect([0.0, 10.0, 20.0], [0.0, 0.0, -1.0], 0.0, 100.0)
-            .unwrap();
+        let h = hit(&e, [0.0, 10.0, 20.0], [0.0, 0.0, -1.0]);
         assert!((h.t - 11.0).abs() < 1e-12);
         // General direction: the hit point satisfies the ellipsoid equation and is the near root.
         let d = unit([0.1, 1.0, 0.05]);
         let o = [0.0, 0.0, 4.0];
-        let h = e.intersect(o, d, 0.0, 100.0).unwrap();
+        let h = hit(&e, o, d);
         let p = [o[0] + h.t * d[0], o[1] + h.t * d[1], o[2] + h.t * d[2]];
         let f = (p[0] / 2.0).powi(2) + ((p[1] - 10.0) / 3.0).powi(2) + ((p[2] - 5.0) / 4.0).powi(2);
         assert!((f - 1.0).abs() < 1e-12);
         assert!(p[1] < 10.0);
-        assert!(e
-            .intersect([5.0, 0.0, 5.0], [0.0, 1.0, 0.0], 0.0, 100.0)
-            .is_none());
+        assert!(misses(&e, [5.0, 0.0, 5.0], [0.0, 1.0, 0.0]));
     }
 }

@@ -399,7 +399,6 @@ pub fn wrap180(a: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::world::WorldConfig;
 
     #[test]
     fn hdl64_beams_follow_the_data_sheet() {
@@ -456,11 +455,7 @@ mod tests {
 
     #[test]
     fn scan_is_deterministic_and_noise_depends_on_seed() {
-        let world = World::new(WorldConfig {
-            blocks: 2,
-            ..WorldConfig::default()
-        })
-        .unwrap();
+        let world = World::city(0, 2);
         let pose = Pose::from_xyz_yaw(5.0, -1.75, world.ground_height(5.0, -1.75) + 1.73, 0.0);
         let mut s = Sensor::preset("vlp16").unwrap();
         s.dropout = 0.1;
@@ -476,11 +471,7 @@ mod tests {
 
     #[test]
     fn noiseless_ranges_are_exact_and_intensity_bounded() {
-        let world = World::new(WorldConfig {
-            blocks: 2,
-            ..WorldConfig::default()
-        })
-        .unwrap();
+        let world = World::city(0, 2);
         let pose = Pose::from_xyz_yaw(0.0, 1.75, world.ground_height(0.0, 1.75) + 1.73, 30.0);
         let mut s = Sensor::preset("vlp16").unwrap();
         s.range_noise_sd = 0.0;

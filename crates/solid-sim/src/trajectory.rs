@@ -326,6 +326,14 @@ impl Trajectory {
         (c, c, world.config().block_pitch)
     }
 
+    /// [`Trajectory::centre`] of a world with the 2 blocks or more that a route around the
+    /// central intersection needs, else an error saying `expected` of `blocks`.
+    fn crossing(world: &World, expected: &'static str) -> Result<(f64, f64, f64), SimError> {
+        let blocks = world.config().blocks;
+        check("blocks", blocks as f64, blocks >= 2, expected)?;
+        Ok(Self::centre(world))
+    }
+
     /// Laps counter-clockwise around a rectangle of `bx × by` blocks near the world's centre,
     /// starting in the middle of its southern edge; `laps` may be fractional (1.0 returns to the
     /// start; 1.5 drives half of the loop a second time).
@@ -364,13 +372,7 @@ impl Trajectory {
     /// # Errors
     /// [`SimError::InvalidParameter`] for worlds with fewer than 2 blocks or invalid options.
     pub fn figure_eight(world: &World, opts: &RouteOptions) -> Result<Trajectory, SimError> {
-        check(
-            "blocks",
-            world.config().blocks as f64,
-            world.config().blocks >= 2,
-            ">= 2 for a figure-eight",
-        )?;
-        let (xc, yc, p) = Self::centre(world);
+        let (xc, yc, p) = Self::crossing(world, ">= 2 for a figure-eight")?;
         let wps = [
             [xc - p / 2.0, yc],
             [xc + p, yc],
@@ -418,13 +420,7 @@ impl Trajectory {
     /// # Errors
     /// [`SimError::InvalidParameter`] for worlds with fewer than 2 blocks or invalid options.
     pub fn heading_revisit(world: &World, opts: &RouteOptions) -> Result<Trajectory, SimError> {
-        check(
-            "blocks",
-            world.config().blocks as f64,
-            world.config().blocks >= 2,
-            ">= 2",
-        )?;
-        let (xc, yc, p) = Self::centre(world);
+        let (xc, yc, p) = Self::crossing(world, ">= 2")?;
         let wps = [
             [xc - p, yc],
             [xc + p, yc],
@@ -593,6 +589,14 @@ mod tests {
         World::new(WorldConfig::default()).unwrap()
     }
 
+    /// The default route options with poses `spacing` metres apart.
+    fn spaced(spacing: f64) -> RouteOptions {
+        RouteOptions {
+            spacing,
+            ..RouteOptions::default()
+        }
+    }
+
     fn dist(a: &Pose, b: &Pose) -> f64 {
         let (p, q) = (a.translation(), b.translation());
         libm::sqrt((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2))
@@ -601,10 +605,7 @@ mod tests {
     #[test]
     fn routes_of_more_than_max_frames_are_refused_up_front() {
         let w = world();
-        let opts = RouteOptions {
-            spacing: 0.01,
-            ..RouteOptions::default()
-        };
+        let opts = spaced(0.01);
         // 1e9 m at 0.01 m would be 1e11 poses (10 TB): an error, not an allocation.
         match Trajectory::from_waypoints(&w, &[[0.0, 0.0], [1e9, 0.0]], &opts) {
             Err(SimError::InvalidParameter { name: "frames", .. }) => {}
@@ -684,11 +685,7 @@ mod tests {
     #[test]
     fn invalid_options_are_rejected() {
         let w = world();
-        let bad = RouteOptions {
-            spacing: 0.0,
-            ..RouteOptions::default()
-        };
-        assert!(Trajectory::figure_eight(&w, &bad).is_err());
+        assert!(Trajectory::figure_eight(&w, &spaced(0.0)).is_err());
         assert!(Trajectory::closed_loop(&w, 9, 1, 1.0, &RouteOptions::default()).is_err());
         assert!(Trajectory::by_name(&w, "spiral", 1.0, &RouteOptions::default()).is_err());
     }

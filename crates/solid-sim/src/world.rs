@@ -424,16 +424,7 @@ impl World {
         loop {
             let cell_exit = next_x.min(next_y).min(t_exit);
             for &id in g.cell_items(ix, iy) {
-                let p = &self.prims[id as usize];
-                if let Some(Hit { t, normal }) = p.shape.intersect(o, d, 0.0, limit) {
-                    limit = t;
-                    best = Some(RayHit {
-                        t,
-                        normal,
-                        reflectivity: p.reflectivity,
-                        kind: Some(p.kind),
-                    });
-                }
+                nearer(&self.prims[id as usize], o, d, &mut limit, &mut best);
             }
             if limit <= cell_exit || cell_exit >= t_exit {
                 break;
@@ -460,17 +451,24 @@ impl World {
         let mut best = self.ground_hit(o, d, t_max);
         let mut limit = best.map_or(t_max, |h| h.t);
         for p in &self.prims {
-            if let Some(Hit { t, normal }) = p.shape.intersect(o, d, 0.0, limit) {
-                limit = t;
-                best = Some(RayHit {
-                    t,
-                    normal,
-                    reflectivity: p.reflectivity,
-                    kind: Some(p.kind),
-                });
-            }
+            nearer(p, o, d, &mut limit, &mut best);
         }
         best
+    }
+}
+
+/// Makes the hit of the ray `o + t d` on `p` the `best` when it lies before `limit`, which
+/// then becomes its distance.
+#[inline]
+fn nearer(p: &Primitive, o: [f64; 3], d: [f64; 3], limit: &mut f64, best: &mut Option<RayHit>) {
+    if let Some(Hit { t, normal }) = p.shape.intersect(o, d, 0.0, *limit) {
+        *limit = t;
+        *best = Some(RayHit {
+            t,
+            normal,
+            reflectivity: p.reflectivity,
+            kind: Some(p.kind),
+        });
     }
 }
 
@@ -494,17 +492,25 @@ fn step(i: usize, s: i8, n: usize) -> Option<usize> {
 }
 
 #[cfg(test)]
+impl World {
+    /// The city grid of `blocks` blocks from `seed`, every other parameter its default.
+    pub(crate) fn city(seed: u64, blocks: usize) -> World {
+        World::new(WorldConfig {
+            seed,
+            blocks,
+            ..WorldConfig::default()
+        })
+        .unwrap()
+    }
+}
+
+#[cfg(test)]
 mod tests {
     use super::*;
 
     #[test]
     fn grid_matches_brute_force_on_random_rays() {
-        let world = World::new(WorldConfig {
-            seed: 11,
-            blocks: 2,
-            ..WorldConfig::default()
-        })
-        .unwrap();
+        let world = World::city(11, 2);
         assert!(world.primitives().len() > 200);
         let mut rng = Rng::new(5);
         let b = world.bounds();
@@ -534,12 +540,7 @@ mod tests {
 
     #[test]
     fn axis_parallel_rays_match_brute_force() {
-        let world = World::new(WorldConfig {
-            seed: 3,
-            blocks: 1,
-            ..WorldConfig::default()
-        })
-        .unwrap();
+        let world = World::city(3, 1);
         let mut rng = Rng::new(9);
         for _ in 0..2000 {
             let x = rng.range(-100.0, 100.0);
@@ -563,21 +564,12 @@ mod tests {
 
     #[test]
     fn same_seed_same_world_different_seed_different_world() {
-        let a = World::new(WorldConfig {
-            seed: 1,
-            ..WorldConfig::default()
-        })
-        .unwrap();
-        let b = World::new(WorldConfig {
-            seed: 1,
-            ..WorldConfig::default()
-        })
-        .unwrap();
-        let c = World::new(WorldConfig {
-            seed: 2,
-            ..WorldConfig::default()
-        })
-        .unwrap();
+        let blocks = WorldConfig::default().blocks;
+        let (a, b, c) = (
+            World::city(1, blocks),
+            World::city(1, blocks),
+            World::city(2, blocks),
+        );
         assert_eq!(a.primitives(), b.primitives());
         assert_ne!(a.primitives(), c.primitives());
     }

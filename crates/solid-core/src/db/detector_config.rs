@@ -3,7 +3,7 @@
 
 use crate::params::{field, Field, Kind, Params, FINITE};
 use crate::reg::{self, Gate, RegConfig};
-use crate::{Error, PRESETS};
+use crate::{Error, Preset, PRESETS};
 
 /// The parameters of a [`LoopDetector`](super::LoopDetector). Their defaults, ranges and docs are
 /// written once, here and in [`DetectorConfig::FIELDS`]; the
@@ -202,14 +202,21 @@ impl DetectorConfig {
     /// # Errors
     /// [`Error::UnknownPreset`] for a name that is not a preset.
     pub fn for_preset(name: &str) -> Result<DetectorConfig, Error> {
-        let p = PRESETS
-            .iter()
-            .find(|p| p.name == name)
-            .ok_or(Error::UnknownPreset)?;
-        Ok(DetectorConfig {
-            threshold: p.loop_threshold,
-            ..DetectorConfig::default()
-        })
+        Preset::find(name).map(|p| DetectorConfig::for_base_preset(Some(p)))
+    }
+
+    /// The defaults for scans described with a config made from the preset `base`: that
+    /// sensor's measured loop threshold; a config made from no preset (`None`) gets
+    /// [`DetectorConfig::default`]. How a config remembers its preset is the caller's (the
+    /// Python `SolidConfig.base_preset` keeps it through `replace` and pickling).
+    pub fn for_base_preset(base: Option<&Preset>) -> DetectorConfig {
+        match base {
+            Some(p) => DetectorConfig {
+                threshold: p.loop_threshold,
+                ..DetectorConfig::default()
+            },
+            None => DetectorConfig::default(),
+        }
     }
 
     /// Checks every parameter: each against its range in [`DetectorConfig::FIELDS`], then the

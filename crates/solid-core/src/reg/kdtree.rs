@@ -72,15 +72,8 @@ impl<'a> KdTree3<'a> {
                 expected: "at most 2^32 - 1 points",
             });
         }
-        for (buffer, got) in [("perm", perm.len()), ("axes", axes.len())] {
-            if got < n {
-                return Err(Error::BufferTooSmall {
-                    buffer,
-                    needed: n,
-                    got,
-                });
-            }
-        }
+        Error::check_buffer("perm", n, perm.len())?;
+        Error::check_buffer("axes", n, axes.len())?;
         let (perm, axes) = (&mut perm[..n], &mut axes[..n]);
         for (i, p) in perm.iter_mut().enumerate() {
             *p = i as u32;
@@ -118,36 +111,9 @@ impl<'a> KdTree3<'a> {
             d2: max_d2,
         };
         if !self.perm.is_empty() {
-            self.nearest_rec(0, self.perm.len(), &q, &mut best);
+            self.walk(0, self.perm.len(), &q, &mut best);
         }
         (best.id != u32::MAX).then_some(best)
-    }
-
-    fn nearest_rec(&self, lo: usize, hi: usize, q: &[f64; 3], best: &mut Nearest) {
-        let n = hi - lo;
-        if n <= LEAF_SIZE {
-            for &id in &self.perm[lo..hi] {
-                best.offer(id, dist2(q, &self.points[id as usize]));
-            }
-            return;
-        }
-        let mid = lo + n / 2;
-        let id = self.perm[mid];
-        let axis = self.axes[mid] as usize;
-        let p = &self.points[id as usize];
-        best.offer(id, dist2(q, p));
-        let diff = q[axis] - p[axis];
-        let (near, far) = if diff <= 0.0 {
-            ((lo, mid), (mid + 1, hi))
-        } else {
-            ((mid + 1, hi), (lo, mid))
-        };
-        self.nearest_rec(near.0, near.1, q, best);
-        // Visits the far side unless it is certainly too far: also when the bound is NaN, and
-        // on a tie (which the lower id may win).
-        if (diff * diff).partial_cmp(&best.d2) != Some(Ordering::Greater) {
-            self.nearest_rec(far.0, far.1, q, best);
-        }
     }
 
     /// The `k` nearest points to `q` (fewer when the tree is smaller), written to `out[..]`
@@ -156,31 +122,24 @@ impl<'a> KdTree3<'a> {
     /// # Errors
     /// [`Error::BufferTooSmall`] when `out.len() < k`.
     pub fn knn(&self, q: [f64; 3], k: usize, out: &mut [Nearest]) -> Result<usize, Error> {
-        if out.len() < k {
-            return Err(Error::BufferTooSmall {
-                buffer: "out",
-                needed: k,
-                got: out.len(),
-            });
-        }
+        Error::check_buffer("out", k, out.len())?;
         let mut heap = Heap {
             h: &mut out[..k],
             len: 0,
         };
         if k > 0 && !self.perm.is_empty() {
-            self.knn_rec(0, self.perm.len(), &q, &mut heap);
+            self.walk(0, self.perm.len(), &q, &mut heap);
         }
         Ok(heap.finish())
     }
 
-    fn knn_rec(&self, lo: usize, hi: usize, q: &[f64; 3], heap: &mut Heap<'_>) {
+    /// Offers to `found` every point of the node `perm[lo..hi]` that may be nearer than its
+    /// bound, nearer side first.
+    fn walk<F: Found>(&self, lo: usize, hi: usize, q: &[f64; 3], found: &mut F) {
         let n = hi - lo;
         if n <= LEAF_SIZE {
             for &id in &self.perm[lo..hi] {
-                heap.offer(Nearest {
-                    id,
-                    d2: dist2(q, &self.points[id as usize]),
-                });
+                found.offer(id, dist2(q, &self.points[id as usize]));
             }
             return;
         }
@@ -188,20 +147,49 @@ impl<'a> KdTree3<'a> {
         let id = self.perm[mid];
         let axis = self.axes[mid] as usize;
         let p = &self.points[id as usize];
-        heap.offer(Nearest {
-            id,
-            d2: dist2(q, p),
-        });
+        found.offer(id, dist2(q, p));
         let diff = q[axis] - p[axis];
         let (near, far) = if diff <= 0.0 {
             ((lo, mid), (mid + 1, hi))
         } else {
             ((mid + 1, hi), (lo, mid))
         };
-        self.knn_rec(near.0, near.1, q, heap);
-        if (diff * diff).partial_cmp(&heap.worst()) != Some(Ordering::Greater) {
-            self.knn_rec(far.0, far.1, q, heap);
+        self.walk(near.0, near.1, q, found);
+        // Visits the far side unless it is certainly too far: also when the bound is NaN, and
+        // on a tie (which the lower id may win).
+        if (diff * diff).partial_cmp(&found.bound()) != Some(Ordering::Greater) {
+            self.walk(far.0, far.1, q, found);
         }
+    }
+}
+
+/// What a walk of the tree collects: the nearest point ([`Nearest`]) or the k nearest.
+trait Found {
+    /// Takes point `id` at squared distance `d2` if it is among the wanted.
+    fn offer(&mut self, id: u32, d2: f64);
+    /// The squared distance a point must not exceed to matter.
+    fn bound(&self) -> f64;
+}
+
+impl Found for Nearest {
+    #[inline(always)]
+    fn offer(&mut self, id: u32, d2: f64) {
+        Nearest::offer(self, id, d2);
+    }
+    #[inline(always)]
+    fn bound(&self) -> f64 {
+        self.d2
+    }
+}
+
+impl Found for Heap<'_> {
+    #[inline(always)]
+    fn offer(&mut self, id: u32, d2: f64) {
+        Heap::offer(self, Nearest { id, d2 });
+    }
+    #[inline(always)]
+    fn bound(&self) -> f64 {
+        self.worst()
     }
 }
 

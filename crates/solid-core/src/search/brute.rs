@@ -6,8 +6,9 @@ use super::rows::avx2;
 use super::rows::dist4;
 #[cfg(feature = "parallel")]
 use super::Cost;
-use super::{check_out, check_query, Exclude, Neighbor, Rows};
+use super::{exact_knn, Exclude, Neighbor, Rows};
 use crate::Error;
+use core::ops::Range;
 
 /// The k best candidates so far: a binary max-heap (worst at the root) in the caller's buffer.
 pub(super) struct Best<'s> {
@@ -123,41 +124,47 @@ pub fn brute_force(
     exclude: &Exclude<'_>,
     out: &mut [Neighbor],
 ) -> Result<usize, Error> {
-    check_query(query, rows.dim)?;
-    check_out(out, k)?;
-    exclude.check(rows.n)?;
-    let mut best = Best::new(&mut out[..k]);
-    scan(rows, 0, rows.n, query, exclude, f32::INFINITY, &mut best);
-    Ok(best.finish())
+    exact_knn(query, rows.dim, rows.n, k, exclude, out, |best| {
+        let p = Probe {
+            query,
+            exclude,
+            bound: f32::INFINITY,
+        };
+        scan(rows, 0..rows.n, p, best);
+    })
 }
 
-/// Offers the allowed ids of `lo..hi` whose distance is at most `bound` to `best`, computing
-/// every distance (with AVX2 when `std` detects it: the same operations, so the same bits).
+/// What a scan looks for: the rows nearest `query` among those `exclude` allows, at a distance
+/// of at most `bound`.
+#[derive(Clone, Copy)]
+pub(super) struct Probe<'a> {
+    pub(super) query: &'a [f32],
+    pub(super) exclude: &'a Exclude<'a>,
+    pub(super) bound: f32,
+}
+
+/// Offers the rows of `ids` that `p` finds to `best`, computing every distance (with AVX2 when
+/// `std` detects it: the same operations, so the same bits).
 #[inline]
-pub(super) fn scan(
-    rows: Rows<'_>,
-    lo: usize,
-    hi: usize,
-    query: &[f32],
-    exclude: &Exclude<'_>,
-    bound: f32,
-    best: &mut Best<'_>,
-) {
+pub(super) fn scan(rows: Rows<'_>, ids: Range<usize>, p: Probe<'_>, best: &mut Best<'_>) {
     #[cfg(feature = "parallel")]
     {
-        let hi = hi.min(exclude.before_id).min(rows.n);
+        let hi = ids.end.min(p.exclude.before_id).min(rows.n);
         // The parts after the first start from empty heaps: the neighbours `best` holds already
         // (a finished kd-tree walk before the rows past the tree) bound them all the same.
-        let bound = best.limit(bound);
+        let p = Probe {
+            bound: best.limit(p.bound),
+            ..p
+        };
         let part = |lo: usize, hi: usize, best: &mut Best<'_>, _: &mut Cost| {
-            scan_part(rows, lo, hi, query, exclude, bound, best);
+            scan_part(rows, lo..hi, p, best);
             true
         };
-        if split_scan(lo, hi, 4, best, &mut Cost::default(), part).is_some() {
+        if split_scan(ids.start, hi, 4, best, &mut Cost::default(), part).is_some() {
             return;
         }
     }
-    scan_part(rows, lo, hi, query, exclude, bound, best)
+    scan_part(rows, ids, p, best)
 }
 
 /// Scans of at least this many rows are shared among the threads (`parallel`): a search over a
@@ -309,46 +316,26 @@ where
     Some(all_preferred.load(Ordering::Relaxed))
 }
 
-/// [`scan`] over `lo..hi` on this thread.
+/// [`scan`] on this thread.
 #[inline]
-pub(super) fn scan_part(
-    rows: Rows<'_>,
-    lo: usize,
-    hi: usize,
-    query: &[f32],
-    exclude: &Exclude<'_>,
-    bound: f32,
-    best: &mut Best<'_>,
-) {
-    #[cfg(all(feature = "std", target_arch = "x86_64"))]
-    if std::is_x86_feature_detected!("avx2") {
-        #[allow(unsafe_code)]
-        // SAFETY: the CPU supports AVX2 (checked just above), the only requirement for calling a
-        // function compiled with `#[target_feature(enable = "avx2")]`.
-        return unsafe { scan_avx2(rows, lo, hi, query, exclude, bound, best) };
-    }
-    scan_impl(rows, lo, hi, query, exclude, bound, best, dist4)
+pub(super) fn scan_part(rows: Rows<'_>, ids: Range<usize>, p: Probe<'_>, best: &mut Best<'_>) {
+    avx2_or!(
+        scan_avx2(rows, ids, p, best),
+        scan_impl(rows, ids, p, best, dist4)
+    )
 }
 
 #[cfg(all(feature = "std", target_arch = "x86_64"))]
 #[target_feature(enable = "avx2")]
-pub(super) fn scan_avx2(
-    rows: Rows<'_>,
-    lo: usize,
-    hi: usize,
-    query: &[f32],
-    exclude: &Exclude<'_>,
-    bound: f32,
-    best: &mut Best<'_>,
-) {
+pub(super) fn scan_avx2(rows: Rows<'_>, ids: Range<usize>, p: Probe<'_>, best: &mut Best<'_>) {
     if rows.dim == COMMON_DIM {
         // The same function with the dimension a constant: its loop unrolled.
-        return scan_impl(rows, lo, hi, query, exclude, bound, best, |q, g, _, s| {
+        return scan_impl(rows, ids, p, best, |q, g, _, s| {
             avx2::prefetch_ahead(g);
             avx2::dist4(q, g, COMMON_DIM, s)
         });
     }
-    scan_impl(rows, lo, hi, query, exclude, bound, best, |q, g, d, s| {
+    scan_impl(rows, ids, p, best, |q, g, d, s| {
         avx2::prefetch_ahead(g);
         avx2::dist4(q, g, d, s)
     })
@@ -363,21 +350,23 @@ pub(super) const COMMON_DIM: usize = 40;
 /// distances from `dist4`), and a row is offered only when its distance is within the current
 /// limit.
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
 pub(super) fn scan_impl(
     rows: Rows<'_>,
-    lo: usize,
-    hi: usize,
-    query: &[f32],
-    exclude: &Exclude<'_>,
-    bound: f32,
+    ids: Range<usize>,
+    p: Probe<'_>,
     best: &mut Best<'_>,
     dist4: impl Fn(&[f32], &[f32], usize, [f32; 4]) -> [f32; 4],
 ) {
     if best.heap.is_empty() {
         return;
     }
-    let hi = hi.min(exclude.before_id).min(rows.n);
+    let Probe {
+        query,
+        exclude,
+        bound,
+    } = p;
+    let lo = ids.start;
+    let hi = ids.end.min(exclude.before_id).min(rows.n);
     if lo >= hi {
         return;
     }

@@ -4,7 +4,7 @@ use core::sync::atomic::{AtomicU32, Ordering::Relaxed};
 
 use super::kdtree::{Walk, MAX_OFFSET_DIM};
 use super::{
-    check_out, check_query, scan, scan_threads, sketch_rows, Best, Exclude, Neighbor, OnlineIndex,
+    check_search, scan, scan_threads, sketch_rows, Best, Exclude, Neighbor, OnlineIndex, Probe,
     Rows, Sketch,
 };
 use crate::Error;
@@ -454,9 +454,7 @@ impl<'a> Index<'a> {
         req: &Request<'_>,
         out: &mut [Neighbor],
     ) -> Result<Found, Error> {
-        check_query(query, self.rows.dim())?;
-        check_out(out, req.k)?;
-        req.exclude.check(self.len())?;
+        check_search(query, self.rows.dim(), self.len(), req.k, &req.exclude, out)?;
         if req.max_distance.is_nan() {
             return Err(Error::InvalidParameter {
                 name: "max_distance",
@@ -465,6 +463,11 @@ impl<'a> Index<'a> {
             });
         }
         let (exclude, bound) = (&req.exclude, req.max_distance);
+        let probe = Probe {
+            query,
+            exclude,
+            bound,
+        };
         let mut best = Best::new(&mut out[..req.k]);
         let mut cost = Cost::default();
         let candidates = self.len().min(exclude.before_id);
@@ -472,15 +475,13 @@ impl<'a> Index<'a> {
         let tree_end = self.tree.len();
         let rows = |from: usize, best: &mut Best<'_>, cost: &mut Cost| {
             cost.exact_rows += candidates.saturating_sub(from);
-            scan(self.rows, from, candidates, query, exclude, bound, best);
+            scan(self.rows, from..candidates, probe, best);
         };
         if req.k > 0 && candidates > 0 {
             match req.plan {
                 Plan::Brute => rows(0, &mut best, &mut cost),
                 Plan::Sketch => {
-                    let _ = self
-                        .sketch
-                        .scan(query, 0, exclude, bound, false, &mut best, &mut cost);
+                    let _ = self.sketch.scan(probe, 0, false, &mut best, &mut cost);
                     rows(self.sketch.len(), &mut best, &mut cost);
                 }
                 Plan::KdTree => {
@@ -557,15 +558,18 @@ impl<'a> Index<'a> {
         if from >= candidates {
             return;
         }
+        let probe = Probe {
+            query,
+            exclude,
+            bound,
+        };
         if matches!(walk, Depth::Normal | Depth::Short) && from < self.sketch.len() {
             let (start, exact, sketched) = (
                 clock::start(timed && from == 0),
                 cost.exact_rows,
                 cost.sketch_rows,
             );
-            let done = self
-                .sketch
-                .scan(query, from, exclude, bound, true, best, cost);
+            let done = self.sketch.scan(probe, from, true, best, cost);
             let ns = clock::ns(start);
             if let Some(o) = req.observed {
                 Observed::record(&o.sketch_misses, done);
@@ -586,7 +590,7 @@ impl<'a> Index<'a> {
             cost.exact_rows += candidates - from;
             // Whole passes only (the rows beyond the kd-tree run on fewer threads).
             let start = clock::start(timed && from == 0 && candidates >= TIMED_SCAN);
-            scan(self.rows, from, candidates, query, exclude, bound, best);
+            scan(self.rows, from..candidates, probe, best);
             if let (Some(o), Some(ns)) = (req.observed, clock::ns(start)) {
                 o.note_scan(ns, candidates);
             }

@@ -1,6 +1,6 @@
 //! The kd-tree and the online index made of kd-trees (see the parent module).
 
-use super::{check_out, check_query, Best, Exclude, Neighbor, Rows};
+use super::{exact_knn, Best, Exclude, Neighbor, Rows};
 use crate::Error;
 
 /// Largest number of entries a kd-tree node scans linearly instead of splitting.
@@ -109,16 +109,10 @@ impl<'a> KdTree<'a> {
         exclude: &Exclude<'_>,
         out: &mut [Neighbor],
     ) -> Result<usize, Error> {
-        check_query(query, self.rows.dim())?;
-        check_out(out, k)?;
-        exclude.check(self.rows.len())?;
-        let mut best = Best::new(&mut out[..k]);
-        if k > 0 {
-            let mut off = [0f64; MAX_OFFSET_DIM];
-            let mut walk = Walk::new(query, exclude, f32::INFINITY, usize::MAX, &mut off);
-            self.rec(0, self.perm.len(), 0.0, &mut walk, &mut best);
-        }
-        Ok(best.finish())
+        let n = self.rows.len();
+        walk_search(self.rows, n, query, k, exclude, out, |walk, best| {
+            self.rec(0, self.perm.len(), 0.0, walk, best);
+        })
     }
 
     #[inline]
@@ -254,22 +248,28 @@ impl<'q> Walk<'q> {
     }
 }
 
+/// An exact k-NN over `n` entries of `rows` by a walk without a budget: `visit` walks them.
+fn walk_search(
+    rows: Rows<'_>,
+    n: usize,
+    query: &[f32],
+    k: usize,
+    exclude: &Exclude<'_>,
+    out: &mut [Neighbor],
+    visit: impl FnOnce(&mut Walk<'_>, &mut Best<'_>),
+) -> Result<usize, Error> {
+    exact_knn(query, rows.dim(), n, k, exclude, out, |best| {
+        if k > 0 {
+            let mut off = [0f64; MAX_OFFSET_DIM];
+            let mut walk = Walk::new(query, exclude, f32::INFINITY, usize::MAX, &mut off);
+            visit(&mut walk, best);
+        }
+    })
+}
+
 fn check_buffers(n: usize, perm: usize, splits: usize) -> Result<(), Error> {
-    if perm < n {
-        return Err(Error::BufferTooSmall {
-            buffer: "perm",
-            needed: n,
-            got: perm,
-        });
-    }
-    if splits < n {
-        return Err(Error::BufferTooSmall {
-            buffer: "splits",
-            needed: n,
-            got: splits,
-        });
-    }
-    Ok(())
+    Error::check_buffer("perm", n, perm)?;
+    Error::check_buffer("splits", n, splits)
 }
 
 /// Chooses the dimension with the widest spread among up to [`SPLIT_SAMPLE`] evenly spaced
@@ -277,21 +277,10 @@ fn check_buffers(n: usize, perm: usize, splits: usize) -> Result<(), Error> {
 /// when the CPU has it, and for the default dimension as a constant (the same operations, so
 /// the same choice): faster builds, the same trees (docs/performance.md#kd-tree).
 fn widest_dim(rows: Rows<'_>, perm: &[u32]) -> usize {
-    #[cfg(all(feature = "std", target_arch = "x86_64"))]
-    if std::is_x86_feature_detected!("avx2") {
-        #[allow(unsafe_code)]
-        // SAFETY: the CPU supports AVX2 (checked just above), the only requirement for calling
-        // a function compiled with `#[target_feature(enable = "avx2")]`.
-        return unsafe { widest_dim_avx2(rows, perm) };
-    }
-    widest_dim_dims(rows, perm)
+    avx2_or!(widest_dim_avx2(rows, perm), widest_dim_dims(rows, perm))
 }
 
-#[cfg(all(feature = "std", target_arch = "x86_64"))]
-#[target_feature(enable = "avx2")]
-fn widest_dim_avx2(rows: Rows<'_>, perm: &[u32]) -> usize {
-    widest_dim_dims(rows, perm)
-}
+avx2_copy!(widest_dim_avx2 = widest_dim_dims(rows: Rows<'_>, perm: &[u32]) -> usize);
 
 /// [`widest_dim_impl`] for the rows' dimension, the default one as a constant.
 #[inline(always)]
@@ -574,16 +563,9 @@ impl<'a> OnlineIndex<'a> {
         out: &mut [Neighbor],
     ) -> Result<usize, Error> {
         let n = self.perm.len();
-        check_query(query, self.rows.dim())?;
-        check_out(out, k)?;
-        exclude.check(n)?;
-        let mut best = Best::new(&mut out[..k]);
-        if k > 0 {
-            let mut off = [0f64; MAX_OFFSET_DIM];
-            let mut walk = Walk::new(query, exclude, f32::INFINITY, usize::MAX, &mut off);
-            self.walk(&mut walk, &mut best);
-        }
-        Ok(best.finish())
+        walk_search(self.rows, n, query, k, exclude, out, |walk, best| {
+            self.walk(walk, best);
+        })
     }
 
     /// Walks every block below `exclude.before_id` (largest first) until the walk's budget runs

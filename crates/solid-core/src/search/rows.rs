@@ -125,13 +125,7 @@ impl<'a> Rows<'a> {
     /// there are rows.
     pub fn scaled(data: &'a [f32], dim: usize, scale: &'a [f32]) -> Result<Rows<'a>, Error> {
         let n = n_rows(data, dim)?;
-        if scale.len() < n {
-            return Err(Error::BufferTooSmall {
-                buffer: "scale",
-                needed: n,
-                got: scale.len(),
-            });
-        }
+        Error::check_buffer("scale", n, scale.len())?;
         Ok(Rows {
             data,
             dim,
@@ -174,13 +168,7 @@ impl<'a> Rows<'a> {
     /// [`Error::BufferTooSmall`] when `out` is shorter than the rows.
     pub fn distances(&self, query: &[f32], out: &mut [f32]) -> Result<(), Error> {
         check_query(query, self.dim)?;
-        if out.len() < self.n {
-            return Err(Error::BufferTooSmall {
-                buffer: "out",
-                needed: self.n,
-                got: out.len(),
-            });
-        }
+        Error::check_buffer("out", self.n, out.len())?;
         for (i, o) in out[..self.n].iter_mut().enumerate() {
             *o = self.dist(query, i);
         }

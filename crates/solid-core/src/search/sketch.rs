@@ -23,8 +23,9 @@ mod encode;
 use encode::{check_sketch, padded};
 pub use encode::{sketch_encode, sketch_len, sketch_rows};
 
-use super::{check_out, check_query, scan, Best, Cost, Exclude, Neighbor, Rows};
+use super::{exact_knn, scan, Best, Cost, Exclude, Neighbor, Probe, Rows};
 use crate::Error;
+use core::ops::Range;
 
 /// Rows per block of a [`Sketch`] (the codes of a block are interleaved).
 pub const SKETCH_BLOCK: usize = 16;
@@ -92,21 +93,15 @@ impl<'a> Sketch<'a> {
         exclude: &Exclude<'_>,
         out: &mut [Neighbor],
     ) -> Result<usize, Error> {
-        check_query(query, self.rows.dim())?;
-        check_out(out, k)?;
-        exclude.check(self.rows.len())?;
-        let mut best = Best::new(&mut out[..k]);
-        let mut cost = Cost::default();
-        let _ = self.scan(
-            query,
-            0,
-            exclude,
-            f32::INFINITY,
-            false,
-            &mut best,
-            &mut cost,
-        );
-        Ok(best.finish())
+        let (dim, n) = (self.rows.dim(), self.rows.len());
+        exact_knn(query, dim, n, k, exclude, out, |best| {
+            let p = Probe {
+                query,
+                exclude,
+                bound: f32::INFINITY,
+            };
+            let _ = self.scan(p, 0, false, best, &mut Cost::default());
+        })
     }
 
     /// Offers every allowed row of ids `from..` within `bound` that the bytes cannot rule out to
@@ -115,23 +110,27 @@ impl<'a> Sketch<'a> {
     /// bytes do not pay then: an exact distance out of order costs a few sequential ones);
     /// returns `false` then. With `parallel`, a long scan is cut into parts that the pool's
     /// threads share, their neighbours merged.
-    #[allow(clippy::too_many_arguments)]
     pub(super) fn scan(
         &self,
-        query: &[f32],
+        p: Probe<'_>,
         from: usize,
-        exclude: &Exclude<'_>,
-        bound: f32,
         give_up: bool,
         best: &mut Best<'_>,
         cost: &mut Cost,
     ) -> bool {
-        let end = self.rows.len().min(exclude.before_id);
+        let end = self.rows.len().min(p.exclude.before_id);
         // The parts after the first start from empty heaps: the neighbours `best` holds already
         // bound them all the same.
-        let bound = best.limit(bound);
+        let p = Probe {
+            bound: best.limit(p.bound),
+            ..p
+        };
+        // A part on this thread.
         let part = |from: usize, to: usize, best: &mut Best<'_>, cost: &mut Cost| {
-            self.scan_part(query, from, to, exclude, bound, give_up, best, cost)
+            avx2_or!(
+                self.scan_avx2(p, from..to, give_up, best, cost),
+                self.scan_impl(p, from..to, give_up, best, cost)
+            )
         };
         #[cfg(feature = "parallel")]
         if let Some(done) = super::split_scan(from, end, SKETCH_BLOCK, best, cost, part) {
@@ -140,63 +139,32 @@ impl<'a> Sketch<'a> {
         part(from, end, best, cost)
     }
 
-    /// [`Sketch::scan`] over ids `from..to`, on this thread.
-    #[allow(clippy::too_many_arguments)]
-    fn scan_part(
-        &self,
-        query: &[f32],
-        from: usize,
-        to: usize,
-        exclude: &Exclude<'_>,
-        bound: f32,
-        give_up: bool,
-        best: &mut Best<'_>,
-        cost: &mut Cost,
-    ) -> bool {
-        #[cfg(all(feature = "std", target_arch = "x86_64"))]
-        if std::is_x86_feature_detected!("avx2") {
-            #[allow(unsafe_code)]
-            // SAFETY: the CPU supports AVX2 (checked just above), the only requirement for
-            // calling a function compiled with `#[target_feature(enable = "avx2")]`.
-            return unsafe { self.scan_avx2(query, from, to, exclude, bound, give_up, best, cost) };
-        }
-        self.scan_impl(query, from, to, exclude, bound, give_up, best, cost)
-    }
+    avx2_copy!(
+        scan_avx2 = self.scan_impl(
+            p: Probe<'_>, ids: Range<usize>, give_up: bool, best: &mut Best<'_>, cost: &mut Cost
+        ) -> bool
+    );
 
-    #[cfg(all(feature = "std", target_arch = "x86_64"))]
-    #[target_feature(enable = "avx2")]
-    #[allow(clippy::too_many_arguments)]
-    fn scan_avx2(
-        &self,
-        query: &[f32],
-        from: usize,
-        to: usize,
-        exclude: &Exclude<'_>,
-        bound: f32,
-        give_up: bool,
-        best: &mut Best<'_>,
-        cost: &mut Cost,
-    ) -> bool {
-        self.scan_impl(query, from, to, exclude, bound, give_up, best, cost)
-    }
-
-    /// The body of [`Sketch::scan_part`], inlined into each of its compiled copies.
+    /// [`Sketch::scan`] over the ids `ids` on this thread, inlined into each of its compiled
+    /// copies.
     #[inline(always)]
-    #[allow(clippy::too_many_arguments)]
     fn scan_impl(
         &self,
-        query: &[f32],
-        from: usize,
-        end: usize,
-        exclude: &Exclude<'_>,
-        bound: f32,
+        p: Probe<'_>,
+        ids: Range<usize>,
         give_up: bool,
         best: &mut Best<'_>,
         cost: &mut Cost,
     ) -> bool {
+        let (from, end) = (ids.start, ids.end);
         if best.heap.is_empty() || from >= end {
             return true;
         }
+        let Probe {
+            query,
+            exclude,
+            bound,
+        } = p;
         let dim = self.rows.dim();
         let bounds = Bounds::new(query);
         let timed = exclude.not_newer_than.is_some();
@@ -217,7 +185,7 @@ impl<'a> Sketch<'a> {
                     let rest = (b * SKETCH_BLOCK).max(from);
                     cost.sketch_rows += scanned;
                     cost.exact_rows += exact + (end - rest);
-                    scan(self.rows, rest, end, query, exclude, bound, best);
+                    scan(self.rows, rest..end, p, best);
                     return false;
                 }
                 (scanned_then, exact_then) = (scanned, exact);
@@ -377,14 +345,7 @@ impl<'q> Bounds<'q> {
 /// dot products either way).
 #[inline(always)]
 fn block(b: &Bounds<'_>, codes: &[u8], params: &[f32]) -> [f32; SKETCH_BLOCK] {
-    #[cfg(all(feature = "std", target_arch = "x86_64"))]
-    if std::is_x86_feature_detected!("avx2") {
-        #[allow(unsafe_code)]
-        // SAFETY: the CPU supports AVX2 (checked just above), the only requirement for calling a
-        // function compiled with `#[target_feature(enable = "avx2")]`.
-        return b.finish(unsafe { avx2::dots(b, codes) }, params);
-    }
-    b.finish(dots(b, codes), params)
+    b.finish(avx2_or!(avx2::dots(b, codes), dots(b, codes)), params)
 }
 
 /// The integer dot products of the 16 rows of a block with the two query vectors.

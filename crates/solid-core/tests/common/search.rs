@@ -5,6 +5,7 @@ use solid_lidar::search::{
     sketch_encode, sketch_len, Cost, Exclude, Index, KdTree, Neighbor, OnlineIndex, Plan, Request,
     Rows, Sketch, SKETCH_BLOCK,
 };
+use solid_lidar::Error;
 
 pub fn normed(raw: &[f32], dim: usize) -> Vec<f32> {
     let mut out = vec![0.0; raw.len()];
@@ -18,20 +19,23 @@ pub fn scales(raw: &[f32], dim: usize) -> Vec<f32> {
         .collect()
 }
 
-pub fn brute(rows: Rows<'_>, q: &[f32], k: usize, ex: &Exclude<'_>) -> Vec<Neighbor> {
+/// The neighbours a search writes into a buffer of `k`.
+fn knn(k: usize, search: impl FnOnce(&mut [Neighbor]) -> Result<usize, Error>) -> Vec<Neighbor> {
     let mut out = vec![Neighbor::default(); k];
-    let n = brute_force(rows, q, k, ex, &mut out).unwrap();
+    let n = search(&mut out).unwrap();
     out.truncate(n);
     out
+}
+
+pub fn brute(rows: Rows<'_>, q: &[f32], k: usize, ex: &Exclude<'_>) -> Vec<Neighbor> {
+    knn(k, |out| brute_force(rows, q, k, ex, out))
 }
 
 pub fn tree(rows: Rows<'_>, q: &[f32], k: usize, ex: &Exclude<'_>) -> Vec<Neighbor> {
     let n = rows.len();
     let (mut perm, mut splits) = (vec![0u32; n], vec![0u16; n]);
     let t = KdTree::build(rows, &mut perm, &mut splits).unwrap();
-    let mut out = vec![Neighbor::default(); k];
-    let got = t.search(q, k, ex, &mut out).unwrap();
-    out.truncate(got);
+    let out = knn(k, |out| t.search(q, k, ex, out));
     // The built permutation is a permutation of 0..n.
     let mut sorted = perm.clone();
     sorted.sort_unstable();
@@ -48,12 +52,8 @@ pub fn online(rows: Rows<'_>, q: &[f32], k: usize, ex: &Exclude<'_>) -> Vec<Neig
         splits.push(0);
         online_insert(rows.prefix(i + 1), &mut perm, &mut splits).unwrap();
     }
-    let mut out = vec![Neighbor::default(); k];
-    let got = OnlineIndex::new(rows, &perm, &splits)
-        .unwrap()
-        .search(q, k, ex, &mut out)
-        .unwrap();
-    out.truncate(got);
+    let index = OnlineIndex::new(rows, &perm, &splits).unwrap();
+    let out = knn(k, |out| index.search(q, k, ex, out));
     // Rebuilding from scratch, or extending from a third of the rows, gives the same structure.
     let (mut p2, mut s2) = (vec![0u32; n], vec![0u16; n]);
     online_rebuild(rows, &mut p2, &mut s2).unwrap();
@@ -106,13 +106,8 @@ impl Built {
 
 pub fn sketch(rows: Rows<'_>, q: &[f32], k: usize, ex: &Exclude<'_>) -> Vec<Neighbor> {
     let (codes, params) = sketch_of(rows);
-    let mut out = vec![Neighbor::default(); k];
-    let got = Sketch::new(rows, &codes, &params)
-        .unwrap()
-        .search(q, k, ex, &mut out)
-        .unwrap();
-    out.truncate(got);
-    out
+    let sketch = Sketch::new(rows, &codes, &params).unwrap();
+    knn(k, |out| sketch.search(q, k, ex, out))
 }
 
 /// Every plan of the index, with and without a distance bound, against brute force cut at the

@@ -15,6 +15,36 @@ pub(super) struct Builder<'a> {
 }
 
 impl Builder<'_> {
+    /// A wall along the lot's front edge (`u` in `0..w`, centred on `v`, `half_thick` thick on
+    /// each side, `height` tall), open between `u = gate - 2 gap` and `u = gate + gap`.
+    pub(super) fn add_gated_wall(
+        &mut self,
+        w: f64,
+        gate: f64,
+        gap: f64,
+        v: f64,
+        half_thick: f64,
+        height: f64,
+    ) {
+        let left = gate / 2.0 - gap;
+        let half = [(gate - 2.0 * gap) / 2.0, half_thick];
+        self.add_wall(left, v, half, height);
+        let rest = w - gate - gap;
+        let half = [rest / 2.0, half_thick];
+        self.add_wall(w - rest / 2.0, v, half, height);
+    }
+
+    /// An upright wall piece (`add_box` of kind `Wall`, not turned, from below the ground).
+    pub(super) fn add_wall(&mut self, u: f64, v: f64, half: [f64; 2], height: f64) {
+        self.add_box(u, v, half, 0.0, 0.0, height, Kind::Wall, 0.35);
+    }
+
+    /// The world position of local (u, v) and the ground height there.
+    fn placed(&self, u: f64, v: f64) -> ([f64; 2], f64) {
+        let c = self.to_world(u, v);
+        (c, self.ground(c[0], c[1]))
+    }
+
     pub(super) fn ground(&self, x: f64, y: f64) -> f64 {
         self.slope[0] * x + self.slope[1] * y
     }
@@ -39,8 +69,7 @@ impl Builder<'_> {
         kind: Kind,
         refl: f32,
     ) {
-        let c = self.to_world(u, v);
-        let g = self.ground(c[0], c[1]);
+        let (c, g) = self.placed(u, v);
         let (s0, c0) = libm::sincos(yaw);
         let [ca, sa] = self.axis;
         let rot = [ca * c0 - sa * s0, sa * c0 + ca * s0];
@@ -65,8 +94,7 @@ impl Builder<'_> {
         kind: Kind,
         refl: f32,
     ) {
-        let c = self.to_world(u, v);
-        let g = self.ground(c[0], c[1]);
+        let (c, g) = self.placed(u, v);
         self.prims.push(Primitive {
             shape: Shape::Cylinder {
                 center: c,
@@ -81,8 +109,7 @@ impl Builder<'_> {
         let trunk_h = rng.range(1.8, 3.5);
         let rxy = rng.range(1.5, 3.5);
         let rz = rng.range(1.5, 4.0);
-        let c = self.to_world(u, v);
-        let g = self.ground(c[0], c[1]);
+        let (c, g) = self.placed(u, v);
         let zc = g + trunk_h + 0.8 * rz;
         self.add_cylinder(
             u,
@@ -246,82 +273,15 @@ pub(super) fn fill_block(b: &mut Builder<'_>, w: f64, rng: &mut Rng) {
             b.add_cylinder(w / 2.0, v + 3.5, 0.15, 9.0, Kind::Pole, 0.7);
         }
         let gate = rng.range(0.2, 0.8) * w;
-        b.add_box(
-            gate / 2.0 - 2.5,
-            0.3,
-            [(gate - 5.0) / 2.0, 0.15],
-            0.0,
-            0.0,
-            0.9,
-            Kind::Wall,
-            0.35,
-        );
-        let rest = w - gate - 2.5;
-        b.add_box(
-            w - rest / 2.0,
-            0.3,
-            [rest / 2.0, 0.15],
-            0.0,
-            0.0,
-            0.9,
-            Kind::Wall,
-            0.35,
-        );
+        b.add_gated_wall(w, gate, 2.5, 0.3, 0.15, 0.9);
     } else {
         // Walled compound with one or two buildings.
         let h = rng.range(2.0, 3.0);
         let gate = rng.range(0.3, 0.7) * w;
-        b.add_box(
-            gate / 2.0 - 2.0,
-            0.2,
-            [(gate - 4.0) / 2.0, 0.2],
-            0.0,
-            0.0,
-            h,
-            Kind::Wall,
-            0.35,
-        );
-        let rest = w - gate - 2.0;
-        b.add_box(
-            w - rest / 2.0,
-            0.2,
-            [rest / 2.0, 0.2],
-            0.0,
-            0.0,
-            h,
-            Kind::Wall,
-            0.35,
-        );
-        b.add_box(
-            w / 2.0,
-            w - 0.2,
-            [w / 2.0, 0.2],
-            0.0,
-            0.0,
-            h,
-            Kind::Wall,
-            0.35,
-        );
-        b.add_box(
-            0.2,
-            w / 2.0,
-            [0.2, w / 2.0 - 0.4],
-            0.0,
-            0.0,
-            h,
-            Kind::Wall,
-            0.35,
-        );
-        b.add_box(
-            w - 0.2,
-            w / 2.0,
-            [0.2, w / 2.0 - 0.4],
-            0.0,
-            0.0,
-            h,
-            Kind::Wall,
-            0.35,
-        );
+        b.add_gated_wall(w, gate, 2.0, 0.2, 0.2, h);
+        b.add_wall(w / 2.0, w - 0.2, [w / 2.0, 0.2], h);
+        b.add_wall(0.2, w / 2.0, [0.2, w / 2.0 - 0.4], h);
+        b.add_wall(w - 0.2, w / 2.0, [0.2, w / 2.0 - 0.4], h);
         let n = 1 + rng.below(2) as usize;
         for i in 0..n {
             let u = w * (i as f64 + 1.0) / (n as f64 + 1.0);
@@ -379,15 +339,11 @@ pub(super) fn fill_street_side(b: &mut Builder<'_>, len: f64, road_half: f64, rn
         // A low wall or a fence at the back of the sidewalk.
         let (a, z) = (rng.range(0.0, len * 0.5), rng.range(len * 0.5, len));
         if rng.chance(0.5) {
-            b.add_box(
+            b.add_wall(
                 (a + z) / 2.0,
                 road_half + SIDEWALK - 0.3,
                 [(z - a) / 2.0, 0.15],
-                0.0,
-                0.0,
                 rng.range(0.8, 2.2),
-                Kind::Wall,
-                0.35,
             );
         } else {
             b.add_fence(a, z, road_half + SIDEWALK - 0.3, rng.range(1.0, 1.6));

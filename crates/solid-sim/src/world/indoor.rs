@@ -371,15 +371,7 @@ impl World {
                 }
             }
         }
-        let grid = WorldConfig {
-            seed: c.seed,
-            blocks: nb,
-            block_pitch: pitch,
-            road_half_width: half_w,
-            slope: [0.0, 0.0],
-            repetition: 1.0,
-            cell_size: c.cell_size,
-        };
+        let grid = flat_grid(c.seed, nb, pitch, half_w, 1.0, c.cell_size);
         Ok(World::assemble(
             grid,
             Layout::Corridors(config),
@@ -513,21 +505,34 @@ impl World {
                 taken.push(f);
             }
         }
-        let grid = WorldConfig {
-            seed: c.seed,
-            blocks: 0,
-            block_pitch: c.size[0].max(c.size[1]),
-            road_half_width: 0.0,
-            slope: [0.0, 0.0],
-            repetition: 0.0,
-            cell_size: c.cell_size,
-        };
+        let pitch = c.size[0].max(c.size[1]);
+        let grid = flat_grid(c.seed, 0, pitch, 0.0, 0.0, c.cell_size);
         Ok(World::assemble(
             grid,
             Layout::Room(config),
             prims,
             Vec::new(),
         ))
+    }
+}
+
+/// The grid parameters an indoor world reports: flat ground, its own pitch and roads.
+fn flat_grid(
+    seed: u64,
+    blocks: usize,
+    block_pitch: f64,
+    road_half_width: f64,
+    repetition: f64,
+    cell_size: f64,
+) -> WorldConfig {
+    WorldConfig {
+        seed,
+        blocks,
+        block_pitch,
+        road_half_width,
+        slope: [0.0, 0.0],
+        repetition,
+        cell_size,
     }
 }
 

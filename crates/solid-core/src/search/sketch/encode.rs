@@ -39,21 +39,8 @@ pub(super) fn at(d: usize, lane: usize) -> usize {
 
 pub(super) fn check_sketch(n: usize, dim: usize, codes: usize, params: usize) -> Result<(), Error> {
     let (nc, np) = sketch_len(n, dim);
-    if codes < nc {
-        return Err(Error::BufferTooSmall {
-            buffer: "codes",
-            needed: nc,
-            got: codes,
-        });
-    }
-    if params < np {
-        return Err(Error::BufferTooSmall {
-            buffer: "params",
-            needed: np,
-            got: params,
-        });
-    }
-    Ok(())
+    Error::check_buffer("codes", nc, codes)?;
+    Error::check_buffer("params", np, params)
 }
 
 /// Encodes rows `from..n` of `rows` into the sketch buffers, which must be at least
@@ -85,17 +72,10 @@ pub fn sketch_encode(
     let params = &mut params[first * PARAMS * SKETCH_BLOCK..blocks * PARAMS * SKETCH_BLOCK];
     let block = |(b, (codes, params)): (usize, (&mut [u8], &mut [f32]))| {
         let start = (first + b) * SKETCH_BLOCK;
-        #[cfg(all(feature = "std", target_arch = "x86_64"))]
-        if std::is_x86_feature_detected!("avx2") {
-            #[allow(unsafe_code)]
-            // SAFETY: the CPU supports AVX2 (checked just above), the only requirement for
-            // calling a function compiled with `#[target_feature(enable = "avx2")]`.
-            unsafe {
-                encode_block_avx2(rows, start, from, codes, params);
-            }
-            return;
-        }
-        encode_block(rows, start, from, codes, params);
+        avx2_or!(
+            encode_block_avx2(rows, start, from, codes, params),
+            encode_block(rows, start, from, codes, params)
+        );
     };
     #[cfg(feature = "parallel")]
     if let Some(threads) = (blocks - first >= PARALLEL_BLOCKS)
@@ -126,19 +106,17 @@ pub fn sketch_encode(
 #[cfg(feature = "parallel")]
 pub(super) const PARALLEL_BLOCKS: usize = 1024;
 
-/// [`encode_block`] compiled for AVX2: the same operations in the same order (no FMA), so the
-/// same bits, with eight `f32` values per instruction.
-#[cfg(all(feature = "std", target_arch = "x86_64"))]
-#[target_feature(enable = "avx2")]
-pub(super) fn encode_block_avx2(
-    rows: Rows<'_>,
-    start: usize,
-    from: usize,
-    codes: &mut [u8],
-    params: &mut [f32],
-) {
-    encode_block(rows, start, from, codes, params);
-}
+avx2_copy!(
+    /// [`encode_block`] compiled for AVX2: the same operations in the same order (no FMA), so
+    /// the same bits, with eight `f32` values per instruction.
+    encode_block_avx2 = encode_block(
+        rows: Rows<'_>,
+        start: usize,
+        from: usize,
+        codes: &mut [u8],
+        params: &mut [f32],
+    )
+);
 
 /// Encodes the rows of the block starting at row `start` (those from `from` on): first the
 /// range of every row, then their codes, then their error bounds, so that one row's chain of
