@@ -736,14 +736,7 @@ impl LoopDetector {
         k: usize,
     ) -> Result<Vec<Candidate>, DbError> {
         let na = self.db.config().n_azimuth;
-        if a.len() != na {
-            return Err(Error::LengthMismatch {
-                what: "a_solid vs config n_azimuth",
-                left: a.len(),
-                right: na,
-            }
-            .into());
-        }
+        super::same_len("a_solid vs config n_azimuth", a.len(), na)?;
         // The map's places are all eligible, the own session's first `eligible - start`; the
         // two searches merged in the search's order (distance, then lower id) are one search.
         let start = self.session_start;

@@ -47,7 +47,7 @@ use alloc::vec::Vec;
 
 use super::clouds::Clouds;
 use super::database::Columns;
-use super::format::{is_bin_value, try_vec, MAGIC};
+use super::format::{is_bin_value, try_vec};
 use super::{Database, DbError};
 use crate::checksum::{crc32, Crc32};
 use crate::Config;
@@ -779,19 +779,8 @@ pub(super) fn encode(
 ) -> Result<(), DbError> {
     let runs = runs(db);
     let secs = sections(db, &runs);
-    let c = db.config();
     let mut head = try_vec::<u8>(FIXED + ROW * secs.len() + 4)?;
-    head.extend_from_slice(&MAGIC);
-    head.extend_from_slice(&VERSION.to_le_bytes());
-    head.extend_from_slice(&0u32.to_le_bytes());
-    for v in [c.n_range, c.n_azimuth, c.n_elevation, 0] {
-        head.extend_from_slice(&(v as u32).to_le_bytes());
-    }
-    for v in [c.fov_up, c.fov_down, c.min_range, c.max_range, c.voxel_size] {
-        head.extend_from_slice(&v.to_le_bytes());
-    }
-    head.extend_from_slice(&db.fingerprint.to_le_bytes());
-    head.extend_from_slice(&(db.len() as u64).to_le_bytes());
+    super::format::header_start(db, VERSION, &mut |b| head.extend_from_slice(b));
     head.extend_from_slice(&(secs.len() as u32).to_le_bytes());
     head.extend_from_slice(&0u32.to_le_bytes());
     for s in &secs {
