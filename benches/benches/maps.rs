@@ -21,7 +21,7 @@
 use criterion::Criterion;
 use solid_lidar::db::{Database, DetectorConfig, LoopDetector};
 use solid_lidar::{Config, Descriptor, Points, Stats};
-use solid_lidar_benches::{read_xyz, shared_dir};
+use solid_lidar_benches::{read_xyz, shared_dir, Rng};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
@@ -67,23 +67,6 @@ fn base(dir: &Path) -> Database {
     let db = det.into_database().expect("the places");
     db.save(&path).expect("saved");
     db
-}
-
-/// splitmix64, then Box–Muller: the same noise every run.
-struct Rng(u64);
-
-impl Rng {
-    fn unit(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn normal(&mut self) -> f64 {
-        let (u, v) = (self.unit().max(1e-300), self.unit());
-        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
-    }
 }
 
 /// A map of `n` noisy copies of `base`'s places, each with its place's cloud, at `path`.

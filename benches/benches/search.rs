@@ -28,7 +28,7 @@ use solid_lidar::search::{
     Neighbor, Observed, Plan, Request, Rows,
 };
 use solid_lidar::{Config, Describer, Descriptor, Points};
-use solid_lidar_benches::{kitti, read_xyz, shared_dir};
+use solid_lidar_benches::{kitti, read_xyz, shared_dir, Rng};
 use std::hint::black_box;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -43,25 +43,6 @@ const QUERIES: usize = 48;
 
 /// The loop detector's default distance threshold (`solid detect`).
 const DETECTOR_BOUND: f32 = 0.03;
-
-/// splitmix64: a small seeded generator, so that every run benchmarks the same data.
-struct Rng(u64);
-
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    fn unit(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn below(&mut self, n: usize) -> usize {
-        (self.next_u64() % n as u64) as usize
-    }
-}
 
 /// A scan as a Livox Avia at another moment would see it: only points within `fov` (half-angle,
 /// radians) of +x when given; a random yaw, a shift of up to `shift` m, a random dropout of up to
