@@ -304,7 +304,7 @@ def test_a_corrupt_inner_cloud_is_found_at_first_use(capsys: pytest.CaptureFixtu
     step = det.detect(open_dataset(drive)[3])
     place3 = next(c for c in step.candidates if c.id == 3)
     assert place3.rejection == "place 3: its stored cloud is corrupt or unreadable" and not place3.accepted
-    assert step.accepted is None or step.accepted.candidate != 3
+    assert step.loop is None or step.loop.candidate != 3
     code, out, err = run(capsys, "map", "info", str(bad))
     assert code == 0 and f"{len(db)} places" in out, err
     code, _, err = run(capsys, "map", "merge", str(tmp_path / "m.soliddb"), str(bad), "-o", str(tmp_path / "merged.soliddb"))
