@@ -102,8 +102,9 @@ pub struct Detection {
 pub struct LoopDetector {
     /// The prior map (ids `0..session_start`): shared, never changed by the detector.
     map: Arc<Database>,
-    /// The places this detector added (ids from `session_start` on, `session_start` less here).
-    db: Database,
+    /// The places this detector added (ids from `session_start` on, `session_start` less here;
+    /// look a place up by its id through [`LoopDetector::part`]).
+    own: Database,
     config: DetectorConfig,
     /// Session of the scans this detector adds.
     session: u32,
@@ -239,7 +240,7 @@ impl LoopDetector {
         Ok(LoopDetector {
             session_start: map.len(),
             map,
-            db,
+            own: db,
             config: detector,
             session,
             travelled: Vec::new(),
@@ -260,12 +261,12 @@ impl LoopDetector {
 
     /// The places the detector added, in order (place `session_start() + i` is entry `i`).
     pub fn places(&self) -> &Database {
-        &self.db
+        &self.own
     }
 
     /// Number of places: the prior map's and every scan added so far.
     pub fn len(&self) -> usize {
-        self.session_start + self.db.len()
+        self.session_start + self.own.len()
     }
 
     /// `true` when the detector has no place at all.
@@ -280,7 +281,7 @@ impl LoopDetector {
     /// [`DbError::OutOfMemory`].
     pub fn to_database(&self) -> Result<Database, DbError> {
         let mut all = Database::clone(&self.map);
-        all.merge(&self.db)?;
+        all.merge(&self.own)?;
         Ok(all)
     }
 
@@ -290,7 +291,7 @@ impl LoopDetector {
     /// # Errors
     /// As [`LoopDetector::to_database`].
     pub fn shared_database(&self) -> Result<Arc<Database>, DbError> {
-        if self.db.is_empty() {
+        if self.own.is_empty() {
             return Ok(Arc::clone(&self.map));
         }
         self.to_database().map(Arc::new)
@@ -303,14 +304,14 @@ impl LoopDetector {
     /// As [`LoopDetector::to_database`].
     pub fn into_database(self) -> Result<Database, DbError> {
         let mut all = Arc::try_unwrap(self.map).unwrap_or_else(|m| Database::clone(&m));
-        all.merge(&self.db)?;
+        all.merge(&self.own)?;
         Ok(all)
     }
 
     /// The part of the detector's places that holds place `id`, and its id there.
     fn part(&self, id: u32) -> (&Database, u32) {
         match (id as usize).checked_sub(self.session_start) {
-            Some(own) => (&self.db, own as u32),
+            Some(own) => (&self.own, own as u32),
             None => (&self.map, id),
         }
     }
@@ -389,7 +390,7 @@ impl LoopDetector {
         timestamp: f64,
         pose: Option<[f64; 12]>,
     ) -> Result<Detection, DbError> {
-        self.db.check_fingerprint(d.fingerprint)?;
+        self.own.check_fingerprint(d.fingerprint)?;
         self.no_verification("detect")?;
         let step = self.step(timestamp, pose, self.trail)?;
         self.detect_checked(d, None, step)
@@ -417,7 +418,7 @@ impl LoopDetector {
     /// # Errors
     /// As [`crate::describe`] and [`PreparedCloud::new`], as [`DbError::Core`].
     pub fn prepare_scan<T: Coord>(&self, points: Points<'_, T>) -> Result<Scan, DbError> {
-        let descriptor = crate::Describer::new(*self.db.config())?.describe(points)?;
+        let descriptor = crate::Describer::new(*self.own.config())?.describe(points)?;
         let cloud = self.prepare_cloud(points)?;
         Ok(Scan { descriptor, cloud })
     }
@@ -527,7 +528,7 @@ impl LoopDetector {
         // The time and path checks need the previous scans of this batch.
         let mut trail = self.trail;
         for (i, d) in descriptors.iter().enumerate() {
-            self.db.check_fingerprint(d.fingerprint)?;
+            self.own.check_fingerprint(d.fingerprint)?;
             let t = timestamps.get(i).copied().unwrap_or(f64::NAN);
             let p = poses.get(i).copied().flatten();
             let s = self.step(t, p, trail)?;
@@ -566,7 +567,7 @@ impl LoopDetector {
         timestamp: f64,
         pose: Option<[f64; 12]>,
     ) -> Result<Vec<Candidate>, DbError> {
-        self.db.check_fingerprint(d.fingerprint)?;
+        self.own.check_fingerprint(d.fingerprint)?;
         let step = self.step(timestamp, pose, self.trail)?;
         let eligible = self.eligible(&step)?;
         self.rank(&d.r, &d.a, eligible, k)
@@ -578,7 +579,7 @@ impl LoopDetector {
     /// # Errors
     /// [`DbError::ConfigMismatch`] for a descriptor made with another config.
     pub fn query(&self, d: &Descriptor) -> Result<Option<Loop>, DbError> {
-        self.db.check_fingerprint(d.fingerprint)?;
+        self.own.check_fingerprint(d.fingerprint)?;
         self.no_verification("query")?;
         let cands = self.rank(&d.r, &d.a, self.len(), self.config.top_k)?;
         Ok(self.accept(&cands, self.len() as u32))
@@ -591,7 +592,7 @@ impl LoopDetector {
     /// As [`LoopDetector::query`].
     pub fn query_scan(&mut self, scan: &Scan) -> Result<Option<Loop>, DbError> {
         let d = &scan.descriptor;
-        self.db.check_fingerprint(d.fingerprint)?;
+        self.own.check_fingerprint(d.fingerprint)?;
         let mut cands = self.rank(&d.r, &d.a, self.len(), self.config.top_k)?;
         if self.config.verify.enabled {
             self.verify_candidates(&d.a, scan.cloud.as_ref(), None, &mut cands)?;
@@ -636,7 +637,7 @@ impl LoopDetector {
         let c = &self.config;
         Ok(start
             + visible_own_places(
-                self.db.len(),
+                self.own.len(),
                 c.exclude_frames,
                 c.exclude_meters,
                 c.exclude_seconds,
@@ -685,10 +686,10 @@ impl LoopDetector {
         self.latest_time
             .try_reserve(1)
             .map_err(|_| DbError::OutOfMemory)?;
-        let id = self
-            .db
-            .add_with_cloud(d, self.session, s.timestamp, s.pose, stored.as_deref())?
-            + self.session_start as u32;
+        let id =
+            self.own
+                .add_with_cloud(d, self.session, s.timestamp, s.pose, stored.as_deref())?
+                + self.session_start as u32;
         self.travelled.push(s.trail.travelled);
         self.latest_time.push(s.trail.clock);
         self.trail = s.trail;
@@ -735,7 +736,7 @@ impl LoopDetector {
         eligible: usize,
         k: usize,
     ) -> Result<Vec<Candidate>, DbError> {
-        let na = self.db.config().n_azimuth;
+        let na = self.own.config().n_azimuth;
         super::same_len("a_solid vs config n_azimuth", a.len(), na)?;
         // The map's places are all eligible, the own session's first `eligible - start`; the
         // two searches merged in the search's order (distance, then lower id) are one search.
@@ -749,7 +750,7 @@ impl LoopDetector {
         let mut found = self.map.search_with(r, &opts(0))?;
         let own = eligible - start;
         if own > 0 {
-            let mine = self.db.search_with(r, &opts(self.db.len() - own))?;
+            let mine = self.own.search_with(r, &opts(self.own.len() - own))?;
             found.extend(mine.into_iter().map(|mut nb| {
                 nb.id += start as u32;
                 nb

@@ -605,7 +605,7 @@ mod tests {
             stats: Stats::default(),
             fingerprint: det.map().config().fingerprint(),
         };
-        det.db
+        det.own
             .add_with_cloud(&d, det.session, f64::NAN, q.pose, None)
             .unwrap();
         det.travelled.push(12.0);
