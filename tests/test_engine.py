@@ -222,7 +222,8 @@ def test_a_detector_shares_its_map_instead_of_copying_it() -> None:
     # An add to the database afterwards makes it its own copy: the detector does not see it.
     db.add(solid.Descriptor(r[9], a[9], cfg))
     assert len(db) == n + 1 and len(det.map) == n and len(det) == n + 2
-    assert det.query(solid.Descriptor(r[9], a[9], cfg)).candidate == 9
+    found = det.query(solid.Descriptor(r[9], a[9], cfg))
+    assert found is not None and found.candidate == 9
 
 
 def test_numpy_export(cfg: solid.SolidConfig, db: solid.Database) -> None:
