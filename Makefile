@@ -210,6 +210,8 @@ readme-speed: wheel
 	mkdir -p benches/results
 	$(PY) benches/python_baseline.py --json benches/results/describe.json
 	$(PY) benches/search_peers.py --json benches/results/search.json
+	SOLID_BENCH_MAP_SIZES=1000,10000,100000,1000000 SOLID_BENCH_JSON=$(CURDIR)/benches/results/maps.json \
+		cargo bench -p solid-lidar-benches --bench maps
 	$(PY) tools/readme_speed.py
 
 ## Rewrite the README's hku1 results (SOLiD and Scan Context, 3 m and 5 m) from fresh `solid eval` runs.

@@ -33,6 +33,10 @@ class Database:
     search may wait). A process forked while another thread adds, merges or builds the index finds
     its copy locked (as with any lock held across `fork`): fork while no thread does, or use
     `multiprocessing`'s `forkserver` or `spawn` start method.
+
+    `LoopDetector.from_database` shares the places with the database instead of copying them:
+    whichever changes them first (an add, a merge, `build_index`, a metadata change on the
+    database) makes its own copy then.
     """
     def __new__(cls, cfg: SolidConfig) -> Database:
         """`Database(cfg)`: an empty database.

@@ -166,11 +166,13 @@ def test_a_bulk_add_leaves_the_index_to_the_searches_that_pay_for_it() -> None:
     mixed.add_batch(r[:1], a[:1])
     mixed.search_batch(r[:100], k=1)
     assert mixed.index_pending() == 0
-    # A detector over a database builds its pending index first (it searches on every scan).
+    # A detector over a database builds its pending index first (it searches on every scan), in
+    # the database it shares rather than in a copy.
     waiting = solid.Database(cfg)
     waiting.add_batch(r, a)
+    assert waiting.index_pending() == n
     detector = solid.LoopDetector.from_database(waiting)
-    assert detector.database.index_pending() == 0 and waiting.index_pending() == n
+    assert detector.map.index_pending() == 0 and waiting.index_pending() == 0
     # Threads searching while one of them builds the index all find what brute force finds.
     shared = solid.Database(cfg)
     shared.add_batch(r, a)
@@ -190,6 +192,38 @@ def test_a_bulk_add_leaves_the_index_to_the_searches_that_pay_for_it() -> None:
         t.join()
     assert errors == []
     assert shared.index_pending() == 0
+
+
+def resident_bytes() -> int:
+    """The process's resident memory (Linux)."""
+    pages = int(Path("/proc/self/statm").read_text().split()[1])
+    return pages * 4096
+
+
+@pytest.mark.skipif(not Path("/proc/self/statm").exists(), reason="reads /proc/self/statm (Linux)")
+def test_a_detector_shares_its_map_instead_of_copying_it() -> None:
+    n = 100_000
+    cfg, r, a = random_places(n, 3)
+    db = solid.Database(cfg)
+    db.add_batch(r, a, index=True)
+    before = resident_bytes()
+    det = solid.LoopDetector.from_database(db, verify=False, exclude_recent=0, top_k=3)
+    # A copy of the places would take as much memory again as the database holds.
+    grew = resident_bytes() - before
+    assert grew < db.memory_bytes() // 8, (grew, db.memory_bytes())
+    assert len(det) == len(det.map) == len(det.database) == n
+    # The map's places are candidates; the detector's scans are its own, the database stays as it was.
+    place = solid.Descriptor(r[7], a[7], cfg)
+    assert det.add(place) is not None and det.detect(place).candidates[0].id in (7, n)
+    assert len(det) == n + 2 and len(db) == len(det.map) == n
+    everything = det.database
+    assert len(everything) == n + 2 and everything.sessions[n:].tolist() == [det.session] * 2
+    assert np.array_equal(everything.r[n], r[7])
+    # An add to the database afterwards makes it its own copy: the detector does not see it.
+    db.add(solid.Descriptor(r[9], a[9], cfg))
+    assert len(db) == n + 1 and len(det.map) == n and len(det) == n + 2
+    found = det.query(solid.Descriptor(r[9], a[9], cfg))
+    assert found is not None and found.candidate == 9
 
 
 def test_numpy_export(cfg: solid.SolidConfig, db: solid.Database) -> None:

@@ -299,6 +299,12 @@ def test_a_corrupt_inner_cloud_is_found_at_first_use(capsys: pytest.CaptureFixtu
     assert len(loaded) == len(db) and loaded.cloud(2) == db.cloud(2)
     with pytest.raises(solid.DatabaseError, match="cloud of place 3"):
         loaded.cloud(3)
+    # A detector step that meets it among its candidates says so, instead of leaving it unverified.
+    det = solid.LoopDetector.from_database(loaded, exclude_recent=0)
+    step = det.detect(open_dataset(drive)[3])
+    place3 = next(c for c in step.candidates if c.id == 3)
+    assert place3.rejection == "place 3: its stored cloud is corrupt or unreadable" and not place3.accepted
+    assert step.loop is None or step.loop.candidate != 3
     code, out, err = run(capsys, "map", "info", str(bad))
     assert code == 0 and f"{len(db)} places" in out, err
     code, _, err = run(capsys, "map", "merge", str(tmp_path / "m.soliddb"), str(bad), "-o", str(tmp_path / "merged.soliddb"))

@@ -1,5 +1,7 @@
 """Maps at scale: file size, load time and memory, a detector on the map, `map info` and the
 verified step, for maps of 1k to 1M places in the current file format (3) and the previous one (2).
+The same figures from Rust: `cargo bench -p solid-lidar-benches --bench maps` (benches/benches/maps.rs,
+which reuses this tool's files given `SOLID_BENCH_MAP_DIR`).
 
     PYTHONPATH=python python tools/map_scale.py [--sizes 1000,10000,100000] [--v2-up-to 100000]
         [--shared /work/shared] [--dir /tmp/map_scale]
@@ -9,7 +11,7 @@ copied with 2 % multiplicative noise on every descriptor bin (a session of 314 p
 a pose and a time per place), so that every map holds real descriptors and real clouds. Each
 figure is measured in a fresh process: the RSS figures are the process's resident memory after
 `Database.load`, then after `LoopDetector.from_database` (a verifying detector with the preset's
-defaults; it copies the database and builds its search index, which a load leaves to the
+defaults; it shares the database and builds its search index, which a load leaves to the
 searches), above the process before the load (Python, numpy and the query scans). The verified
 step is the median wall time of a full step (describe, prepare the cloud, search, verify the best
 candidates) for 20 hku1 scans, which match their own copies in the map. `map info` is

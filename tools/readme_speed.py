@@ -8,8 +8,10 @@ Usage:
 The benchmarks time solid and its peers in one run and write every figure they print as JSON:
 `benches/python_baseline.py --json benches/results/describe.json` (describe and describe_batch
 against the numpy baseline) and `benches/search_peers.py --json benches/results/search.json`
-(search, batch search, bulk add and memory against faiss-cpu and numpy). This script turns those
-two files into the tables between `<!-- speed:start -->` and `<!-- speed:end -->`; nothing in
+(search, batch search, bulk add and memory against faiss-cpu and numpy), and
+`SOLID_BENCH_JSON=benches/results/maps.json cargo bench -p solid-lidar-benches --bench maps`
+(maps of 1k to 1M places: file, load, memory, detector, verified step, `map info`). This script
+turns those files into the tables between `<!-- speed:start -->` and `<!-- speed:end -->`; nothing in
 that block is typed by hand, and a test checks that it is what the committed JSON gives.
 """
 
@@ -228,8 +230,33 @@ def slower(doc: dict[str, Any]) -> str:
     return "Where solid was slower than its peer in this run: " + "; ".join(cases) + "."
 
 
+def maps_block(doc: dict[str, Any]) -> list[str]:
+    """One row per map file: the current format (3) beside the previous one (2) where measured."""
+    lines = [
+        "",
+        f"Maps at scale, from `{doc['command']}` (solid {doc['solid']}; {doc['cpu']}, {doc['cores']} cores): maps of the "
+        "314 HKU Avia keyframes with their compact clouds, copied with 2 % noise on every descriptor bin, a pose and a "
+        "time per place; each figure in a fresh process. Memory is the resident set above the process's before the "
+        "load; the detector is a verifying one over the map (it shares the map, and builds the search index that a "
+        "format-3 load leaves to the searches; a format-2 load builds it); the verified step is the median of 20 full steps (describe, prepare, search, verify, add).",
+        "",
+        "| places | format | bytes a place (beside its cloud) | load | memory after load | + a detector | verified step | `map info` |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for r in doc["maps"]:
+        m, n = r["measured"], r["places"]
+        lines.append(
+            f"| {n:,} | {r['version']} | {r['file_bytes'] / n:,.0f} ({(r['file_bytes'] - r['cloud_bytes']) / n:,.0f}) | "
+            f"{m['load_s']:.2f} s | {m['rss_load_mib']:,.0f} MiB | {m['rss_detector_mib']:,.0f} MiB | "
+            f"{m['step_ms']:.0f} ms | {ms(r['info_s'])} |"
+        )
+    return lines
+
+
 def block() -> str:
-    return "\n".join(describe_block(load("describe.json")) + search_block(load("search.json")))
+    return "\n".join(
+        describe_block(load("describe.json")) + search_block(load("search.json")) + maps_block(load("maps.json"))
+    )
 
 
 def main() -> int:

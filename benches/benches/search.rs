@@ -28,9 +28,9 @@ use solid_lidar::search::{
     Neighbor, Observed, Plan, Request, Rows,
 };
 use solid_lidar::{Config, Describer, Descriptor, Points};
-use solid_lidar_benches::{kitti, shared_dir};
+use solid_lidar_benches::{kitti, read_xyz, shared_dir, Rng};
 use std::hint::black_box;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 const DIM: usize = 40;
@@ -43,73 +43,6 @@ const QUERIES: usize = 48;
 
 /// The loop detector's default distance threshold (`solid detect`).
 const DETECTOR_BOUND: f32 = 0.03;
-
-/// splitmix64: a small seeded generator, so that every run benchmarks the same data.
-struct Rng(u64);
-
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    fn unit(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn below(&mut self, n: usize) -> usize {
-        (self.next_u64() % n as u64) as usize
-    }
-}
-
-fn f32_records(bytes: &[u8], record: usize) -> Vec<f32> {
-    bytes
-        .chunks_exact(record)
-        .flat_map(|r| {
-            (0..3).map(move |i| f32::from_le_bytes(r[4 * i..4 * i + 4].try_into().unwrap()))
-        })
-        .collect()
-}
-
-/// x, y, z of a shared scan (the formats of shared/data/README.md).
-fn read_xyz(path: &Path) -> Vec<f32> {
-    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    let name = path.to_string_lossy();
-    if name.ends_with(".pcd") {
-        let marker = b"DATA binary\n";
-        let at = bytes
-            .windows(marker.len())
-            .position(|w| w == marker)
-            .expect("binary PCD");
-        let header = std::str::from_utf8(&bytes[..at]).unwrap();
-        let field = |key: &str| -> Vec<&str> {
-            header
-                .lines()
-                .find(|l| l.starts_with(key))
-                .unwrap()
-                .split_whitespace()
-                .skip(1)
-                .collect()
-        };
-        let rec = 4 * field("FIELDS").len();
-        let n: usize = field("POINTS")[0].parse().unwrap();
-        f32_records(&bytes[at + marker.len()..at + marker.len() + n * rec], rec)
-    } else if name.contains("helipr_avia") {
-        f32_records(&bytes, 19)
-    } else if name.contains("nclt") {
-        bytes
-            .chunks_exact(8)
-            .flat_map(|r| {
-                (0..3).map(move |i| {
-                    (f64::from(u16::from_le_bytes([r[2 * i], r[2 * i + 1]])) * 0.005 - 100.0) as f32
-                })
-            })
-            .collect()
-    } else {
-        f32_records(&bytes, 16)
-    }
-}
 
 /// A scan as a Livox Avia at another moment would see it: only points within `fov` (half-angle,
 /// radians) of +x when given; a random yaw, a shift of up to `shift` m, a random dropout of up to

@@ -1040,6 +1040,10 @@ class Database:
     search may wait). A process forked while another thread adds, merges or builds the index finds
     its copy locked (as with any lock held across `fork`): fork while no thread does, or use
     `multiprocessing`'s `forkserver` or `spawn` start method.
+
+    `LoopDetector.from_database` shares the places with the database instead of copying them:
+    whichever changes them first (an add, a merge, `build_index`, a metadata change on the
+    database) makes its own copy then.
     """
     def __new__(cls, cfg: SolidConfig) -> Database:
         """`Database(cfg)`: an empty database.
@@ -1474,7 +1478,7 @@ class Candidate:
         """Whether its registration passed the gate."""
     @property
     def rejection(self) -> str | None:
-        """Why the gate, or the detector's checks after it (odometry, uniqueness, support), rejected its registration (None when accepted or not registered)."""
+        """Why the gate, or the detector's checks after it (odometry, uniqueness, support), rejected its registration (None when accepted or not registered); a candidate whose stored cloud is corrupt or unreadable is not registered and says so, naming the place ("place 12: its stored cloud is corrupt or unreadable")."""
     @property
     def pose(self) -> npt.NDArray[np.float64] | None:
         """`T_query_candidate` (4, 4) of its registration (None when not registered)."""
@@ -1574,9 +1578,11 @@ class LoopDetector:
         verify: bool | None = None,
         detector: DetectorConfig | None = None,
     ) -> LoopDetector:
-        """A detector over a copy of an existing database (a prior map, other sessions): its places
-        are candidates from the first scan on and are never excluded as recent; the detector's own
-        scans get the session after the largest one in the database.
+        """A detector over an existing database (a prior map, other sessions), sharing its places
+        instead of copying them: they are candidates from the first scan on and are never excluded
+        as recent; the detector's own scans get the session after the largest one in the database
+        and are kept by the detector, apart from `database`, which stays as it was (an add to it
+        afterwards does not reach the detector and makes it its own copy first).
 
         Args:
             database: The map; its configuration becomes the detector's.
@@ -1750,7 +1756,14 @@ class LoopDetector:
     def __len__(self) -> int: ...
     @property
     def database(self) -> Database:
-        """A copy of the database: the prior map and every scan added so far."""
+        """Every place (the prior map and every scan added so far) as a Database of its own: the
+        prior map itself, shared, while the detector has added no scan; after that a copy of the
+        descriptors made by this call (a loaded map's clouds stay in its file). Later steps do not
+        reach it."""
+    @property
+    def map(self) -> Database:
+        """The prior map the detector was made over (`from_database`'s database as it was then;
+        empty for a new detector), shared with the detector rather than copied."""
     @property
     def config(self) -> DetectorConfig:
         """The detector's parameters."""

@@ -77,6 +77,8 @@ typedef struct SolidConfig SolidConfig;
  * A growable database of places with exact search at every size.
  *
  * Threads: may be shared; searches run in parallel, an add waits for them and runs alone.
+ * A detector made from it shares its places without copying them; an add after that makes
+ * the database its own copy first (the detector keeps the places it was made over).
  */
 typedef struct SolidDatabase SolidDatabase;
 
@@ -534,9 +536,10 @@ enum SolidStatus solid_detector_new(const struct SolidConfig *config,
                                     struct SolidDetector **out_detector);
 
 /**
- * Makes a detector over a copy of `database` (a prior map, other sessions): its places are
- * candidates from the first scan on and never excluded as recent; the detector's scans form a
- * new session.
+ * Makes a detector over `database` (a prior map, other sessions), sharing its places without
+ * copying them: they are candidates from the first scan on and never excluded as recent; the
+ * detector's scans form a new session and are kept by the detector, apart from `database`,
+ * which stays as it was (an add to it afterwards does not reach the detector).
  */
 enum SolidStatus solid_detector_from_database(const struct SolidDatabase *database,
                                               const struct SolidDetectorConfig *detector_config,
@@ -612,7 +615,7 @@ enum SolidStatus solid_detector_entry(const struct SolidDetector *detector,
 /**
  * Writes the detector's database (every place, with the clouds of verification) to `path`, as
  * `solid_database_save`: a map that `solid_database_load` and `solid_detector_from_database`
- * read back.
+ * read back. The prior map's descriptors are copied for the time of the call.
  */
 enum SolidStatus solid_detector_save(const struct SolidDetector *detector, const char *path);
 

@@ -2,7 +2,7 @@
 //! exact k-nearest search, and the checksummed file format.
 
 use std::ffi::c_char;
-use std::sync::RwLock;
+use std::sync::{Arc, RwLock};
 
 use solid_lidar::db::{Database, Method};
 
@@ -14,14 +14,16 @@ use crate::{Failure, SolidStatus};
 /// A growable database of places with exact search at every size.
 ///
 /// Threads: may be shared; searches run in parallel, an add waits for them and runs alone.
+/// A detector made from it shares its places without copying them; an add after that makes
+/// the database its own copy first (the detector keeps the places it was made over).
 pub struct SolidDatabase {
-    pub(crate) db: RwLock<Database>,
+    pub(crate) db: RwLock<Arc<Database>>,
 }
 
 impl From<Database> for SolidDatabase {
     fn from(db: Database) -> SolidDatabase {
         SolidDatabase {
-            db: RwLock::new(db),
+            db: RwLock::new(Arc::new(db)),
         }
     }
 }
@@ -112,7 +114,7 @@ pub unsafe extern "C" fn solid_database_add(
         let d = nonnull(database, "database")?;
         let (r, a) = (slice(r, r_len, "r")?, slice(a, a_len, "a")?);
         let pose = optional_pose(pose, "pose")?;
-        let new = write(&d.db)?.add_vectors(r, a, session, timestamp, pose)?;
+        let new = Arc::make_mut(&mut *write(&d.db)?).add_vectors(r, a, session, timestamp, pose)?;
         if let Some(id) = id.as_mut() {
             *id = new;
         }
@@ -163,30 +165,35 @@ pub unsafe extern "C" fn solid_database_entry(
     guard("solid_database_entry", || {
         let d = nonnull(database, "database")?;
         let db = read(&d.db)?;
-        entry(&db, id, session, timestamp, pose)
+        let place = |i: u32| {
+            let k = i as usize;
+            (db.sessions()[k], db.timestamps()[k], db.pose(i))
+        };
+        entry(db.len(), id, place, session, timestamp, pose)
     })
 }
 
-/// Writes what `db` holds about entry `id` (see [`solid_database_entry`]).
+/// Writes what a database of `len` places holds about place `id` (see
+/// [`solid_database_entry`]): `place(id)` gives its session, timestamp and pose.
 pub(crate) unsafe fn entry(
-    db: &Database,
+    len: usize,
     id: u32,
+    place: impl FnOnce(u32) -> (u32, f64, Option<[f64; 12]>),
     session: *mut u32,
     timestamp: *mut f64,
     pose: *mut f64,
 ) -> Result<(), Failure> {
-    let i = id as usize;
-    if i >= db.len() {
+    if id as usize >= len {
         return Err(Failure::arg(format!(
-            "id {id} out of range: the database has {} entries",
-            db.len()
+            "id {id} out of range: the database has {len} entries"
         )));
     }
     let (s, t) = (out(session, "session")?, out(timestamp, "timestamp")?);
     let p = slice_mut(pose, if pose.is_null() { 0 } else { 16 }, "pose")?;
-    (*s, *t) = (db.sessions()[i], db.timestamps()[i]);
+    let (place_session, place_time, place_pose) = place(id);
+    (*s, *t) = (place_session, place_time);
     if !p.is_empty() {
-        match db.pose(id) {
+        match place_pose {
             Some(m) => {
                 p[..12].copy_from_slice(&m);
                 p[12..].copy_from_slice(&[0.0, 0.0, 0.0, 1.0]);

@@ -4,9 +4,9 @@
 //! `T_query_candidate` with an information matrix for a pose graph.
 
 use std::ffi::c_char;
-use std::sync::RwLock;
+use std::sync::{Arc, RwLock};
 
-use solid_lidar::db::{Loop, LoopDetector, Scan};
+use solid_lidar::db::{Database, Loop, LoopDetector, Scan};
 
 use crate::config::{SolidConfig, SolidDetectorConfig};
 use crate::database::{entry, optional_pose, SolidDatabase};
@@ -123,9 +123,10 @@ pub unsafe extern "C" fn solid_detector_new(
     })
 }
 
-/// Makes a detector over a copy of `database` (a prior map, other sessions): its places are
-/// candidates from the first scan on and never excluded as recent; the detector's scans form a
-/// new session.
+/// Makes a detector over `database` (a prior map, other sessions), sharing its places without
+/// copying them: they are candidates from the first scan on and never excluded as recent; the
+/// detector's scans form a new session and are kept by the detector, apart from `database`,
+/// which stays as it was (an add to it afterwards does not reach the detector).
 #[no_mangle]
 pub unsafe extern "C" fn solid_detector_from_database(
     database: *const SolidDatabase,
@@ -137,11 +138,21 @@ pub unsafe extern "C" fn solid_detector_from_database(
         out_detector,
         "out_detector",
         || {
-            let db = read(&nonnull(database, "database")?.db)?.clone();
             let dcfg = nonnull(detector_config, "detector_config")?.cfg;
-            Ok(LoopDetector::with_database(db, dcfg)?.into())
+            let map = shared_indexed(nonnull(database, "database")?)?;
+            Ok(LoopDetector::with_map(map, dcfg)?.into())
         },
     )
+}
+
+/// The database's places to share with a detector, its index built first in place (a detector
+/// searches on every step), so that the detector does not copy them to build it.
+fn shared_indexed(d: &SolidDatabase) -> Result<Arc<Database>, Failure> {
+    let mut db = write(&d.db)?;
+    if db.index_pending() > 0 {
+        Arc::make_mut(&mut db).build_index()?;
+    }
+    Ok(Arc::clone(&db))
 }
 
 /// Releases a detector (NULL: nothing).
@@ -249,7 +260,7 @@ pub unsafe extern "C" fn solid_detector_len(
     len: *mut usize,
 ) -> SolidStatus {
     guard("solid_detector_len", || {
-        let n = read(&nonnull(detector, "detector")?.det)?.database().len();
+        let n = read(&nonnull(detector, "detector")?.det)?.len();
         put(len, "len", n)
     })
 }
@@ -281,13 +292,17 @@ pub unsafe extern "C" fn solid_detector_entry(
 ) -> SolidStatus {
     guard("solid_detector_entry", || {
         let det = read(&nonnull(detector, "detector")?.det)?;
-        entry(det.database(), id, session, timestamp, pose)
+        let place = |i: u32| {
+            let (s, t) = det.entry(i);
+            (s, t, det.pose(i))
+        };
+        entry(det.len(), id, place, session, timestamp, pose)
     })
 }
 
 /// Writes the detector's database (every place, with the clouds of verification) to `path`, as
 /// `solid_database_save`: a map that `solid_database_load` and `solid_detector_from_database`
-/// read back.
+/// read back. The prior map's descriptors are copied for the time of the call.
 #[no_mangle]
 pub unsafe extern "C" fn solid_detector_save(
     detector: *const SolidDetector,
@@ -295,7 +310,7 @@ pub unsafe extern "C" fn solid_detector_save(
 ) -> SolidStatus {
     guard("solid_detector_save", || {
         let det = read(&nonnull(detector, "detector")?.det)?;
-        det.database().save(string(path, "path")?)?;
+        det.to_database()?.save(string(path, "path")?)?;
         Ok(())
     })
 }

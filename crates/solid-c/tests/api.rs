@@ -343,6 +343,56 @@ fn database_adds_searches_saves_and_loads() {
             solid_database_entry(back, 5, &mut session, &mut t, null_mut()),
             SolidStatus::InvalidArgument
         );
+        // A detector over the map shares its places: its scan follows them, the map stays as it
+        // was, and an add to the map afterwards does not reach the detector.
+        let (mut dc, mut det) = (null_mut(), null_mut());
+        solid_detector_config_new(c("hdl64").as_ptr(), &mut dc);
+        solid_detector_config_set(dc, c("verify").as_ptr(), 0.0);
+        assert_eq!(
+            solid_detector_from_database(back, dc, &mut det),
+            SolidStatus::Ok
+        );
+        let mut lp = std::mem::MaybeUninit::<SolidLoop>::uninit();
+        let mut found = false;
+        let scan = room(0.0);
+        let s = solid_detector_add(
+            det,
+            &points(&scan),
+            7.0,
+            null(),
+            lp.as_mut_ptr(),
+            &mut found,
+        );
+        assert_eq!(s, SolidStatus::Ok, "{}", last_error());
+        solid_detector_len(det, &mut n);
+        assert_eq!(n, 6);
+        solid_database_len(back, &mut n);
+        assert_eq!(n, 5);
+        solid_detector_entry(det, 2, &mut session, &mut t, pose.as_mut_ptr());
+        assert_eq!((session, t, pose[3]), (0, 2.0, 2.0));
+        solid_detector_entry(det, 5, &mut session, &mut t, null_mut());
+        assert_eq!((session, t), (1, 7.0));
+        let (r, a) = ([1f32; 40], [1f32; 60]);
+        let s = solid_database_add(
+            back,
+            r.as_ptr(),
+            40,
+            a.as_ptr(),
+            60,
+            0,
+            8.0,
+            null(),
+            null_mut(),
+        );
+        assert_eq!(s, SolidStatus::Ok);
+        solid_database_len(back, &mut n);
+        assert_eq!(n, 6);
+        solid_detector_len(det, &mut n);
+        assert_eq!(n, 6);
+        solid_detector_entry(det, 5, &mut session, &mut t, null_mut());
+        assert_eq!((session, t), (1, 7.0));
+        solid_detector_free(det);
+        solid_detector_config_free(dc);
         solid_database_free(back);
         std::fs::write(dir.join("junk"), b"not a database").unwrap();
         let junk = c(dir.join("junk").to_str().unwrap());

@@ -34,7 +34,7 @@ fn loop_detector_finds_revisits_after_the_exclusion_window() {
     assert_eq!(det.add(&again, 10.0).unwrap(), Some(found));
     // A revisit of the most recent scan is inside the exclusion window: no loop.
     assert_eq!(det.add(&desc(&c, 9), 11.0).unwrap(), None);
-    assert_eq!(det.database().len(), 12);
+    assert_eq!(det.len(), 12);
     for bad in [
         DetectorConfig {
             threshold: f64::NAN,
@@ -153,14 +153,14 @@ fn detector_excludes_by_frames_metres_and_seconds_within_its_own_session() {
     det.detect(&desc(&c, 0), 5.0, None).unwrap();
     assert!(det.detect(&desc(&c, 1), 4.0, None).is_err());
     assert!(det.detect(&desc(&c, 1), f64::INFINITY, None).is_err());
-    assert_eq!(det.database().len(), 1);
+    assert_eq!(det.len(), 1);
     // A scan without a time is not excluded by seconds.
     assert_eq!(
         det.detect(&desc(&c, 1), f64::NAN, None).unwrap().eligible,
         1
     );
     det.detect(&desc(&c, 1), 5.5, None).unwrap();
-    assert_eq!(det.database().len(), 3);
+    assert_eq!(det.len(), 3);
     // A pose that is not a rotation is refused.
     let mut skew = pose_at(0.0);
     skew[1] = 0.5;
@@ -168,7 +168,7 @@ fn detector_excludes_by_frames_metres_and_seconds_within_its_own_session() {
     // detect_many checks everything first: a bad timestamp in the middle adds nothing.
     let ds: Vec<Descriptor> = (0..4).map(|i| desc(&c, i)).collect();
     assert!(det.detect_many(&ds, &[6.0, 7.0, 3.0, 8.0], &[]).is_err());
-    assert_eq!(det.database().len(), 3);
+    assert_eq!(det.len(), 3);
     let steps = det.detect_many(&ds, &[6.0, 7.0, 8.0, 9.0], &[]).unwrap();
     assert_eq!(
         steps.iter().map(|s| s.query).collect::<Vec<_>>(),
@@ -202,7 +202,7 @@ fn a_prior_map_is_never_excluded_and_candidates_are_ranked() {
         .windows(2)
         .all(|w| w[0].distance <= w[1].distance || det.config().rerank));
     assert_eq!(step.accepted.map(|l| l.candidate), Some(2));
-    assert_eq!(det.database().sessions()[5], 4);
+    assert_eq!(det.entry(5).0, 4);
     // Its own scans are excluded: the next one sees the map only.
     let step = det.detect(&desc(&c, 2), 101.0, None).unwrap();
     assert_eq!(step.eligible, 5);
@@ -210,7 +210,7 @@ fn a_prior_map_is_never_excluded_and_candidates_are_ranked() {
     let cands = det.candidates(&desc(&c, 3), 2, 102.0, None).unwrap();
     assert_eq!(cands.len(), 2);
     assert_eq!(cands[0].id, 3);
-    assert_eq!(det.database().len(), 7);
+    assert_eq!(det.len(), 7);
 }
 
 #[test]

@@ -597,5 +597,5 @@ fn the_index_is_due_when_the_searches_have_scanned_what_building_costs() {
 
     // A detector searches on every step: it builds a pending index first.
     let det = LoopDetector::with_database(small, unverified()).unwrap();
-    assert_eq!(det.database().index_pending(), 0);
+    assert_eq!(det.map().index_pending(), 0);
 }

@@ -3,7 +3,7 @@
 //! error mapping only; the search, and when to build its index, live in the core.
 
 use std::path::PathBuf;
-use std::sync::{PoisonError, RwLock, RwLockReadGuard, RwLockWriteGuard};
+use std::sync::{Arc, PoisonError, RwLock, RwLockReadGuard, RwLockWriteGuard};
 
 use numpy::ndarray::{Array2, Array3};
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3};
@@ -136,29 +136,55 @@ pub(crate) fn write<T>(l: &RwLock<T>) -> RwLockWriteGuard<'_, T> {
 /// another thread adds, merges or builds the index finds its copy locked (as with any lock held
 /// across `fork`): fork while no thread does, or use `multiprocessing`'s `forkserver` or `spawn`
 /// start method.
+///
+/// A `LoopDetector.from_database` shares the places with the database instead of copying them
+/// (the database's value is shared, then copied by whichever changes it first: an add, a merge
+/// or a metadata change after that makes the database its own copy).
 #[pyclass(name = "Database", module = "solid", frozen)]
 pub struct PyDatabase {
-    inner: RwLock<Database>,
+    inner: RwLock<Arc<Database>>,
 }
 
 impl PyDatabase {
     pub(crate) fn wrap(inner: Database) -> Self {
+        PyDatabase::share(Arc::new(inner))
+    }
+
+    /// A database object over places shared with others (copied when this one changes).
+    pub(crate) fn share(inner: Arc<Database>) -> Self {
         PyDatabase {
             inner: RwLock::new(inner),
         }
     }
 
+    /// `f` of the database under the write lock, made this object's own first when shared.
+    /// Call with the GIL released.
+    fn modify<R>(&self, f: impl FnOnce(&mut Database) -> R) -> R {
+        f(Arc::make_mut(&mut write(&self.inner)))
+    }
+
+    /// The places to share with a detector, their index built first in place (a detector
+    /// searches on every step), so that the detector does not copy them to build it. Call with
+    /// the GIL released.
+    pub(crate) fn shared_indexed(&self) -> Result<Arc<Database>, DbError> {
+        let mut db = write(&self.inner);
+        if db.index_pending() > 0 {
+            Arc::make_mut(&mut db).build_index()?;
+        }
+        Ok(Arc::clone(&db))
+    }
+
     /// The read lock for `queries` searches with `opts`, after building the index alone first
     /// when the core says these searches do ([`Database::search_builds_index`]). Call with the
     /// GIL released.
-    fn read_for(&self, opts: &SearchOptions, queries: usize) -> RwLockReadGuard<'_, Database> {
+    fn read_for(&self, opts: &SearchOptions, queries: usize) -> RwLockReadGuard<'_, Arc<Database>> {
         let db = read(&self.inner);
         if !db.search_builds_index(opts, queries) {
             return db;
         }
         drop(db);
         // Asks again under the write lock: another search may have built it meanwhile.
-        write(&self.inner).build_index_for_search(opts, queries);
+        self.modify(|db| db.build_index_for_search(opts, queries));
         read(&self.inner)
     }
 
@@ -167,9 +193,9 @@ impl PyDatabase {
         py.detach(|| f(&read(&self.inner)))
     }
 
-    /// A copy of the database (under the read lock, with the GIL released).
-    pub(crate) fn snapshot(&self, py: Python<'_>) -> Database {
-        self.with(py, Database::clone)
+    /// The database's places as they are now (shared, not copied).
+    pub(crate) fn snapshot(&self, py: Python<'_>) -> Arc<Database> {
+        py.detach(|| Arc::clone(&read(&self.inner)))
     }
 
     fn fingerprint(&self, py: Python<'_>) -> u64 {
@@ -210,7 +236,7 @@ impl PyDatabase {
         let cloud = cloud.map(|c| args::bytes_arg(c, "cloud")).transpose()?;
         let cloud = cloud.as_ref().map(|c| c.as_bytes());
         py.detach(|| {
-            write(&self.inner).add_with_cloud(d, session, args::timestamp(timestamp), pose, cloud)
+            self.modify(|db| db.add_with_cloud(d, session, args::timestamp(timestamp), pose, cloud))
         })
         .map_err(core_err)
     }
@@ -253,7 +279,7 @@ impl PyDatabase {
         };
         py.detach(|| {
             let (r, a) = (r.to_f32(), a.to_f32());
-            write(&self.inner).add_batch_with(&r, &a, session, times, poses.as_deref(), policy)
+            self.modify(|db| db.add_batch_with(&r, &a, session, times, poses.as_deref(), policy))
         })
         .map_err(core_err)
     }
@@ -267,7 +293,7 @@ impl PyDatabase {
     /// Extends the search sketch and the kd-tree over every entry (after `add_batch`, before the
     /// searches build them).
     fn build_index(&self, py: Python<'_>) -> PyResult<()> {
-        py.detach(|| write(&self.inner).build_index())
+        py.detach(|| self.modify(Database::build_index))
             .map_err(core_err)
     }
 
@@ -365,7 +391,7 @@ impl PyDatabase {
         if std::ptr::eq(self, other) {
             let copy = self.snapshot(py);
             return py
-                .detach(|| apply(&mut write(&self.inner), &copy))
+                .detach(|| self.modify(|db| apply(db, &copy)))
                 .map_err(core_err);
         }
         // Both locks in one global order (by address), so that a.merge(b) and b.merge(a) running
@@ -374,11 +400,11 @@ impl PyDatabase {
             if (self as *const Self) < (other as *const Self) {
                 let mut dst = write(&self.inner);
                 let src = read(&other.inner);
-                apply(&mut dst, &src)
+                apply(Arc::make_mut(&mut dst), &src)
             } else {
                 let src = read(&other.inner);
                 let mut dst = write(&self.inner);
-                apply(&mut dst, &src)
+                apply(Arc::make_mut(&mut dst), &src)
             }
         })
         .map_err(core_err)
@@ -431,7 +457,7 @@ impl PyDatabase {
 
     #[setter]
     fn set_metadata(&self, py: Python<'_>, text: &str) -> PyResult<()> {
-        py.detach(|| write(&self.inner).set_metadata(text))
+        py.detach(|| self.modify(|db| db.set_metadata(text)))
             .map_err(core_err)
     }
 

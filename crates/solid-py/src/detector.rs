@@ -8,6 +8,7 @@ use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use solid_lidar::db::{self, DbError, DetectorConfig, LoopDetector};
+use solid_lidar::reg::Rejection;
 use solid_lidar::{Config, Descriptor};
 
 use crate::args;
@@ -137,12 +138,16 @@ impl PyCandidate {
     fn accepted(&self) -> bool {
         self.verification.is_some_and(|v| v.accepted)
     }
-    /// Why the gate rejected it (None when accepted or not registered).
+    /// Why the gate rejected it (None when accepted or not registered); a candidate whose stored
+    /// cloud is corrupt or unreadable says so, naming the place.
     #[getter]
     fn rejection(&self) -> Option<String> {
         self.verification
             .and_then(|v| v.rejection)
-            .map(|r| r.to_string())
+            .map(|r| match r {
+                Rejection::CorruptCloud => format!("place {}: {r}", self.id),
+                _ => r.to_string(),
+            })
     }
     /// T_query_candidate (4, 4) of its registration (None when not registered).
     #[getter]
@@ -268,7 +273,7 @@ pub struct PyLoopDetector {
 impl PyLoopDetector {
     fn wrap(inner: LoopDetector) -> Self {
         PyLoopDetector {
-            cfg: *inner.database().config(),
+            cfg: *inner.map().config(),
             inner: RwLock::new(inner),
         }
     }
@@ -369,8 +374,10 @@ impl PyLoopDetector {
         Ok(PyLoopDetector::wrap(inner))
     }
 
-    /// A detector over a copy of an existing database (a prior map): its places are candidates
-    /// from the first scan on and are never excluded as recent.
+    /// A detector over an existing database (a prior map), sharing its places instead of
+    /// copying them: they are candidates from the first scan on and are never excluded as
+    /// recent. The detector keeps its own scans apart from `database`, which stays as it was (an
+    /// add to it afterwards does not reach the detector, and makes it its own copy first).
     #[staticmethod]
     #[pyo3(signature = (database, exclude_recent=None, threshold=None, top_k=None, rerank=None, *, exclude_meters=None, exclude_seconds=None, verify=None, detector=None))]
     #[allow(clippy::too_many_arguments)]
@@ -396,10 +403,10 @@ impl PyLoopDetector {
             exclude_seconds,
             verify,
         )?;
-        let db = database.snapshot(py);
-        let cfg = PyConfig::new_unchecked(*db.config());
+        let map = py.detach(|| database.shared_indexed()).map_err(core_err)?;
+        let cfg = PyConfig::new_unchecked(*map.config());
         let dc = detector_config(&cfg, detector.as_deref(), Some(&kw))?;
-        let inner = LoopDetector::with_database(db, dc).map_err(core_err)?;
+        let inner = LoopDetector::with_map(map, dc).map_err(core_err)?;
         Ok(PyLoopDetector::wrap(inner))
     }
 
@@ -572,13 +579,26 @@ impl PyLoopDetector {
     }
 
     fn __len__(&self, py: Python<'_>) -> usize {
-        self.with(py, |det| det.database().len())
+        self.with(py, LoopDetector::len)
     }
 
-    /// A copy of the detector's database.
+    /// Every place (the prior map's, then the detector's scans) as a Database of its own: the
+    /// prior map itself, shared, while the detector has added no scan; after that a copy of the
+    /// descriptors made by this call (a loaded map's clouds stay in its file). Later steps do not
+    /// reach it. `map` is the prior map alone, never copied.
     #[getter]
-    fn database(&self, py: Python<'_>) -> PyDatabase {
-        PyDatabase::wrap(self.with(py, |det| det.database().clone()))
+    fn database(&self, py: Python<'_>) -> PyResult<PyDatabase> {
+        let db = self
+            .with(py, LoopDetector::shared_database)
+            .map_err(core_err)?;
+        Ok(PyDatabase::share(db))
+    }
+
+    /// The prior map the detector was made over (`from_database`'s database as it was then;
+    /// empty for a new detector), shared with the detector rather than copied.
+    #[getter]
+    fn map(&self, py: Python<'_>) -> PyDatabase {
+        PyDatabase::share(self.with(py, |det| det.map().clone()))
     }
 
     /// The parameters.

@@ -410,6 +410,55 @@ pub(super) fn read_file_at(file: &std::fs::File, buf: &mut [u8], at: u64) -> std
     }
 }
 
+/// [`read_file_at`] into memory not yet written: the bytes read, without zeroing the buffer
+/// first (on Unix; elsewhere it is zeroed, then read).
+#[cfg(feature = "std")]
+pub(super) fn read_file_uninit<'a>(
+    file: &std::fs::File,
+    buf: &'a mut [core::mem::MaybeUninit<u8>],
+    at: u64,
+) -> std::io::Result<&'a mut [u8]> {
+    #[cfg(unix)]
+    #[allow(unsafe_code)]
+    {
+        use std::os::unix::io::AsRawFd;
+        let mut done = 0;
+        while done < buf.len() {
+            let rest = &mut buf[done..];
+            let offset = libc::off_t::try_from(at + done as u64)
+                .map_err(|_| std::io::Error::from(std::io::ErrorKind::InvalidInput))?;
+            // SAFETY: pread writes at most `rest.len()` bytes into `rest`, memory this function
+            // holds exclusively; it reads none of it.
+            let got = unsafe {
+                libc::pread(
+                    file.as_raw_fd(),
+                    rest.as_mut_ptr().cast::<libc::c_void>(),
+                    rest.len(),
+                    offset,
+                )
+            };
+            match got {
+                0 => return Err(std::io::ErrorKind::UnexpectedEof.into()),
+                n if n > 0 => done += n as usize,
+                _ => {
+                    let e = std::io::Error::last_os_error();
+                    if e.kind() != std::io::ErrorKind::Interrupted {
+                        return Err(e);
+                    }
+                }
+            }
+        }
+        // SAFETY: every byte was written by pread above; `MaybeUninit<u8>` has the layout of u8.
+        Ok(unsafe { &mut *(core::ptr::from_mut(buf) as *mut [u8]) })
+    }
+    #[cfg(not(unix))]
+    {
+        let buf = super::room::zeroed(buf);
+        read_file_at(file, buf, at)?;
+        Ok(buf)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

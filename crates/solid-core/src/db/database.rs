@@ -169,22 +169,8 @@ impl Database {
         pose: Option<[f64; 12]>,
     ) -> Result<u32, DbError> {
         let (nr, na) = (self.config.n_range, self.config.n_azimuth);
-        if r.len() != nr {
-            return Err(Error::LengthMismatch {
-                what: "r_solid vs config n_range",
-                left: r.len(),
-                right: nr,
-            }
-            .into());
-        }
-        if a.len() != na {
-            return Err(Error::LengthMismatch {
-                what: "a_solid vs config n_azimuth",
-                left: a.len(),
-                right: na,
-            }
-            .into());
-        }
+        super::same_len("r_solid vs config n_range", r.len(), nr)?;
+        super::same_len("a_solid vs config n_azimuth", a.len(), na)?;
         let poses = pose.as_ref().map(core::slice::from_ref);
         self.add_batch(r, a, session, Some(&[timestamp]), poses, true)
     }
@@ -215,13 +201,7 @@ impl Database {
     ) -> Result<u32, DbError> {
         let (nr, na) = (self.config.n_range, self.config.n_azimuth);
         let m = r.len() / nr;
-        let expect = |what: &'static str, left: usize, right: usize| {
-            if left == right {
-                Ok(())
-            } else {
-                Err(DbError::Core(Error::LengthMismatch { what, left, right }))
-            }
-        };
+        let expect = super::same_len;
         expect("r_solid values vs a multiple of n_range", r.len(), m * nr)?;
         expect("a_solid rows vs r_solid rows", a.len(), m * na)?;
         if let Some(t) = timestamps {

@@ -100,12 +100,16 @@ pub struct Detection {
 /// An online loop-closure detector (see the module documentation).
 #[derive(Debug, Clone)]
 pub struct LoopDetector {
-    db: Database,
+    /// The prior map (ids `0..session_start`): shared, never changed by the detector.
+    map: Arc<Database>,
+    /// The places this detector added (ids from `session_start` on, `session_start` less here;
+    /// look a place up by its id through [`LoopDetector::part`]).
+    own: Database,
     config: DetectorConfig,
     /// Session of the scans this detector adds.
     session: u32,
-    /// Id of the first entry of the own session: entries below it (a prior map) are never
-    /// excluded.
+    /// Id of the first entry of the own session (the prior map's length): entries below it are
+    /// never excluded.
     session_start: usize,
     /// Metres travelled along the own session's path at each of its entries (NaN before its
     /// first pose).
@@ -208,15 +212,35 @@ impl LoopDetector {
         mut db: Database,
         detector: DetectorConfig,
     ) -> Result<LoopDetector, DbError> {
+        db.build_index()?;
+        LoopDetector::with_map(Arc::new(db), detector)
+    }
+
+    /// [`LoopDetector::with_database`] over a map shared with its other holders, without copying
+    /// it: the detector only reads the map and keeps the places it adds apart (searched together
+    /// with the map's, ids following them), so the map stays as it was given. A map whose index
+    /// is incomplete is indexed first, which copies it when it is shared: build its index
+    /// ([`Database::build_index`]) before sharing it.
+    ///
+    /// # Errors
+    /// As [`LoopDetector::with_database`].
+    pub fn with_map(
+        mut map: Arc<Database>,
+        detector: DetectorConfig,
+    ) -> Result<LoopDetector, DbError> {
         detector.validate()?;
-        let session = match db.sessions().iter().max() {
+        let session = match map.sessions().iter().max() {
             None => 0,
             Some(&s) => s.checked_add(1).ok_or(DbError::Full)?,
         };
-        db.build_index()?;
+        if map.index_pending() > 0 {
+            Arc::make_mut(&mut map).build_index()?;
+        }
+        let db = Database::new(*map.config())?;
         Ok(LoopDetector {
-            session_start: db.len(),
-            db,
+            session_start: map.len(),
+            map,
+            own: db,
             config: detector,
             session,
             travelled: Vec::new(),
@@ -229,14 +253,100 @@ impl LoopDetector {
         })
     }
 
-    /// The database of every place (the prior map and every scan added so far).
-    pub fn database(&self) -> &Database {
-        &self.db
+    /// The prior map the detector was made over (shared, as given: the places the detector adds
+    /// are not in it; empty for [`LoopDetector::new`]).
+    pub fn map(&self) -> &Arc<Database> {
+        &self.map
     }
 
-    /// Consumes the detector, returning its database.
-    pub fn into_database(self) -> Database {
-        self.db
+    /// The places the detector added, in order (place `session_start() + i` is entry `i`).
+    pub fn places(&self) -> &Database {
+        &self.own
+    }
+
+    /// Number of places: the prior map's and every scan added so far.
+    pub fn len(&self) -> usize {
+        self.session_start + self.own.len()
+    }
+
+    /// `true` when the detector has no place at all.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The database of every place (the prior map and every scan added so far) as one new
+    /// database: a copy of the descriptors (a loaded map's clouds stay in its file).
+    ///
+    /// # Errors
+    /// [`DbError::OutOfMemory`].
+    pub fn to_database(&self) -> Result<Database, DbError> {
+        let mut all = Database::clone(&self.map);
+        all.merge(&self.own)?;
+        Ok(all)
+    }
+
+    /// Every place as one database shared without a copy while the detector has added none (the
+    /// prior map itself), else [`LoopDetector::to_database`].
+    ///
+    /// # Errors
+    /// As [`LoopDetector::to_database`].
+    pub fn shared_database(&self) -> Result<Arc<Database>, DbError> {
+        if self.own.is_empty() {
+            return Ok(Arc::clone(&self.map));
+        }
+        self.to_database().map(Arc::new)
+    }
+
+    /// Consumes the detector, returning every place as one database (the map is copied only when
+    /// someone else still shares it).
+    ///
+    /// # Errors
+    /// As [`LoopDetector::to_database`].
+    pub fn into_database(self) -> Result<Database, DbError> {
+        let mut all = Arc::try_unwrap(self.map).unwrap_or_else(|m| Database::clone(&m));
+        all.merge(&self.own)?;
+        Ok(all)
+    }
+
+    /// The part of the detector's places that holds place `id`, and its id there.
+    fn part(&self, id: u32) -> (&Database, u32) {
+        match (id as usize).checked_sub(self.session_start) {
+            Some(own) => (&self.own, own as u32),
+            None => (&self.map, id),
+        }
+    }
+
+    /// The pose stored with place `id`, if any.
+    pub fn pose(&self, id: u32) -> Option<[f64; 12]> {
+        let (db, i) = self.part(id);
+        db.pose(i)
+    }
+
+    /// The session of place `id` and its timestamp (NaN: none).
+    ///
+    /// # Panics
+    /// When `id >= len()`.
+    pub fn entry(&self, id: u32) -> (u32, f64) {
+        let (db, i) = self.part(id);
+        (db.sessions()[i as usize], db.timestamps()[i as usize])
+    }
+
+    /// The A-SOLiD of place `id` as stored ([`Database::a`]).
+    ///
+    /// # Panics
+    /// When `id >= len()`.
+    pub fn a(&self, id: u32) -> Vec<f32> {
+        let (db, i) = self.part(id);
+        db.a(i)
+    }
+
+    /// The stored cloud of place `id` ([`Database::try_cloud`]).
+    ///
+    /// # Errors
+    /// As [`Database::try_cloud`].
+    pub fn try_cloud(&self, id: u32) -> Result<Option<alloc::borrow::Cow<'_, [u8]>>, DbError> {
+        let (db, i) = self.part(id);
+        db.try_cloud(i)
     }
 
     /// The parameters.
@@ -280,7 +390,7 @@ impl LoopDetector {
         timestamp: f64,
         pose: Option<[f64; 12]>,
     ) -> Result<Detection, DbError> {
-        self.db.check_fingerprint(d.fingerprint)?;
+        self.own.check_fingerprint(d.fingerprint)?;
         self.no_verification("detect")?;
         let step = self.step(timestamp, pose, self.trail)?;
         self.detect_checked(d, None, step)
@@ -308,7 +418,7 @@ impl LoopDetector {
     /// # Errors
     /// As [`crate::describe`] and [`PreparedCloud::new`], as [`DbError::Core`].
     pub fn prepare_scan<T: Coord>(&self, points: Points<'_, T>) -> Result<Scan, DbError> {
-        let descriptor = crate::Describer::new(*self.db.config())?.describe(points)?;
+        let descriptor = crate::Describer::new(*self.own.config())?.describe(points)?;
         let cloud = self.prepare_cloud(points)?;
         Ok(Scan { descriptor, cloud })
     }
@@ -418,7 +528,7 @@ impl LoopDetector {
         // The time and path checks need the previous scans of this batch.
         let mut trail = self.trail;
         for (i, d) in descriptors.iter().enumerate() {
-            self.db.check_fingerprint(d.fingerprint)?;
+            self.own.check_fingerprint(d.fingerprint)?;
             let t = timestamps.get(i).copied().unwrap_or(f64::NAN);
             let p = poses.get(i).copied().flatten();
             let s = self.step(t, p, trail)?;
@@ -457,7 +567,7 @@ impl LoopDetector {
         timestamp: f64,
         pose: Option<[f64; 12]>,
     ) -> Result<Vec<Candidate>, DbError> {
-        self.db.check_fingerprint(d.fingerprint)?;
+        self.own.check_fingerprint(d.fingerprint)?;
         let step = self.step(timestamp, pose, self.trail)?;
         let eligible = self.eligible(&step)?;
         self.rank(&d.r, &d.a, eligible, k)
@@ -469,10 +579,10 @@ impl LoopDetector {
     /// # Errors
     /// [`DbError::ConfigMismatch`] for a descriptor made with another config.
     pub fn query(&self, d: &Descriptor) -> Result<Option<Loop>, DbError> {
-        self.db.check_fingerprint(d.fingerprint)?;
+        self.own.check_fingerprint(d.fingerprint)?;
         self.no_verification("query")?;
-        let cands = self.rank(&d.r, &d.a, self.db.len(), self.config.top_k)?;
-        Ok(self.accept(&cands, self.db.len() as u32))
+        let cands = self.rank(&d.r, &d.a, self.len(), self.config.top_k)?;
+        Ok(self.accept(&cands, self.len() as u32))
     }
 
     /// [`LoopDetector::query`] for a prepared scan, verified when verification is on (without
@@ -482,12 +592,12 @@ impl LoopDetector {
     /// As [`LoopDetector::query`].
     pub fn query_scan(&mut self, scan: &Scan) -> Result<Option<Loop>, DbError> {
         let d = &scan.descriptor;
-        self.db.check_fingerprint(d.fingerprint)?;
-        let mut cands = self.rank(&d.r, &d.a, self.db.len(), self.config.top_k)?;
+        self.own.check_fingerprint(d.fingerprint)?;
+        let mut cands = self.rank(&d.r, &d.a, self.len(), self.config.top_k)?;
         if self.config.verify.enabled {
             self.verify_candidates(&d.a, scan.cloud.as_ref(), None, &mut cands)?;
         }
-        Ok(self.accept(&cands, self.db.len() as u32))
+        Ok(self.accept(&cands, self.len() as u32))
     }
 
     /// Checks the timestamp and pose of the next scan (`trail`: the session's path before it)
@@ -527,7 +637,7 @@ impl LoopDetector {
         let c = &self.config;
         Ok(start
             + visible_own_places(
-                self.db.len() - start,
+                self.own.len(),
                 c.exclude_frames,
                 c.exclude_meters,
                 c.exclude_seconds,
@@ -564,7 +674,7 @@ impl LoopDetector {
         };
         if v.enabled {
             let at = verify::QueryPlace {
-                id: self.db.len() as u32,
+                id: self.len() as u32,
                 pose: s.pose,
                 travelled: s.trail.travelled,
             };
@@ -576,9 +686,10 @@ impl LoopDetector {
         self.latest_time
             .try_reserve(1)
             .map_err(|_| DbError::OutOfMemory)?;
-        let id = self
-            .db
-            .add_with_cloud(d, self.session, s.timestamp, s.pose, stored.as_deref())?;
+        let id =
+            self.own
+                .add_with_cloud(d, self.session, s.timestamp, s.pose, stored.as_deref())?
+                + self.session_start as u32;
         self.travelled.push(s.trail.travelled);
         self.latest_time.push(s.trail.clock);
         self.trail = s.trail;
@@ -625,31 +736,36 @@ impl LoopDetector {
         eligible: usize,
         k: usize,
     ) -> Result<Vec<Candidate>, DbError> {
-        let na = self.db.config().n_azimuth;
-        if a.len() != na {
-            return Err(Error::LengthMismatch {
-                what: "a_solid vs config n_azimuth",
-                left: a.len(),
-                right: na,
-            }
-            .into());
+        let na = self.own.config().n_azimuth;
+        super::same_len("a_solid vs config n_azimuth", a.len(), na)?;
+        // The map's places are all eligible, the own session's first `eligible - start`; the
+        // two searches merged in the search's order (distance, then lower id) are one search.
+        let start = self.session_start;
+        let opts = |exclude_recent| SearchOptions {
+            k,
+            exclude_recent,
+            method: Method::Auto,
+            ..SearchOptions::default()
+        };
+        let mut found = self.map.search_with(r, &opts(0))?;
+        let own = eligible - start;
+        if own > 0 {
+            let mine = self.own.search_with(r, &opts(self.own.len() - own))?;
+            found.extend(mine.into_iter().map(|mut nb| {
+                nb.id += start as u32;
+                nb
+            }));
+            found.sort_by(|x, y| x.distance.total_cmp(&y.distance).then(x.id.cmp(&y.id)));
+            found.truncate(k);
         }
-        let found = self.db.search_with(
-            r,
-            &SearchOptions {
-                k,
-                exclude_recent: self.db.len() - eligible,
-                method: Method::Auto,
-                ..SearchOptions::default()
-            },
-        )?;
         let mut ranked = Vec::new();
         ranked
             .try_reserve_exact(found.len())
             .map_err(|_| DbError::OutOfMemory)?;
         let mut ca = vec![0.0f32; na];
         for nb in found {
-            self.db.a_into(nb.id, &mut ca);
+            let (db, i) = self.part(nb.id);
+            db.a_into(i, &mut ca);
             let ca = &ca[..];
             let distance = f64::from(nb.distance);
             let key = if self.config.rerank {

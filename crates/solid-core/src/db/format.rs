@@ -130,18 +130,7 @@ impl Database {
     fn encode_v2_into(&self, out: &mut [u8]) -> Result<usize, DbError> {
         let mut w = Writer { b: out, at: 0 };
         let n = self.len();
-        let c = &self.config;
-        w.put(&MAGIC);
-        w.put(&2u32.to_le_bytes());
-        w.put(&0u32.to_le_bytes());
-        for v in [c.n_range, c.n_azimuth, c.n_elevation, 0] {
-            w.put(&(v as u32).to_le_bytes());
-        }
-        for v in [c.fov_up, c.fov_down, c.min_range, c.max_range, c.voxel_size] {
-            w.put(&v.to_le_bytes());
-        }
-        w.put(&self.fingerprint.to_le_bytes());
-        w.put(&(n as u64).to_le_bytes());
+        header_start(self, 2, &mut |b| w.put(b));
         let cloud_section = self.cloud_section_len();
         w.put(&(cloud_section as u64).to_le_bytes());
         for i in 0..n {
@@ -395,19 +384,14 @@ impl Database {
     /// [`DbError::OutOfMemory`] when it does not fit in memory.
     #[cfg(feature = "std")]
     pub fn load<P: AsRef<std::path::Path>>(path: P) -> Result<Database, DbError> {
-        let path = path.as_ref();
-        let file = path.display().to_string();
-        let (f, size, version) = open_checked(path).map_err(|e| e.named(&file))?;
-        if version >= lean::VERSION {
-            let src = lean::FileSource {
-                file: &f,
-                size,
-                name: &file,
-            };
-            return lean::decode(&src, Some((&f, &file))).map_err(|e| named(e, &file));
-        }
-        let bytes = read_checked(f, size).map_err(|e| e.named(&file))?;
-        Database::from_bytes(&bytes).map_err(|e| named(e, &file))
+        open_named(
+            path.as_ref(),
+            |src| lean::decode(src, Some((src.file, src.name))),
+            |f, size, _, file| {
+                let bytes = read_checked(f, size).map_err(|e| e.named(file))?;
+                Database::from_bytes(&bytes)
+            },
+        )
     }
 
     /// What the database file at `path` holds (places, sessions, clouds, metadata), read from its
@@ -419,19 +403,38 @@ impl Database {
     #[cfg(feature = "std")]
     pub fn summary<P: AsRef<std::path::Path>>(path: P) -> Result<Summary, DbError> {
         let path = path.as_ref();
-        let file = path.display().to_string();
-        let (f, size, version) = open_checked(path).map_err(|e| e.named(&file))?;
-        if version >= lean::VERSION {
-            let src = lean::FileSource {
-                file: &f,
-                size,
-                name: &file,
-            };
-            return lean::summary(&src).map_err(|e| named(e, &file));
-        }
-        drop(f);
-        Ok(lean::summary_of(&Database::load(path)?, version))
+        open_named(
+            path,
+            |src| lean::summary(src),
+            |f, _, version, _| {
+                drop(f);
+                Ok(lean::summary_of(&Database::load(path)?, version))
+            },
+        )
     }
+}
+
+/// Opens the database file at `path` and hands it to `lean` (version 3 on: read by offset) or
+/// to `older` (versions 1 and 2: the open file, its size, its version and its name); the errors
+/// name the file.
+#[cfg(feature = "std")]
+fn open_named<R>(
+    path: &std::path::Path,
+    lean: impl FnOnce(&lean::FileSource<'_>) -> Result<R, DbError>,
+    older: impl FnOnce(std::fs::File, u64, u32, &str) -> Result<R, DbError>,
+) -> Result<R, DbError> {
+    let file = path.display().to_string();
+    let (f, size, version) = open_checked(path).map_err(|e| e.named(&file))?;
+    let out = if version >= lean::VERSION {
+        lean(&lean::FileSource {
+            file: &f,
+            size,
+            name: &file,
+        })
+    } else {
+        older(f, size, version, &file)
+    };
+    out.map_err(|e| named(e, &file))
 }
 
 /// What the fixed-size header announces.
@@ -771,6 +774,23 @@ fn create_temp(
 }
 
 pub(super) const MAGIC: [u8; 8] = *b"SOLiDdb\0";
+
+/// The start of the header of versions 2 and 3, through `put`: the magic, the version, the
+/// flags (0), the config, its fingerprint and the number of places.
+pub(super) fn header_start(db: &Database, version: u32, put: &mut dyn FnMut(&[u8])) {
+    let c = &db.config;
+    put(&MAGIC);
+    put(&version.to_le_bytes());
+    put(&0u32.to_le_bytes());
+    for v in [c.n_range, c.n_azimuth, c.n_elevation, 0] {
+        put(&(v as u32).to_le_bytes());
+    }
+    for v in [c.fov_up, c.fov_down, c.min_range, c.max_range, c.voxel_size] {
+        put(&v.to_le_bytes());
+    }
+    put(&db.fingerprint.to_le_bytes());
+    put(&(db.len() as u64).to_le_bytes());
+}
 const HEADER_LEN_V1: usize = 88;
 const HEADER_LEN: usize = 96;
 const ENTRY_LEN: usize = 4 + 4 + 8 + 96;

@@ -47,10 +47,11 @@ use alloc::vec::Vec;
 
 use super::clouds::Clouds;
 use super::database::Columns;
-use super::format::{is_bin_value, try_vec, MAGIC};
+use super::format::{is_bin_value, try_vec};
 use super::{Database, DbError};
 use crate::checksum::{crc32, Crc32};
 use crate::Config;
+use core::mem::MaybeUninit;
 
 pub(super) const VERSION: u32 = 3;
 const FIXED: usize = 96;
@@ -133,6 +134,16 @@ pub(super) trait Source {
     fn size(&self) -> u64;
     /// Fills `buf` from offset `at` (within [`Source::size`], checked by the caller).
     fn read_at(&self, at: u64, buf: &mut [u8]) -> Result<(), DbError>;
+    /// [`Source::read_at`] into memory not yet written; returns it, written.
+    fn read_uninit<'a>(
+        &self,
+        at: u64,
+        buf: &'a mut [MaybeUninit<u8>],
+    ) -> Result<&'a mut [u8], DbError> {
+        let buf = super::room::zeroed(buf);
+        self.read_at(at, buf)?;
+        Ok(buf)
+    }
 }
 
 impl Source for [u8] {
@@ -143,6 +154,14 @@ impl Source for [u8] {
         let at = at as usize;
         buf.copy_from_slice(&self[at..at + buf.len()]);
         Ok(())
+    }
+    fn read_uninit<'a>(
+        &self,
+        at: u64,
+        buf: &'a mut [MaybeUninit<u8>],
+    ) -> Result<&'a mut [u8], DbError> {
+        let at = at as usize;
+        Ok(super::room::copied(buf, &self[at..at + buf.len()]))
     }
 }
 
@@ -160,10 +179,24 @@ impl Source for FileSource<'_> {
         self.size
     }
     fn read_at(&self, at: u64, buf: &mut [u8]) -> Result<(), DbError> {
-        super::clouds::read_file_at(self.file, buf, at).map_err(|source| DbError::Io {
+        super::clouds::read_file_at(self.file, buf, at).map_err(|source| self.failed(source))
+    }
+    fn read_uninit<'a>(
+        &self,
+        at: u64,
+        buf: &'a mut [MaybeUninit<u8>],
+    ) -> Result<&'a mut [u8], DbError> {
+        super::clouds::read_file_uninit(self.file, buf, at).map_err(|source| self.failed(source))
+    }
+}
+
+#[cfg(feature = "std")]
+impl FileSource<'_> {
+    fn failed(&self, source: std::io::Error) -> DbError {
+        DbError::Io {
             file: String::from(self.name),
             source,
-        })
+        }
     }
 }
 
@@ -374,18 +407,26 @@ impl Le for u64 {
 }
 
 /// The column that section `sec` holds, read straight into its memory (huge pages for a large
-/// one, see `room`), a MiB at a time, each piece folded into the CRC while it is in the cache.
+/// one, see `room`; not zeroed first), a MiB at a time, each piece folded into the CRC while it
+/// is in the cache.
+#[allow(unsafe_code)]
 fn column<T: Le>(src: &(impl Source + ?Sized), sec: Section) -> Result<Vec<T>, DbError> {
     let n = sec.len as usize / core::mem::size_of::<T>();
     let mut out: Vec<T> = Vec::new();
     super::room::reserve(&mut out, n).map_err(|_| DbError::OutOfMemory)?;
-    out.resize(n, T::zeroed());
-    let bytes: &mut [u8] = bytemuck::cast_slice_mut(&mut out);
+    let slots = super::room::spare(&mut out, n);
+    let len = core::mem::size_of_val(slots);
+    // SAFETY: the same memory seen as bytes (`MaybeUninit<u8>` has no alignment or validity
+    // requirement), for as long as `slots` is borrowed.
+    let bytes: &mut [MaybeUninit<u8>] =
+        unsafe { core::slice::from_raw_parts_mut(slots.as_mut_ptr().cast(), len) };
     let mut crc = Crc32::default();
     for (k, piece) in bytes.chunks_mut(CHUNK).enumerate() {
-        src.read_at(sec.offset + (k * CHUNK) as u64, piece)?;
-        crc.update(piece);
+        crc.update(src.read_uninit(sec.offset + (k * CHUNK) as u64, piece)?);
     }
+    // SAFETY: every byte of the `n` slots was read above (a failed read returned early), and
+    // any bytes are a valid `T` (`Pod`).
+    unsafe { super::room::commit(&mut out, n) };
     check_crc(src, sec, crc)?;
     if cfg!(target_endian = "big") {
         for v in &mut out {
@@ -738,19 +779,8 @@ pub(super) fn encode(
 ) -> Result<(), DbError> {
     let runs = runs(db);
     let secs = sections(db, &runs);
-    let c = db.config();
     let mut head = try_vec::<u8>(FIXED + ROW * secs.len() + 4)?;
-    head.extend_from_slice(&MAGIC);
-    head.extend_from_slice(&VERSION.to_le_bytes());
-    head.extend_from_slice(&0u32.to_le_bytes());
-    for v in [c.n_range, c.n_azimuth, c.n_elevation, 0] {
-        head.extend_from_slice(&(v as u32).to_le_bytes());
-    }
-    for v in [c.fov_up, c.fov_down, c.min_range, c.max_range, c.voxel_size] {
-        head.extend_from_slice(&v.to_le_bytes());
-    }
-    head.extend_from_slice(&db.fingerprint.to_le_bytes());
-    head.extend_from_slice(&(db.len() as u64).to_le_bytes());
+    super::format::header_start(db, VERSION, &mut |b| head.extend_from_slice(b));
     head.extend_from_slice(&(secs.len() as u32).to_le_bytes());
     head.extend_from_slice(&0u32.to_le_bytes());
     for s in &secs {

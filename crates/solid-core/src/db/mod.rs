@@ -93,3 +93,12 @@ impl Method {
         }
     }
 }
+
+/// [`Error::LengthMismatch`] unless `left == right`: `what` names the two lengths.
+pub(crate) fn same_len(what: &'static str, left: usize, right: usize) -> Result<(), Error> {
+    if left == right {
+        Ok(())
+    } else {
+        Err(Error::LengthMismatch { what, left, right })
+    }
+}

@@ -39,6 +39,9 @@ pub enum Rejection {
     Ambiguous,
     /// Too few of the previous steps had a verified candidate that agrees with this loop.
     Unsupported,
+    /// The candidate's stored cloud is corrupt (its checksum fails) or could not be read from
+    /// the map's file: it was not registered.
+    CorruptCloud,
 }
 
 impl fmt::Display for Rejection {
@@ -56,6 +59,7 @@ impl fmt::Display for Rejection {
             Rejection::OdometryDisagrees => "disagrees with the odometry",
             Rejection::Ambiguous => "another candidate disagrees",
             Rejection::Unsupported => "not supported by the previous steps",
+            Rejection::CorruptCloud => "its stored cloud is corrupt or unreadable",
         })
     }
 }

@@ -241,14 +241,7 @@ impl Database {
     /// `query_r` checked against the config and L2-normalised into `out`.
     fn normalize_query(&self, query_r: &[f32], out: &mut [f32]) -> Result<(), DbError> {
         let nr = self.config.n_range;
-        if query_r.len() != nr {
-            return Err(Error::LengthMismatch {
-                what: "query r_solid vs config n_range",
-                left: query_r.len(),
-                right: nr,
-            }
-            .into());
-        }
+        super::super::same_len("query r_solid vs config n_range", query_r.len(), nr)?;
         check_bins("query r_solid", query_r)?;
         search::normalize(query_r, out)?;
         Ok(())

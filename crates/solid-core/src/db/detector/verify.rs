@@ -37,8 +37,13 @@ impl LoopDetector {
             // independent of each other: in parallel where threads exist.
             let mut jobs: Vec<(usize, Arc<PreparedCloud>)> = Vec::new();
             let mut work = 0usize;
-            for (i, c) in cands.iter().enumerate().take(v.candidates) {
-                if let Some(cp) = self.prepared_cloud(c.id) {
+            for (i, c) in cands.iter_mut().enumerate().take(v.candidates) {
+                let Ok(cloud) = self.prepared_cloud(c.id) else {
+                    // Never silently unverified: the candidate says its cloud is bad.
+                    c.verification = Some(corrupt_cloud());
+                    continue;
+                };
+                if let Some(cp) = cloud {
                     // The step's budget (VerifyConfig::step_points): the best always fits.
                     let cost = (q.fine.len() + cp.fine.len()).saturating_mul(v.hypotheses);
                     work = work.saturating_add(cost);
@@ -48,9 +53,9 @@ impl LoopDetector {
                     jobs.push((i, cp));
                 }
             }
-            let db = &self.db;
+            let det: &LoopDetector = self;
             let verify_one = |&(i, ref cp): &(usize, Arc<PreparedCloud>)| {
-                verify_pair(&v, a_query, &db.a(cands[i].id), q, cp)
+                verify_pair(&v, a_query, &det.a(cands[i].id), q, cp)
             };
             let results: Vec<Option<Verification>> = run_jobs(&jobs, v.threads, verify_one)?;
             for ((i, _), r) in jobs.iter().zip(results) {
@@ -148,7 +153,7 @@ impl LoopDetector {
         else {
             return true;
         };
-        let Some(cp) = self.db.pose(c.id) else {
+        let Some(cp) = self.pose(c.id) else {
             return true;
         };
         let path = libm::fabs(at.travelled - p);
@@ -180,7 +185,7 @@ impl LoopDetector {
             .iter()
             .filter(|(q2, list)| {
                 list.iter().any(|&(c2, t2)| {
-                    let poses = at.pose.zip(self.db.pose(*q2));
+                    let poses = at.pose.zip(self.pose(*q2));
                     poses
                         .and_then(|(q, pq2)| {
                             self.agree_through_poses(
@@ -202,7 +207,7 @@ impl LoopDetector {
         (q, c, t): (&[f64; 12], u32, &Pose),
         (q2, c2, t2): (&[f64; 12], u32, &Pose),
     ) -> Option<bool> {
-        let (pc2, pc) = (self.db.pose(c2)?, self.db.pose(c)?);
+        let (pc2, pc) = (self.pose(c2)?, self.pose(c)?);
         let expected = mul(&mul(&relative(q, q2), t2), &relative(&pc2, &pc));
         let path = distance(q, q2) + distance(&pc2, &pc);
         Some(self.within_drift(&expected, t, path))
@@ -210,18 +215,28 @@ impl LoopDetector {
 
     /// The prepared cloud of place `id`: from the cache, or prepared from its stored compact
     /// cloud (then cached). None when the place has no usable cloud.
-    fn prepared_cloud(&mut self, id: u32) -> Option<Arc<PreparedCloud>> {
+    ///
+    /// # Errors
+    /// As [`LoopDetector::try_cloud`]: the stored cloud is corrupt or cannot be read.
+    fn prepared_cloud(&mut self, id: u32) -> Result<Option<Arc<PreparedCloud>>, DbError> {
         self.clock += 1;
         if let Some((stamp, c)) = self.prepared.get_mut(&id) {
             *stamp = self.clock;
-            return Some(Arc::clone(c));
+            return Ok(Some(Arc::clone(c)));
         }
-        let points = reg::decode_cloud(self.db.cloud(id)?).ok()?;
-        let c = Arc::new(
-            PreparedCloud::from_downsampled(&points, &self.config.verify.registration).ok()?,
-        );
+        let Some(bytes) = self.try_cloud(id)? else {
+            return Ok(None);
+        };
+        let Ok(points) = reg::decode_cloud(&bytes) else {
+            return Ok(None);
+        };
+        let reg = &self.config.verify.registration;
+        let Ok(c) = PreparedCloud::from_downsampled(&points, reg) else {
+            return Ok(None);
+        };
+        let c = Arc::new(c);
         self.remember(id, Arc::clone(&c));
-        Some(c)
+        Ok(Some(c))
     }
 
     /// Caches a prepared cloud, evicting the least recently used ones beyond the budget.
@@ -333,6 +348,17 @@ fn yaw_hypotheses(
 
 /// Registers one candidate from its yaw hypotheses and checks the gate; None when the clouds
 /// cannot be registered (for example, one of them is empty).
+/// The verification of a candidate whose stored cloud is corrupt or unreadable.
+fn corrupt_cloud() -> Verification {
+    Verification {
+        registration: reg::Registration::default(),
+        accepted: false,
+        rejection: Some(Rejection::CorruptCloud),
+        hypotheses: 0,
+        agreement: 0,
+    }
+}
+
 fn verify_pair(
     v: &VerifyConfig,
     a_query: &[f32],
@@ -490,7 +516,7 @@ mod tests {
 
     fn at(det: &LoopDetector, x: f64) -> QueryPlace {
         QueryPlace {
-            id: det.database().len() as u32,
+            id: det.len() as u32,
             pose: Some(pose(0.0, x, 0.0)),
             travelled: x,
         }
@@ -574,12 +600,12 @@ mod tests {
         assert_eq!(rejection(&cands[0]), Some(Rejection::Unsupported));
         // Pretend the step added its place (the support looks up the query's pose).
         let d = Descriptor {
-            r: alloc::vec![0.5; det.database().config().n_range],
-            a: alloc::vec![1.0; det.database().config().n_azimuth],
+            r: alloc::vec![0.5; det.map().config().n_range],
+            a: alloc::vec![1.0; det.map().config().n_azimuth],
             stats: Stats::default(),
-            fingerprint: det.database().config().fingerprint(),
+            fingerprint: det.map().config().fingerprint(),
         };
-        det.db
+        det.own
             .add_with_cloud(&d, det.session, f64::NAN, q.pose, None)
             .unwrap();
         det.travelled.push(12.0);
