@@ -50,6 +50,12 @@ pub struct VerifyConfig {
     pub enabled: bool,
     /// How many of the step's best candidates (by R-SOLiD distance) are registered.
     pub candidates: usize,
+    /// Candidates chosen by pose, registered beside the descriptor's `candidates` when the
+    /// query has a pose: the own session's eligible places nearest to the query's position,
+    /// each within reach of an accepted loop (the gate's `max_translation` plus the odometry
+    /// check's drift bounds after the path between the two). Among look-alike places the
+    /// descriptor's best rarely hold the true one; the odometry says roughly where it is. 0: none.
+    pub pose_candidates: usize,
     /// At most this many initial yaws per candidate: 0°, the A-SOLiD minima, then ±`fan_deg`.
     pub hypotheses: usize,
     /// The fixed yaw fan added to the hypotheses (degrees; 0: none). On a narrow field of view
@@ -92,6 +98,11 @@ pub struct VerifyConfig {
     pub odometry_rotation_deg: f64,
     /// Rotation the odometry may drift per metre travelled between the two places (degrees).
     pub odometry_rotation_deg_per_m: f64,
+    /// The rotation bound's ceiling (degrees): an odometry that turned further off than this
+    /// is not one to check a loop against, so no path allows more. Between look-alike
+    /// corridors that meet at right angles, a path long enough lets the per-metre bound reach
+    /// 90° and a loop into the other corridor through.
+    pub odometry_rotation_max_deg: f64,
     /// Uniqueness: when the query has a pose, a candidate that passed is rejected
     /// ([`Rejection::Ambiguous`](crate::reg::Rejection::Ambiguous)) when another candidate of
     /// the step passed too and the two disagree through their places' poses (the drift bounds
@@ -121,6 +132,7 @@ impl Default for VerifyConfig {
         VerifyConfig {
             enabled: true,
             candidates: DEFAULT_VERIFY_CANDIDATES,
+            pose_candidates: DEFAULT_POSE_CANDIDATES,
             hypotheses: 4,
             fan_deg: 25.0,
             cloud_bits: 8,
@@ -137,6 +149,7 @@ impl Default for VerifyConfig {
             odometry_drift: 0.02,
             odometry_rotation_deg: 3.0,
             odometry_rotation_deg_per_m: 0.15,
+            odometry_rotation_max_deg: 30.0,
             unique: true,
             support_window: 20,
             min_support: 1,
@@ -146,6 +159,9 @@ impl Default for VerifyConfig {
 
 /// Default [`VerifyConfig::candidates`].
 pub const DEFAULT_VERIFY_CANDIDATES: usize = 5;
+
+/// Default [`VerifyConfig::pose_candidates`] (docs/performance.md#loops-a-pose-graph-can-trust).
+pub const DEFAULT_POSE_CANDIDATES: usize = 2;
 
 /// Default [`VerifyConfig::step_points`]: room for every default candidate of the largest
 /// real scans measured, so that it binds only on outsized clouds (docs/performance.md#work-budgets).
@@ -246,6 +262,8 @@ impl Params for DetectorConfig {
             "Verify the best candidates by registering the places' clouds; a loop then carries its pose."),
         field!(DetectorConfig, "verify_candidates", verify.candidates, Kind::Int { min: 1, max: MAX_TOP_K as u64 },
             "an integer in 1..=1000", "Candidates registered per step."),
+        field!(DetectorConfig, "pose_candidates", verify.pose_candidates, Kind::Int { min: 0, max: MAX_TOP_K as u64 },
+            "an integer in 0..=1000", "Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates (0: none)."),
         field!(DetectorConfig, "verify_hypotheses", verify.hypotheses, Kind::Int { min: 1, max: 16 },
             "an integer in 1..=16", "Initial yaws per registration, at most (0°, the A-SOLiD minima, then the fan)."),
         field!(DetectorConfig, "verify_fan_deg", verify.fan_deg, Kind::closed(0.0, 180.0), "degrees in [0, 180]",
@@ -268,6 +286,8 @@ impl Params for DetectorConfig {
             "degrees in [0, 180]", "Rotation a loop may differ from the poses' relative rotation by at no path, degrees."),
         field!(DetectorConfig, "odometry_rotation_deg_per_m", verify.odometry_rotation_deg_per_m, Kind::closed(0.0, FINITE),
             "a finite number >= 0", "Rotation the odometry may drift per metre travelled between the two places, degrees."),
+        field!(DetectorConfig, "odometry_rotation_max_deg", verify.odometry_rotation_max_deg, Kind::closed(0.0, 180.0),
+            "degrees in [0, 180]", "Ceiling of the rotation a loop may differ from the poses' relative rotation by, whatever the path, degrees."),
         field!(DetectorConfig, "unique", verify.unique, Kind::Bool, "a bool",
             "Reject verified candidates of a step that disagree with another verified one through the poses."),
         field!(DetectorConfig, "support_window", verify.support_window, COUNT, "an integer >= 0",

@@ -17,8 +17,8 @@ pub(super) struct QueryPlace {
 }
 
 impl LoopDetector {
-    /// Registers the query's cloud with its best candidates' and scores every candidate (see
-    /// [`VerifyConfig`]); candidates end sorted by score. With `at` (a step that adds the query),
+    /// Registers the query's cloud with its first `n` candidates' and scores every candidate
+    /// (see [`VerifyConfig`]); candidates end sorted by score. With `at` (a step that adds the query),
     /// the candidates that passed the gate are checked against the poses and the previous
     /// steps, and remembered for the next steps.
     pub(super) fn verify_candidates(
@@ -26,6 +26,7 @@ impl LoopDetector {
         a_query: &[f32],
         query: Option<&PreparedCloud>,
         at: Option<QueryPlace>,
+        n: usize,
         cands: &mut [Candidate],
     ) -> Result<(), DbError> {
         let v = self.config.verify;
@@ -37,7 +38,7 @@ impl LoopDetector {
             // independent of each other: in parallel where threads exist.
             let mut jobs: Vec<(usize, Arc<PreparedCloud>)> = Vec::new();
             let mut work = 0usize;
-            for (i, c) in cands.iter().enumerate().take(v.candidates) {
+            for (i, c) in cands.iter().enumerate().take(n) {
                 if let Some(cp) = self.prepared_cloud(c.id) {
                     // The step's budget (VerifyConfig::step_points): the best always fits.
                     let cost = (q.fine.len() + cp.fine.len()).saturating_mul(v.hypotheses);
@@ -164,7 +165,7 @@ impl LoopDetector {
         let v = &self.config.verify;
         let path = if path.is_nan() { 0.0 } else { path };
         reg::pose_distance(expected, pose).is_some_and(|(m, deg)| {
-            deg <= v.odometry_rotation_deg + v.odometry_rotation_deg_per_m * path
+            deg <= rotation_bound(v, path)
                 && m <= v.odometry_translation_m
                     + v.odometry_drift * path
                     + deg.to_radians() * path / 2.0
@@ -244,6 +245,12 @@ impl LoopDetector {
             }
         }
     }
+}
+
+/// The rotation (degrees) a loop may differ from the poses by after `path` metres.
+pub(super) fn rotation_bound(v: &VerifyConfig, path: f64) -> f64 {
+    (v.odometry_rotation_deg + v.odometry_rotation_deg_per_m * path)
+        .min(v.odometry_rotation_max_deg)
 }
 
 /// Marks a candidate as rejected by a check after the gate.
@@ -555,6 +562,33 @@ mod tests {
         let mut cands = [verified(3, near), verified(4, truth(4))];
         det.check_after_gate(&q, &mut cands).unwrap();
         assert!(cands.iter().all(|c| rejection(c).is_none()));
+    }
+
+    #[test]
+    fn no_path_allows_a_rotation_beyond_the_ceiling() {
+        // 400 m of path would allow 63° by the per-metre bound: a loop 40° off the poses (a
+        // look-alike in a corridor at an angle) is rejected by the 30° ceiling.
+        let q = |det: &LoopDetector| at(det, 410.0);
+        let turned = |q: &QueryPlace| {
+            let t = relative(&q.pose.unwrap(), &pose(0.0, 2.0, 0.0));
+            mul(&t, &relative(&pose(0.0, 0.0, 0.0), &pose(40.0, 0.0, 0.0)))
+        };
+        let mut det = detector_with_path(10, |v| {
+            v.support_window = 0;
+            v.unique = false;
+        });
+        let at = q(&det);
+        let mut cands = [verified(2, turned(&at))];
+        det.check_after_gate(&at, &mut cands).unwrap();
+        assert_eq!(rejection(&cands[0]), Some(Rejection::OdometryDisagrees));
+        let mut det = detector_with_path(10, |v| {
+            v.support_window = 0;
+            v.unique = false;
+            v.odometry_rotation_max_deg = 180.0;
+        });
+        let mut cands = [verified(2, turned(&at))];
+        det.check_after_gate(&at, &mut cands).unwrap();
+        assert_eq!(rejection(&cands[0]), None);
     }
 
     #[test]
