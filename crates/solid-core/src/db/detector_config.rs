@@ -90,7 +90,7 @@ pub struct VerifyConfig {
     /// registration's own error and the odometry's noise.
     pub odometry_translation_m: f64,
     /// Translation the odometry may drift per metre travelled between the two places (a
-    /// fraction: 0.02 allows 2 m of disagreement after 100 m), its scale error. The rotation
+    /// fraction: 0.01 allows 1 m of disagreement after 100 m), its scale error. The rotation
     /// the loop and the poses differ by (within its bound) adds `angle · path / 2`: the
     /// displacement a rotation drift causes along the path.
     pub odometry_drift: f64,
@@ -146,7 +146,7 @@ impl Default for VerifyConfig {
             },
             odometry_check: true,
             odometry_translation_m: 1.0,
-            odometry_drift: 0.02,
+            odometry_drift: 0.01,
             odometry_rotation_deg: 3.0,
             odometry_rotation_deg_per_m: 0.15,
             odometry_rotation_max_deg: 30.0,
