@@ -86,6 +86,11 @@ def test_evals_suggestion_reproduces_its_accepted_rows_exactly(capsys: pytest.Ca
     )  # fmt: skip
     assert code == 0, err
     m = json.loads((tmp_path / "e" / "metrics.json").read_text())
+    # How late a confirmed loop can come, from the detector's support over time (none without verification).
+    d = solid.DetectorConfig()
+    delay = {"min": d.min_support, "window": d.support_window} if verify else {"min": 0, "window": 0}
+    assert m["loop_delay_steps"] == delay
+    assert (f"at least {d.min_support} step(s) into it, on evidence at most {d.support_window} steps back" in out) == verify
     command = m["best_threshold_command"]
     assert command in out
     argv = shlex.split(command)
