@@ -107,8 +107,14 @@ pub struct VerifyConfig {
     /// ([`Rejection::Ambiguous`](crate::reg::Rejection::Ambiguous)) when another candidate of
     /// the step passed too and the two disagree through their places' poses (the drift bounds
     /// above, the path being the metres between the two candidates): look-alike places and
-    /// slid registrations, of which at most one is right.
+    /// slid registrations, of which at most one is right. A candidate whose pose lies much
+    /// nearer the poses' relative pose than the other's (`unique_ratio`) is kept.
     pub unique: bool,
+    /// Of two candidates that disagree, the one whose distance (metres) from the poses' relative
+    /// pose is less than this fraction of the other's is kept (0: both are rejected). With the
+    /// places chosen by pose, the true place is often verified beside a look-alike or a slid
+    /// registration of a neighbour; the odometry tells them apart.
+    pub unique_ratio: f64,
     /// Consistency over time: a candidate that passed the gate (and the odometry check) is a
     /// loop only when at least `min_support` of the previous `support_window` steps had a
     /// candidate that passed too and agrees with it (see [`VerifyConfig::min_support`]).
@@ -151,6 +157,7 @@ impl Default for VerifyConfig {
             odometry_rotation_deg_per_m: 0.15,
             odometry_rotation_max_deg: 30.0,
             unique: true,
+            unique_ratio: 0.5,
             support_window: 20,
             min_support: 1,
         }
@@ -290,6 +297,8 @@ impl Params for DetectorConfig {
             "degrees in [0, 180]", "Ceiling of the rotation a loop may differ from the poses' relative rotation by, whatever the path, degrees."),
         field!(DetectorConfig, "unique", verify.unique, Kind::Bool, "a bool",
             "Reject verified candidates of a step that disagree with another verified one through the poses."),
+        field!(DetectorConfig, "unique_ratio", verify.unique_ratio, Kind::closed(0.0, 1.0), "a number in [0, 1]",
+            "Of two disagreeing candidates, keep the one whose distance from the poses' relative pose is under this fraction of the other's (0: reject both)."),
         field!(DetectorConfig, "support_window", verify.support_window, COUNT, "an integer >= 0",
             "Consistency over time: the previous steps that may support a loop (0: off)."),
         field!(DetectorConfig, "min_support", verify.min_support, COUNT, "an integer >= 0",

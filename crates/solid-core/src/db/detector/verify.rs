@@ -96,17 +96,29 @@ impl LoopDetector {
             }
         }
         let mut mine = Vec::new();
-        mine.try_reserve_exact(cands.iter().filter(|c| registered(c)).count())
+        let mut offsets = Vec::new();
+        let n = cands.iter().filter(|c| registered(c)).count();
+        mine.try_reserve_exact(n)
+            .map_err(|_| DbError::OutOfMemory)?;
+        offsets
+            .try_reserve_exact(n)
             .map_err(|_| DbError::OutOfMemory)?;
         for c in cands.iter().filter(|c| registered(c)) {
             mine.extend(c.verification.map(|r| (c.id, r.registration.pose)));
+            offsets.push(self.odometry_offset(at, c));
         }
         if let (true, Some(q)) = (v.unique, at.pose) {
             for c in cands.iter_mut().filter(|c| passed(c)) {
                 let Some(r) = c.verification else { continue };
                 let me = (&q, c.id, &r.registration.pose);
-                let disagree = mine.iter().any(|&(c2, ref t2)| {
-                    c2 != c.id && self.agree_through_poses(me, (&q, c2, t2)) == Some(false)
+                let mine_off = self.odometry_offset(at, c);
+                // The one much nearer the odometry wins; otherwise the step cannot tell.
+                let nearer =
+                    |o: Option<f64>| mine_off.zip(o).is_some_and(|(a, b)| a < v.unique_ratio * b);
+                let disagree = mine.iter().zip(&offsets).any(|(&(c2, ref t2), &o2)| {
+                    c2 != c.id
+                        && self.agree_through_poses(me, (&q, c2, t2)) == Some(false)
+                        && !nearer(o2)
                 });
                 if disagree {
                     reject(c, Rejection::Ambiguous);
@@ -154,6 +166,15 @@ impl LoopDetector {
         };
         let path = libm::fabs(at.travelled - p);
         self.within_drift(&relative(&q, &cp), &r.registration.pose, path)
+    }
+
+    /// Metres between a registered candidate's pose and its places' poses' relative pose (None
+    /// without poses or across sessions).
+    fn odometry_offset(&self, at: &QueryPlace, c: &Candidate) -> Option<f64> {
+        let (q, r) = (at.pose?, c.verification?);
+        (c.id as usize).checked_sub(self.session_start)?;
+        let cp = self.db.pose(c.id)?;
+        reg::pose_distance(&relative(&q, &cp), &r.registration.pose).map(|(m, _)| m)
     }
 
     /// Whether `pose` is within the drift bounds after `path` metres of `expected`; a NaN path
@@ -558,6 +579,11 @@ mod tests {
         let mut cands = [verified(2, off), far];
         det.check_after_gate(&q, &mut cands).unwrap();
         assert_eq!(rejection(&cands[0]), Some(Rejection::Ambiguous));
+        // The one much nearer the poses wins: the true place beside a look-alike 3 m off.
+        let mut cands = [verified(2, off), verified(4, truth(4))];
+        det.check_after_gate(&q, &mut cands).unwrap();
+        assert_eq!(rejection(&cands[0]), Some(Rejection::Ambiguous));
+        assert_eq!(rejection(&cands[1]), None);
         // Candidates that agree with each other are kept.
         let mut cands = [verified(3, near), verified(4, truth(4))];
         det.check_after_gate(&q, &mut cands).unwrap();
