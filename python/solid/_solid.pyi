@@ -266,7 +266,7 @@ class DetectorConfig:
         rerank: bool = False,
         verify: bool = True,
         verify_candidates: int = 5,
-        pose_candidates: int = 2,
+        pose_candidates: int = 0,
         verify_hypotheses: int = 4,
         verify_fan_deg: float = 25.0,
         cloud_bits: int = 8,
@@ -297,7 +297,7 @@ class DetectorConfig:
             rerank: Re-rank the candidates by R-SOLiD plus rotation-aligned A-SOLiD distance (a bool; default False).
             verify: Verify the best candidates by registering the places' clouds; a loop then carries its pose (a bool; default True).
             verify_candidates: Candidates registered per step (an integer in 1..=1000; default 5).
-            pose_candidates: Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates (0: none) (an integer in 0..=1000; default 2).
+            pose_candidates: Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates (0: none) (an integer in 0..=1000; default 0).
             verify_hypotheses: Initial yaws per registration, at most (0°, the A-SOLiD minima, then the fan) (an integer in 1..=16; default 4).
             verify_fan_deg: The fixed ± yaw fan added to the hypotheses, degrees (0: none) (degrees in [0, 180]; default 25.0).
             cloud_bits: Bits per axis of the compact clouds stored with the places (an integer in 1..=16; default 8).
@@ -365,7 +365,7 @@ class DetectorConfig:
             rerank: Re-rank the candidates by R-SOLiD plus rotation-aligned A-SOLiD distance (a bool; default False).
             verify: Verify the best candidates by registering the places' clouds; a loop then carries its pose (a bool; default True).
             verify_candidates: Candidates registered per step (an integer in 1..=1000; default 5).
-            pose_candidates: Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates (0: none) (an integer in 0..=1000; default 2).
+            pose_candidates: Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates (0: none) (an integer in 0..=1000; default 0).
             verify_hypotheses: Initial yaws per registration, at most (0°, the A-SOLiD minima, then the fan) (an integer in 1..=16; default 4).
             verify_fan_deg: The fixed ± yaw fan added to the hypotheses, degrees (0: none) (degrees in [0, 180]; default 25.0).
             cloud_bits: Bits per axis of the compact clouds stored with the places (an integer in 1..=16; default 8).
@@ -434,7 +434,7 @@ class DetectorConfig:
             rerank: Re-rank the candidates by R-SOLiD plus rotation-aligned A-SOLiD distance (a bool; default False).
             verify: Verify the best candidates by registering the places' clouds; a loop then carries its pose (a bool; default True).
             verify_candidates: Candidates registered per step (an integer in 1..=1000; default 5).
-            pose_candidates: Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates (0: none) (an integer in 0..=1000; default 2).
+            pose_candidates: Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates (0: none) (an integer in 0..=1000; default 0).
             verify_hypotheses: Initial yaws per registration, at most (0°, the A-SOLiD minima, then the fan) (an integer in 1..=16; default 4).
             verify_fan_deg: The fixed ± yaw fan added to the hypotheses, degrees (0: none) (degrees in [0, 180]; default 25.0).
             cloud_bits: Bits per axis of the compact clouds stored with the places (an integer in 1..=16; default 8).
@@ -493,7 +493,7 @@ class DetectorConfig:
         """Candidates registered per step (an integer in 1..=1000; default 5)."""
     @property
     def pose_candidates(self) -> int:
-        """Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates (0: none) (an integer in 0..=1000; default 2)."""
+        """Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates (0: none) (an integer in 0..=1000; default 0)."""
     @property
     def verify_hypotheses(self) -> int:
         """Initial yaws per registration, at most (0°, the A-SOLiD minima, then the fan) (an integer in 1..=16; default 4)."""

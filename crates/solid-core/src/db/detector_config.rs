@@ -167,8 +167,11 @@ impl Default for VerifyConfig {
 /// Default [`VerifyConfig::candidates`].
 pub const DEFAULT_VERIFY_CANDIDATES: usize = 5;
 
-/// Default [`VerifyConfig::pose_candidates`] (docs/performance.md#loops-a-pose-graph-can-trust).
-pub const DEFAULT_POSE_CANDIDATES: usize = 2;
+/// Default [`VerifyConfig::pose_candidates`]: off. With true poses two of them find nearly every
+/// revisit of the look-alike corridors; with a drifting odometry they bring places near its wrong
+/// position whose registrations slide along a corridor into agreement with it
+/// (docs/performance.md#loops-a-pose-graph-can-trust).
+pub const DEFAULT_POSE_CANDIDATES: usize = 0;
 
 /// Default [`VerifyConfig::step_points`]: room for every default candidate of the largest
 /// real scans measured, so that it binds only on outsized clouds (docs/performance.md#work-budgets).
