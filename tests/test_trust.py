@@ -65,9 +65,10 @@ def test_detect_and_eval_with_the_same_detector_flags_accept_the_same_loops(caps
     """The evaluation radius no longer sets the gate (today's main: 46 loops with eval --radius 3,
     78 with detect on the same flags)."""
     seq = str(data_dir() / "hku1-avia")
-    common = ["--preset", "avia", *STRETCH, "-q"]
+    # The poses are the detector's input too (its pose candidates and checks): both runs get them.
+    common = ["--preset", "avia", *STRETCH, "--poses", "odom_poses.txt", "-q"]
     assert run(capsys, "detect", seq, *common, "-o", str(tmp_path / "d"))[0] == 0
-    assert run(capsys, "eval", seq, *common, "--radius", "3", "--poses", "odom_poses.txt", "--no-plots", "-o", str(tmp_path / "e"))[0] == 0
+    assert run(capsys, "eval", seq, *common, "--radius", "3", "--no-plots", "-o", str(tmp_path / "e"))[0] == 0
     loops = read_csv(tmp_path / "d" / "loops.csv")
     accepted = [{k: r[k] for k in LOOP_COLUMNS} for r in read_csv(tmp_path / "e" / "queries.csv") if r["accepted"] == "True"]
     assert loops and accepted == loops
@@ -86,6 +87,11 @@ def test_evals_suggestion_reproduces_its_accepted_rows_exactly(capsys: pytest.Ca
     )  # fmt: skip
     assert code == 0, err
     m = json.loads((tmp_path / "e" / "metrics.json").read_text())
+    # How late a confirmed loop can come, from the detector's support over time (none without verification).
+    d = solid.DetectorConfig()
+    delay = {"min": d.min_support, "window": d.support_window} if verify else {"min": 0, "window": 0}
+    assert m["loop_delay_steps"] == delay
+    assert (f"at least {d.min_support} step(s) into it, on evidence at most {d.support_window} steps back" in out) == verify
     command = m["best_threshold_command"]
     assert command in out
     argv = shlex.split(command)

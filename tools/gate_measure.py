@@ -1,11 +1,15 @@
 """The gate on the simulator's failure-mode worlds, through the shipped pipeline with true poses:
-accepted loops, place-false and pose-false counts, loops more than 1 m / 5° off, recall.
+accepted loops, place-false and pose-false counts, loops more than 1 m / 5° off, recall, and the
+registered candidates' disagreement with the poses (what the odometry check judges).
 
     PYTHONPATH=python python tools/gate_measure.py                      # the defaults
     PYTHONPATH=python python tools/gate_measure.py '{"odometry_check": false, "unique": false, "min_support": 0}'
+    PYTHONPATH=python python tools/gate_measure.py '{}' presets          # corridors per preset
 
-The optional argument is a JSON object of detector overrides (the names of DetectorConfig);
-docs/performance.md#loops-a-pose-graph-can-trust gives the figures.
+The optional first argument is a JSON object of detector overrides (the names of DetectorConfig);
+the second, ``presets``, runs the default look-alike world (``World.corridors()``'s modules) for
+every preset at its own view and a 90° one, seeds 1–3, instead of the room and the three
+corridor runs. docs/performance.md#loops-a-pose-graph-can-trust gives the figures.
 """
 
 from __future__ import annotations
@@ -21,22 +25,60 @@ from solid.config import PipelineConfig
 from solid.pipeline import LoopClosurePipeline
 
 
+def disagreement(res: Any, P: np.ndarray) -> tuple[list[float], list[float]]:
+    """Metres by which each candidate that passed the gate's registration checks (whatever the
+    checks against the poses said) lies off the true relative pose: (true places within 5 m, others)."""
+    T = np.tile(np.eye(4), (len(P), 1, 1))
+    T[:, :3, :] = P.reshape(len(P), 3, 4)
+    true, false = [], []
+    for d in res.queries():
+        for c in d.candidates:
+            if not c.verified or not (c.accepted or c.rejection in ("disagrees with the odometry", "another candidate disagrees", "not supported by the previous steps")):
+                continue
+            q, k = res.frame_of(d.query), res.frame_of(c.id)
+            rel = np.linalg.inv(T[q]) @ T[k]
+            off = float(np.linalg.norm(np.asarray(c.pose)[:3, 3] - rel[:3, 3]))
+            (true if np.linalg.norm(rel[:3, 3]) <= 5.0 else false).append(off)
+    return true, false
+
+
+def quantiles(x: list[float]) -> str:
+    if not x:
+        return "none"
+    q = np.quantile(np.asarray(x), [0.0, 0.5, 0.95, 1.0])
+    return f"{len(x)}: min {q[0]:.2f} / median {q[1]:.2f} / p95 {q[2]:.2f} / max {q[3]:.2f} m"
+
+
 def measure(name: str, world: sim.World, traj: sim.Trajectory, sensor: sim.Sensor, preset: str, detector: dict[str, Any]) -> None:
     seq = sim.simulate(world, sensor, traj)
-    ev = LoopClosurePipeline(seq, PipelineConfig.preset(preset, radius=5.0, detector=detector)).run().evaluate()
+    res = LoopClosurePipeline(seq, PipelineConfig.preset(preset, radius=5.0, detector=detector)).run()
+    ev = res.evaluate()
     m = ev.metrics()
     em = np.nan_to_num(np.asarray(ev.scores.pose_error_m))
     ed = np.nan_to_num(np.asarray(ev.scores.pose_error_deg))
     off = int(np.sum(ev.accepted & ((em > 1.0) | (ed > 5.0))))
+    true, false = disagreement(res, np.asarray(traj.poses))
     print(
         f"{name}: {len(seq)} frames, {m['accepted']} accepted, {m['place_false_accepts']} place-false, "
-        f"{m['pose_false_accepts']} pose-false, {off} off by > 1 m or 5°, recall {m['recall']:.3f}",
+        f"{m['pose_false_accepts']} pose-false, {off} off by > 1 m or 5°, recall {m['recall']:.3f}; "
+        f"registered candidates off the true pose, true places {quantiles(true)}; others {quantiles(false)}",
         flush=True,
     )
 
 
 def main() -> None:
     detector: dict[str, Any] = json.loads(sys.argv[1]) if len(sys.argv) > 1 else {}
+    if sys.argv[2:] == ["presets"]:
+        for seed in (1, 2, 3):
+            world = sim.World.corridors(seed=seed)
+            walk = sim.Trajectory.corridor_walk(world, laps=1.3)
+            for preset in ("hdl64", "vlp16", "os1-64", "avia", "aeva"):
+                for fov in (None, 90.0):
+                    if fov is not None and preset == "avia":
+                        continue  # the Avia's own view is 70°
+                    view = "its own view" if fov is None else f"a {fov:g}° view"
+                    measure(f"corridors seed {seed}, {preset} with {view}", world, walk, sim.Sensor(preset, h_fov=fov), preset, detector)
+        return
     room = sim.World.room(seed=1)
     turn = sim.Trajectory.turn_in_place(room, sweep=330.0, step=2.0, wobble=0.3, seed=1)
     for preset in ("avia", "os1-64"):

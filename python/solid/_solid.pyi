@@ -266,6 +266,7 @@ class DetectorConfig:
         rerank: bool = False,
         verify: bool = True,
         verify_candidates: int = 5,
+        pose_candidates: int = 0,
         verify_hypotheses: int = 4,
         verify_fan_deg: float = 25.0,
         cloud_bits: int = 8,
@@ -274,10 +275,12 @@ class DetectorConfig:
         verify_step_points: int = 4000000,
         odometry_check: bool = True,
         odometry_translation_m: float = 1.0,
-        odometry_drift: float = 0.02,
+        odometry_drift: float = 0.01,
         odometry_rotation_deg: float = 3.0,
         odometry_rotation_deg_per_m: float = 0.15,
+        odometry_rotation_max_deg: float = 30.0,
         unique: bool = True,
+        unique_ratio: float = 0.5,
         support_window: int = 20,
         min_support: int = 1,
         registration: RegistrationConfig | dict[str, Any] | None = None,
@@ -294,6 +297,7 @@ class DetectorConfig:
             rerank: Re-rank the candidates by R-SOLiD plus rotation-aligned A-SOLiD distance (a bool; default False).
             verify: Verify the best candidates by registering the places' clouds; a loop then carries its pose (a bool; default True).
             verify_candidates: Candidates registered per step (an integer in 1..=1000; default 5).
+            pose_candidates: Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates (0: none) (an integer in 0..=1000; default 0).
             verify_hypotheses: Initial yaws per registration, at most (0°, the A-SOLiD minima, then the fan) (an integer in 1..=16; default 4).
             verify_fan_deg: The fixed ± yaw fan added to the hypotheses, degrees (0: none) (degrees in [0, 180]; default 25.0).
             cloud_bits: Bits per axis of the compact clouds stored with the places (an integer in 1..=16; default 8).
@@ -302,10 +306,12 @@ class DetectorConfig:
             verify_step_points: Work budget of one step, in points: each candidate costs its hypotheses times the two clouds' points; the best is always registered (an integer >= 1; default 4000000).
             odometry_check: Reject a verified loop whose pose disagrees with the poses of its two places (same session) beyond the drift bounds (a bool; default True).
             odometry_translation_m: Translation a loop may differ from the poses' relative pose by at no path, metres (a finite number >= 0; default 1.0).
-            odometry_drift: Translation the odometry may drift per metre travelled between the two places (a fraction; the rotation difference adds angle · path / 2) (a finite number >= 0; default 0.02).
+            odometry_drift: Translation the odometry may drift per metre travelled between the two places (a fraction; the rotation difference adds angle · path / 2) (a finite number >= 0; default 0.01).
             odometry_rotation_deg: Rotation a loop may differ from the poses' relative rotation by at no path, degrees (degrees in [0, 180]; default 3.0).
             odometry_rotation_deg_per_m: Rotation the odometry may drift per metre travelled between the two places, degrees (a finite number >= 0; default 0.15).
+            odometry_rotation_max_deg: Ceiling of the rotation a loop may differ from the poses' relative rotation by, whatever the path, degrees (degrees in [0, 180]; default 30.0).
             unique: Reject verified candidates of a step that disagree with another verified one through the poses (a bool; default True).
+            unique_ratio: Of two disagreeing candidates, keep the one whose distance from the poses' relative pose is under this fraction of the other's (0: reject both) (a number in [0, 1]; default 0.5).
             support_window: Consistency over time: the previous steps that may support a loop (0: off) (an integer >= 0; default 20).
             min_support: Fewest of the previous support_window steps whose verified candidates must agree with a loop (0: off) (an integer >= 0; default 1).
             registration: The registration parameters (an object, or a dict of overrides of the current ones).
@@ -327,6 +333,7 @@ class DetectorConfig:
         rerank: bool | None = None,
         verify: bool | None = None,
         verify_candidates: int | None = None,
+        pose_candidates: int | None = None,
         verify_hypotheses: int | None = None,
         verify_fan_deg: float | None = None,
         cloud_bits: int | None = None,
@@ -338,7 +345,9 @@ class DetectorConfig:
         odometry_drift: float | None = None,
         odometry_rotation_deg: float | None = None,
         odometry_rotation_deg_per_m: float | None = None,
+        odometry_rotation_max_deg: float | None = None,
         unique: bool | None = None,
+        unique_ratio: float | None = None,
         support_window: int | None = None,
         min_support: int | None = None,
         registration: RegistrationConfig | dict[str, Any] | None = None,
@@ -356,6 +365,7 @@ class DetectorConfig:
             rerank: Re-rank the candidates by R-SOLiD plus rotation-aligned A-SOLiD distance (a bool; default False).
             verify: Verify the best candidates by registering the places' clouds; a loop then carries its pose (a bool; default True).
             verify_candidates: Candidates registered per step (an integer in 1..=1000; default 5).
+            pose_candidates: Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates (0: none) (an integer in 0..=1000; default 0).
             verify_hypotheses: Initial yaws per registration, at most (0°, the A-SOLiD minima, then the fan) (an integer in 1..=16; default 4).
             verify_fan_deg: The fixed ± yaw fan added to the hypotheses, degrees (0: none) (degrees in [0, 180]; default 25.0).
             cloud_bits: Bits per axis of the compact clouds stored with the places (an integer in 1..=16; default 8).
@@ -364,10 +374,12 @@ class DetectorConfig:
             verify_step_points: Work budget of one step, in points: each candidate costs its hypotheses times the two clouds' points; the best is always registered (an integer >= 1; default 4000000).
             odometry_check: Reject a verified loop whose pose disagrees with the poses of its two places (same session) beyond the drift bounds (a bool; default True).
             odometry_translation_m: Translation a loop may differ from the poses' relative pose by at no path, metres (a finite number >= 0; default 1.0).
-            odometry_drift: Translation the odometry may drift per metre travelled between the two places (a fraction; the rotation difference adds angle · path / 2) (a finite number >= 0; default 0.02).
+            odometry_drift: Translation the odometry may drift per metre travelled between the two places (a fraction; the rotation difference adds angle · path / 2) (a finite number >= 0; default 0.01).
             odometry_rotation_deg: Rotation a loop may differ from the poses' relative rotation by at no path, degrees (degrees in [0, 180]; default 3.0).
             odometry_rotation_deg_per_m: Rotation the odometry may drift per metre travelled between the two places, degrees (a finite number >= 0; default 0.15).
+            odometry_rotation_max_deg: Ceiling of the rotation a loop may differ from the poses' relative rotation by, whatever the path, degrees (degrees in [0, 180]; default 30.0).
             unique: Reject verified candidates of a step that disagree with another verified one through the poses (a bool; default True).
+            unique_ratio: Of two disagreeing candidates, keep the one whose distance from the poses' relative pose is under this fraction of the other's (0: reject both) (a number in [0, 1]; default 0.5).
             support_window: Consistency over time: the previous steps that may support a loop (0: off) (an integer >= 0; default 20).
             min_support: Fewest of the previous support_window steps whose verified candidates must agree with a loop (0: off) (an integer >= 0; default 1).
             registration: The registration parameters (an object, or a dict of overrides of the current ones).
@@ -391,6 +403,7 @@ class DetectorConfig:
         rerank: bool | None = None,
         verify: bool | None = None,
         verify_candidates: int | None = None,
+        pose_candidates: int | None = None,
         verify_hypotheses: int | None = None,
         verify_fan_deg: float | None = None,
         cloud_bits: int | None = None,
@@ -402,7 +415,9 @@ class DetectorConfig:
         odometry_drift: float | None = None,
         odometry_rotation_deg: float | None = None,
         odometry_rotation_deg_per_m: float | None = None,
+        odometry_rotation_max_deg: float | None = None,
         unique: bool | None = None,
+        unique_ratio: float | None = None,
         support_window: int | None = None,
         min_support: int | None = None,
         registration: RegistrationConfig | dict[str, Any] | None = None,
@@ -419,6 +434,7 @@ class DetectorConfig:
             rerank: Re-rank the candidates by R-SOLiD plus rotation-aligned A-SOLiD distance (a bool; default False).
             verify: Verify the best candidates by registering the places' clouds; a loop then carries its pose (a bool; default True).
             verify_candidates: Candidates registered per step (an integer in 1..=1000; default 5).
+            pose_candidates: Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates (0: none) (an integer in 0..=1000; default 0).
             verify_hypotheses: Initial yaws per registration, at most (0°, the A-SOLiD minima, then the fan) (an integer in 1..=16; default 4).
             verify_fan_deg: The fixed ± yaw fan added to the hypotheses, degrees (0: none) (degrees in [0, 180]; default 25.0).
             cloud_bits: Bits per axis of the compact clouds stored with the places (an integer in 1..=16; default 8).
@@ -427,10 +443,12 @@ class DetectorConfig:
             verify_step_points: Work budget of one step, in points: each candidate costs its hypotheses times the two clouds' points; the best is always registered (an integer >= 1; default 4000000).
             odometry_check: Reject a verified loop whose pose disagrees with the poses of its two places (same session) beyond the drift bounds (a bool; default True).
             odometry_translation_m: Translation a loop may differ from the poses' relative pose by at no path, metres (a finite number >= 0; default 1.0).
-            odometry_drift: Translation the odometry may drift per metre travelled between the two places (a fraction; the rotation difference adds angle · path / 2) (a finite number >= 0; default 0.02).
+            odometry_drift: Translation the odometry may drift per metre travelled between the two places (a fraction; the rotation difference adds angle · path / 2) (a finite number >= 0; default 0.01).
             odometry_rotation_deg: Rotation a loop may differ from the poses' relative rotation by at no path, degrees (degrees in [0, 180]; default 3.0).
             odometry_rotation_deg_per_m: Rotation the odometry may drift per metre travelled between the two places, degrees (a finite number >= 0; default 0.15).
+            odometry_rotation_max_deg: Ceiling of the rotation a loop may differ from the poses' relative rotation by, whatever the path, degrees (degrees in [0, 180]; default 30.0).
             unique: Reject verified candidates of a step that disagree with another verified one through the poses (a bool; default True).
+            unique_ratio: Of two disagreeing candidates, keep the one whose distance from the poses' relative pose is under this fraction of the other's (0: reject both) (a number in [0, 1]; default 0.5).
             support_window: Consistency over time: the previous steps that may support a loop (0: off) (an integer >= 0; default 20).
             min_support: Fewest of the previous support_window steps whose verified candidates must agree with a loop (0: off) (an integer >= 0; default 1).
             registration: The registration parameters (an object, or a dict of overrides of the current ones).
@@ -444,7 +462,7 @@ class DetectorConfig:
             TypeError: An unknown parameter, or a value of the wrong type.
         """
     def to_dict(self) -> dict[str, Any]:
-        """The parameters by name (exclude_frames, exclude_meters, exclude_seconds, threshold, top_k, rerank, verify, verify_candidates, verify_hypotheses, verify_fan_deg, cloud_bits, cache_bytes, verify_threads, verify_step_points, odometry_check, odometry_translation_m, odometry_drift, odometry_rotation_deg, odometry_rotation_deg_per_m, unique, support_window, min_support, registration, gate): what `DetectorConfig(**d)` takes back.
+        """The parameters by name (exclude_frames, exclude_meters, exclude_seconds, threshold, top_k, rerank, verify, verify_candidates, pose_candidates, verify_hypotheses, verify_fan_deg, cloud_bits, cache_bytes, verify_threads, verify_step_points, odometry_check, odometry_translation_m, odometry_drift, odometry_rotation_deg, odometry_rotation_deg_per_m, odometry_rotation_max_deg, unique, unique_ratio, support_window, min_support, registration, gate): what `DetectorConfig(**d)` takes back.
 
         Returns:
             A new dict.
@@ -474,6 +492,9 @@ class DetectorConfig:
     def verify_candidates(self) -> int:
         """Candidates registered per step (an integer in 1..=1000; default 5)."""
     @property
+    def pose_candidates(self) -> int:
+        """Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates (0: none) (an integer in 0..=1000; default 0)."""
+    @property
     def verify_hypotheses(self) -> int:
         """Initial yaws per registration, at most (0°, the A-SOLiD minima, then the fan) (an integer in 1..=16; default 4)."""
     @property
@@ -499,7 +520,7 @@ class DetectorConfig:
         """Translation a loop may differ from the poses' relative pose by at no path, metres (a finite number >= 0; default 1.0)."""
     @property
     def odometry_drift(self) -> float:
-        """Translation the odometry may drift per metre travelled between the two places (a fraction; the rotation difference adds angle · path / 2) (a finite number >= 0; default 0.02)."""
+        """Translation the odometry may drift per metre travelled between the two places (a fraction; the rotation difference adds angle · path / 2) (a finite number >= 0; default 0.01)."""
     @property
     def odometry_rotation_deg(self) -> float:
         """Rotation a loop may differ from the poses' relative rotation by at no path, degrees (degrees in [0, 180]; default 3.0)."""
@@ -507,8 +528,14 @@ class DetectorConfig:
     def odometry_rotation_deg_per_m(self) -> float:
         """Rotation the odometry may drift per metre travelled between the two places, degrees (a finite number >= 0; default 0.15)."""
     @property
+    def odometry_rotation_max_deg(self) -> float:
+        """Ceiling of the rotation a loop may differ from the poses' relative rotation by, whatever the path, degrees (degrees in [0, 180]; default 30.0)."""
+    @property
     def unique(self) -> bool:
         """Reject verified candidates of a step that disagree with another verified one through the poses (a bool; default True)."""
+    @property
+    def unique_ratio(self) -> float:
+        """Of two disagreeing candidates, keep the one whose distance from the poses' relative pose is under this fraction of the other's (0: reject both) (a number in [0, 1]; default 0.5)."""
     @property
     def support_window(self) -> int:
         """Consistency over time: the previous steps that may support a loop (0: off) (an integer >= 0; default 20)."""
@@ -1511,7 +1538,7 @@ class Detection:
         """The candidates were drawn from the entries 0..eligible (the others were too recent); 0: nothing to search yet."""
     @property
     def candidates(self) -> list[Candidate]:
-        """Up to `top_k` candidates, best first."""
+        """Up to `top_k` candidates, best first; with verification and a pose, also the places chosen by pose (`pose_candidates`)."""
     @property
     def loop(self) -> Loop | None:
         """The loop, when the best candidate's score is at most the threshold; else None."""

@@ -21,6 +21,7 @@ use crate::{Coord, Points};
 
 use super::detector_config::*;
 
+mod nearby;
 mod verify;
 
 pub use verify::{UNVERIFIED_SCORE, VERIFIED_THRESHOLD};
@@ -91,7 +92,8 @@ pub struct Detection {
     /// The candidates were drawn from the entries `0..eligible` (the others were excluded as
     /// too recent); 0 means the step had no database to search.
     pub eligible: u32,
-    /// Up to `top_k` candidates, best first.
+    /// Up to `top_k` candidates, best first; with verification and a pose, also the places
+    /// chosen by pose ([`VerifyConfig::pose_candidates`]).
     pub candidates: Vec<Candidate>,
     /// The loop, when the best candidate's score is at most the threshold.
     pub accepted: Option<Loop>,
@@ -329,6 +331,15 @@ impl LoopDetector {
     pub fn entry(&self, id: u32) -> (u32, f64) {
         let (db, i) = self.part(id);
         (db.sessions()[i as usize], db.timestamps()[i as usize])
+    }
+
+    /// The R-SOLiD of place `id` as stored ([`Database::r`]).
+    ///
+    /// # Panics
+    /// When `id >= len()`.
+    pub fn r(&self, id: u32) -> &[f32] {
+        let (db, i) = self.part(id);
+        db.r(i)
     }
 
     /// The A-SOLiD of place `id` as stored ([`Database::a`]).
@@ -595,7 +606,8 @@ impl LoopDetector {
         self.own.check_fingerprint(d.fingerprint)?;
         let mut cands = self.rank(&d.r, &d.a, self.len(), self.config.top_k)?;
         if self.config.verify.enabled {
-            self.verify_candidates(&d.a, scan.cloud.as_ref(), None, &mut cands)?;
+            let n = self.config.verify.candidates;
+            self.verify_candidates(&d.a, scan.cloud.as_ref(), None, n, &mut cands)?;
         }
         Ok(self.accept(&cands, self.len() as u32))
     }
@@ -678,7 +690,9 @@ impl LoopDetector {
                 pose: s.pose,
                 travelled: s.trail.travelled,
             };
-            self.verify_candidates(&d.a, cloud.as_deref(), Some(at), &mut candidates)?;
+            let (r, a, p) = (&d.r, &d.a, s.pose.as_ref());
+            let n = self.add_pose_candidates(r, a, p, at.travelled, eligible, &mut candidates)?;
+            self.verify_candidates(a, cloud.as_deref(), Some(at), n, &mut candidates)?;
         }
         self.travelled
             .try_reserve(1)

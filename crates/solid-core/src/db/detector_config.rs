@@ -50,6 +50,12 @@ pub struct VerifyConfig {
     pub enabled: bool,
     /// How many of the step's best candidates (by R-SOLiD distance) are registered.
     pub candidates: usize,
+    /// Candidates chosen by pose, registered beside the descriptor's `candidates` when the
+    /// query has a pose: the own session's eligible places nearest to the query's position,
+    /// each within reach of an accepted loop (the gate's `max_translation` plus the odometry
+    /// check's drift bounds after the path between the two). Among look-alike places the
+    /// descriptor's best rarely hold the true one; the odometry says roughly where it is. 0: none.
+    pub pose_candidates: usize,
     /// At most this many initial yaws per candidate: 0°, the A-SOLiD minima, then ±`fan_deg`.
     pub hypotheses: usize,
     /// The fixed yaw fan added to the hypotheses (degrees; 0: none). On a narrow field of view
@@ -84,7 +90,7 @@ pub struct VerifyConfig {
     /// registration's own error and the odometry's noise.
     pub odometry_translation_m: f64,
     /// Translation the odometry may drift per metre travelled between the two places (a
-    /// fraction: 0.02 allows 2 m of disagreement after 100 m), its scale error. The rotation
+    /// fraction: 0.01 allows 1 m of disagreement after 100 m), its scale error. The rotation
     /// the loop and the poses differ by (within its bound) adds `angle · path / 2`: the
     /// displacement a rotation drift causes along the path.
     pub odometry_drift: f64,
@@ -92,12 +98,23 @@ pub struct VerifyConfig {
     pub odometry_rotation_deg: f64,
     /// Rotation the odometry may drift per metre travelled between the two places (degrees).
     pub odometry_rotation_deg_per_m: f64,
+    /// The rotation bound's ceiling (degrees): an odometry that turned further off than this
+    /// is not one to check a loop against, so no path allows more. Between look-alike
+    /// corridors that meet at right angles, a path long enough lets the per-metre bound reach
+    /// 90° and a loop into the other corridor through.
+    pub odometry_rotation_max_deg: f64,
     /// Uniqueness: when the query has a pose, a candidate that passed is rejected
     /// ([`Rejection::Ambiguous`](crate::reg::Rejection::Ambiguous)) when another candidate of
     /// the step passed too and the two disagree through their places' poses (the drift bounds
     /// above, the path being the metres between the two candidates): look-alike places and
-    /// slid registrations, of which at most one is right.
+    /// slid registrations, of which at most one is right. A candidate whose pose lies much
+    /// nearer the poses' relative pose than the other's (`unique_ratio`) is kept.
     pub unique: bool,
+    /// Of two candidates that disagree, the one whose distance (metres) from the poses' relative
+    /// pose is less than this fraction of the other's is kept (0: both are rejected). With the
+    /// places chosen by pose, the true place is often verified beside a look-alike or a slid
+    /// registration of a neighbour; the odometry tells them apart.
+    pub unique_ratio: f64,
     /// Consistency over time: a candidate that passed the gate (and the odometry check) is a
     /// loop only when at least `min_support` of the previous `support_window` steps had a
     /// candidate that passed too and agrees with it (see [`VerifyConfig::min_support`]).
@@ -121,6 +138,7 @@ impl Default for VerifyConfig {
         VerifyConfig {
             enabled: true,
             candidates: DEFAULT_VERIFY_CANDIDATES,
+            pose_candidates: DEFAULT_POSE_CANDIDATES,
             hypotheses: 4,
             fan_deg: 25.0,
             cloud_bits: 8,
@@ -134,10 +152,12 @@ impl Default for VerifyConfig {
             },
             odometry_check: true,
             odometry_translation_m: 1.0,
-            odometry_drift: 0.02,
+            odometry_drift: 0.01,
             odometry_rotation_deg: 3.0,
             odometry_rotation_deg_per_m: 0.15,
+            odometry_rotation_max_deg: 30.0,
             unique: true,
+            unique_ratio: 0.5,
             support_window: 20,
             min_support: 1,
         }
@@ -146,6 +166,12 @@ impl Default for VerifyConfig {
 
 /// Default [`VerifyConfig::candidates`].
 pub const DEFAULT_VERIFY_CANDIDATES: usize = 5;
+
+/// Default [`VerifyConfig::pose_candidates`]: off. With true poses two of them find nearly every
+/// revisit of the look-alike corridors; with a drifting odometry they bring places near its wrong
+/// position whose registrations slide along a corridor into agreement with it
+/// (docs/performance.md#loops-a-pose-graph-can-trust).
+pub const DEFAULT_POSE_CANDIDATES: usize = 0;
 
 /// Default [`VerifyConfig::step_points`]: room for every default candidate of the largest
 /// real scans measured, so that it binds only on outsized clouds (docs/performance.md#work-budgets).
@@ -253,6 +279,8 @@ impl Params for DetectorConfig {
             "Verify the best candidates by registering the places' clouds; a loop then carries its pose."),
         field!(DetectorConfig, "verify_candidates", verify.candidates, Kind::Int { min: 1, max: MAX_TOP_K as u64 },
             "an integer in 1..=1000", "Candidates registered per step."),
+        field!(DetectorConfig, "pose_candidates", verify.pose_candidates, Kind::Int { min: 0, max: MAX_TOP_K as u64 },
+            "an integer in 0..=1000", "Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates (0: none)."),
         field!(DetectorConfig, "verify_hypotheses", verify.hypotheses, Kind::Int { min: 1, max: 16 },
             "an integer in 1..=16", "Initial yaws per registration, at most (0°, the A-SOLiD minima, then the fan)."),
         field!(DetectorConfig, "verify_fan_deg", verify.fan_deg, Kind::closed(0.0, 180.0), "degrees in [0, 180]",
@@ -275,8 +303,12 @@ impl Params for DetectorConfig {
             "degrees in [0, 180]", "Rotation a loop may differ from the poses' relative rotation by at no path, degrees."),
         field!(DetectorConfig, "odometry_rotation_deg_per_m", verify.odometry_rotation_deg_per_m, Kind::closed(0.0, FINITE),
             "a finite number >= 0", "Rotation the odometry may drift per metre travelled between the two places, degrees."),
+        field!(DetectorConfig, "odometry_rotation_max_deg", verify.odometry_rotation_max_deg, Kind::closed(0.0, 180.0),
+            "degrees in [0, 180]", "Ceiling of the rotation a loop may differ from the poses' relative rotation by, whatever the path, degrees."),
         field!(DetectorConfig, "unique", verify.unique, Kind::Bool, "a bool",
             "Reject verified candidates of a step that disagree with another verified one through the poses."),
+        field!(DetectorConfig, "unique_ratio", verify.unique_ratio, Kind::closed(0.0, 1.0), "a number in [0, 1]",
+            "Of two disagreeing candidates, keep the one whose distance from the poses' relative pose is under this fraction of the other's (0: reject both)."),
         field!(DetectorConfig, "support_window", verify.support_window, COUNT, "an integer >= 0",
             "Consistency over time: the previous steps that may support a loop (0: off)."),
         field!(DetectorConfig, "min_support", verify.min_support, COUNT, "an integer >= 0",

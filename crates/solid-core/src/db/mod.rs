@@ -53,7 +53,8 @@ pub use detector::{
 };
 pub use detector_config::{
     DetectorConfig, VerifyConfig, DEFAULT_EXCLUDE_FRAMES, DEFAULT_EXCLUDE_METERS,
-    DEFAULT_MAX_LOOP_DISTANCE, DEFAULT_RERANK, DEFAULT_TOP_K, DEFAULT_VERIFY_CANDIDATES, MAX_TOP_K,
+    DEFAULT_MAX_LOOP_DISTANCE, DEFAULT_POSE_CANDIDATES, DEFAULT_RERANK, DEFAULT_TOP_K,
+    DEFAULT_VERIFY_CANDIDATES, MAX_TOP_K,
 };
 pub use exclusion::visible_own_places;
 pub use index_policy::IndexPolicy;

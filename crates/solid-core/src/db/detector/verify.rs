@@ -17,8 +17,8 @@ pub(super) struct QueryPlace {
 }
 
 impl LoopDetector {
-    /// Registers the query's cloud with its best candidates' and scores every candidate (see
-    /// [`VerifyConfig`]); candidates end sorted by score. With `at` (a step that adds the query),
+    /// Registers the query's cloud with its first `n` candidates' and scores every candidate
+    /// (see [`VerifyConfig`]); candidates end sorted by score. With `at` (a step that adds the query),
     /// the candidates that passed the gate are checked against the poses and the previous
     /// steps, and remembered for the next steps.
     pub(super) fn verify_candidates(
@@ -26,6 +26,7 @@ impl LoopDetector {
         a_query: &[f32],
         query: Option<&PreparedCloud>,
         at: Option<QueryPlace>,
+        n: usize,
         cands: &mut [Candidate],
     ) -> Result<(), DbError> {
         let v = self.config.verify;
@@ -37,7 +38,7 @@ impl LoopDetector {
             // independent of each other: in parallel where threads exist.
             let mut jobs: Vec<(usize, Arc<PreparedCloud>)> = Vec::new();
             let mut work = 0usize;
-            for (i, c) in cands.iter_mut().enumerate().take(v.candidates) {
+            for (i, c) in cands.iter_mut().enumerate().take(n) {
                 let Ok(cloud) = self.prepared_cloud(c.id) else {
                     // Never silently unverified: the candidate says its cloud is bad.
                     c.verification = Some(corrupt_cloud());
@@ -100,17 +101,29 @@ impl LoopDetector {
             }
         }
         let mut mine = Vec::new();
-        mine.try_reserve_exact(cands.iter().filter(|c| registered(c)).count())
+        let mut offsets = Vec::new();
+        let n = cands.iter().filter(|c| registered(c)).count();
+        mine.try_reserve_exact(n)
+            .map_err(|_| DbError::OutOfMemory)?;
+        offsets
+            .try_reserve_exact(n)
             .map_err(|_| DbError::OutOfMemory)?;
         for c in cands.iter().filter(|c| registered(c)) {
             mine.extend(c.verification.map(|r| (c.id, r.registration.pose)));
+            offsets.push(self.odometry_offset(at, c));
         }
         if let (true, Some(q)) = (v.unique, at.pose) {
             for c in cands.iter_mut().filter(|c| passed(c)) {
                 let Some(r) = c.verification else { continue };
                 let me = (&q, c.id, &r.registration.pose);
-                let disagree = mine.iter().any(|&(c2, ref t2)| {
-                    c2 != c.id && self.agree_through_poses(me, (&q, c2, t2)) == Some(false)
+                let mine_off = self.odometry_offset(at, c);
+                // The one much nearer the odometry wins; otherwise the step cannot tell.
+                let nearer =
+                    |o: Option<f64>| mine_off.zip(o).is_some_and(|(a, b)| a < v.unique_ratio * b);
+                let disagree = mine.iter().zip(&offsets).any(|(&(c2, ref t2), &o2)| {
+                    c2 != c.id
+                        && self.agree_through_poses(me, (&q, c2, t2)) == Some(false)
+                        && !nearer(o2)
                 });
                 if disagree {
                     reject(c, Rejection::Ambiguous);
@@ -160,6 +173,15 @@ impl LoopDetector {
         self.within_drift(&relative(&q, &cp), &r.registration.pose, path)
     }
 
+    /// Metres between a registered candidate's pose and its places' poses' relative pose (None
+    /// without poses or across sessions).
+    fn odometry_offset(&self, at: &QueryPlace, c: &Candidate) -> Option<f64> {
+        let (q, r) = (at.pose?, c.verification?);
+        (c.id as usize).checked_sub(self.session_start)?;
+        let cp = self.pose(c.id)?;
+        reg::pose_distance(&relative(&q, &cp), &r.registration.pose).map(|(m, _)| m)
+    }
+
     /// Whether `pose` is within the drift bounds after `path` metres of `expected`; a NaN path
     /// (unknown) counts as none. The rotation they differ by (within its bound) also allows
     /// `angle · path / 2` metres: a rotation drift accumulated along a path displaces its end
@@ -169,7 +191,7 @@ impl LoopDetector {
         let v = &self.config.verify;
         let path = if path.is_nan() { 0.0 } else { path };
         reg::pose_distance(expected, pose).is_some_and(|(m, deg)| {
-            deg <= v.odometry_rotation_deg + v.odometry_rotation_deg_per_m * path
+            deg <= rotation_bound(v, path)
                 && m <= v.odometry_translation_m
                     + v.odometry_drift * path
                     + deg.to_radians() * path / 2.0
@@ -259,6 +281,12 @@ impl LoopDetector {
             }
         }
     }
+}
+
+/// The rotation (degrees) a loop may differ from the poses by after `path` metres.
+pub(super) fn rotation_bound(v: &VerifyConfig, path: f64) -> f64 {
+    (v.odometry_rotation_deg + v.odometry_rotation_deg_per_m * path)
+        .min(v.odometry_rotation_max_deg)
 }
 
 /// Marks a candidate as rejected by a check after the gate.
@@ -577,10 +605,42 @@ mod tests {
         let mut cands = [verified(2, off), far];
         det.check_after_gate(&q, &mut cands).unwrap();
         assert_eq!(rejection(&cands[0]), Some(Rejection::Ambiguous));
+        // The one much nearer the poses wins: the true place beside a look-alike 3 m off.
+        let mut cands = [verified(2, off), verified(4, truth(4))];
+        det.check_after_gate(&q, &mut cands).unwrap();
+        assert_eq!(rejection(&cands[0]), Some(Rejection::Ambiguous));
+        assert_eq!(rejection(&cands[1]), None);
         // Candidates that agree with each other are kept.
         let mut cands = [verified(3, near), verified(4, truth(4))];
         det.check_after_gate(&q, &mut cands).unwrap();
         assert!(cands.iter().all(|c| rejection(c).is_none()));
+    }
+
+    #[test]
+    fn no_path_allows_a_rotation_beyond_the_ceiling() {
+        // 400 m of path would allow 63° by the per-metre bound: a loop 40° off the poses (a
+        // look-alike in a corridor at an angle) is rejected by the 30° ceiling.
+        let q = |det: &LoopDetector| at(det, 410.0);
+        let turned = |q: &QueryPlace| {
+            let t = relative(&q.pose.unwrap(), &pose(0.0, 2.0, 0.0));
+            mul(&t, &relative(&pose(0.0, 0.0, 0.0), &pose(40.0, 0.0, 0.0)))
+        };
+        let mut det = detector_with_path(10, |v| {
+            v.support_window = 0;
+            v.unique = false;
+        });
+        let at = q(&det);
+        let mut cands = [verified(2, turned(&at))];
+        det.check_after_gate(&at, &mut cands).unwrap();
+        assert_eq!(rejection(&cands[0]), Some(Rejection::OdometryDisagrees));
+        let mut det = detector_with_path(10, |v| {
+            v.support_window = 0;
+            v.unique = false;
+            v.odometry_rotation_max_deg = 180.0;
+        });
+        let mut cands = [verified(2, turned(&at))];
+        det.check_after_gate(&at, &mut cands).unwrap();
+        assert_eq!(rejection(&cands[0]), None);
     }
 
     #[test]

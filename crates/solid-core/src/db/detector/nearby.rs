@@ -1,0 +1,198 @@
+//! Candidates chosen by pose: when the query has a pose, the own session's eligible places nearest
+//! to where its odometry puts it are verified beside the descriptor's best
+//! ([`VerifyConfig::pose_candidates`](crate::db::VerifyConfig::pose_candidates)). Among
+//! look-alike places the descriptor's few best rarely hold the true one; the odometry still says
+//! roughly where the query is.
+
+use alloc::vec::Vec;
+
+use super::{Candidate, LoopDetector};
+use crate::compare::cosine_distance;
+use crate::db::DbError;
+use crate::heading_refined;
+
+impl LoopDetector {
+    /// Puts the step's candidates in the order verification takes them: the descriptor's first
+    /// `verify.candidates`, then up to `verify.pose_candidates` more of the own session's places
+    /// `..eligible` nearest to the query's pose (added to the list when the descriptor's ranking
+    /// lacks them), then the rest. Returns how many to verify.
+    pub(super) fn add_pose_candidates(
+        &self,
+        r: &[f32],
+        a: &[f32],
+        pose: Option<&[f64; 12]>,
+        travelled: f64,
+        eligible: usize,
+        cands: &mut Vec<Candidate>,
+    ) -> Result<usize, DbError> {
+        let v = &self.config.verify;
+        let head = v.candidates.min(cands.len());
+        let Some(q) = pose.filter(|_| v.pose_candidates > 0) else {
+            return Ok(head);
+        };
+        let near = self.nearest_by_pose(q, travelled, eligible, &cands[..head])?;
+        let mut picked = Vec::new();
+        picked
+            .try_reserve_exact(near.len())
+            .map_err(|_| DbError::OutOfMemory)?;
+        for id in near {
+            match cands[head..].iter().position(|c| c.id == id) {
+                Some(i) => picked.push(cands.remove(head + i)),
+                None => picked.push(self.candidate_of(r, a, id)?),
+            }
+        }
+        let n = head + picked.len();
+        cands
+            .try_reserve(picked.len())
+            .map_err(|_| DbError::OutOfMemory)?;
+        cands.splice(head..head, picked);
+        Ok(n)
+    }
+
+    /// Up to `pose_candidates` ids of own-session places `..eligible` with a pose, not in
+    /// `taken`, nearest to `q`, each within reach: the gate's largest loop plus what the
+    /// odometry check allows after the path between the two (a place farther off could not
+    /// give an accepted loop).
+    fn nearest_by_pose(
+        &self,
+        q: &[f64; 12],
+        travelled: f64,
+        eligible: usize,
+        taken: &[Candidate],
+    ) -> Result<Vec<u32>, DbError> {
+        let v = &self.config.verify;
+        let mut best: Vec<(f64, u32)> = Vec::new();
+        best.try_reserve_exact(v.pose_candidates + 1)
+            .map_err(|_| DbError::OutOfMemory)?;
+        for (k, &at) in self.travelled.iter().enumerate() {
+            let id = (self.session_start + k) as u32;
+            if self.session_start + k >= eligible || taken.iter().any(|c| c.id == id) {
+                continue;
+            }
+            let Some(p) = self.pose(id) else { continue };
+            let (x, y, z) = (p[3] - q[3], p[7] - q[7], p[11] - q[11]);
+            let d = libm::sqrt(x * x + y * y + z * z);
+            let path = if (travelled - at).is_nan() {
+                0.0
+            } else {
+                libm::fabs(travelled - at)
+            };
+            let turn = super::verify::rotation_bound(v, path).to_radians();
+            let reach = v.gate.max_translation
+                + v.odometry_translation_m
+                + v.odometry_drift * path
+                + turn * path / 2.0;
+            if d > reach {
+                continue;
+            }
+            let at = best.partition_point(|&(e, _)| e <= d);
+            if at < v.pose_candidates {
+                best.insert(at, (d, id));
+                best.truncate(v.pose_candidates);
+            }
+        }
+        Ok(best.into_iter().map(|(_, id)| id).collect())
+    }
+
+    /// Place `id` as an unverified candidate of the query `(r, a)`.
+    pub(super) fn candidate_of(&self, r: &[f32], a: &[f32], id: u32) -> Result<Candidate, DbError> {
+        let distance = cosine_distance(r, self.r(id))?;
+        Ok(Candidate {
+            id,
+            distance,
+            heading_deg: heading_refined(a, &self.a(id))?.degrees,
+            score: distance,
+            verification: None,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::db::{DetectorConfig, LoopDetector};
+    use crate::{Config, Descriptor, Stats};
+
+    /// Row-major 3×4 pose at (x, y), facing +x.
+    fn at(x: f64, y: f64) -> [f64; 12] {
+        [1.0, 0.0, 0.0, x, 0.0, 1.0, 0.0, y, 0.0, 0.0, 1.0, 0.0]
+    }
+
+    fn descriptor(c: &Config, i: u32) -> Descriptor {
+        let mut r = alloc::vec![1.0f32; c.n_range];
+        r[i as usize % c.n_range] += 1.0;
+        Descriptor {
+            r,
+            a: alloc::vec![1.0; c.n_azimuth],
+            stats: Stats::default(),
+            fingerprint: c.fingerprint(),
+        }
+    }
+
+    #[test]
+    fn the_places_nearest_to_the_query_pose_are_verified_beside_the_descriptors() {
+        let c = Config::preset("hdl64").unwrap();
+        let mut dc = DetectorConfig::default();
+        dc.verify.enabled = false;
+        let mut det = LoopDetector::new(c, dc).unwrap();
+        // 80 places 1 m apart along x: the query at x = 80 sees the first 30 (the 50-frame
+        // window; the 30 m one leaves the same).
+        for i in 0..80 {
+            det.detect(&descriptor(&c, i), f64::NAN, Some(at(f64::from(i), 0.0)))
+                .unwrap();
+        }
+        dc.verify.candidates = 2;
+        dc.verify.pose_candidates = 2;
+        det.set_config(dc).unwrap();
+        let d = descriptor(&c, 7);
+        let eligible = 30;
+        let ranked = det.rank(&d.r, &d.a, eligible, 10).unwrap();
+        let head: alloc::vec::Vec<u32> = ranked[..2].iter().map(|c| c.id).collect();
+        // Back near place 12 after 80 m (a revisit): places 12 and one of its neighbours join.
+        let mut cands = ranked.clone();
+        let q = at(12.2, 0.5);
+        let n = det
+            .add_pose_candidates(&d.r, &d.a, Some(&q), 80.0, eligible, &mut cands)
+            .unwrap();
+        assert_eq!(n, 4);
+        assert_eq!(
+            cands[..2]
+                .iter()
+                .map(|c| c.id)
+                .collect::<alloc::vec::Vec<_>>(),
+            head
+        );
+        assert_eq!(cands[2].id, 12);
+        assert!([11, 13].contains(&cands[3].id), "{:?}", cands[3]);
+        // No place repeats, and none is excluded.
+        let mut ids: alloc::vec::Vec<u32> = cands.iter().map(|c| c.id).collect();
+        assert!(ids.iter().all(|&i| (i as usize) < eligible));
+        ids.sort_unstable();
+        ids.dedup();
+        assert_eq!(ids.len(), cands.len());
+        // The descriptor's own pick is not taken twice: near place head[0], the next nearest.
+        let mut cands = ranked.clone();
+        let near_head = at(f64::from(head[0]), 0.0);
+        det.add_pose_candidates(&d.r, &d.a, Some(&near_head), 80.0, eligible, &mut cands)
+            .unwrap();
+        assert!(!cands[2..4].iter().any(|c| head.contains(&c.id)));
+        // Beyond reach (the gate's 5 m, the drift bounds after the path): none.
+        let mut cands = ranked.clone();
+        let far = at(12.0, 200.0);
+        let n = det
+            .add_pose_candidates(&d.r, &d.a, Some(&far), 80.0, eligible, &mut cands)
+            .unwrap();
+        assert_eq!((n, cands.len()), (2, ranked.len()));
+        // Without a pose, or with pose_candidates = 0: the descriptor's only.
+        let mut cands = ranked.clone();
+        let n = det
+            .add_pose_candidates(&d.r, &d.a, None, f64::NAN, eligible, &mut cands)
+            .unwrap();
+        assert_eq!((n, &cands), (2, &ranked));
+        dc.verify.pose_candidates = 0;
+        det.set_config(dc).unwrap();
+        let n = det
+            .add_pose_candidates(&d.r, &d.a, Some(&q), 80.0, eligible, &mut cands)
+            .unwrap();
+        assert_eq!((n, &cands), (2, &ranked));
+    }
+}
