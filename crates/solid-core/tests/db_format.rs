@@ -2,7 +2,7 @@
 #![cfg(feature = "std")]
 
 mod common;
-use common::db::{cfg, desc, format_reason, same, sample_db};
+use common::db::{cfg, desc, flip_cloud_byte, format_reason, same, sample_db};
 use proptest::prelude::*;
 use solid_lidar::db::{decode_place, encode_place, Database, DbError, Method};
 use solid_lidar::search::Neighbor;
@@ -383,11 +383,7 @@ fn a_loaded_map_reads_its_clouds_on_demand_and_finds_a_corrupt_one_at_first_use(
     );
     // One byte of place 3's cloud flipped: the file still loads (its header and sections are
     // whole), place 3's cloud is an error naming it, the others are read.
-    let mut raw = std::fs::read(&path).unwrap();
-    let cloud = db.cloud(3).unwrap().into_owned();
-    let at = raw.windows(cloud.len()).position(|w| w == cloud).unwrap();
-    raw[at + cloud.len() / 2] ^= 0xFF;
-    std::fs::write(&bad, &raw).unwrap();
+    flip_cloud_byte(&db, 3, &path, &bad);
     let broken = Database::load(&bad).unwrap();
     let why = broken.try_cloud(3).unwrap_err().to_string();
     assert!(
@@ -398,8 +394,9 @@ fn a_loaded_map_reads_its_clouds_on_demand_and_finds_a_corrupt_one_at_first_use(
     assert_eq!(broken.cloud(4), db.cloud(4));
     // Nor can it be added to a database.
     let mut fresh = Database::new(cfg()).unwrap();
-    let mut corrupt = cloud.clone();
-    corrupt[cloud.len() / 2] ^= 0xFF;
+    let mut corrupt = db.cloud(3).unwrap().into_owned();
+    let mid = corrupt.len() / 2;
+    corrupt[mid] ^= 0xFF;
     let why = fresh
         .add_with_cloud(&desc(&cfg(), 0), 0, f64::NAN, None, Some(&corrupt))
         .unwrap_err()

@@ -5,7 +5,7 @@
 mod common;
 use std::sync::Arc;
 
-use common::db::{cfg, desc, unverified};
+use common::db::{cfg, desc, flip_cloud_byte, unverified};
 use solid_lidar::db::{Database, DetectorConfig, LoopDetector, Method, Scan, SearchOptions};
 use solid_lidar::reg::{self, PreparedCloud, Rejection};
 
@@ -105,11 +105,7 @@ fn a_corrupt_cloud_met_in_a_step_is_the_candidates_stated_rejection() {
     let path = dir.join("corrupt.soliddb");
     db.save(&path).unwrap();
     // One byte of place 3's cloud flipped in the file: the map loads, the cloud is bad.
-    let mut raw = std::fs::read(&path).unwrap();
-    let cloud = db.cloud(3).unwrap().into_owned();
-    let at = raw.windows(cloud.len()).position(|w| w == cloud).unwrap();
-    raw[at + cloud.len() / 2] ^= 0xFF;
-    std::fs::write(&path, &raw).unwrap();
+    flip_cloud_byte(&db, 3, &path, &path);
     let map = Database::load(&path).unwrap();
     let mut det = LoopDetector::with_database(map, dc).unwrap();
     let q = PreparedCloud::from_downsampled(&room(0.9), &rc).unwrap();

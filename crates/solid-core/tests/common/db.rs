@@ -92,3 +92,14 @@ pub fn unverified() -> DetectorConfig {
     c.verify.enabled = false;
     c
 }
+
+/// Writes `to`: the file `from` (a saved `db`) with one byte flipped in the middle of place
+/// `id`'s stored cloud, so that the file loads and that cloud fails its checksum.
+#[cfg(feature = "std")]
+pub fn flip_cloud_byte(db: &Database, id: u32, from: &std::path::Path, to: &std::path::Path) {
+    let mut raw = std::fs::read(from).unwrap();
+    let cloud = db.cloud(id).unwrap().into_owned();
+    let at = raw.windows(cloud.len()).position(|w| w == cloud).unwrap();
+    raw[at + cloud.len() / 2] ^= 0xFF;
+    std::fs::write(to, &raw).unwrap();
+}
