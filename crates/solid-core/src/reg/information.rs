@@ -61,7 +61,8 @@ impl Registration {
         }
         let h = h * (3.0 / (tr * LOOP_SIGMA_M * LOOP_SIGMA_M));
         // (H⁻¹ + diag(σ_r² I, 0))⁻¹ by Woodbury: defined where H is singular (a corridor).
-        let floor = Matrix3::identity() / LOOP_SIGMA_ROT_DEG.to_radians().powi(2);
+        let sigma_r = LOOP_SIGMA_ROT_DEG.to_radians();
+        let floor = Matrix3::identity() / (sigma_r * sigma_r);
         let Some(inner) = (floor + h.fixed_view::<3, 3>(0, 0)).try_inverse() else {
             return [[0.0; 6]; 6];
         };
