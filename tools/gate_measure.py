@@ -30,7 +30,8 @@ def disagreement(res: Any, P: np.ndarray) -> tuple[list[float], list[float]]:
     checks against the poses said) lies off the true relative pose: (true places within 5 m, others)."""
     T = np.tile(np.eye(4), (len(P), 1, 1))
     T[:, :3, :] = P.reshape(len(P), 3, 4)
-    true, false = [], []
+    true: list[float] = []
+    false: list[float] = []
     for d in res.queries():
         for c in d.candidates:
             if not c.verified or not (c.accepted or c.rejection in ("the views do not overlap", "disagrees with the odometry", "another candidate disagrees", "not supported by the previous steps")):
