@@ -99,6 +99,38 @@ def test_turning_in_place_accepts_no_loop_more_than_5_degrees_off(name: str) -> 
     assert ev.metrics()["pose_false_accepts"] == 0
 
 
+def test_the_view_check_rejects_loops_whose_yaw_turns_the_avia_away() -> None:
+    """With the checks that need poses off, the view check alone rejects the room's loops whose
+    registered yaw leaves the Avia's two 70.4° views sharing less than the minimum; the loops it
+    keeps share at least that much, and none is rejected with it off."""
+    room = sim.World.room(seed=1)
+    traj = sim.Trajectory.turn_in_place(room, sweep=330.0, step=2.0, wobble=0.3, seed=1)
+    seq = sim.simulate(room, sim.Sensor("avia"), traj)
+    alone = {"exclude_meters": 0.0, "odometry_check": False, "unique": False, "min_support": 0}
+
+    def run(minimum: float) -> tuple[list[float], list[float]]:
+        cfg = PipelineConfig.preset("avia", radius=5.0, detector={**alone, "view_min_overlap_deg": minimum})
+        kept: list[float] = []
+        rejected: list[float] = []
+        for d in LoopClosurePipeline(seq, cfg).run().queries():
+            for c in d.candidates:
+                if c.pose is None:
+                    continue
+                yaw = float(np.degrees(np.arctan2(c.pose[1, 0], c.pose[0, 0])))
+                if c.accepted:
+                    kept.append(yaw)
+                elif c.rejection == "the views do not overlap":
+                    rejected.append(yaw)
+        return kept, rejected
+
+    kept, rejected = run(0.0)
+    assert kept and not rejected
+    kept, rejected = run(60.0)
+    # 70.4° wide: sharing at least 60° is turning by at most 10.4°.
+    assert rejected and all(abs(h) > 10.4 for h in rejected), rejected
+    assert kept and all(abs(h) <= 10.4 + 1e-6 for h in kept), kept
+
+
 class Odometry:
     """A simulated sequence whose poses are a drifting odometry (what the pipeline gives the detector)."""
 

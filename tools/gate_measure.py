@@ -30,10 +30,11 @@ def disagreement(res: Any, P: np.ndarray) -> tuple[list[float], list[float]]:
     checks against the poses said) lies off the true relative pose: (true places within 5 m, others)."""
     T = np.tile(np.eye(4), (len(P), 1, 1))
     T[:, :3, :] = P.reshape(len(P), 3, 4)
-    true, false = [], []
+    true: list[float] = []
+    false: list[float] = []
     for d in res.queries():
         for c in d.candidates:
-            if not c.verified or not (c.accepted or c.rejection in ("disagrees with the odometry", "another candidate disagrees", "not supported by the previous steps")):
+            if not c.verified or not (c.accepted or c.rejection in ("the views do not overlap", "disagrees with the odometry", "another candidate disagrees", "not supported by the previous steps")):
                 continue
             q, k = res.frame_of(d.query), res.frame_of(c.id)
             rel = np.linalg.inv(T[q]) @ T[k]
@@ -58,9 +59,10 @@ def measure(name: str, world: sim.World, traj: sim.Trajectory, sensor: sim.Senso
     ed = np.nan_to_num(np.asarray(ev.scores.pose_error_deg))
     off = int(np.sum(ev.accepted & ((em > 1.0) | (ed > 5.0))))
     true, false = disagreement(res, np.asarray(traj.poses))
+    recall = "none (no true revisit)" if m["recall"] is None else f"{m['recall']:.3f}"
     print(
         f"{name}: {len(seq)} frames, {m['accepted']} accepted, {m['place_false_accepts']} place-false, "
-        f"{m['pose_false_accepts']} pose-false, {off} off by > 1 m or 5°, recall {m['recall']:.3f}; "
+        f"{m['pose_false_accepts']} pose-false, {off} off by > 1 m or 5°, recall {recall}; "
         f"registered candidates off the true pose, true places {quantiles(true)}; others {quantiles(false)}",
         flush=True,
     )

@@ -273,6 +273,8 @@ class DetectorConfig:
         cache_bytes: int = 268435456,
         verify_threads: int = 0,
         verify_step_points: int = 4000000,
+        view_fov_deg: float = 360.0,
+        view_min_overlap_deg: float = 20.0,
         odometry_check: bool = True,
         odometry_translation_m: float = 1.0,
         odometry_drift: float = 0.01,
@@ -304,6 +306,8 @@ class DetectorConfig:
             cache_bytes: Memory for prepared clouds kept between steps, bytes (an integer >= 0; default 268435456).
             verify_threads: Threads registering a step's candidates at once (0: one per core) (an integer >= 0; default 0).
             verify_step_points: Work budget of one step, in points: each candidate costs its hypotheses times the two clouds' points; the best is always registered (an integer >= 1; default 4000000).
+            view_fov_deg: The sensor's horizontal field of view, degrees (the view check's; 360: views always overlap) (degrees in (0, 360]; default 360.0).
+            view_min_overlap_deg: Reject a verified loop whose yaw leaves the two fields of view sharing less azimuth than this, degrees (0: off) (degrees in [0, 360]; default 20.0).
             odometry_check: Reject a verified loop whose pose disagrees with the poses of its two places (same session) beyond the drift bounds (a bool; default True).
             odometry_translation_m: Translation a loop may differ from the poses' relative pose by at no path, metres (a finite number >= 0; default 1.0).
             odometry_drift: Translation the odometry may drift per metre travelled between the two places (a fraction; the rotation difference adds angle · path / 2) (a finite number >= 0; default 0.01).
@@ -340,6 +344,8 @@ class DetectorConfig:
         cache_bytes: int | None = None,
         verify_threads: int | None = None,
         verify_step_points: int | None = None,
+        view_fov_deg: float | None = None,
+        view_min_overlap_deg: float | None = None,
         odometry_check: bool | None = None,
         odometry_translation_m: float | None = None,
         odometry_drift: float | None = None,
@@ -372,6 +378,8 @@ class DetectorConfig:
             cache_bytes: Memory for prepared clouds kept between steps, bytes (an integer >= 0; default 268435456).
             verify_threads: Threads registering a step's candidates at once (0: one per core) (an integer >= 0; default 0).
             verify_step_points: Work budget of one step, in points: each candidate costs its hypotheses times the two clouds' points; the best is always registered (an integer >= 1; default 4000000).
+            view_fov_deg: The sensor's horizontal field of view, degrees (the view check's; 360: views always overlap) (degrees in (0, 360]; default 360.0).
+            view_min_overlap_deg: Reject a verified loop whose yaw leaves the two fields of view sharing less azimuth than this, degrees (0: off) (degrees in [0, 360]; default 20.0).
             odometry_check: Reject a verified loop whose pose disagrees with the poses of its two places (same session) beyond the drift bounds (a bool; default True).
             odometry_translation_m: Translation a loop may differ from the poses' relative pose by at no path, metres (a finite number >= 0; default 1.0).
             odometry_drift: Translation the odometry may drift per metre travelled between the two places (a fraction; the rotation difference adds angle · path / 2) (a finite number >= 0; default 0.01).
@@ -410,6 +418,8 @@ class DetectorConfig:
         cache_bytes: int | None = None,
         verify_threads: int | None = None,
         verify_step_points: int | None = None,
+        view_fov_deg: float | None = None,
+        view_min_overlap_deg: float | None = None,
         odometry_check: bool | None = None,
         odometry_translation_m: float | None = None,
         odometry_drift: float | None = None,
@@ -441,6 +451,8 @@ class DetectorConfig:
             cache_bytes: Memory for prepared clouds kept between steps, bytes (an integer >= 0; default 268435456).
             verify_threads: Threads registering a step's candidates at once (0: one per core) (an integer >= 0; default 0).
             verify_step_points: Work budget of one step, in points: each candidate costs its hypotheses times the two clouds' points; the best is always registered (an integer >= 1; default 4000000).
+            view_fov_deg: The sensor's horizontal field of view, degrees (the view check's; 360: views always overlap) (degrees in (0, 360]; default 360.0).
+            view_min_overlap_deg: Reject a verified loop whose yaw leaves the two fields of view sharing less azimuth than this, degrees (0: off) (degrees in [0, 360]; default 20.0).
             odometry_check: Reject a verified loop whose pose disagrees with the poses of its two places (same session) beyond the drift bounds (a bool; default True).
             odometry_translation_m: Translation a loop may differ from the poses' relative pose by at no path, metres (a finite number >= 0; default 1.0).
             odometry_drift: Translation the odometry may drift per metre travelled between the two places (a fraction; the rotation difference adds angle · path / 2) (a finite number >= 0; default 0.01).
@@ -462,7 +474,7 @@ class DetectorConfig:
             TypeError: An unknown parameter, or a value of the wrong type.
         """
     def to_dict(self) -> dict[str, Any]:
-        """The parameters by name (exclude_frames, exclude_meters, exclude_seconds, threshold, top_k, rerank, verify, verify_candidates, pose_candidates, verify_hypotheses, verify_fan_deg, cloud_bits, cache_bytes, verify_threads, verify_step_points, odometry_check, odometry_translation_m, odometry_drift, odometry_rotation_deg, odometry_rotation_deg_per_m, odometry_rotation_max_deg, unique, unique_ratio, support_window, min_support, registration, gate): what `DetectorConfig(**d)` takes back.
+        """The parameters by name (exclude_frames, exclude_meters, exclude_seconds, threshold, top_k, rerank, verify, verify_candidates, pose_candidates, verify_hypotheses, verify_fan_deg, cloud_bits, cache_bytes, verify_threads, verify_step_points, view_fov_deg, view_min_overlap_deg, odometry_check, odometry_translation_m, odometry_drift, odometry_rotation_deg, odometry_rotation_deg_per_m, odometry_rotation_max_deg, unique, unique_ratio, support_window, min_support, registration, gate): what `DetectorConfig(**d)` takes back.
 
         Returns:
             A new dict.
@@ -512,6 +524,12 @@ class DetectorConfig:
     @property
     def verify_step_points(self) -> int:
         """Work budget of one step, in points: each candidate costs its hypotheses times the two clouds' points; the best is always registered (an integer >= 1; default 4000000)."""
+    @property
+    def view_fov_deg(self) -> float:
+        """The sensor's horizontal field of view, degrees (the view check's; 360: views always overlap) (degrees in (0, 360]; default 360.0)."""
+    @property
+    def view_min_overlap_deg(self) -> float:
+        """Reject a verified loop whose yaw leaves the two fields of view sharing less azimuth than this, degrees (0: off) (degrees in [0, 360]; default 20.0)."""
     @property
     def odometry_check(self) -> bool:
         """Reject a verified loop whose pose disagrees with the poses of its two places (same session) beyond the drift bounds (a bool; default True)."""
@@ -1505,7 +1523,7 @@ class Candidate:
         """Whether its registration passed the gate."""
     @property
     def rejection(self) -> str | None:
-        """Why the gate, or the detector's checks after it (odometry, uniqueness, support), rejected its registration (None when accepted or not registered); a candidate whose stored cloud is corrupt or unreadable is not registered and says so, naming the place ("place 12: its stored cloud is corrupt or unreadable")."""
+        """Why the gate, or the detector's checks after it (view, odometry, uniqueness, support), rejected its registration (None when accepted or not registered); a candidate whose stored cloud is corrupt or unreadable is not registered and says so, naming the place ("place 12: its stored cloud is corrupt or unreadable")."""
     @property
     def pose(self) -> npt.NDArray[np.float64] | None:
         """`T_query_candidate` (4, 4) of its registration (None when not registered)."""

@@ -44,6 +44,9 @@ pub struct Preset {
     /// distance), chosen from the F1-max thresholds measured on the shared data and the
     /// simulator: see [`LOOP_THRESHOLD_MEASUREMENT`].
     pub loop_threshold: f64,
+    /// The sensor's horizontal field of view (degrees, 360 for a spinning sensor): the loop
+    /// detector's default `view_fov_deg`. Not a descriptor parameter (SOLiD bins all of 360°).
+    pub h_fov: f64,
 }
 
 /// How the presets' loop thresholds were measured (`make thresholds`; figures in
@@ -64,36 +67,42 @@ pub const PRESETS: [Preset; 6] = [
         sensor: "Velodyne HDL-64E (KITTI)",
         config: sensor(2.0, -24.8, 64, 80.0),
         loop_threshold: 0.0111,
+        h_fov: 360.0,
     },
     Preset {
         name: "hdl32",
         sensor: "Velodyne HDL-32E (NCLT)",
         config: sensor(10.67, -30.67, 32, 80.0),
         loop_threshold: 0.0211,
+        h_fov: 360.0,
     },
     Preset {
         name: "vlp16",
         sensor: "Velodyne VLP-16",
         config: sensor(15.0, -15.0, 16, 80.0),
         loop_threshold: 0.0217,
+        h_fov: 360.0,
     },
     Preset {
         name: "os1-64",
         sensor: "Ouster OS1-64",
         config: sensor(22.5, -22.5, 64, 80.0),
         loop_threshold: 0.0211,
+        h_fov: 360.0,
     },
     Preset {
         name: "avia",
         sensor: "Livox Avia",
         config: sensor(38.6, -38.6, 64, 120.0),
         loop_threshold: 0.0340,
+        h_fov: 70.4,
     },
     Preset {
         name: "aeva",
         sensor: "Aeva Aeries II",
         config: sensor(9.6, -9.6, 64, 120.0),
         loop_threshold: 0.0248,
+        h_fov: 120.0,
     },
 ];
 

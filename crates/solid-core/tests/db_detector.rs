@@ -214,21 +214,19 @@ fn a_prior_map_is_never_excluded_and_candidates_are_ranked() {
 }
 
 #[test]
-fn a_config_from_a_preset_gives_the_detector_that_presets_threshold() {
+fn a_config_from_a_preset_gives_the_detector_that_presets_threshold_and_view() {
     for p in &solid_lidar::PRESETS {
         let d = DetectorConfig::for_base_preset(Some(p));
         assert_eq!(d.threshold, p.loop_threshold, "{}", p.name);
+        assert_eq!(d.verify.view_fov_deg, p.h_fov, "{}", p.name);
         assert_eq!(d, DetectorConfig::for_preset(p.name).unwrap());
-        assert_eq!(
-            DetectorConfig {
-                threshold: 0.0,
-                ..d
-            },
-            DetectorConfig {
-                threshold: 0.0,
-                ..DetectorConfig::default()
-            }
-        );
+        // Nothing else depends on the preset.
+        let mut general = DetectorConfig {
+            threshold: p.loop_threshold,
+            ..DetectorConfig::default()
+        };
+        general.verify.view_fov_deg = p.h_fov;
+        assert_eq!(d, general, "{}", p.name);
     }
     // A config made from no preset: the general default (the largest preset threshold).
     let none = DetectorConfig::for_base_preset(None);

@@ -79,6 +79,17 @@ pub struct VerifyConfig {
     /// What a registration must meet to be a loop; its `max_translation` is the largest loop
     /// (metres between the places).
     pub gate: Gate,
+    /// The sensor's horizontal field of view (degrees, in (0, 360]): a preset's
+    /// ([`crate::Preset::h_fov`]) for a config made from it, 360 otherwise. Only the view check
+    /// reads it; with 360 two views always overlap.
+    pub view_fov_deg: f64,
+    /// The view check: a registration that passed the gate is rejected
+    /// ([`Rejection::NoSharedView`](crate::reg::Rejection::NoSharedView)) when its yaw turns the
+    /// candidate's field of view (`view_fov_deg` wide, centred on the sensor's x axis) away from
+    /// the query's until they share less than this much azimuth (degrees; 0: off). A narrow
+    /// sensor turned away sees other walls, and a registration that slid one onto another
+    /// reports it by its yaw.
+    pub view_min_overlap_deg: f64,
     /// Check a verified loop against the poses, when the query and the candidate both have one
     /// and belong to the same session: its registered `T_query_candidate` must lie within the
     /// drift bounds below of `inv(T_world_query)·T_world_candidate`, or the candidate is
@@ -150,6 +161,8 @@ impl Default for VerifyConfig {
                 max_translation: DEFAULT_MAX_LOOP_DISTANCE,
                 ..Gate::default()
             },
+            view_fov_deg: 360.0,
+            view_min_overlap_deg: DEFAULT_VIEW_MIN_OVERLAP_DEG,
             odometry_check: true,
             odometry_translation_m: 1.0,
             odometry_drift: 0.01,
@@ -163,6 +176,9 @@ impl Default for VerifyConfig {
         }
     }
 }
+
+/// Default [`VerifyConfig::view_min_overlap_deg`] (docs/performance.md#loops-a-pose-graph-can-trust).
+pub const DEFAULT_VIEW_MIN_OVERLAP_DEG: f64 = 20.0;
 
 /// Default [`VerifyConfig::candidates`].
 pub const DEFAULT_VERIFY_CANDIDATES: usize = 5;
@@ -237,10 +253,14 @@ impl DetectorConfig {
     /// Python `SolidConfig.base_preset` keeps it through `replace` and pickling).
     pub fn for_base_preset(base: Option<&Preset>) -> DetectorConfig {
         match base {
-            Some(p) => DetectorConfig {
-                threshold: p.loop_threshold,
-                ..DetectorConfig::default()
-            },
+            Some(p) => {
+                let mut d = DetectorConfig {
+                    threshold: p.loop_threshold,
+                    ..DetectorConfig::default()
+                };
+                d.verify.view_fov_deg = p.h_fov;
+                d
+            }
             None => DetectorConfig::default(),
         }
     }
@@ -293,6 +313,10 @@ impl Params for DetectorConfig {
             "Threads registering a step's candidates at once (0: one per core)."),
         field!(DetectorConfig, "verify_step_points", verify.step_points, Kind::at_least(1), "an integer >= 1",
             "Work budget of one step, in points: each candidate costs its hypotheses times the two clouds' points; the best is always registered."),
+        field!(DetectorConfig, "view_fov_deg", verify.view_fov_deg, Kind::open_closed(0.0, 360.0),
+            "degrees in (0, 360]", "The sensor's horizontal field of view, degrees (the view check's; 360: views always overlap)."),
+        field!(DetectorConfig, "view_min_overlap_deg", verify.view_min_overlap_deg, Kind::closed(0.0, 360.0), "degrees in [0, 360]",
+            "Reject a verified loop whose yaw leaves the two fields of view sharing less azimuth than this, degrees (0: off)."),
         field!(DetectorConfig, "odometry_check", verify.odometry_check, Kind::Bool, "a bool",
             "Reject a verified loop whose pose disagrees with the poses of its two places (same session) beyond the drift bounds."),
         field!(DetectorConfig, "odometry_translation_m", verify.odometry_translation_m, Kind::closed(0.0, FINITE),

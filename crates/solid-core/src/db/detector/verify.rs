@@ -408,7 +408,10 @@ fn verify_pair(
         return Ok(None);
     };
     let tried = &hyps[..h.count];
-    let check = v.gate.check(&h.registration, tried, h.best);
+    let check = v
+        .gate
+        .check(&h.registration, tried, h.best)
+        .and_then(|()| view_check(v, h.registration.yaw_degrees()));
     Ok(Some(Verification {
         registration: h.registration,
         accepted: check.is_ok(),
@@ -421,6 +424,24 @@ fn verify_pair(
             v.gate.agree_rotation_deg,
         ),
     }))
+}
+
+/// Degrees of azimuth two horizontal fields of view `fov` wide share when one is turned by `yaw`
+/// from the other (both centred on their sensor's x axis): the two arcs' overlap on the circle,
+/// all of `fov` for a 360° sensor.
+fn shared_azimuth_deg(fov: f64, yaw: f64) -> f64 {
+    let d = libm::fabs(libm::remainder(yaw, 360.0));
+    let overlap = (fov - d).max(0.0) + (fov - (360.0 - d)).max(0.0);
+    overlap.min(fov)
+}
+
+/// The view check ([`VerifyConfig::view_min_overlap_deg`]) of a loop turned by `yaw` degrees.
+fn view_check(v: &VerifyConfig, yaw: f64) -> Result<(), Rejection> {
+    if shared_azimuth_deg(v.view_fov_deg, yaw) < v.view_min_overlap_deg {
+        Err(Rejection::NoSharedView)
+    } else {
+        Ok(())
+    }
 }
 
 /// `f` of every job, in order, the first error in job order: shared among the threads of this
@@ -462,6 +483,41 @@ mod tests {
 
     fn close(a: &Pose, b: &Pose) -> bool {
         reg::pose_distance(a, b).is_some_and(|(m, deg)| m < 1e-9 && deg < 1e-6)
+    }
+
+    #[test]
+    fn views_turned_apart_share_no_azimuth() {
+        // A 70° window turned by 100° shares nothing, by 20° it shares 50°; the sign and a full
+        // turn do not matter; a 360° sensor always shares all of its view.
+        assert_eq!(shared_azimuth_deg(70.0, 100.0), 0.0);
+        assert!((shared_azimuth_deg(70.0, 20.0) - 50.0).abs() < 1e-9);
+        assert!((shared_azimuth_deg(70.0, -380.0) - 50.0).abs() < 1e-9);
+        assert!((shared_azimuth_deg(70.0, 340.0) - 50.0).abs() < 1e-9);
+        for yaw in [0.0, 45.0, 90.0, 180.0, -135.0, 270.0] {
+            assert_eq!(shared_azimuth_deg(360.0, yaw), 360.0);
+        }
+        // A window wider than 180° overlaps on both sides.
+        assert!((shared_azimuth_deg(270.0, 180.0) - 180.0).abs() < 1e-9);
+        // Through the detector's check: a 70° window with the default minimum.
+        let v = VerifyConfig {
+            view_fov_deg: 70.0,
+            ..VerifyConfig::default()
+        };
+        assert_eq!(view_check(&v, 100.0), Err(Rejection::NoSharedView));
+        assert_eq!(view_check(&v, -100.0), Err(Rejection::NoSharedView));
+        assert_eq!(view_check(&v, 20.0), Ok(()));
+        let off = VerifyConfig {
+            view_min_overlap_deg: 0.0,
+            ..v
+        };
+        assert_eq!(view_check(&off, 100.0), Ok(()));
+        let spinning = VerifyConfig::default();
+        assert_eq!(view_check(&spinning, 180.0), Ok(()));
+        // The presets' detector defaults carry the sensor's view.
+        let avia = DetectorConfig::for_preset("avia").unwrap().verify;
+        assert_eq!(view_check(&avia, 100.0), Err(Rejection::NoSharedView));
+        let hdl64 = DetectorConfig::for_preset("hdl64").unwrap().verify;
+        assert_eq!(view_check(&hdl64, 180.0), Ok(()));
     }
 
     #[test]
