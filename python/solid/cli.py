@@ -426,7 +426,7 @@ def cmd_describe(args: argparse.Namespace, out: TextIO) -> int:
 
 
 def cmd_detect(args: argparse.Namespace, out: TextIO) -> int:
-    from . import commands
+    from . import commands, evaluation
 
     cfg, map_db = commands.config_and_map(args)
     ds, inputs = _open(args, sys.stderr, cfg)
@@ -441,13 +441,13 @@ def cmd_detect(args: argparse.Namespace, out: TextIO) -> int:
         + (f" / {d.exclude_seconds:g} s" if d.exclude_seconds else "")
         + f"{', map of ' + str(result.map_size) + ' places' if result.map_size else ''}), {rate:.1f} Hz\n"
     )
-    out.write(commands.describe_loop_delay(commands.loop_delay_steps(d)) + "\n")
+    out.write(evaluation.describe_loop_delay(evaluation.loop_delay_steps(d)) + "\n")
     out.write(f"wrote {folder}" + (f" and {args.g2o}" if args.g2o else "") + "\n")
     return 0
 
 
 def cmd_eval(args: argparse.Namespace, out: TextIO) -> int:
-    from . import commands
+    from . import commands, evaluation
 
     cfg, map_db = commands.config_and_map(args)
     ds, inputs = _open(args, sys.stderr, cfg)
@@ -498,7 +498,7 @@ def cmd_eval(args: argparse.Namespace, out: TextIO) -> int:
             f"{m['pose_tolerance_m']:g} m or {m['pose_tolerance_deg']:g}°; "
             f"precision {commands.fmt_metric(m['precision'])}, recall {commands.fmt_metric(m['recall'])})\n"
         )
-    out.write(commands.describe_loop_delay(m["loop_delay_steps"]) + "\n")
+    out.write(evaluation.describe_loop_delay(m["loop_delay_steps"]) + "\n")
     if m.get("best_threshold_command") is not None:
         out.write(f"best F1 {commands.fmt_metric(m['f1_max'])} at threshold {m['best_threshold']:.6g}; to use it:\n  {m['best_threshold_command']}\n")
     elif m.get("best_threshold") is not None:

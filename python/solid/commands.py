@@ -25,7 +25,7 @@ from . import _solid
 from .config import InputOptions, PipelineConfig, descriptor_fields, detector_fields
 from .datasets import Dataset, detect_format, open_dataset, read_points
 from .datasets.selection import iter_selected
-from .evaluation import Evaluation
+from .evaluation import Evaluation, loop_delay_steps
 from .outputs import Output, atomic_write_bytes, output_folder, write_csv, write_json
 from .pipeline import DEFAULT_FOV_CENTER, LoopClosurePipeline, PipelineResult, Progress
 from .records import LOOP_COLUMNS, QUERY_COLUMNS, fmt_opt, pose_columns
@@ -200,31 +200,6 @@ def _summary(result: PipelineResult, inputs: Inputs, command: str) -> dict[str, 
         doc["exclusion_median_m"] = excl
     doc["loop_delay_steps"] = loop_delay_steps(result.config.detector)
     return doc
-
-
-def loop_delay_steps(detector: Any) -> dict[str, int]:
-    """How late a confirmed loop can come (docs/spec.md §8 step 4, support): the first loop of
-    a revisit arrives at least ``min`` steps into it, on the support of steps at most ``window``
-    back; both 0 when support over time (or verification) is off.
-
-    >>> from solid import DetectorConfig
-    >>> loop_delay_steps(DetectorConfig(support_window=20, min_support=2))
-    {'min': 2, 'window': 20}
-    >>> loop_delay_steps(DetectorConfig(min_support=0))
-    {'min': 0, 'window': 0}
-    """
-    on = bool(detector.verify) and detector.min_support > 0 and detector.support_window > 0
-    return {"min": int(detector.min_support), "window": int(detector.support_window)} if on else {"min": 0, "window": 0}
-
-
-def describe_loop_delay(delay: dict[str, int]) -> str:
-    """The printed line of :func:`loop_delay_steps`."""
-    if delay["min"] == 0:
-        return "loops are not delayed (support over time off)"
-    return (
-        f"support over time: a revisit's first loop comes at least {delay['min']} step(s) into it, "
-        f"on evidence at most {delay['window']} steps back"
-    )
 
 
 def exclusion_in_metres(result: PipelineResult) -> float | None:

@@ -30,7 +30,7 @@ from . import _solid
 from .arrays import B, F64, I64
 from .records import QUERY_COLUMNS, fmt_opt, pose_columns
 
-__all__ = ["QUERY_COLUMNS", "Evaluation", "evaluate_candidates", "evaluate_detections"]
+__all__ = ["QUERY_COLUMNS", "Evaluation", "describe_loop_delay", "evaluate_candidates", "evaluate_detections", "loop_delay_steps"]
 
 
 def _none_if_nan(v: float) -> float | None:
@@ -349,4 +349,29 @@ def evaluate_detections(
         pose=pose,
         fitness=fit,
         rmse=rms,
+    )
+
+
+def loop_delay_steps(detector: Any) -> dict[str, int]:
+    """How late a confirmed loop can come (docs/spec.md §8 step 4, support): the first loop of
+    a revisit arrives at least ``min`` steps into it, on the support of steps at most ``window``
+    back; both 0 when support over time (or verification) is off.
+
+    >>> from solid import DetectorConfig
+    >>> loop_delay_steps(DetectorConfig(support_window=20, min_support=2))
+    {'min': 2, 'window': 20}
+    >>> loop_delay_steps(DetectorConfig(min_support=0))
+    {'min': 0, 'window': 0}
+    """
+    on = bool(detector.verify) and detector.min_support > 0 and detector.support_window > 0
+    return {"min": int(detector.min_support), "window": int(detector.support_window)} if on else {"min": 0, "window": 0}
+
+
+def describe_loop_delay(delay: dict[str, int]) -> str:
+    """The printed line of :func:`loop_delay_steps`."""
+    if delay["min"] == 0:
+        return "loops are not delayed (support over time off)"
+    return (
+        f"support over time: a revisit's first loop comes at least {delay['min']} step(s) into it, "
+        f"on evidence at most {delay['window']} steps back"
     )
