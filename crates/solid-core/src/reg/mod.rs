@@ -82,7 +82,7 @@ use crate::params::{field, Field, Kind, ParamType, Params, Value, FINITE};
 pub use crate::error::RegError;
 pub use cloud::{Level, PreparedCloud, MAX_LEVEL_POINTS, MIN_NEIGHBORS, PLANE_EPSILON};
 pub use gate::{Gate, Rejection};
-pub use information::{Information, LOOP_SIGMA_M};
+pub use information::{Information, LOOP_SIGMA_M, LOOP_SIGMA_ROT_DEG};
 pub use kdtree::{KdTree3, Nearest};
 pub use solve::{
     agreement, hypothesis_yaws, pose_distance, register, register_hypotheses, Hypotheses,
