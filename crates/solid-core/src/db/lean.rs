@@ -32,19 +32,23 @@
 //! 7*    poses          p            p×100: u32 id (increasing), 12×f64 row-major [R|t]: every
 //!                                   pose in version 3; in version 4 only when some rotation is
 //!                                   not rebuilt within 1e-12 from its quaternion (not a rotation)
-//! 8*    cloud_offsets  m            (m+1)×u64: place i < m has bytes offset[i]..offset[i+1] of
+//! 8*    cloud_offsets  m            version 3: (m+1)×u64, place i < m has bytes offset[i]..
+//!                                   offset[i+1] of the clouds section (empty: no cloud);
+//!                                   version 4: m×u32, the length of each, the offsets their
+//!                                   running sums from 0
 //!                                   the clouds section (empty: no cloud)
 //! 9*    clouds         places with one  the clouds back to back, each in the wire form of
 //!                                   `reg::encode_cloud` with its own CRC
 //! 10*   metadata       0            UTF-8 text (`Database::metadata`), at most 1 MiB
 //! 11*   pose_ids       p            p×u32: the places with a pose, increasing (version 4, with
 //!                                   12, when some place has none)
-//! 12*   pose_q         p            p×56: f64 w, x, y, z, a unit quaternion (w ≥ 0) of the
-//!                                   rotation, then f64 tx, ty, tz (version 4, instead of 7)
+//! 12*   pose_q         p            p×56: f64 w, x, y, z, the rotation's quaternion divided by
+//!                                   its largest component (1), then f64 tx, ty, tz (version 4,
+//!                                   instead of 7)
 //! ```
 //! A pose read from `pose_q` is the rotation the quaternion gives, each entry within 1e-12 of the
-//! saved one (about 1e-16 for a rotation; `save` stores the matrix otherwise), and the translation
-//! as saved.
+//! saved one (about 2e-14 for a rotation; `save` stores the matrix otherwise), and the translation
+//! as saved; saved again, it gives the same bytes ([`poses`]).
 //! A load reads the header and the table, checks them against the file's size, then reads each
 //! section once into the column it becomes (no buffer of the whole file), checking its CRC, but
 //! not the clouds: those are read by offset when a place's cloud is asked for, their own CRC
@@ -122,6 +126,8 @@ struct Section {
 
 /// What the header and the table of a file say.
 struct Layout {
+    /// Read by the summary (`std` only).
+    #[cfg_attr(not(feature = "std"), allow(dead_code))]
     version: u32,
     config: Config,
     fingerprint: u64,
@@ -135,8 +141,9 @@ impl Layout {
     }
 }
 
-/// Where a file's bytes come from: memory, or (with `std`) a file read by offset.
-pub(super) trait Source {
+/// Where a file's bytes come from: memory, or (with `std`) a file read by offset; read from
+/// several threads at once.
+pub(super) trait Source: Sync {
     /// Length in bytes.
     fn size(&self) -> u64;
     /// Fills `buf` from offset `at` (within [`Source::size`], checked by the caller).
@@ -310,6 +317,7 @@ fn layout(src: &(impl Source + ?Sized)) -> Result<Layout, DbError> {
             POSES => (sec.items <= n).then(|| sec.items * poses::POSE as u64),
             POSE_IDS => (sec.items <= n).then(|| sec.items * poses::ID as u64),
             POSE_Q => (sec.items <= n).then(|| sec.items * poses::POSE_Q as u64),
+            CLOUD_OFFSETS if version > V3 => (sec.items <= n).then(|| sec.items * 4),
             CLOUD_OFFSETS => (sec.items <= n).then(|| (sec.items + 1) * 8),
             CLOUDS => (sec.items <= n).then_some(sec.len),
             _ => (sec.len <= MAX_METADATA as u64).then_some(sec.len),
@@ -413,6 +421,12 @@ impl Le for u8 {
     }
 }
 
+impl Le for u32 {
+    fn swap_le(self) -> Self {
+        u32::from_le(self)
+    }
+}
+
 impl Le for u64 {
     fn swap_le(self) -> Self {
         u64::from_le(self)
@@ -420,8 +434,9 @@ impl Le for u64 {
 }
 
 /// The column that section `sec` holds, read straight into its memory (huge pages for a large
-/// one, see `room`; not zeroed first), a MiB at a time, each piece folded into the CRC while it
-/// is in the cache.
+/// one, see `room`; not zeroed first), a MiB at a time, each piece folded into its CRC while it
+/// is in the cache; a large column on the pool's threads (the kernel's zeroing of the fresh
+/// pages and the copy are most of a load), their CRCs combined in order.
 #[allow(unsafe_code)]
 fn column<T: Le>(src: &(impl Source + ?Sized), sec: Section) -> Result<Vec<T>, DbError> {
     let n = sec.len as usize / core::mem::size_of::<T>();
@@ -433,10 +448,12 @@ fn column<T: Le>(src: &(impl Source + ?Sized), sec: Section) -> Result<Vec<T>, D
     // requirement), for as long as `slots` is borrowed.
     let bytes: &mut [MaybeUninit<u8>] =
         unsafe { core::slice::from_raw_parts_mut(slots.as_mut_ptr().cast(), len) };
-    let mut crc = Crc32::default();
-    for (k, piece) in bytes.chunks_mut(CHUNK).enumerate() {
+    let read = |(k, piece): (usize, &mut [MaybeUninit<u8>])| {
+        let mut crc = Crc32::default();
         crc.update(src.read_uninit(sec.offset + (k * CHUNK) as u64, piece)?);
-    }
+        Ok::<Crc32, DbError>(crc)
+    };
+    let crc = pieces(bytes, read)?;
     // SAFETY: every byte of the `n` slots was read above (a failed read returned early), and
     // any bytes are a valid `T` (`Pod`).
     unsafe { super::room::commit(&mut out, n) };
@@ -447,6 +464,37 @@ fn column<T: Le>(src: &(impl Source + ?Sized), sec: Section) -> Result<Vec<T>, D
         }
     }
     Ok(out)
+}
+
+/// The CRC of `bytes` filled a MiB at a time by `read`, which returns each piece's CRC: on the
+/// pool's threads when there are many pieces.
+fn pieces(
+    bytes: &mut [MaybeUninit<u8>],
+    read: impl Fn((usize, &mut [MaybeUninit<u8>])) -> Result<Crc32, DbError> + Sync,
+) -> Result<Crc32, DbError> {
+    let mut crc = Crc32::default();
+    #[cfg(feature = "parallel")]
+    if let Some(threads) = (bytes.len() >= 16 * CHUNK)
+        .then(crate::pool::work)
+        .flatten()
+    {
+        use rayon::prelude::*;
+        let crcs: Vec<Crc32> = threads.install(|| {
+            bytes
+                .par_chunks_mut(CHUNK)
+                .enumerate()
+                .map(&read)
+                .collect::<Result<_, _>>()
+        })?;
+        for c in &crcs {
+            crc.combine(c);
+        }
+        return Ok(crc);
+    }
+    for piece in bytes.chunks_mut(CHUNK).enumerate() {
+        crc.combine(&read(piece)?);
+    }
+    Ok(crc)
 }
 
 /// Compares the CRC of section `sec`'s bytes with the one stored after them.
@@ -516,7 +564,11 @@ pub(super) fn decode(
     let sessions = sessions_of(&runs, n, &timestamps, &poses)?;
     let clouds = match (l.get(CLOUD_OFFSETS), l.get(CLOUDS)) {
         (Some(o), Some(c)) => {
-            let offsets = column::<u64>(src, o)?;
+            let offsets = if l.version > V3 {
+                offsets_of(&column::<u32>(src, o)?)?
+            } else {
+                column::<u64>(src, o)?
+            };
             let ok = offsets.first() == Some(&0)
                 && offsets.windows(2).all(|w| w[0] <= w[1])
                 && offsets.last() == Some(&c.len);
@@ -564,6 +616,18 @@ pub(super) fn decode(
         clouds,
         src,
     )
+}
+
+/// The offsets of the clouds from their lengths (version 4): their running sums from 0.
+fn offsets_of(lengths: &[u32]) -> Result<Vec<u64>, DbError> {
+    let mut offsets = try_vec::<u64>(lengths.len() + 1)?;
+    let mut at = 0u64;
+    offsets.push(at);
+    for &len in lengths {
+        at += u64::from(len);
+        offsets.push(at);
+    }
+    Ok(offsets)
 }
 
 /// The per-place columns besides the descriptors.
@@ -640,7 +704,12 @@ fn sections(db: &Database, runs: &[Run], version: u32) -> Vec<Section> {
         add(POSES, poses * poses::POSE as u64, poses);
     }
     if db.clouds.any() {
-        add(CLOUD_OFFSETS, offsets * 8, offsets - 1);
+        let len = if version > V3 {
+            (offsets - 1) * 4
+        } else {
+            offsets * 8
+        };
+        add(CLOUD_OFFSETS, len, offsets - 1);
         add(
             CLOUDS,
             db.clouds.data_len() as u64,
@@ -730,6 +799,17 @@ pub(super) fn encode(
             POSE_Q => {
                 for p in (0..db.len() as u32).filter_map(|id| db.pose(id)) {
                     w.values(&poses::lean_record(&p))?;
+                }
+            }
+            CLOUD_OFFSETS if version > V3 => {
+                for (i, o) in db.clouds.offsets().windows(2).enumerate() {
+                    let len = u32::try_from(o[1] - o[0]).map_err(|_| {
+                        bad(format!(
+                            "place {i}: its cloud of {} bytes is larger than format 4 stores (4 GiB)",
+                            o[1] - o[0]
+                        ))
+                    })?;
+                    w.values(&[len])?;
                 }
             }
             CLOUD_OFFSETS => w.values(db.clouds.offsets())?,

@@ -1,6 +1,7 @@
 //! The poses of a database file: in version 3 (and in version 4 when a rotation is not one to
-//! [`EXACT`]) as an id and the 3×4 matrix, 100 bytes a place; in version 4 as a unit quaternion
-//! and the translation, 56 bytes, with the ids only when some place has no pose.
+//! [`EXACT`]) as an id and the 3×4 matrix, 100 bytes a place; in version 4 as a quaternion
+//! scaled to a largest component of 1 and the translation, 56 bytes, with the ids only when
+//! some place has no pose.
 
 use alloc::format;
 use alloc::vec::Vec;
@@ -17,41 +18,48 @@ pub(super) const POSE_Q: usize = 56;
 pub(super) const ID: usize = 4;
 
 /// Largest difference between a rotation's entries and those its stored quaternion gives back
-/// (a rotation matrix rebuilt from a quaternion in `f64` is within about 1e-16 of it); a pose
-/// further from a rotation than this is stored as its matrix.
+/// (about 2e-14 for a rotation matrix, from the rounding of [`snap`]); a pose further from a
+/// rotation than this is stored as its matrix.
 pub(super) const EXACT: f64 = 1e-12;
 
-/// How far a quaternion read from a file may be from unit length before it is refused.
-const UNIT: f64 = 1e-12;
+/// Adding and subtracting it rounds a value of magnitude at most 1 to a multiple of 2^-46
+/// (1.5 · 2^6: the sum lies in [64, 128), whose `f64` spacing is 2^-46).
+const SNAP: f64 = 96.0;
 
 /// The poses of a database, `(id, [R|t] row-major)` by increasing id.
 pub(super) type Poses = Vec<(u32, [f64; 12])>;
 
-/// The rotation of unit quaternion `q` = (w, x, y, z), row-major.
+/// `v` rounded to a multiple of 2^-46 (`|v| ≤ 1`); zero is `+0.0`.
+fn snap(v: f64) -> f64 {
+    (v + SNAP) - SNAP + 0.0
+}
+
+/// The rotation of quaternion `q` = (w, x, y, z) of any non-zero length, row-major.
 fn rotation(q: &[f64; 4]) -> [f64; 9] {
     let [w, x, y, z] = *q;
+    let s = 2.0 / (w * w + x * x + y * y + z * z);
     [
-        1.0 - 2.0 * (y * y + z * z),
-        2.0 * (x * y - w * z),
-        2.0 * (x * z + w * y),
-        2.0 * (x * y + w * z),
-        1.0 - 2.0 * (x * x + z * z),
-        2.0 * (y * z - w * x),
-        2.0 * (x * z - w * y),
-        2.0 * (y * z + w * x),
-        1.0 - 2.0 * (x * x + y * y),
+        1.0 - s * (y * y + z * z),
+        s * (x * y - w * z),
+        s * (x * z + w * y),
+        s * (x * y + w * z),
+        1.0 - s * (x * x + z * z),
+        s * (y * z - w * x),
+        s * (x * z - w * y),
+        s * (y * z + w * x),
+        1.0 - s * (x * x + y * y),
     ]
 }
 
-/// The unit quaternion (w ≥ 0) of the rotation in pose `p`, from its largest diagonal term
+/// The unit quaternion of the rotation in pose `p` (either sign), from its largest diagonal term
 /// (Shepperd's choice, stable for every angle).
-fn quaternion(p: &[f64; 12]) -> [f64; 4] {
+fn unit_quaternion(p: &[f64; 12]) -> [f64; 4] {
     let (m00, m01, m02) = (p[0], p[1], p[2]);
     let (m10, m11, m12) = (p[4], p[5], p[6]);
     let (m20, m21, m22) = (p[8], p[9], p[10]);
     let trace = m00 + m11 + m22;
     let sqrt = crate::math::sqrt;
-    let q = if trace > 0.0 {
+    if trace > 0.0 {
         let s = 2.0 * sqrt(trace + 1.0);
         [s / 4.0, (m21 - m12) / s, (m02 - m20) / s, (m10 - m01) / s]
     } else if m00 >= m11 && m00 >= m22 {
@@ -63,13 +71,28 @@ fn quaternion(p: &[f64; 12]) -> [f64; 4] {
     } else {
         let s = 2.0 * sqrt((1.0 + m22 - m00 - m11).max(0.0));
         [(m10 - m01) / s, (m02 + m20) / s, (m12 + m21) / s, s / 4.0]
-    };
-    let norm = sqrt(q.iter().map(|v| v * v).sum());
-    let sign = if q[0] < 0.0 { -1.0 } else { 1.0 };
-    q.map(|v| sign * v / norm)
+    }
 }
 
-/// Pose `p` as its quaternion and translation, when the rotation they give back is within
+/// The stored form of the rotation in pose `p`: its quaternion divided by its largest component
+/// (which becomes 1), the others rounded to multiples of 2^-46, the sign making the first
+/// component of magnitude 1 positive. So a pose read back and saved again gives the same bytes:
+/// the quaternion of the rotation read back is within about 1e-16 of the stored one, which the
+/// division and the rounding bring back to it.
+fn stored_quaternion(p: &[f64; 12]) -> [f64; 4] {
+    let q = unit_quaternion(p);
+    let k = (1..4).fold(0, |k, i| if q[i].abs() > q[k].abs() { i } else { k });
+    let mut s = [0.0; 4];
+    for (i, v) in s.iter_mut().enumerate() {
+        *v = if i == k { 1.0 } else { snap(q[i] / q[k]) };
+    }
+    if s.iter().find(|v| v.abs() == 1.0).is_some_and(|v| *v < 0.0) {
+        s = s.map(|v| -v + 0.0);
+    }
+    s
+}
+
+/// Pose `p` as its stored quaternion and translation, when the rotation they give back is within
 /// [`EXACT`] of `p`'s.
 fn lean(p: &[f64; 12]) -> Option<[f64; 7]> {
     let v = lean_record(p);
@@ -93,7 +116,7 @@ pub(super) fn all_lean(db: &Database) -> bool {
 
 /// The record of pose `p` as a quaternion and a translation (what [`all_lean`] checked).
 pub(super) fn lean_record(p: &[f64; 12]) -> [f64; 7] {
-    let q = quaternion(p);
+    let q = stored_quaternion(p);
     [q[0], q[1], q[2], q[3], p[3], p[7], p[11]]
 }
 
@@ -170,10 +193,10 @@ pub(super) fn quaternions(
                 *x = f64_at(rec, 8 * k);
             }
             check_finite(id, &v)?;
-            let norm2: f64 = v[..4].iter().map(|x| x * x).sum();
-            if (norm2 - 1.0).abs() > UNIT {
+            let largest = v[..4].iter().fold(0.0f64, |m, x| m.max(x.abs()));
+            if largest != 1.0 {
                 return Err(bad(format!(
-                    "entry {id}: its pose's rotation is not a unit quaternion"
+                    "entry {id}: its pose's quaternion is not scaled to a largest component of 1"
                 )));
             }
             poses.push((id, matrix(&v)));

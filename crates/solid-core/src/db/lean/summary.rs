@@ -4,7 +4,6 @@
 use alloc::string::String;
 use alloc::vec::Vec;
 
-use super::runs::span;
 use super::*;
 
 /// What a database file holds, from its header and small sections alone (see
@@ -72,7 +71,8 @@ fn summarise(
         let s = &mut sessions[at];
         s.places += r.places as usize;
         s.with_pose += r.with_pose as usize;
-        (s.first_time, s.last_time) = span(&[s.first_time, s.last_time, r.first, r.last]);
+        (s.first_time, s.last_time) =
+            super::runs::span(&[s.first_time, s.last_time, r.first, r.last]);
     }
     Summary {
         version,
