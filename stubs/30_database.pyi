@@ -354,7 +354,7 @@ class Database:
 
         Returns:
             Its wire form (decode it with `solid.decode_cloud`), or None when it has none. A map
-            loaded from a file in format 3 reads it from the file now.
+            loaded from a file in format 3 or 4 reads it from the file now.
 
         Raises:
             DatabaseError: The stored cloud is corrupt (its checksum), named by place and file.

@@ -171,10 +171,10 @@ impl Database {
 
     /// Reads a database written by [`Database::to_bytes`] (any format version), checking
     /// everything: the magic, the version, the reserved header fields, the length, the checksums
-    /// (of the file in versions 1 and 2, of the header and of each section in version 3), the
-    /// config and every value. The stored clouds are checked when they are read
-    /// ([`Database::try_cloud`]), in version 3 by their own checksums only: a corrupt one is an
-    /// error for its place, not for the file. (Versions 1 and 2 decode every cloud here.)
+    /// (of the file in versions 1 and 2, of the header and of each section in versions 3 and 4),
+    /// the config and every value. The stored clouds are checked when they are read
+    /// ([`Database::try_cloud`]), in versions 3 and 4 by their own checksums only: a corrupt one
+    /// is an error for its place, not for the file. (Versions 1 and 2 decode every cloud here.)
     ///
     /// # Errors
     /// [`DbError::Format`] (with `file: None`) naming what is wrong: not a SOLiD database,
@@ -371,7 +371,7 @@ impl Database {
     /// Only regular files are read (a FIFO, a device or a directory is refused before it is
     /// opened), and the header is checked against the file's size before the body is read: a
     /// foreign, truncated or padded file is refused after reading at most its header (and, in
-    /// version 3, its section table). In version 3 each section is read once, straight into the
+    /// versions 3 and 4, its section table). In those each section is read once, straight into the
     /// column it becomes, and the clouds stay in the file: the database keeps it open and reads a
     /// place's cloud when it is asked for ([`Database::try_cloud`]). Its search index is left to
     /// the searches, as after a bulk add ([`super::IndexPolicy::BySearches`]; a
@@ -396,8 +396,8 @@ impl Database {
     }
 
     /// What the database file at `path` holds (places, sessions, clouds, metadata), read from its
-    /// header, section table and small sections alone in format version 3 (neither descriptors
-    /// nor clouds), from the whole file in versions 1 and 2.
+    /// header, section table and small sections alone in format versions 3 and 4 (neither
+    /// descriptors nor clouds), from the whole file in versions 1 and 2.
     ///
     /// # Errors
     /// As [`Database::load`].
