@@ -228,15 +228,16 @@ class Database:
         Raises:
             DatabaseError: `other` has another configuration.
         """
-    def save(self, path: str | PathLike[str], version: int = 3) -> None:
+    def save(self, path: str | PathLike[str], version: int = 4) -> None:
         """Writes the database to `path` (docs/spec.md §9), atomically: a temporary file in the
                 same folder, then a rename. Written as it is encoded: no copy of the whole file in
                 memory.
 
                 Args:
                     path: The file to write (replaced if it exists).
-                    version: The file format: 3 (the current one), or 2 for older readers (which
-                        keeps no `metadata`).
+                    version: The file format: 4 (the current one: a pose's rotation as a unit
+                        quaternion, read back within 1e-12), 3 for readers before format 4 (poses
+                        as matrices), or 2 for older readers (which keeps no `metadata`).
 
                 Raises:
                     ConfigError: Another version.
@@ -247,7 +248,7 @@ class Database:
     @staticmethod
     def summary(path: str | PathLike[str]) -> dict[str, Any]:
         """What a database file holds, read from its header, section table and small sections
-        alone in format 3 (neither descriptors nor clouds: fast at any size); older files are read
+        alone in formats 3 and 4 (neither descriptors nor clouds: fast at any size); older files are read
         whole.
 
         Args:
@@ -265,7 +266,7 @@ class Database:
         """
     @property
     def metadata(self) -> str:
-        """Free-form text saved with the database (format 3): `solid map build` records there how
+        """Free-form text saved with the database (format 3 on): `solid map build` records there how
         its scans were clipped, as JSON. "" when none; set it to replace it (at most 1 MiB)."""
     @metadata.setter
     def metadata(self, text: str) -> None:
@@ -281,7 +282,7 @@ class Database:
     def load(path: str | PathLike[str]) -> Database:
         """Reads a database written by `save`, checking everything (docs/spec.md §9).
 
-                A file in format 3 is read in one pass, section by section, and its stored clouds
+                A file in format 3 or 4 is read in one pass, section by section, and its stored clouds
                 stay in the file: the database keeps it open and reads a place's cloud when
                 verification (or `cloud`) asks for it, checking that cloud's checksum then.
 
@@ -296,11 +297,11 @@ class Database:
                         (checksum), or invalid content; the message names the file and the reason.
                     OSError: The file cannot be read (FileNotFoundError, PermissionError, ...).
         """
-    def to_bytes(self, version: int = 3) -> bytes:
+    def to_bytes(self, version: int = 4) -> bytes:
         """The database in its file format (docs/spec.md §9).
 
                 Args:
-                    version: The file format: 3 (the current one), or 2 for older readers.
+                    version: The file format: 4 (the current one), 3 or 2 for older readers.
 
                 Returns:
                     The bytes `save` would write.
@@ -353,7 +354,7 @@ class Database:
 
         Returns:
             Its wire form (decode it with `solid.decode_cloud`), or None when it has none. A map
-            loaded from a file in format 3 reads it from the file now.
+            loaded from a file in format 3 or 4 reads it from the file now.
 
         Raises:
             DatabaseError: The stored cloud is corrupt (its checksum), named by place and file.

@@ -386,7 +386,7 @@ def test_a_map_records_how_its_scans_were_clipped_and_upgrades_from_format_2(cap
     assert code == 0, err
     code, out, err = run(capsys, "map", "info", str(m), "--json")
     info = json.loads(out)
-    assert info["format_version"] == 3
+    assert info["format_version"] == 4
     assert info["clip"] == {"fov_deg": 90.0, "fov_center_deg": 0.0, "occlude_deg": None, "occlude_center_deg": None}
     code, out, err = run(capsys, "map", "info", str(m))
     assert "scans clipped: --fov 90° centred on 0°" in out, out
@@ -395,19 +395,19 @@ def test_a_map_records_how_its_scans_were_clipped_and_upgrades_from_format_2(cap
     assert code == 0 and "was built with scans clipped" not in err, err
     code, out, err = run(capsys, "detect", str(tmp_path / "seq"), "--map", str(m), "-o", str(tmp_path / "b"), "-q")
     assert code == 0 and "was built with scans clipped as --fov 90° centred on 0°" in err and "none (full scans)" in err, err
-    # A map in format 2 holds no record; `map upgrade` rewrites it in format 3, same places.
+    # A map in format 2 holds no record; `map upgrade` rewrites it in format 4, same places.
     db = solid.Database.load(m)
     old = tmp_path / "old.soliddb"
     db.save(old, version=2)
     code, out, err = run(capsys, "map", "info", str(old), "--json")
     assert json.loads(out)["format_version"] == 2 and json.loads(out)["clip"] is None
     code, out, err = run(capsys, "map", "upgrade", str(old), "-o", str(tmp_path / "new.soliddb"))
-    assert code == 0 and "format 2 → 3" in out, err
+    assert code == 0 and "format 2 → 4" in out, err
     new = solid.Database.load(tmp_path / "new.soliddb")
     assert len(new) == len(db) and np.array_equal(new.r, db.r) and new.cloud(1) == db.cloud(1)
     assert (tmp_path / "new.soliddb").stat().st_size < old.stat().st_size
     code, out, err = run(capsys, "map", "upgrade", str(old))
-    assert code == 0 and json.loads(run(capsys, "map", "info", str(old), "--json")[1])["format_version"] == 3
+    assert code == 0 and json.loads(run(capsys, "map", "info", str(old), "--json")[1])["format_version"] == 4
 
 
 def test_optimize_without_the_slam_extra_says_how_to_install_it(capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:

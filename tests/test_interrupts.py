@@ -250,7 +250,7 @@ def test_describe_output_uses_a_temporary_file_per_call(tmp_path: Path) -> None:
     assert errors == [] and [p.name for p in tmp_path.iterdir()] == ["d.json"]
 
 
-def _map_with_clouds(drive: Path, path: Path, version: int = 3) -> solid.Database:
+def _map_with_clouds(drive: Path, path: Path, version: int = 4) -> solid.Database:
     ds = open_dataset(drive)
     det = solid.LoopDetector(solid.SolidConfig.preset("vlp16"))
     det.detect_many([ds[i] for i in range(6)])
@@ -288,7 +288,7 @@ def test_a_corrupt_inner_cloud_is_refused(capsys: pytest.CaptureFixture[str], dr
 
 
 def test_a_corrupt_inner_cloud_is_found_at_first_use(capsys: pytest.CaptureFixture[str], drive: Path, tmp_path: Path) -> None:
-    """Issue 31: a map in format 3 keeps its clouds in the file and reads one when verification
+    """Issue 31: a map in format 4 keeps its clouds in the file and reads one when verification
     needs it, its checksum checked then: the map loads and `map info` reads only the header, but the
     corrupt cloud is an error naming its place, and `map merge` (which copies clouds) still refuses
     rather than sign it again."""

@@ -398,7 +398,7 @@ def test_the_database_file_is_laid_out_as_specified() -> None:
     assert struct.unpack_from("<I", b, len(b) - 4)[0] == zlib.crc32(b[:-4])
 
 
-def test_the_database_file_version_3_is_laid_out_as_specified() -> None:
+def test_the_database_file_version_4_is_laid_out_as_specified() -> None:
     header, sections = section(13).split("| kind |", 1)
     assert [(row[0], row[1]) for row in table(header)] == SHARED_HEADER + [
         ("88", "4"),
@@ -408,12 +408,15 @@ def test_the_database_file_version_3_is_laid_out_as_specified() -> None:
         ("100 + 32S", "…"),
     ], "the §13 table changed: update the reader below to the new layout"
     kinds = {int(row[0]): row[1] for row in table("| kind |" + sections)}
-    assert kinds == {1: "sessions", 2: "r", 3: "r_scale", 4: "a_codes", 5: "a_step", 6: "times", 7: "poses", 8: "cloud_offsets", 9: "clouds", 10: "metadata"}
+    assert kinds == {
+        1: "sessions", 2: "r", 3: "r_scale", 4: "a_codes", 5: "a_step", 6: "times", 7: "poses", 8: "cloud_offsets",
+        9: "clouds", 10: "metadata", 11: "pose_ids", 12: "pose_q",
+    }  # fmt: skip
     cfg, db = _five_places(lambda i: i // 3)
     db.metadata = "{}"
     b = db.to_bytes()
     n, nr, na = len(db), cfg.n_range, cfg.n_azimuth
-    assert struct.unpack_from("<3I", b, 8)[:2] == (3, 0)
+    assert struct.unpack_from("<3I", b, 8)[:2] == (4, 0)
     assert struct.unpack_from("<4I", b, 16) == (nr, na, cfg.n_elevation, 0)
     assert struct.unpack_from("<2Q", b, 72) == (cfg.fingerprint, n)
     s, zero = struct.unpack_from("<2I", b, 88)
@@ -426,7 +429,7 @@ def test_the_database_file_version_3_is_laid_out_as_specified() -> None:
         assert struct.unpack_from("<I", b, offset + length)[0] == zlib.crc32(body)
         got[kinds[kind]] = (body, items)
         at = offset + length + 4
-    assert at == len(b) and list(got) == ["sessions", "r", "r_scale", "a_codes", "a_step", "times", "poses", "metadata"]
+    assert at == len(b) and list(got) == ["sessions", "r", "r_scale", "a_codes", "a_step", "times", "metadata", "pose_ids", "pose_q"]
     runs = [struct.unpack_from("<4I2d", got["sessions"][0], 32 * k) for k in range(got["sessions"][1])]
     assert [r[:4] for r in runs] == [(0, 3, 1, 0), (1, 2, 1, 0)] and runs[1][4:] == (14.0, 14.0)
     np.testing.assert_array_equal(np.frombuffer(got["r"][0], "<f4").reshape(n, nr), db.r)
@@ -436,7 +439,15 @@ def test_the_database_file_version_3_is_laid_out_as_specified() -> None:
     steps = np.frombuffer(got["a_step"][0], "<f4")
     np.testing.assert_array_equal(codes * steps[:, None], db.a)
     np.testing.assert_array_equal(np.frombuffer(got["times"][0], "<f8"), db.timestamps)
-    assert got["poses"][1] == 2 and struct.unpack_from("<I12d", got["poses"][0], 100)[0] == 3
+    assert got["pose_ids"][1] == 2 and struct.unpack_from("<2I", got["pose_ids"][0]) == (1, 3)
+    assert got["pose_q"][1] == 2 and struct.unpack_from("<7d", got["pose_q"][0], 56) == (1, 0, 0, 0, 3, 2, 0.5)
+    # Version 3 stores each pose as its id and its matrix.
+    v3 = db.to_bytes(version=3)
+    assert struct.unpack_from("<3I", v3, 8)[:2] == (3, 0)
+    s3 = struct.unpack_from("<I", v3, 88)[0]
+    rows = [struct.unpack_from("<2I3Q", v3, 96 + 32 * k) for k in range(s3)]
+    _, _, offset, length, items = next(row for row in rows if row[0] == 7)
+    assert items == 2 and length == 200 and struct.unpack_from("<I12d", v3, offset + 100) == (3, *db.poses[3].ravel())
     assert got["metadata"][0] == b"{}"
 
 

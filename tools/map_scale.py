@@ -1,18 +1,19 @@
 """Maps at scale: file size, load time and memory, a detector on the map, `map info` and the
-verified step, for maps of 1k to 1M places in the current file format (3) and the previous one (2).
+verified step, for maps of 1k to 1M places in the current file format (4) and the previous one (3).
 The same figures from Rust: `cargo bench -p solid-lidar-benches --bench maps` (benches/benches/maps.rs,
 which reuses this tool's files given `SOLID_BENCH_MAP_DIR`).
 
-    PYTHONPATH=python python tools/map_scale.py [--sizes 1000,10000,100000] [--v2-up-to 100000]
+    PYTHONPATH=python python tools/map_scale.py [--sizes 1000,10000,100000] [--previous-up-to 100000]
         [--shared /work/shared] [--dir /tmp/map_scale]
 
 The places are the 314 real Livox Avia keyframes of hku1-avia, each with its real compact cloud,
 copied with 2 % multiplicative noise on every descriptor bin (a session of 314 places per copy,
 a pose and a time per place), so that every map holds real descriptors and real clouds. Each
-figure is measured in a fresh process: the RSS figures are the process's resident memory after
-`Database.load`, then after `LoopDetector.from_database` (a verifying detector with the preset's
-defaults; it shares the database and builds its search index, which a load leaves to the
-searches), above the process before the load (Python, numpy and the query scans). The verified
+figure is measured in a fresh process: the RSS figures are the process's resident memory, each
+above the one before it: after `Database.load` (above the process before it: Python, numpy and the
+query scans), after `Database.build_index` (the map's search index, which a load leaves to the
+first search or detector), after `LoopDetector.from_database` (a verifying detector with the
+preset's defaults; it shares the database), after the steps. The verified
 step is the median wall time of a full step (describe, prepare the cloud, search, verify the best
 candidates) for 20 hku1 scans, which match their own copies in the map. `map info` is
 `Database.summary` (what `solid map info` prints), timed in a fresh process.
@@ -96,6 +97,10 @@ def measure(path: str, shared: str) -> dict[str, Any]:
     load_s = time.perf_counter() - t0
     after_load = rss_mib()
     t0 = time.perf_counter()
+    db.build_index()
+    index_s = time.perf_counter() - t0
+    after_index = rss_mib()
+    t0 = time.perf_counter()
     det = solid.LoopDetector.from_database(db)
     det_s = time.perf_counter() - t0
     after_det = rss_mib()
@@ -107,9 +112,12 @@ def measure(path: str, shared: str) -> dict[str, Any]:
     return {
         "load_s": load_s,
         "rss_load_mib": after_load - before,
-        "rss_detector_mib": after_det - after_load,
+        "index_s": index_s,
+        "rss_index_mib": after_index - after_load,
+        "rss_detector_mib": after_det - after_index,
         "detector_s": det_s,
         "step_ms": 1e3 * float(np.median(steps)),
+        "rss_steps_mib": rss_mib() - after_det,
     }
 
 
@@ -127,7 +135,7 @@ def in_child(what: str, *args: str) -> Any:
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--sizes", default="1000,10000,100000")
-    p.add_argument("--v2-up-to", type=int, default=100_000, help="also measure format 2 for maps up to this size")
+    p.add_argument("--previous-up-to", type=int, default=100_000, help="also measure format 3 for maps up to this size")
     p.add_argument("--shared", type=Path, default=Path(os.environ.get("SOLID_SHARED", "/work/shared")))
     p.add_argument("--dir", type=Path, default=Path("/tmp/map_scale"))
     p.add_argument("--child", nargs="+", help=argparse.SUPPRESS)
@@ -138,18 +146,18 @@ def main() -> None:
         return
     args.dir.mkdir(parents=True, exist_ok=True)
     base = base_places(args.shared, args.dir / "base.soliddb")
-    print("| places | format | file bytes / place | beside clouds | load | RSS after load | detector start | + RSS | verified step | map info |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    print("| places | format | file bytes / place | beside clouds | load | RSS after load | + index | + detector | + steps | verified step | map info |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for n in (int(s) for s in args.sizes.split(",")):
-        v3 = args.dir / f"map{n}.soliddb"
-        if not v3.exists():
-            build(base, n, v3, seed=n)
-        files = [(3, v3)]
-        if n <= args.v2_up_to:
-            v2 = args.dir / f"map{n}.v2.soliddb"
-            if not v2.exists():
-                solid.Database.load(v3).save(v2, version=2)
-            files.append((2, v2))
+        v4 = args.dir / f"map{n}.v4.soliddb"
+        if not v4.exists():
+            build(base, n, v4, seed=n)
+        files = [(4, v4)]
+        if n <= args.previous_up_to:
+            v3 = args.dir / f"map{n}.v3.soliddb"
+            if not v3.exists():
+                solid.Database.load(v4).save(v3, version=3)
+            files.append((3, v3))
         for version, f in files:
             size = f.stat().st_size
             s = solid.Database.summary(f)
@@ -157,7 +165,8 @@ def main() -> None:
             info = in_child("info", str(f))
             print(
                 f"| {n:,} | {version} | {size / n:,.0f} | {(size - s['cloud_bytes']) / n:,.0f} | {m['load_s']:.2f} s | "
-                f"{m['rss_load_mib']:,.0f} MiB | {m['detector_s']:.2f} s | {m['rss_detector_mib']:,.0f} MiB | {m['step_ms']:.0f} ms | {info * 1e3:,.1f} ms |",
+                f"{m['rss_load_mib']:,.0f} MiB | {m['rss_index_mib']:,.0f} MiB in {m['index_s']:.2f} s | {m['rss_detector_mib']:,.1f} MiB | "
+                f"{m['rss_steps_mib']:,.1f} MiB | {m['step_ms']:.0f} ms | {info * 1e3:,.1f} ms |",
                 flush=True,
             )
 

@@ -1,18 +1,21 @@
 //! Maps at scale (issue 31): file bytes per place, load time, resident memory after the load and
-//! with a verifying detector over the map, `map info` (`Database::summary`) and the verified step,
-//! for maps of real places in the current file format (3) and the previous one (2, up to 100k).
+//! with its search index and with a verifying detector over the map, `map info`
+//! (`Database::summary`) and the verified step, for maps of real places in the current file format
+//! (4) and the previous one (3, up to 100k).
 //!
 //! The places are the 314 HKU Livox Avia keyframes (`avia` preset), described with their compact
 //! clouds by a verifying detector, copied with 2 % multiplicative noise on every descriptor bin,
 //! a pose and a time per place, 314 places a session: the construction of `tools/map_scale.py`,
-//! whose files (`base.soliddb`, `map{n}.soliddb`) this reuses when it finds them. Maps are built
+//! whose files (`base.soliddb`, `map{n}.v4.soliddb`) this reuses when it finds them. Maps are built
 //! once under `SOLID_BENCH_MAP_DIR` (default `target/solid-bench-data/maps`; a 1M map is ~5.6 GB
 //! with its clouds) a chunk of 100k places at a time, so their clouds are never all in memory.
 //!
 //! Every figure of the summary is taken in a fresh process (this benchmark run again as a child):
-//! memory is the process's resident set (`VmRSS`) above what it was before the load; the verified
-//! step is the median wall time of a full step (describe, prepare the cloud, search, verify the
-//! best candidates, add) for 20 hku1 scans, which meet their own copies in the map.
+//! memory is the process's resident set (`VmRSS`), each figure above the one before it: after the
+//! load, after building the map's search index (which a loaded map leaves to its first search or
+//! detector), after making the detector over the indexed map, after its steps; the verified step
+//! is the median wall time of a full step (describe, prepare the cloud, search, verify the best
+//! candidates, add) for 20 hku1 scans, which meet their own copies in the map.
 //!
 //! `SOLID_BENCH_MAP_SIZES` (default `1000,10000,100000`; add `1000000` for the 1M map),
 //! `SOLID_BENCH_JSON=path` writes the summary as JSON (`make readme-speed`: the README's row).
@@ -30,8 +33,8 @@ use std::time::Instant;
 const BASE: usize = 314;
 /// Places built in memory at a time.
 const CHUNK: usize = 100_000;
-/// Format 2 is measured up to this size (its files are twice as large and load whole).
-const V2_UP_TO: usize = 100_000;
+/// The previous format (3) is measured up to this size.
+const PREVIOUS_UP_TO: usize = 100_000;
 
 fn map_dir() -> PathBuf {
     std::env::var_os("SOLID_BENCH_MAP_DIR").map_or_else(
@@ -126,9 +129,13 @@ fn child_measure(path: &str) {
     let queries: Vec<Vec<f32>> = (0..BASE).step_by(16).take(20).map(scan).collect();
     let before = rss_mib();
     let t0 = Instant::now();
-    let db = Database::load(path).expect("loaded");
+    let mut db = Database::load(path).expect("loaded");
     let load_s = t0.elapsed().as_secs_f64();
     let after_load = rss_mib();
+    let t0 = Instant::now();
+    db.build_index().expect("the index");
+    let index_s = t0.elapsed().as_secs_f64();
+    let after_index = rss_mib();
     let t0 = Instant::now();
     let mut det = LoopDetector::with_database(db, detector_config()).expect("a detector");
     let detector_s = t0.elapsed().as_secs_f64();
@@ -145,10 +152,13 @@ fn child_measure(path: &str) {
         .collect();
     steps.sort_by(f64::total_cmp);
     let step_ms = 1e3 * (steps[steps.len() / 2 - 1] + steps[steps.len() / 2]) / 2.0;
+    let after_steps = rss_mib();
     println!(
-        "{{\"load_s\": {load_s}, \"rss_load_mib\": {}, \"detector_s\": {detector_s}, \"rss_detector_mib\": {}, \"step_ms\": {step_ms}}}",
+        "{{\"load_s\": {load_s}, \"rss_load_mib\": {}, \"index_s\": {index_s}, \"rss_index_mib\": {}, \"detector_s\": {detector_s}, \"rss_detector_mib\": {}, \"step_ms\": {step_ms}, \"rss_steps_mib\": {}}}",
         after_load - before,
-        after_det - after_load
+        after_index - after_load,
+        after_det - after_index,
+        after_steps - after_det
     );
 }
 
@@ -194,8 +204,8 @@ struct Row {
 }
 
 fn summary(files: &[(usize, u32, PathBuf)]) -> Vec<Row> {
-    println!("| places | format | file bytes / place | beside clouds | load | RSS after load | + RSS with a detector | verified step | map info |");
-    println!("|---|---|---|---|---|---|---|---|---|");
+    println!("| places | format | file bytes / place | beside clouds | load | RSS after load | + index | + detector | + 20 steps | verified step | map info |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
     let mut rows = Vec::new();
     for (places, version, path) in files {
         let s = Database::summary(path).expect("a summary");
@@ -211,14 +221,17 @@ fn summary(files: &[(usize, u32, PathBuf)]) -> Vec<Row> {
             info_s,
         };
         println!(
-            "| {} | {} | {:.0} | {:.0} | {:.2} s | {:.0} MiB | {:.0} MiB | {:.0} ms | {:.1} ms |",
+            "| {} | {} | {:.0} | {:.0} | {:.2} s | {:.0} MiB | {:.0} MiB in {:.2} s | {:.1} MiB | {:.1} MiB | {:.0} ms | {:.1} ms |",
             r.places,
             r.version,
             r.file_bytes as f64 / r.places as f64,
             (r.file_bytes - r.cloud_bytes) as f64 / r.places as f64,
             field(&r.measured, "load_s"),
             field(&r.measured, "rss_load_mib"),
+            field(&r.measured, "rss_index_mib"),
+            field(&r.measured, "index_s"),
             field(&r.measured, "rss_detector_mib"),
+            field(&r.measured, "rss_steps_mib"),
             field(&r.measured, "step_ms"),
             r.info_s * 1e3
         );
@@ -274,18 +287,18 @@ fn main() {
     let base = base(&dir);
     let mut files = Vec::new();
     for &n in &sizes {
-        let v3 = dir.join(format!("map{n}.soliddb"));
-        if !v3.exists() {
-            build(&base, n, &v3);
+        let v4 = dir.join(format!("map{n}.v4.soliddb"));
+        if !v4.exists() {
+            build(&base, n, &v4);
         }
-        files.push((n, 3, v3.clone()));
-        if n <= V2_UP_TO {
-            let v2 = dir.join(format!("map{n}.v2.soliddb"));
-            if !v2.exists() {
-                let db = Database::load(&v3).expect("loaded");
-                db.save_version(&v2, 2).expect("saved");
+        files.push((n, 4, v4.clone()));
+        if n <= PREVIOUS_UP_TO {
+            let v3 = dir.join(format!("map{n}.v3.soliddb"));
+            if !v3.exists() {
+                let db = Database::load(&v4).expect("loaded");
+                db.save_version(&v3, 3).expect("saved");
             }
-            files.push((n, 2, v2));
+            files.push((n, 3, v3));
         }
     }
     let mut c = Criterion::default().configure_from_args().sample_size(10);

@@ -95,6 +95,13 @@ def main() -> int:
         db.add(d, session=i % 2, timestamp=0.1 * i if i % 3 else None, pose=pose)
         if i in (0, len(descs) * 2 - 1):
             put("db_from_bytes", f"n{i + 1}", db.to_bytes())
+    # The poses of format 3 (ids and matrices), and of format 4 when every place has one.
+    put("db_from_bytes", "v3", db.to_bytes(version=3))
+    turned = solid.Database(cfg)
+    for i, d in enumerate(descs):
+        c, s = np.cos(0.3 * i), np.sin(0.3 * i)
+        turned.add(d, pose=np.array([[c, -s, 0, i], [s, c, 0, 0], [0, 0, 1, 0.5]]))
+    put("db_from_bytes", "posed", turned.to_bytes())
     small = solid.Database(solid.SolidConfig.preset("hdl64", n_range=4, n_azimuth=6))
     small.add(solid.Descriptor(np.arange(4.0), np.arange(6.0), small.config), timestamp=1.0)
     put("db_from_bytes", "tiny", small.to_bytes())

@@ -486,7 +486,7 @@ def map_anchors(metadata: str) -> list[dict[str, Any]]:
 
 def map_info(path: Path) -> dict[str, Any]:
     """``solid map info``: what a database file holds, from its header, section table and small
-    sections alone (format 3: neither descriptors nor clouds are read; older files are read
+    sections alone (format 3 on: neither descriptors nor clouds are read; older files are read
     whole)."""
     s = _solid.Database.summary(path)
     places, with_cloud, cloud_bytes = s["places"], s["places_with_cloud"], s["cloud_bytes"]

@@ -20,6 +20,11 @@ impl Crc32 {
         self.0.update(bytes);
     }
 
+    /// Folds in the bytes `other` was given, as if they followed this one's.
+    pub fn combine(&mut self, other: &Crc32) {
+        self.0.combine(&other.0);
+    }
+
     /// The checksum of every byte folded in.
     pub fn finish(self) -> u32 {
         self.0.finalize()
@@ -61,5 +66,13 @@ mod tests {
             c.update(piece);
         }
         assert_eq!(c.finish(), bitwise(&bytes));
+        // Pieces checked apart, then combined in order.
+        let mut whole = super::Crc32::default();
+        for piece in bytes.chunks(300) {
+            let mut c = super::Crc32::default();
+            c.update(piece);
+            whole.combine(&c);
+        }
+        assert_eq!(whole.finish(), bitwise(&bytes));
     }
 }

@@ -108,9 +108,9 @@ fn foreign_and_newer_files_are_rejected_with_the_reason() {
     assert!(reason.contains("not a SOLiD database"), "{reason}");
     assert!(format_reason(Database::from_bytes(&[]).unwrap_err()).contains("not a SOLiD database"));
     let mut bytes = sample_db(2).to_bytes().unwrap();
-    bytes[8..12].copy_from_slice(&4u32.to_le_bytes());
+    bytes[8..12].copy_from_slice(&5u32.to_le_bytes());
     let reason = format_reason(Database::from_bytes(&bytes).unwrap_err());
-    assert!(reason.contains("version 4 is newer"), "{reason}");
+    assert!(reason.contains("version 5 is newer"), "{reason}");
     // A header that announces an absurd number of entries.
     let mut bytes = sample_db(2).to_bytes().unwrap();
     bytes[80..88].copy_from_slice(&u64::MAX.to_le_bytes());
@@ -219,15 +219,18 @@ proptest! {
             });
             db.add_vectors(r, a, *s, *t, pose).unwrap();
         }
-        let back = Database::from_bytes(&db.to_bytes().unwrap()).unwrap();
+        let bytes = db.to_bytes().unwrap();
+        let back = Database::from_bytes(&bytes).unwrap();
         same(&db, &back);
+        // Saved again, the same bytes (the poses do not drift).
+        prop_assert_eq!(back.to_bytes().unwrap(), bytes);
         let k = entries.len().min(5);
         let want: Vec<Neighbor> = db.search(&q, k, 0, Method::Brute).unwrap();
         prop_assert_eq!(back.search(&q, k, 0, Method::KdTree).unwrap(), want);
     }
 }
 
-/// Where section `kind` of a file in format version 3 lies: (offset, length).
+/// Where section `kind` of a file in format version 3 or 4 lies: (offset, length).
 fn section(bytes: &[u8], kind: u32) -> (usize, usize) {
     let s = u32::from_le_bytes(bytes[88..92].try_into().unwrap()) as usize;
     (0..s)
@@ -272,9 +275,12 @@ fn db_with_clouds() -> Database {
 #[test]
 fn version_2_files_still_load_and_every_version_round_trips() {
     for db in [sample_db(9), db_with_clouds()] {
-        for version in [2, 3] {
+        for version in [2, 3, 4] {
             let back = Database::from_bytes(&db.to_bytes_version(version).unwrap()).unwrap();
             same(&db, &back);
+            if version < 4 {
+                assert_eq!(back.poses(), db.poses(), "matrices are kept bit for bit");
+            }
             for id in 0..db.len() as u32 {
                 assert_eq!(
                     back.cloud(id),
@@ -285,21 +291,31 @@ fn version_2_files_still_load_and_every_version_round_trips() {
         }
     }
     assert!(sample_db(1).to_bytes_version(1).is_err());
-    assert!(sample_db(1).to_bytes_version(4).is_err());
+    assert!(sample_db(1).to_bytes_version(5).is_err());
 }
 
 #[test]
-fn version_3_keeps_an_entry_in_under_300_bytes_beside_its_cloud() {
+fn version_4_keeps_an_entry_with_its_pose_in_300_bytes_beside_its_cloud() {
     let c = cfg();
     let mut db = Database::new(c).unwrap();
     for i in 0..1000u32 {
-        db.add(&desc(&c, i), i / 100, f64::from(i), None).unwrap();
+        db.add(&desc(&c, i), i / 100, f64::from(i), Some(turned(i)))
+            .unwrap();
     }
-    let (v3, v2) = (db.encoded_len(), db.to_bytes_version(2).unwrap().len());
+    let (v4, v3, v2) = (
+        db.encoded_len(),
+        db.to_bytes_version(3).unwrap().len(),
+        db.to_bytes_version(2).unwrap().len(),
+    );
     let per_entry = |len: usize| (len - 1024) / 1000;
-    assert!(per_entry(v3) <= 300, "{} bytes per entry", per_entry(v3));
-    assert!(v3 < v2 / 2, "version 3: {v3} bytes, version 2: {v2}");
-    // The metadata travels with the file (version 3 only).
+    assert!(per_entry(v4) <= 300, "{} bytes per entry", per_entry(v4));
+    assert_eq!(
+        per_entry(v3) - per_entry(v4),
+        44,
+        "the pose: 100 bytes, now 56"
+    );
+    assert!(v4 < v2 * 3 / 5, "version 4: {v4} bytes, version 2: {v2}");
+    // The metadata travels with the file (versions 3 and 4).
     db.set_metadata("{\"fov_deg\": 90}").unwrap();
     let back = Database::from_bytes(&db.to_bytes().unwrap()).unwrap();
     assert_eq!(back.metadata(), "{\"fov_deg\": 90}");
@@ -307,7 +323,7 @@ fn version_3_keeps_an_entry_in_under_300_bytes_beside_its_cloud() {
 }
 
 #[test]
-fn version_3_refuses_what_no_database_holds_in_each_section() {
+fn version_4_refuses_what_no_database_holds_in_each_section() {
     let db = sample_db(5);
     let good = db.to_bytes().unwrap();
     let (r, _) = section(&good, 2);
@@ -368,7 +384,7 @@ fn a_loaded_map_reads_its_clouds_on_demand_and_finds_a_corrupt_one_at_first_use(
     let s = Database::summary(&path).unwrap();
     assert_eq!(
         (s.version, s.places, s.places_with_cloud, s.cloud_bytes),
-        (3, 6, 3, db.cloud_bytes() as u64)
+        (4, 6, 3, db.cloud_bytes() as u64)
     );
     assert_eq!(
         s.sessions
@@ -427,4 +443,161 @@ fn a_loaded_map_reads_its_clouds_on_demand_and_finds_a_corrupt_one_at_first_use(
         std::fs::read(&path).unwrap()
     );
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A pose turned about every axis by angles that depend on `i`, with a translation.
+fn turned(i: u32) -> [f64; 12] {
+    let (a, b, c) = (
+        0.7 * f64::from(i),
+        1.3 * f64::from(i) + 0.2,
+        -0.4 * f64::from(i),
+    );
+    let (sa, ca) = a.sin_cos();
+    let (sb, cb) = b.sin_cos();
+    let (sc, cc) = c.sin_cos();
+    // Rz(a) · Ry(b) · Rx(c): every rotation, the half-turns among them (i = 0 gives Ry(0.2)).
+    [
+        ca * cb,
+        ca * sb * sc - sa * cc,
+        ca * sb * cc + sa * sc,
+        f64::from(i) * 1e3,
+        sa * cb,
+        sa * sb * sc + ca * cc,
+        sa * sb * cc - ca * sc,
+        -2.5,
+        -sb,
+        cb * sc,
+        cb * cc,
+        1e-3 * f64::from(i),
+    ]
+}
+
+#[test]
+fn version_4_stores_a_rotation_as_a_quaternion_and_anything_else_as_saved() {
+    let c = cfg();
+    // Every place with a turned pose: quaternions and no ids (kinds 12, not 7 or 11).
+    let mut db = Database::new(c).unwrap();
+    for i in 0..200u32 {
+        db.add(&desc(&c, i), 0, f64::NAN, Some(turned(i))).unwrap();
+    }
+    let mut half_turns = db.clone();
+    for (k, diag) in [[1.0, -1.0, -1.0], [-1.0, 1.0, -1.0], [-1.0, -1.0, 1.0]]
+        .iter()
+        .enumerate()
+    {
+        let mut p = [0.0; 12];
+        (p[0], p[5], p[10], p[3]) = (diag[0], diag[1], diag[2], k as f64);
+        half_turns
+            .add(&desc(&c, 300), 1, f64::NAN, Some(p))
+            .unwrap();
+    }
+    for db in [&db, &half_turns] {
+        let bytes = db.to_bytes().unwrap();
+        let kinds: Vec<u32> = (0..u32::from_le_bytes(bytes[88..92].try_into().unwrap()) as usize)
+            .map(|k| u32::from_le_bytes(bytes[96 + 32 * k..100 + 32 * k].try_into().unwrap()))
+            .collect();
+        assert!(kinds.contains(&12) && !kinds.contains(&7) && !kinds.contains(&11));
+        let back = Database::from_bytes(&bytes).unwrap();
+        same(db, &back);
+        // The translation as saved, bit for bit.
+        for id in 0..db.len() as u32 {
+            let (p, q) = (db.pose(id).unwrap(), back.pose(id).unwrap());
+            assert_eq!([p[3], p[7], p[11]], [q[3], q[7], q[11]]);
+        }
+        // Saved again, the same bytes: the poses do not drift from save to save.
+        assert_eq!(back.to_bytes().unwrap(), bytes);
+    }
+    // Places without a pose among them: the ids of those with one (kind 11).
+    let partial = sample_db(9);
+    let bytes = partial.to_bytes().unwrap();
+    let (_, ids) = section(&bytes, 11);
+    assert_eq!(ids, 4 * 5);
+    let back = Database::from_bytes(&bytes).unwrap();
+    same(&partial, &back);
+    assert_eq!(
+        back.pose(2),
+        partial.pose(2),
+        "the identity comes back exactly"
+    );
+    // A matrix that is not a rotation (a pose from a text file of 6 digits) is kept as saved.
+    let mut rough = Database::new(c).unwrap();
+    let mut p = turned(3);
+    p[0] += 1e-7;
+    rough.add(&desc(&c, 0), 0, f64::NAN, Some(p)).unwrap();
+    let bytes = rough.to_bytes().unwrap();
+    section(&bytes, 7);
+    assert_eq!(Database::from_bytes(&bytes).unwrap().pose(0), Some(p));
+}
+
+#[test]
+fn version_4_refuses_a_bad_quaternion_or_pose_ids() {
+    let partial = sample_db(9);
+    let good = partial.to_bytes().unwrap();
+    let (q, _) = section(&good, 12);
+    let (ids, _) = section(&good, 11);
+    // A quaternion whose largest component is 1.5, a NaN translation, ids out of order, an id past the places.
+    let cases: [(u32, usize, Vec<u8>, &str); 4] = [
+        (
+            12,
+            q,
+            1.5f64.to_le_bytes().to_vec(),
+            "largest component of 1",
+        ),
+        (
+            12,
+            q + 40,
+            f64::NAN.to_le_bytes().to_vec(),
+            "non-finite pose",
+        ),
+        (11, ids + 4, 0u32.to_le_bytes().to_vec(), "out of order"),
+        (
+            11,
+            ids + 16,
+            9u32.to_le_bytes().to_vec(),
+            "out of order or range",
+        ),
+    ];
+    for (kind, at, value, why) in cases {
+        let mut b = good.clone();
+        b[at..at + value.len()].copy_from_slice(&value);
+        assert!(Database::from_bytes(&b).is_err());
+        resign(&mut b, kind);
+        let reason = format_reason(Database::from_bytes(&b).unwrap_err());
+        assert!(reason.contains(why), "section {kind}: {reason}");
+    }
+    // Ids of other places than the runs count poses for.
+    let mut b = good.clone();
+    b[ids..ids + 4].copy_from_slice(&1u32.to_le_bytes());
+    resign(&mut b, 11);
+    assert!(format_reason(Database::from_bytes(&b).unwrap_err()).contains("sessions"));
+    // Kinds 11 and 12 are not version 3's: a version 3 header over them is refused.
+    let mut b = good.clone();
+    b[8..12].copy_from_slice(&3u32.to_le_bytes());
+    let s = u32::from_le_bytes(b[88..92].try_into().unwrap()) as usize;
+    let crc = solid_lidar::db::crc32(&b[..96 + 32 * s]);
+    b[96 + 32 * s..100 + 32 * s].copy_from_slice(&crc.to_le_bytes());
+    assert!(format_reason(Database::from_bytes(&b).unwrap_err()).contains("unknown section kind"));
+}
+
+#[test]
+fn version_3_files_still_load_and_upgrade_to_version_4() {
+    let c = cfg();
+    let mut db = Database::new(c).unwrap();
+    for i in 0..50u32 {
+        db.add(
+            &desc(&c, i),
+            i / 20,
+            f64::from(i),
+            (i % 3 > 0).then(|| turned(i)),
+        )
+        .unwrap();
+    }
+    let v3 = db.to_bytes_version(3).unwrap();
+    assert_eq!(u32::from_le_bytes(v3[8..12].try_into().unwrap()), 3);
+    section(&v3, 7);
+    let old = Database::from_bytes(&v3).unwrap();
+    // Version 3 keeps the matrices as saved, bit for bit.
+    assert_eq!(old.poses(), db.poses());
+    let upgraded = Database::from_bytes(&old.to_bytes().unwrap()).unwrap();
+    same(&db, &upgraded);
 }

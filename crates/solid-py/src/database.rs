@@ -411,15 +411,15 @@ impl PyDatabase {
     }
 
     /// Saves atomically (temporary file in the same directory, then rename), in format
-    /// `version` (3, or 2 for older readers).
-    #[pyo3(signature = (path, version=3))]
+    /// `version` (4; 3 or 2 for older readers).
+    #[pyo3(signature = (path, version=4))]
     fn save(&self, py: Python<'_>, path: PathBuf, version: u32) -> PyResult<()> {
         py.detach(|| read(&self.inner).save_version(&path, version))
             .map_err(core_err)
     }
 
     /// What the database file at `path` holds, from its header and small sections alone (format
-    /// 3; older files are read whole): a dict of version, config, fingerprint, places,
+    /// 3 on; older files are read whole): a dict of version, config, fingerprint, places,
     /// places_with_cloud, cloud_bytes, sessions (a list of dicts: session, places, with_pose,
     /// first_time, last_time, NaN when none) and metadata.
     #[staticmethod]
@@ -448,7 +448,7 @@ impl PyDatabase {
         Ok(d)
     }
 
-    /// Free-form text saved with the database (format 3), such as how its scans were clipped
+    /// Free-form text saved with the database (format 3 on), such as how its scans were clipped
     /// ("": none).
     #[getter]
     fn metadata(&self, py: Python<'_>) -> String {
@@ -468,11 +468,11 @@ impl PyDatabase {
         Ok(PyDatabase::wrap(inner))
     }
 
-    /// The database in the file format `version` (3, or 2 for older readers), as bytes (version 3
-    /// encoded straight into the bytes object).
-    #[pyo3(signature = (version=3))]
+    /// The database in the file format `version` (4; 3 or 2 for older readers), as bytes (version
+    /// 4 encoded straight into the bytes object).
+    #[pyo3(signature = (version=4))]
     fn to_bytes<'py>(&self, py: Python<'py>, version: u32) -> PyResult<Bound<'py, PyBytes>> {
-        if version != 3 {
+        if version != 4 {
             let b = self
                 .with(py, |db| db.to_bytes_version(version))
                 .map_err(core_err)?;

@@ -435,7 +435,7 @@ impl Database {
     /// The compact cloud stored with entry `id` for verification (the wire form of
     /// [`crate::reg::encode_cloud`]), if any; `None` too when it cannot be had whole (a corrupt
     /// cloud is never handed out: [`Database::try_cloud`] says why). A database loaded from a
-    /// file in format version 3 reads it from the file now (clouds on demand).
+    /// file in format version 3 or 4 reads it from the file now (clouds on demand).
     pub fn cloud(&self, id: u32) -> Option<Cow<'_, [u8]>> {
         self.try_cloud(id).ok().flatten()
     }
@@ -451,7 +451,7 @@ impl Database {
     }
 
     /// Free-form text stored with the database, such as how its scans were clipped (empty:
-    /// none). Saved in format version 3 only.
+    /// none). Saved in format versions 3 and 4 only.
     pub fn metadata(&self) -> &str {
         &self.metadata
     }
@@ -580,7 +580,7 @@ impl Database {
     }
 }
 
-/// The columns of a file in format version 3, as the database holds them (see
+/// The columns of a file in format version 3 or 4, as the database holds them (see
 /// [`Database::load_columns`]).
 pub(super) struct Columns {
     pub(super) sessions: Vec<u32>,

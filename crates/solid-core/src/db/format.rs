@@ -1,8 +1,8 @@
 //! The database file format: checksummed, little-endian, written atomically.
 //!
-//! Version 3 is written (docs/spec.md §13: the columns as the database holds them, sections found
-//! through a table, clouds read on demand); versions 2 and 1 are still read, and version 2 is
-//! written on request ([`Database::to_bytes_version`]).
+//! Version 4 is written (docs/spec.md §13: the columns as the database holds them, sections found
+//! through a table, clouds read on demand); versions 3, 2 and 1 are still read, and versions 3
+//! and 2 are written on request ([`Database::to_bytes_version`]).
 //!
 //! # Version 2, version 1
 //! All numbers little-endian. Version 1 is version 2 without the field at offset 88 and without
@@ -40,7 +40,7 @@ pub use super::lean::{SessionSummary, Summary, MAX_METADATA};
 pub use crate::checksum::crc32;
 
 impl Database {
-    /// Serialises the database in the current format, version 3 (allocates
+    /// Serialises the database in the current format, version 4 (allocates
     /// [`Database::encoded_len`] bytes; [`Database::encode_into`] writes into a buffer of the
     /// caller's).
     ///
@@ -50,8 +50,9 @@ impl Database {
         self.to_bytes_version(lean::VERSION)
     }
 
-    /// Serialises the database in format `version`: 3 (the current one) or 2 (what solid
-    /// before format 3 reads; it holds no [`Database::metadata`]).
+    /// Serialises the database in format `version`: 4 (the current one), 3 (poses as
+    /// matrices, what solid before format 4 reads) or 2 (what solid before format 3 reads; it
+    /// holds no [`Database::metadata`]).
     ///
     /// # Errors
     /// [`DbError::Core`] with [`crate::Error::InvalidParameter`] for another version;
@@ -61,7 +62,7 @@ impl Database {
     pub fn to_bytes_version(&self, version: u32) -> Result<Vec<u8>, DbError> {
         let len = match version {
             2 => self.encoded_len_v2(),
-            3 => self.encoded_len(),
+            lean::V3 | lean::VERSION => lean::encoded_len(self, version),
             _ => return Err(bad_version(version)),
         };
         let mut out = try_vec::<u8>(len)?;
@@ -69,7 +70,7 @@ impl Database {
             out.resize(len, 0);
             self.encode_v2_into(&mut out)?;
         } else {
-            lean::encode(self, &mut |b| {
+            lean::encode(self, version, &mut |b| {
                 out.extend_from_slice(b);
                 Ok(())
             })?;
@@ -80,7 +81,7 @@ impl Database {
 
     /// Length of the database in the current file format, in bytes.
     pub fn encoded_len(&self) -> usize {
-        lean::encoded_len(self)
+        lean::encoded_len(self, lean::VERSION)
     }
 
     /// Writes the database in the current file format into `out`; returns the bytes written
@@ -100,7 +101,7 @@ impl Database {
             .into());
         }
         let mut at = 0;
-        lean::encode(self, &mut |b| {
+        lean::encode(self, lean::VERSION, &mut |b| {
             out[at..at + b.len()].copy_from_slice(b);
             at += b.len();
             Ok(())
@@ -170,10 +171,10 @@ impl Database {
 
     /// Reads a database written by [`Database::to_bytes`] (any format version), checking
     /// everything: the magic, the version, the reserved header fields, the length, the checksums
-    /// (of the file in versions 1 and 2, of the header and of each section in version 3), the
-    /// config and every value. The stored clouds are checked when they are read
-    /// ([`Database::try_cloud`]), in version 3 by their own checksums only: a corrupt one is an
-    /// error for its place, not for the file. (Versions 1 and 2 decode every cloud here.)
+    /// (of the file in versions 1 and 2, of the header and of each section in versions 3 and 4),
+    /// the config and every value. The stored clouds are checked when they are read
+    /// ([`Database::try_cloud`]), in versions 3 and 4 by their own checksums only: a corrupt one
+    /// is an error for its place, not for the file. (Versions 1 and 2 decode every cloud here.)
     ///
     /// # Errors
     /// [`DbError::Format`] (with `file: None`) naming what is wrong: not a SOLiD database,
@@ -184,7 +185,7 @@ impl Database {
     /// memory.
     pub fn from_bytes(bytes: &[u8]) -> Result<Database, DbError> {
         let bad = |reason: String| DbError::Format { file: None, reason };
-        if version_of(bytes).map_err(bad)? >= lean::VERSION {
+        if version_of(bytes).map_err(bad)? >= lean::V3 {
             return lean::decode(
                 bytes,
                 #[cfg(feature = "std")]
@@ -330,14 +331,14 @@ impl Database {
             .ok_or_else(|| io(std::io::Error::other("the path names no file")))?;
         let bytes = match version {
             2 => Some(self.to_bytes_version(2)?),
-            3 => None,
+            lean::V3 | lean::VERSION => None,
             _ => return Err(bad_version(version)),
         };
         let (f, tmp) = create_temp(path, name).map_err(io)?;
         let mut out = std::io::BufWriter::with_capacity(1 << 20, f);
         let written = match &bytes {
             Some(b) => out.write_all(b).map_err(io),
-            None => lean::encode(self, &mut |b| out.write_all(b).map_err(io)),
+            None => lean::encode(self, version, &mut |b| out.write_all(b).map_err(io)),
         };
         let write = || -> std::io::Result<()> {
             let f = out
@@ -370,7 +371,7 @@ impl Database {
     /// Only regular files are read (a FIFO, a device or a directory is refused before it is
     /// opened), and the header is checked against the file's size before the body is read: a
     /// foreign, truncated or padded file is refused after reading at most its header (and, in
-    /// version 3, its section table). In version 3 each section is read once, straight into the
+    /// versions 3 and 4, its section table). In those each section is read once, straight into the
     /// column it becomes, and the clouds stay in the file: the database keeps it open and reads a
     /// place's cloud when it is asked for ([`Database::try_cloud`]). Its search index is left to
     /// the searches, as after a bulk add ([`super::IndexPolicy::BySearches`]; a
@@ -395,8 +396,8 @@ impl Database {
     }
 
     /// What the database file at `path` holds (places, sessions, clouds, metadata), read from its
-    /// header, section table and small sections alone in format version 3 (neither descriptors
-    /// nor clouds), from the whole file in versions 1 and 2.
+    /// header, section table and small sections alone in format versions 3 and 4 (neither
+    /// descriptors nor clouds), from the whole file in versions 1 and 2.
     ///
     /// # Errors
     /// As [`Database::load`].
@@ -425,7 +426,7 @@ fn open_named<R>(
 ) -> Result<R, DbError> {
     let file = path.display().to_string();
     let (f, size, version) = open_checked(path).map_err(|e| e.named(&file))?;
-    let out = if version >= lean::VERSION {
+    let out = if version >= lean::V3 {
         lean(&lean::FileSource {
             file: &f,
             size,
@@ -456,7 +457,10 @@ impl Header {
     /// checksum (fewer is "truncated", or "not a SOLiD database" when even the magic is missing).
     fn parse(bytes: &[u8]) -> Result<Header, String> {
         let version = version_of(bytes)?;
-        debug_assert!(version < lean::VERSION, "version 3 has a header of its own");
+        debug_assert!(
+            version < lean::V3,
+            "versions 3 and 4 have a header of their own"
+        );
         let truncated = |need: usize| {
             format!(
                 "truncated: {} bytes, shorter than the {need}-byte header",
@@ -588,7 +592,7 @@ fn bad_version(version: u32) -> DbError {
     crate::Error::InvalidParameter {
         name: "version",
         value: f64::from(version),
-        expected: "a format version this library writes: 2 or 3",
+        expected: "a format version this library writes: 2, 3 or 4",
     }
     .into()
 }

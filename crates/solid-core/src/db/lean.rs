@@ -1,10 +1,11 @@
-//! Format version 3 of the database file: the columns as the database holds them, each section
-//! found through a table in the header and checked on its own, the clouds read on demand.
+//! Format versions 3 and 4 of the database file: the columns as the database holds them, each
+//! section found through a table in the header and checked on its own, the clouds read on
+//! demand. Version 4 stores a pose as a unit quaternion (kinds 11 and 12) instead of a matrix.
 //!
 //! ```text
 //! offset  size        field                     (all numbers little-endian)
 //! 0       8           magic "SOLiDdb\0"
-//! 8       4   u32     format version (3)
+//! 8       4   u32     format version (4; 3 is read and written on request)
 //! 12      4   u32     flags (0)
 //! 16      4×u32       n_range, n_azimuth, n_elevation, 0
 //! 32      5×f64       fov_up, fov_down, min_range, max_range, voxel_size
@@ -28,13 +29,26 @@
 //! 4     a_codes        0            n×n_azimuth u8: the A-SOLiDs at 8 bits (`Database::a`)
 //! 5     a_step         0            n f32: their steps
 //! 6*    times          0            n f64 (NaN: none)
-//! 7*    poses          p            p×100: u32 id (increasing), 12×f64 row-major [R|t]
-//! 8*    cloud_offsets  m            (m+1)×u64: place i < m has bytes offset[i]..offset[i+1] of
+//! 7*    poses          p            p×100: u32 id (increasing), 12×f64 row-major [R|t]: every
+//!                                   pose in version 3; in version 4 only when some rotation is
+//!                                   not rebuilt within 1e-12 from its quaternion (not a rotation)
+//! 8*    cloud_offsets  m            version 3: (m+1)×u64, place i < m has bytes offset[i]..
+//!                                   offset[i+1] of the clouds section (empty: no cloud);
+//!                                   version 4: m×u32, the length of each, the offsets their
+//!                                   running sums from 0
 //!                                   the clouds section (empty: no cloud)
 //! 9*    clouds         places with one  the clouds back to back, each in the wire form of
 //!                                   `reg::encode_cloud` with its own CRC
 //! 10*   metadata       0            UTF-8 text (`Database::metadata`), at most 1 MiB
+//! 11*   pose_ids       p            p×u32: the places with a pose, increasing (version 4, with
+//!                                   12, when some place has none)
+//! 12*   pose_q         p            p×56: f64 w, x, y, z, the rotation's quaternion divided by
+//!                                   its largest component (1), then f64 tx, ty, tz (version 4,
+//!                                   instead of 7)
 //! ```
+//! A pose read from `pose_q` is the rotation the quaternion gives, each entry within 1e-12 of the
+//! saved one (about 2e-14 for a rotation; `save` stores the matrix otherwise), and the translation
+//! as saved; saved again, it gives the same bytes ([`poses`]).
 //! A load reads the header and the table, checks them against the file's size, then reads each
 //! section once into the column it becomes (no buffer of the whole file), checking its CRC, but
 //! not the clouds: those are read by offset when a place's cloud is asked for, their own CRC
@@ -52,14 +66,16 @@ use super::{Database, DbError};
 use crate::checksum::{crc32, Crc32};
 use crate::Config;
 use core::mem::MaybeUninit;
+use runs::{runs, runs_of, sessions_of, Run};
 
-pub(super) const VERSION: u32 = 3;
+pub(super) const VERSION: u32 = 4;
+/// The previous version: poses as an id and a matrix only.
+pub(super) const V3: u32 = 3;
 const FIXED: usize = 96;
 const ROW: usize = 32;
 const MAX_SECTIONS: usize = 16;
-/// Bytes per record of the `sessions` and `poses` sections.
+/// Bytes per record of the `sessions` section.
 const RUN: usize = 32;
-const POSE: usize = 100;
 /// Longest metadata text, in bytes.
 pub const MAX_METADATA: usize = 1 << 20;
 /// Bytes read or written at a time while streaming a section.
@@ -75,6 +91,8 @@ const POSES: u32 = 7;
 const CLOUD_OFFSETS: u32 = 8;
 const CLOUDS: u32 = 9;
 const METADATA: u32 = 10;
+const POSE_IDS: u32 = 11;
+const POSE_Q: u32 = 12;
 
 fn name(kind: u32) -> &'static str {
     match kind {
@@ -87,6 +105,8 @@ fn name(kind: u32) -> &'static str {
         POSES => "poses",
         CLOUD_OFFSETS => "cloud_offsets",
         CLOUDS => "clouds",
+        POSE_IDS => "pose_ids",
+        POSE_Q => "pose_q",
         _ => "metadata",
     }
 }
@@ -104,18 +124,11 @@ struct Section {
     items: u64,
 }
 
-/// A run of consecutive places of one session.
-#[derive(Debug, Clone, Copy)]
-struct Run {
-    session: u32,
-    places: u32,
-    with_pose: u32,
-    first: f64,
-    last: f64,
-}
-
 /// What the header and the table of a file say.
 struct Layout {
+    /// Read by the summary (`std` only).
+    #[cfg_attr(not(feature = "std"), allow(dead_code))]
+    version: u32,
     config: Config,
     fingerprint: u64,
     count: usize,
@@ -128,8 +141,9 @@ impl Layout {
     }
 }
 
-/// Where a file's bytes come from: memory, or (with `std`) a file read by offset.
-pub(super) trait Source {
+/// Where a file's bytes come from: memory, or (with `std`) a file read by offset; read from
+/// several threads at once.
+pub(super) trait Source: Sync {
     /// Length in bytes.
     fn size(&self) -> u64;
     /// Fills `buf` from offset `at` (within [`Source::size`], checked by the caller).
@@ -214,6 +228,8 @@ fn layout(src: &(impl Source + ?Sized)) -> Result<Layout, DbError> {
     let mut head = [0u8; FIXED];
     src.read_at(0, &mut head)?;
     let (config, fingerprint, count) = super::format::fixed_header(&head).map_err(bad)?;
+    let version = u32::from_le_bytes([head[8], head[9], head[10], head[11]]);
+    let last_kind = if version > V3 { POSE_Q } else { METADATA };
     let le32 = |at: usize| u32::from_le_bytes([head[at], head[at + 1], head[at + 2], head[at + 3]]);
     let (s, reserved) = (le32(88) as usize, le32(92));
     if reserved != 0 {
@@ -274,7 +290,7 @@ fn layout(src: &(impl Source + ?Sized)) -> Result<Layout, DbError> {
             len: u64_at(16),
             items: u64_at(24),
         };
-        if !(SESSIONS..=METADATA).contains(&kind) || zero != 0 {
+        if !(SESSIONS..=last_kind).contains(&kind) || zero != 0 {
             return Err(bad(format!(
                 "unknown section kind {kind} (flags {zero:#x})"
             )));
@@ -298,13 +314,16 @@ fn layout(src: &(impl Source + ?Sized)) -> Result<Layout, DbError> {
             R_SCALE | A_STEP => Some(n * 4),
             A_CODES => Some(n * na),
             TIMES => Some(n * 8),
-            POSES => (sec.items <= n).then(|| sec.items * POSE as u64),
+            POSES => (sec.items <= n).then(|| sec.items * poses::POSE as u64),
+            POSE_IDS => (sec.items <= n).then(|| sec.items * poses::ID as u64),
+            POSE_Q => (sec.items <= n).then(|| sec.items * poses::POSE_Q as u64),
+            CLOUD_OFFSETS if version > V3 => (sec.items <= n).then(|| sec.items * 4),
             CLOUD_OFFSETS => (sec.items <= n).then(|| (sec.items + 1) * 8),
             CLOUDS => (sec.items <= n).then_some(sec.len),
             _ => (sec.len <= MAX_METADATA as u64).then_some(sec.len),
         };
         if want != Some(sec.len)
-            || (kind < CLOUD_OFFSETS && kind != SESSIONS && kind != POSES && sec.items != 0)
+            || ([R, R_SCALE, A_CODES, A_STEP, TIMES, METADATA].contains(&kind) && sec.items != 0)
         {
             return Err(bad(format!(
                 "corrupted section table: section {} of {} bytes and {} items does not fit {n} entries",
@@ -335,6 +354,7 @@ fn layout(src: &(impl Source + ?Sized)) -> Result<Layout, DbError> {
         core::cmp::Ordering::Equal => {}
     }
     let l = Layout {
+        version,
         config,
         fingerprint,
         count: n as usize,
@@ -345,6 +365,7 @@ fn layout(src: &(impl Source + ?Sized)) -> Result<Layout, DbError> {
             return Err(bad(format!("the {} section is missing", name(kind))));
         }
     }
+    poses::check_pose_sections(l.get(POSES), l.get(POSE_IDS), l.get(POSE_Q), n)?;
     if l.get(CLOUD_OFFSETS).is_some() != l.get(CLOUDS).is_some() {
         return Err(bad(String::from(
             "the cloud_offsets and clouds sections come together, or not at all",
@@ -400,6 +421,12 @@ impl Le for u8 {
     }
 }
 
+impl Le for u32 {
+    fn swap_le(self) -> Self {
+        u32::from_le(self)
+    }
+}
+
 impl Le for u64 {
     fn swap_le(self) -> Self {
         u64::from_le(self)
@@ -407,8 +434,9 @@ impl Le for u64 {
 }
 
 /// The column that section `sec` holds, read straight into its memory (huge pages for a large
-/// one, see `room`; not zeroed first), a MiB at a time, each piece folded into the CRC while it
-/// is in the cache.
+/// one, see `room`; not zeroed first), a MiB at a time, each piece folded into its CRC while it
+/// is in the cache; a large column on the pool's threads (the kernel's zeroing of the fresh
+/// pages and the copy are most of a load), their CRCs combined in order.
 #[allow(unsafe_code)]
 fn column<T: Le>(src: &(impl Source + ?Sized), sec: Section) -> Result<Vec<T>, DbError> {
     let n = sec.len as usize / core::mem::size_of::<T>();
@@ -420,10 +448,12 @@ fn column<T: Le>(src: &(impl Source + ?Sized), sec: Section) -> Result<Vec<T>, D
     // requirement), for as long as `slots` is borrowed.
     let bytes: &mut [MaybeUninit<u8>] =
         unsafe { core::slice::from_raw_parts_mut(slots.as_mut_ptr().cast(), len) };
-    let mut crc = Crc32::default();
-    for (k, piece) in bytes.chunks_mut(CHUNK).enumerate() {
+    let read = |(k, piece): (usize, &mut [MaybeUninit<u8>])| {
+        let mut crc = Crc32::default();
         crc.update(src.read_uninit(sec.offset + (k * CHUNK) as u64, piece)?);
-    }
+        Ok::<Crc32, DbError>(crc)
+    };
+    let crc = pieces(bytes, read)?;
     // SAFETY: every byte of the `n` slots was read above (a failed read returned early), and
     // any bytes are a valid `T` (`Pod`).
     unsafe { super::room::commit(&mut out, n) };
@@ -434,6 +464,37 @@ fn column<T: Le>(src: &(impl Source + ?Sized), sec: Section) -> Result<Vec<T>, D
         }
     }
     Ok(out)
+}
+
+/// The CRC of `bytes` filled a MiB at a time by `read`, which returns each piece's CRC: on the
+/// pool's threads when there are many pieces.
+fn pieces(
+    bytes: &mut [MaybeUninit<u8>],
+    read: impl Fn((usize, &mut [MaybeUninit<u8>])) -> Result<Crc32, DbError> + Sync,
+) -> Result<Crc32, DbError> {
+    let mut crc = Crc32::default();
+    #[cfg(feature = "parallel")]
+    if let Some(threads) = (bytes.len() >= 16 * CHUNK)
+        .then(crate::pool::work)
+        .flatten()
+    {
+        use rayon::prelude::*;
+        let crcs: Vec<Crc32> = threads.install(|| {
+            bytes
+                .par_chunks_mut(CHUNK)
+                .enumerate()
+                .map(&read)
+                .collect::<Result<_, _>>()
+        })?;
+        for c in &crcs {
+            crc.combine(c);
+        }
+        return Ok(crc);
+    }
+    for piece in bytes.chunks_mut(CHUNK).enumerate() {
+        crc.combine(&read(piece)?);
+    }
+    Ok(crc)
 }
 
 /// Compares the CRC of section `sec`'s bytes with the one stored after them.
@@ -450,30 +511,6 @@ fn check_crc(src: &(impl Source + ?Sized), sec: Section, crc: Crc32) -> Result<(
     Ok(())
 }
 
-fn runs_of(src: &(impl Source + ?Sized), sec: Section) -> Result<Vec<Run>, DbError> {
-    let mut runs = try_vec::<Run>(sec.items as usize)?;
-    read_section(src, sec, RUN, |b| {
-        for r in b.chunks_exact(RUN) {
-            let u = |k: usize| u32::from_le_bytes([r[k], r[k + 1], r[k + 2], r[k + 3]]);
-            let f = |k: usize| f64::from_le_bytes(r[k..k + 8].try_into().unwrap_or([0; 8]));
-            if u(12) != 0 {
-                return Err(bad(String::from(
-                    "corrupted sessions section: reserved field not 0",
-                )));
-            }
-            runs.push(Run {
-                session: u(0),
-                places: u(4),
-                with_pose: u(8),
-                first: f(16),
-                last: f(24),
-            });
-        }
-        Ok(())
-    })?;
-    Ok(runs)
-}
-
 fn metadata_of(src: &(impl Source + ?Sized), l: &Layout) -> Result<String, DbError> {
     let Some(sec) = l.get(METADATA) else {
         return Ok(String::new());
@@ -486,7 +523,7 @@ fn metadata_of(src: &(impl Source + ?Sized), l: &Layout) -> Result<String, DbErr
     String::from_utf8(bytes).map_err(|_| bad(String::from("the metadata is not UTF-8 text")))
 }
 
-/// Reads a whole database in format version 3 from `src`; `file`, when given, is the open file
+/// Reads a whole database in format version 3 or 4 from `src`; `file`, when given, is the open file
 /// the clouds stay in (read on demand), else they are read into memory.
 pub(super) fn decode(
     src: &(impl Source + ?Sized),
@@ -519,34 +556,19 @@ pub(super) fn decode(
     if let Some(i) = timestamps.iter().position(|t| t.is_infinite()) {
         return Err(bad(format!("entry {i}: infinite timestamp")));
     }
-    let mut poses = Vec::new();
-    if let Some(s) = l.get(POSES) {
-        poses = try_vec::<(u32, [f64; 12])>(s.items as usize)?;
-        read_section(src, s, POSE, |b| {
-            for rec in b.chunks_exact(POSE) {
-                let id = u32::from_le_bytes([rec[0], rec[1], rec[2], rec[3]]);
-                let mut p = [0.0; 12];
-                for (k, v) in p.iter_mut().enumerate() {
-                    *v =
-                        f64::from_le_bytes(rec[4 + 8 * k..12 + 8 * k].try_into().unwrap_or([0; 8]));
-                }
-                if id as usize >= n || poses.last().is_some_and(|(prev, _)| *prev >= id) {
-                    return Err(bad(format!(
-                        "corrupted poses section: place id {id} out of order or range"
-                    )));
-                }
-                if p.iter().any(|v| !v.is_finite()) {
-                    return Err(bad(format!("entry {id}: non-finite pose")));
-                }
-                poses.push((id, p));
-            }
-            Ok(())
-        })?;
-    }
+    let poses = match (l.get(POSES), l.get(POSE_Q)) {
+        (Some(s), _) => poses::with_ids(src, s, n)?,
+        (None, Some(s)) => poses::quaternions(src, s, l.get(POSE_IDS), n)?,
+        (None, None) => Vec::new(),
+    };
     let sessions = sessions_of(&runs, n, &timestamps, &poses)?;
     let clouds = match (l.get(CLOUD_OFFSETS), l.get(CLOUDS)) {
         (Some(o), Some(c)) => {
-            let offsets = column::<u64>(src, o)?;
+            let offsets = if l.version > V3 {
+                offsets_of(&column::<u32>(src, o)?)?
+            } else {
+                column::<u64>(src, o)?
+            };
             let ok = offsets.first() == Some(&0)
                 && offsets.windows(2).all(|w| w[0] <= w[1])
                 && offsets.last() == Some(&c.len);
@@ -596,6 +618,18 @@ pub(super) fn decode(
     )
 }
 
+/// The offsets of the clouds from their lengths (version 4): their running sums from 0.
+fn offsets_of(lengths: &[u32]) -> Result<Vec<u64>, DbError> {
+    let mut offsets = try_vec::<u64>(lengths.len() + 1)?;
+    let mut at = 0u64;
+    offsets.push(at);
+    for &len in lengths {
+        at += u64::from(len);
+        offsets.push(at);
+    }
+    Ok(offsets)
+}
+
 /// The per-place columns besides the descriptors.
 struct Meta {
     sessions: Vec<u32>,
@@ -642,86 +676,8 @@ fn finish(
     Ok(db)
 }
 
-/// The sessions of the places from the runs, checked against the places, their times and poses.
-fn sessions_of(
-    runs: &[Run],
-    n: usize,
-    timestamps: &[f64],
-    poses: &[(u32, [f64; 12])],
-) -> Result<Vec<u32>, DbError> {
-    let wrong = |what: &str| bad(format!("corrupted sessions section: {what}"));
-    let mut sessions = try_vec::<u32>(n)?;
-    let mut posed = poses.iter().map(|(id, _)| *id as usize).peekable();
-    for run in runs {
-        let start = sessions.len();
-        let end = start
-            .checked_add(run.places as usize)
-            .filter(|&e| e <= n && run.places > 0)
-            .ok_or_else(|| wrong("the runs do not add up to the places"))?;
-        sessions.extend(core::iter::repeat_n(run.session, run.places as usize));
-        let mut with = 0u32;
-        while posed.next_if(|&id| id < end).is_some() {
-            with += 1;
-        }
-        let (first, last) = span(&timestamps[start..end]);
-        if with != run.with_pose
-            || first.to_bits() != run.first.to_bits()
-            || last.to_bits() != run.last.to_bits()
-        {
-            return Err(wrong("a run's summary does not match its places"));
-        }
-    }
-    if sessions.len() != n {
-        return Err(wrong("the runs do not add up to the places"));
-    }
-    Ok(sessions)
-}
-
-/// The first and last of the timestamps that are not NaN (NaN, NaN: none).
-fn span(t: &[f64]) -> (f64, f64) {
-    t.iter()
-        .filter(|t| !t.is_nan())
-        .fold((f64::NAN, f64::NAN), |(lo, hi), &t| {
-            (
-                if lo.is_nan() { t } else { lo.min(t) },
-                if hi.is_nan() { t } else { hi.max(t) },
-            )
-        })
-}
-
-/// The runs of consecutive places of one session.
-fn runs(db: &Database) -> Vec<Run> {
-    let s = db.sessions();
-    let mut out: Vec<Run> = Vec::new();
-    let mut start = 0;
-    let poses: Vec<u32> = (0..db.len() as u32)
-        .filter(|&i| db.pose(i).is_some())
-        .collect();
-    let mut posed = poses.iter().peekable();
-    while start < s.len() {
-        let mut end = start + 1;
-        while end < s.len() && s[end] == s[start] && end - start < u32::MAX as usize {
-            end += 1;
-        }
-        let mut with = 0;
-        while posed.next_if(|&&id| (id as usize) < end).is_some() {
-            with += 1;
-        }
-        let (first, last) = span(&db.timestamps()[start..end]);
-        out.push(Run {
-            session: s[start],
-            places: (end - start) as u32,
-            with_pose: with,
-            first,
-            last,
-        });
-        start = end;
-    }
-    out
-}
-
-/// The sections of `db` in format version 3 (offsets from the end of the header).
-fn sections(db: &Database, runs: &[Run]) -> Vec<Section> {
+/// The sections of `db` in format `version`, 3 or 4 (offsets from the end of the header).
+fn sections(db: &Database, runs: &[Run], version: u32) -> Vec<Section> {
     let (n, c) = (db.len() as u64, db.config());
     let (nr, na) = (c.n_range as u64, c.n_azimuth as u64);
     let poses = db.poses_stored() as u64;
@@ -743,11 +699,17 @@ fn sections(db: &Database, runs: &[Run]) -> Vec<Section> {
     if db.timestamps().iter().any(|t| !t.is_nan()) {
         add(TIMES, n * 8, 0);
     }
-    if poses > 0 {
-        add(POSES, poses * POSE as u64, poses);
+    let lean_poses = poses > 0 && version > V3 && poses::all_lean(db);
+    if poses > 0 && !lean_poses {
+        add(POSES, poses * poses::POSE as u64, poses);
     }
     if db.clouds.any() {
-        add(CLOUD_OFFSETS, offsets * 8, offsets - 1);
+        let len = if version > V3 {
+            (offsets - 1) * 4
+        } else {
+            offsets * 8
+        };
+        add(CLOUD_OFFSETS, len, offsets - 1);
         add(
             CLOUDS,
             db.clouds.data_len() as u64,
@@ -757,6 +719,12 @@ fn sections(db: &Database, runs: &[Run]) -> Vec<Section> {
     if !db.metadata().is_empty() {
         add(METADATA, db.metadata().len() as u64, 0);
     }
+    if lean_poses && poses < n {
+        add(POSE_IDS, poses * poses::ID as u64, poses);
+    }
+    if lean_poses {
+        add(POSE_Q, poses * poses::POSE_Q as u64, poses);
+    }
     let mut at = (FIXED + ROW * out.len() + 4) as u64;
     for s in &mut out {
         s.offset = at;
@@ -765,22 +733,24 @@ fn sections(db: &Database, runs: &[Run]) -> Vec<Section> {
     out
 }
 
-/// Length of `db` in format version 3.
-pub(super) fn encoded_len(db: &Database) -> usize {
-    let secs = sections(db, &runs(db));
+/// Length of `db` in format `version`, 3 or 4.
+pub(super) fn encoded_len(db: &Database, version: u32) -> usize {
+    let secs = sections(db, &runs(db), version);
     secs.last()
         .map_or(FIXED + 4, |s| (s.offset + s.len + 4) as usize)
 }
 
-/// Writes `db` in format version 3 through `put`, in order, in pieces of at most about a MiB.
+/// Writes `db` in format `version` (3 or 4) through `put`, in order, in pieces of at most about
+/// a MiB.
 pub(super) fn encode(
     db: &Database,
+    version: u32,
     put: &mut dyn FnMut(&[u8]) -> Result<(), DbError>,
 ) -> Result<(), DbError> {
     let runs = runs(db);
-    let secs = sections(db, &runs);
+    let secs = sections(db, &runs, version);
     let mut head = try_vec::<u8>(FIXED + ROW * secs.len() + 4)?;
-    super::format::header_start(db, VERSION, &mut |b| head.extend_from_slice(b));
+    super::format::header_start(db, version, &mut |b| head.extend_from_slice(b));
     head.extend_from_slice(&(secs.len() as u32).to_le_bytes());
     head.extend_from_slice(&0u32.to_le_bytes());
     for s in &secs {
@@ -819,6 +789,27 @@ pub(super) fn encode(
                         w.put(&id.to_le_bytes())?;
                         w.values(&p)?;
                     }
+                }
+            }
+            POSE_IDS => {
+                for id in (0..db.len() as u32).filter(|&id| db.pose(id).is_some()) {
+                    w.put(&id.to_le_bytes())?;
+                }
+            }
+            POSE_Q => {
+                for p in (0..db.len() as u32).filter_map(|id| db.pose(id)) {
+                    w.values(&poses::lean_record(&p))?;
+                }
+            }
+            CLOUD_OFFSETS if version > V3 => {
+                for (i, o) in db.clouds.offsets().windows(2).enumerate() {
+                    let len = u32::try_from(o[1] - o[0]).map_err(|_| {
+                        bad(format!(
+                            "place {i}: its cloud of {} bytes is larger than format 4 stores (4 GiB)",
+                            o[1] - o[0]
+                        ))
+                    })?;
+                    w.values(&[len])?;
                 }
             }
             CLOUD_OFFSETS => w.values(db.clouds.offsets())?,
@@ -885,6 +876,8 @@ impl<'a> SectionWriter<'a> {
     }
 }
 
+mod poses;
+mod runs;
 mod summary;
 
 #[cfg(feature = "std")]

@@ -1,4 +1,4 @@
-//! The [`Summary`] of a database file in format version 3 (what `solid map info` prints): its
+//! The [`Summary`] of a database file in format version 3 or 4 (what `solid map info` prints): its
 //! header, section table, sessions and metadata, no descriptor or cloud read.
 
 use alloc::string::String;
@@ -71,7 +71,8 @@ fn summarise(
         let s = &mut sessions[at];
         s.places += r.places as usize;
         s.with_pose += r.with_pose as usize;
-        (s.first_time, s.last_time) = span(&[s.first_time, s.last_time, r.first, r.last]);
+        (s.first_time, s.last_time) =
+            super::runs::span(&[s.first_time, s.last_time, r.first, r.last]);
     }
     Summary {
         version,
@@ -99,7 +100,7 @@ pub(in crate::db) fn summary_of(db: &Database, version: u32) -> Summary {
 }
 
 #[cfg(feature = "std")]
-/// The [`Summary`] of a file in format version 3: its header, table, sessions and metadata only.
+/// The [`Summary`] of a file in format version 3 or 4: its header, table, sessions and metadata only.
 pub(in crate::db) fn summary(src: &(impl Source + ?Sized)) -> Result<Summary, DbError> {
     let l = layout(src)?;
     let runs = match l.get(SESSIONS) {
@@ -114,6 +115,6 @@ pub(in crate::db) fn summary(src: &(impl Source + ?Sized)) -> Result<Summary, Db
     let clouds = l.get(CLOUDS).map_or((0, 0), |c| (c.items as usize, c.len));
     let metadata = metadata_of(src, &l)?;
     Ok(summarise(
-        VERSION, l.config, l.count, &runs, clouds, metadata,
+        l.version, l.config, l.count, &runs, clouds, metadata,
     ))
 }
