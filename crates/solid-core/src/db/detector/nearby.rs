@@ -51,8 +51,8 @@ impl LoopDetector {
 
     /// Up to `pose_candidates` ids of own-session places `..eligible` with a pose, not in
     /// `taken`, nearest to `q`, each within reach: the gate's largest loop plus what the
-    /// odometry check allows after the path between the two (a place farther off could not
-    /// give an accepted loop).
+    /// odometry check allows a candidate chosen by pose after the path between the two (a place
+    /// farther off could not give an accepted loop).
     fn nearest_by_pose(
         &self,
         q: &[f64; 12],
@@ -77,11 +77,8 @@ impl LoopDetector {
             } else {
                 libm::fabs(travelled - at)
             };
-            let turn = super::verify::rotation_bound(v, path).to_radians();
-            let reach = v.gate.max_translation
-                + v.odometry_translation_m
-                + v.odometry_drift * path
-                + turn * path / 2.0;
+            // A loop chosen by pose must agree with the odometry without the rotation's allowance.
+            let reach = v.gate.max_translation + v.odometry_translation_m + v.odometry_drift * path;
             if d > reach {
                 continue;
             }
