@@ -267,7 +267,8 @@ class DetectorConfig:
         verify: bool = True,
         verify_candidates: int = 5,
         pose_candidates: int = 0,
-        pose_candidate_min_information: float = 10.0,
+        pose_candidate_min_information: float = 5.0,
+        pose_candidate_shift_m: float = 2.0,
         verify_hypotheses: int = 4,
         verify_fan_deg: float = 25.0,
         cloud_bits: int = 8,
@@ -301,7 +302,8 @@ class DetectorConfig:
             verify: Verify the best candidates by registering the places' clouds; a loop then carries its pose (a bool; default True).
             verify_candidates: Candidates registered per step (an integer in 1..=1000; default 5).
             pose_candidates: Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates (0: none) (an integer in 0..=1000; default 0).
-            pose_candidate_min_information: Smallest translation information (the gate's degeneracy.translation, per correspondence) a candidate chosen by pose must reach: its registration started where the odometry puts the query (a finite number >= 0; default 10.0).
+            pose_candidate_min_information: Smallest translation information (the gate's degeneracy.translation, per correspondence) a candidate chosen by pose must reach: its registration started where the odometry puts the query (a finite number >= 0; default 5.0).
+            pose_candidate_shift_m: Register a candidate chosen by pose again from its pose shifted this many metres each way along its weakest translation direction; keep it only when both return (0: off) (a finite number >= 0; default 2.0).
             verify_hypotheses: Initial yaws per registration, at most (0°, the A-SOLiD minima, then the fan) (an integer in 1..=16; default 4).
             verify_fan_deg: The fixed ± yaw fan added to the hypotheses, degrees (0: none) (degrees in [0, 180]; default 25.0).
             cloud_bits: Bits per axis of the compact clouds stored with the places (an integer in 1..=16; default 8).
@@ -341,6 +343,7 @@ class DetectorConfig:
         verify_candidates: int | None = None,
         pose_candidates: int | None = None,
         pose_candidate_min_information: float | None = None,
+        pose_candidate_shift_m: float | None = None,
         verify_hypotheses: int | None = None,
         verify_fan_deg: float | None = None,
         cloud_bits: int | None = None,
@@ -375,7 +378,8 @@ class DetectorConfig:
             verify: Verify the best candidates by registering the places' clouds; a loop then carries its pose (a bool; default True).
             verify_candidates: Candidates registered per step (an integer in 1..=1000; default 5).
             pose_candidates: Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates (0: none) (an integer in 0..=1000; default 0).
-            pose_candidate_min_information: Smallest translation information (the gate's degeneracy.translation, per correspondence) a candidate chosen by pose must reach: its registration started where the odometry puts the query (a finite number >= 0; default 10.0).
+            pose_candidate_min_information: Smallest translation information (the gate's degeneracy.translation, per correspondence) a candidate chosen by pose must reach: its registration started where the odometry puts the query (a finite number >= 0; default 5.0).
+            pose_candidate_shift_m: Register a candidate chosen by pose again from its pose shifted this many metres each way along its weakest translation direction; keep it only when both return (0: off) (a finite number >= 0; default 2.0).
             verify_hypotheses: Initial yaws per registration, at most (0°, the A-SOLiD minima, then the fan) (an integer in 1..=16; default 4).
             verify_fan_deg: The fixed ± yaw fan added to the hypotheses, degrees (0: none) (degrees in [0, 180]; default 25.0).
             cloud_bits: Bits per axis of the compact clouds stored with the places (an integer in 1..=16; default 8).
@@ -417,6 +421,7 @@ class DetectorConfig:
         verify_candidates: int | None = None,
         pose_candidates: int | None = None,
         pose_candidate_min_information: float | None = None,
+        pose_candidate_shift_m: float | None = None,
         verify_hypotheses: int | None = None,
         verify_fan_deg: float | None = None,
         cloud_bits: int | None = None,
@@ -450,7 +455,8 @@ class DetectorConfig:
             verify: Verify the best candidates by registering the places' clouds; a loop then carries its pose (a bool; default True).
             verify_candidates: Candidates registered per step (an integer in 1..=1000; default 5).
             pose_candidates: Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates (0: none) (an integer in 0..=1000; default 0).
-            pose_candidate_min_information: Smallest translation information (the gate's degeneracy.translation, per correspondence) a candidate chosen by pose must reach: its registration started where the odometry puts the query (a finite number >= 0; default 10.0).
+            pose_candidate_min_information: Smallest translation information (the gate's degeneracy.translation, per correspondence) a candidate chosen by pose must reach: its registration started where the odometry puts the query (a finite number >= 0; default 5.0).
+            pose_candidate_shift_m: Register a candidate chosen by pose again from its pose shifted this many metres each way along its weakest translation direction; keep it only when both return (0: off) (a finite number >= 0; default 2.0).
             verify_hypotheses: Initial yaws per registration, at most (0°, the A-SOLiD minima, then the fan) (an integer in 1..=16; default 4).
             verify_fan_deg: The fixed ± yaw fan added to the hypotheses, degrees (0: none) (degrees in [0, 180]; default 25.0).
             cloud_bits: Bits per axis of the compact clouds stored with the places (an integer in 1..=16; default 8).
@@ -480,7 +486,7 @@ class DetectorConfig:
             TypeError: An unknown parameter, or a value of the wrong type.
         """
     def to_dict(self) -> dict[str, Any]:
-        """The parameters by name (exclude_frames, exclude_meters, exclude_seconds, threshold, top_k, rerank, verify, verify_candidates, pose_candidates, pose_candidate_min_information, verify_hypotheses, verify_fan_deg, cloud_bits, cache_bytes, verify_threads, verify_step_points, view_fov_deg, view_min_overlap_deg, odometry_check, odometry_translation_m, odometry_drift, odometry_rotation_deg, odometry_rotation_deg_per_m, odometry_rotation_max_deg, unique, unique_ratio, support_window, min_support, registration, gate): what `DetectorConfig(**d)` takes back.
+        """The parameters by name (exclude_frames, exclude_meters, exclude_seconds, threshold, top_k, rerank, verify, verify_candidates, pose_candidates, pose_candidate_min_information, pose_candidate_shift_m, verify_hypotheses, verify_fan_deg, cloud_bits, cache_bytes, verify_threads, verify_step_points, view_fov_deg, view_min_overlap_deg, odometry_check, odometry_translation_m, odometry_drift, odometry_rotation_deg, odometry_rotation_deg_per_m, odometry_rotation_max_deg, unique, unique_ratio, support_window, min_support, registration, gate): what `DetectorConfig(**d)` takes back.
 
         Returns:
             A new dict.
@@ -514,7 +520,10 @@ class DetectorConfig:
         """Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates (0: none) (an integer in 0..=1000; default 0)."""
     @property
     def pose_candidate_min_information(self) -> float:
-        """Smallest translation information (the gate's degeneracy.translation, per correspondence) a candidate chosen by pose must reach: its registration started where the odometry puts the query (a finite number >= 0; default 10.0)."""
+        """Smallest translation information (the gate's degeneracy.translation, per correspondence) a candidate chosen by pose must reach: its registration started where the odometry puts the query (a finite number >= 0; default 5.0)."""
+    @property
+    def pose_candidate_shift_m(self) -> float:
+        """Register a candidate chosen by pose again from its pose shifted this many metres each way along its weakest translation direction; keep it only when both return (0: off) (a finite number >= 0; default 2.0)."""
     @property
     def verify_hypotheses(self) -> int:
         """Initial yaws per registration, at most (0°, the A-SOLiD minima, then the fan) (an integer in 1..=16; default 4)."""

@@ -61,6 +61,11 @@ pub struct VerifyConfig {
     /// there, so a translation the clouds leave loose (along a corridor) ends where the
     /// odometry says, drift included; the descriptor's candidates keep the gate's threshold.
     pub pose_candidate_min_information: f64,
+    /// A candidate chosen by pose is registered again from its pose shifted by this many metres
+    /// each way along the weakest direction of its translation information, and kept only when
+    /// both come back to it (the gate's `agree_translation`, `agree_rotation_deg`): a slide
+    /// follows its start, a true fit does not. 0: off.
+    pub pose_candidate_shift_m: f64,
     /// At most this many initial yaws per candidate: 0°, the A-SOLiD minima, then ±`fan_deg`.
     pub hypotheses: usize,
     /// The fixed yaw fan added to the hypotheses (degrees; 0: none). On a narrow field of view
@@ -156,6 +161,7 @@ impl Default for VerifyConfig {
             candidates: DEFAULT_VERIFY_CANDIDATES,
             pose_candidates: DEFAULT_POSE_CANDIDATES,
             pose_candidate_min_information: DEFAULT_POSE_CANDIDATE_MIN_INFORMATION,
+            pose_candidate_shift_m: DEFAULT_POSE_CANDIDATE_SHIFT_M,
             hypotheses: 4,
             fan_deg: 25.0,
             cloud_bits: 8,
@@ -190,15 +196,19 @@ pub const DEFAULT_VIEW_MIN_OVERLAP_DEG: f64 = 20.0;
 pub const DEFAULT_VERIFY_CANDIDATES: usize = 5;
 
 /// Default [`VerifyConfig::pose_candidates`]: off. With true poses two of them find nearly every
-/// revisit of the look-alike corridors; with a drifting odometry `pose_candidate_min_information`
-/// and the odometry check without the rotation's allowance keep them right, but the information
-/// threshold that rejects every slid registration also rejects most true ones of a VLP-16
-/// (docs/performance.md#loops-a-pose-graph-can-trust).
+/// revisit of the look-alike corridors; with a drifting odometry their checks
+/// (`pose_candidate_min_information`, `pose_candidate_shift_m`, the odometry without the
+/// rotation's allowance) keep them right, but the information floor also rejects most true loops
+/// of a VLP-16 cropped to 90° (docs/performance.md#loops-a-pose-graph-can-trust).
 pub const DEFAULT_POSE_CANDIDATES: usize = 0;
 
 /// Default [`VerifyConfig::pose_candidate_min_information`]
 /// (docs/performance.md#loops-a-pose-graph-can-trust).
-pub const DEFAULT_POSE_CANDIDATE_MIN_INFORMATION: f64 = 10.0;
+pub const DEFAULT_POSE_CANDIDATE_MIN_INFORMATION: f64 = 5.0;
+
+/// Default [`VerifyConfig::pose_candidate_shift_m`]
+/// (docs/performance.md#loops-a-pose-graph-can-trust).
+pub const DEFAULT_POSE_CANDIDATE_SHIFT_M: f64 = 2.0;
 
 /// Default [`VerifyConfig::step_points`]: room for every default candidate of the largest
 /// real scans measured, so that it binds only on outsized clouds (docs/performance.md#work-budgets).
@@ -314,6 +324,8 @@ impl Params for DetectorConfig {
             "an integer in 0..=1000", "Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates (0: none)."),
         field!(DetectorConfig, "pose_candidate_min_information", verify.pose_candidate_min_information, Kind::closed(0.0, FINITE),
             "a finite number >= 0", "Smallest translation information (the gate's degeneracy.translation, per correspondence) a candidate chosen by pose must reach: its registration started where the odometry puts the query."),
+        field!(DetectorConfig, "pose_candidate_shift_m", verify.pose_candidate_shift_m, Kind::closed(0.0, FINITE),
+            "a finite number >= 0", "Register a candidate chosen by pose again from its pose shifted this many metres each way along its weakest translation direction; keep it only when both return (0: off)."),
         field!(DetectorConfig, "verify_hypotheses", verify.hypotheses, Kind::Int { min: 1, max: 16 },
             "an integer in 1..=16", "Initial yaws per registration, at most (0°, the A-SOLiD minima, then the fan)."),
         field!(DetectorConfig, "verify_fan_deg", verify.fan_deg, Kind::closed(0.0, 180.0), "degrees in [0, 180]",

@@ -66,7 +66,16 @@ impl LoopDetector {
             if let Some(at) = at {
                 // The candidates chosen by pose follow the descriptor's first `v.candidates`.
                 let by_pose = v.candidates.min(n)..n;
-                self.check_pose_candidates(&at, &mut cands[by_pose]);
+                self.check_pose_candidates(&at, &mut cands[by_pose.clone()]);
+                for (i, cp) in jobs.iter().filter(|(i, _)| by_pose.contains(i)) {
+                    let c = &mut cands[*i];
+                    if c.verification.is_some_and(|r| {
+                        (r.accepted || r.rejection == Some(Rejection::TooFar))
+                            && !super::nearby::keeps_its_pose(&v, q, cp, &r.registration)
+                    }) {
+                        reject(c, Rejection::Disagreement);
+                    }
+                }
                 self.check_after_gate(&at, cands)?;
             }
             for c in cands.iter_mut() {
@@ -157,34 +166,10 @@ impl LoopDetector {
         Ok(())
     }
 
-    /// The checks of the candidates chosen by pose that passed the gate (or failed only its
-    /// length): chosen where the odometry puts the query and registered from there, a place
-    /// whose clouds leave the translation loose ends where the odometry says (a slide along a
-    /// corridor), and where the odometry has drifted a look-alike next to its position fits as
-    /// well as the true place would. So the registration must reach
-    /// `pose_candidate_min_information`, and agree with the odometry within its bounds without
-    /// the rotation's allowance (a candidate chosen by pose is only as good as the position).
-    fn check_pose_candidates(&self, at: &QueryPlace, by_pose: &mut [Candidate]) {
-        let v = &self.config.verify;
-        for c in by_pose {
-            let Some(r) = c.verification else { continue };
-            if !(r.accepted || r.rejection == Some(Rejection::TooFar)) {
-                continue;
-            }
-            let info = r.registration.degeneracy.translation;
-            // A NaN information never passes.
-            if info.is_nan() || info < v.pose_candidate_min_information {
-                reject(c, Rejection::DegenerateTranslation);
-            } else if v.odometry_check && !self.agrees_with_odometry(at, c, false) {
-                reject(c, Rejection::OdometryDisagrees);
-            }
-        }
-    }
-
     /// Whether a candidate's registered pose agrees with its place's and the query's poses
     /// within the drift bounds, `turn`: with the rotation's allowance (true when they have no
     /// poses or are of different sessions).
-    fn agrees_with_odometry(&self, at: &QueryPlace, c: &Candidate, turn: bool) -> bool {
+    pub(super) fn agrees_with_odometry(&self, at: &QueryPlace, c: &Candidate, turn: bool) -> bool {
         let start = self.session_start;
         let (Some(q), Some(r)) = (at.pose, c.verification) else {
             return true;
@@ -323,7 +308,7 @@ pub(super) fn rotation_bound(v: &VerifyConfig, path: f64) -> f64 {
 }
 
 /// Marks a candidate as rejected by a check after the gate.
-fn reject(c: &mut Candidate, why: Rejection) {
+pub(super) fn reject(c: &mut Candidate, why: Rejection) {
     if let Some(r) = c.verification.as_mut() {
         r.accepted = false;
         r.rejection = Some(why);
@@ -733,7 +718,7 @@ mod tests {
         let mut by_pose = [
             informed(verified(2, off), 50.0),
             informed(verified(2, truth), 50.0),
-            informed(verified(2, truth), 5.0),
+            informed(verified(2, truth), 2.0),
             informed(verified(2, truth), f64::NAN),
         ];
         det.check_pose_candidates(&q, &mut by_pose);
