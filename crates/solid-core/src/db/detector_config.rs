@@ -195,20 +195,20 @@ pub const DEFAULT_VIEW_MIN_OVERLAP_DEG: f64 = 20.0;
 /// Default [`VerifyConfig::candidates`].
 pub const DEFAULT_VERIFY_CANDIDATES: usize = 5;
 
-/// Default [`VerifyConfig::pose_candidates`]: off. With true poses two of them find nearly every
-/// revisit of the look-alike corridors; with a drifting odometry their checks
+/// Default [`VerifyConfig::pose_candidates`]: among look-alikes the descriptor's candidates rarely
+/// hold the true place, the two nearest the odometry's position do; their checks
 /// (`pose_candidate_min_information`, `pose_candidate_shift_m`, the odometry without the
-/// rotation's allowance) keep them right, but the information floor also rejects most true loops
-/// of a VLP-16 cropped to 90° (docs/performance.md#loops-a-pose-graph-can-trust).
-pub const DEFAULT_POSE_CANDIDATES: usize = 0;
+/// rotation's allowance) keep them right under a drifting odometry
+/// (docs/performance.md#loops-a-pose-graph-can-trust).
+pub const DEFAULT_POSE_CANDIDATES: usize = 2;
 
 /// Default [`VerifyConfig::pose_candidate_min_information`]
 /// (docs/performance.md#loops-a-pose-graph-can-trust).
-pub const DEFAULT_POSE_CANDIDATE_MIN_INFORMATION: f64 = 5.0;
+pub const DEFAULT_POSE_CANDIDATE_MIN_INFORMATION: f64 = 3.0;
 
 /// Default [`VerifyConfig::pose_candidate_shift_m`]
 /// (docs/performance.md#loops-a-pose-graph-can-trust).
-pub const DEFAULT_POSE_CANDIDATE_SHIFT_M: f64 = 2.0;
+pub const DEFAULT_POSE_CANDIDATE_SHIFT_M: f64 = 3.0;
 
 /// Default [`VerifyConfig::step_points`]: room for every default candidate of the largest
 /// real scans measured, so that it binds only on outsized clouds (docs/performance.md#work-budgets).
