@@ -5,11 +5,16 @@ registered candidates' disagreement with the poses (what the odometry check judg
     PYTHONPATH=python python tools/gate_measure.py                      # the defaults
     PYTHONPATH=python python tools/gate_measure.py '{"odometry_check": false, "unique": false, "min_support": 0}'
     PYTHONPATH=python python tools/gate_measure.py '{}' presets          # corridors per preset
+    PYTHONPATH=python python tools/gate_measure.py '{}' presets 1,2      # ... seeds 1 and 2 only
+    PYTHONPATH=python python tools/gate_measure.py '{}' drift            # a drifting odometry
 
 The optional first argument is a JSON object of detector overrides (the names of DetectorConfig);
 the second, ``presets``, runs the default look-alike world (``World.corridors()``'s modules) for
-every preset at its own view and a 90° one, seeds 1–3, instead of the room and the three
-corridor runs. docs/performance.md#loops-a-pose-graph-can-trust gives the figures.
+every preset at its own view and a 90° one, seeds 1–3 (or the comma-separated seeds of a third
+argument), instead of the room and the three corridor runs; ``drift`` gives the detector
+tests/test_gate.py's drifting odometry (0.01°/m of yaw, 1 % scale) instead of the true poses, on
+the two-module world (frames 3 m apart, as that test) and the default one (4 m), and scores the
+loops against the truth. docs/performance.md#loops-a-pose-graph-can-trust gives the figures.
 """
 
 from __future__ import annotations
@@ -68,10 +73,63 @@ def measure(name: str, world: sim.World, traj: sim.Trajectory, sensor: sim.Senso
     )
 
 
+class Odometry:
+    """A simulated sequence whose poses are a drifting odometry (what the pipeline gives the detector)."""
+
+    def __init__(self, seq: sim.Sequence, odometry: sim.Trajectory) -> None:
+        self.scans, self.poses, self.timestamps = seq.scans, odometry.poses, seq.times
+
+    def __len__(self) -> int:
+        return len(self.scans)
+
+    def __getitem__(self, i: int) -> Any:
+        return self.scans[i]
+
+
+def measure_drift(name: str, world: sim.World, traj: sim.Trajectory, sensor: sim.Sensor, preset: str, detector: dict[str, Any], seed: int) -> None:
+    """The detector on tests/test_gate.py's drifting odometry; its loops scored against the truth
+    (within 1 m and 5° of the true relative pose), recall over the queries with a true place within
+    5 m at least 50 frames back."""
+    seq = sim.simulate(world, sensor, traj)
+    odo = traj.odometry(yaw_bias_deg_per_m=0.01, scale_error=0.01, translation_noise=0.01, rotation_noise_deg=0.02, seed=seed)
+    res = LoopClosurePipeline(Odometry(seq, odo), PipelineConfig.preset(preset, radius=5.0, detector=detector)).run()
+    P = np.asarray(traj.poses).reshape(-1, 3, 4)
+    T = np.tile(np.eye(4), (len(P), 1, 1))
+    T[:, :3, :] = P
+    wrong = 0
+    found = set()
+    loops = res.loops()
+    for lp in loops:
+        q, c = res.frame_of(lp.query), res.frame_of(lp.candidate)
+        d = np.linalg.inv(np.linalg.inv(T[q]) @ T[c]) @ np.asarray(lp.pose)
+        deg = np.degrees(np.arccos(np.clip((np.trace(d[:3, :3]) - 1) / 2, -1, 1)))
+        if np.linalg.norm(d[:3, 3]) > 1.0 or deg > 5.0:
+            wrong += 1
+        elif np.linalg.norm((np.linalg.inv(T[q]) @ T[c])[:3, 3]) <= 5.0:
+            found.add(q)
+    X = P[:, :, 3]
+    revisits = {q for q in range(50, len(X)) if (np.linalg.norm(X[: q - 50] - X[q], axis=1) <= 5.0).any()}
+    print(
+        f"{name}: {len(seq)} frames, {len(loops)} accepted, {wrong} off the truth by > 1 m or 5°, "
+        f"recall {len(found & revisits)}/{len(revisits)} = {len(found & revisits) / max(1, len(revisits)):.3f}",
+        flush=True,
+    )
+
+
 def main() -> None:
     detector: dict[str, Any] = json.loads(sys.argv[1]) if len(sys.argv) > 1 else {}
-    if sys.argv[2:] == ["presets"]:
-        for seed in (1, 2, 3):
+    if sys.argv[2:3] == ["drift"]:
+        for modules, spacing in ((2, 3.0), (4, 4.0)):
+            for preset, fov, seed in (("os1-64", 90.0, 3), ("vlp16", None, 2), ("hdl64", 90.0, 2), ("avia", None, 1), ("aeva", 90.0, 2), ("os1-64", None, 3)):
+                world = sim.World.corridors(seed=seed, modules=modules)
+                walk = sim.Trajectory.corridor_walk(world, laps=1.3, spacing=spacing)
+                view = "its own view" if fov is None else f"a {fov:g}° view"
+                sensor = sim.Sensor(preset, h_fov=fov)
+                measure_drift(f"drift, {modules}-module corridors seed {seed}, {preset} with {view}", world, walk, sensor, preset, detector, seed)
+        return
+    if sys.argv[2:3] == ["presets"]:
+        seeds = [int(x) for x in sys.argv[3].split(",")] if len(sys.argv) > 3 else [1, 2, 3]
+        for seed in seeds:
             world = sim.World.corridors(seed=seed)
             walk = sim.Trajectory.corridor_walk(world, laps=1.3)
             for preset in ("hdl64", "vlp16", "os1-64", "avia", "aeva"):

@@ -266,7 +266,9 @@ class DetectorConfig:
         rerank: bool = False,
         verify: bool = True,
         verify_candidates: int = 5,
-        pose_candidates: int = 0,
+        pose_candidates: int = 2,
+        pose_candidate_min_information: float = 3.0,
+        pose_candidate_shift_m: float = 3.0,
         verify_hypotheses: int = 4,
         verify_fan_deg: float = 25.0,
         cloud_bits: int = 8,
@@ -299,7 +301,9 @@ class DetectorConfig:
             rerank: Re-rank the candidates by R-SOLiD plus rotation-aligned A-SOLiD distance (a bool; default False).
             verify: Verify the best candidates by registering the places' clouds; a loop then carries its pose (a bool; default True).
             verify_candidates: Candidates registered per step (an integer in 1..=1000; default 5).
-            pose_candidates: Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates (0: none) (an integer in 0..=1000; default 0).
+            pose_candidates: Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates (0: none) (an integer in 0..=1000; default 2).
+            pose_candidate_min_information: Smallest translation information (the gate's degeneracy.translation, per correspondence) a candidate chosen by pose must reach: its registration started where the odometry puts the query (a finite number >= 0; default 3.0).
+            pose_candidate_shift_m: Register a candidate chosen by pose again from its pose shifted this many metres each way along its weakest translation direction; keep it only when both return (0: off) (a finite number >= 0; default 3.0).
             verify_hypotheses: Initial yaws per registration, at most (0°, the A-SOLiD minima, then the fan) (an integer in 1..=16; default 4).
             verify_fan_deg: The fixed ± yaw fan added to the hypotheses, degrees (0: none) (degrees in [0, 180]; default 25.0).
             cloud_bits: Bits per axis of the compact clouds stored with the places (an integer in 1..=16; default 8).
@@ -338,6 +342,8 @@ class DetectorConfig:
         verify: bool | None = None,
         verify_candidates: int | None = None,
         pose_candidates: int | None = None,
+        pose_candidate_min_information: float | None = None,
+        pose_candidate_shift_m: float | None = None,
         verify_hypotheses: int | None = None,
         verify_fan_deg: float | None = None,
         cloud_bits: int | None = None,
@@ -371,7 +377,9 @@ class DetectorConfig:
             rerank: Re-rank the candidates by R-SOLiD plus rotation-aligned A-SOLiD distance (a bool; default False).
             verify: Verify the best candidates by registering the places' clouds; a loop then carries its pose (a bool; default True).
             verify_candidates: Candidates registered per step (an integer in 1..=1000; default 5).
-            pose_candidates: Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates (0: none) (an integer in 0..=1000; default 0).
+            pose_candidates: Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates (0: none) (an integer in 0..=1000; default 2).
+            pose_candidate_min_information: Smallest translation information (the gate's degeneracy.translation, per correspondence) a candidate chosen by pose must reach: its registration started where the odometry puts the query (a finite number >= 0; default 3.0).
+            pose_candidate_shift_m: Register a candidate chosen by pose again from its pose shifted this many metres each way along its weakest translation direction; keep it only when both return (0: off) (a finite number >= 0; default 3.0).
             verify_hypotheses: Initial yaws per registration, at most (0°, the A-SOLiD minima, then the fan) (an integer in 1..=16; default 4).
             verify_fan_deg: The fixed ± yaw fan added to the hypotheses, degrees (0: none) (degrees in [0, 180]; default 25.0).
             cloud_bits: Bits per axis of the compact clouds stored with the places (an integer in 1..=16; default 8).
@@ -412,6 +420,8 @@ class DetectorConfig:
         verify: bool | None = None,
         verify_candidates: int | None = None,
         pose_candidates: int | None = None,
+        pose_candidate_min_information: float | None = None,
+        pose_candidate_shift_m: float | None = None,
         verify_hypotheses: int | None = None,
         verify_fan_deg: float | None = None,
         cloud_bits: int | None = None,
@@ -444,7 +454,9 @@ class DetectorConfig:
             rerank: Re-rank the candidates by R-SOLiD plus rotation-aligned A-SOLiD distance (a bool; default False).
             verify: Verify the best candidates by registering the places' clouds; a loop then carries its pose (a bool; default True).
             verify_candidates: Candidates registered per step (an integer in 1..=1000; default 5).
-            pose_candidates: Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates (0: none) (an integer in 0..=1000; default 0).
+            pose_candidates: Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates (0: none) (an integer in 0..=1000; default 2).
+            pose_candidate_min_information: Smallest translation information (the gate's degeneracy.translation, per correspondence) a candidate chosen by pose must reach: its registration started where the odometry puts the query (a finite number >= 0; default 3.0).
+            pose_candidate_shift_m: Register a candidate chosen by pose again from its pose shifted this many metres each way along its weakest translation direction; keep it only when both return (0: off) (a finite number >= 0; default 3.0).
             verify_hypotheses: Initial yaws per registration, at most (0°, the A-SOLiD minima, then the fan) (an integer in 1..=16; default 4).
             verify_fan_deg: The fixed ± yaw fan added to the hypotheses, degrees (0: none) (degrees in [0, 180]; default 25.0).
             cloud_bits: Bits per axis of the compact clouds stored with the places (an integer in 1..=16; default 8).
@@ -474,7 +486,7 @@ class DetectorConfig:
             TypeError: An unknown parameter, or a value of the wrong type.
         """
     def to_dict(self) -> dict[str, Any]:
-        """The parameters by name (exclude_frames, exclude_meters, exclude_seconds, threshold, top_k, rerank, verify, verify_candidates, pose_candidates, verify_hypotheses, verify_fan_deg, cloud_bits, cache_bytes, verify_threads, verify_step_points, view_fov_deg, view_min_overlap_deg, odometry_check, odometry_translation_m, odometry_drift, odometry_rotation_deg, odometry_rotation_deg_per_m, odometry_rotation_max_deg, unique, unique_ratio, support_window, min_support, registration, gate): what `DetectorConfig(**d)` takes back.
+        """The parameters by name (exclude_frames, exclude_meters, exclude_seconds, threshold, top_k, rerank, verify, verify_candidates, pose_candidates, pose_candidate_min_information, pose_candidate_shift_m, verify_hypotheses, verify_fan_deg, cloud_bits, cache_bytes, verify_threads, verify_step_points, view_fov_deg, view_min_overlap_deg, odometry_check, odometry_translation_m, odometry_drift, odometry_rotation_deg, odometry_rotation_deg_per_m, odometry_rotation_max_deg, unique, unique_ratio, support_window, min_support, registration, gate): what `DetectorConfig(**d)` takes back.
 
         Returns:
             A new dict.
@@ -505,7 +517,13 @@ class DetectorConfig:
         """Candidates registered per step (an integer in 1..=1000; default 5)."""
     @property
     def pose_candidates(self) -> int:
-        """Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates (0: none) (an integer in 0..=1000; default 0)."""
+        """Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates (0: none) (an integer in 0..=1000; default 2)."""
+    @property
+    def pose_candidate_min_information(self) -> float:
+        """Smallest translation information (the gate's degeneracy.translation, per correspondence) a candidate chosen by pose must reach: its registration started where the odometry puts the query (a finite number >= 0; default 3.0)."""
+    @property
+    def pose_candidate_shift_m(self) -> float:
+        """Register a candidate chosen by pose again from its pose shifted this many metres each way along its weakest translation direction; keep it only when both return (0: off) (a finite number >= 0; default 3.0)."""
     @property
     def verify_hypotheses(self) -> int:
         """Initial yaws per registration, at most (0°, the A-SOLiD minima, then the fan) (an integer in 1..=16; default 4)."""

@@ -56,6 +56,16 @@ pub struct VerifyConfig {
     /// check's drift bounds after the path between the two). Among look-alike places the
     /// descriptor's best rarely hold the true one; the odometry says roughly where it is. 0: none.
     pub pose_candidates: usize,
+    /// Smallest [`crate::reg::Degeneracy::translation`] a candidate chosen by pose must reach,
+    /// above the gate's: it was chosen where the odometry puts the query and registered from
+    /// there, so a translation the clouds leave loose (along a corridor) ends where the
+    /// odometry says, drift included; the descriptor's candidates keep the gate's threshold.
+    pub pose_candidate_min_information: f64,
+    /// A candidate chosen by pose is registered again from its pose shifted by this many metres
+    /// each way along the weakest direction of its translation information, and kept only when
+    /// both come back to it (the gate's `agree_translation`, `agree_rotation_deg`): a slide
+    /// follows its start, a true fit does not. 0: off.
+    pub pose_candidate_shift_m: f64,
     /// At most this many initial yaws per candidate: 0°, the A-SOLiD minima, then ±`fan_deg`.
     pub hypotheses: usize,
     /// The fixed yaw fan added to the hypotheses (degrees; 0: none). On a narrow field of view
@@ -150,6 +160,8 @@ impl Default for VerifyConfig {
             enabled: true,
             candidates: DEFAULT_VERIFY_CANDIDATES,
             pose_candidates: DEFAULT_POSE_CANDIDATES,
+            pose_candidate_min_information: DEFAULT_POSE_CANDIDATE_MIN_INFORMATION,
+            pose_candidate_shift_m: DEFAULT_POSE_CANDIDATE_SHIFT_M,
             hypotheses: 4,
             fan_deg: 25.0,
             cloud_bits: 8,
@@ -183,11 +195,20 @@ pub const DEFAULT_VIEW_MIN_OVERLAP_DEG: f64 = 20.0;
 /// Default [`VerifyConfig::candidates`].
 pub const DEFAULT_VERIFY_CANDIDATES: usize = 5;
 
-/// Default [`VerifyConfig::pose_candidates`]: off. With true poses two of them find nearly every
-/// revisit of the look-alike corridors; with a drifting odometry they bring places near its wrong
-/// position whose registrations slide along a corridor into agreement with it
+/// Default [`VerifyConfig::pose_candidates`]: among look-alikes the descriptor's candidates rarely
+/// hold the true place, the two nearest the odometry's position do; their checks
+/// (`pose_candidate_min_information`, `pose_candidate_shift_m`, the odometry without the
+/// rotation's allowance) keep them right under a drifting odometry
 /// (docs/performance.md#loops-a-pose-graph-can-trust).
-pub const DEFAULT_POSE_CANDIDATES: usize = 0;
+pub const DEFAULT_POSE_CANDIDATES: usize = 2;
+
+/// Default [`VerifyConfig::pose_candidate_min_information`]
+/// (docs/performance.md#loops-a-pose-graph-can-trust).
+pub const DEFAULT_POSE_CANDIDATE_MIN_INFORMATION: f64 = 3.0;
+
+/// Default [`VerifyConfig::pose_candidate_shift_m`]
+/// (docs/performance.md#loops-a-pose-graph-can-trust).
+pub const DEFAULT_POSE_CANDIDATE_SHIFT_M: f64 = 3.0;
 
 /// Default [`VerifyConfig::step_points`]: room for every default candidate of the largest
 /// real scans measured, so that it binds only on outsized clouds (docs/performance.md#work-budgets).
@@ -301,6 +322,10 @@ impl Params for DetectorConfig {
             "an integer in 1..=1000", "Candidates registered per step."),
         field!(DetectorConfig, "pose_candidates", verify.pose_candidates, Kind::Int { min: 0, max: MAX_TOP_K as u64 },
             "an integer in 0..=1000", "Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates (0: none)."),
+        field!(DetectorConfig, "pose_candidate_min_information", verify.pose_candidate_min_information, Kind::closed(0.0, FINITE),
+            "a finite number >= 0", "Smallest translation information (the gate's degeneracy.translation, per correspondence) a candidate chosen by pose must reach: its registration started where the odometry puts the query."),
+        field!(DetectorConfig, "pose_candidate_shift_m", verify.pose_candidate_shift_m, Kind::closed(0.0, FINITE),
+            "a finite number >= 0", "Register a candidate chosen by pose again from its pose shifted this many metres each way along its weakest translation direction; keep it only when both return (0: off)."),
         field!(DetectorConfig, "verify_hypotheses", verify.hypotheses, Kind::Int { min: 1, max: 16 },
             "an integer in 1..=16", "Initial yaws per registration, at most (0°, the A-SOLiD minima, then the fan)."),
         field!(DetectorConfig, "verify_fan_deg", verify.fan_deg, Kind::closed(0.0, 180.0), "degrees in [0, 180]",

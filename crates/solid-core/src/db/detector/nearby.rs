@@ -6,10 +6,14 @@
 
 use alloc::vec::Vec;
 
+use nalgebra::{Matrix3, SymmetricEigen};
+
+use super::verify::{reject, QueryPlace};
 use super::{Candidate, LoopDetector};
 use crate::compare::cosine_distance;
-use crate::db::DbError;
+use crate::db::{DbError, VerifyConfig};
 use crate::heading_refined;
+use crate::reg::{self, PreparedCloud, Rejection};
 
 impl LoopDetector {
     /// Puts the step's candidates in the order verification takes them: the descriptor's first
@@ -51,8 +55,8 @@ impl LoopDetector {
 
     /// Up to `pose_candidates` ids of own-session places `..eligible` with a pose, not in
     /// `taken`, nearest to `q`, each within reach: the gate's largest loop plus what the
-    /// odometry check allows after the path between the two (a place farther off could not
-    /// give an accepted loop).
+    /// odometry check allows a candidate chosen by pose after the path between the two (a place
+    /// farther off could not give an accepted loop).
     fn nearest_by_pose(
         &self,
         q: &[f64; 12],
@@ -77,11 +81,8 @@ impl LoopDetector {
             } else {
                 libm::fabs(travelled - at)
             };
-            let turn = super::verify::rotation_bound(v, path).to_radians();
-            let reach = v.gate.max_translation
-                + v.odometry_translation_m
-                + v.odometry_drift * path
-                + turn * path / 2.0;
+            // A loop chosen by pose must agree with the odometry without the rotation's allowance.
+            let reach = v.gate.max_translation + v.odometry_translation_m + v.odometry_drift * path;
             if d > reach {
                 continue;
             }
@@ -92,6 +93,30 @@ impl LoopDetector {
             }
         }
         Ok(best.into_iter().map(|(_, id)| id).collect())
+    }
+
+    /// The checks of the candidates chosen by pose that passed the gate (or failed only its
+    /// length): chosen where the odometry puts the query and registered from there, a place
+    /// whose clouds leave the translation loose ends where the odometry says (a slide along a
+    /// corridor), and where the odometry has drifted a look-alike next to its position fits as
+    /// well as the true place would. So the registration must reach
+    /// `pose_candidate_min_information`, and agree with the odometry within its bounds without
+    /// the rotation's allowance (a candidate chosen by pose is only as good as the position).
+    pub(super) fn check_pose_candidates(&self, at: &QueryPlace, by_pose: &mut [Candidate]) {
+        let v = &self.config.verify;
+        for c in by_pose {
+            let Some(r) = c.verification else { continue };
+            if !(r.accepted || r.rejection == Some(Rejection::TooFar)) {
+                continue;
+            }
+            let info = r.registration.degeneracy.translation;
+            // A NaN information never passes.
+            if info.is_nan() || info < v.pose_candidate_min_information {
+                reject(c, Rejection::DegenerateTranslation);
+            } else if v.odometry_check && !self.agrees_with_odometry(at, c, false) {
+                reject(c, Rejection::OdometryDisagrees);
+            }
+        }
     }
 
     /// Place `id` as an unverified candidate of the query `(r, a)`.
@@ -107,9 +132,46 @@ impl LoopDetector {
     }
 }
 
+/// Whether `candidate` registered again from `r`'s pose shifted by ±`pose_candidate_shift_m`
+/// along the weakest direction of its translation information comes back to `r`'s pose (within
+/// the gate's agreement tolerances): a registration that slid where the clouds leave the
+/// translation loose follows its start, a true fit returns. True when the shift is 0.
+pub(super) fn keeps_its_pose(
+    v: &VerifyConfig,
+    query: &PreparedCloud,
+    candidate: &PreparedCloud,
+    r: &reg::Registration,
+) -> bool {
+    let s = v.pose_candidate_shift_m;
+    if s <= 0.0 {
+        return true;
+    }
+    let h = &r.hessian;
+    // The Hessian is in (rotation, translation) order about the query's origin.
+    let htt = Matrix3::from_fn(|a, b| h[3 + a][3 + b]);
+    if !htt.iter().all(|x| x.is_finite()) {
+        return false;
+    }
+    let e = SymmetricEigen::new(htt);
+    let u = e.eigenvectors.column(e.eigenvalues.imin()).into_owned();
+    [s, -s].iter().all(|&d| {
+        let mut init = r.pose;
+        for (a, row) in init.iter_mut().take(3).enumerate() {
+            row[3] += d * u[a];
+        }
+        reg::register(query, candidate, &init, &v.registration)
+            .ok()
+            .and_then(|r2| reg::pose_distance(&r.pose, &r2.pose))
+            .is_some_and(|(m, deg)| {
+                m <= v.gate.agree_translation && deg <= v.gate.agree_rotation_deg
+            })
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use crate::db::{DetectorConfig, LoopDetector};
+    use crate::reg::{self, PreparedCloud};
     use crate::{Config, Descriptor, Stats};
 
     /// Row-major 3×4 pose at (x, y), facing +x.
@@ -126,6 +188,60 @@ mod tests {
             stats: Stats::default(),
             fingerprint: c.fingerprint(),
         }
+    }
+
+    /// A 40 m corridor 6 m wide and 3 m high (walls, floor, ceiling every 0.2 m), with boxes at
+    /// the given x positions against its left wall.
+    fn corridor(boxes: &[f64]) -> alloc::vec::Vec<[f64; 3]> {
+        let mut p = alloc::vec::Vec::new();
+        for i in -100..=100 {
+            let x = f64::from(i) * 0.2;
+            for j in 0..=15 {
+                let z = f64::from(j) * 0.2;
+                p.push([x, -3.0, z]);
+                p.push([x, 3.0, z]);
+            }
+            for j in -15..=15 {
+                let y = f64::from(j) * 0.2;
+                p.push([x, y, 0.0]);
+                p.push([x, y, 3.0]);
+            }
+        }
+        for &b in boxes {
+            for i in 0..=5 {
+                for j in 0..=10 {
+                    let (u, z) = (f64::from(i) * 0.2, f64::from(j) * 0.2);
+                    p.push([b, -3.0 + u, z]);
+                    p.push([b + 1.0, -3.0 + u, z]);
+                    p.push([b + u, -2.0, z]);
+                }
+            }
+        }
+        p
+    }
+
+    #[test]
+    fn a_registration_that_follows_its_start_is_not_kept() {
+        let v = crate::db::VerifyConfig::default();
+        let cfg = &v.registration;
+        let keeps = |boxes: &[f64]| {
+            let c = PreparedCloud::from_downsampled(&corridor(boxes), cfg).unwrap();
+            let r = reg::register(&c, &c, &reg::IDENTITY, cfg).unwrap();
+            let off = super::keeps_its_pose(
+                &crate::db::VerifyConfig {
+                    pose_candidate_shift_m: 0.0,
+                    ..v
+                },
+                &c,
+                &c,
+                &r,
+            );
+            (super::keeps_its_pose(&v, &c, &c, &r), off)
+        };
+        // A bare corridor: started 2 m along it, the registration stays there.
+        assert_eq!(keeps(&[]), (false, true));
+        // Boxes at irregular places pin it: both restarts come back.
+        assert_eq!(keeps(&[-13.0, -4.5, 3.0, 11.5]), (true, true));
     }
 
     #[test]

@@ -18,7 +18,8 @@ pub(super) struct QueryPlace {
 
 impl LoopDetector {
     /// Registers the query's cloud with its first `n` candidates' and scores every candidate
-    /// (see [`VerifyConfig`]); candidates end sorted by score. With `at` (a step that adds the query),
+    /// (see [`VerifyConfig`]); candidates end sorted by score. Those after the first
+    /// `candidates` were chosen by pose and must reach `pose_candidate_min_information`. With `at` (a step that adds the query),
     /// the candidates that passed the gate are checked against the poses and the previous
     /// steps, and remembered for the next steps.
     pub(super) fn verify_candidates(
@@ -63,6 +64,18 @@ impl LoopDetector {
                 cands[*i].verification = r;
             }
             if let Some(at) = at {
+                // The candidates chosen by pose follow the descriptor's first `v.candidates`.
+                let by_pose = v.candidates.min(n)..n;
+                self.check_pose_candidates(&at, &mut cands[by_pose.clone()]);
+                for (i, cp) in jobs.iter().filter(|(i, _)| by_pose.contains(i)) {
+                    let c = &mut cands[*i];
+                    if c.verification.is_some_and(|r| {
+                        (r.accepted || r.rejection == Some(Rejection::TooFar))
+                            && !super::nearby::keeps_its_pose(&v, q, cp, &r.registration)
+                    }) {
+                        reject(c, Rejection::Disagreement);
+                    }
+                }
                 self.check_after_gate(&at, cands)?;
             }
             for c in cands.iter_mut() {
@@ -95,7 +108,7 @@ impl LoopDetector {
         };
         if v.odometry_check {
             for c in cands.iter_mut().filter(|c| registered(c)) {
-                if !self.agrees_with_odometry(at, c) {
+                if !self.agrees_with_odometry(at, c, true) {
                     reject(c, Rejection::OdometryDisagrees);
                 }
             }
@@ -154,8 +167,9 @@ impl LoopDetector {
     }
 
     /// Whether a candidate's registered pose agrees with its place's and the query's poses
-    /// within the drift bounds (true when they have no poses or are of different sessions).
-    fn agrees_with_odometry(&self, at: &QueryPlace, c: &Candidate) -> bool {
+    /// within the drift bounds, `turn`: with the rotation's allowance (true when they have no
+    /// poses or are of different sessions).
+    pub(super) fn agrees_with_odometry(&self, at: &QueryPlace, c: &Candidate, turn: bool) -> bool {
         let start = self.session_start;
         let (Some(q), Some(r)) = (at.pose, c.verification) else {
             return true;
@@ -170,7 +184,7 @@ impl LoopDetector {
             return true;
         };
         let path = libm::fabs(at.travelled - p);
-        self.within_drift(&relative(&q, &cp), &r.registration.pose, path)
+        self.within_drift(&relative(&q, &cp), &r.registration.pose, path, turn)
     }
 
     /// Metres between a registered candidate's pose and its places' poses' relative pose (None
@@ -186,15 +200,19 @@ impl LoopDetector {
     /// (unknown) counts as none. The rotation they differ by (within its bound) also allows
     /// `angle · path / 2` metres: a rotation drift accumulated along a path displaces its end
     /// by that much (a constant drift along a straight path), so the translation bound itself
-    /// needs only the scale drift.
-    fn within_drift(&self, expected: &Pose, pose: &Pose, path: f64) -> bool {
+    /// needs only the scale drift. Without `turn`, the translation bound is the scale drift's
+    /// alone.
+    fn within_drift(&self, expected: &Pose, pose: &Pose, path: f64, turn: bool) -> bool {
         let v = &self.config.verify;
         let path = if path.is_nan() { 0.0 } else { path };
         reg::pose_distance(expected, pose).is_some_and(|(m, deg)| {
+            let swing = if turn {
+                deg.to_radians() * path / 2.0
+            } else {
+                0.0
+            };
             deg <= rotation_bound(v, path)
-                && m <= v.odometry_translation_m
-                    + v.odometry_drift * path
-                    + deg.to_radians() * path / 2.0
+                && m <= v.odometry_translation_m + v.odometry_drift * path + swing
         })
     }
 
@@ -232,7 +250,7 @@ impl LoopDetector {
         let (pc2, pc) = (self.pose(c2)?, self.pose(c)?);
         let expected = mul(&mul(&relative(q, q2), t2), &relative(&pc2, &pc));
         let path = distance(q, q2) + distance(&pc2, &pc);
-        Some(self.within_drift(&expected, t, path))
+        Some(self.within_drift(&expected, t, path, true))
     }
 
     /// The prepared cloud of place `id`: from the cache, or prepared from its stored compact
@@ -290,7 +308,7 @@ pub(super) fn rotation_bound(v: &VerifyConfig, path: f64) -> f64 {
 }
 
 /// Marks a candidate as rejected by a check after the gate.
-fn reject(c: &mut Candidate, why: Rejection) {
+pub(super) fn reject(c: &mut Candidate, why: Rejection) {
     if let Some(r) = c.verification.as_mut() {
         r.accepted = false;
         r.rejection = Some(why);
@@ -670,6 +688,55 @@ mod tests {
         let mut cands = [verified(3, near), verified(4, truth(4))];
         det.check_after_gate(&q, &mut cands).unwrap();
         assert!(cands.iter().all(|c| rejection(c).is_none()));
+    }
+
+    #[test]
+    fn a_candidate_chosen_by_pose_needs_information_and_the_odometry_without_the_turn() {
+        let det = detector_with_path(10, |v| {
+            v.support_window = 0;
+            v.unique = false;
+        });
+        let q = at(&det, 110.0);
+        let truth = relative(&q.pose.unwrap(), &pose(0.0, 2.0, 0.0));
+        // 2.5 m and 2° off the poses after 108 m of path: within the bounds with the turn's
+        // allowance (1 + 1.08 + 1.88 m), beyond them without it (2.08 m).
+        let mut off = mul(
+            &truth,
+            &relative(&pose(0.0, 0.0, 0.0), &pose(2.0, 0.0, 0.0)),
+        );
+        off[0][3] += 2.5;
+        let informed = |mut c: Candidate, info: f64| {
+            if let Some(r) = c.verification.as_mut() {
+                r.registration.degeneracy.translation = info;
+            }
+            c
+        };
+        let mut det = det;
+        let mut by_descriptor = [informed(verified(2, off), 50.0)];
+        det.check_after_gate(&q, &mut by_descriptor).unwrap();
+        assert_eq!(rejection(&by_descriptor[0]), None);
+        let mut by_pose = [
+            informed(verified(2, off), 50.0),
+            informed(verified(2, truth), 50.0),
+            informed(verified(2, truth), 2.0),
+            informed(verified(2, truth), f64::NAN),
+        ];
+        det.check_pose_candidates(&q, &mut by_pose);
+        assert_eq!(rejection(&by_pose[0]), Some(Rejection::OdometryDisagrees));
+        assert_eq!(rejection(&by_pose[1]), None);
+        assert_eq!(
+            rejection(&by_pose[2]),
+            Some(Rejection::DegenerateTranslation)
+        );
+        assert_eq!(
+            rejection(&by_pose[3]),
+            Some(Rejection::DegenerateTranslation)
+        );
+        // With the odometry check off only the information counts.
+        let det = detector_with_path(10, |v| v.odometry_check = false);
+        let mut by_pose = [informed(verified(2, off), 50.0)];
+        det.check_pose_candidates(&q, &mut by_pose);
+        assert_eq!(rejection(&by_pose[0]), None);
     }
 
     #[test]
