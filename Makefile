@@ -165,12 +165,8 @@ rust-test:
 	# The unit tests without threads or std (the serial paths of the database, among others).
 	cargo test -p solid-lidar --no-default-features --features alloc --lib
 
-## Two workers (pytest-xdist): most tests run on one core (Python, or a short native call), so a
-## second process uses the other; tests/conftest.py keeps tests that share a module-scoped fixture on
-## one worker. PYTEST_WORKERS=0 runs in this process.
-PYTEST_WORKERS ?= 2
 py-test: wheel
-	$(PY) -m pytest -n $(PYTEST_WORKERS) --dist loadgroup
+	$(PY) -m pytest
 
 ## Write python/solid/_solid.pyi from its hand-written parts (stubs/*.pyi, one per binding module)
 ## and the core's parameter tables, and the parameter tables of docs/spec.md (tools/stubgen.py);

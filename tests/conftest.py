@@ -81,17 +81,3 @@ def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
 def read_csv(path: Path) -> list[dict[str, str]]:
     with open(path, newline="") as f:
         return list(csv.DictReader(f))
-
-
-def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Under pytest-xdist (`make py-test` runs ``-n 2 --dist loadgroup``), the tests of a module
-    with a module-scoped fixture share a worker, so the fixture is computed once; every other test
-    goes to whichever worker is free, so one long module does not keep a core idle at the end."""
-    if not config.pluginmanager.hasplugin("xdist"):
-        return
-    for item in items:
-        info = getattr(item, "_fixtureinfo", None)
-        defs = [] if info is None else [d for ds in info.name2fixturedefs.values() for d in ds]
-        if any(d.scope == "module" for d in defs):
-            item.add_marker(pytest.mark.xdist_group(item.nodeid.split("::")[0]))
-

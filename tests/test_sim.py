@@ -25,10 +25,8 @@ from solid.pipeline import LoopClosurePipeline
 F64 = npt.NDArray[np.float64]
 
 
-@pytest.fixture
+@pytest.fixture(scope="module")
 def world() -> sim.World:
-    # Per test (a world is built in a millisecond): this module's tests then run on any free
-    # pytest-xdist worker (tests/conftest.py keeps a module with module-scoped fixtures on one).
     return sim.World(seed=0)
 
 
@@ -241,7 +239,7 @@ EXCLUDE = 25  # frames (50 m)
 RADIUS = 5.0  # metres
 
 
-@pytest.fixture
+@pytest.fixture(scope="module")
 def revisit_loop(world: sim.World) -> sim.Trajectory:
     # 1.6 laps of a 320 m block: the second lap revisits 60 % of the first.
     return sim.Trajectory.loop(world, laps=1.6, spacing=SPACING)
