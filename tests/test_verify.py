@@ -12,6 +12,7 @@ from conftest import data_dir
 
 import solid
 from solid import sim
+from solid.commands import build_map
 from solid.config import PipelineConfig
 from solid.evaluation import Evaluation
 from solid.pipeline import LoopClosurePipeline, PipelineResult
@@ -83,8 +84,8 @@ def test_maps_keep_their_clouds_and_a_second_session_is_verified_against_them(tm
     sensor = sim.Sensor("vlp16")
     s0, s1 = sim.simulate(world, sensor, lap), sim.simulate(world, sensor, second)
     cfg = PipelineConfig.preset("vlp16")
-    first = LoopClosurePipeline(s0, cfg).run().database
-    first.save(tmp_path / "map.soliddb")
+    # The map as `solid map build` makes it: every place and its cloud, no detection within the lap.
+    first, _ = build_map(s0, cfg, tmp_path / "map.soliddb")
     back = solid.Database.load(tmp_path / "map.soliddb")
     assert back.clouds_stored == len(back) == len(lap)
     assert [back.cloud(i) for i in (0, 7)] == [first.cloud(i) for i in (0, 7)]
