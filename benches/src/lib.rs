@@ -10,28 +10,22 @@ pub fn shared_dir() -> PathBuf {
     }
 }
 
+// The shared scans' formats: the core's test reader, one reader for the tests and the benches.
+#[path = "../../crates/solid-core/tests/common/scan.rs"]
+mod scan;
+
 /// A KITTI `.bin` (float32 N×4) under `shared/data/`, as its flat array.
 ///
 /// # Panics
 /// When the file is missing or not a whole number of 16-byte records: benchmarks need the data.
 pub fn kitti(rel: &str) -> Vec<f32> {
     let path = shared_dir().join("data").join(rel);
-    let bytes = std::fs::read(&path)
-        .unwrap_or_else(|e| panic!("{}: {e} (benchmarks need ../shared/data)", path.display()));
-    assert_eq!(bytes.len() % 16, 0, "{}: truncated", path.display());
-    bytes
-        .chunks_exact(4)
-        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-        .collect()
-}
-
-fn f32_records(bytes: &[u8], record: usize) -> Vec<f32> {
-    bytes
-        .chunks_exact(record)
-        .flat_map(|r| {
-            (0..3).map(move |i| f32::from_le_bytes(r[4 * i..4 * i + 4].try_into().unwrap()))
-        })
-        .collect()
+    assert!(
+        path.is_file(),
+        "{}: missing (benchmarks need ../shared/data)",
+        path.display()
+    );
+    scan::read_kitti(&path)
 }
 
 /// x, y, z of a shared scan (the formats of shared/data/README.md).
@@ -39,41 +33,7 @@ fn f32_records(bytes: &[u8], record: usize) -> Vec<f32> {
 /// # Panics
 /// When the file is missing or not in one of those formats: benchmarks need the data.
 pub fn read_xyz(path: &Path) -> Vec<f32> {
-    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    let name = path.to_string_lossy();
-    if name.ends_with(".pcd") {
-        let marker = b"DATA binary\n";
-        let at = bytes
-            .windows(marker.len())
-            .position(|w| w == marker)
-            .expect("binary PCD");
-        let header = std::str::from_utf8(&bytes[..at]).unwrap();
-        let field = |key: &str| -> Vec<&str> {
-            header
-                .lines()
-                .find(|l| l.starts_with(key))
-                .unwrap()
-                .split_whitespace()
-                .skip(1)
-                .collect()
-        };
-        let rec = 4 * field("FIELDS").len();
-        let n: usize = field("POINTS")[0].parse().unwrap();
-        f32_records(&bytes[at + marker.len()..at + marker.len() + n * rec], rec)
-    } else if name.contains("helipr_avia") {
-        f32_records(&bytes, 19)
-    } else if name.contains("nclt") {
-        bytes
-            .chunks_exact(8)
-            .flat_map(|r| {
-                (0..3).map(move |i| {
-                    (f64::from(u16::from_le_bytes([r[2 * i], r[2 * i + 1]])) * 0.005 - 100.0) as f32
-                })
-            })
-            .collect()
-    } else {
-        f32_records(&bytes, 16)
-    }
+    scan::read_xyz_f32(path)
 }
 
 /// splitmix64: a small seeded generator, so that every run benchmarks the same data.

@@ -5,7 +5,12 @@ use std::path::PathBuf;
 
 #[cfg(feature = "std")]
 pub mod db;
+mod scan;
 pub mod search;
+
+// Each test binary uses some of them.
+#[allow(unused_imports)]
+pub use scan::{read_kitti, read_scan, read_xyz_f32};
 
 /// The shared folder (`SOLID_SHARED`, else `<repo>/../shared`), or `None` when absent.
 /// Under `CI=true` a missing folder is a failure, not a skip.
@@ -29,70 +34,6 @@ pub fn shared() -> Option<PathBuf> {
 /// `<shared>/data`, or `None` when absent (a failure under `CI=true`).
 pub fn data_dir() -> Option<PathBuf> {
     shared().map(|s| s.join("data"))
-}
-
-/// x, y, z rows of a shared scan as `f32` (exact for the float32 formats).
-pub fn read_xyz_f32(path: &std::path::Path) -> Vec<f32> {
-    read_scan(path).into_iter().map(|v| v as f32).collect()
-}
-
-fn f32s(bytes: &[u8], record: usize, n_fields: usize) -> Vec<f32> {
-    assert_eq!(bytes.len() % record, 0, "truncated file");
-    bytes
-        .chunks_exact(record)
-        .flat_map(|r| {
-            (0..n_fields).map(move |f| f32::from_le_bytes(r[4 * f..4 * f + 4].try_into().unwrap()))
-        })
-        .collect()
-}
-
-/// A scan as f64 x, y, z rows (stride 3), whatever its file format.
-pub fn read_scan(path: &std::path::Path) -> Vec<f64> {
-    let bytes = std::fs::read(path).unwrap();
-    let name = path.to_string_lossy();
-    let xyz: Vec<f32> = if name.ends_with(".pcd") {
-        let marker = b"DATA binary\n";
-        let at = bytes
-            .windows(marker.len())
-            .position(|w| w == marker)
-            .expect("binary PCD");
-        let header = std::str::from_utf8(&bytes[..at]).unwrap();
-        let fields = header
-            .lines()
-            .find(|l| l.starts_with("FIELDS"))
-            .unwrap()
-            .split_whitespace()
-            .count()
-            - 1;
-        let body = &bytes[at + marker.len()..];
-        let all = f32s(body, 4 * fields, fields);
-        all.chunks_exact(fields)
-            .flat_map(|p| p[..3].to_vec())
-            .collect()
-    } else if name.contains("helipr_aeva") {
-        f32s(&bytes, 29, 3)
-    } else if name.contains("helipr_avia") {
-        f32s(&bytes, 19, 3)
-    } else if name.contains("nclt") {
-        assert_eq!(bytes.len() % 8, 0);
-        return bytes
-            .chunks_exact(8)
-            .flat_map(|r| {
-                (0..3).map(move |i| {
-                    f64::from(u16::from_le_bytes([r[2 * i], r[2 * i + 1]])) * 0.005 - 100.0
-                })
-            })
-            .collect();
-    } else {
-        let all = f32s(&bytes, 16, 4);
-        all.chunks_exact(4).flat_map(|p| p[..3].to_vec()).collect()
-    };
-    xyz.into_iter().map(f64::from).collect()
-}
-
-/// A KITTI `.bin` as its raw float32 N×4 array.
-pub fn read_kitti(path: &std::path::Path) -> Vec<f32> {
-    f32s(&std::fs::read(path).unwrap(), 16, 4)
 }
 
 /// A global allocator that counts allocations, for the no-allocation tests: install it with
