@@ -4,7 +4,7 @@
 //! scale that normalises it (4), the search sketch (`n_range` bytes and 12), the kd-tree (6), the
 //! session (4), the timestamp (8) and the A-SOLiD at 8 bits with its scale (`n_azimuth` + 4);
 //! entries added by [`Database::add_batch`] without `index` hold no sketch or kd-tree until
-//! [`Database::build_index`]. A pose costs 104 bytes for the entries that have one
+//! [`Database::build_index`], and a loaded map's index has no sketch ([`Database::set_sketch`]). A pose costs 104 bytes for the entries that have one
 //! (`memory_bytes` counts them all; sizes for the presets: docs/performance.md#database). Large
 //! columns ask for transparent huge pages on Linux (see `room`).
 
@@ -52,6 +52,9 @@ pub struct Database {
     /// blocks, or every entry, as [`Index::new`](crate::search::Index::new) reads it).
     codes: Vec<u8>,
     params: Vec<f32>,
+    /// Whether the index includes the sketch ([`Database::set_sketch`]): a new database's does, a
+    /// loaded map's does not.
+    sketch: bool,
     /// What the automatic search has seen on this database's queries.
     observed: Observed,
     /// Rows the searches scanned by brute force only because they were beyond the index, since
@@ -86,6 +89,7 @@ impl Database {
             splits: Vec::new(),
             codes: Vec::new(),
             params: Vec::new(),
+            sketch: true,
             observed: Observed::timed(),
             unindexed: Tally::default(),
             index_by_searches: false,
@@ -570,6 +574,7 @@ impl Database {
         poses: Vec<(u32, [f64; 12])>,
         clouds: Clouds,
     ) -> Result<(), DbError> {
+        self.set_sketch(false);
         self.reserve(sessions.len(), 0, true)?;
         self.sessions = sessions;
         self.timestamps = timestamps;
@@ -644,6 +649,7 @@ impl Database {
         self.a_scale = c.a_scale;
         self.clouds = c.clouds;
         self.metadata = c.metadata;
+        self.set_sketch(false);
         // As after a bulk add: the searches build the index once they have paid for it, a
         // detector at its start; a map opened to be summed up, merged or saved never builds it.
         self.index_by_searches = true;
