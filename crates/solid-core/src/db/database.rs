@@ -10,6 +10,7 @@
 
 mod fill;
 mod index;
+mod pose_store;
 mod query;
 
 pub use index::INDEX_AFTER_PASSES;
@@ -26,6 +27,7 @@ use crate::search::Observed;
 use crate::{Config, Descriptor, Error};
 use fill::{dequantize_a, dequantized, in_chunks, ChunkOut, CHUNK_ROWS};
 use index::Tally;
+pub(super) use pose_store::PoseStore;
 
 /// A database of places, searchable exactly at every size (see the module documentation).
 #[derive(Debug, Clone)]
@@ -34,8 +36,8 @@ pub struct Database {
     pub(super) fingerprint: u64,
     pub(super) sessions: Vec<u32>,
     pub(super) timestamps: Vec<f64>,
-    /// The poses of the entries that have one, by increasing id.
-    poses: Vec<(u32, [f64; 12])>,
+    /// The poses of the entries that have one.
+    poses: PoseStore,
     /// R-SOLiDs as added, row-major.
     r: Vec<f32>,
     /// Per entry, `1 / ‖r‖` ([`crate::search::inverse_norm`]): the search compares `r × scale`.
@@ -80,7 +82,7 @@ impl Database {
             fingerprint: config.fingerprint(),
             sessions: Vec::new(),
             timestamps: Vec::new(),
-            poses: Vec::new(),
+            poses: PoseStore::default(),
             r: Vec::new(),
             r_scale: Vec::new(),
             a_codes: Vec::new(),
@@ -243,8 +245,9 @@ impl Database {
             None => self.timestamps.extend(core::iter::repeat_n(f64::NAN, m)),
         }
         if let Some(p) = poses {
-            self.poses
-                .extend(p.iter().enumerate().map(|(i, p)| ((first + i) as u32, *p)));
+            for (i, p) in p.iter().enumerate() {
+                self.poses.push((first + i) as u32, *p);
+            }
         }
         if index {
             self.build_index()?;
@@ -259,7 +262,9 @@ impl Database {
         let oom = |_| DbError::OutOfMemory;
         room::reserve(&mut self.sessions, m).map_err(oom)?;
         room::reserve(&mut self.timestamps, m).map_err(oom)?;
-        self.poses.try_reserve(with_pose).map_err(oom)?;
+        self.poses
+            .try_reserve(with_pose)
+            .map_err(|()| DbError::OutOfMemory)?;
         room::reserve(&mut self.r, m * nr).map_err(oom)?;
         room::reserve(&mut self.r_scale, m).map_err(oom)?;
         room::reserve(&mut self.a_codes, m * na).map_err(oom)?;
@@ -340,15 +345,17 @@ impl Database {
         }
         let base = self.len();
         self.clouds.append(base, &other.clouds)?;
-        if let Err(e) = self.reserve(other.len(), other.poses.len(), true) {
+        let reserved = self.reserve(other.len(), 0, true).and_then(|()| {
+            (self.poses.reserve_for(&other.poses)).map_err(|()| DbError::OutOfMemory)
+        });
+        if let Err(e) = reserved {
             self.clouds.truncate(base);
             return Err(e);
         }
         self.cut_sketch(self.sketched());
         self.sessions.extend_from_slice(&other.sessions);
         self.timestamps.extend_from_slice(&other.timestamps);
-        self.poses
-            .extend(other.poses.iter().map(|(id, p)| (id + base as u32, *p)));
+        self.poses.append(&other.poses, base as u32);
         // The A-SOLiDs are copied as stored (already quantised), the R-SOLiDs sketched again.
         self.a_codes.extend_from_slice(&other.a_codes);
         self.a_scale.extend_from_slice(&other.a_scale);
@@ -528,17 +535,14 @@ impl Database {
 
     /// The pose of entry `id` (row-major 3×4 `[R|t]`), if it was given one.
     pub fn pose(&self, id: u32) -> Option<[f64; 12]> {
-        self.poses
-            .binary_search_by_key(&id, |(i, _)| *i)
-            .ok()
-            .map(|at| self.poses[at].1)
+        self.poses.get(id)
     }
 
     /// Per-entry poses (row-major 3×4 `[R|t]`).
     pub fn poses(&self) -> Vec<Option<[f64; 12]>> {
         let mut out = vec![None; self.len()];
-        for (id, p) in &self.poses {
-            out[*id as usize] = Some(*p);
+        for (id, p) in self.poses.each() {
+            out[id as usize] = Some(p);
         }
         out
     }
@@ -550,7 +554,7 @@ impl Database {
         }
         held(&self.sessions)
             + held(&self.timestamps)
-            + held(&self.poses)
+            + self.poses.heap_bytes()
             + held(&self.r)
             + held(&self.r_scale)
             + held(&self.a_codes)
@@ -578,7 +582,7 @@ impl Database {
         self.reserve(sessions.len(), 0, true)?;
         self.sessions = sessions;
         self.timestamps = timestamps;
-        self.poses = poses;
+        self.poses = PoseStore::from_full(poses);
         self.clouds = clouds;
         self.append_vectors(r, a)?;
         self.build_index()
@@ -590,7 +594,7 @@ impl Database {
 pub(super) struct Columns {
     pub(super) sessions: Vec<u32>,
     pub(super) timestamps: Vec<f64>,
-    pub(super) poses: Vec<(u32, [f64; 12])>,
+    pub(super) poses: PoseStore,
     pub(super) r: Vec<f32>,
     pub(super) r_scale: Vec<f32>,
     pub(super) a_codes: Vec<u8>,
