@@ -4,9 +4,10 @@
 //! scale that normalises it (4), the search sketch (`n_range` bytes and 12), the kd-tree (6), the
 //! session (4), the timestamp (8) and the A-SOLiD at 8 bits with its scale (`n_azimuth` + 4);
 //! entries added by [`Database::add_batch`] without `index` hold no sketch or kd-tree until
-//! [`Database::build_index`], and a loaded map's index has no sketch ([`Database::set_sketch`]). A pose costs 104 bytes for the entries that have one
-//! (`memory_bytes` counts them all; sizes for the presets: docs/performance.md#database). Large
-//! columns ask for transparent huge pages on Linux (see `room`).
+//! [`Database::build_index`], and a loaded map's index has no sketch ([`Database::set_sketch`]). A
+//! pose costs 104 bytes (60 as a loaded quaternion) for the entries that have one (`memory_bytes`
+//! counts them all; sizes for the presets: docs/performance.md#database). Large columns ask for
+//! transparent huge pages on Linux (see `room`).
 
 mod fill;
 mod index;
