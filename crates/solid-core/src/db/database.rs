@@ -347,7 +347,7 @@ impl Database {
         let base = self.len();
         self.clouds.append(base, &other.clouds)?;
         let reserved = self.reserve(other.len(), 0, true).and_then(|()| {
-            (self.poses.reserve_for(&other.poses)).map_err(|()| DbError::OutOfMemory)
+            (self.poses.reserve_for(&other.poses, false)).map_err(|()| DbError::OutOfMemory)
         });
         if let Err(e) = reserved {
             self.clouds.truncate(base);
@@ -356,7 +356,7 @@ impl Database {
         self.cut_sketch(self.sketched());
         self.sessions.extend_from_slice(&other.sessions);
         self.timestamps.extend_from_slice(&other.timestamps);
-        self.poses.append(&other.poses, base as u32);
+        self.poses.append(&other.poses, base as u32, None);
         // The A-SOLiDs are copied as stored (already quantised), the R-SOLiDs sketched again.
         self.a_codes.extend_from_slice(&other.a_codes);
         self.a_scale.extend_from_slice(&other.a_scale);

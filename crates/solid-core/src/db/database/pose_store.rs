@@ -7,6 +7,9 @@ use alloc::vec::Vec;
 
 use crate::db::lean::pose_matrix;
 
+/// What carries a pose into another world ([`PoseStore::append`]).
+pub(crate) type Move<'a> = &'a dyn Fn(&[f64; 12]) -> [f64; 12];
+
 /// The poses of a database, by id.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct PoseStore {
@@ -79,17 +82,30 @@ impl PoseStore {
         self.full.push((id, pose));
     }
 
-    /// Reserves room for `other`'s poses ([`PoseStore::append`]).
-    pub(crate) fn reserve_for(&mut self, other: &PoseStore) -> Result<(), ()> {
+    /// Reserves room for `other`'s poses ([`PoseStore::append`]; `moved`: every one as a
+    /// matrix).
+    pub(crate) fn reserve_for(&mut self, other: &PoseStore, moved: bool) -> Result<(), ()> {
         let oom = |_| ();
+        if moved {
+            return self.full.try_reserve(other.len()).map_err(oom);
+        }
         self.full.try_reserve(other.full.len()).map_err(oom)?;
         self.lean_ids.try_reserve(other.lean.len()).map_err(oom)?;
         self.lean.try_reserve(other.lean.len()).map_err(oom)
     }
 
     /// Appends `other`'s poses (room reserved), their ids shifted by `base` (beyond every id
-    /// held), each in the form `other` holds it.
-    pub(crate) fn append(&mut self, other: &PoseStore, base: u32) {
+    /// held): each in the form `other` holds it, or, with `moved`, as the matrix `moved` gives for
+    /// it (a map carried into another's world).
+    pub(crate) fn append(&mut self, other: &PoseStore, base: u32, moved: Option<Move<'_>>) {
+        if let Some(f) = moved {
+            for id in other.ids() {
+                if let Some(p) = other.get(id) {
+                    self.full.push((id + base, f(&p)));
+                }
+            }
+            return;
+        }
         self.full
             .extend(other.full.iter().map(|(id, p)| (id + base, *p)));
         self.lean_ids
@@ -102,5 +118,45 @@ impl PoseStore {
         self.full.capacity() * core::mem::size_of::<(u32, [f64; 12])>()
             + self.lean_ids.capacity() * 4
             + self.lean.capacity() * core::mem::size_of::<[f64; 7]>()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{pose_matrix, PoseStore};
+    use alloc::vec;
+    use alloc::vec::Vec;
+
+    #[test]
+    fn appended_poses_keep_their_form_or_are_moved_as_matrices() {
+        // Places 1 and 3 read as quaternions (a quarter turn about z), 2 given as a matrix.
+        let q = [1.0, 0.0, 0.0, 1.0, 5.0, 6.0, 7.0];
+        let mut other = PoseStore::from_lean(vec![1, 3], vec![q, q]);
+        let mut m = pose_matrix(&q);
+        m[3] = -1.0;
+        other.try_reserve(1).unwrap();
+        other.push(2, m);
+        assert_eq!(other.ids().collect::<Vec<_>>(), [1, 2, 3]);
+        let mut kept = PoseStore::from_full(vec![(0, m)]);
+        kept.reserve_for(&other, false).unwrap();
+        kept.append(&other, 10, None);
+        assert_eq!(kept.ids().collect::<Vec<_>>(), [0, 11, 12, 13]);
+        assert_eq!(kept.lean.len(), 2);
+        assert_eq!(kept.get(11), Some(pose_matrix(&q)));
+        assert_eq!(kept.get(12), Some(m));
+        let shift = |p: &[f64; 12]| {
+            let mut p = *p;
+            p[3] += 100.0;
+            p
+        };
+        let mut moved = PoseStore::default();
+        moved.reserve_for(&other, true).unwrap();
+        moved.append(&other, 0, Some(&shift));
+        assert!(moved.lean.is_empty() && moved.len() == 3);
+        assert_eq!(moved.ids().collect::<Vec<_>>(), [1, 2, 3]);
+        for id in 1..4 {
+            assert_eq!(moved.get(id), other.get(id).map(|p| shift(&p)));
+        }
+        assert_eq!(moved.get(0), None);
     }
 }
