@@ -309,6 +309,24 @@ def test_merge(cfg: solid.SolidConfig, db: solid.Database) -> None:
         db.add(synthetic(solid.SolidConfig.preset("vlp16"), 1))
 
 
+def test_merge_with_an_anchor_moves_the_others_poses_into_this_world(cfg: solid.SolidConfig) -> None:
+    here, there = solid.Database(cfg), solid.Database(cfg)
+    here.add(synthetic(cfg, 1), pose=np.eye(4))
+    there.add(synthetic(cfg, 2), pose=np.eye(4)[:3])
+    T = np.eye(4)
+    T[:3, 3] = [5.0, -1.0, 0.0]
+    skew = T.copy()
+    skew[0, 1] = 0.5
+    with pytest.raises(solid.SolidError, match="anchor"):
+        here.merge(there, anchor=skew)
+    with pytest.raises(solid.SolidError, match="anchor"):
+        here.merge(there, anchor=[1.0, 2.0])
+    assert len(here) == 1
+    here.merge(there, new_sessions=True, anchor=T)
+    np.testing.assert_allclose(here.poses[1], T[:3])
+    np.testing.assert_allclose(there.poses[0], np.eye(4)[:3])
+
+
 def test_loop_detector_on_kitti_revisit() -> None:
     cfg = solid.SolidConfig.preset("hdl64")
     # KITTI 94/95 and 198/199 are the same places; other pairs are at distance >= 0.08.

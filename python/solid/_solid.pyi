@@ -1289,17 +1289,20 @@ class Database:
             SolidError: An R-SOLiD of the wrong length.
             TypeError: `descriptor` is neither a Descriptor nor a sequence of floats.
         """
-    def merge(self, other: Database, new_sessions: bool = False) -> None:
+    def merge(self, other: Database, new_sessions: bool = False, anchor: npt.ArrayLike | None = None) -> None:
         """Appends every entry of `other` (another robot's or run's map), keeping their order,
-        timestamps and poses; their ids follow this database's.
+        timestamps and poses; their ids follow this database's. Nothing changes on error.
 
         Args:
-            other: A database with the same configuration (it may be this one).
+            other: A database with the same configuration (it may be this one); it is not changed.
             new_sessions: Renumber the sessions of `other` to follow this database's, so that maps of
                 separate runs stay apart.
+            anchor: ``T_map_other`` (3×4 or 4×4): every pose of `other` is carried into this map's
+                world (``X ↦ T·X``) as it is merged (``solid map merge --anchor``).
 
         Raises:
             DatabaseError: `other` has another configuration.
+            SolidError: `anchor` is not a finite rigid transform.
         """
     def save(self, path: str | PathLike[str], version: int = 4) -> None:
         """Writes the database to `path` (docs/spec.md §9), atomically: a temporary file in the

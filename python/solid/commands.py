@@ -429,7 +429,6 @@ def merge_maps(inputs: AbcSequence[Path], output_file: Path, anchors: AbcSequenc
     given = list(anchors or [])
     if given and len(given) != len(inputs) - 1:
         raise _solid.ConfigError(f"give one --anchor per map after the first: {len(inputs) - 1} maps, {len(given)} anchors")
-    from . import slam
 
     # Each anchor read before any map is loaded: a wrong file refuses the merge at once.
     transforms = [None if str(a) == "same" else read_anchor(Path(a)) for a in given]
@@ -460,7 +459,7 @@ def merge_maps(inputs: AbcSequence[Path], output_file: Path, anchors: AbcSequenc
             first_posed = first_posed or p
         before = set(int(x) for x in db.sessions)
         T = transforms[k] if given else None
-        db.merge(other if T is None else slam.anchored_database(other, T), new_sessions=True)
+        db.merge(other, new_sessions=True, anchor=T)
         if given:
             source = "same" if T is None else str(Path(given[k]).absolute())
             applied = (np.eye(4) if T is None else T)[:3].tolist()

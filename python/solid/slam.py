@@ -37,7 +37,6 @@ __all__ = [
     "SlamResult",
     "absolute_trajectory_error",
     "adjoint",
-    "anchored_database",
     "estimate_anchor",
     "graph_from_run",
     "odometry_graph",
@@ -661,28 +660,6 @@ def optimize_with_loops_of(
     graph = odometry_graph(ids, poses, noise).with_loops_of(saved)
     optimized, weights = optimize_graph(graph, robust)
     return SlamResult(graph, graph.poses.copy(), optimized, weights, robust)
-
-
-def anchored_database(db: Any, T_map_session: npt.ArrayLike) -> Any:
-    """A copy of a :class:`solid.Database` with every pose carried into a map's world
-    (``X ↦ T_map_session·X``); its places, sessions, times, clouds and metadata as they are
-    (``solid map merge --anchor FILE``)."""
-    from . import _solid
-
-    moved = as4(T_map_session) @ as4(np.asarray(db.poses, dtype=np.float64))
-    times, sessions = np.asarray(db.timestamps), np.asarray(db.sessions)
-    cfg = db.config
-    out = _solid.Database(cfg)
-    for k, (r, a) in enumerate(zip(db.r, db.a)):
-        out.add(
-            _solid.Descriptor(r, a, cfg),
-            session=int(sessions[k]),
-            timestamp=float(times[k]) if math.isfinite(times[k]) else None,
-            pose=moved[k, :3] if np.isfinite(moved[k]).all() else None,
-            cloud=db.cloud(k),
-        )
-    out.metadata = db.metadata
-    return out
 
 
 def write_kitti(path: Path | str, poses: npt.ArrayLike) -> None:

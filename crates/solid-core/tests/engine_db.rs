@@ -36,6 +36,37 @@ fn merge_appends_and_refuses_other_configs() {
     ));
 }
 
+/// A map merged with an anchor carries every pose of the other by `T` (`X ↦ T·X`) and keeps the
+/// rest; a transform that is not rigid is refused with nothing changed, the other map untouched.
+#[test]
+fn merge_with_an_anchor_carries_the_poses_and_refuses_a_non_rigid_one() {
+    let c = cfg();
+    let pose = |x: f64| [1.0, 0.0, 0.0, x, 0.0, 1.0, 0.0, 2.0, 0.0, 0.0, 1.0, 0.5];
+    let mut a = Database::new(c).unwrap();
+    a.add(&desc(&c, 1), 3, 1.0, Some(pose(0.0))).unwrap();
+    let mut b = Database::new(c).unwrap();
+    b.add(&desc(&c, 2), 0, 2.0, Some(pose(1.0))).unwrap();
+    b.add(&desc(&c, 3), 0, 3.0, None).unwrap();
+    // A quarter turn about z, then 10 m along x.
+    let t = [0.0, -1.0, 0.0, 10.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0];
+    let mut skew = t;
+    skew[0] = 0.5;
+    assert!(a.merge_with(&b, true, Some(&skew)).is_err());
+    assert_eq!(a.len(), 1);
+    assert_eq!(a.merge_with(&b, true, Some(&t)).unwrap(), 4);
+    let poses = a.poses();
+    let moved = poses[1].unwrap();
+    let want = [0.0, -1.0, 0.0, 8.0, 1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 0.5];
+    assert!(
+        moved.iter().zip(want).all(|(x, y)| (x - y).abs() < 1e-12),
+        "{moved:?}"
+    );
+    assert_eq!(poses[2], None);
+    assert_eq!(a.sessions(), [3, 4, 4]);
+    assert_eq!(a.r(1), b.r(0));
+    assert_eq!(b.poses()[0], Some(pose(1.0)));
+}
+
 #[test]
 fn search_options_exclude_recent_and_newer_entries() {
     let db = sample_db(100);

@@ -18,6 +18,7 @@ use crate::arrays::{borrow_2d, contiguous_query, parse_pose, parse_poses, Column
 use crate::config::PyConfig;
 use crate::describe::PyDescriptor;
 use crate::errors::{core_err, ConfigError, DatabaseError};
+use crate::SolidError;
 
 fn parse_method(method: &str) -> PyResult<Method> {
     Method::parse(method).map_err(|_| {
@@ -378,15 +379,21 @@ impl PyDatabase {
     }
 
     /// Appends every entry of `other` (same config required). With `new_sessions`, the sessions
-    /// of `other` are renumbered to follow this database's (maps of separate runs stay apart).
-    #[pyo3(signature = (other, new_sessions=false))]
-    fn merge(&self, py: Python<'_>, other: &PyDatabase, new_sessions: bool) -> PyResult<()> {
+    /// of `other` are renumbered to follow this database's (maps of separate runs stay apart);
+    /// with `anchor` (`T_map_other`), the poses of `other` are carried into this map's world.
+    #[pyo3(signature = (other, new_sessions=false, anchor=None))]
+    fn merge(
+        &self,
+        py: Python<'_>,
+        other: &PyDatabase,
+        new_sessions: bool,
+        anchor: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<()> {
+        let anchor = parse_pose(anchor)
+            .map_err(|e| SolidError::new_err(format!("anchor: {}", e.value(py))))?;
         let apply = |dst: &mut Database, src: &Database| {
-            if new_sessions {
-                dst.merge_as_new_sessions(src).map(|_| ())
-            } else {
-                dst.merge(src)
-            }
+            dst.merge_with(src, new_sessions, anchor.as_ref())
+                .map(|_| ())
         };
         if std::ptr::eq(self, other) {
             let copy = self.snapshot(py);

@@ -340,29 +340,7 @@ impl Database {
     /// [`DbError::ConfigMismatch`] when the two configs differ; [`DbError::Full`] beyond
     /// `u32::MAX` entries; [`DbError::OutOfMemory`].
     pub fn merge(&mut self, other: &Database) -> Result<(), DbError> {
-        self.check_fingerprint(other.fingerprint)?;
-        if self.len() + other.len() >= u32::MAX as usize {
-            return Err(DbError::Full);
-        }
-        let base = self.len();
-        self.clouds.append(base, &other.clouds)?;
-        let reserved = self.reserve(other.len(), 0, true).and_then(|()| {
-            (self.poses.reserve_for(&other.poses, false)).map_err(|()| DbError::OutOfMemory)
-        });
-        if let Err(e) = reserved {
-            self.clouds.truncate(base);
-            return Err(e);
-        }
-        self.cut_sketch(self.sketched());
-        self.sessions.extend_from_slice(&other.sessions);
-        self.timestamps.extend_from_slice(&other.timestamps);
-        self.poses.append(&other.poses, base as u32, None);
-        // The A-SOLiDs are copied as stored (already quantised), the R-SOLiDs sketched again.
-        self.a_codes.extend_from_slice(&other.a_codes);
-        self.a_scale.extend_from_slice(&other.a_scale);
-        self.r.extend_from_slice(&other.r);
-        self.r_scale.extend_from_slice(&other.r_scale);
-        self.build_index()
+        self.merge_with(other, false, None).map(|_| ())
     }
 
     /// [`Database::merge`], with the sessions of `other` renumbered to follow this database's
@@ -373,17 +351,69 @@ impl Database {
     /// As [`Database::merge`]; [`DbError::Full`] when a renumbered session would exceed
     /// `u32::MAX`. On error nothing is changed.
     pub fn merge_as_new_sessions(&mut self, other: &Database) -> Result<u32, DbError> {
+        self.merge_with(other, true, None)
+    }
+
+    /// [`Database::merge`] or, with `new_sessions`, [`Database::merge_as_new_sessions`], with
+    /// every pose of `other` carried into this map's world by `anchor` (row-major 3×4
+    /// `T_map_other`, `X ↦ T·X`) when given: a run's map anchored to another's (`solid map merge
+    /// --anchor`). `other` is not changed. Returns the sessions' offset (0 without
+    /// `new_sessions`).
+    ///
+    /// # Errors
+    /// As [`Database::merge_as_new_sessions`]; [`Error::InvalidParameter`] (name `anchor`) when
+    /// `anchor` is not finite or not a rotation. On error nothing is changed.
+    pub fn merge_with(
+        &mut self,
+        other: &Database,
+        new_sessions: bool,
+        anchor: Option<&[f64; 12]>,
+    ) -> Result<u32, DbError> {
+        self.check_fingerprint(other.fingerprint)?;
+        if let Some(t) = anchor {
+            check_pose(t).map_err(|e| match e {
+                Error::InvalidParameter {
+                    value, expected, ..
+                } => Error::InvalidParameter {
+                    name: "anchor",
+                    value,
+                    expected,
+                },
+                e => e,
+            })?;
+        }
+        if self.len() + other.len() >= u32::MAX as usize {
+            return Err(DbError::Full);
+        }
         let offset = match self.sessions.iter().max() {
-            None => 0,
-            Some(&m) => m.checked_add(1).ok_or(DbError::Full)?,
+            Some(&m) if new_sessions => m.checked_add(1).ok_or(DbError::Full)?,
+            _ => 0,
         };
         let top = other.sessions.iter().max().copied().unwrap_or(0);
         top.checked_add(offset).ok_or(DbError::Full)?;
-        let start = self.len();
-        self.merge(other)?;
-        for s in &mut self.sessions[start..] {
-            *s += offset;
+        let base = self.len();
+        self.clouds.append(base, &other.clouds)?;
+        let reserved = self.reserve(other.len(), 0, true).and_then(|()| {
+            let moved = anchor.is_some();
+            (self.poses.reserve_for(&other.poses, moved)).map_err(|()| DbError::OutOfMemory)
+        });
+        if let Err(e) = reserved {
+            self.clouds.truncate(base);
+            return Err(e);
         }
+        self.cut_sketch(self.sketched());
+        self.sessions
+            .extend(other.sessions.iter().map(|s| s + offset));
+        self.timestamps.extend_from_slice(&other.timestamps);
+        let carry = anchor.map(|t| move |p: &[f64; 12]| compose(t, p));
+        let moved = carry.as_ref().map(|f| f as pose_store::Move<'_>);
+        self.poses.append(&other.poses, base as u32, moved);
+        // The A-SOLiDs are copied as stored (already quantised), the R-SOLiDs sketched again.
+        self.a_codes.extend_from_slice(&other.a_codes);
+        self.a_scale.extend_from_slice(&other.a_scale);
+        self.r.extend_from_slice(&other.r);
+        self.r_scale.extend_from_slice(&other.r_scale);
+        self.build_index()?;
         Ok(offset)
     }
 
@@ -674,6 +704,18 @@ fn check_bins(name: &'static str, v: &[f32]) -> Result<(), Error> {
         None => Ok(()),
     }
 }
+/// `a·b` of two row-major 3×4 `[R|t]` rigid transforms.
+fn compose(a: &[f64; 12], b: &[f64; 12]) -> [f64; 12] {
+    let mut out = [0.0; 12];
+    for i in 0..3 {
+        for j in 0..4 {
+            let carried: f64 = (0..3).map(|k| a[4 * i + k] * b[4 * k + j]).sum();
+            out[4 * i + j] = carried + if j == 3 { a[4 * i + 3] } else { 0.0 };
+        }
+    }
+    out
+}
+
 /// Checks a row-major 3×4 `[R|t]`: finite, and R a rotation (orthonormal, determinant +1, to
 /// 1e-3).
 ///
