@@ -115,7 +115,10 @@ class Database:
         """
     def build_index(self) -> None:
         """Extends the search sketch and the kd-tree over every entry (after `add_batch`, before
-        the searches build them); nothing to do when they are up to date."""
+        the searches build them); nothing to do when they are up to date. A loaded map's index is
+        the kd-tree alone: its searches are mostly for the places it holds, which the kd-tree
+        answers, and the sketch (52 bytes a place with the presets) would only speed up searches
+        for other places (docs/performance.md#maps-at-scale)."""
     def index_pending(self) -> int:
         """The entries the search sketch and the kd-tree do not cover yet: those left by
         `add_batch`, and up to 15 before them (the sketch covers whole blocks of 16), scanned by
@@ -287,7 +290,9 @@ class Database:
 
                 A file in format 3 or 4 is read in one pass, section by section, and its stored clouds
                 stay in the file: the database keeps it open and reads a place's cloud when
-                verification (or `cloud`) asks for it, checking that cloud's checksum then.
+                verification (or `cloud`) asks for it, checking that cloud's checksum then. Its
+                search index (the kd-tree alone, see `build_index`) is left to the first search
+                or detector.
 
                 Args:
                     path: The file to read.

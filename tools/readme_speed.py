@@ -236,22 +236,25 @@ def maps_block(doc: dict[str, Any]) -> list[str]:
         "",
         f"Maps at scale, from `{doc['command']}` (solid {doc['solid']}; {doc['cpu']}, {doc['cores']} cores): maps of the "
         "314 HKU Avia keyframes with their compact clouds, copied with 2 % noise on every descriptor bin, a pose and a "
-        "time per place; each figure in a fresh process. Memory is the resident set, each column above the one before: "
-        "after the load (descriptors, poses, times; the clouds stay in the file), after building the map's search index "
-        "(which a load leaves to the first search or detector; it is the map's, shared by every detector over it), after "
-        "making a verifying detector over the map (it shares the map), after its 20 steps; the verified step is the "
-        "median of 20 full steps (describe, prepare, search, verify, add).",
+        "time per place; each figure in a fresh process. Load: wall time (CPU time, every thread's, user and "
+        "system, in brackets). Memory is the resident set: after the load (descriptors, poses, times; the clouds stay "
+        "in the file), then all that a verifying detector over the map adds by the end of its first 20 steps: the map's "
+        "search index, which a load leaves to the first search or detector (the kd-tree; it is the map's, shared by "
+        "every detector over it; also given alone, with the time to make the detector), and the detector's working "
+        "memory (its prepared clouds, which grow up to its `cache_bytes`); the verified step is the median of 20 full "
+        "steps (describe, prepare, search, verify, add).",
         "",
-        "| places | format | bytes a place (beside its cloud) | load | memory after load | + search index | + a detector "
-        "| + 20 steps | verified step | `map info` |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "| places | format | bytes a place (beside its cloud) | load (CPU) | memory after load | + a detector, 20 steps "
+        "| of which the index | verified step | `map info` |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for r in doc["maps"]:
         m, n = r["measured"], r["places"]
         lines.append(
             f"| {n:,} | {r['version']} | {r['file_bytes'] / n:,.0f} ({(r['file_bytes'] - r['cloud_bytes']) / n:,.0f}) | "
-            f"{m['load_s']:.2f} s | {m['rss_load_mib']:,.0f} MiB | {m['rss_index_mib']:,.0f} MiB in {m['index_s']:.2f} s | "
-            f"{m['rss_detector_mib']:,.1f} MiB | {m['rss_steps_mib']:,.1f} MiB | {m['step_ms']:.0f} ms | {ms(r['info_s'])} |"
+            f"{m['load_s']:.2f} s ({m['load_cpu_s']:.2f} s) | {m['rss_load_mib']:,.0f} MiB | "
+            f"{m['rss_detector_mib']:,.1f} MiB | {m['rss_index_mib']:,.1f} MiB in {m['detector_s']:.2f} s | "
+            f"{m['step_ms']:.0f} ms | {ms(r['info_s'])} |"
         )
     return lines
 

@@ -1,5 +1,5 @@
-//! Maps at scale (issue 31): file bytes per place, load time, resident memory after the load and
-//! with its search index and with a verifying detector over the map, `map info`
+//! Maps at scale (issue 31): file bytes per place, load time (wall and CPU), resident memory after
+//! the load and what a verifying detector over the map adds to it, `map info`
 //! (`Database::summary`) and the verified step, for maps of real places in the current file format
 //! (4) and the previous one (3, up to 100k).
 //!
@@ -11,11 +11,13 @@
 //! with its clouds) a chunk of 100k places at a time, so their clouds are never all in memory.
 //!
 //! Every figure of the summary is taken in a fresh process (this benchmark run again as a child):
-//! memory is the process's resident set (`VmRSS`), each figure above the one before it: after the
-//! load, after building the map's search index (which a loaded map leaves to its first search or
-//! detector), after making the detector over the indexed map, after its steps; the verified step
-//! is the median wall time of a full step (describe, prepare the cloud, search, verify the best
-//! candidates, add) for 20 hku1 scans, which meet their own copies in the map.
+//! memory is the process's resident set (`VmRSS`): after the load, then what a detector over the
+//! map adds in total after its first 20 steps: the map's search index, which a loaded map leaves
+//! to its first search or detector (the detector builds it when made: also given alone), and the
+//! detector's working memory; the verified step is the median wall time of a full step
+//! (describe, prepare the cloud, search, verify the best candidates, add) for 20 hku1 scans,
+//! which meet their own copies in the map. `SOLID_BENCH_MAP_CHILD=measure:FILE` prints one
+//! process's figures, `search:FILE` the searches of the map with and without the sketch.
 //!
 //! `SOLID_BENCH_MAP_SIZES` (default `1000,10000,100000`; add `1000000` for the 1M map),
 //! `SOLID_BENCH_JSON=path` writes the summary as JSON (`make readme-speed`: the README's row).
@@ -124,18 +126,32 @@ fn rss_mib() -> f64 {
         .map_or(f64::NAN, |kib| kib / 1024.0)
 }
 
-/// In this (fresh) process: load, detector, verified steps; as one JSON line.
+/// CPU time this process has used so far, every thread's, user and system (seconds; the kernel
+/// counts it in ticks of 10 ms).
+fn cpu_s() -> f64 {
+    let stat = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
+    // The fields after the command's closing parenthesis: utime and stime are the 12th and 13th.
+    let fields: Vec<&str> = stat
+        .rsplit_once(')')
+        .map_or("", |(_, rest)| rest)
+        .split_whitespace()
+        .collect();
+    let ticks = |i: usize| fields.get(i).and_then(|v| v.parse::<f64>().ok());
+    match (ticks(11), ticks(12)) {
+        (Some(u), Some(s)) => (u + s) / 100.0,
+        _ => f64::NAN,
+    }
+}
+
+/// In this (fresh) process: load, detector (which builds the map's index), verified steps; as
+/// one JSON line.
 fn child_measure(path: &str) {
     let queries: Vec<Vec<f32>> = (0..BASE).step_by(16).take(20).map(scan).collect();
     let before = rss_mib();
-    let t0 = Instant::now();
-    let mut db = Database::load(path).expect("loaded");
-    let load_s = t0.elapsed().as_secs_f64();
+    let (t0, cpu0) = (Instant::now(), cpu_s());
+    let db = Database::load(path).expect("loaded");
+    let (load_s, load_cpu_s) = (t0.elapsed().as_secs_f64(), cpu_s() - cpu0);
     let after_load = rss_mib();
-    let t0 = Instant::now();
-    db.build_index().expect("the index");
-    let index_s = t0.elapsed().as_secs_f64();
-    let after_index = rss_mib();
     let t0 = Instant::now();
     let mut det = LoopDetector::with_database(db, detector_config()).expect("a detector");
     let detector_s = t0.elapsed().as_secs_f64();
@@ -154,12 +170,76 @@ fn child_measure(path: &str) {
     let step_ms = 1e3 * (steps[steps.len() / 2 - 1] + steps[steps.len() / 2]) / 2.0;
     let after_steps = rss_mib();
     println!(
-        "{{\"load_s\": {load_s}, \"rss_load_mib\": {}, \"index_s\": {index_s}, \"rss_index_mib\": {}, \"detector_s\": {detector_s}, \"rss_detector_mib\": {}, \"step_ms\": {step_ms}, \"rss_steps_mib\": {}}}",
+        "{{\"load_s\": {load_s}, \"load_cpu_s\": {load_cpu_s}, \"rss_load_mib\": {}, \"detector_s\": {detector_s}, \"rss_index_mib\": {}, \"rss_steps_mib\": {}, \"rss_detector_mib\": {}, \"step_ms\": {step_ms}}}",
         after_load - before,
-        after_index - after_load,
-        after_det - after_index,
-        after_steps - after_det
+        after_det - after_load,
+        after_steps - after_det,
+        after_steps - after_load
     );
+}
+
+/// In this (fresh) process: the median time of a search (k = 10, as a detector's) of the map as
+/// loaded (its index the kd-tree alone), then with the sketch, for 20 of the places the map
+/// holds (hku1's keyframes, of which it holds noisy copies) and 20 it does not (the sums of two
+/// keyframes' R-SOLiDs), with `auto` and with brute force; as one JSON line.
+fn child_search(path: &str) {
+    use solid_lidar::db::{Method, SearchOptions};
+    let base = Database::load(Path::new(path).with_file_name("base.soliddb")).expect("loaded");
+    let held: Vec<Vec<f32>> = (0..BASE)
+        .step_by(16)
+        .map(|i| base.r(i as u32).to_vec())
+        .collect();
+    let other: Vec<Vec<f32>> = (0..BASE)
+        .step_by(16)
+        .map(|i| {
+            let far = base.r(((i + BASE / 2) % BASE) as u32);
+            base.r(i as u32)
+                .iter()
+                .zip(far)
+                .map(|(x, y)| x + y)
+                .collect()
+        })
+        .collect();
+    let mut db = Database::load(path).expect("loaded");
+    let median_ms = |db: &Database, queries: &[Vec<f32>], method| {
+        let opts = SearchOptions {
+            k: 10,
+            method,
+            ..SearchOptions::default()
+        };
+        let mut ms: Vec<f64> = queries
+            .iter()
+            .map(|q| {
+                let t0 = Instant::now();
+                db.search_with(q, &opts).expect("a search");
+                1e3 * t0.elapsed().as_secs_f64()
+            })
+            .collect();
+        ms.sort_by(f64::total_cmp);
+        ms[ms.len() / 2]
+    };
+    let (mut fields, loaded) = (Vec::new(), db.memory_bytes());
+    for sketch in [false, true] {
+        db.set_sketch(sketch);
+        let t0 = Instant::now();
+        db.build_index().expect("the index");
+        let name = if sketch { "sketch" } else { "tree" };
+        fields.push(format!(
+            "\"{name}_build_s\": {}",
+            t0.elapsed().as_secs_f64()
+        ));
+        let index = (db.memory_bytes() - loaded) as f64 / 1048576.0;
+        fields.push(format!("\"{name}_index_mib\": {index}"));
+        for (what, queries) in [("held", &held), ("other", &other)] {
+            let ms = median_ms(&db, queries, Method::Auto);
+            fields.push(format!("\"{name}_{what}_ms\": {ms}"));
+        }
+    }
+    for (what, queries) in [("held", &held), ("other", &other)] {
+        let ms = median_ms(&db, queries, Method::Brute);
+        fields.push(format!("\"brute_{what}_ms\": {ms}"));
+    }
+    println!("{{{}}}", fields.join(", "));
 }
 
 fn child_info(path: &str) {
@@ -204,8 +284,8 @@ struct Row {
 }
 
 fn summary(files: &[(usize, u32, PathBuf)]) -> Vec<Row> {
-    println!("| places | format | file bytes / place | beside clouds | load | RSS after load | + index | + detector | + 20 steps | verified step | map info |");
-    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("| places | format | file bytes / place | beside clouds | load (CPU) | RSS after load | + a detector | of which its index | verified step | map info |");
+    println!("|---|---|---|---|---|---|---|---|---|---|");
     let mut rows = Vec::new();
     for (places, version, path) in files {
         let s = Database::summary(path).expect("a summary");
@@ -221,17 +301,17 @@ fn summary(files: &[(usize, u32, PathBuf)]) -> Vec<Row> {
             info_s,
         };
         println!(
-            "| {} | {} | {:.0} | {:.0} | {:.2} s | {:.0} MiB | {:.0} MiB in {:.2} s | {:.1} MiB | {:.1} MiB | {:.0} ms | {:.1} ms |",
+            "| {} | {} | {:.0} | {:.0} | {:.2} s ({:.2} s) | {:.0} MiB | {:.1} MiB | {:.1} MiB in {:.2} s | {:.0} ms | {:.1} ms |",
             r.places,
             r.version,
             r.file_bytes as f64 / r.places as f64,
             (r.file_bytes - r.cloud_bytes) as f64 / r.places as f64,
             field(&r.measured, "load_s"),
+            field(&r.measured, "load_cpu_s"),
             field(&r.measured, "rss_load_mib"),
-            field(&r.measured, "rss_index_mib"),
-            field(&r.measured, "index_s"),
             field(&r.measured, "rss_detector_mib"),
-            field(&r.measured, "rss_steps_mib"),
+            field(&r.measured, "rss_index_mib"),
+            field(&r.measured, "detector_s"),
             field(&r.measured, "step_ms"),
             r.info_s * 1e3
         );
@@ -273,6 +353,7 @@ fn main() {
         match job.split_once(':') {
             Some(("measure", path)) => child_measure(path),
             Some(("info", path)) => child_info(path),
+            Some(("search", path)) => child_search(path),
             _ => panic!("unknown child job {job}"),
         }
         return;

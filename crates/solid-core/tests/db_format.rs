@@ -601,3 +601,45 @@ fn version_3_files_still_load_and_upgrade_to_version_4() {
     let upgraded = Database::from_bytes(&old.to_bytes().unwrap()).unwrap();
     same(&db, &upgraded);
 }
+
+#[test]
+fn a_loaded_map_keeps_its_quaternions_and_merges_give_every_pose_back() {
+    let c = cfg();
+    // Some places with a turned pose, some without (kinds 11 and 12).
+    let mut saved = Database::new(c).unwrap();
+    for i in 0..64u32 {
+        let pose = (i % 3 != 0).then(|| turned(i));
+        saved.add(&desc(&c, i), 0, f64::NAN, pose).unwrap();
+    }
+    let bytes = saved.to_bytes().unwrap();
+    let v4 = Database::from_bytes(&bytes).unwrap();
+    // Saved in version 3 and read again: the matrices the quaternions gave, held as matrices.
+    let v3 = Database::from_bytes(&v4.to_bytes_version(3).unwrap()).unwrap();
+    // The same poses, bit for bit, whichever form holds them; 40 bytes less a pose in memory.
+    assert_eq!(v4.poses(), v3.poses());
+    let posed = saved.poses_stored();
+    assert!(v3.memory_bytes() >= v4.memory_bytes() + 40 * posed);
+    // Merged either way with places whose poses are held as given.
+    let fresh = sample_db(9);
+    let mut a = v4.clone();
+    a.merge(&fresh).unwrap();
+    let mut b = fresh.clone();
+    b.merge(&v4).unwrap();
+    for (m, first) in [(&a, &v4), (&b, &fresh)] {
+        let second = if std::ptr::eq(first, &v4) {
+            &fresh
+        } else {
+            &v4
+        };
+        let want: Vec<_> = first.poses().into_iter().chain(second.poses()).collect();
+        assert_eq!(m.poses(), want);
+        assert_eq!(m.poses_stored(), want.iter().flatten().count());
+        for (id, p) in want.iter().enumerate() {
+            assert_eq!(m.pose(id as u32), *p);
+        }
+        // Saved and read again: the same poses, and the same bytes saved again.
+        let back = Database::from_bytes(&m.to_bytes().unwrap()).unwrap();
+        assert_eq!(back.poses(), want);
+        assert_eq!(back.to_bytes().unwrap(), m.to_bytes().unwrap());
+    }
+}

@@ -131,3 +131,47 @@ fn the_last_bulk_add_decides_who_builds_the_index() {
     assert_eq!(db.len(), len);
     assert!(db.index_by_searches());
 }
+
+#[test]
+fn a_loaded_map_is_indexed_by_its_kd_tree_alone_unless_asked() {
+    let (db, _) = grown(IndexPolicy::Now);
+    let cfg = *db.config();
+    let mut loaded = Database::from_bytes(&db.to_bytes().unwrap()).unwrap();
+    assert!(db.has_sketch() && !loaded.has_sketch());
+    assert_eq!(loaded.index_pending(), db.len());
+    let before = loaded.memory_bytes();
+    loaded.build_index().unwrap();
+    assert_eq!(loaded.index_pending(), 0);
+    let tree = loaded.memory_bytes() - before;
+    // Stored places and others: the same neighbours with every method, sketch or none.
+    let (others, _) = arrays(&cfg, 4, 99);
+    let (stored, _) = arrays(&cfg, 3000, 7);
+    let queries: Vec<&[f32]> = others
+        .chunks_exact(cfg.n_range)
+        .chain(stored.chunks_exact(cfg.n_range).step_by(700))
+        .collect();
+    let same = |loaded: &Database| {
+        for q in &queries {
+            for method in [Method::Brute, Method::KdTree, Method::Sketch, Method::Auto] {
+                let opts = SearchOptions {
+                    k: 5,
+                    method,
+                    ..SearchOptions::default()
+                };
+                let want = db.search_with(q, &opts).unwrap();
+                assert_eq!(loaded.search_with(q, &opts).unwrap(), want, "{method:?}");
+            }
+        }
+    };
+    same(&loaded);
+    // Asked for, the sketch is built by the next build, and dropped when turned off again.
+    loaded.set_sketch(true);
+    assert_eq!(loaded.index_pending(), db.len());
+    loaded.build_index().unwrap();
+    assert_eq!(loaded.index_pending(), 0);
+    assert!(loaded.memory_bytes() - before >= tree + db.len() * cfg.n_range);
+    same(&loaded);
+    loaded.set_sketch(false);
+    assert_eq!(loaded.memory_bytes(), before + tree);
+    same(&loaded);
+}

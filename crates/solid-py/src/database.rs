@@ -292,7 +292,7 @@ impl PyDatabase {
     }
 
     /// Extends the search sketch and the kd-tree over every entry (after `add_batch`, before the
-    /// searches build them).
+    /// searches build them); a loaded map's index is the kd-tree alone.
     fn build_index(&self, py: Python<'_>) -> PyResult<()> {
         py.detach(|| self.modify(Database::build_index))
             .map_err(core_err)

@@ -4,12 +4,14 @@
 //! scale that normalises it (4), the search sketch (`n_range` bytes and 12), the kd-tree (6), the
 //! session (4), the timestamp (8) and the A-SOLiD at 8 bits with its scale (`n_azimuth` + 4);
 //! entries added by [`Database::add_batch`] without `index` hold no sketch or kd-tree until
-//! [`Database::build_index`]. A pose costs 104 bytes for the entries that have one
-//! (`memory_bytes` counts them all; sizes for the presets: docs/performance.md#database). Large
-//! columns ask for transparent huge pages on Linux (see `room`).
+//! [`Database::build_index`], and a loaded map's index has no sketch ([`Database::set_sketch`]). A
+//! pose costs 104 bytes (60 as a loaded quaternion) for the entries that have one (`memory_bytes`
+//! counts them all; sizes for the presets: docs/performance.md#database). Large columns ask for
+//! transparent huge pages on Linux (see `room`).
 
 mod fill;
 mod index;
+mod pose_store;
 mod query;
 
 pub use index::INDEX_AFTER_PASSES;
@@ -26,6 +28,7 @@ use crate::search::Observed;
 use crate::{Config, Descriptor, Error};
 use fill::{dequantize_a, dequantized, in_chunks, ChunkOut, CHUNK_ROWS};
 use index::Tally;
+pub(super) use pose_store::PoseStore;
 
 /// A database of places, searchable exactly at every size (see the module documentation).
 #[derive(Debug, Clone)]
@@ -34,8 +37,8 @@ pub struct Database {
     pub(super) fingerprint: u64,
     pub(super) sessions: Vec<u32>,
     pub(super) timestamps: Vec<f64>,
-    /// The poses of the entries that have one, by increasing id.
-    poses: Vec<(u32, [f64; 12])>,
+    /// The poses of the entries that have one.
+    poses: PoseStore,
     /// R-SOLiDs as added, row-major.
     r: Vec<f32>,
     /// Per entry, `1 / ‖r‖` ([`crate::search::inverse_norm`]): the search compares `r × scale`.
@@ -52,6 +55,9 @@ pub struct Database {
     /// blocks, or every entry, as [`Index::new`](crate::search::Index::new) reads it).
     codes: Vec<u8>,
     params: Vec<f32>,
+    /// Whether the index includes the sketch ([`Database::set_sketch`]): a new database's does, a
+    /// loaded map's does not.
+    sketch: bool,
     /// What the automatic search has seen on this database's queries.
     observed: Observed,
     /// Rows the searches scanned by brute force only because they were beyond the index, since
@@ -77,7 +83,7 @@ impl Database {
             fingerprint: config.fingerprint(),
             sessions: Vec::new(),
             timestamps: Vec::new(),
-            poses: Vec::new(),
+            poses: PoseStore::default(),
             r: Vec::new(),
             r_scale: Vec::new(),
             a_codes: Vec::new(),
@@ -86,6 +92,7 @@ impl Database {
             splits: Vec::new(),
             codes: Vec::new(),
             params: Vec::new(),
+            sketch: true,
             observed: Observed::timed(),
             unindexed: Tally::default(),
             index_by_searches: false,
@@ -239,8 +246,9 @@ impl Database {
             None => self.timestamps.extend(core::iter::repeat_n(f64::NAN, m)),
         }
         if let Some(p) = poses {
-            self.poses
-                .extend(p.iter().enumerate().map(|(i, p)| ((first + i) as u32, *p)));
+            for (i, p) in p.iter().enumerate() {
+                self.poses.push((first + i) as u32, *p);
+            }
         }
         if index {
             self.build_index()?;
@@ -255,7 +263,9 @@ impl Database {
         let oom = |_| DbError::OutOfMemory;
         room::reserve(&mut self.sessions, m).map_err(oom)?;
         room::reserve(&mut self.timestamps, m).map_err(oom)?;
-        self.poses.try_reserve(with_pose).map_err(oom)?;
+        self.poses
+            .try_reserve(with_pose)
+            .map_err(|()| DbError::OutOfMemory)?;
         room::reserve(&mut self.r, m * nr).map_err(oom)?;
         room::reserve(&mut self.r_scale, m).map_err(oom)?;
         room::reserve(&mut self.a_codes, m * na).map_err(oom)?;
@@ -383,7 +393,11 @@ impl Database {
         top.checked_add(offset).ok_or(DbError::Full)?;
         let base = self.len();
         self.clouds.append(base, &other.clouds)?;
-        if let Err(e) = self.reserve(other.len(), other.poses.len(), true) {
+        let reserved = self.reserve(other.len(), 0, true).and_then(|()| {
+            let moved = anchor.is_some();
+            (self.poses.reserve_for(&other.poses, moved)).map_err(|()| DbError::OutOfMemory)
+        });
+        if let Err(e) = reserved {
             self.clouds.truncate(base);
             return Err(e);
         }
@@ -391,10 +405,9 @@ impl Database {
         self.sessions
             .extend(other.sessions.iter().map(|s| s + offset));
         self.timestamps.extend_from_slice(&other.timestamps);
-        self.poses.extend(other.poses.iter().map(|(id, p)| {
-            let moved = anchor.map_or(*p, |t| compose(t, p));
-            (id + base as u32, moved)
-        }));
+        let carry = anchor.map(|t| move |p: &[f64; 12]| compose(t, p));
+        let moved = carry.as_ref().map(|f| f as pose_store::Move<'_>);
+        self.poses.append(&other.poses, base as u32, moved);
         // The A-SOLiDs are copied as stored (already quantised), the R-SOLiDs sketched again.
         self.a_codes.extend_from_slice(&other.a_codes);
         self.a_scale.extend_from_slice(&other.a_scale);
@@ -553,17 +566,14 @@ impl Database {
 
     /// The pose of entry `id` (row-major 3×4 `[R|t]`), if it was given one.
     pub fn pose(&self, id: u32) -> Option<[f64; 12]> {
-        self.poses
-            .binary_search_by_key(&id, |(i, _)| *i)
-            .ok()
-            .map(|at| self.poses[at].1)
+        self.poses.get(id)
     }
 
     /// Per-entry poses (row-major 3×4 `[R|t]`).
     pub fn poses(&self) -> Vec<Option<[f64; 12]>> {
         let mut out = vec![None; self.len()];
-        for (id, p) in &self.poses {
-            out[*id as usize] = Some(*p);
+        for (id, p) in self.poses.each() {
+            out[id as usize] = Some(p);
         }
         out
     }
@@ -575,7 +585,7 @@ impl Database {
         }
         held(&self.sessions)
             + held(&self.timestamps)
-            + held(&self.poses)
+            + self.poses.heap_bytes()
             + held(&self.r)
             + held(&self.r_scale)
             + held(&self.a_codes)
@@ -599,10 +609,11 @@ impl Database {
         poses: Vec<(u32, [f64; 12])>,
         clouds: Clouds,
     ) -> Result<(), DbError> {
+        self.set_sketch(false);
         self.reserve(sessions.len(), 0, true)?;
         self.sessions = sessions;
         self.timestamps = timestamps;
-        self.poses = poses;
+        self.poses = PoseStore::from_full(poses);
         self.clouds = clouds;
         self.append_vectors(r, a)?;
         self.build_index()
@@ -614,7 +625,7 @@ impl Database {
 pub(super) struct Columns {
     pub(super) sessions: Vec<u32>,
     pub(super) timestamps: Vec<f64>,
-    pub(super) poses: Vec<(u32, [f64; 12])>,
+    pub(super) poses: PoseStore,
     pub(super) r: Vec<f32>,
     pub(super) r_scale: Vec<f32>,
     pub(super) a_codes: Vec<u8>,
@@ -673,6 +684,7 @@ impl Database {
         self.a_scale = c.a_scale;
         self.clouds = c.clouds;
         self.metadata = c.metadata;
+        self.set_sketch(false);
         // As after a bulk add: the searches build the index once they have paid for it, a
         // detector at its start; a map opened to be summed up, merged or saved never builds it.
         self.index_by_searches = true;

@@ -60,7 +60,7 @@ use alloc::string::String;
 use alloc::vec::Vec;
 
 use super::clouds::Clouds;
-use super::database::Columns;
+use super::database::{Columns, PoseStore};
 use super::format::{is_bin_value, try_vec};
 use super::{Database, DbError};
 use crate::checksum::{crc32, Crc32};
@@ -557,11 +557,11 @@ pub(super) fn decode(
         return Err(bad(format!("entry {i}: infinite timestamp")));
     }
     let poses = match (l.get(POSES), l.get(POSE_Q)) {
-        (Some(s), _) => poses::with_ids(src, s, n)?,
+        (Some(s), _) => PoseStore::from_full(poses::with_ids(src, s, n)?),
         (None, Some(s)) => poses::quaternions(src, s, l.get(POSE_IDS), n)?,
-        (None, None) => Vec::new(),
+        (None, None) => PoseStore::default(),
     };
-    let sessions = sessions_of(&runs, n, &timestamps, &poses)?;
+    let sessions = sessions_of(&runs, n, &timestamps, poses.ids())?;
     let clouds = match (l.get(CLOUD_OFFSETS), l.get(CLOUDS)) {
         (Some(o), Some(c)) => {
             let offsets = if l.version > V3 {
@@ -634,10 +634,10 @@ fn offsets_of(lengths: &[u32]) -> Result<Vec<u64>, DbError> {
 struct Meta {
     sessions: Vec<u32>,
     timestamps: Vec<f64>,
-    poses: Vec<(u32, [f64; 12])>,
+    poses: PoseStore,
 }
 
-fn runs_free(sessions: Vec<u32>, timestamps: Vec<f64>, poses: Vec<(u32, [f64; 12])>) -> Meta {
+fn runs_free(sessions: Vec<u32>, timestamps: Vec<f64>, poses: PoseStore) -> Meta {
     Meta {
         sessions,
         timestamps,
@@ -877,6 +877,7 @@ impl<'a> SectionWriter<'a> {
 }
 
 mod poses;
+pub(super) use poses::matrix as pose_matrix;
 mod runs;
 mod summary;
 

@@ -25,16 +25,39 @@ impl Database {
     /// Reserves the room of the sketch and the kd-tree of `n` entries.
     pub(super) fn reserve_index(&mut self, n: usize) -> Result<(), DbError> {
         let oom = |_| DbError::OutOfMemory;
-        let (nc, np) = search::sketch_len(n, self.config.n_range);
         let extra = n.saturating_sub(self.perm.len());
         room::reserve(&mut self.perm, extra).map_err(oom)?;
         let extra = n.saturating_sub(self.splits.len());
         room::reserve(&mut self.splits, extra).map_err(oom)?;
+        if !self.sketch {
+            return Ok(());
+        }
+        let (nc, np) = search::sketch_len(n, self.config.n_range);
         let extra = nc.saturating_sub(self.codes.len());
         room::reserve(&mut self.codes, extra).map_err(oom)?;
         let extra = np.saturating_sub(self.params.len());
         room::reserve(&mut self.params, extra).map_err(oom)?;
         Ok(())
+    }
+
+    /// Whether the index includes the search sketch: yes for a new database; no for a map loaded
+    /// from a file, whose index is the kd-tree alone. A map's searches are mostly of the places it
+    /// holds, which the kd-tree's walk answers alone; the sketch (`n_range + 12` bytes a place, 52
+    /// with the presets' 40 range bins) only speeds up searches for places it does not hold,
+    /// which brute force answers without it (the same results either way; measured:
+    /// docs/performance.md#maps-at-scale). Turning it off frees the sketch; turning it on leaves
+    /// it to the next [`Database::build_index`] (or the searches that build the index).
+    pub fn set_sketch(&mut self, on: bool) {
+        if !on {
+            self.codes = Vec::new();
+            self.params = Vec::new();
+        }
+        self.sketch = on;
+    }
+
+    /// Whether the index includes the search sketch ([`Database::set_sketch`]).
+    pub fn has_sketch(&self) -> bool {
+        self.sketch
     }
 
     /// Entries the sketch covers (a prefix; see [`Index::new`](crate::search::Index::new)): true because the sketch is cut
@@ -93,18 +116,20 @@ impl Database {
         Ok(())
     }
 
-    /// Brings the search sketch and the kd-tree up to every entry (after
-    /// [`Database::add_batch`] without `index`); does nothing when they are up to date.
+    /// Brings the kd-tree and the search sketch (when the index has one: [`Database::set_sketch`])
+    /// up to every entry (after [`Database::add_batch`] without `index`, or a load); does nothing
+    /// when they are up to date.
     ///
     /// # Errors
     /// [`DbError::OutOfMemory`].
     pub fn build_index(&mut self) -> Result<(), DbError> {
         let (n, from) = (self.len(), self.perm.len());
-        if from == n && self.sketched() == n {
+        let sketch_due = self.sketch && self.sketched() < n;
+        if from == n && !sketch_due {
             return Ok(());
         }
         self.reserve_index(n)?;
-        if self.sketched() < n {
+        if sketch_due {
             self.extend_sketch()?;
         }
         if from < n {
@@ -133,9 +158,14 @@ impl Database {
         self.len() - self.indexed()
     }
 
-    /// Entries both the kd-tree and the sketch cover (a prefix of the ids).
+    /// Entries both the kd-tree and the sketch (when the index has one) cover (a prefix of the
+    /// ids).
     fn indexed(&self) -> usize {
-        self.perm.len().min(self.sketched())
+        if self.sketch {
+            self.perm.len().min(self.sketched())
+        } else {
+            self.perm.len()
+        }
     }
 
     /// Whether [`Database::build_index`] is due before `queries` more searches with `opts`: when
@@ -173,6 +203,8 @@ impl Database {
             Plan::Brute => return 0,
             Plan::Auto if search::auto_is_brute(candidates, req.k) => return 0,
             Plan::KdTree => self.perm.len(),
+            // Without a sketch, building the index does not spare this plan any row.
+            Plan::Sketch if !self.sketch => return 0,
             Plan::Sketch => self.sketched(),
             Plan::Auto => self.indexed(),
         };

@@ -7,6 +7,7 @@ use alloc::format;
 use alloc::vec::Vec;
 
 use super::{bad, read_section, Section, Source};
+use crate::db::database::PoseStore;
 use crate::db::format::try_vec;
 use crate::db::{Database, DbError};
 
@@ -102,7 +103,7 @@ fn lean(p: &[f64; 12]) -> Option<[f64; 7]> {
 }
 
 /// The pose that a quaternion and a translation stand for.
-fn matrix(v: &[f64; 7]) -> [f64; 12] {
+pub(crate) fn matrix(v: &[f64; 7]) -> [f64; 12] {
     let r = rotation(&[v[0], v[1], v[2], v[3]]);
     [
         r[0], r[1], r[2], v[4], r[3], r[4], r[5], v[5], r[6], r[7], r[8], v[6],
@@ -164,13 +165,14 @@ pub(super) fn with_ids(
     Ok(poses)
 }
 
-/// The poses of a `pose_q` section, of the places that `ids` lists (every place without it).
+/// The poses of a `pose_q` section, of the places that `ids` lists (every place without it), kept
+/// as their records ([`matrix`] gives each pose).
 pub(super) fn quaternions(
     src: &(impl Source + ?Sized),
     s: Section,
     ids: Option<Section>,
     n: usize,
-) -> Result<Poses, DbError> {
+) -> Result<PoseStore, DbError> {
     let mut which = try_vec::<u32>(s.items as usize)?;
     match ids {
         Some(ids) => read_section(src, ids, ID, |b| {
@@ -183,7 +185,7 @@ pub(super) fn quaternions(
         })?,
         None => which.extend(0..s.items as u32),
     }
-    let mut poses = try_vec::<(u32, [f64; 12])>(s.items as usize)?;
+    let mut poses = try_vec::<[f64; 7]>(s.items as usize)?;
     let mut at = which.iter();
     read_section(src, s, POSE_Q, |b| {
         for rec in b.chunks_exact(POSE_Q) {
@@ -199,11 +201,11 @@ pub(super) fn quaternions(
                     "entry {id}: its pose's quaternion is not scaled to a largest component of 1"
                 )));
             }
-            poses.push((id, matrix(&v)));
+            poses.push(v);
         }
         Ok(())
     })?;
-    Ok(poses)
+    Ok(PoseStore::from_lean(which, poses))
 }
 
 /// Why the pose sections of a version 4 file do not fit together, if they do not.

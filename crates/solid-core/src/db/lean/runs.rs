@@ -48,11 +48,11 @@ pub(super) fn sessions_of(
     runs: &[Run],
     n: usize,
     timestamps: &[f64],
-    poses: &[(u32, [f64; 12])],
+    posed: impl Iterator<Item = u32>,
 ) -> Result<Vec<u32>, DbError> {
     let wrong = |what: &str| bad(format!("corrupted sessions section: {what}"));
     let mut sessions = try_vec::<u32>(n)?;
-    let mut posed = poses.iter().map(|(id, _)| *id as usize).peekable();
+    let mut posed = posed.map(|id| id as usize).peekable();
     for run in runs {
         let start = sessions.len();
         let end = start
