@@ -113,12 +113,19 @@ class Database:
                 session outside 0..2**32-1, or a pose that is not a rotation.
             TypeError: An argument that is not a float array.
         """
-    def build_index(self) -> None:
+    def build_index(self, sketch: bool | None = None) -> None:
         """Extends the search sketch and the kd-tree over every entry (after `add_batch`, before
         the searches build them); nothing to do when they are up to date. A loaded map's index is
         the kd-tree alone: its searches are mostly for the places it holds, which the kd-tree
         answers, and the sketch (52 bytes a place with the presets) would only speed up searches
-        for other places (docs/performance.md#maps-at-scale)."""
+        for other places (docs/performance.md#maps-at-scale).
+
+        Args:
+            sketch: True builds the sketch too (a loaded map's searches for places it does not
+                hold, about 2.5× faster at a million places, for 52 MiB more); False frees it;
+                None keeps the database's choice (on for a new database, off for a loaded one).
+                The search results are the same either way.
+        """
     def index_pending(self) -> int:
         """The entries the search sketch and the kd-tree do not cover yet: those left by
         `add_batch`, and up to 15 before them (the sketch covers whole blocks of 16), scanned by

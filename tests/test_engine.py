@@ -254,6 +254,20 @@ def test_save_load_round_trip(tmp_path: Path, db: solid.Database) -> None:
     assert solid.Database.from_bytes(db.to_bytes()).search(db.r[5], k=3) == db.search(db.r[5], k=3)
 
 
+def test_a_loaded_maps_sketch_is_built_on_request_with_the_same_results(cfg: solid.SolidConfig, db: solid.Database) -> None:
+    back = solid.Database.from_bytes(db.to_bytes())
+    novel = synthetic(cfg, 1000)
+    back.build_index()
+    lean = back.memory_bytes()
+    want = back.search(novel, k=5)
+    back.build_index(sketch=True)
+    assert back.memory_bytes() >= lean + len(back) * (cfg.n_range + 12)
+    assert back.search(novel, k=5) == want == db.search(novel, k=5)
+    back.build_index(sketch=False)
+    assert back.memory_bytes() < lean + len(back) * cfg.n_range
+    assert back.search(novel, k=5) == want
+
+
 def test_a_turned_pose_comes_back_within_1e_12_and_saved_again_the_same_bytes(cfg: solid.SolidConfig) -> None:
     """Format 4 stores a rotation as a quaternion (docs/spec.md §13): a loaded pose is within
     1e-12 of the saved one, its translation exact, and saving the loaded map again gives the same

@@ -292,10 +292,18 @@ impl PyDatabase {
     }
 
     /// Extends the search sketch and the kd-tree over every entry (after `add_batch`, before the
-    /// searches build them); a loaded map's index is the kd-tree alone.
-    fn build_index(&self, py: Python<'_>) -> PyResult<()> {
-        py.detach(|| self.modify(Database::build_index))
-            .map_err(core_err)
+    /// searches build them); a loaded map's index is the kd-tree alone unless `sketch` says.
+    #[pyo3(signature = (sketch=None))]
+    fn build_index(&self, py: Python<'_>, sketch: Option<bool>) -> PyResult<()> {
+        py.detach(|| {
+            self.modify(|db| {
+                if let Some(on) = sketch {
+                    db.set_sketch(on);
+                }
+                db.build_index()
+            })
+        })
+        .map_err(core_err)
     }
 
     /// Bytes of memory the database holds.
