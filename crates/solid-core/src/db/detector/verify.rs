@@ -66,16 +66,16 @@ impl LoopDetector {
             if let Some(at) = at {
                 // The candidates chosen by pose follow the descriptor's first `v.candidates`.
                 let by_pose = v.candidates.min(n)..n;
-                self.check_pose_candidates(&at, &mut cands[by_pose.clone()]);
-                for (i, cp) in jobs.iter().filter(|(i, _)| by_pose.contains(i)) {
-                    let c = &mut cands[*i];
-                    if c.verification.is_some_and(|r| {
-                        (r.accepted || r.rejection == Some(Rejection::TooFar))
-                            && !super::nearby::keeps_its_pose(&v, q, cp, &r.registration)
-                    }) {
-                        reject(c, Rejection::Disagreement);
-                    }
-                }
+                let mut clouds = Vec::new();
+                clouds
+                    .try_reserve_exact(by_pose.len())
+                    .map_err(|_| DbError::OutOfMemory)?;
+                clouds.extend(by_pose.clone().map(|i| {
+                    jobs.iter()
+                        .find(|(j, _)| *j == i)
+                        .map(|(_, cp)| Arc::clone(cp))
+                }));
+                self.check_pose_candidates(&at, Some(q), &clouds, &mut cands[by_pose])?;
                 self.check_after_gate(&at, cands)?;
             }
             for c in cands.iter_mut() {
@@ -99,13 +99,6 @@ impl LoopDetector {
     ) -> Result<(), DbError> {
         let v = self.config.verify;
         let passed = |c: &Candidate| c.verification.is_some_and(|r| r.accepted);
-        // Uniqueness and support compare with every registration that met the gate's quality
-        // checks, whatever its length: a loop then does not depend on the largest loop asked
-        // for (`max_translation`, eval's suggestion), only the lengths accepted do.
-        let registered = |c: &Candidate| {
-            c.verification
-                .is_some_and(|r| r.accepted || r.rejection == Some(Rejection::TooFar))
-        };
         if v.odometry_check {
             for c in cands.iter_mut().filter(|c| registered(c)) {
                 if !self.agrees_with_odometry(at, c, true) {
@@ -307,6 +300,15 @@ pub(super) fn rotation_bound(v: &VerifyConfig, path: f64) -> f64 {
         .min(v.odometry_rotation_max_deg)
 }
 
+/// Whether a candidate's registration met the gate's quality checks, whatever its length (it
+/// passed, or failed only `max_translation`): uniqueness and support compare with all of these,
+/// so a loop does not depend on the largest loop asked for (eval's suggestion), only the
+/// lengths accepted do.
+pub(super) fn registered(c: &Candidate) -> bool {
+    c.verification
+        .is_some_and(|r| r.accepted || r.rejection == Some(Rejection::TooFar))
+}
+
 /// Marks a candidate as rejected by a check after the gate.
 pub(super) fn reject(c: &mut Candidate, why: Rejection) {
     if let Some(r) = c.verification.as_mut() {
@@ -465,7 +467,7 @@ fn view_check(v: &VerifyConfig, yaw: f64) -> Result<(), Rejection> {
 /// `f` of every job, in order, the first error in job order: shared among the threads of this
 /// process's pool `solid-verify` of `threads` threads (0: one per core; see `crate::pool`) with
 /// `parallel`, one after the other without it.
-fn run_jobs<J: Sync, R: Send>(
+pub(super) fn run_jobs<J: Sync, R: Send>(
     jobs: &[J],
     threads: usize,
     f: impl Fn(&J) -> Result<R, DbError> + Sync,
@@ -721,7 +723,8 @@ mod tests {
             informed(verified(2, truth), 2.0),
             informed(verified(2, truth), f64::NAN),
         ];
-        det.check_pose_candidates(&q, &mut by_pose);
+        det.check_pose_candidates(&q, None, &[], &mut by_pose)
+            .unwrap();
         assert_eq!(rejection(&by_pose[0]), Some(Rejection::OdometryDisagrees));
         assert_eq!(rejection(&by_pose[1]), None);
         assert_eq!(
@@ -735,7 +738,8 @@ mod tests {
         // With the odometry check off only the information counts.
         let det = detector_with_path(10, |v| v.odometry_check = false);
         let mut by_pose = [informed(verified(2, off), 50.0)];
-        det.check_pose_candidates(&q, &mut by_pose);
+        det.check_pose_candidates(&q, None, &[], &mut by_pose)
+            .unwrap();
         assert_eq!(rejection(&by_pose[0]), None);
     }
 
