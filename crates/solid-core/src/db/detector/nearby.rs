@@ -69,19 +69,32 @@ impl LoopDetector {
         let mut best: Vec<(f64, u32)> = Vec::new();
         best.try_reserve_exact(v.pose_candidates + 1)
             .map_err(|_| DbError::OutOfMemory)?;
+        // Through the latest anchor when its path is the shorter ([`LoopDetector::expected`]).
+        let anchored = self.anchored(&QueryPlace {
+            id: 0,
+            pose: Some(*q),
+            travelled,
+            eligible,
+        });
         for (k, &at) in self.travelled.iter().enumerate() {
             let id = (self.session_start + k) as u32;
             if self.session_start + k >= eligible || taken.iter().any(|c| c.id == id) {
                 continue;
             }
             let Some(p) = self.pose(id) else { continue };
-            let (x, y, z) = (p[3] - q[3], p[7] - q[7], p[11] - q[11]);
-            let d = libm::sqrt(x * x + y * y + z * z);
-            let path = if (travelled - at).is_nan() {
+            let global = if (travelled - at).is_nan() {
                 0.0
             } else {
                 libm::fabs(travelled - at)
             };
+            let (q, path) = match anchored {
+                Some((qa, since, t0)) if since + libm::fabs(at - t0) < global => {
+                    (qa, since + libm::fabs(at - t0))
+                }
+                _ => (*q, global),
+            };
+            let (x, y, z) = (p[3] - q[3], p[7] - q[7], p[11] - q[11]);
+            let d = libm::sqrt(x * x + y * y + z * z);
             // A loop chosen by pose must agree with the odometry without the rotation's allowance.
             let reach = v.gate.max_translation + v.odometry_translation_m + v.odometry_drift * path;
             if d > reach {
