@@ -154,7 +154,7 @@ pub struct VerifyConfig {
     /// drift bounds after the path `q0 → q` plus `c0 → c` (when shorter than the path between
     /// the two places). After a lap the odometry can be a repeating place's period off; a loop
     /// resets it. 0: off.
-    pub anchor_m: f64,
+    pub loop_reset_m: f64,
     /// A loop is rejected ([`Rejection::LookAlike`](crate::reg::Rejection::LookAlike)) when one
     /// of the step's candidates more than this many metres from its place (by the poses), with
     /// an R-SOLiD distance at most `lookalike_margin` above its own, lies where the loop's pose
@@ -202,7 +202,7 @@ impl Default for VerifyConfig {
             unique_ratio: 0.5,
             support_window: 20,
             min_support: 1,
-            anchor_m: DEFAULT_ANCHOR_M,
+            loop_reset_m: DEFAULT_LOOP_RESET_M,
             lookalike_m: DEFAULT_LOOKALIKE_M,
             lookalike_margin: DEFAULT_LOOKALIKE_MARGIN,
             lookalike_swing: DEFAULT_LOOKALIKE_SWING,
@@ -231,8 +231,8 @@ pub const DEFAULT_POSE_CANDIDATE_MIN_INFORMATION: f64 = 3.0;
 /// (docs/performance.md#loops-a-pose-graph-can-trust).
 pub const DEFAULT_POSE_CANDIDATE_SHIFT_M: f64 = 3.0;
 
-/// Default [`VerifyConfig::anchor_m`] (docs/performance.md#loops-a-pose-graph-can-trust).
-pub const DEFAULT_ANCHOR_M: f64 = 200.0;
+/// Default [`VerifyConfig::loop_reset_m`] (docs/performance.md#loops-a-pose-graph-can-trust).
+pub const DEFAULT_LOOP_RESET_M: f64 = 200.0;
 
 /// Default [`VerifyConfig::lookalike_m`] (docs/performance.md#loops-a-pose-graph-can-trust).
 pub const DEFAULT_LOOKALIKE_M: f64 = 10.0;
@@ -395,7 +395,7 @@ impl Params for DetectorConfig {
             "Consistency over time: the previous steps that may support a loop (0: off)."),
         field!(DetectorConfig, "min_support", verify.min_support, COUNT, "an integer >= 0",
             "Fewest of the previous support_window steps whose verified candidates must agree with a loop (0: off)."),
-        field!(DetectorConfig, "anchor_m", verify.anchor_m, Kind::closed(0.0, FINITE), "a finite number >= 0",
+        field!(DetectorConfig, "loop_reset_m", verify.loop_reset_m, Kind::closed(0.0, FINITE), "a finite number >= 0",
             "Metres of path after an accepted loop during which the odometry check and the places chosen by pose go through that loop (0: off)."),
         field!(DetectorConfig, "lookalike_m", verify.lookalike_m, Kind::closed(0.0, FINITE), "a finite number >= 0",
             "Reject a loop when a candidate of the step farther than this from its place, as close by descriptor, fits the drift bounds too (0: off)."),

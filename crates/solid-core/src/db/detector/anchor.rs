@@ -4,7 +4,7 @@
 //! look-alike one period away then agrees with it as well as the true place. A confirmed loop
 //! `q0 → c0` (pose `L0`) resets that drift: a later query `q` and candidate `c` have the
 //! predicted relative pose `inv(T_wq)·T_wq0·L0·inv(T_wc0)·T_wc`, whose drift grows with the short
-//! paths `q0 → q` and `c0 → c` only ([`VerifyConfig::anchor_m`]). And a loop whose candidate has
+//! paths `q0 → q` and `c0 → c` only ([`VerifyConfig::loop_reset_m`]). And a loop whose candidate has
 //! look-alikes in the step's list that the current bound cannot rule out is not accepted
 //! ([`VerifyConfig::lookalike_m`]).
 
@@ -36,10 +36,10 @@ impl LoopDetector {
     /// anchor's candidate lies along the path: None without a recent enough anchor.
     pub(super) fn anchored(&self, at: &QueryPlace) -> Option<([f64; 12], f64, f64)> {
         let v = &self.config.verify;
-        let a = self.anchor.filter(|_| v.anchor_m > 0.0)?;
+        let a = self.anchor.filter(|_| v.loop_reset_m > 0.0)?;
         let q = at.pose?;
         let since = libm::fabs(at.travelled - a.travelled);
-        if since.is_nan() || since > v.anchor_m {
+        if since.is_nan() || since > v.loop_reset_m {
             return None;
         }
         let c0 = self.pose(a.candidate)?;
@@ -212,7 +212,7 @@ mod tests {
         assert_eq!(rejection(&cands[0]), None);
         assert_eq!(rejection(&cands[1]), Some(Rejection::OdometryDisagrees));
         // Too old an anchor is not used.
-        det.config.verify.anchor_m = 0.5;
+        det.config.verify.loop_reset_m = 0.5;
         let mut cands = [verified(2, truth(15.0))];
         det.check_after_gate(&q, &r, &mut cands).unwrap();
         assert_eq!(rejection(&cands[0]), Some(Rejection::LookAlike));
