@@ -155,10 +155,12 @@ pub struct VerifyConfig {
     /// the two places). After a lap the odometry can be a repeating place's period off; a loop
     /// resets it. 0: off.
     pub loop_reset_m: f64,
-    /// A loop is rejected ([`Rejection::LookAlike`](crate::reg::Rejection::LookAlike)) when one
-    /// of the step's candidates more than this many metres from its place (by the poses), with
-    /// an R-SOLiD distance at most `lookalike_margin` above its own, lies where the loop's pose
-    /// would put the query within the drift bounds too. 0: off.
+    /// A loop is rejected ([`Rejection::LookAlike`](crate::reg::Rejection::LookAlike)) when an
+    /// own place the query may match, more than this many metres from the loop's place (by the
+    /// poses), with an R-SOLiD distance to the query at most `lookalike_margin` above the
+    /// loop's, lies where the loop's pose would put the query within the drift bounds too
+    /// (through the anchor of `loop_reset_m` when there is one): the bounds cannot tell which
+    /// of the two the query sees. 0: off.
     pub lookalike_m: f64,
     /// How much farther (R-SOLiD cosine distance) than the loop's candidate a look-alike may be.
     pub lookalike_margin: f64,
@@ -398,7 +400,7 @@ impl Params for DetectorConfig {
         field!(DetectorConfig, "loop_reset_m", verify.loop_reset_m, Kind::closed(0.0, FINITE), "a finite number >= 0",
             "Metres of path after an accepted loop during which the odometry check and the places chosen by pose go through that loop (0: off)."),
         field!(DetectorConfig, "lookalike_m", verify.lookalike_m, Kind::closed(0.0, FINITE), "a finite number >= 0",
-            "Reject a loop when a candidate of the step farther than this from its place, as close by descriptor, fits the drift bounds too (0: off)."),
+            "Reject a loop when an own place farther than this from its place, about as close by descriptor, fits the drift bounds too (0: off)."),
         field!(DetectorConfig, "lookalike_margin", verify.lookalike_margin, Kind::closed(0.0, 1.0), "a number in [0, 1]",
             "How much larger a look-alike's R-SOLiD distance may be than the loop's candidate's."),
         field!(DetectorConfig, "lookalike_swing", verify.lookalike_swing, Kind::closed(0.0, 1.0), "a number in [0, 1]",

@@ -50,16 +50,16 @@ impl LoopDetector {
     }
 
     /// The relative pose the poses predict between the query and own place `c`, and the metres
-    /// of path its drift grows with: through the anchor when its path is the shorter, else the
-    /// two places' poses (None without poses or across sessions).
-    pub(super) fn expected(&self, at: &QueryPlace, c: u32) -> Option<(Pose, f64)> {
+    /// of path its drift grows with: through the anchor when `anchor` and its path is the
+    /// shorter, else the two places' poses (None without poses or across sessions).
+    pub(super) fn expected(&self, at: &QueryPlace, c: u32, anchor: bool) -> Option<(Pose, f64)> {
         let q = at.pose?;
         let tc = self.travelled_at(c);
         let pc = self.pose(c)?;
         (c as usize).checked_sub(self.session_start)?;
         let global = tc.map_or(0.0, |t| libm::fabs(at.travelled - t));
         let global = if global.is_nan() { 0.0 } else { global };
-        if let (Some((qa, since, t0)), Some(t)) = (self.anchored(at), tc) {
+        if let (Some((qa, since, t0)), Some(t)) = (self.anchored(at).filter(|_| anchor), tc) {
             let path = since + libm::fabs(t - t0);
             if path < global {
                 return Some((relative(&qa, &pc), path));
@@ -111,7 +111,7 @@ impl LoopDetector {
                         .pose(id)
                         .is_some_and(|p2| distance(&p2, &pc) > v.lookalike_m)
                     && self
-                        .expected(at, id)
+                        .expected(at, id, true)
                         .is_some_and(|(e, path)| self.within_drift(&e, &t, path, v.lookalike_swing))
                     && cosine_distance(r_query, self.r(id))
                         .is_ok_and(|d| d <= c.distance + v.lookalike_margin)

@@ -129,8 +129,14 @@ impl LoopDetector {
                 let me = (&q, c.id, &r.registration.pose);
                 let mine_off = self.odometry_offset(at, c);
                 // The one much nearer the odometry wins; otherwise the step cannot tell.
-                let nearer =
-                    |o: Option<f64>| mine_off.zip(o).is_some_and(|(a, b)| a < v.unique_ratio * b);
+                // Nearer both through the anchor and through the two places' poses: a loop's
+                // small error, carried by the anchor, must not outvote exact poses.
+                let nearer = |o: [Option<f64>; 2]| {
+                    mine_off
+                        .iter()
+                        .zip(o)
+                        .all(|(a, b)| a.zip(b).is_some_and(|(a, b)| a < v.unique_ratio * b))
+                };
                 let disagree = mine.iter().zip(&offsets).any(|(&(c2, ref t2), &o2)| {
                     c2 != c.id
                         && self.agree_through_poses(me, (&q, c2, t2)) == Some(false)
@@ -169,7 +175,8 @@ impl LoopDetector {
     /// within the drift bounds, `turn`: with the rotation's allowance (true when they have no
     /// poses or are of different sessions).
     pub(super) fn agrees_with_odometry(&self, at: &QueryPlace, c: &Candidate, turn: bool) -> bool {
-        let (Some(r), Some((expected, path))) = (c.verification, self.expected(at, c.id)) else {
+        let (Some(r), Some((expected, path))) = (c.verification, self.expected(at, c.id, true))
+        else {
             return true;
         };
         self.within_drift(
@@ -180,12 +187,15 @@ impl LoopDetector {
         )
     }
 
-    /// Metres between a registered candidate's pose and the relative pose the poses predict
-    /// ([`LoopDetector::expected`]; None without poses or across sessions).
-    fn odometry_offset(&self, at: &QueryPlace, c: &Candidate) -> Option<f64> {
-        let r = c.verification?;
-        let (expected, _) = self.expected(at, c.id)?;
-        reg::pose_distance(&expected, &r.registration.pose).map(|(m, _)| m)
+    /// Metres between a registered candidate's pose and the relative pose the poses predict,
+    /// through the anchor when it applies ([`LoopDetector::expected`]) and through the two
+    /// places' poses (None without poses or across sessions).
+    fn odometry_offset(&self, at: &QueryPlace, c: &Candidate) -> [Option<f64>; 2] {
+        [true, false].map(|anchor| {
+            let r = c.verification?;
+            let (expected, _) = self.expected(at, c.id, anchor)?;
+            reg::pose_distance(&expected, &r.registration.pose).map(|(m, _)| m)
+        })
     }
 
     /// Whether `pose` is within the drift bounds after `path` metres of `expected`; a NaN path
