@@ -4,11 +4,11 @@
 //! look-alike one period away then agrees with it as well as the true place. A confirmed loop
 //! `q0 → c0` (pose `L0`) resets that drift: a later query `q` and candidate `c` have the
 //! predicted relative pose `inv(T_wq)·T_wq0·L0·inv(T_wc0)·T_wc`, whose drift grows with the short
-//! paths `q0 → q` and `c0 → c` only ([`VerifyConfig::loop_reset_m`]). And a loop whose candidate has
-//! look-alikes in the step's list that the current bound cannot rule out is not accepted
+//! paths `q0 → q` and `c0 → c` only ([`VerifyConfig::loop_reset_m`]). And a loop whose place has
+//! look-alikes among the own places that the current bounds cannot rule out is not accepted
 //! ([`VerifyConfig::lookalike_m`]).
 
-use super::verify::{mul, reject, relative, QueryPlace};
+use super::verify::{distance, mul, reject, relative, QueryPlace};
 use super::{Candidate, LoopDetector};
 use crate::compare::cosine_distance;
 use crate::db::VerifyConfig;
@@ -121,12 +121,6 @@ impl LoopDetector {
             }
         }
     }
-}
-
-/// Metres between the positions of two row-major 3×4 poses.
-fn distance(a: &[f64; 12], b: &[f64; 12]) -> f64 {
-    let (x, y, z) = (a[3] - b[3], a[7] - b[7], a[11] - b[11]);
-    libm::sqrt(x * x + y * y + z * z)
 }
 
 /// A row-major 3×4 pose as a 4×4 one.

@@ -9,7 +9,7 @@ use alloc::vec::Vec;
 
 use nalgebra::Matrix3;
 
-use super::verify::{registered, reject, run_jobs, QueryPlace};
+use super::verify::{distance, registered, reject, run_jobs, QueryPlace};
 use super::{Candidate, LoopDetector};
 use crate::compare::cosine_distance;
 use crate::db::{DbError, VerifyConfig};
@@ -93,8 +93,7 @@ impl LoopDetector {
                 }
                 _ => (*q, global),
             };
-            let (x, y, z) = (p[3] - q[3], p[7] - q[7], p[11] - q[11]);
-            let d = libm::sqrt(x * x + y * y + z * z);
+            let d = distance(&p, &q);
             // A loop chosen by pose must agree with the odometry without the rotation's allowance.
             let reach = v.gate.max_translation + v.odometry_translation_m + v.odometry_drift * path;
             if d > reach {

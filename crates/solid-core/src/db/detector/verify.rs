@@ -349,7 +349,7 @@ pub(super) fn mul(a: &Pose, b: &Pose) -> Pose {
 }
 
 /// Metres between the positions of two row-major 3×4 poses.
-fn distance(a: &[f64; 12], b: &[f64; 12]) -> f64 {
+pub(super) fn distance(a: &[f64; 12], b: &[f64; 12]) -> f64 {
     let (x, y, z) = (a[3] - b[3], a[7] - b[7], a[11] - b[11]);
     libm::sqrt(x * x + y * y + z * z)
 }
