@@ -289,7 +289,7 @@ class DetectorConfig:
         min_support: int = 1,
         loop_reset_m: float = 200.0,
         lookalike_m: float = 10.0,
-        lookalike_margin: float = 0.1,
+        lookalike_margin: float = 0.2,
         lookalike_swing: float = 0.25,
         registration: RegistrationConfig | dict[str, Any] | None = None,
         gate: AcceptanceGate | dict[str, Any] | None = None,
@@ -328,7 +328,7 @@ class DetectorConfig:
             min_support: Fewest of the previous support_window steps whose verified candidates must agree with a loop (0: off) (an integer >= 0; default 1).
             loop_reset_m: Metres of path after an accepted loop during which the odometry check and the places chosen by pose go through that loop (0: off) (a finite number >= 0; default 200.0).
             lookalike_m: Reject a loop when an own place farther than this from its place, about as close by descriptor, fits the drift bounds too (0: off) (a finite number >= 0; default 10.0).
-            lookalike_margin: How much larger a look-alike's R-SOLiD distance may be than the loop's candidate's (a number in [0, 1]; default 0.1).
+            lookalike_margin: How much larger a look-alike's R-SOLiD distance may be than the loop's candidate's (a number in [0, 1]; default 0.2).
             lookalike_swing: The fraction of the odometry check's rotation allowance the look-alike check's bound takes (a number in [0, 1]; default 0.25).
             registration: The registration parameters (an object, or a dict of overrides of the current ones).
             gate: The acceptance gate (an object, or a dict of overrides of the current one).
@@ -412,7 +412,7 @@ class DetectorConfig:
             min_support: Fewest of the previous support_window steps whose verified candidates must agree with a loop (0: off) (an integer >= 0; default 1).
             loop_reset_m: Metres of path after an accepted loop during which the odometry check and the places chosen by pose go through that loop (0: off) (a finite number >= 0; default 200.0).
             lookalike_m: Reject a loop when an own place farther than this from its place, about as close by descriptor, fits the drift bounds too (0: off) (a finite number >= 0; default 10.0).
-            lookalike_margin: How much larger a look-alike's R-SOLiD distance may be than the loop's candidate's (a number in [0, 1]; default 0.1).
+            lookalike_margin: How much larger a look-alike's R-SOLiD distance may be than the loop's candidate's (a number in [0, 1]; default 0.2).
             lookalike_swing: The fraction of the odometry check's rotation allowance the look-alike check's bound takes (a number in [0, 1]; default 0.25).
             registration: The registration parameters (an object, or a dict of overrides of the current ones).
             gate: The acceptance gate (an object, or a dict of overrides of the current one).
@@ -497,7 +497,7 @@ class DetectorConfig:
             min_support: Fewest of the previous support_window steps whose verified candidates must agree with a loop (0: off) (an integer >= 0; default 1).
             loop_reset_m: Metres of path after an accepted loop during which the odometry check and the places chosen by pose go through that loop (0: off) (a finite number >= 0; default 200.0).
             lookalike_m: Reject a loop when an own place farther than this from its place, about as close by descriptor, fits the drift bounds too (0: off) (a finite number >= 0; default 10.0).
-            lookalike_margin: How much larger a look-alike's R-SOLiD distance may be than the loop's candidate's (a number in [0, 1]; default 0.1).
+            lookalike_margin: How much larger a look-alike's R-SOLiD distance may be than the loop's candidate's (a number in [0, 1]; default 0.2).
             lookalike_swing: The fraction of the odometry check's rotation allowance the look-alike check's bound takes (a number in [0, 1]; default 0.25).
             registration: The registration parameters (an object, or a dict of overrides of the current ones).
             gate: The acceptance gate (an object, or a dict of overrides of the current one).
@@ -610,7 +610,7 @@ class DetectorConfig:
         """Reject a loop when an own place farther than this from its place, about as close by descriptor, fits the drift bounds too (0: off) (a finite number >= 0; default 10.0)."""
     @property
     def lookalike_margin(self) -> float:
-        """How much larger a look-alike's R-SOLiD distance may be than the loop's candidate's (a number in [0, 1]; default 0.1)."""
+        """How much larger a look-alike's R-SOLiD distance may be than the loop's candidate's (a number in [0, 1]; default 0.2)."""
     @property
     def lookalike_swing(self) -> float:
         """The fraction of the odometry check's rotation allowance the look-alike check's bound takes (a number in [0, 1]; default 0.25)."""

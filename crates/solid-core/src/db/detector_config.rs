@@ -240,7 +240,7 @@ pub const DEFAULT_LOOP_RESET_M: f64 = 200.0;
 pub const DEFAULT_LOOKALIKE_M: f64 = 10.0;
 
 /// Default [`VerifyConfig::lookalike_margin`] (docs/performance.md#loops-a-pose-graph-can-trust).
-pub const DEFAULT_LOOKALIKE_MARGIN: f64 = 0.1;
+pub const DEFAULT_LOOKALIKE_MARGIN: f64 = 0.2;
 
 /// Default [`VerifyConfig::lookalike_swing`] (docs/performance.md#loops-a-pose-graph-can-trust).
 pub const DEFAULT_LOOKALIKE_SWING: f64 = 0.25;
