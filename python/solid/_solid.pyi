@@ -287,6 +287,10 @@ class DetectorConfig:
         unique_ratio: float = 0.5,
         support_window: int = 20,
         min_support: int = 1,
+        loop_reset_m: float = 200.0,
+        lookalike_m: float = 10.0,
+        lookalike_margin: float = 0.2,
+        lookalike_swing: float = 0.25,
         registration: RegistrationConfig | dict[str, Any] | None = None,
         gate: AcceptanceGate | dict[str, Any] | None = None,
     ) -> DetectorConfig:
@@ -322,6 +326,10 @@ class DetectorConfig:
             unique_ratio: Of two disagreeing candidates, keep the one whose distance from the poses' relative pose is under this fraction of the other's (0: reject both) (a number in [0, 1]; default 0.5).
             support_window: Consistency over time: the previous steps that may support a loop (0: off) (an integer >= 0; default 20).
             min_support: Fewest of the previous support_window steps whose verified candidates must agree with a loop (0: off) (an integer >= 0; default 1).
+            loop_reset_m: Metres of path after an accepted loop during which the odometry check and the places chosen by pose go through that loop (0: off) (a finite number >= 0; default 200.0).
+            lookalike_m: Reject a loop when an own place farther than this from its place, about as close by descriptor, fits the drift bounds too (0: off) (a finite number >= 0; default 10.0).
+            lookalike_margin: How much larger a look-alike's R-SOLiD distance may be than the loop's candidate's (a number in [0, 1]; default 0.2).
+            lookalike_swing: The fraction of the odometry check's rotation allowance the look-alike check's bound takes (a number in [0, 1]; default 0.25).
             registration: The registration parameters (an object, or a dict of overrides of the current ones).
             gate: The acceptance gate (an object, or a dict of overrides of the current one).
 
@@ -362,6 +370,10 @@ class DetectorConfig:
         unique_ratio: float | None = None,
         support_window: int | None = None,
         min_support: int | None = None,
+        loop_reset_m: float | None = None,
+        lookalike_m: float | None = None,
+        lookalike_margin: float | None = None,
+        lookalike_swing: float | None = None,
         registration: RegistrationConfig | dict[str, Any] | None = None,
         gate: AcceptanceGate | dict[str, Any] | None = None,
     ) -> DetectorConfig:
@@ -398,6 +410,10 @@ class DetectorConfig:
             unique_ratio: Of two disagreeing candidates, keep the one whose distance from the poses' relative pose is under this fraction of the other's (0: reject both) (a number in [0, 1]; default 0.5).
             support_window: Consistency over time: the previous steps that may support a loop (0: off) (an integer >= 0; default 20).
             min_support: Fewest of the previous support_window steps whose verified candidates must agree with a loop (0: off) (an integer >= 0; default 1).
+            loop_reset_m: Metres of path after an accepted loop during which the odometry check and the places chosen by pose go through that loop (0: off) (a finite number >= 0; default 200.0).
+            lookalike_m: Reject a loop when an own place farther than this from its place, about as close by descriptor, fits the drift bounds too (0: off) (a finite number >= 0; default 10.0).
+            lookalike_margin: How much larger a look-alike's R-SOLiD distance may be than the loop's candidate's (a number in [0, 1]; default 0.2).
+            lookalike_swing: The fraction of the odometry check's rotation allowance the look-alike check's bound takes (a number in [0, 1]; default 0.25).
             registration: The registration parameters (an object, or a dict of overrides of the current ones).
             gate: The acceptance gate (an object, or a dict of overrides of the current one).
 
@@ -440,6 +456,10 @@ class DetectorConfig:
         unique_ratio: float | None = None,
         support_window: int | None = None,
         min_support: int | None = None,
+        loop_reset_m: float | None = None,
+        lookalike_m: float | None = None,
+        lookalike_margin: float | None = None,
+        lookalike_swing: float | None = None,
         registration: RegistrationConfig | dict[str, Any] | None = None,
         gate: AcceptanceGate | dict[str, Any] | None = None,
     ) -> DetectorConfig:
@@ -475,6 +495,10 @@ class DetectorConfig:
             unique_ratio: Of two disagreeing candidates, keep the one whose distance from the poses' relative pose is under this fraction of the other's (0: reject both) (a number in [0, 1]; default 0.5).
             support_window: Consistency over time: the previous steps that may support a loop (0: off) (an integer >= 0; default 20).
             min_support: Fewest of the previous support_window steps whose verified candidates must agree with a loop (0: off) (an integer >= 0; default 1).
+            loop_reset_m: Metres of path after an accepted loop during which the odometry check and the places chosen by pose go through that loop (0: off) (a finite number >= 0; default 200.0).
+            lookalike_m: Reject a loop when an own place farther than this from its place, about as close by descriptor, fits the drift bounds too (0: off) (a finite number >= 0; default 10.0).
+            lookalike_margin: How much larger a look-alike's R-SOLiD distance may be than the loop's candidate's (a number in [0, 1]; default 0.2).
+            lookalike_swing: The fraction of the odometry check's rotation allowance the look-alike check's bound takes (a number in [0, 1]; default 0.25).
             registration: The registration parameters (an object, or a dict of overrides of the current ones).
             gate: The acceptance gate (an object, or a dict of overrides of the current one).
 
@@ -486,7 +510,7 @@ class DetectorConfig:
             TypeError: An unknown parameter, or a value of the wrong type.
         """
     def to_dict(self) -> dict[str, Any]:
-        """The parameters by name (exclude_frames, exclude_meters, exclude_seconds, threshold, top_k, rerank, verify, verify_candidates, pose_candidates, pose_candidate_min_information, pose_candidate_shift_m, verify_hypotheses, verify_fan_deg, cloud_bits, cache_bytes, verify_threads, verify_step_points, view_fov_deg, view_min_overlap_deg, odometry_check, odometry_translation_m, odometry_drift, odometry_rotation_deg, odometry_rotation_deg_per_m, odometry_rotation_max_deg, unique, unique_ratio, support_window, min_support, registration, gate): what `DetectorConfig(**d)` takes back.
+        """The parameters by name (exclude_frames, exclude_meters, exclude_seconds, threshold, top_k, rerank, verify, verify_candidates, pose_candidates, pose_candidate_min_information, pose_candidate_shift_m, verify_hypotheses, verify_fan_deg, cloud_bits, cache_bytes, verify_threads, verify_step_points, view_fov_deg, view_min_overlap_deg, odometry_check, odometry_translation_m, odometry_drift, odometry_rotation_deg, odometry_rotation_deg_per_m, odometry_rotation_max_deg, unique, unique_ratio, support_window, min_support, loop_reset_m, lookalike_m, lookalike_margin, lookalike_swing, registration, gate): what `DetectorConfig(**d)` takes back.
 
         Returns:
             A new dict.
@@ -578,6 +602,18 @@ class DetectorConfig:
     @property
     def min_support(self) -> int:
         """Fewest of the previous support_window steps whose verified candidates must agree with a loop (0: off) (an integer >= 0; default 1)."""
+    @property
+    def loop_reset_m(self) -> float:
+        """Metres of path after an accepted loop during which the odometry check and the places chosen by pose go through that loop (0: off) (a finite number >= 0; default 200.0)."""
+    @property
+    def lookalike_m(self) -> float:
+        """Reject a loop when an own place farther than this from its place, about as close by descriptor, fits the drift bounds too (0: off) (a finite number >= 0; default 10.0)."""
+    @property
+    def lookalike_margin(self) -> float:
+        """How much larger a look-alike's R-SOLiD distance may be than the loop's candidate's (a number in [0, 1]; default 0.2)."""
+    @property
+    def lookalike_swing(self) -> float:
+        """The fraction of the odometry check's rotation allowance the look-alike check's bound takes (a number in [0, 1]; default 0.25)."""
     # end of generated
     @property
     def registration(self) -> RegistrationConfig:

@@ -21,6 +21,7 @@ use crate::{Coord, Points};
 
 use super::detector_config::*;
 
+mod anchor;
 mod nearby;
 mod verify;
 
@@ -129,6 +130,8 @@ pub struct LoopDetector {
     /// The candidates (id, pose) that passed the gate and the odometry check in each of the
     /// last `support_window` steps, by query id: the support of the next loops.
     recent: VecDeque<(u32, Vec<(u32, reg::Pose)>)>,
+    /// The latest loop accepted with poses: later steps' odometry checks go through it.
+    anchor: Option<anchor::Anchor>,
 }
 
 /// One scan ready for a detector step: its descriptor and, for verification, its prepared cloud
@@ -252,6 +255,7 @@ impl LoopDetector {
             prepared_bytes: 0,
             clock: 0,
             recent: VecDeque::new(),
+            anchor: None,
         })
     }
 
@@ -607,7 +611,7 @@ impl LoopDetector {
         let mut cands = self.rank(&d.r, &d.a, self.len(), self.config.top_k)?;
         if self.config.verify.enabled {
             let n = self.config.verify.candidates;
-            self.verify_candidates(&d.a, scan.cloud.as_ref(), None, n, &mut cands)?;
+            self.verify_candidates((&d.r, &d.a), scan.cloud.as_ref(), None, n, &mut cands)?;
         }
         Ok(self.accept(&cands, self.len() as u32))
     }
@@ -689,10 +693,14 @@ impl LoopDetector {
                 id: self.len() as u32,
                 pose: s.pose,
                 travelled: s.trail.travelled,
+                eligible,
             };
             let (r, a, p) = (&d.r, &d.a, s.pose.as_ref());
             let n = self.add_pose_candidates(r, a, p, at.travelled, eligible, &mut candidates)?;
-            self.verify_candidates(a, cloud.as_deref(), Some(at), n, &mut candidates)?;
+            self.verify_candidates((r, a), cloud.as_deref(), Some(at), n, &mut candidates)?;
+            if let Some(c) = candidates.first() {
+                self.anchor_on(&at, c);
+            }
         }
         self.travelled
             .try_reserve(1)

@@ -148,6 +148,25 @@ pub struct VerifyConfig {
     /// within the drift bounds above, the path being the metres between q and q' plus between
     /// c and c'); without, when c' lies within `2·support_window` places of c. 0 turns it off.
     pub min_support: usize,
+    /// Metres of the query's path after an accepted loop (with poses) during which the odometry
+    /// check, uniqueness and the places chosen by pose go through that loop: the relative pose
+    /// `inv(T_wq)·T_wq0·L0·inv(T_wc0)·T_wc` predicted from loop `q0 → c0` (pose `L0`), its
+    /// drift bounds after the path `q0 → q` plus `c0 → c` (when shorter than the path between
+    /// the two places). After a lap the odometry can be a repeating place's period off; a loop
+    /// resets it. 0: off.
+    pub loop_reset_m: f64,
+    /// A loop is rejected ([`Rejection::LookAlike`](crate::reg::Rejection::LookAlike)) when an
+    /// own place the query may match, more than this many metres from the loop's place (by the
+    /// poses), with an R-SOLiD distance to the query at most `lookalike_margin` above the
+    /// loop's, lies where the loop's pose would put the query within the drift bounds too
+    /// (through the anchor of `loop_reset_m` when there is one): the bounds cannot tell which
+    /// of the two the query sees. 0: off.
+    pub lookalike_m: f64,
+    /// How much farther (R-SOLiD cosine distance) than the loop's candidate a look-alike may be.
+    pub lookalike_margin: f64,
+    /// The fraction of the odometry check's rotation allowance (`angle · path / 2`) the
+    /// look-alike check's bound takes.
+    pub lookalike_swing: f64,
 }
 
 /// Default [`Gate::max_translation`] of a detector: a loop joins places at most this many metres
@@ -185,6 +204,10 @@ impl Default for VerifyConfig {
             unique_ratio: 0.5,
             support_window: 20,
             min_support: 1,
+            loop_reset_m: DEFAULT_LOOP_RESET_M,
+            lookalike_m: DEFAULT_LOOKALIKE_M,
+            lookalike_margin: DEFAULT_LOOKALIKE_MARGIN,
+            lookalike_swing: DEFAULT_LOOKALIKE_SWING,
         }
     }
 }
@@ -209,6 +232,18 @@ pub const DEFAULT_POSE_CANDIDATE_MIN_INFORMATION: f64 = 3.0;
 /// Default [`VerifyConfig::pose_candidate_shift_m`]
 /// (docs/performance.md#loops-a-pose-graph-can-trust).
 pub const DEFAULT_POSE_CANDIDATE_SHIFT_M: f64 = 3.0;
+
+/// Default [`VerifyConfig::loop_reset_m`] (docs/performance.md#loops-a-pose-graph-can-trust).
+pub const DEFAULT_LOOP_RESET_M: f64 = 200.0;
+
+/// Default [`VerifyConfig::lookalike_m`] (docs/performance.md#loops-a-pose-graph-can-trust).
+pub const DEFAULT_LOOKALIKE_M: f64 = 10.0;
+
+/// Default [`VerifyConfig::lookalike_margin`] (docs/performance.md#loops-a-pose-graph-can-trust).
+pub const DEFAULT_LOOKALIKE_MARGIN: f64 = 0.2;
+
+/// Default [`VerifyConfig::lookalike_swing`] (docs/performance.md#loops-a-pose-graph-can-trust).
+pub const DEFAULT_LOOKALIKE_SWING: f64 = 0.25;
 
 /// Default [`VerifyConfig::step_points`]: room for every default candidate of the largest
 /// real scans measured, so that it binds only on outsized clouds (docs/performance.md#work-budgets).
@@ -362,6 +397,14 @@ impl Params for DetectorConfig {
             "Consistency over time: the previous steps that may support a loop (0: off)."),
         field!(DetectorConfig, "min_support", verify.min_support, COUNT, "an integer >= 0",
             "Fewest of the previous support_window steps whose verified candidates must agree with a loop (0: off)."),
+        field!(DetectorConfig, "loop_reset_m", verify.loop_reset_m, Kind::closed(0.0, FINITE), "a finite number >= 0",
+            "Metres of path after an accepted loop during which the odometry check and the places chosen by pose go through that loop (0: off)."),
+        field!(DetectorConfig, "lookalike_m", verify.lookalike_m, Kind::closed(0.0, FINITE), "a finite number >= 0",
+            "Reject a loop when an own place farther than this from its place, about as close by descriptor, fits the drift bounds too (0: off)."),
+        field!(DetectorConfig, "lookalike_margin", verify.lookalike_margin, Kind::closed(0.0, 1.0), "a number in [0, 1]",
+            "How much larger a look-alike's R-SOLiD distance may be than the loop's candidate's."),
+        field!(DetectorConfig, "lookalike_swing", verify.lookalike_swing, Kind::closed(0.0, 1.0), "a number in [0, 1]",
+            "The fraction of the odometry check's rotation allowance the look-alike check's bound takes."),
     ];
 
     fn defaults() -> DetectorConfig {

@@ -42,6 +42,10 @@ pub enum Rejection {
     Ambiguous,
     /// Too few of the previous steps had a verified candidate that agrees with this loop.
     Unsupported,
+    /// A look-alike of the candidate (a place far from it, as close to the query by its
+    /// descriptor) lies where the loop's pose would put the query within the drift bounds too:
+    /// the odometry cannot tell which place the query sees.
+    LookAlike,
     /// The candidate's stored cloud is corrupt (its checksum fails) or could not be read from
     /// the map's file: it was not registered.
     CorruptCloud,
@@ -63,6 +67,7 @@ impl fmt::Display for Rejection {
             Rejection::OdometryDisagrees => "disagrees with the odometry",
             Rejection::Ambiguous => "another candidate disagrees",
             Rejection::Unsupported => "not supported by the previous steps",
+            Rejection::LookAlike => "a look-alike the odometry cannot rule out",
             Rejection::CorruptCloud => "its stored cloud is corrupt or unreadable",
         })
     }

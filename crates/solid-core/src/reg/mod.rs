@@ -84,6 +84,7 @@ pub use cloud::{Level, PreparedCloud, MAX_LEVEL_POINTS, MIN_NEIGHBORS, PLANE_EPS
 pub use gate::{Gate, Rejection};
 pub use information::{Information, LOOP_SIGMA_M, LOOP_SIGMA_ROT_DEG};
 pub use kdtree::{KdTree3, Nearest};
+pub(crate) use solve::weakest_direction;
 pub use solve::{
     agreement, hypothesis_yaws, pose_distance, register, register_hypotheses, Hypotheses,
     Hypothesis, HORIZONTAL, MAX_HYPOTHESES, ROTATION_TOLERANCE,

@@ -333,7 +333,15 @@ fn overlap(to: &Level, from: &Level, x: &Rigid, d: f64) -> Overlap {
 }
 
 fn min_eigenvalue(m: Matrix3<f64>) -> f64 {
-    SymmetricEigen::new(m).eigenvalues.min()
+    weakest_direction(m).0
+}
+
+/// The smallest eigenvalue of a symmetric 3×3 information block and its unit eigenvector: how
+/// little the block constrains, and along which direction.
+pub(crate) fn weakest_direction(m: Matrix3<f64>) -> (f64, Vector3<f64>) {
+    let e = SymmetricEigen::new(m);
+    let i = e.eigenvalues.imin();
+    (e.eigenvalues[i], e.eigenvectors.column(i).into_owned())
 }
 
 /// The smallest eigenvalue of the translation's information once the rotation is marginalised

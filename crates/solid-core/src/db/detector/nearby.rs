@@ -4,11 +4,12 @@
 //! look-alike places the descriptor's few best rarely hold the true one; the odometry still says
 //! roughly where the query is.
 
+use alloc::sync::Arc;
 use alloc::vec::Vec;
 
-use nalgebra::{Matrix3, SymmetricEigen};
+use nalgebra::Matrix3;
 
-use super::verify::{reject, QueryPlace};
+use super::verify::{distance, registered, reject, run_jobs, QueryPlace};
 use super::{Candidate, LoopDetector};
 use crate::compare::cosine_distance;
 use crate::db::{DbError, VerifyConfig};
@@ -68,19 +69,31 @@ impl LoopDetector {
         let mut best: Vec<(f64, u32)> = Vec::new();
         best.try_reserve_exact(v.pose_candidates + 1)
             .map_err(|_| DbError::OutOfMemory)?;
+        // Through the latest anchor when its path is the shorter ([`LoopDetector::expected`]).
+        let anchored = self.anchored(&QueryPlace {
+            id: 0,
+            pose: Some(*q),
+            travelled,
+            eligible,
+        });
         for (k, &at) in self.travelled.iter().enumerate() {
             let id = (self.session_start + k) as u32;
             if self.session_start + k >= eligible || taken.iter().any(|c| c.id == id) {
                 continue;
             }
             let Some(p) = self.pose(id) else { continue };
-            let (x, y, z) = (p[3] - q[3], p[7] - q[7], p[11] - q[11]);
-            let d = libm::sqrt(x * x + y * y + z * z);
-            let path = if (travelled - at).is_nan() {
+            let global = if (travelled - at).is_nan() {
                 0.0
             } else {
                 libm::fabs(travelled - at)
             };
+            let (q, path) = match anchored {
+                Some((qa, since, t0)) if since + libm::fabs(at - t0) < global => {
+                    (qa, since + libm::fabs(at - t0))
+                }
+                _ => (*q, global),
+            };
+            let d = distance(&p, &q);
             // A loop chosen by pose must agree with the odometry without the rotation's allowance.
             let reach = v.gate.max_translation + v.odometry_translation_m + v.odometry_drift * path;
             if d > reach {
@@ -100,16 +113,23 @@ impl LoopDetector {
     /// whose clouds leave the translation loose ends where the odometry says (a slide along a
     /// corridor), and where the odometry has drifted a look-alike next to its position fits as
     /// well as the true place would. So the registration must reach
-    /// `pose_candidate_min_information`, and agree with the odometry within its bounds without
-    /// the rotation's allowance (a candidate chosen by pose is only as good as the position).
-    pub(super) fn check_pose_candidates(&self, at: &QueryPlace, by_pose: &mut [Candidate]) {
+    /// `pose_candidate_min_information`, agree with the odometry within its bounds without
+    /// the rotation's allowance (a candidate chosen by pose is only as good as the position),
+    /// and, with the query's cloud and its own (`clouds[i]` of `by_pose[i]`), come back when
+    /// registered again from a shifted start ([`keeps_its_pose`]; the restarts share the
+    /// detector's pool).
+    pub(super) fn check_pose_candidates(
+        &self,
+        at: &QueryPlace,
+        query: Option<&PreparedCloud>,
+        clouds: &[Option<Arc<PreparedCloud>>],
+        by_pose: &mut [Candidate],
+    ) -> Result<(), DbError> {
         let v = &self.config.verify;
-        for c in by_pose {
-            let Some(r) = c.verification else { continue };
-            if !(r.accepted || r.rejection == Some(Rejection::TooFar)) {
-                continue;
-            }
-            let info = r.registration.degeneracy.translation;
+        for c in by_pose.iter_mut().filter(|c| registered(c)) {
+            let info = c
+                .verification
+                .map_or(f64::NAN, |r| r.registration.degeneracy.translation);
             // A NaN information never passes.
             if info.is_nan() || info < v.pose_candidate_min_information {
                 reject(c, Rejection::DegenerateTranslation);
@@ -117,6 +137,25 @@ impl LoopDetector {
                 reject(c, Rejection::OdometryDisagrees);
             }
         }
+        let Some(q) = query.filter(|_| v.pose_candidate_shift_m > 0.0) else {
+            return Ok(());
+        };
+        let jobs: Vec<(usize, &Arc<PreparedCloud>, reg::Registration)> = by_pose
+            .iter()
+            .zip(clouds)
+            .enumerate()
+            .filter(|(_, (c, _))| registered(c))
+            .filter_map(|(i, (c, cp))| Some((i, cp.as_ref()?, c.verification?.registration)))
+            .collect();
+        let kept = run_jobs(&jobs, v.threads, |&(_, cp, ref r)| {
+            Ok(keeps_its_pose(v, q, cp, r))
+        })?;
+        for ((i, _, _), keeps) in jobs.iter().zip(kept) {
+            if !keeps {
+                reject(&mut by_pose[*i], Rejection::Disagreement);
+            }
+        }
+        Ok(())
     }
 
     /// Place `id` as an unverified candidate of the query `(r, a)`.
@@ -152,8 +191,7 @@ pub(super) fn keeps_its_pose(
     if !htt.iter().all(|x| x.is_finite()) {
         return false;
     }
-    let e = SymmetricEigen::new(htt);
-    let u = e.eigenvectors.column(e.eigenvalues.imin()).into_owned();
+    let (_, u) = reg::weakest_direction(htt);
     [s, -s].iter().all(|&d| {
         let mut init = r.pose;
         for (a, row) in init.iter_mut().take(3).enumerate() {

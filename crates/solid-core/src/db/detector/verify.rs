@@ -14,6 +14,8 @@ pub(super) struct QueryPlace {
     pub id: u32,
     pub pose: Option<[f64; 12]>,
     pub travelled: f64,
+    /// The places it may match: ids `..eligible`.
+    pub eligible: usize,
 }
 
 impl LoopDetector {
@@ -24,7 +26,7 @@ impl LoopDetector {
     /// steps, and remembered for the next steps.
     pub(super) fn verify_candidates(
         &mut self,
-        a_query: &[f32],
+        (r_query, a_query): (&[f32], &[f32]),
         query: Option<&PreparedCloud>,
         at: Option<QueryPlace>,
         n: usize,
@@ -66,17 +68,17 @@ impl LoopDetector {
             if let Some(at) = at {
                 // The candidates chosen by pose follow the descriptor's first `v.candidates`.
                 let by_pose = v.candidates.min(n)..n;
-                self.check_pose_candidates(&at, &mut cands[by_pose.clone()]);
-                for (i, cp) in jobs.iter().filter(|(i, _)| by_pose.contains(i)) {
-                    let c = &mut cands[*i];
-                    if c.verification.is_some_and(|r| {
-                        (r.accepted || r.rejection == Some(Rejection::TooFar))
-                            && !super::nearby::keeps_its_pose(&v, q, cp, &r.registration)
-                    }) {
-                        reject(c, Rejection::Disagreement);
-                    }
-                }
-                self.check_after_gate(&at, cands)?;
+                let mut clouds = Vec::new();
+                clouds
+                    .try_reserve_exact(by_pose.len())
+                    .map_err(|_| DbError::OutOfMemory)?;
+                clouds.extend(by_pose.clone().map(|i| {
+                    jobs.iter()
+                        .find(|(j, _)| *j == i)
+                        .map(|(_, cp)| Arc::clone(cp))
+                }));
+                self.check_pose_candidates(&at, Some(q), &clouds, &mut cands[by_pose])?;
+                self.check_after_gate(&at, r_query, cands)?;
             }
             for c in cands.iter_mut() {
                 if let Some(r) = c.verification.filter(|r| r.accepted) {
@@ -92,20 +94,14 @@ impl LoopDetector {
     /// The odometry check, then the support of the previous steps ([`VerifyConfig`]), on the
     /// candidates that passed the gate; remembers the step's candidates that passed the odometry
     /// check for the next steps' support.
-    fn check_after_gate(
+    pub(super) fn check_after_gate(
         &mut self,
         at: &QueryPlace,
+        r_query: &[f32],
         cands: &mut [Candidate],
     ) -> Result<(), DbError> {
         let v = self.config.verify;
         let passed = |c: &Candidate| c.verification.is_some_and(|r| r.accepted);
-        // Uniqueness and support compare with every registration that met the gate's quality
-        // checks, whatever its length: a loop then does not depend on the largest loop asked
-        // for (`max_translation`, eval's suggestion), only the lengths accepted do.
-        let registered = |c: &Candidate| {
-            c.verification
-                .is_some_and(|r| r.accepted || r.rejection == Some(Rejection::TooFar))
-        };
         if v.odometry_check {
             for c in cands.iter_mut().filter(|c| registered(c)) {
                 if !self.agrees_with_odometry(at, c, true) {
@@ -125,14 +121,22 @@ impl LoopDetector {
             mine.extend(c.verification.map(|r| (c.id, r.registration.pose)));
             offsets.push(self.odometry_offset(at, c));
         }
+        // After the support list: a look-alike's registration still supports the next steps.
+        self.reject_lookalikes(at, r_query, cands);
         if let (true, Some(q)) = (v.unique, at.pose) {
             for c in cands.iter_mut().filter(|c| passed(c)) {
                 let Some(r) = c.verification else { continue };
                 let me = (&q, c.id, &r.registration.pose);
                 let mine_off = self.odometry_offset(at, c);
                 // The one much nearer the odometry wins; otherwise the step cannot tell.
-                let nearer =
-                    |o: Option<f64>| mine_off.zip(o).is_some_and(|(a, b)| a < v.unique_ratio * b);
+                // Nearer both through the anchor and through the two places' poses: a loop's
+                // small error, carried by the anchor, must not outvote exact poses.
+                let nearer = |o: [Option<f64>; 2]| {
+                    mine_off
+                        .iter()
+                        .zip(o)
+                        .all(|(a, b)| a.zip(b).is_some_and(|(a, b)| a < v.unique_ratio * b))
+                };
                 let disagree = mine.iter().zip(&offsets).any(|(&(c2, ref t2), &o2)| {
                     c2 != c.id
                         && self.agree_through_poses(me, (&q, c2, t2)) == Some(false)
@@ -166,51 +170,45 @@ impl LoopDetector {
         Ok(())
     }
 
-    /// Whether a candidate's registered pose agrees with its place's and the query's poses
+    /// Whether a candidate's registered pose agrees with the relative pose the poses predict
+    /// (through the latest anchor when that is the shorter path: [`LoopDetector::expected`])
     /// within the drift bounds, `turn`: with the rotation's allowance (true when they have no
     /// poses or are of different sessions).
     pub(super) fn agrees_with_odometry(&self, at: &QueryPlace, c: &Candidate, turn: bool) -> bool {
-        let start = self.session_start;
-        let (Some(q), Some(r)) = (at.pose, c.verification) else {
-            return true;
-        };
-        let Some(p) = (c.id as usize)
-            .checked_sub(start)
-            .and_then(|k| self.travelled.get(k))
+        let (Some(r), Some((expected, path))) = (c.verification, self.expected(at, c.id, true))
         else {
             return true;
         };
-        let Some(cp) = self.pose(c.id) else {
-            return true;
-        };
-        let path = libm::fabs(at.travelled - p);
-        self.within_drift(&relative(&q, &cp), &r.registration.pose, path, turn)
+        self.within_drift(
+            &expected,
+            &r.registration.pose,
+            path,
+            if turn { 1.0 } else { 0.0 },
+        )
     }
 
-    /// Metres between a registered candidate's pose and its places' poses' relative pose (None
-    /// without poses or across sessions).
-    fn odometry_offset(&self, at: &QueryPlace, c: &Candidate) -> Option<f64> {
-        let (q, r) = (at.pose?, c.verification?);
-        (c.id as usize).checked_sub(self.session_start)?;
-        let cp = self.pose(c.id)?;
-        reg::pose_distance(&relative(&q, &cp), &r.registration.pose).map(|(m, _)| m)
+    /// Metres between a registered candidate's pose and the relative pose the poses predict,
+    /// through the anchor when it applies ([`LoopDetector::expected`]) and through the two
+    /// places' poses (None without poses or across sessions).
+    fn odometry_offset(&self, at: &QueryPlace, c: &Candidate) -> [Option<f64>; 2] {
+        [true, false].map(|anchor| {
+            let r = c.verification?;
+            let (expected, _) = self.expected(at, c.id, anchor)?;
+            reg::pose_distance(&expected, &r.registration.pose).map(|(m, _)| m)
+        })
     }
 
     /// Whether `pose` is within the drift bounds after `path` metres of `expected`; a NaN path
     /// (unknown) counts as none. The rotation they differ by (within its bound) also allows
     /// `angle · path / 2` metres: a rotation drift accumulated along a path displaces its end
     /// by that much (a constant drift along a straight path), so the translation bound itself
-    /// needs only the scale drift. Without `turn`, the translation bound is the scale drift's
-    /// alone.
-    fn within_drift(&self, expected: &Pose, pose: &Pose, path: f64, turn: bool) -> bool {
+    /// needs only the scale drift. `turn` is the fraction of that allowance taken (0: the
+    /// translation bound is the scale drift's alone).
+    pub(super) fn within_drift(&self, expected: &Pose, pose: &Pose, path: f64, turn: f64) -> bool {
         let v = &self.config.verify;
         let path = if path.is_nan() { 0.0 } else { path };
         reg::pose_distance(expected, pose).is_some_and(|(m, deg)| {
-            let swing = if turn {
-                deg.to_radians() * path / 2.0
-            } else {
-                0.0
-            };
+            let swing = turn * deg.to_radians() * path / 2.0;
             deg <= rotation_bound(v, path)
                 && m <= v.odometry_translation_m + v.odometry_drift * path + swing
         })
@@ -250,7 +248,7 @@ impl LoopDetector {
         let (pc2, pc) = (self.pose(c2)?, self.pose(c)?);
         let expected = mul(&mul(&relative(q, q2), t2), &relative(&pc2, &pc));
         let path = distance(q, q2) + distance(&pc2, &pc);
-        Some(self.within_drift(&expected, t, path, true))
+        Some(self.within_drift(&expected, t, path, 1.0))
     }
 
     /// The prepared cloud of place `id`: from the cache, or prepared from its stored compact
@@ -307,6 +305,15 @@ pub(super) fn rotation_bound(v: &VerifyConfig, path: f64) -> f64 {
         .min(v.odometry_rotation_max_deg)
 }
 
+/// Whether a candidate's registration met the gate's quality checks, whatever its length (it
+/// passed, or failed only `max_translation`): uniqueness and support compare with all of these,
+/// so a loop does not depend on the largest loop asked for (eval's suggestion), only the
+/// lengths accepted do.
+pub(super) fn registered(c: &Candidate) -> bool {
+    c.verification
+        .is_some_and(|r| r.accepted || r.rejection == Some(Rejection::TooFar))
+}
+
 /// Marks a candidate as rejected by a check after the gate.
 pub(super) fn reject(c: &mut Candidate, why: Rejection) {
     if let Some(r) = c.verification.as_mut() {
@@ -316,7 +323,7 @@ pub(super) fn reject(c: &mut Candidate, why: Rejection) {
 }
 
 /// `inv(a)·b` of two row-major 3×4 poses `[R|t]`.
-fn relative(a: &[f64; 12], b: &[f64; 12]) -> Pose {
+pub(super) fn relative(a: &[f64; 12], b: &[f64; 12]) -> Pose {
     let mut out = reg::IDENTITY;
     for i in 0..3 {
         for j in 0..3 {
@@ -330,7 +337,7 @@ fn relative(a: &[f64; 12], b: &[f64; 12]) -> Pose {
 }
 
 /// `a·b` of two rigid transforms.
-fn mul(a: &Pose, b: &Pose) -> Pose {
+pub(super) fn mul(a: &Pose, b: &Pose) -> Pose {
     let mut out = reg::IDENTITY;
     for i in 0..3 {
         for j in 0..4 {
@@ -342,7 +349,7 @@ fn mul(a: &Pose, b: &Pose) -> Pose {
 }
 
 /// Metres between the positions of two row-major 3×4 poses.
-fn distance(a: &[f64; 12], b: &[f64; 12]) -> f64 {
+pub(super) fn distance(a: &[f64; 12], b: &[f64; 12]) -> f64 {
     let (x, y, z) = (a[3] - b[3], a[7] - b[7], a[11] - b[11]);
     libm::sqrt(x * x + y * y + z * z)
 }
@@ -465,7 +472,7 @@ fn view_check(v: &VerifyConfig, yaw: f64) -> Result<(), Rejection> {
 /// `f` of every job, in order, the first error in job order: shared among the threads of this
 /// process's pool `solid-verify` of `threads` threads (0: one per core; see `crate::pool`) with
 /// `parallel`, one after the other without it.
-fn run_jobs<J: Sync, R: Send>(
+pub(super) fn run_jobs<J: Sync, R: Send>(
     jobs: &[J],
     threads: usize,
     f: impl Fn(&J) -> Result<R, DbError> + Sync,
@@ -487,14 +494,14 @@ fn run_jobs<J: Sync, R: Send>(
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::db::DetectorConfig;
     use crate::reg::{Degeneracy, Registration};
     use crate::{Config, Descriptor, Stats};
 
     /// Row-major 3×4 pose: yaw (degrees) about z, then at (x, y).
-    fn pose(yaw_deg: f64, x: f64, y: f64) -> [f64; 12] {
+    pub(crate) fn pose(yaw_deg: f64, x: f64, y: f64) -> [f64; 12] {
         let (s, c) = libm::sincos(yaw_deg.to_radians());
         [c, -s, 0.0, x, s, c, 0.0, y, 0.0, 0.0, 1.0, 0.0]
     }
@@ -564,7 +571,7 @@ mod tests {
         assert!((distance(&a, &b) - libm::sqrt(18.0)).abs() < 1e-12);
     }
 
-    fn verified(id: u32, pose: Pose) -> Candidate {
+    pub(crate) fn verified(id: u32, pose: Pose) -> Candidate {
         let registration = Registration {
             pose,
             fitness: 1.0,
@@ -595,7 +602,7 @@ mod tests {
 
     /// A detector (verification on) whose own session holds `n` places 1 m apart along x,
     /// facing +x, with poses; the next query is at x = `n`.
-    fn detector_with_path(n: u32, tweak: impl Fn(&mut VerifyConfig)) -> LoopDetector {
+    pub(crate) fn detector_with_path(n: u32, tweak: impl Fn(&mut VerifyConfig)) -> LoopDetector {
         let c = Config::preset("hdl64").unwrap();
         let mut dc = DetectorConfig::default();
         dc.verify.enabled = false;
@@ -616,15 +623,16 @@ mod tests {
         det
     }
 
-    fn at(det: &LoopDetector, x: f64) -> QueryPlace {
+    pub(crate) fn at(det: &LoopDetector, x: f64) -> QueryPlace {
         QueryPlace {
             id: det.len() as u32,
             pose: Some(pose(0.0, x, 0.0)),
             travelled: x,
+            eligible: det.len(),
         }
     }
 
-    fn rejection(c: &Candidate) -> Option<Rejection> {
+    pub(crate) fn rejection(c: &Candidate) -> Option<Rejection> {
         c.verification.and_then(|v| v.rejection)
     }
 
@@ -639,7 +647,7 @@ mod tests {
         let mut near = truth(3);
         near[1][3] += 0.5;
         let mut cands = [verified(2, off), verified(3, near), verified(4, truth(4))];
-        det.check_after_gate(&q, &mut cands).unwrap();
+        det.check_after_gate(&q, &[], &mut cands).unwrap();
         assert_eq!(rejection(&cands[0]), Some(Rejection::OdometryDisagrees));
         assert_eq!(rejection(&cands[1]), None);
         assert_eq!(rejection(&cands[2]), None);
@@ -648,7 +656,7 @@ mod tests {
         let r = relative(&pose(0.0, 0.0, 0.0), &pose(4.5, 0.0, 0.0));
         turned = mul(&turned, &r);
         let mut cands = [verified(4, turned)];
-        det.check_after_gate(&q, &mut cands).unwrap();
+        det.check_after_gate(&q, &[], &mut cands).unwrap();
         assert_eq!(rejection(&cands[0]), Some(Rejection::OdometryDisagrees));
         // Off: the same candidates pass.
         let mut det = detector_with_path(10, |v| {
@@ -657,7 +665,7 @@ mod tests {
             v.support_window = 0;
         });
         let mut cands = [verified(2, off), verified(4, turned)];
-        det.check_after_gate(&q, &mut cands).unwrap();
+        det.check_after_gate(&q, &[], &mut cands).unwrap();
         assert!(cands.iter().all(|c| rejection(c).is_none()));
         // With uniqueness, the two disagree through their places' poses: neither is kept.
         let mut det = detector_with_path(10, |v| {
@@ -665,7 +673,7 @@ mod tests {
             v.support_window = 0;
         });
         let mut cands = [verified(2, off), verified(4, turned), verified(3, truth(3))];
-        det.check_after_gate(&q, &mut cands).unwrap();
+        det.check_after_gate(&q, &[], &mut cands).unwrap();
         assert!(cands
             .iter()
             .all(|c| rejection(c) == Some(Rejection::Ambiguous)));
@@ -677,16 +685,16 @@ mod tests {
             r.rejection = Some(Rejection::TooFar);
         }
         let mut cands = [verified(2, off), far];
-        det.check_after_gate(&q, &mut cands).unwrap();
+        det.check_after_gate(&q, &[], &mut cands).unwrap();
         assert_eq!(rejection(&cands[0]), Some(Rejection::Ambiguous));
         // The one much nearer the poses wins: the true place beside a look-alike 3 m off.
         let mut cands = [verified(2, off), verified(4, truth(4))];
-        det.check_after_gate(&q, &mut cands).unwrap();
+        det.check_after_gate(&q, &[], &mut cands).unwrap();
         assert_eq!(rejection(&cands[0]), Some(Rejection::Ambiguous));
         assert_eq!(rejection(&cands[1]), None);
         // Candidates that agree with each other are kept.
         let mut cands = [verified(3, near), verified(4, truth(4))];
-        det.check_after_gate(&q, &mut cands).unwrap();
+        det.check_after_gate(&q, &[], &mut cands).unwrap();
         assert!(cands.iter().all(|c| rejection(c).is_none()));
     }
 
@@ -713,7 +721,7 @@ mod tests {
         };
         let mut det = det;
         let mut by_descriptor = [informed(verified(2, off), 50.0)];
-        det.check_after_gate(&q, &mut by_descriptor).unwrap();
+        det.check_after_gate(&q, &[], &mut by_descriptor).unwrap();
         assert_eq!(rejection(&by_descriptor[0]), None);
         let mut by_pose = [
             informed(verified(2, off), 50.0),
@@ -721,7 +729,8 @@ mod tests {
             informed(verified(2, truth), 2.0),
             informed(verified(2, truth), f64::NAN),
         ];
-        det.check_pose_candidates(&q, &mut by_pose);
+        det.check_pose_candidates(&q, None, &[], &mut by_pose)
+            .unwrap();
         assert_eq!(rejection(&by_pose[0]), Some(Rejection::OdometryDisagrees));
         assert_eq!(rejection(&by_pose[1]), None);
         assert_eq!(
@@ -735,7 +744,8 @@ mod tests {
         // With the odometry check off only the information counts.
         let det = detector_with_path(10, |v| v.odometry_check = false);
         let mut by_pose = [informed(verified(2, off), 50.0)];
-        det.check_pose_candidates(&q, &mut by_pose);
+        det.check_pose_candidates(&q, None, &[], &mut by_pose)
+            .unwrap();
         assert_eq!(rejection(&by_pose[0]), None);
     }
 
@@ -754,7 +764,7 @@ mod tests {
         });
         let at = q(&det);
         let mut cands = [verified(2, turned(&at))];
-        det.check_after_gate(&at, &mut cands).unwrap();
+        det.check_after_gate(&at, &[], &mut cands).unwrap();
         assert_eq!(rejection(&cands[0]), Some(Rejection::OdometryDisagrees));
         let mut det = detector_with_path(10, |v| {
             v.support_window = 0;
@@ -762,7 +772,7 @@ mod tests {
             v.odometry_rotation_max_deg = 180.0;
         });
         let mut cands = [verified(2, turned(&at))];
-        det.check_after_gate(&at, &mut cands).unwrap();
+        det.check_after_gate(&at, &[], &mut cands).unwrap();
         assert_eq!(rejection(&cands[0]), None);
     }
 
@@ -779,7 +789,7 @@ mod tests {
         let truth =
             |q: &QueryPlace, c: u32| relative(&q.pose.unwrap(), &pose(0.0, f64::from(c), 0.0));
         let mut cands = [verified(2, truth(&q, 2))];
-        det.check_after_gate(&q, &mut cands).unwrap();
+        det.check_after_gate(&q, &[], &mut cands).unwrap();
         assert_eq!(rejection(&cands[0]), Some(Rejection::Unsupported));
         // Pretend the step added its place (the support looks up the query's pose).
         let d = Descriptor {
@@ -798,7 +808,7 @@ mod tests {
         let mut wrong = truth(&q, 3);
         wrong[0][3] += 2.0;
         let mut cands = [verified(3, truth(&q, 3)), verified(3, wrong)];
-        det.check_after_gate(&q, &mut cands).unwrap();
+        det.check_after_gate(&q, &[], &mut cands).unwrap();
         assert_eq!(rejection(&cands[0]), None);
         assert_eq!(rejection(&cands[1]), Some(Rejection::Unsupported));
     }

@@ -1,0 +1,214 @@
+//! Loops as anchors, and look-alikes the odometry cannot rule out.
+//!
+//! After a lap the odometry may have drifted by as much as a repeating place's period: the
+//! look-alike one period away then agrees with it as well as the true place. A confirmed loop
+//! `q0 → c0` (pose `L0`) resets that drift: a later query `q` and candidate `c` have the
+//! predicted relative pose `inv(T_wq)·T_wq0·L0·inv(T_wc0)·T_wc`, whose drift grows with the short
+//! paths `q0 → q` and `c0 → c` only ([`VerifyConfig::loop_reset_m`]). And a loop whose place has
+//! look-alikes among the own places that the current bounds cannot rule out is not accepted
+//! ([`VerifyConfig::lookalike_m`]).
+
+use super::verify::{distance, mul, reject, relative, QueryPlace};
+use super::{Candidate, LoopDetector};
+use crate::compare::cosine_distance;
+use crate::db::VerifyConfig;
+use crate::reg::{self, Pose, Rejection};
+
+/// The latest confirmed loop of the own session: the query's pose and metres travelled, the
+/// candidate's id and the loop's pose.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Anchor {
+    pub query: [f64; 12],
+    pub travelled: f64,
+    pub candidate: u32,
+    pub pose: Pose,
+}
+
+impl LoopDetector {
+    /// The metres travelled at own place `id` (None for a map place or one without).
+    pub(super) fn travelled_at(&self, id: u32) -> Option<f64> {
+        let k = (id as usize).checked_sub(self.session_start)?;
+        self.travelled.get(k).copied().filter(|t| !t.is_nan())
+    }
+
+    /// The query's pose as the latest anchor puts it in the candidates' frame
+    /// (`T_wc0·inv(L0)·inv(T_wq0)·T_wq`), the metres the query travelled since and where the
+    /// anchor's candidate lies along the path: None without a recent enough anchor.
+    pub(super) fn anchored(&self, at: &QueryPlace) -> Option<([f64; 12], f64, f64)> {
+        let v = &self.config.verify;
+        let a = self.anchor.filter(|_| v.loop_reset_m > 0.0)?;
+        let q = at.pose?;
+        let since = libm::fabs(at.travelled - a.travelled);
+        if since.is_nan() || since > v.loop_reset_m {
+            return None;
+        }
+        let c0 = self.pose(a.candidate)?;
+        let t0 = self.travelled_at(a.candidate)?;
+        let moved = relative(&a.query, &q);
+        let p = mul(&mul(&rows_to_pose(&c0), &invert(&a.pose)), &moved);
+        Some((pose_to_rows(&p), since, t0))
+    }
+
+    /// The relative pose the poses predict between the query and own place `c`, and the metres
+    /// of path its drift grows with: through the anchor when `anchor` and its path is the
+    /// shorter, else the two places' poses (None without poses or across sessions).
+    pub(super) fn expected(&self, at: &QueryPlace, c: u32, anchor: bool) -> Option<(Pose, f64)> {
+        let q = at.pose?;
+        let tc = self.travelled_at(c);
+        let pc = self.pose(c)?;
+        (c as usize).checked_sub(self.session_start)?;
+        let global = tc.map_or(0.0, |t| libm::fabs(at.travelled - t));
+        let global = if global.is_nan() { 0.0 } else { global };
+        if let (Some((qa, since, t0)), Some(t)) = (self.anchored(at).filter(|_| anchor), tc) {
+            let path = since + libm::fabs(t - t0);
+            if path < global {
+                return Some((relative(&qa, &pc), path));
+            }
+        }
+        Some((relative(&q, &pc), global))
+    }
+
+    /// Remembers the step's loop as the anchor of the next steps (own-session loops with poses).
+    pub(super) fn anchor_on(&mut self, at: &QueryPlace, c: &Candidate) {
+        let (Some(q), Some(r)) = (at.pose, c.verification.filter(|r| r.accepted)) else {
+            return;
+        };
+        if self.travelled_at(c.id).is_some() && self.pose(c.id).is_some() {
+            self.anchor = Some(Anchor {
+                query: q,
+                travelled: at.travelled,
+                candidate: c.id,
+                pose: r.registration.pose,
+            });
+        }
+    }
+
+    /// Rejects each passed candidate that has a look-alike: an own place `..eligible` more
+    /// than `lookalike_m` from it where the loop's pose would put the query within the drift
+    /// bounds too (with `lookalike_swing` of the rotation's allowance) and whose descriptor is
+    /// within `lookalike_margin` of the candidate's distance to the query: the odometry (or the
+    /// anchor) cannot tell which of the two the query sees.
+    pub(super) fn reject_lookalikes(
+        &self,
+        at: &QueryPlace,
+        r_query: &[f32],
+        cands: &mut [Candidate],
+    ) {
+        let v: &VerifyConfig = &self.config.verify;
+        if v.lookalike_m <= 0.0 || at.pose.is_none() {
+            return;
+        }
+        for c in cands.iter_mut() {
+            let Some(r) = c.verification.filter(|r| r.accepted) else {
+                continue;
+            };
+            let Some(pc) = self.pose(c.id) else { continue };
+            let t = r.registration.pose;
+            let alike = (self.session_start..at.eligible).any(|k| {
+                let id = k as u32;
+                id != c.id
+                    && self
+                        .pose(id)
+                        .is_some_and(|p2| distance(&p2, &pc) > v.lookalike_m)
+                    && self
+                        .expected(at, id, true)
+                        .is_some_and(|(e, path)| self.within_drift(&e, &t, path, v.lookalike_swing))
+                    && cosine_distance(r_query, self.r(id))
+                        .is_ok_and(|d| d <= c.distance + v.lookalike_margin)
+            });
+            if alike {
+                reject(c, Rejection::LookAlike);
+            }
+        }
+    }
+}
+
+/// A row-major 3×4 pose as a 4×4 one.
+fn rows_to_pose(p: &[f64; 12]) -> Pose {
+    let mut out = reg::IDENTITY;
+    for (i, row) in out.iter_mut().take(3).enumerate() {
+        row.copy_from_slice(&p[4 * i..4 * i + 4]);
+    }
+    out
+}
+
+/// A 4×4 pose as a row-major 3×4 one.
+fn pose_to_rows(p: &Pose) -> [f64; 12] {
+    core::array::from_fn(|k| p[k / 4][k % 4])
+}
+
+/// The inverse of a rigid transform.
+fn invert(p: &Pose) -> Pose {
+    let mut out = reg::IDENTITY;
+    for i in 0..3 {
+        for j in 0..3 {
+            out[i][j] = p[j][i];
+        }
+        out[i][3] = -(0..3).map(|k| p[k][i] * p[k][3]).sum::<f64>();
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::verify::tests::{detector_with_path, pose, rejection, verified};
+    use super::*;
+
+    #[test]
+    fn poses_convert_and_invert() {
+        let (s, c) = libm::sincos(0.3);
+        let p = [c, -s, 0.0, 1.0, s, c, 0.0, -2.0, 0.0, 0.0, 1.0, 0.5];
+        let t = rows_to_pose(&p);
+        assert_eq!(pose_to_rows(&t), p);
+        let i = mul(&t, &invert(&t));
+        assert!(reg::pose_distance(&i, &reg::IDENTITY).is_some_and(|(m, d)| m < 1e-12 && d < 1e-9));
+    }
+
+    #[test]
+    fn an_anchor_tightens_the_bounds_and_look_alikes_within_them_are_rejected() {
+        // 40 places 1 m apart along x, all with the same descriptor (look-alikes of each
+        // other); the query back at x = 40 after 2,000 m of path: the odometry allows 21 m.
+        let mut det = detector_with_path(40, |v| {
+            v.support_window = 0;
+            v.unique = false;
+        });
+        let q = QueryPlace {
+            id: det.len() as u32,
+            pose: Some(pose(0.0, 40.0, 0.0)),
+            travelled: 2000.0,
+            eligible: det.len(),
+        };
+        let r = alloc::vec![1.0f32; det.map().config().n_range];
+        let truth = |c: f64| relative(&q.pose.unwrap(), &pose(0.0, c, 0.0));
+        // A true loop to place 2: places 13–22 lie where its pose would put the query within
+        // the bound too, and look the same.
+        let mut cands = [verified(2, truth(2.0))];
+        det.check_after_gate(&q, &r, &mut cands).unwrap();
+        assert_eq!(rejection(&cands[0]), Some(Rejection::LookAlike));
+        // Off: kept.
+        det.config.verify.lookalike_m = 0.0;
+        let mut cands = [verified(2, truth(2.0)), verified(2, truth(15.0))];
+        det.check_after_gate(&q, &r, &mut cands).unwrap();
+        assert_eq!((rejection(&cands[0]), rejection(&cands[1])), (None, None));
+        // After a loop one step back (query at x = 40, 1 m of path before, to place 1): the
+        // bound through it is 1 m + 1 % of 2 m; the loop 13 m off disagrees, the true one is
+        // kept, and the look-alikes 11 m and more away are ruled out.
+        det.config.verify.lookalike_m = VerifyConfig::default().lookalike_m;
+        let q0 = pose(0.0, 39.0, 0.0);
+        det.anchor = Some(Anchor {
+            query: q0,
+            travelled: 1999.0,
+            candidate: 1,
+            pose: relative(&q0, &pose(0.0, 1.0, 0.0)),
+        });
+        let mut cands = [verified(2, truth(2.0)), verified(2, truth(15.0))];
+        det.check_after_gate(&q, &r, &mut cands).unwrap();
+        assert_eq!(rejection(&cands[0]), None);
+        assert_eq!(rejection(&cands[1]), Some(Rejection::OdometryDisagrees));
+        // Too old an anchor is not used.
+        det.config.verify.loop_reset_m = 0.5;
+        let mut cands = [verified(2, truth(15.0))];
+        det.check_after_gate(&q, &r, &mut cands).unwrap();
+        assert_eq!(rejection(&cands[0]), Some(Rejection::LookAlike));
+    }
+}
