@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import multiprocessing
 import os
+import signal
 import warnings
 from collections.abc import Callable
 from pathlib import Path
@@ -13,6 +14,12 @@ from typing import Any
 import pytest
 
 REPO = Path(__file__).resolve().parent.parent
+
+# A shell that starts the suite as a background job (`make test &`, nohup under a script) ignores
+# SIGINT, and so would the commands the tests start: the tests of Ctrl-C need it delivered. A
+# handler (unlike SIG_IGN) is reset to the default in the commands started from here.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def shared_dir() -> Path:
