@@ -706,14 +706,8 @@ fn check_bins(name: &'static str, v: &[f32]) -> Result<(), Error> {
 }
 /// `a·b` of two row-major 3×4 `[R|t]` rigid transforms.
 fn compose(a: &[f64; 12], b: &[f64; 12]) -> [f64; 12] {
-    let mut out = [0.0; 12];
-    for i in 0..3 {
-        for j in 0..4 {
-            let carried: f64 = (0..3).map(|k| a[4 * i + k] * b[4 * k + j]).sum();
-            out[4 * i + j] = carried + if j == 3 { a[4 * i + 3] } else { 0.0 };
-        }
-    }
-    out
+    use crate::reg::{mul, pose_to_rows, rows_to_pose};
+    pose_to_rows(&mul(&rows_to_pose(a), &rows_to_pose(b)))
 }
 
 /// Checks a row-major 3×4 `[R|t]`: finite, and R a rotation (orthonormal, determinant +1, to

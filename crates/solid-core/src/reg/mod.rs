@@ -115,6 +115,44 @@ pub fn yaw_pose(degrees: f64) -> Pose {
     ]
 }
 
+/// `a·b` of two rigid transforms.
+pub(crate) fn mul(a: &Pose, b: &Pose) -> Pose {
+    let mut out = IDENTITY;
+    for i in 0..3 {
+        for j in 0..4 {
+            out[i][j] =
+                (0..3).map(|k| a[i][k] * b[k][j]).sum::<f64>() + if j == 3 { a[i][3] } else { 0.0 };
+        }
+    }
+    out
+}
+
+/// A row-major 3×4 pose as a 4×4 one.
+pub(crate) fn rows_to_pose(p: &[f64; 12]) -> Pose {
+    let mut out = IDENTITY;
+    for (i, row) in out.iter_mut().take(3).enumerate() {
+        row.copy_from_slice(&p[4 * i..4 * i + 4]);
+    }
+    out
+}
+
+/// A 4×4 pose as a row-major 3×4 one.
+pub(crate) fn pose_to_rows(p: &Pose) -> [f64; 12] {
+    core::array::from_fn(|k| p[k / 4][k % 4])
+}
+
+/// The inverse of a rigid transform.
+pub(crate) fn invert(p: &Pose) -> Pose {
+    let mut out = IDENTITY;
+    for i in 0..3 {
+        for j in 0..3 {
+            out[i][j] = p[j][i];
+        }
+        out[i][3] = -(0..3).map(|k| p[k][i] * p[k][3]).sum::<f64>();
+    }
+    out
+}
+
 /// The residual each correspondence contributes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Factor {

@@ -8,11 +8,11 @@
 //! look-alikes among the own places that the current bounds cannot rule out is not accepted
 //! ([`VerifyConfig::lookalike_m`]).
 
-use super::verify::{distance, mul, reject, relative, QueryPlace};
+use super::verify::{distance, reject, relative, QueryPlace};
 use super::{Candidate, LoopDetector};
 use crate::compare::cosine_distance;
 use crate::db::VerifyConfig;
-use crate::reg::{self, Pose, Rejection};
+use crate::reg::{invert, mul, pose_to_rows, rows_to_pose, Pose, Rejection};
 
 /// The latest confirmed loop of the own session: the query's pose and metres travelled, the
 /// candidate's id and the loop's pose.
@@ -123,36 +123,11 @@ impl LoopDetector {
     }
 }
 
-/// A row-major 3×4 pose as a 4×4 one.
-fn rows_to_pose(p: &[f64; 12]) -> Pose {
-    let mut out = reg::IDENTITY;
-    for (i, row) in out.iter_mut().take(3).enumerate() {
-        row.copy_from_slice(&p[4 * i..4 * i + 4]);
-    }
-    out
-}
-
-/// A 4×4 pose as a row-major 3×4 one.
-fn pose_to_rows(p: &Pose) -> [f64; 12] {
-    core::array::from_fn(|k| p[k / 4][k % 4])
-}
-
-/// The inverse of a rigid transform.
-fn invert(p: &Pose) -> Pose {
-    let mut out = reg::IDENTITY;
-    for i in 0..3 {
-        for j in 0..3 {
-            out[i][j] = p[j][i];
-        }
-        out[i][3] = -(0..3).map(|k| p[k][i] * p[k][3]).sum::<f64>();
-    }
-    out
-}
-
 #[cfg(test)]
 mod tests {
     use super::super::verify::tests::{detector_with_path, pose, rejection, verified};
     use super::*;
+    use crate::reg;
 
     #[test]
     fn poses_convert_and_invert() {

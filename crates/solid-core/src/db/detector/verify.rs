@@ -6,7 +6,7 @@ use alloc::vec::Vec;
 
 use super::{Candidate, LoopDetector, Verification};
 use crate::db::{DbError, VerifyConfig};
-use crate::reg::{self, Hypothesis, Pose, PreparedCloud, Rejection};
+use crate::reg::{self, mul, Hypothesis, Pose, PreparedCloud, Rejection};
 
 /// The query of a step, for the checks after the gate: its id, pose and metres travelled.
 #[derive(Debug, Clone, Copy)]
@@ -332,18 +332,6 @@ pub(super) fn relative(a: &[f64; 12], b: &[f64; 12]) -> Pose {
         out[i][3] = (0..3)
             .map(|k| a[4 * k + i] * (b[4 * k + 3] - a[4 * k + 3]))
             .sum();
-    }
-    out
-}
-
-/// `a·b` of two rigid transforms.
-pub(super) fn mul(a: &Pose, b: &Pose) -> Pose {
-    let mut out = reg::IDENTITY;
-    for i in 0..3 {
-        for j in 0..4 {
-            out[i][j] =
-                (0..3).map(|k| a[i][k] * b[k][j]).sum::<f64>() + if j == 3 { a[i][3] } else { 0.0 };
-        }
     }
     out
 }
