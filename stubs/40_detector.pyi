@@ -1,4 +1,30 @@
 @final
+class MapAnchor:
+    """Where a detector's session lies in its prior map (`LoopDetector.map_anchor`): the placement
+    that mutually consistent loops into the map support (docs/spec.md §8)."""
+    @property
+    def transform(self) -> npt.NDArray[np.float64]:
+        """T_map_world, (4, 4) float64: maps the session's pose frame ("odom") into the map's frame
+        (fitted to the latest supporting loops)."""
+    @property
+    def loops(self) -> int:
+        """Mutually consistent loops into the map that support it (distinct queries)."""
+    @property
+    def metres(self) -> float:
+        """Metres of the session's path they span."""
+    @property
+    def first_query(self) -> int:
+        """Id of the first supporting query."""
+    @property
+    def last_query(self) -> int:
+        """Id of the latest supporting query."""
+    @property
+    def covariance(self) -> npt.NDArray[np.float64] | None:
+        """The spread of the supporting loops' placements about `transform`, (6, 6) float64
+        ((rotation in radians, translation in metres) order), or None with fewer than two."""
+    def __eq__(self, other: object, /) -> bool: ...
+
+@final
 class Loop:
     """A detected loop closure: the best candidate of a detector step, when its score passes the threshold."""
     @property
@@ -315,6 +341,11 @@ class LoopDetector:
     @property
     def session(self) -> int:
         """The session of the scans this detector adds."""
+    @property
+    def map_anchor(self) -> MapAnchor | None:
+        """Where the session lies in the prior map, once loops into the map have placed it
+        (docs/spec.md §8, placement: `placement_loops` mutually consistent loops over `placement_m`
+        metres of its path); None before, and for a detector without a map or without poses."""
     @property
     def session_start(self) -> int:
         """Id of the first scan of the own session (the number of prior-map places)."""

@@ -291,6 +291,8 @@ class DetectorConfig:
         lookalike_m: float = 10.0,
         lookalike_margin: float = 0.2,
         lookalike_swing: float = 0.25,
+        placement_loops: int = 4,
+        placement_m: float = 30.0,
         registration: RegistrationConfig | dict[str, Any] | None = None,
         gate: AcceptanceGate | dict[str, Any] | None = None,
     ) -> DetectorConfig:
@@ -330,6 +332,8 @@ class DetectorConfig:
             lookalike_m: Reject a loop when an own place farther than this from its place, about as close by descriptor, fits the drift bounds too (0: off) (a finite number >= 0; default 10.0).
             lookalike_margin: How much larger a look-alike's R-SOLiD distance may be than the loop's candidate's (a number in [0, 1]; default 0.2).
             lookalike_swing: The fraction of the odometry check's rotation allowance the look-alike check's bound takes (a number in [0, 1]; default 0.25).
+            placement_loops: Loops into a map are accepted once this many queries' loops into it agree with each other (the session is placed in the map), then when they agree with that placement (0: off) (an integer >= 0; default 4).
+            placement_m: Metres of the session's path the loops that place it in the map must span (a finite number >= 0; default 30.0).
             registration: The registration parameters (an object, or a dict of overrides of the current ones).
             gate: The acceptance gate (an object, or a dict of overrides of the current one).
 
@@ -374,6 +378,8 @@ class DetectorConfig:
         lookalike_m: float | None = None,
         lookalike_margin: float | None = None,
         lookalike_swing: float | None = None,
+        placement_loops: int | None = None,
+        placement_m: float | None = None,
         registration: RegistrationConfig | dict[str, Any] | None = None,
         gate: AcceptanceGate | dict[str, Any] | None = None,
     ) -> DetectorConfig:
@@ -414,6 +420,8 @@ class DetectorConfig:
             lookalike_m: Reject a loop when an own place farther than this from its place, about as close by descriptor, fits the drift bounds too (0: off) (a finite number >= 0; default 10.0).
             lookalike_margin: How much larger a look-alike's R-SOLiD distance may be than the loop's candidate's (a number in [0, 1]; default 0.2).
             lookalike_swing: The fraction of the odometry check's rotation allowance the look-alike check's bound takes (a number in [0, 1]; default 0.25).
+            placement_loops: Loops into a map are accepted once this many queries' loops into it agree with each other (the session is placed in the map), then when they agree with that placement (0: off) (an integer >= 0; default 4).
+            placement_m: Metres of the session's path the loops that place it in the map must span (a finite number >= 0; default 30.0).
             registration: The registration parameters (an object, or a dict of overrides of the current ones).
             gate: The acceptance gate (an object, or a dict of overrides of the current one).
 
@@ -460,6 +468,8 @@ class DetectorConfig:
         lookalike_m: float | None = None,
         lookalike_margin: float | None = None,
         lookalike_swing: float | None = None,
+        placement_loops: int | None = None,
+        placement_m: float | None = None,
         registration: RegistrationConfig | dict[str, Any] | None = None,
         gate: AcceptanceGate | dict[str, Any] | None = None,
     ) -> DetectorConfig:
@@ -499,6 +509,8 @@ class DetectorConfig:
             lookalike_m: Reject a loop when an own place farther than this from its place, about as close by descriptor, fits the drift bounds too (0: off) (a finite number >= 0; default 10.0).
             lookalike_margin: How much larger a look-alike's R-SOLiD distance may be than the loop's candidate's (a number in [0, 1]; default 0.2).
             lookalike_swing: The fraction of the odometry check's rotation allowance the look-alike check's bound takes (a number in [0, 1]; default 0.25).
+            placement_loops: Loops into a map are accepted once this many queries' loops into it agree with each other (the session is placed in the map), then when they agree with that placement (0: off) (an integer >= 0; default 4).
+            placement_m: Metres of the session's path the loops that place it in the map must span (a finite number >= 0; default 30.0).
             registration: The registration parameters (an object, or a dict of overrides of the current ones).
             gate: The acceptance gate (an object, or a dict of overrides of the current one).
 
@@ -510,7 +522,7 @@ class DetectorConfig:
             TypeError: An unknown parameter, or a value of the wrong type.
         """
     def to_dict(self) -> dict[str, Any]:
-        """The parameters by name (exclude_frames, exclude_meters, exclude_seconds, threshold, top_k, rerank, verify, verify_candidates, pose_candidates, pose_candidate_min_information, pose_candidate_shift_m, verify_hypotheses, verify_fan_deg, cloud_bits, cache_bytes, verify_threads, verify_step_points, view_fov_deg, view_min_overlap_deg, odometry_check, odometry_translation_m, odometry_drift, odometry_rotation_deg, odometry_rotation_deg_per_m, odometry_rotation_max_deg, unique, unique_ratio, support_window, min_support, loop_reset_m, lookalike_m, lookalike_margin, lookalike_swing, registration, gate): what `DetectorConfig(**d)` takes back.
+        """The parameters by name (exclude_frames, exclude_meters, exclude_seconds, threshold, top_k, rerank, verify, verify_candidates, pose_candidates, pose_candidate_min_information, pose_candidate_shift_m, verify_hypotheses, verify_fan_deg, cloud_bits, cache_bytes, verify_threads, verify_step_points, view_fov_deg, view_min_overlap_deg, odometry_check, odometry_translation_m, odometry_drift, odometry_rotation_deg, odometry_rotation_deg_per_m, odometry_rotation_max_deg, unique, unique_ratio, support_window, min_support, loop_reset_m, lookalike_m, lookalike_margin, lookalike_swing, placement_loops, placement_m, registration, gate): what `DetectorConfig(**d)` takes back.
 
         Returns:
             A new dict.
@@ -614,6 +626,12 @@ class DetectorConfig:
     @property
     def lookalike_swing(self) -> float:
         """The fraction of the odometry check's rotation allowance the look-alike check's bound takes (a number in [0, 1]; default 0.25)."""
+    @property
+    def placement_loops(self) -> int:
+        """Loops into a map are accepted once this many queries' loops into it agree with each other (the session is placed in the map), then when they agree with that placement (0: off) (an integer >= 0; default 4)."""
+    @property
+    def placement_m(self) -> float:
+        """Metres of the session's path the loops that place it in the map must span (a finite number >= 0; default 30.0)."""
     # end of generated
     @property
     def registration(self) -> RegistrationConfig:
@@ -1528,6 +1546,32 @@ def decode_place(data: bytes | bytearray | memoryview, cfg: SolidConfig) -> Desc
 
 
 @final
+class MapAnchor:
+    """Where a detector's session lies in its prior map (`LoopDetector.map_anchor`): the placement
+    that mutually consistent loops into the map support (docs/spec.md §8)."""
+    @property
+    def transform(self) -> npt.NDArray[np.float64]:
+        """T_map_world, (4, 4) float64: maps the session's pose frame ("odom") into the map's frame
+        (fitted to the latest supporting loops)."""
+    @property
+    def loops(self) -> int:
+        """Mutually consistent loops into the map that support it (distinct queries)."""
+    @property
+    def metres(self) -> float:
+        """Metres of the session's path they span."""
+    @property
+    def first_query(self) -> int:
+        """Id of the first supporting query."""
+    @property
+    def last_query(self) -> int:
+        """Id of the latest supporting query."""
+    @property
+    def covariance(self) -> npt.NDArray[np.float64] | None:
+        """The spread of the supporting loops' placements about `transform`, (6, 6) float64
+        ((rotation in radians, translation in metres) order), or None with fewer than two."""
+    def __eq__(self, other: object, /) -> bool: ...
+
+@final
 class Loop:
     """A detected loop closure: the best candidate of a detector step, when its score passes the threshold."""
     @property
@@ -1885,6 +1929,11 @@ class LoopDetector:
     @property
     def session(self) -> int:
         """The session of the scans this detector adds."""
+    @property
+    def map_anchor(self) -> MapAnchor | None:
+        """Where the session lies in the prior map, once loops into the map have placed it
+        (docs/spec.md §8, placement: `placement_loops` mutually consistent loops over `placement_m`
+        metres of its path); None before, and for a detector without a map or without poses."""
     @property
     def session_start(self) -> int:
         """Id of the first scan of the own session (the number of prior-map places)."""

@@ -105,6 +105,62 @@ impl From<db::Loop> for PyLoop {
     }
 }
 
+/// Where a detector's session lies in its prior map (docs/spec.md §8, placement): None until
+/// mutually consistent loops into the map have placed it.
+#[pyclass(name = "MapAnchor", module = "solid", frozen, eq)]
+#[derive(Clone, PartialEq)]
+pub struct PyMapAnchor {
+    /// Mutually consistent loops into the map that support the placement (distinct queries).
+    #[pyo3(get)]
+    pub loops: usize,
+    /// Metres of the session's path they span.
+    #[pyo3(get)]
+    pub metres: f64,
+    /// Id of the first supporting query.
+    #[pyo3(get)]
+    pub first_query: u32,
+    /// Id of the latest supporting query.
+    #[pyo3(get)]
+    pub last_query: u32,
+    inner: db::MapAnchor,
+}
+
+#[pymethods]
+impl PyMapAnchor {
+    /// T_map_world, (4, 4) float64: maps the session's pose frame ("odom") into the map's frame.
+    #[getter]
+    fn transform<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        pose_array(py, &self.inner.transform)
+    }
+
+    /// The spread of the supporting loops' placements about `transform`, (6, 6) float64
+    /// ((rotation in radians, translation in metres) order), or None with fewer than two.
+    #[getter]
+    fn covariance<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray2<f64>>> {
+        self.inner.covariance.map(|m| matrix6(py, &m))
+    }
+
+    fn __repr__(&self) -> String {
+        let t = &self.inner.transform;
+        format!(
+            "MapAnchor(loops={}, metres={:.1}, first_query={}, last_query={}, translation=[{:.3}, {:.3}, {:.3}])",
+            self.loops, self.metres, self.first_query, self.last_query, t[0][3], t[1][3], t[2][3]
+        )
+    }
+}
+
+impl From<db::MapAnchor> for PyMapAnchor {
+    fn from(a: db::MapAnchor) -> Self {
+        PyMapAnchor {
+            loops: a.loops,
+            metres: a.metres,
+            first_query: a.first_query,
+            last_query: a.last_query,
+            inner: a,
+        }
+    }
+}
+
 /// One candidate of a detector step, in the detector's order.
 #[pyclass(name = "Candidate", module = "solid", frozen, eq)]
 #[derive(Clone, PartialEq)]
@@ -615,6 +671,15 @@ impl PyLoopDetector {
         self.with(py, LoopDetector::session)
     }
 
+    /// Where the session lies in the prior map, once loops into the map have placed it
+    /// (docs/spec.md §8, placement: `placement_loops` mutually consistent loops over `placement_m`
+    /// metres of its path); None before, and for a detector without a map or poses.
+    #[getter]
+    fn map_anchor(&self, py: Python<'_>) -> Option<PyMapAnchor> {
+        self.with(py, LoopDetector::map_anchor)
+            .map(PyMapAnchor::from)
+    }
+
     /// Id of the first scan of the own session (the number of prior-map places).
     #[getter]
     fn session_start(&self, py: Python<'_>) -> usize {
@@ -710,6 +775,7 @@ fn overrides_dict<'py>(
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyLoopDetector>()?;
     m.add_class::<PyLoop>()?;
+    m.add_class::<PyMapAnchor>()?;
     m.add_class::<PyCandidate>()?;
     m.add_class::<PyDetection>()?;
     m.add("VERIFIED_THRESHOLD", db::VERIFIED_THRESHOLD)?;

@@ -22,9 +22,11 @@ use crate::{Coord, Points};
 use super::detector_config::*;
 
 mod anchor;
+mod consistency;
 mod nearby;
 mod verify;
 
+pub use consistency::MapAnchor;
 pub use verify::{UNVERIFIED_SCORE, VERIFIED_THRESHOLD};
 
 /// One candidate of a detector step, in the detector's ranking order.
@@ -132,6 +134,8 @@ pub struct LoopDetector {
     recent: VecDeque<(u32, Vec<(u32, reg::Pose)>)>,
     /// The latest loop accepted with poses: later steps' odometry checks go through it.
     anchor: Option<anchor::Anchor>,
+    /// The session's placement in its map (loops into the map's places).
+    placement: consistency::Placement,
 }
 
 /// One scan ready for a detector step: its descriptor and, for verification, its prepared cloud
@@ -256,6 +260,7 @@ impl LoopDetector {
             clock: 0,
             recent: VecDeque::new(),
             anchor: None,
+            placement: consistency::Placement::default(),
         })
     }
 

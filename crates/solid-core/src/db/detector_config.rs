@@ -167,6 +167,16 @@ pub struct VerifyConfig {
     /// The fraction of the odometry check's rotation allowance (`angle · path / 2`) the
     /// look-alike check's bound takes.
     pub lookalike_swing: f64,
+    /// Loops into another session's places (a prior map) are accepted by the session's
+    /// placement in the map: its first loops only once this many distinct queries' loops into
+    /// the map agree with each other through the short paths between them (pairwise
+    /// consistency within the odometry bounds above), over `placement_m` metres of the path;
+    /// later ones when they agree with it. A look-alike repeats a place, not a stretch of the
+    /// world. 0: off (loops into the map then pass as within one session, by the support of
+    /// the previous steps).
+    pub placement_loops: usize,
+    /// Metres of the session's path the loops that place it in the map must span.
+    pub placement_m: f64,
 }
 
 /// Default [`Gate::max_translation`] of a detector: a loop joins places at most this many metres
@@ -208,6 +218,8 @@ impl Default for VerifyConfig {
             lookalike_m: DEFAULT_LOOKALIKE_M,
             lookalike_margin: DEFAULT_LOOKALIKE_MARGIN,
             lookalike_swing: DEFAULT_LOOKALIKE_SWING,
+            placement_loops: DEFAULT_PLACEMENT_LOOPS,
+            placement_m: DEFAULT_PLACEMENT_M,
         }
     }
 }
@@ -244,6 +256,12 @@ pub const DEFAULT_LOOKALIKE_MARGIN: f64 = 0.2;
 
 /// Default [`VerifyConfig::lookalike_swing`] (docs/performance.md#loops-a-pose-graph-can-trust).
 pub const DEFAULT_LOOKALIKE_SWING: f64 = 0.25;
+
+/// Default [`VerifyConfig::placement_loops`] (docs/performance.md#loops-into-a-map).
+pub const DEFAULT_PLACEMENT_LOOPS: usize = 4;
+
+/// Default [`VerifyConfig::placement_m`] (docs/performance.md#loops-into-a-map).
+pub const DEFAULT_PLACEMENT_M: f64 = 30.0;
 
 /// Default [`VerifyConfig::step_points`]: room for every default candidate of the largest
 /// real scans measured, so that it binds only on outsized clouds (docs/performance.md#work-budgets).
@@ -405,6 +423,10 @@ impl Params for DetectorConfig {
             "How much larger a look-alike's R-SOLiD distance may be than the loop's candidate's."),
         field!(DetectorConfig, "lookalike_swing", verify.lookalike_swing, Kind::closed(0.0, 1.0), "a number in [0, 1]",
             "The fraction of the odometry check's rotation allowance the look-alike check's bound takes."),
+        field!(DetectorConfig, "placement_loops", verify.placement_loops, COUNT, "an integer >= 0",
+            "Loops into a map are accepted once this many queries' loops into it agree with each other (the session is placed in the map), then when they agree with that placement (0: off)."),
+        field!(DetectorConfig, "placement_m", verify.placement_m, Kind::closed(0.0, FINITE), "a finite number >= 0",
+            "Metres of the session's path the loops that place it in the map must span."),
     ];
 
     fn defaults() -> DetectorConfig {

@@ -48,7 +48,7 @@ pub use crate::checksum::crc32;
 pub use crate::error::DbError;
 pub use database::{check_pose, BatchResults, Database, SearchOptions, INDEX_AFTER_PASSES};
 pub use detector::{
-    Candidate, Detection, Loop, LoopDetector, Scan, Verification, UNVERIFIED_SCORE,
+    Candidate, Detection, Loop, LoopDetector, MapAnchor, Scan, Verification, UNVERIFIED_SCORE,
     VERIFIED_THRESHOLD,
 };
 pub use detector_config::{

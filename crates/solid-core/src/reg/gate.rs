@@ -46,6 +46,12 @@ pub enum Rejection {
     /// descriptor) lies where the loop's pose would put the query within the drift bounds too:
     /// the odometry cannot tell which place the query sees.
     LookAlike,
+    /// A loop into another session's map before the session is placed in it: too few loops
+    /// into the map agree with each other yet (the detector's `placement_loops` over
+    /// `placement_m` metres).
+    NotPlaced,
+    /// A loop into another session's map that disagrees with the session's placement in it.
+    OffPlacement,
     /// The candidate's stored cloud is corrupt (its checksum fails) or could not be read from
     /// the map's file: it was not registered.
     CorruptCloud,
@@ -68,6 +74,8 @@ impl fmt::Display for Rejection {
             Rejection::Ambiguous => "another candidate disagrees",
             Rejection::Unsupported => "not supported by the previous steps",
             Rejection::LookAlike => "a look-alike the odometry cannot rule out",
+            Rejection::NotPlaced => "the session is not placed in the map yet",
+            Rejection::OffPlacement => "disagrees with the session's placement in the map",
             Rejection::CorruptCloud => "its stored cloud is corrupt or unreadable",
         })
     }

@@ -109,6 +109,8 @@ impl LoopDetector {
                 }
             }
         }
+        // Loops into the map: judged by the session's placement in it.
+        self.check_placement(at, cands);
         let mut mine = Vec::new();
         let mut offsets = Vec::new();
         let n = cands.iter().filter(|c| registered(c)).count();
@@ -151,7 +153,12 @@ impl LoopDetector {
             self.recent.clear();
             return Ok(());
         }
+        let placed = self.places_session(at);
         for c in cands.iter_mut().filter(|c| passed(c)) {
+            // The placement's consistent set is a map loop's support.
+            if placed && self.in_map(c.id) {
+                continue;
+            }
             if self.support(at, c) < v.min_support {
                 reject(c, Rejection::Unsupported);
             }

@@ -1,0 +1,485 @@
+//! The session's placement in the map: loops into another session's places (a prior map) are
+//! accepted by their consistency with each other, not by one odometry.
+//!
+//! Every registered candidate `q → c` (pose `T`) into a map place, with the query's pose `T_wq`
+//! (the session's own frame) and the place's `T_mc` (the map's frame), implies a placement of the
+//! session in the map, `X = T_mc · inv(T) · inv(T_wq)`. Two such hypotheses agree when each
+//! predicts the other's loop through the short paths between them: `inv(T_wq1)·T_wq2 · T2 ·
+//! inv(T_mc2)·T_mc1 ≈ T1` within the odometry check's drift bounds after the metres the session
+//! travelled between `q1` and `q2` plus those between `c1` and `c2` (PCM's pairwise consistency).
+//! A look-alike repeats a place, not a whole stretch of the world: the loops into it agree with
+//! each other only as far as the repetition goes. So the session is placed only when a set of
+//! mutually consistent hypotheses holds `placement_loops` queries over `placement_m` metres of its
+//! path; from then on a loop into the map is accepted when it agrees with the placement's nearest
+//! supporting loop (by path), and the placement is revised when a larger consistent set among
+//! the recent hypotheses disagrees with it.
+
+use alloc::collections::VecDeque;
+use alloc::vec::Vec;
+
+use nalgebra::{Matrix3, Rotation3, Vector3};
+
+use super::verify::{distance, registered, reject, relative, QueryPlace};
+use super::{Candidate, LoopDetector};
+use crate::reg::{invert, mul, rows_to_pose, Pose, Rejection};
+
+/// Hypotheses kept for the consistency search (the most recent).
+const WINDOW: usize = 96;
+
+/// Supporting loops the placement's transform is fitted to (the most recent).
+const FIT: usize = 48;
+
+/// A consistent set places the session only with more than this many times the distinct
+/// queries of every set that disagrees with it.
+const RIVAL_RATIO: usize = 2;
+
+/// One registered candidate into a map place: where it places the session.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Hypothesis {
+    query: u32,
+    /// `T_wq` (the session's frame).
+    query_pose: [f64; 12],
+    /// Metres the session travelled at the query.
+    travelled: f64,
+    /// `T_mc` (the map's frame).
+    place: [f64; 12],
+    /// The registration `T_query_candidate`.
+    pose: Pose,
+}
+
+impl Hypothesis {
+    /// `X = T_mc · inv(T) · inv(T_wq)`: the session's frame in the map's.
+    fn placement(&self) -> Pose {
+        mul(
+            &mul(&rows_to_pose(&self.place), &invert(&self.pose)),
+            &invert(&rows_to_pose(&self.query_pose)),
+        )
+    }
+}
+
+/// Where the detector's session lies in its map, and what supports it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MapAnchor {
+    /// `T_map_world`: maps the session's pose frame ("odom") into the map's frame, fitted to the
+    /// latest supporting loops (their rotations' chordal mean, their translations' mean).
+    pub transform: Pose,
+    /// Mutually consistent loops into the map that support it (distinct queries).
+    pub loops: usize,
+    /// Metres of the session's path they span.
+    pub metres: f64,
+    /// Id of the first supporting query.
+    pub first_query: u32,
+    /// Id of the latest supporting query.
+    pub last_query: u32,
+    /// The spread of the fitted loops' placements about `transform` (6×6, rotation in radians
+    /// then translation in metres, in the map's frame at the transform): their sample
+    /// covariance. None with fewer than two.
+    pub covariance: Option<[[f64; 6]; 6]>,
+}
+
+/// The placement state of a detector.
+#[derive(Debug, Clone, Default)]
+pub(super) struct Placement {
+    /// The recent hypotheses, oldest first.
+    window: VecDeque<Hypothesis>,
+    /// The loops supporting the current placement (the latest `FIT`), oldest first; empty
+    /// while the session is not placed.
+    support: VecDeque<Hypothesis>,
+    /// Distinct supporting queries since the placement was made.
+    loops: usize,
+    /// The first supporting query and its metres travelled.
+    first: Option<(u32, f64)>,
+}
+
+impl LoopDetector {
+    /// Whether two hypotheses agree through the short paths between them.
+    fn consistent(&self, a: &Hypothesis, b: &Hypothesis) -> bool {
+        let expected = mul(
+            &mul(&relative(&a.query_pose, &b.query_pose), &b.pose),
+            &relative(&b.place, &a.place),
+        );
+        let own = libm::fabs(a.travelled - b.travelled);
+        let own = if own.is_nan() {
+            distance(&a.query_pose, &b.query_pose)
+        } else {
+            own
+        };
+        let path = own + distance(&a.place, &b.place);
+        self.within_drift(&expected, &a.pose, path, 0.0)
+    }
+
+    /// Whether loops into the map are judged by the placement: placement on, the query has a
+    /// pose.
+    pub(super) fn places_session(&self, at: &QueryPlace) -> bool {
+        self.config.verify.placement_loops > 0 && at.pose.is_some()
+    }
+
+    /// `true` for a place of the map (another session's).
+    pub(super) fn in_map(&self, id: u32) -> bool {
+        (id as usize) < self.session_start
+    }
+
+    /// The placement check of the step's candidates into the map: their hypotheses join the
+    /// window; a candidate that passed is accepted only when the placement (made, kept or
+    /// revised here) agrees with it, else rejected ([`Rejection::NotPlaced`] before there is
+    /// one, [`Rejection::OffPlacement`] after).
+    pub(super) fn check_placement(&mut self, at: &QueryPlace, cands: &mut [Candidate]) {
+        let Some(q) = at.pose.filter(|_| self.places_session(at)) else {
+            return;
+        };
+        let mut mine: Vec<(usize, Hypothesis)> = Vec::new();
+        for (i, c) in cands.iter().enumerate() {
+            if !registered(c) || !self.in_map(c.id) {
+                continue;
+            }
+            let (Some(r), Some(place)) = (c.verification, self.pose(c.id)) else {
+                continue;
+            };
+            mine.push((
+                i,
+                Hypothesis {
+                    query: at.id,
+                    query_pose: q,
+                    travelled: at.travelled,
+                    place,
+                    pose: r.registration.pose,
+                },
+            ));
+        }
+        for (_, h) in &mine {
+            if self.placement.window.len() == WINDOW {
+                self.placement.window.pop_front();
+            }
+            self.placement.window.push_back(*h);
+        }
+        for (i, h) in &mine {
+            let c = &mut cands[*i];
+            if !c.verification.is_some_and(|r| r.accepted) {
+                continue;
+            }
+            let agrees = self.agrees_with_placement(h);
+            if agrees == Some(true) {
+                self.add_support(h);
+                continue;
+            }
+            // Not placed, or off the placement: the largest consistent set holding it decides,
+            // when it is clearly larger than every set that disagrees with it (a placement that
+            // look-alikes make as likely is no placement).
+            let (set, rival) = self.consistent_sets(h);
+            let held = self
+                .placement
+                .support
+                .iter()
+                .filter(|s| self.placement.window.iter().any(|w| same(w, s)))
+                .count();
+            let n = distinct(&set);
+            if self.qualifies(&set) && n > RIVAL_RATIO * rival.max(held) {
+                self.place_on(&set);
+                continue;
+            }
+            reject(
+                c,
+                if agrees.is_none() {
+                    Rejection::NotPlaced
+                } else {
+                    Rejection::OffPlacement
+                },
+            );
+        }
+    }
+
+    /// Whether `h` agrees with the placement's supporting loop nearest to it along the path
+    /// (None while the session is not placed).
+    fn agrees_with_placement(&self, h: &Hypothesis) -> Option<bool> {
+        let nearest = self.placement.support.iter().min_by(|a, b| {
+            libm::fabs(a.travelled - h.travelled).total_cmp(&libm::fabs(b.travelled - h.travelled))
+        })?;
+        Some(self.consistent(h, nearest))
+    }
+
+    /// The largest set of mutually consistent hypotheses of the window holding `h` (grown
+    /// greedily from it, nearest along the path first), and the most distinct queries of a set
+    /// grown so from any hypothesis that disagrees with `h`.
+    fn consistent_sets(&self, h: &Hypothesis) -> (Vec<Hypothesis>, usize) {
+        let w = &self.placement.window;
+        let n = w.len();
+        let mut ok = alloc::vec![false; n * n];
+        for i in 0..n {
+            for j in 0..i {
+                let c = self.consistent(&w[i], &w[j]) && self.consistent(&w[j], &w[i]);
+                ok[i * n + j] = c;
+                ok[j * n + i] = c;
+            }
+            ok[i * n + i] = true;
+        }
+        let grow = |seed: usize| -> Vec<usize> {
+            let mut others: Vec<usize> =
+                (0..n).filter(|&j| j != seed && ok[seed * n + j]).collect();
+            let t = w[seed].travelled;
+            others.sort_by(|&a, &b| {
+                libm::fabs(w[a].travelled - t).total_cmp(&libm::fabs(w[b].travelled - t))
+            });
+            let mut set = alloc::vec![seed];
+            for j in others {
+                if set.iter().all(|&s| ok[s * n + j]) {
+                    set.push(j);
+                }
+            }
+            set
+        };
+        let Some(me) = w.iter().rposition(|x| same(x, h)) else {
+            return (alloc::vec![*h], 0);
+        };
+        let set: Vec<Hypothesis> = grow(me).into_iter().map(|i| w[i]).collect();
+        let rival = (0..n)
+            .filter(|&j| !ok[me * n + j])
+            .map(|j| distinct(&grow(j).into_iter().map(|i| w[i]).collect::<Vec<_>>()))
+            .max()
+            .unwrap_or(0);
+        (set, rival)
+    }
+
+    /// Whether a consistent set may place the session: `placement_loops` distinct queries over
+    /// `placement_m` metres of path.
+    fn qualifies(&self, set: &[Hypothesis]) -> bool {
+        let v = &self.config.verify;
+        distinct(set) >= v.placement_loops && span(set) >= v.placement_m
+    }
+
+    /// Makes `set` the placement (a new one, or a revision).
+    fn place_on(&mut self, set: &[Hypothesis]) {
+        let mut s: Vec<Hypothesis> = set.to_vec();
+        s.sort_by_key(|h| h.query);
+        let p = &mut self.placement;
+        p.support.clear();
+        p.support.extend(s.iter().rev().take(FIT).rev().copied());
+        p.loops = distinct(&s);
+        p.first = s.first().map(|h| (h.query, h.travelled));
+    }
+
+    /// Adds an agreeing loop to the placement's support.
+    fn add_support(&mut self, h: &Hypothesis) {
+        let p = &mut self.placement;
+        if !p.support.iter().any(|s| s.query == h.query) {
+            p.loops += 1;
+        }
+        if p.support.len() == FIT {
+            p.support.pop_front();
+        }
+        p.support.push_back(*h);
+    }
+
+    /// The session's placement in the map (None until loops into the map have placed it:
+    /// `placement_loops` mutually consistent ones over `placement_m` metres, spec §8).
+    pub fn map_anchor(&self) -> Option<MapAnchor> {
+        let p = &self.placement;
+        let last = p.support.back()?;
+        let (first_query, first_travelled) = p.first?;
+        let xs: Vec<Pose> = p.support.iter().map(Hypothesis::placement).collect();
+        let transform = mean_pose(&xs);
+        let metres = libm::fabs(last.travelled - first_travelled);
+        Some(MapAnchor {
+            transform,
+            loops: p.loops,
+            metres: if metres.is_nan() { 0.0 } else { metres },
+            first_query,
+            last_query: last.query,
+            covariance: spread(&transform, &xs),
+        })
+    }
+}
+
+fn same(a: &Hypothesis, b: &Hypothesis) -> bool {
+    a.query == b.query && a.place == b.place && a.pose == b.pose
+}
+
+/// Distinct queries of a set.
+fn distinct(set: &[Hypothesis]) -> usize {
+    let mut q: Vec<u32> = set.iter().map(|h| h.query).collect();
+    q.sort_unstable();
+    q.dedup();
+    q.len()
+}
+
+/// Metres of path a set spans.
+fn span(set: &[Hypothesis]) -> f64 {
+    let (lo, hi) = set
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), h| {
+            (lo.min(h.travelled), hi.max(h.travelled))
+        });
+    if hi >= lo {
+        hi - lo
+    } else {
+        0.0
+    }
+}
+
+/// The chordal mean of the poses' rotations (projected onto a rotation) and their translations'
+/// mean.
+fn mean_pose(xs: &[Pose]) -> Pose {
+    let n = xs.len().max(1) as f64;
+    let mut r = Matrix3::zeros();
+    let mut t = Vector3::zeros();
+    for x in xs {
+        r += Matrix3::from_fn(|i, j| x[i][j]);
+        t += Vector3::new(x[0][3], x[1][3], x[2][3]);
+    }
+    let rot = Rotation3::from_matrix(&(r / n));
+    let mut out = crate::reg::IDENTITY;
+    for i in 0..3 {
+        for j in 0..3 {
+            out[i][j] = rot[(i, j)];
+        }
+        out[i][3] = t[i] / n;
+    }
+    out
+}
+
+/// The sample covariance of the poses about `mean` (rotation vector of `R_mean^T·R`, then the
+/// translations' difference); None with fewer than two.
+fn spread(mean: &Pose, xs: &[Pose]) -> Option<[[f64; 6]; 6]> {
+    if xs.len() < 2 {
+        return None;
+    }
+    let rm = Matrix3::from_fn(|i, j| mean[i][j]);
+    let mut cov = [[0.0; 6]; 6];
+    for x in xs {
+        let r = Matrix3::from_fn(|i, j| x[i][j]);
+        let w = Rotation3::from_matrix_unchecked(rm.transpose() * r).scaled_axis();
+        let e = [
+            w[0],
+            w[1],
+            w[2],
+            x[0][3] - mean[0][3],
+            x[1][3] - mean[1][3],
+            x[2][3] - mean[2][3],
+        ];
+        for (i, row) in cov.iter_mut().enumerate() {
+            for (j, v) in row.iter_mut().enumerate() {
+                *v += e[i] * e[j];
+            }
+        }
+    }
+    let n = (xs.len() - 1) as f64;
+    for row in cov.iter_mut() {
+        for v in row.iter_mut() {
+            *v /= n;
+        }
+    }
+    Some(cov)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::verify::tests::{pose, rejection, verified};
+    use super::*;
+    use crate::db::{Database, DetectorConfig};
+    use crate::{Config, Descriptor, Stats};
+
+    /// A detector over a map of 60 places 1 m apart along the map's x axis (facing +x), placing
+    /// with `loops` loops over 3 m.
+    fn over_map(loops: usize) -> LoopDetector {
+        let c = Config::preset("hdl64").unwrap();
+        let mut db = Database::new(c).unwrap();
+        for i in 0..60 {
+            let d = Descriptor {
+                r: alloc::vec![1.0 + i as f32; c.n_range],
+                a: alloc::vec![1.0; c.n_azimuth],
+                stats: Stats::default(),
+                fingerprint: c.fingerprint(),
+            };
+            db.add(&d, 0, f64::NAN, Some(pose(0.0, f64::from(i), 0.0)))
+                .unwrap();
+        }
+        let mut dc = DetectorConfig::default();
+        dc.verify.placement_loops = loops;
+        dc.verify.placement_m = 3.0;
+        dc.verify.support_window = 0;
+        LoopDetector::with_database(db, dc).unwrap()
+    }
+
+    /// The session's frame in the map's: turned by 90°, 10 m along x and 5 m along y.
+    fn truth() -> Pose {
+        rows_to_pose(&pose(90.0, 10.0, 5.0))
+    }
+
+    /// Step `k` of a session that drives the map's places 5.. in its own frame, half a metre
+    /// to the side: the query, its true loop to place `5 + k` and a look-alike 20 places on (the
+    /// registration as good, the same relative pose).
+    fn step(det: &LoopDetector, k: u32, lookalike: bool) -> (QueryPlace, [Candidate; 2]) {
+        let in_map = pose(0.0, f64::from(5 + k), 0.5);
+        let q = crate::reg::pose_to_rows(&mul(&invert(&truth()), &rows_to_pose(&in_map)));
+        let at = QueryPlace {
+            id: det.len() as u32 + k,
+            pose: Some(q),
+            travelled: f64::from(k),
+            eligible: det.len(),
+        };
+        let t = relative(&in_map, &pose(0.0, f64::from(5 + k), 0.0));
+        let mut alike = verified(25 + k, t);
+        if !lookalike {
+            alike.verification = None;
+        }
+        (at, [verified(5 + k, t), alike])
+    }
+
+    #[test]
+    fn loops_into_a_map_wait_for_a_placement_that_look_alikes_do_not_rival() {
+        // A look-alike at every step: two placements as well supported, none is made.
+        let mut det = over_map(4);
+        for k in 0..12 {
+            let (at, mut cands) = step(&det, k, true);
+            det.check_after_gate(&at, &[], &mut cands).unwrap();
+            assert_eq!(rejection(&cands[0]), Some(Rejection::NotPlaced), "step {k}");
+            assert_eq!(rejection(&cands[1]), Some(Rejection::NotPlaced), "step {k}");
+        }
+        assert!(det.map_anchor().is_none());
+        // A look-alike at every fourth step: the true placement is made once four steps over 3 m
+        // agree and outnumber the look-alikes' twice over; then true loops pass, look-alikes fail.
+        let mut det = over_map(4);
+        let mut first = None;
+        for k in 0..16 {
+            let (at, mut cands) = step(&det, k, k % 4 == 1);
+            det.check_after_gate(&at, &[], &mut cands).unwrap();
+            if rejection(&cands[0]).is_none() && first.is_none() {
+                first = Some(k);
+            }
+            if first.is_some() {
+                assert_eq!(rejection(&cands[0]), None, "step {k}");
+                if k % 4 == 1 {
+                    assert_eq!(rejection(&cands[1]), Some(Rejection::OffPlacement));
+                }
+            } else {
+                assert_eq!(rejection(&cands[0]), Some(Rejection::NotPlaced), "step {k}");
+            }
+        }
+        assert_eq!(first, Some(3));
+        let a = det.map_anchor().unwrap();
+        assert!(crate::reg::pose_distance(&a.transform, &truth())
+            .is_some_and(|(m, deg)| m < 1e-9 && deg < 1e-6));
+        assert_eq!((a.loops, a.first_query, a.last_query), (16, 60, 75));
+        assert!((a.metres - 15.0).abs() < 1e-12);
+        assert!(a.covariance.is_some_and(|c| c.iter().flatten().all(|v| v.abs() < 1e-12)));
+        // Off: loops into the map pass as before.
+        let mut det = over_map(0);
+        let (at, mut cands) = step(&det, 0, false);
+        det.check_after_gate(&at, &[], &mut cands).unwrap();
+        assert_eq!(rejection(&cands[0]), None);
+        assert!(det.map_anchor().is_none());
+    }
+
+    #[test]
+    fn a_session_whose_loops_disagree_is_never_placed() {
+        // Every step's loop places the session somewhere else (a place 7 m further per step).
+        let mut det = over_map(3);
+        for k in 0..20 {
+            let (at, [good, _]) = step(&det, k, false);
+            let t = good.verification.unwrap().registration.pose;
+            let mut cands = [verified((5 + 8 * k) % 60, t)];
+            det.check_after_gate(&at, &[], &mut cands).unwrap();
+            assert_eq!(rejection(&cands[0]), Some(Rejection::NotPlaced), "step {k}");
+        }
+        assert!(det.map_anchor().is_none());
+    }
+}
