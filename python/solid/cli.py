@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 import traceback
 from collections.abc import Callable, Sequence as AbcSequence, Set as AbcSet
@@ -419,7 +420,7 @@ def cmd_describe(args: argparse.Namespace, out: TextIO) -> int:
     cfg = make_config(args)
     text = json.dumps(describe_scan(args.scan, cfg, args.format), indent=1) + "\n"
     if args.output is not None:
-        atomic_write_bytes(args.output, text.encode())
+        atomic_write_bytes(args.output, text.encode(), stream=True)  # -o /dev/stdout, a FIFO: written through
     else:
         out.write(text)
     return 0
@@ -684,10 +685,21 @@ def main(argv: AbcSequence[str] | None = None) -> int:
         with warnings.catch_warnings():
             warnings.simplefilter("default", UserWarning)
             warnings.showwarning = one_line
-            return handlers[args.command](args, out)
+            code = handlers[args.command](args, out)
+            out.flush()  # here, where a reader that left is told apart (below)
+            return code
     except KeyboardInterrupt:
         print("solid: interrupted (no partial results were left)", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # The reader left (`solid map info | head`): stop quietly, as a command killed by SIGPIPE
+        # would, and keep Python's final flush of stdout from failing again.
+        try:
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+        except (OSError, ValueError):
+            pass
+        return 141
     except (ValueError, OSError, ImportError, MemoryError, RecursionError) as e:
         if getattr(args, "debug", False):
             traceback.print_exc()

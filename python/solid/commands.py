@@ -408,7 +408,7 @@ def build_map(
     result = _run(dataset, config, None, threads, progress)
     db = result.database
     db.metadata = json.dumps({"clip": clip_record(config.input, result.fov_center)})
-    db.save(out)
+    db.save(out, replace=False)  # never over a map written meanwhile (no-replace link)
     return db, result
 
 
@@ -467,7 +467,7 @@ def merge_maps(inputs: AbcSequence[Path], output_file: Path, anchors: AbcSequenc
     if record:
         meta = json.loads(db.metadata) if db.metadata else {}
         db.metadata = json.dumps((meta if isinstance(meta, dict) else {}) | {"anchors": record})
-    db.save(out)
+    db.save(out, replace=False)  # never over a map written meanwhile (no-replace link)
     return db
 
 
@@ -570,7 +570,7 @@ def upgrade_map(path: Path, output_file: Path | None = None) -> dict[str, Any]:
     out = Path(output_file) if output_file is not None else Path(path)
     if output_file is not None and out.exists():
         raise FileExistsError(f"{out} exists: choose another file name or remove it")
-    _solid.Database.load(path).save(out)
+    _solid.Database.load(path).save(out, replace=output_file is None)
     return {"before": before, "after": map_info(out)}
 
 

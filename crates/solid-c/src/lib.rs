@@ -101,7 +101,7 @@ impl From<DbError> for Failure {
             DbError::Core(c) => return Failure::from(*c),
             DbError::ConfigMismatch { .. } => SolidStatus::ConfigMismatch,
             DbError::Format { .. } => SolidStatus::Format,
-            DbError::Io { .. } => SolidStatus::Io,
+            DbError::Io { .. } | DbError::Changed { .. } => SolidStatus::Io,
             DbError::Full => SolidStatus::Full,
             DbError::OutOfMemory => SolidStatus::OutOfMemory,
             _ => SolidStatus::InvalidArgument,

@@ -48,11 +48,51 @@ enum Store {
 #[cfg(feature = "std")]
 #[derive(Debug)]
 pub(super) struct FileClouds {
-    pub(super) file: std::fs::File,
+    file: std::fs::File,
     /// The file's name, for messages.
-    pub(super) name: String,
+    name: String,
     /// Where the section starts in the file.
-    pub(super) at: u64,
+    at: u64,
+    /// The file's length and modification time when it was opened: every read checks them, so
+    /// that a file truncated or written in place is an error naming it, never other bytes.
+    len: u64,
+    modified: Option<std::time::SystemTime>,
+}
+
+#[cfg(feature = "std")]
+impl FileClouds {
+    /// The clouds section at `at` of the open `file` (named `name`), as the file is now.
+    pub(super) fn new(file: std::fs::File, name: String, at: u64) -> std::io::Result<FileClouds> {
+        let m = file.metadata()?;
+        Ok(FileClouds {
+            file,
+            name,
+            at,
+            len: m.len(),
+            modified: m.modified().ok(),
+        })
+    }
+
+    /// [`DbError::Changed`] when the file is no longer as it was opened (its length or its
+    /// modification time differ; a file renamed over or unlinked is not a change: the open file
+    /// is still the one loaded).
+    fn check_unchanged(&self) -> Result<(), DbError> {
+        let m = self.file.metadata().map_err(|source| DbError::Io {
+            file: self.name.clone(),
+            source,
+        })?;
+        let how = if m.len() != self.len {
+            format!("{} bytes when loaded, {} now", self.len, m.len())
+        } else if m.modified().ok() != self.modified {
+            String::from("written since it was loaded")
+        } else {
+            return Ok(());
+        };
+        Err(DbError::Changed {
+            file: self.name.clone(),
+            how,
+        })
+    }
 }
 
 impl Segment {
@@ -94,11 +134,11 @@ impl Clouds {
             Store::File(f, _) => {
                 let mut buf = super::format::try_vec::<u8>(to - from)?;
                 buf.resize(to - from, 0);
-                read_file_at(&f.file, &mut buf, f.at + from as u64).map_err(|source| {
-                    DbError::Io {
-                        file: f.name.clone(),
-                        source,
-                    }
+                let read = read_file_at(&f.file, &mut buf, f.at + from as u64);
+                f.check_unchanged()?;
+                read.map_err(|source| DbError::Io {
+                    file: f.name.clone(),
+                    source,
                 })?;
                 Cow::Owned(buf)
             }
