@@ -630,7 +630,9 @@ def test_registration_voxel_size_zero_works_in_the_detector() -> None:
     db = det.database
     assert db.clouds_stored == 4
     # Every point kept: a stored cloud holds about as many points as the scan in range.
-    cloud = solid.decode_cloud(db.cloud(0))
+    stored = db.cloud(0)
+    assert stored is not None
+    cloud = solid.decode_cloud(stored)
     assert len(cloud) > 0.5 * len(s.scans[0])
 
 

@@ -632,7 +632,7 @@ h = ctypes.c_void_p()
 if {fn!r} == 'solid_database_save':
     assert lib.solid_database_new(c, ctypes.byref(h)) == 0
 else:
-    dc = ctypes.c_void_p(); assert lib.solid_detector_config_new(None, ctypes.byref(dc)) == 0
+    dc = ctypes.c_void_p(); assert lib.solid_detector_config_new(b'hdl64', ctypes.byref(dc)) == 0
     assert lib.solid_detector_new(c, dc, ctypes.byref(h)) == 0, lib.solid_last_error()
 st = getattr(lib, {fn!r})(h, out.encode())
 assert st != 0, 'written'
@@ -694,7 +694,7 @@ else:
             f"""
 import ctypes
 lib = ctypes.CDLL({str(c_lib)!r})
-h = ctypes.c_void_p(); assert lib.solid_detector_config_new(None, ctypes.byref(h)) == 0
+h = ctypes.c_void_p(); assert lib.solid_detector_config_new(b'hdl64', ctypes.byref(h)) == 0, 'config'
 lib.solid_detector_config_set.argtypes = [ctypes.c_void_p, ctypes.c_char_p, ctypes.c_double]
 assert lib.solid_detector_config_set(h, b'verify_threads', 1e6) != 0, 'accepted'
 """,
@@ -773,11 +773,13 @@ assert 'Broken pipe' not in err and 'Traceback' not in err and 'error' not in er
     return cases
 
 
-def issue39(results: Results, c_lib: Path | None) -> None:
+def issue39(results: Results, c_lib: Path | None, match: str | None = None) -> None:
     area = "issue 39 writers, changed maps, bounds"
     if c_lib is None:
-        print("  (C API cases skipped: no libsolid.so; build it with cargo build --release -p solid-c or set SOLID_C_LIB)")
+        print("  (C API cases skipped: no libsolid.so; build it with cargo build -p solid-c or set SOLID_C_LIB)")
     for name, (code, timeout) in issue39_cases(c_lib).items():
+        if match is not None and match not in name:
+            continue
         o = run(code, timeout=timeout)
         record(results, area, name, o.kind == "ok", o)
 
@@ -799,6 +801,7 @@ def main() -> int:
     ap.add_argument("--json", type=Path, help="write the per-case results here")
     ap.add_argument("--quick", action="store_true", help="10 trials instead of 40 for the races and kills")
     ap.add_argument("--only", choices=["allocation", "files", "api", "issue30", "issue39"], action="append")
+    ap.add_argument("--match", help="run only the issue-39 cases whose name holds this text")
     a = ap.parse_args()
     results: Results = {}
     only = set(a.only or ["allocation", "files", "api", "issue30", "issue39"])
@@ -809,7 +812,7 @@ def main() -> int:
         if "issue30" in only:
             issue30(results)
         if "issue39" in only:
-            issue39(results, find_c_lib())
+            issue39(results, find_c_lib(), a.match)
         if "files" in only:
             files(results, tmp, a.quick)
         if "allocation" in only:
