@@ -1,6 +1,13 @@
-"""Re-runs the hardening audit of issue 10 (items 2, 6 and 8) against the installed ``solid``.
+"""Re-runs the hardening audit of issue 10 (items 2, 6 and 8), and the cases of issues 30 and 39,
+against the installed ``solid``.
 
-    python tools/hardening_audit.py [--json OUT] [--quick]
+    python tools/hardening_audit.py [--json OUT] [--quick] [--only AREA] [--match TEXT]
+
+Issue 39's area: writers over FIFOs and device nodes of its own making (as root; never the
+system's), maps truncated or written in place under a running detector, ``verify_threads``
+bounds, hostile g2o loop files, ``voxel_size`` 0, racing no-replace saves, forged maps, point
+writers' errors and modes, a closed stdout pipe; its C API cases load ``libsolid.so`` with ctypes
+(``$SOLID_C_LIB``, else ``target/{release,debug}``; skipped when there is none).
 
 Every case runs in a child process (allocation limits through ``RLIMIT_AS``/``RLIMIT_FSIZE``, a
 timeout for blocking reads) and is classed as handled cleanly (the package's error, ``TypeError``,

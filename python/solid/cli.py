@@ -228,7 +228,7 @@ def build_parser() -> argparse.ArgumentParser:
         "solid describe 000000.bin --preset hdl64", "solid describe scan.pcd --preset avia --max-range 40 -o d.json",
     )
     p.add_argument("scan", type=Path, help="a scan file")
-    p.add_argument("-o", "--output", type=Path, help="write the JSON here instead of stdout")
+    p.add_argument("-o", "--output", type=Path, help="write the JSON here instead of stdout (a file is replaced atomically; a FIFO or a character device is written through)")
     p.add_argument("--format", choices=_formats(), help="force the scan reader")
     _add_config_args(p)
     _add_common(p)

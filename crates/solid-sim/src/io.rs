@@ -12,6 +12,18 @@ use std::path::Path;
 /// Writes `bytes` to `path` through a temporary file in the same folder and a rename, so a reader
 /// never sees a half-written file.
 fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), SimError> {
+    // Only a regular file is ever replaced: a FIFO, a device or a folder there is refused.
+    if let Ok(m) = fs::metadata(path) {
+        if !m.is_file() {
+            return Err(SimError::Io(std::io::Error::new(
+                std::io::ErrorKind::AlreadyExists,
+                format!(
+                    "{}: exists and is not a regular file: refusing to replace it",
+                    path.display()
+                ),
+            )));
+        }
+    }
     let mut tmp = path.as_os_str().to_owned();
     tmp.push(".tmp");
     let tmp = std::path::PathBuf::from(tmp);
@@ -177,6 +189,19 @@ mod tests {
             .file_name()
             .to_string_lossy()
             .ends_with(".tmp")));
+        fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// Issue 39: a writer never replaces what it did not write (a folder here; a FIFO or a
+    /// device alike).
+    #[test]
+    fn never_replaces_what_is_not_a_regular_file() {
+        let dir = std::env::temp_dir().join(format!("solid-lidar-sim-dir-{}", std::process::id()));
+        let _ = fs::remove_dir_all(&dir);
+        fs::create_dir_all(dir.join("poses.txt")).unwrap();
+        let err = write_poses(&dir.join("poses.txt"), &[]).unwrap_err();
+        assert!(err.to_string().contains("refusing to replace it"), "{err}");
+        assert!(dir.join("poses.txt").is_dir());
         fs::remove_dir_all(&dir).unwrap();
     }
 }
