@@ -768,3 +768,17 @@ def test_a_closed_pipe_ends_a_command_quietly(tmp_path: Path) -> None:
         err = p.stderr.read().decode()
     p.wait(60)
     assert err == "" and p.returncode == 141, (p.returncode, err)
+
+
+def test_two_concurrent_map_builds_to_one_path_never_both_win(tmp_path: Path) -> None:
+    """Why: two concurrent `solid map build … -o SAME` both printed "wrote"; one map silently
+    replaced the other. Now one writes the map, the other fails saying the path exists."""
+    w = sim.World(seed=2)
+    sim.write_sequence(tmp_path / "run", w, sim.Sensor("vlp16"), sim.Trajectory.loop(w, laps=0.3, spacing=4.0)[:12])
+    out = tmp_path / "map.soliddb"
+    cmd = [sys.executable, "-m", "solid", "map", "build", str(tmp_path / "run"), "--preset", "vlp16", "-o", str(out), "-q"]
+    ps = [subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for _ in range(2)]
+    res = [(*p.communicate(timeout=120), p.returncode) for p in ps]
+    assert sorted(r[2] for r in res) == [0, 1], res
+    assert "exists" in "".join(r[1] for r in res)
+    assert len(solid.Database.load(out)) == 12

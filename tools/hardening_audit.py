@@ -742,6 +742,25 @@ assert bad == 0, f'{bad} of 20 trials wrong'
 """,
         120,
     )
+    cases["two concurrent `solid map build -o SAME`: exactly one wins x3"] = (
+        """
+import tempfile, subprocess
+d = tempfile.mkdtemp()
+w = sim.World(seed=2)
+sim.write_sequence(d + '/run', w, sim.Sensor('vlp16'), sim.Trajectory.loop(w, laps=0.3, spacing=4.0)[:12])
+bad = []
+for t in range(3):
+    out = f'{d}/map{t}.soliddb'
+    cmd = [sys.executable, '-m', 'solid', 'map', 'build', d + '/run', '--preset', 'vlp16', '-o', out, '-q']
+    ps = [subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for _ in range(2)]
+    res = [p.communicate(timeout=120) + (p.returncode,) for p in ps]
+    codes = sorted(r[2] for r in res)
+    if codes != [0, 1] or 'exists' not in ''.join(r[1] for r in res):
+        bad.append((codes, [r[1][-120:] for r in res]))
+assert not bad, bad
+""",
+        400,
+    )
     cases["Database.add session=2**32-1 refused"] = (
         "try:\n    solid.Database(cfg).add(desc(1), session=2**32 - 1)\nexcept solid.SolidError:\n    pass\nelse:\n    raise AssertionError('accepted')",
         30,
