@@ -447,6 +447,8 @@ def cmd_detect(args: argparse.Namespace, out: TextIO) -> int:
         + f"{', map of ' + str(result.map_size) + ' places' if result.map_size else ''}), {rate:.1f} Hz\n"
     )
     out.write(evaluation.describe_loop_delay(evaluation.loop_delay_steps(d)) + "\n")
+    for line in commands.advice({"loops": len(result.loops()), "rejections": commands.rejection_counts(result)}, d):
+        out.write(line + "\n")
     out.write(f"wrote {folder}" + (f" and {args.g2o}" if args.g2o else "") + "\n")
     return 0
 
@@ -504,6 +506,8 @@ def cmd_eval(args: argparse.Namespace, out: TextIO) -> int:
             f"precision {commands.fmt_metric(m['precision'])}, recall {commands.fmt_metric(m['recall'])})\n"
         )
     out.write(evaluation.describe_loop_delay(m["loop_delay_steps"]) + "\n")
+    for line in commands.advice(m, cfg.detector):
+        out.write(line + "\n")
     if m.get("best_threshold_command") is not None:
         out.write(f"best F1 {commands.fmt_metric(m['f1_max'])} at threshold {m['best_threshold']:.6g}; to use it:\n  {m['best_threshold_command']}\n")
     elif m.get("best_threshold") is not None:

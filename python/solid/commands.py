@@ -199,7 +199,42 @@ def _summary(result: PipelineResult, inputs: Inputs, command: str) -> dict[str, 
     if excl is not None:
         doc["exclusion_median_m"] = excl
     doc["loop_delay_steps"] = loop_delay_steps(result.config.detector)
+    doc["rejections"] = rejection_counts(result)
     return doc
+
+
+#: How :attr:`solid.Candidate.rejection` names the odometry check's rejections.
+ODOMETRY_REJECTION = "disagrees with the odometry"
+
+
+def rejection_counts(result: PipelineResult) -> dict[str, int]:
+    """How many registered candidates of the run each reason turned down (the reasons of
+    :attr:`solid.Candidate.rejection`, by name; ``summary.json``/``metrics.json``
+    ``rejections``): where the run's candidates went."""
+    counts: dict[str, int] = {}
+    for d in result.detections:
+        for c in d.candidates:
+            r = c.rejection
+            if r is not None:
+                r = r.split(": ", 1)[-1] if r.startswith("place ") else r  # "place N: its stored cloud ..."
+                counts[r] = counts.get(r, 0) + 1
+    return dict(sorted(counts.items()))
+
+
+def advice(metrics: dict[str, Any], detector: Any) -> list[str]:
+    """Lines that tell a user what a run's figures suggest trying: when the odometry check turned
+    down many registered candidates against few loops, the odometry may drift more than its
+    bounds assume (docs/loops.md#when-the-odometry-drifts)."""
+    n = int(metrics.get("rejections", {}).get(ODOMETRY_REJECTION, 0))
+    loops = int(metrics.get("loops", 0))
+    if not detector.odometry_check or n < 10 or n <= 2 * loops:
+        return []
+    return [
+        f"note: the odometry check turned down {n} registered candidates against {loops} loops accepted. If the odometry "
+        f"drifts more than its bounds assume ({detector.odometry_drift:g} of the path, {detector.odometry_rotation_deg_per_m:g}°/m), "
+        "true revisits are among them: try a larger --odometry-drift and --odometry-rotation-deg-per-m "
+        "(docs/loops.md#when-the-odometry-drifts)"
+    ]
 
 
 def exclusion_in_metres(result: PipelineResult) -> float | None:
