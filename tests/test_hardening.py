@@ -782,3 +782,19 @@ def test_two_concurrent_map_builds_to_one_path_never_both_win(tmp_path: Path) ->
     assert sorted(r[2] for r in res) == [0, 1], res
     assert "exists" in "".join(r[1] for r in res)
     assert len(solid.Database.load(out)) == 12
+
+
+def test_a_map_appended_to_while_open_still_verifies_as_loaded(tmp_path: Path) -> None:
+    """Appending leaves the header, the section table and every cloud where they were: the map
+    is still the one loaded (each cloud is checked by its checksum when read), so a run goes on
+    and finds what it finds on the unchanged map; only a shorter file or another header is a
+    change."""
+    path, scans = _changing_map(tmp_path)
+    runs = []
+    for append in (False, True):
+        det = solid.LoopDetector.from_database(solid.Database.load(path), exclude_recent=0)
+        if append:
+            with open(path, "ab") as f:
+                f.write(bytes(4096))
+        runs.append([(s.loop.candidate if s.loop else None) for s in (det.detect(x) for x in scans[:14])])
+    assert runs[0] == runs[1] and any(c is not None for c in runs[0])
