@@ -49,7 +49,10 @@ def test_usage_errors_are_one_line_and_help_is_short(capsys: pytest.CaptureFixtu
     assert code == 0
     code, full, _ = run(capsys, "eval", "--help-all")
     assert code == 0
-    shown = lambda text: {w.rstrip(",") for w in text.split() if w.startswith("--")}  # noqa: E731
+
+    def shown(text: str) -> set[str]:
+        return {w.rstrip(",") for w in text.split() if w.startswith("--")}
+
     for flag in ("--poses", "--preset", "--radius", "--map", "--threshold", "--exclude-frames", "--help-all"):
         assert flag in shown(short), flag
     for flag in ("--gate-min-fitness", "--occlude-center", "--verify-fan-deg", "--subsample-m", "--sc-max-range"):

@@ -103,6 +103,22 @@ class Layout:
         """One scan of a chosen loop: ``stage`` "before" or "after", ``side`` "query" or "candidate"."""
         return f"loop/{query}-{candidate}/{stage}/{side}"
 
+    @staticmethod
+    def blueprint(loop: tuple[str, str] | None = None) -> Any:
+        """The viewer's panels: the world (trajectories, places, loops) and, for a chosen loop
+        (its query and candidate names), its clouds before and after its pose, side by side."""
+        rrb = require_rerun().blueprint
+        world = rrb.Spatial3DView(origin="world", name="trajectories, places and loops")
+        if loop is None:
+            return rrb.Blueprint(world)
+        q, c = loop
+        base = f"{Layout.CLOUDS}/{q}-{c}"
+        clouds = rrb.Vertical(
+            rrb.Spatial3DView(origin=f"{base}/before", name=f"loop {q}-{c}: the two scans as read"),
+            rrb.Spatial3DView(origin=f"{base}/after", name=f"loop {q}-{c}: candidate moved by the loop's pose"),
+        )
+        return rrb.Blueprint(rrb.Horizontal(world, clouds, column_shares=[3, 2]))
+
 
 def require_rerun() -> Any:
     """The ``rerun`` module, or an ImportError that says how to install it."""
@@ -403,13 +419,15 @@ def view(
     written (None when spawned)."""
     rr = require_rerun()
     run = run if run is not None else read_run(folder)
+    chosen = _pick(run, loop) if clouds else None
+    layout = Layout.blueprint(None if chosen is None else chosen.names())
     rec = rr.RecordingStream("solid", recording_id=str(Path(folder).resolve()))
     path = None
     if spawn:
-        rec.spawn()
+        rec.spawn(default_blueprint=layout)
     else:
         path = Path(out) if out is not None else Path(folder) / "view.rrd"
-        rec.save(str(path))
+        rec.save(str(path), default_blueprint=layout)
     rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
     times = None if run.times is None else run.times - run.t0
     for name, P in run.trajectories.items():
@@ -422,7 +440,6 @@ def view(
         t = None if e.query_time is None else e.query_time - run.t0
         q, c = e.names()
         log_loop(rec, e.kind, q, c, a, b, t, e.query_frame)
-    chosen = _pick(run, loop) if clouds else None
     if chosen is not None and chosen.candidate_frame is not None and chosen.pose is not None:
         where = {int(f): k for k, f in enumerate(getattr(run.dataset, "frame_ids", np.arange(len(run.dataset))))}
         q, c = chosen.names()
