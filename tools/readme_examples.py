@@ -76,6 +76,7 @@ PLACEHOLDERS = {
     "scan.pcd": "hku1-avia/Scans/000000.pcd",
     "000000.bin": "kitti00/velodyne/000000.bin",
     "old.soliddb": "a map of run1's first 20 scans saved in format 2",
+    "tests/, tools/": "the repository's (commands that the docs run from a checkout)",
 }
 
 _FENCE = re.compile(r"^(?P<marks>(?:<!-- docs-check:[^\n]*-->\n)*)```(?P<lang>[\w,]*)[^\n]*\n(?P<body>.*?)^```", re.M | re.S)
@@ -138,6 +139,9 @@ def prepare(work: Path, data: Path) -> None:
         recording(work / name, frames, "poses.txt")
     (work / "scan.pcd").symlink_to(hku / "Scans" / "000000.pcd")
     (work / "000000.bin").symlink_to(data / "kitti00" / "velodyne" / "000000.bin")
+    repo = Path(__file__).resolve().parent.parent
+    for name in ("tests", "tools"):
+        (work / name).symlink_to(repo / name)
     import solid
     from solid.datasets import open_dataset
 

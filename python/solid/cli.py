@@ -173,7 +173,7 @@ def _add_input_args(p: argparse.ArgumentParser, poses_required: bool = False) ->
     g = p.add_argument_group("input")
     _advanced(g.add_argument("--format", choices=_formats(), help="force the scan reader (default: chosen from the files' content)"))
     g.add_argument("--topic", help="point-cloud topic of a bag (default: the only one)")
-    g.add_argument("--poses", type=Path, required=poses_required, help="KITTI 3×4 rows or TUM (t x y z qx qy qz qw)")
+    g.add_argument("--poses", type=Path, required=poses_required, metavar="FILE|TOPIC", help="KITTI 3×4 rows or TUM (t x y z qx qy qz qw); for a bag, also a nav_msgs/Odometry topic of it (e.g. /odom)")
     _advanced(g.add_argument("--timestamps", type=Path, help="timestamps file (one per scan)"))
     g.add_argument("--calib", type=Path, metavar="FILE", help="sensor → pose-frame extrinsic (KITTI calib.txt 'Tr:' line, or 12 numbers)")
     g.add_argument("--frames", default=None, metavar="SPEC", help="frames to use, e.g. 0:60,284:314 (Python slices)")

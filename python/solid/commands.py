@@ -99,6 +99,7 @@ def open_recording(
         timestamps=ds.timestamp_source,
         calib=ds.calib_source,
         map=map,
+        extra={"topic": ds.topic} if ds.is_bag else {},  # so that a run's bag opens again alike (solid view)
     )
     return ds, inputs
 
