@@ -198,3 +198,15 @@ def test_map_run_recording_places_the_session_in_the_map(runs: dict[str, Path], 
 def test_view_refuses_what_is_not_a_run(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     code, _, err = run(capsys, "view", str(tmp_path))
     assert code == 1 and "not a run folder" in err and err.count("\n") == 1
+
+
+def test_optimize_reuses_a_runs_loops_without_a_preset(runs: dict[str, Path], hku: Path, capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """Issue 40, item 1: `optimize --loops RUN` reads no scan, so it needs no --preset: the run's
+    config.json gives the frames, and the optimum is the run's."""
+    first = runs["optimize"]
+    code, out, err = run(capsys, "optimize", str(hku), "--poses", "odom_poses.txt", "--loops", str(first), "-o", str(tmp_path / "again"), "--no-plots", "-q")
+    assert code == 0, err
+    assert json.loads((tmp_path / "again" / "config.json").read_text())["input"]["frames"] == FRAMES
+    a, _ = load_poses(first / "trajectory.kitti")
+    b, _ = load_poses(tmp_path / "again" / "trajectory.kitti")
+    np.testing.assert_allclose(a, b, atol=1e-6)

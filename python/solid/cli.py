@@ -325,7 +325,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = _command(
         sub, "view", "see a run in 3-D: trajectories, places, loops coloured by verdict, a loop's two clouds (pip install solid-lidar[viewer])",
         "solid view solid_results/latest                 # writes solid_results/latest/view.rrd",
-        "solid view out/ -o run.rrd --loop 287          # the clouds of the loop whose query is frame 287",
+        "solid view out/ -o run.rrd --loop 305          # the clouds of the loop whose query is frame 305",
         "solid view out/ --spawn                        # straight into a rerun viewer",
         note="\nOpen the file with `rerun FILE.rrd` (or `rerun --web-viewer FILE.rrd`). See docs/view.md.\n",
     )

@@ -45,9 +45,11 @@ from .arrays import F64
 
 __all__ = [
     "LOOP_COLOURS",
+    "LoopEdge",
     "RERUN_VERSION",
     "Layout",
     "RunView",
+    "counts",
     "log_loop",
     "log_loop_clouds",
     "log_places",
