@@ -144,12 +144,11 @@ def _as4(P: npt.ArrayLike) -> F64:
 
 
 def _set_time(rec: Any, time_s: float | None, frame: int | None) -> None:
-    rr = require_rerun()
+    """The recording's clock for what is logged next: ``time`` (seconds) and ``frame``."""
     if time_s is not None and math.isfinite(time_s):
         rec.set_time(Layout.TIME, duration=float(time_s))
     if frame is not None:
         rec.set_time(Layout.FRAME, sequence=int(frame))
-    del rr
 
 
 def log_trajectory(rec: Any, name: str, poses: npt.ArrayLike, times: npt.ArrayLike | None = None, frames: npt.ArrayLike | None = None) -> None:
