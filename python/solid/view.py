@@ -33,6 +33,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -423,12 +424,29 @@ def view(
     chosen = _pick(run, loop) if clouds else None
     layout = Layout.blueprint(None if chosen is None else chosen.names())
     rec = rr.RecordingStream("solid", recording_id=str(Path(folder).resolve()))
-    path = None
+    path = tmp = None
     if spawn:
         rec.spawn(default_blueprint=layout)
     else:
+        # Written beside under a name of its own, then renamed: a failed run leaves no half file.
         path = Path(out) if out is not None else Path(folder) / "view.rrd"
-        rec.save(str(path), default_blueprint=layout)
+        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+        rec.save(str(tmp), default_blueprint=layout)
+    try:
+        _log_run(rec, run, chosen)
+        rec.flush()
+        if tmp is not None:
+            rec.disconnect()
+            os.replace(tmp, str(path))
+    finally:
+        if tmp is not None and tmp.exists():
+            tmp.unlink()
+    return path
+
+
+def _log_run(rec: Any, run: RunView, chosen: LoopEdge | None) -> None:
+    """Everything of a run, in the :class:`Layout`."""
+    rr = require_rerun()
     rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
     times = None if run.times is None else run.times - run.t0
     for name, P in run.trajectories.items():
@@ -445,10 +463,6 @@ def view(
         where = {int(f): k for k, f in enumerate(getattr(run.dataset, "frame_ids", np.arange(len(run.dataset))))}
         q, c = chosen.names()
         log_loop_clouds(rec, q, c, run.dataset[where[chosen.query_frame]], run.dataset[where[chosen.candidate_frame]], chosen.pose)
-    rec.flush()
-    if path is not None:
-        rec.disconnect()
-    return path
 
 
 def counts(loops: Sequence[LoopEdge]) -> dict[str, int]:
