@@ -40,6 +40,28 @@ def test_help_and_usage_errors(capsys: pytest.CaptureFixture[str]) -> None:
     assert code == 2 and "invalid float value" in err
 
 
+def test_usage_errors_are_one_line_and_help_is_short(capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 40: the reason and where to look, not argparse's usage block; --help lists the
+    options most runs need, --help-all every one."""
+    code, _, err = run(capsys, "eval", "somewhere", "--preset", "avia")
+    assert code == 2 and err.count("\n") == 1 and "--poses" in err and err.rstrip().endswith("(see solid eval --help)"), err
+    code, short, _ = run(capsys, "eval", "--help")
+    assert code == 0
+    code, full, _ = run(capsys, "eval", "--help-all")
+    assert code == 0
+
+    def shown(text: str) -> set[str]:
+        return {w.rstrip(",") for w in text.split() if w.startswith("--")}
+
+    for flag in ("--poses", "--preset", "--radius", "--map", "--threshold", "--exclude-frames", "--help-all"):
+        assert flag in shown(short), flag
+    for flag in ("--gate-min-fitness", "--occlude-center", "--verify-fan-deg", "--subsample-m", "--sc-max-range"):
+        assert flag not in shown(short) and flag in shown(full), flag
+    assert len(short.splitlines()) < len(full.splitlines()) / 2, (len(short.splitlines()), len(full.splitlines()))
+    # Hidden from --help, still parsed.
+    assert build_parser().parse_args(["eval", "s", "--poses", "p", "--gate-min-fitness", "0.5"]).gate_min_fitness == 0.5
+
+
 @pytest.mark.parametrize(
     "argv",
     [
@@ -153,7 +175,7 @@ def test_subprocess_exit_codes(tmp_path: Path) -> None:
     r = subprocess.run([sys.executable, "-m", "solid.cli", "presets"], capture_output=True, text=True, env=env)
     assert r.returncode == 0 and "avia" in r.stdout
     r = subprocess.run([sys.executable, "-m", "solid.cli", "eval"], capture_output=True, text=True, env=env)
-    assert r.returncode == 2 and "usage:" in r.stderr
+    assert r.returncode == 2 and "see solid eval --help" in r.stderr and r.stderr.count("\n") == 1, r.stderr
     r = subprocess.run(
         [sys.executable, "-m", "solid.cli", "describe", str(tmp_path / "nope.pcd"), "--preset", "vlp16"],
         capture_output=True,
@@ -421,4 +443,37 @@ def test_optimize_without_the_slam_extra_says_how_to_install_it(capsys: pytest.C
     monkeypatch.setitem(sys.modules, "gtsam", None)  # `import gtsam` raises ImportError
     code, _, err = run(capsys, "optimize", str(tmp_path), "--poses", "odom.txt", "-o", str(tmp_path / "out"), "-q")
     assert code == 1 and "pip install 'solid-lidar[slam]'" in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_run_counts_its_rejections_and_says_when_the_odometry_turned_down_most() -> None:
+    """Issue 41: when the odometry check turns down many registered candidates against few loops
+    (an odometry drifting beyond its bounds), detect and eval say so and what to try; a run whose
+    odometry agrees with its loops gets no such line."""
+    from types import SimpleNamespace
+
+    from solid.commands import ODOMETRY_REJECTION, advice, rejection_counts
+    from solid.config import PipelineConfig
+
+    def step(*reasons: str | None) -> SimpleNamespace:
+        return SimpleNamespace(candidates=[SimpleNamespace(rejection=r) for r in reasons])
+
+    result = SimpleNamespace(
+        detections=[step(ODOMETRY_REJECTION, "low overlap", None), step("place 7: its stored cloud is corrupt or unreadable"), step(ODOMETRY_REJECTION)]
+    )
+    counts = rejection_counts(result)  # type: ignore[arg-type]
+    assert counts == {ODOMETRY_REJECTION: 2, "its stored cloud is corrupt or unreadable": 1, "low overlap": 1}
+    d = PipelineConfig.preset("avia").detector
+    (line,) = advice({"loops": 0, "rejections": {ODOMETRY_REJECTION: 232}}, d)
+    assert "232 registered candidates against 0 loops" in line and "--odometry-drift" in line
+    assert advice({"loops": 49, "rejections": {ODOMETRY_REJECTION: 60}}, d) == []  # most loops were accepted
+    assert advice({"loops": 0, "rejections": {ODOMETRY_REJECTION: 9}}, d) == []  # too few to say
+    off = PipelineConfig.preset("avia", detector={"odometry_check": False}).detector
+    assert advice({"loops": 0, "rejections": {ODOMETRY_REJECTION: 232}}, off) == []
+
+
+@pytest.mark.parametrize("value", ["0", "-2", "nan", "loose"])
+def test_optimize_refuses_a_noise_scale_that_is_neither_auto_nor_positive(capsys: pytest.CaptureFixture[str], tmp_path: Path, value: str) -> None:
+    code, _, err = run(capsys, "optimize", str(tmp_path), "--poses", "odom.txt", "--odom-noise-scale", value, "-o", str(tmp_path / "out"))
+    assert code == 2 and "--odom-noise-scale" in err and "auto or a finite number > 0" in err
     assert not (tmp_path / "out").exists()

@@ -99,6 +99,7 @@ def open_recording(
         timestamps=ds.timestamp_source,
         calib=ds.calib_source,
         map=map,
+        extra={"topic": ds.topic} if ds.is_bag else {},  # so that a run's bag opens again alike (solid view)
     )
     return ds, inputs
 
@@ -165,6 +166,21 @@ def config_and_map(args: argparse.Namespace) -> tuple[Any, Any]:
     return cfg, m
 
 
+def config_of_reused_loops(args: argparse.Namespace) -> Any | None:
+    """The configuration of ``solid optimize --loops RUN`` given without ``--preset`` and
+    ``--config``: no scan is read, so none is needed; the run's own ``config.json`` (beside its g2o
+    file) is taken when it has one, so that ``--frames`` and the input options select the same
+    frames, else a preset's (unused: only the input options matter). None when a preset or a
+    config was given."""
+    if getattr(args, "loops", None) is None or args.preset is not None or args.config is not None:
+        return None
+    g2o = reused_loops(args.loops)
+    saved = g2o.parent / "config.json"
+    # Elsewhere any preset does: its descriptor and detector are not used.
+    base = PipelineConfig.load(saved) if g2o.name in ("graph.g2o", "loops.g2o") and saved.is_file() else PipelineConfig.preset("hdl64")
+    return make_config(args, base)
+
+
 def _run(
     dataset: Any,
     config: PipelineConfig,
@@ -199,7 +215,42 @@ def _summary(result: PipelineResult, inputs: Inputs, command: str) -> dict[str, 
     if excl is not None:
         doc["exclusion_median_m"] = excl
     doc["loop_delay_steps"] = loop_delay_steps(result.config.detector)
+    doc["rejections"] = rejection_counts(result)
     return doc
+
+
+#: How :attr:`solid.Candidate.rejection` names the odometry check's rejections.
+ODOMETRY_REJECTION = "disagrees with the odometry"
+
+
+def rejection_counts(result: PipelineResult) -> dict[str, int]:
+    """How many registered candidates of the run each reason turned down (the reasons of
+    :attr:`solid.Candidate.rejection`, by name; ``summary.json``/``metrics.json``
+    ``rejections``): where the run's candidates went."""
+    counts: dict[str, int] = {}
+    for d in result.detections:
+        for c in d.candidates:
+            r = c.rejection
+            if r is not None:
+                r = r.split(": ", 1)[-1] if r.startswith("place ") else r  # "place N: its stored cloud ..."
+                counts[r] = counts.get(r, 0) + 1
+    return dict(sorted(counts.items()))
+
+
+def advice(metrics: dict[str, Any], detector: Any) -> list[str]:
+    """Lines that tell a user what a run's figures suggest trying: when the odometry check turned
+    down many registered candidates against few loops, the odometry may drift more than its
+    bounds assume (docs/loops.md#when-the-odometry-drifts)."""
+    n = int(metrics.get("rejections", {}).get(ODOMETRY_REJECTION, 0))
+    loops = int(metrics.get("loops", 0))
+    if not detector.odometry_check or n < 10 or n <= 2 * loops:
+        return []
+    return [
+        f"note: the odometry check turned down {n} registered candidates against {loops} loops accepted. If the odometry "
+        f"drifts more than its bounds assume ({detector.odometry_drift:g} of the path, {detector.odometry_rotation_deg_per_m:g}°/m), "
+        "true revisits are among them: try a larger --odometry-drift and --odometry-rotation-deg-per-m "
+        "(docs/loops.md#when-the-odometry-drifts)"
+    ]
 
 
 def exclusion_in_metres(result: PipelineResult) -> float | None:
@@ -408,7 +459,7 @@ def build_map(
     result = _run(dataset, config, None, threads, progress)
     db = result.database
     db.metadata = json.dumps({"clip": clip_record(config.input, result.fov_center)})
-    db.save(out)
+    db.save(out, replace=False)  # never over a map written meanwhile (no-replace link)
     return db, result
 
 
@@ -467,7 +518,7 @@ def merge_maps(inputs: AbcSequence[Path], output_file: Path, anchors: AbcSequenc
     if record:
         meta = json.loads(db.metadata) if db.metadata else {}
         db.metadata = json.dumps((meta if isinstance(meta, dict) else {}) | {"anchors": record})
-    db.save(out)
+    db.save(out, replace=False)  # never over a map written meanwhile (no-replace link)
     return db
 
 
@@ -570,7 +621,7 @@ def upgrade_map(path: Path, output_file: Path | None = None) -> dict[str, Any]:
     out = Path(output_file) if output_file is not None else Path(path)
     if output_file is not None and out.exists():
         raise FileExistsError(f"{out} exists: choose another file name or remove it")
-    _solid.Database.load(path).save(out)
+    _solid.Database.load(path).save(out, replace=output_file is None)
     return {"before": before, "after": map_info(out)}
 
 
@@ -760,6 +811,7 @@ def optimize(
     truth: Path | None = None,
     robust: str | None = None,
     noise: Any | None = None,
+    noise_scale: float | None = None,
     plots: bool = True,
     threads: int | None = None,
     progress: Callable[[int], None] | None = None,
@@ -769,12 +821,14 @@ def optimize(
     optimisation (:func:`solid.slam.optimize_run`). Writes ``trajectory.kitti`` and
     ``trajectory.tum`` (the optimised poses, one per frame, in the frame of the given poses),
     ``graph.g2o`` (the whole graph, initial values = the given poses), ``loops.csv``,
+    ``loop_edges.csv`` (each loop edge of the graph, its robust weight and whether the optimum kept it),
     ``trajectory.png`` (before and after, with the loops) and ``metrics.json``; with ``truth``
     (a pose file of the recording), ATE and RPE of the odometry and of the optimum; with a map,
     ``anchor.txt`` (one KITTI 3×4 row, this session's world → the map's world) and
     ``trajectory_map.kitti``/``.tum`` (the optimised poses in the map's world). With
     ``loops_from`` (a run's g2o file or output folder: :func:`reused_loops`), the detector does
-    not run: that run's loop edges join this run's odometry."""
+    not run: that run's loop edges join this run's odometry. The odometry noise (``noise``) is
+    multiplied by ``noise_scale``, by default as :func:`solid.slam.optimize_run` decides."""
     from . import slam
     from .datasets.poses import load_poses, match_rows
 
@@ -785,11 +839,11 @@ def optimize(
     T = _extrinsic(inputs)
     if loops_from is None:
         result = _run(dataset, config, map_db, threads, progress)
-        run = slam.optimize_run(result, robust=robust, noise=noise)
+        run = slam.optimize_run(result, robust=robust, noise=noise, noise_scale=noise_scale)
     else:
         if map_db is not None:
             raise _solid.ConfigError("--loops reuses a run's own loops, and its graph holds none into a map: drop --map, or drop --loops to run the detector against the map")
-        result, run = _optimize_reused(dataset, config, loops_from, T, robust, noise)
+        result, run = _optimize_reused(dataset, config, loops_from, T, robust, noise, noise_scale)
 
     def to_input(P: Any) -> Any:
         """Poses of the run's (LiDAR) frame in the frame of the given poses."""
@@ -799,7 +853,8 @@ def optimize(
     times = result.timestamps if result.timestamps is not None else np.asarray(result.frame_ids, dtype=np.float64)
     metrics = _summary(result, inputs, "optimize")
     metrics["robust"] = robust
-    metrics["odometry_noise"] = vars(noise or slam.OdometryNoise())
+    metrics["odometry_noise"] = vars((noise or slam.OdometryNoise()).scaled(run.noise_scale))
+    metrics["odometry_noise_scale"] = run.noise_scale
     loops = run.graph.loops()
     metrics["loop_edges"] = len(loops)
     metrics["loop_edges_kept"] = run.trusted_loops()
@@ -830,6 +885,14 @@ def optimize(
             write_csv(out.work / "loops.csv", LOOP_COLUMNS, _reused_loop_rows(run.graph, result.timestamps))
         graph = run.graph if T is None else run.graph.in_frame(T)
         graph.write_g2o(out.work / "graph.g2o")
+        write_csv(
+            out.work / "loop_edges.csv",
+            ("query_frame", "candidate_frame", "weight", "kept"),
+            [
+                {"query_frame": int(run.graph.ids[run.graph.edge_from[e]]), "candidate_frame": int(run.graph.ids[run.graph.edge_to[e]]), "weight": f"{w:.6f}", "kept": bool(w > 0.5)}
+                for e, w in zip(loops, run.loop_weights)
+            ],
+        )
         slam.write_kitti(out.work / "trajectory.kitti", opt)
         slam.write_tum(out.work / "trajectory.tum", times, opt)
         if run.anchor is not None and run.map_poses is not None:
@@ -862,7 +925,9 @@ def reused_loops(path: Path) -> Path:
     return p
 
 
-def _optimize_reused(dataset: Any, config: PipelineConfig, loops_from: Path, T: Any | None, robust: str, noise: Any | None) -> tuple[PipelineResult, Any]:
+def _optimize_reused(
+    dataset: Any, config: PipelineConfig, loops_from: Path, T: Any | None, robust: str, noise: Any | None, noise_scale: float | None
+) -> tuple[PipelineResult, Any]:
     """The frames the run selects (no scan is read), optimised with the loops of ``loops_from``
     (:func:`solid.slam.optimize_with_loops_of`)."""
     from . import slam
@@ -875,7 +940,7 @@ def _optimize_reused(dataset: Any, config: PipelineConfig, loops_from: Path, T: 
     result = PipelineResult(config, [], None, idx, ids, times, poses, 0, 0, None)
     path = reused_loops(loops_from)
     try:
-        return result, slam.optimize_with_loops_of(path, ids, poses, calib=T, robust=robust, noise=noise)
+        return result, slam.optimize_with_loops_of(path, ids, poses, calib=T, robust=robust, noise=noise, noise_scale=noise_scale)
     except ValueError as e:
         raise _solid.ConfigError(f"{path}: {e}") from None
 

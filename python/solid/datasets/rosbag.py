@@ -270,6 +270,47 @@ class Bag:
             yield c.points
 
 
+ODOMETRY: Final = "nav_msgs/msg/Odometry"
+
+
+def read_odometry(path: Path, topic: str) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    """The poses of a ``nav_msgs/Odometry`` topic of a bag: each message's log time in seconds
+    (the clock of the scans' times, which are their log times too) and its pose (N, 3, 4)
+    ``T_world_body`` [R|t] (``pose.pose``: position and orientation)."""
+    from .poses import quat_to_matrix
+
+    reader = _rosbags().AnyReader([path], default_typestore=_typestore())
+    try:
+        reader.open()
+    except Exception as e:
+        raise ReadError(path, f"cannot open the bag: {type(e).__name__}: {e}") from None
+    try:
+        conns = [c for c in reader.connections if c.topic == topic]
+        if not conns or conns[0].msgtype != ODOMETRY:
+            odom = sorted({c.topic for c in reader.connections if c.msgtype == ODOMETRY})
+            held = f"holds {conns[0].msgtype}" if conns else "is not in the bag"
+            raise ReadError(path, f"topic {topic!r} {held}; its {ODOMETRY} topics: {', '.join(odom) or 'none'}")
+        times: list[float] = []
+        rows: list[list[float]] = []
+        for conn, t, raw in _guarded(path, lambda: reader.messages(connections=conns)):
+            try:
+                pose = reader.deserialize(raw, conn.msgtype).pose.pose
+                p, q = pose.position, pose.orientation
+                rows.append([p.x, p.y, p.z, q.x, q.y, q.z, q.w])
+            except Exception as e:
+                raise ReadError(f"{path} [{topic} @ {t}]", f"undecodable message: {type(e).__name__}: {e}") from None
+            times.append(int(t) * 1e-9)
+    finally:
+        _close(reader)
+    if not rows:
+        raise ReadError(path, f"topic {topic!r} has no messages")
+    a = np.asarray(rows, dtype=np.float64)
+    P = np.zeros((len(a), 3, 4))
+    P[:, :, :3] = quat_to_matrix(a[:, 3:7])
+    P[:, :, 3] = a[:, :3]
+    return np.asarray(times, dtype=np.float64), P
+
+
 def _guarded(path: Path, start: Callable[[], Iterator[Any]]) -> Iterator[Any]:
     """The items of ``start()``, with any error of rosbags' reading turned into a :class:`ReadError`."""
     try:
