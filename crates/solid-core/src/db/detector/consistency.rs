@@ -460,7 +460,9 @@ mod tests {
             .is_some_and(|(m, deg)| m < 1e-9 && deg < 1e-6));
         assert_eq!((a.loops, a.first_query, a.last_query), (16, 60, 75));
         assert!((a.metres - 15.0).abs() < 1e-12);
-        assert!(a.covariance.is_some_and(|c| c.iter().flatten().all(|v| v.abs() < 1e-12)));
+        assert!(a
+            .covariance
+            .is_some_and(|c| c.iter().flatten().all(|v| v.abs() < 1e-12)));
         // Off: loops into the map pass as before.
         let mut det = over_map(0);
         let (at, mut cands) = step(&det, 0, false);
