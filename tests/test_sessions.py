@@ -5,10 +5,13 @@ session's poses are in its own frame, the map's in the first's."""
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
+from conftest import run
 
 import solid
 from solid import sim
@@ -68,8 +71,25 @@ def test_a_session_that_never_enters_the_map_gets_no_loop_into_it(city: Any) -> 
     world, _, db, cfg, sensor = city
     p = world.block_pitch
     # Streets north-east of the centre; the map's lap went round a block south-west of it.
-    away = sim.Trajectory.from_waypoints(world, [(0.0, p), (2 * p, p)], spacing=SPACING)
+    away = sim.Trajectory.from_waypoints(world, [(0.0, p), (1.5 * p, p)], spacing=SPACING)
     det = solid.LoopDetector.from_database(db, detector=cfg.detector)
     dets = det.detect_many(sim.simulate(world, sensor, away).scans, poses=sim.Session.of(away).trajectory.poses)
     assert not [d for d in dets if d.loop is not None and d.loop.candidate < det.session_start]
     assert det.map_anchor is None
+
+
+def test_detect_with_a_map_reports_where_the_session_is_placed(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """`solid detect --map` prints the placement and writes it to summary.json (T_map_world within
+    0.3 m of the simulator's anchor.txt)."""
+    world = sim.World(seed=1)
+    lap, second = sim.session_routes(world, spacing=SPACING)
+    s0, s1 = sim.write_sessions(tmp_path / "sim", world, sim.Sensor("vlp16"), [lap, second[:26]], own_frames=True)
+    db = str(tmp_path / "map.soliddb")
+    assert run(capsys, "map", "build", str(s0), "--poses", str(s0 / "poses.txt"), "-o", db, "--preset", "vlp16", "-q")[0] == 0
+    out_dir = tmp_path / "out"
+    code, out, _ = run(capsys, "detect", str(s1), "--poses", str(s1 / "poses.txt"), "--map", db, "--preset", "vlp16", "-q", "-o", str(out_dir))
+    assert code == 0 and "placed in the map from frame" in out
+    a = json.loads((out_dir / "summary.json").read_text())["map_anchor"]
+    truth = np.loadtxt(s1 / "anchor.txt").reshape(3, 4)
+    assert np.allclose(np.asarray(a["transform"])[:3], truth, atol=0.3)
+    assert a["loops"] >= 4 and a["metres"] >= 30.0 and 0 <= a["first_frame"] <= a["last_frame"] < 26

@@ -216,7 +216,39 @@ def _summary(result: PipelineResult, inputs: Inputs, command: str) -> dict[str, 
         doc["exclusion_median_m"] = excl
     doc["loop_delay_steps"] = loop_delay_steps(result.config.detector)
     doc["rejections"] = rejection_counts(result)
+    if result.map_size:
+        doc["map_anchor"] = anchor_dict(result)
     return doc
+
+
+def anchor_dict(result: Any) -> dict[str, Any] | None:
+    """The session's placement in the map for ``summary.json`` (None: not placed): ``transform``
+    (T_map_world, 4×4 rows), the supporting ``loops`` and the ``metres`` they span, the recording
+    frames of the first and latest, and ``covariance`` (6×6 rows, rotation then translation)."""
+    a = result.map_anchor
+    if a is None:
+        return None
+    cov = a.covariance
+    return {
+        "transform": np.asarray(a.transform).tolist(),
+        "loops": int(a.loops),
+        "metres": round(float(a.metres), 3),
+        "first_frame": result.frame_of(a.first_query),
+        "last_frame": result.frame_of(a.last_query),
+        "covariance": None if cov is None else np.asarray(cov).tolist(),
+    }
+
+
+def describe_anchor(result: Any) -> str:
+    """One line saying where (whether) the session was placed in the map."""
+    a = anchor_dict(result)
+    if a is None:
+        return "not placed in the map: too few loops into it agree with each other (no loop into the map is accepted before)"
+    t = a["transform"]
+    return (
+        f"placed in the map from frame {a['first_frame']} by {a['loops']} consistent loops over {a['metres']:.0f} m "
+        f"(map <- session translation {t[0][3]:.2f}, {t[1][3]:.2f}, {t[2][3]:.2f} m; summary.json map_anchor)"
+    )
 
 
 #: How :attr:`solid.Candidate.rejection` names the odometry check's rejections.

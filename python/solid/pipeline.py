@@ -110,6 +110,9 @@ class PipelineResult:
     session: int
     fov_center: float | None
     timings: dict[str, float] = field(default_factory=dict)
+    #: The session's placement in the map (``solid.MapAnchor``; None without a map, or before
+    #: consistent loops into it placed the session: docs/spec.md §8, placement).
+    map_anchor: Any = None
 
     def queries(self) -> list[Any]:
         """The steps that had a database to search (docs/spec.md §5 skips the others)."""
@@ -260,6 +263,7 @@ class LoopClosurePipeline:
             poses=None if poses_all is None else poses_all[idx],
             map_size=int(det.session_start),
             session=int(det.session),
+            map_anchor=det.map_anchor,
             fov_center=fov_center,
             timings={"detect_s": t_detect},
         )

@@ -188,7 +188,7 @@ impl LoopDetector {
         let placed = self.places_session(at);
         for c in cands.iter_mut().filter(|c| passed(c)) {
             // The placement's consistent set is a map loop's support.
-            if placed && self.in_map(c.id) {
+            if placed && self.in_map(c.id) && self.pose(c.id).is_some() {
                 continue;
             }
             if self.support(at, c) < v.min_support {
