@@ -6,7 +6,7 @@ PY := $(VENV)/bin/python
 PYABS = $(abspath $(PY))
 PYTHON ?= python3
 
-.PHONY: c-deps c-header c-header-check c-lib c-install c-test c-bench crate-copy-check demo test venv dist aarch64 wheel install-test crates docs lint rust-test py-test typecheck bench bench-py bench-search bench-search-py readme-speed readme-results thresholds bench-pcd fuzz fuzz-smoke fuzz-deps cargo-fuzz-run bench-reg audit clean stubs
+.PHONY: c-deps c-header c-header-check c-lib c-install c-test c-bench crate-copy-check demo test venv dist aarch64 wheel install-test crates docs lint rust-test py-test typecheck bench bench-py bench-search bench-search-py readme-speed readme-results thresholds bench-pcd fuzz fuzz-smoke fuzz-deps cargo-fuzz-run bench-reg bench-step audit clean stubs
 
 $(VENV)/.ready: requirements-dev.txt pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -295,6 +295,12 @@ fuzz-smoke: wheel fuzz-deps
 ## Registration speed: solid against small-gicp on the same hku1 pairs, single-threaded.
 bench-reg: wheel
 	$(PY) benches/registration.py
+
+## The verified detector step: CPU per step of the shipped detector on hku1-avia (with and without
+## poses) and a simulated 360° OS1-64 drive, beside small-gicp on the same pairs (a few minutes).
+## Beside an older build: $(PY) benches/detector_step.py --baseline DIR (pip install --target DIR <wheel>).
+bench-step: wheel
+	$(PY) benches/detector_step.py
 
 ## The hardening audit of issue 10 (allocation limits, hostile files, API edges; a few minutes):
 ## prints area | cases tried | handled cleanly | wrong.
