@@ -206,7 +206,8 @@ bench-search-py: wheel
 ## Rewrite the README's speed tables: both Python benchmarks write what they print to
 ## benches/results/*.json, and tools/readme_speed.py turns that into the README block (run it on a
 ## quiet machine: every figure is a ratio to a peer timed in the same run, but a busy core still
-## skews them).
+## skews them). STEP_BASELINE=DIR (an older build, pip install --target DIR <wheel>) and
+## STEP_BASELINE_LABEL="main @ <commit>" put the verified step beside it.
 readme-speed: wheel
 	$(PY) -m pip install --quiet -r benches/requirements-bench.txt
 	mkdir -p benches/results
@@ -214,6 +215,8 @@ readme-speed: wheel
 	$(PY) benches/search_peers.py --json benches/results/search.json
 	SOLID_BENCH_MAP_SIZES=1000,10000,100000,1000000 SOLID_BENCH_JSON=$(CURDIR)/benches/results/maps.json \
 		cargo bench -p solid-lidar-benches --bench maps
+	$(PY) benches/detector_step.py --json benches/results/step.json \
+		$(if $(STEP_BASELINE),--baseline $(STEP_BASELINE) --baseline-label "$(STEP_BASELINE_LABEL)")
 	$(PY) tools/readme_speed.py
 
 ## Rewrite the README's hku1 results (SOLiD and Scan Context, 3 m and 5 m) from fresh `solid eval` runs.

@@ -159,7 +159,8 @@ def main() -> int:
     ap.add_argument("--child", help=argparse.SUPPRESS)
     ap.add_argument("--baseline", metavar="DIR", help="a directory holding another build of the package (pip install --target DIR <wheel>)")
     ap.add_argument("--walks", default=",".join(WALKS), help="comma-separated walks (default: all)")
-    ap.add_argument("--json", type=Path, help="write the figures here")
+    ap.add_argument("--baseline-label", default="an older build", help="what the baseline is, for the JSON (e.g. main @ fcb11b6)")
+    ap.add_argument("--json", type=Path, help="write the figures here (tools/readme_speed.py reads benches/results/step.json)")
     args = ap.parse_args()
     if args.child:
         child(args.child)
@@ -194,7 +195,18 @@ def main() -> int:
             )
         results[name] = row
     if args.json:
-        args.json.write_text(json.dumps(results, indent=1) + "\n", encoding="utf-8")
+        import solid
+        from python_baseline import cpu_model  # benches/, the script's own folder
+
+        doc = {
+            "command": "python benches/detector_step.py --baseline DIR --json benches/results/step.json",
+            "solid": solid.__version__,
+            "cpu": cpu_model(),
+            "cores": os.cpu_count(),
+            "baseline": args.baseline_label if args.baseline else None,
+            "walks": results,
+        }
+        args.json.write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
     return 0
 
 
