@@ -30,7 +30,7 @@ from ..datasets.poses import matrix_to_quat, quat_to_matrix
 from ..datasets.rosbag import pointcloud2_to_cloud
 from ..errors import ReadError
 from ..pipeline import DEFAULT_FOV_CENTER, input_points
-from . import config_from_parameters, loop_frame, parameter_defaults, placement, stamp_ns
+from .core import HINT, config_from_parameters, loop_frame, parameter_defaults, placement, stamp_ns
 
 try:
     import rclpy
@@ -46,8 +46,6 @@ try:
     from std_srvs.srv import Trigger
     from visualization_msgs.msg import Marker, MarkerArray
 except ImportError as e:  # pragma: no cover - the [ros2] extra is not installed
-    from . import HINT
-
     raise ImportError(f"{HINT} ({e})") from None
 
 __all__ = ["NODE_PARAMETERS", "SolidNode", "run"]

@@ -91,14 +91,10 @@ def _from_bag_message(msg: Any, msgtype: str) -> Any:
 
 def bag_messages(path: Path, cloud_topic: str | None, odom_topic: str | None) -> Iterator[tuple[int, str, Any]]:
     """``(log time ns, "cloud"|"odom", rclpy message)`` of a bag's clouds and odometry, in log order."""
-    from ..datasets.rosbag import _close, _guarded, _rosbags, _typestore
+    from ..datasets.rosbag import close_reader, guarded_items, open_reader
     from ..errors import ReadError
 
-    reader = _rosbags().AnyReader([path], default_typestore=_typestore())
-    try:
-        reader.open()
-    except Exception as e:
-        raise ReadError(path, f"cannot open the bag: {type(e).__name__}: {e}") from None
+    reader = open_reader(path)
     try:
         want = {POINTCLOUD2: cloud_topic, ODOMETRY: odom_topic}
         conns = [c for c in reader.connections if c.msgtype in want and want[c.msgtype] in (None, c.topic)]
@@ -107,11 +103,11 @@ def bag_messages(path: Path, cloud_topic: str | None, odom_topic: str | None) ->
                 topics = ", ".join(sorted(f"{c.topic} ({c.msgtype})" for c in reader.connections)) or "none"
                 named = f"topic {want[kind]!r} of " if want[kind] else ""
                 raise ReadError(path, f"no {named}{kind} messages; topics: {topics}")
-        for conn, t, raw in _guarded(path, lambda: reader.messages(connections=conns)):
+        for conn, t, raw in guarded_items(path, lambda: reader.messages(connections=conns)):
             kind = "cloud" if conn.msgtype == POINTCLOUD2 else "odom"
             yield int(t), kind, _from_bag_message(reader.deserialize(raw, conn.msgtype), conn.msgtype)
     finally:
-        _close(reader)
+        close_reader(reader)
 
 
 def dataset_messages(path: Path, a: argparse.Namespace) -> Iterator[tuple[int, str, Any]]:
