@@ -107,7 +107,7 @@ class Listener:
         latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.node.create_subscription(Odometry, "/solid/loops", self.loops.append, reliable)
         self.node.create_subscription(String, "/solid/status", lambda m: setattr(self, "status", json.loads(m.data)), latched)
-        for name, t in (("path", PathMsg), ("map_to_odom", TransformStamped), ("markers", MarkerArray), ("placement", PoseWithCovarianceStamped)):
+        for name, t in (("config", String), ("path", PathMsg), ("map_to_odom", TransformStamped), ("markers", MarkerArray), ("placement", PoseWithCovarianceStamped)):
             self.node.create_subscription(t, f"/solid/{name}", lambda m, n=name: self.last.__setitem__(n, m), latched)
 
     def wait(self, cond: Callable[[], bool], timeout: float, what: str, proc: subprocess.Popen[bytes] | None = None) -> None:
@@ -240,8 +240,17 @@ def test_overload_errors_and_sigint(avia: Path, listener: Listener, tmp_path: Pa
     """A queue of 2 and keyframes 20 times faster than recorded: the oldest are dropped and
     counted, every cloud accounted for; clouds without x/y/z, in an unknown frame or out of order
     are rejected with errors that name the problem; SIGINT ends the node within a second."""
-    with process(node_args("preset:=avia", "queue_size:=2"), tmp_path / "node.log") as node:
-        listener.wait(lambda: bool(listener.status), 60, "the node's first status", node)
+    # The parameters from a YAML file: the node's own and the configuration's, nested as
+    # `solid config dump` writes them.
+    (tmp_path / "solid.yaml").write_text(
+        "solid:\n  ros__parameters:\n    preset: avia\n    queue_size: 2\n"
+        "    descriptor:\n      max_range: 80.0\n    detector:\n      exclude_meters: 20\n      gate:\n        min_fitness: 0.35\n"
+    )
+    args = [PY, "-m", "solid.ros2", "run", "--ros-args", "--params-file", str(tmp_path / "solid.yaml")]
+    with process(args, tmp_path / "node.log") as node:
+        listener.wait(lambda: bool(listener.status) and "config" in listener.last, 60, "the node's first status and configuration", node)
+        cfg = json.loads(listener.last["config"].data)
+        assert (cfg["preset"], cfg["descriptor"]["max_range"], cfg["detector"]["exclude_meters"], cfg["detector"]["gate"]["min_fitness"]) == ("avia", 80.0, 20.0, 0.35)
         with process(play_args(avia, "--poses", str(avia / "odom_poses.txt"), "--frames", "0:60", "--rate", "20"), tmp_path / "play.log") as play:
             assert play.wait(timeout=60) == 0
         listener.wait(lambda: listener.status.get("queued") == 0 and listener.status.get("clouds") == 60, 60, "the queue to drain", node)

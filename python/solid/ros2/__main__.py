@@ -2,4 +2,5 @@
 
 from . import main
 
-raise SystemExit(main())
+if __name__ == "__main__":  # not when the back-end's process (spawned) imports this module
+    raise SystemExit(main())

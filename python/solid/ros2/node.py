@@ -136,6 +136,8 @@ class Counts:
     rejected: int = 0  # no x/y/z, unknown frame, stamp out of order
     loops: int = 0
     map_loops: int = 0
+    optimizations: int = 0  # the back-end's runs, and how long the last took
+    backend_ms: float | None = None
     latency_ms: list[float] = field(default_factory=list)
 
 
@@ -178,14 +180,24 @@ class SolidNode(Node):
         else:
             self.detector = _solid.LoopDetector(self.config.descriptor, detector=self.config.detector)
         self.map_size = int(self.detector.session_start)
-        try:
-            from ..slam import require_gtsam
+        self.backend_proc: Any = None
+        if self.map_db is None:
+            try:
+                from ..slam import require_gtsam
 
-            require_gtsam()
-            self.backend = True
-        except ImportError:
-            self.backend = False
-            self.get_logger().warning('no pose-graph back-end (pip install "solid-lidar[slam]"): ~/path is the odometry, map -> odom the identity')
+                require_gtsam()
+            except ImportError:
+                self.get_logger().warning('no pose-graph back-end (pip install "solid-lidar[slam]"): ~/path is the odometry, map -> odom the identity')
+            else:
+                import multiprocessing
+
+                from .backend import serve
+
+                ctx = multiprocessing.get_context("spawn")
+                self.backend_conn, child = ctx.Pipe()
+                self.backend_proc = ctx.Process(target=serve, args=(child, self.robust), name="solid-backend", daemon=True)
+                self.backend_proc.start()
+                child.close()
 
         # State shared between the callbacks and the worker (under self.lock).
         self.lock = threading.Condition()
@@ -200,7 +212,9 @@ class SolidNode(Node):
         # The worker's own state.
         self.stamps: list[int] = []
         self.odom_poses: list[F64] = []
+        self.traj = threading.Lock()  # guards corrected and T_map_odom (worker and back-end thread)
         self.corrected: F64 = np.zeros((0, 4, 4))
+        self.job: tuple[F64, list[Any]] | None = None
         self.T_map_odom: F64 | None = None if self.map_db is not None else np.eye(4)
         self.support: dict[str, Any] = {}
         self.loop_list: list[Any] = []
@@ -218,10 +232,15 @@ class SolidNode(Node):
         self.pub_markers = self.create_publisher(MarkerArray, "~/markers", _latched())
         self.pub_status = self.create_publisher(String, "~/status", _latched(10))
         self.pub_placement = self.create_publisher(PoseWithCovarianceStamped, "~/placement", _latched())
+        self.pub_config = self.create_publisher(String, "~/config", _latched())
+        self.pub_config.publish(String(data=self.config.dumps()))
         self.create_service(Trigger, "~/save_map", self.on_save, callback_group=MutuallyExclusiveCallbackGroup())
         self.create_timer(1.0, self.publish_status, callback_group=MutuallyExclusiveCallbackGroup())
         self.worker = threading.Thread(target=self._work, name="solid-detector", daemon=True)
         self.worker.start()
+        self.backend_thread = threading.Thread(target=self._backend, name="solid-backend", daemon=True)
+        if self.backend_proc is not None:
+            self.backend_thread.start()
         mode = f"relocalization in {map_file} ({self.map_size} places)" if self.map_db is not None else "loops within the session"
         self.get_logger().info(
             f"solid {_solid.__version__}: {mode}; preset {self.config.preset_name}; clouds on {self.get_parameter('cloud_topic').value}, "
@@ -290,7 +309,7 @@ class SolidNode(Node):
                 throttle_duration_sec=2.0,
             )
         self.queue.append(kf)
-        self.lock.notify()
+        self.lock.notify_all()  # the worker and the back-end thread wait on this condition
 
     def on_save(self, request: Any, response: Any) -> Any:
         path = Path(str(self.get_parameter("save_file").value))
@@ -314,6 +333,9 @@ class SolidNode(Node):
         with self.lock:
             self.stopping = True
             self.lock.notify_all()
+        if self.backend_proc is not None:
+            self.backend_proc.kill()  # an optimisation in progress is of no use any more
+            self.backend_proc.join(timeout=0.3)
         self.worker.join(timeout=0.5)
 
     def _work(self) -> None:
@@ -385,25 +407,55 @@ class SolidNode(Node):
     # ---- the back-end and what is published ---------------------------------------------------
 
     def update_trajectory(self, new_loop: bool) -> None:
-        """The corrected keyframe poses in the map frame: the pose graph's optimum up to its last
-        run (rerun on each loop within the session), the later keyframes chained on by odometry."""
-        P = np.stack(self.odom_poses)
-        n_opt = self.corrected.shape[0]
-        if new_loop and self.backend and self.map_db is None:
-            from ..slam import add_loop_edges, odometry_graph, optimize_graph
+        """The corrected keyframe poses in the map frame: the pose graph's latest optimum, the
+        later keyframes chained on by odometry (map → odom of the last optimised keyframe). A
+        loop within the session hands the graph to the back-end, which optimises behind."""
+        with self.traj:
+            n = self.corrected.shape[0]
+            if self.T_map_odom is not None:
+                if self.map_db is not None:
+                    self.corrected = self.T_map_odom @ np.stack(self.odom_poses)
+                else:
+                    self.corrected = np.concatenate([self.corrected, self.T_map_odom @ np.stack(self.odom_poses[n:])])
+        if new_loop and self.backend_proc is not None:
+            from .backend import loop_record
 
-            graph = odometry_graph(np.arange(len(P)), P)
-            add_loop_edges(graph, self.loop_list, 0)
-            self.corrected, _ = optimize_graph(graph, self.robust)
-            self.T_map_odom = self.corrected[-1] @ np.linalg.inv(P[-1])
-            return
-        if self.T_map_odom is None:
-            return
-        if self.map_db is not None:
-            self.corrected = self.T_map_odom @ P
-            return
-        if n_opt < len(P):
-            self.corrected = np.concatenate([self.corrected, self.T_map_odom @ P[n_opt:]])
+            with self.lock:
+                # Only the latest graph waits: the back-end never falls behind by more than one.
+                self.job = (np.stack(self.odom_poses), [loop_record(lp) for lp in self.loop_list])
+                self.lock.notify_all()
+
+    def _backend(self) -> None:
+        """Send the latest graph to the back-end's process, take its optimum in."""
+        while True:
+            with self.lock:
+                while self.job is None and not self.stopping:
+                    self.lock.wait()
+                if self.stopping:
+                    return
+                job, self.job = self.job, None
+            assert job is not None
+            t0 = time.monotonic()
+            try:
+                self.backend_conn.send(job)
+                optimum = self.backend_conn.recv()
+            except (EOFError, OSError, BrokenPipeError):
+                if not self.stopping:
+                    self.get_logger().error("the pose-graph back-end's process ended; the path is no longer corrected")
+                return
+            P = job[0]
+            n = len(P)
+            with self.traj:
+                self.T_map_odom = optimum[-1] @ np.linalg.inv(P[-1])
+                m = self.corrected.shape[0]
+                later = np.stack(self.odom_poses[n:m]) if m > n else np.zeros((0, 4, 4))
+                self.corrected = np.concatenate([optimum, self.T_map_odom @ later])
+            with self.lock:
+                self.counts.optimizations += 1
+                self.counts.backend_ms = round((time.monotonic() - t0) * 1e3, 1)
+            ns = self.stamps[n - 1]
+            self.publish_trajectory(ns)
+            self.publish_markers(ns)
 
     def _header(self, header: Any, ns: int, frame: str) -> Any:
         to_stamp(header.stamp, ns)
@@ -445,11 +497,17 @@ class SolidNode(Node):
         )
 
     def publish_trajectory(self, ns: int) -> None:
-        if self.T_map_odom is None:
+        # Built and published under the lock: the worker's and the back-end's publications
+        # leave in the order of what they publish.
+        with self.traj:
+            self._publish_trajectory(ns, self.corrected, self.T_map_odom)
+
+    def _publish_trajectory(self, ns: int, corrected: F64, Tm: F64 | None) -> None:
+        if Tm is None:
             return
         path = PathMsg()
         self._header(path.header, ns, self.map_frame)
-        for k, T in enumerate(self.corrected):
+        for k, T in enumerate(corrected):
             ps = PoseStamped()
             self._header(ps.header, self.stamps[k], self.map_frame)
             fill_pose(ps.pose, T)
@@ -458,19 +516,18 @@ class SolidNode(Node):
         tf = TransformStamped()
         self._header(tf.header, ns, self.map_frame)
         tf.child_frame_id = self.odom_frame or "odom"
-        Tm = self.T_map_odom
         qx, qy, qz, qw = (float(v) for v in matrix_to_quat(Tm[None, :3, :3])[0])
         tf.transform.translation.x, tf.transform.translation.y, tf.transform.translation.z = (float(v) for v in Tm[:3, 3])
         tf.transform.rotation.x, tf.transform.rotation.y, tf.transform.rotation.z, tf.transform.rotation.w = qx, qy, qz, qw
         self.pub_tf.publish(tf)
 
-    def _position(self, place: int) -> Point | None:
+    def _position(self, place: int, corrected: F64) -> Point | None:
         """A place's position in the map frame (a map place's stored pose, a keyframe's corrected one)."""
         if place < self.map_size:
             T = np.asarray(self.detector.map.poses[place])
             t = T[:3, 3]
-        elif place - self.map_size < len(self.corrected):
-            t = self.corrected[place - self.map_size][:3, 3]
+        elif place - self.map_size < len(corrected):
+            t = corrected[place - self.map_size][:3, 3]
         else:
             return None
         if not np.isfinite(t).all():
@@ -478,14 +535,18 @@ class SolidNode(Node):
         return Point(x=float(t[0]), y=float(t[1]), z=float(t[2]))
 
     def publish_markers(self, ns: int) -> None:
+        with self.traj:
+            self._publish_markers(ns, self.corrected)
+
+    def _publish_markers(self, ns: int, corrected: F64) -> None:
         places = Marker()
         self._header(places.header, ns, self.map_frame)
         places.ns, places.id, places.type, places.action = "places", 0, Marker.SPHERE_LIST, Marker.ADD
         places.scale.x = places.scale.y = places.scale.z = 0.3
         places.color = ColorRGBA(r=0.2, g=0.6, b=1.0, a=0.8)
         places.pose.orientation.w = 1.0
-        for k in range(len(self.corrected)):
-            p = self._position(self.map_size + k)
+        for k in range(len(corrected)):
+            p = self._position(self.map_size + k, corrected)
             if p is not None:
                 places.points.append(p)
         edges = Marker()
@@ -494,8 +555,8 @@ class SolidNode(Node):
         edges.scale.x = 0.08
         edges.color = ColorRGBA(r=1.0, g=0.3, b=0.1, a=1.0)
         edges.pose.orientation.w = 1.0
-        for lp in self.loop_list:
-            a, b = self._position(int(lp.query)), self._position(int(lp.candidate))
+        for lp in list(self.loop_list):
+            a, b = self._position(int(lp.query), corrected), self._position(int(lp.candidate), corrected)
             if a is not None and b is not None:
                 edges.points.extend([a, b])
         arr = MarkerArray()
@@ -516,6 +577,8 @@ class SolidNode(Node):
                 "rejected": c.rejected,
                 "loops": c.loops,
                 "map_loops": c.map_loops,
+                "optimizations": c.optimizations,
+                "backend_ms": c.backend_ms,
                 "queued": len(self.queue),
                 "queue_size": self.queue_size,
                 "latency_ms": None
