@@ -289,3 +289,77 @@ def test_overload_errors_and_sigint(avia: Path, listener: Listener, tmp_path: Pa
         node.send_signal(signal.SIGINT)
         assert node.wait(timeout=5) == 0
         assert time.monotonic() - t0 < 1.0, f"SIGINT took {time.monotonic() - t0:.2f} s"
+
+
+def _write_bag(path: Path, ros1: bool, scans: list[np.ndarray], poses: np.ndarray, stamps_ns: list[int]) -> None:
+    """A bag as a LiDAR-inertial odometry records it: /cloud_registered_body (x y z intensity in
+    `body`) and /Odometry (`camera_init` → `body`), logged at their stamps."""
+    from rosbags.typesys import Stores, get_typestore
+
+    from solid.datasets.poses import matrix_to_quat
+
+    ts = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.LATEST)
+    t = ts.types
+
+    def header(ns: int, frame: str, seq: int) -> Any:
+        stamp = t["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9)
+        return t["std_msgs/msg/Header"](seq=seq, stamp=stamp, frame_id=frame) if ros1 else t["std_msgs/msg/Header"](stamp=stamp, frame_id=frame)
+
+    pf = t["sensor_msgs/msg/PointField"]
+    fields = [pf(name=n, offset=4 * k, datatype=7, count=1) for k, n in enumerate("x y z intensity".split())]
+    pc2, odo = "sensor_msgs/msg/PointCloud2", "nav_msgs/msg/Odometry"
+    if ros1:
+        from rosbags.rosbag1 import Writer as Writer1
+
+        writer: Any = Writer1(path)
+    else:
+        from rosbags.rosbag2 import StoragePlugin, Writer as Writer2
+
+        writer = Writer2(path, version=9, storage_plugin=StoragePlugin.MCAP)
+    with writer as w:
+        c_conn = w.add_connection("/cloud_registered_body", pc2, typestore=ts)
+        o_conn = w.add_connection("/Odometry", odo, typestore=ts)
+        ser = ts.serialize_ros1 if ros1 else ts.serialize_cdr
+        for k, (pts, P, ns) in enumerate(zip(scans, poses, stamps_ns)):
+            q = matrix_to_quat(P[None, :3, :3])[0]
+            pose = t["geometry_msgs/msg/Pose"](
+                position=t["geometry_msgs/msg/Point"](x=P[0, 3], y=P[1, 3], z=P[2, 3]),
+                orientation=t["geometry_msgs/msg/Quaternion"](x=q[0], y=q[1], z=q[2], w=q[3]),
+            )
+            v3 = t["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0)
+            odom = t[odo](
+                header=header(ns, "camera_init", k), child_frame_id="body",
+                pose=t["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=np.zeros(36)),
+                twist=t["geometry_msgs/msg/TwistWithCovariance"](twist=t["geometry_msgs/msg/Twist"](linear=v3, angular=v3), covariance=np.zeros(36)),
+            )
+            data = np.ascontiguousarray(pts[:, :4], dtype=np.float32)
+            cloud = t[pc2](
+                header=header(ns, "body", k), height=1, width=len(data), fields=fields, is_bigendian=False,
+                point_step=16, row_step=16 * len(data), data=np.frombuffer(data.tobytes(), np.uint8), is_dense=True,
+            )
+            w.write(o_conn, ns, ser(odom, odo))
+            w.write(c_conn, ns, ser(cloud, pc2))
+
+
+def test_play_bags_of_either_ros(avia: Path, listener: Listener, tmp_path: Path) -> None:
+    """`solid ros2 play` plays a ROS 1 bag and a ROS 2 MCAP bag of a front-end's topics into the node."""
+    from solid.datasets import open_dataset
+
+    n = 12
+    ds = open_dataset(avia, poses=avia / "odom_poses.txt", timestamps=avia / "times.txt", xyz_only=False)
+    assert ds.poses is not None and ds.timestamps is not None
+    scans = [ds[i] for i in range(n)]
+    P = np.tile(np.eye(4), (n, 1, 1))
+    P[:, :3] = ds.poses[:n]
+    stamps = [int(round(float(t) * 1e9)) for t in ds.timestamps[:n]]
+    _write_bag(tmp_path / "run.bag", True, scans, P, stamps)
+    _write_bag(tmp_path / "run2", False, scans, P, [s + 1000 * 10**9 for s in stamps])  # a later session
+    with process(node_args("preset:=avia"), tmp_path / "node.log") as node:
+        listener.wait(lambda: bool(listener.status), 60, "the node's first status", node)
+        for k, bag in enumerate((tmp_path / "run.bag", tmp_path / "run2")):
+            with process(play_args(bag, "--rate", "4"), tmp_path / f"play{k}.log") as play:
+                assert play.wait(timeout=60) == 0, (tmp_path / f"play{k}.log").read_text()
+            listener.wait(lambda: listener.status.get("keyframes") == n * (k + 1), 60, f"the keyframes of {bag.name}", node)
+        assert listener.status["rejected"] == 0 and listener.status["dropped"] == 0
+    path = listener.last["path"]
+    assert len(path.poses) == 2 * n

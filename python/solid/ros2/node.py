@@ -139,6 +139,7 @@ class Counts:
     optimizations: int = 0  # the back-end's runs, and how long the last took
     backend_ms: float | None = None
     latency_ms: list[float] = field(default_factory=list)
+    step_ms: list[float] = field(default_factory=list)  # the detector's step alone
 
 
 class SolidNode(Node):
@@ -377,7 +378,9 @@ class SolidNode(Node):
         where = f"cloud at {kf.stamp_ns / 1e9:.9f} s"
         pts: F32 = pointcloud2_to_cloud(kf.cloud, where, xyz_only=True).points
         xyz = input_points(pts, opts, self.fov_center)
+        t0 = time.monotonic()
         d = self.detector.detect(xyz, kf.stamp_ns * 1e-9, kf.T_odom[:3])
+        step_ms = (time.monotonic() - t0) * 1e3
         self.last_stamp = kf.stamp_ns
         self.stamps.append(kf.stamp_ns)
         self.odom_poses.append(kf.T_odom)
@@ -402,6 +405,7 @@ class SolidNode(Node):
         with self.lock:
             self.counts.keyframes += 1
             self.counts.latency_ms.append((time.monotonic() - kf.received) * 1e3)
+            self.counts.step_ms.append(step_ms)
         self.publish_status()
 
     # ---- the back-end and what is published ---------------------------------------------------
@@ -566,7 +570,7 @@ class SolidNode(Node):
     def status(self) -> dict[str, Any]:
         with self.lock:
             c = self.counts
-            lat = np.asarray(c.latency_ms) if c.latency_ms else None
+            timings = {name: _summary(getattr(c, name)) for name in ("latency_ms", "step_ms")}
             doc: dict[str, Any] = {
                 "clouds": c.clouds,
                 "odometry": c.odometry,
@@ -581,9 +585,7 @@ class SolidNode(Node):
                 "backend_ms": c.backend_ms,
                 "queued": len(self.queue),
                 "queue_size": self.queue_size,
-                "latency_ms": None
-                if lat is None
-                else {"last": round(float(lat[-1]), 1), "median": round(float(np.median(lat)), 1), "max": round(float(lat.max()), 1)},
+                **timings,
                 "placed": None,
                 "last_error": self.last_error,
             }
@@ -594,6 +596,14 @@ class SolidNode(Node):
 
     def publish_status(self) -> None:
         self.pub_status.publish(String(data=json.dumps(self.status())))
+
+
+def _summary(ms: list[float]) -> dict[str, float] | None:
+    """Last, median, 95th percentile and largest of a list of milliseconds (None when empty)."""
+    if not ms:
+        return None
+    a = np.asarray(ms)
+    return {"last": round(float(a[-1]), 1), "median": round(float(np.median(a)), 1), "p95": round(float(np.percentile(a, 95)), 1), "max": round(float(a.max()), 1)}
 
 
 def _list_parameters() -> str:
