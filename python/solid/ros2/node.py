@@ -349,11 +349,14 @@ class SolidNode(Node):
                 kf = self.queue.popleft()
             try:
                 self._step(kf)
-            except (ReadError, _solid.SolidError, ValueError) as e:
-                with self.lock:
-                    self._reject(f"keyframe at {kf.stamp_ns / 1e9:.9f} s: {e}")
-            except Exception as e:  # a bug: say so, keep serving
-                self.get_logger().error(f"keyframe at {kf.stamp_ns / 1e9:.9f} s: {type(e).__name__}: {e}")
+            except Exception as e:
+                if self.stopping or not self.context.ok():
+                    return  # shutting down (Ctrl-C): the step's publications had nowhere to go
+                if isinstance(e, (ReadError, _solid.SolidError, ValueError)):
+                    with self.lock:
+                        self._reject(f"keyframe at {kf.stamp_ns / 1e9:.9f} s: {e}")
+                else:  # a bug: say so, keep serving
+                    self.get_logger().error(f"keyframe at {kf.stamp_ns / 1e9:.9f} s: {type(e).__name__}: {e}")
 
     def _step(self, kf: Keyframe) -> None:
         if self.last_stamp is not None and kf.stamp_ns <= self.last_stamp:
@@ -458,8 +461,13 @@ class SolidNode(Node):
                 self.counts.optimizations += 1
                 self.counts.backend_ms = round((time.monotonic() - t0) * 1e3, 1)
             ns = self.stamps[n - 1]
-            self.publish_trajectory(ns)
-            self.publish_markers(ns)
+            try:
+                self.publish_trajectory(ns)
+                self.publish_markers(ns)
+            except Exception:
+                if self.stopping or not self.context.ok():
+                    return
+                raise
 
     def _header(self, header: Any, ns: int, frame: str) -> Any:
         to_stamp(header.stamp, ns)
