@@ -289,6 +289,8 @@ def test_overload_errors_and_sigint(avia: Path, listener: Listener, tmp_path: Pa
         node.send_signal(signal.SIGINT)
         assert node.wait(timeout=5) == 0
         assert time.monotonic() - t0 < 1.0, f"SIGINT took {time.monotonic() - t0:.2f} s"
+    log = (tmp_path / "node.log").read_text()
+    assert all(text in log for _, text in checks), log  # each kind of error logged
 
 
 def _write_bag(path: Path, ros1: bool, scans: list[np.ndarray], poses: np.ndarray, stamps_ns: list[int]) -> None:

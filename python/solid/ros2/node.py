@@ -12,6 +12,7 @@ import argparse
 import json
 import math
 import os
+import re
 import sys
 import threading
 import time
@@ -210,6 +211,7 @@ class SolidNode(Node):
         self.body_frame: str | None = None
         self.stopping = False
         self.last_error: str | None = None
+        self.logged: dict[str, float] = {}  # kind of error -> when last logged
         # The worker's own state.
         self.stamps: list[int] = []
         self.odom_poses: list[F64] = []
@@ -250,11 +252,15 @@ class SolidNode(Node):
 
     # ---- callbacks (never block: pair, queue, return) -----------------------------------------
 
-    def _reject(self, message: str) -> None:
-        """Count and log (throttled) a message the node cannot use."""
+    def _reject(self, message: str, kind: str) -> None:
+        """Count and log a message the node cannot use (lock held): each kind of error at most
+        every 5 s, so that a stream of bad messages does not flood the log."""
         self.counts.rejected += 1
         self.last_error = message
-        self.get_logger().error(message, throttle_duration_sec=5.0)
+        now = time.monotonic()
+        if now - self.logged.get(kind, -math.inf) >= 5.0:
+            self.logged[kind] = now
+            self.get_logger().error(message)
 
     def on_odometry(self, msg: Any) -> None:
         ns = msg_stamp_ns(msg.header.stamp)
@@ -266,7 +272,8 @@ class SolidNode(Node):
             elif (msg.header.frame_id, msg.child_frame_id) != (self.odom_frame, self.body_frame):
                 self._reject(
                     f"odometry in frame {msg.header.frame_id!r} of {msg.child_frame_id!r}: unknown frames (the first odometry was "
-                    f"{self.odom_frame!r} of {self.body_frame!r}); send one odometry source"
+                    f"{self.odom_frame!r} of {self.body_frame!r}); send one odometry source",
+                    "odometry frames",
                 )
                 return
             self.odoms[ns] = (T, msg.header.frame_id, msg.child_frame_id)
@@ -283,7 +290,8 @@ class SolidNode(Node):
             if self.body_frame is not None and msg.header.frame_id != self.body_frame:
                 self._reject(
                     f"cloud in frame {msg.header.frame_id!r}, but the odometry gives the pose of {self.body_frame!r}: unknown frame "
-                    "(send the clouds in the odometry's child frame, e.g. FAST-LIO's /cloud_registered_body, not /cloud_registered)"
+                    "(send the clouds in the odometry's child frame, e.g. FAST-LIO's /cloud_registered_body, not /cloud_registered)",
+                    "cloud frame",
                 )
                 return
             odom = self.odoms.get(ns)
@@ -354,7 +362,7 @@ class SolidNode(Node):
                     return  # shutting down (Ctrl-C): the step's publications had nowhere to go
                 if isinstance(e, (ReadError, _solid.SolidError, ValueError)):
                     with self.lock:
-                        self._reject(f"keyframe at {kf.stamp_ns / 1e9:.9f} s: {e}")
+                        self._reject(f"keyframe at {kf.stamp_ns / 1e9:.9f} s: {e}", re.sub(r"[0-9.]+", "#", str(e)))  # the kind: the message, numbers aside
                 else:  # a bug: say so, keep serving
                     self.get_logger().error(f"keyframe at {kf.stamp_ns / 1e9:.9f} s: {type(e).__name__}: {e}")
 
