@@ -41,7 +41,7 @@ try:
     from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
     from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
     from rclpy.node import Node
-    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import PointCloud2
     from std_msgs.msg import ColorRGBA, String
     from std_srvs.srv import Trigger
@@ -227,8 +227,11 @@ class SolidNode(Node):
         self.last_stamp: int | None = None
 
         sensor = MutuallyExclusiveCallbackGroup()
-        self.create_subscription(PointCloud2, self.get_parameter("cloud_topic").value, self.on_cloud, qos_profile_sensor_data, callback_group=sensor)
-        self.create_subscription(Odometry, self.get_parameter("odom_topic").value, self.on_odometry, qos_profile_sensor_data, callback_group=sensor)
+        # Sensor-data QoS (best effort, volatile), with a history of 20 rather than 5: a moment
+        # of a busy machine between two callbacks does not lose a keyframe.
+        qos = QoSProfile(depth=20, reliability=ReliabilityPolicy.BEST_EFFORT, durability=DurabilityPolicy.VOLATILE)
+        self.create_subscription(PointCloud2, self.get_parameter("cloud_topic").value, self.on_cloud, qos, callback_group=sensor)
+        self.create_subscription(Odometry, self.get_parameter("odom_topic").value, self.on_odometry, qos, callback_group=sensor)
         self.pub_loops = self.create_publisher(Odometry, "~/loops", _reliable(100))
         self.pub_path = self.create_publisher(PathMsg, "~/path", _latched())
         self.pub_tf = self.create_publisher(TransformStamped, "~/map_to_odom", _latched())
@@ -599,6 +602,7 @@ class SolidNode(Node):
                 "map_loops": c.map_loops,
                 "optimizations": c.optimizations,
                 "backend_ms": c.backend_ms,
+                "pending": len(self.pending),
                 "queued": len(self.queue),
                 "queue_size": self.queue_size,
                 **timings,
