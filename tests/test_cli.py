@@ -422,3 +422,36 @@ def test_optimize_without_the_slam_extra_says_how_to_install_it(capsys: pytest.C
     code, _, err = run(capsys, "optimize", str(tmp_path), "--poses", "odom.txt", "-o", str(tmp_path / "out"), "-q")
     assert code == 1 and "pip install 'solid-lidar[slam]'" in err
     assert not (tmp_path / "out").exists()
+
+
+def test_a_run_counts_its_rejections_and_says_when_the_odometry_turned_down_most() -> None:
+    """Issue 41: when the odometry check turns down many registered candidates against few loops
+    (an odometry drifting beyond its bounds), detect and eval say so and what to try; a run whose
+    odometry agrees with its loops gets no such line."""
+    from types import SimpleNamespace
+
+    from solid.commands import ODOMETRY_REJECTION, advice, rejection_counts
+    from solid.config import PipelineConfig
+
+    def step(*reasons: str | None) -> SimpleNamespace:
+        return SimpleNamespace(candidates=[SimpleNamespace(rejection=r) for r in reasons])
+
+    result = SimpleNamespace(
+        detections=[step(ODOMETRY_REJECTION, "low overlap", None), step("place 7: its stored cloud is corrupt or unreadable"), step(ODOMETRY_REJECTION)]
+    )
+    counts = rejection_counts(result)  # type: ignore[arg-type]
+    assert counts == {ODOMETRY_REJECTION: 2, "its stored cloud is corrupt or unreadable": 1, "low overlap": 1}
+    d = PipelineConfig.preset("avia").detector
+    (line,) = advice({"loops": 0, "rejections": {ODOMETRY_REJECTION: 232}}, d)
+    assert "232 registered candidates against 0 loops" in line and "--odometry-drift" in line
+    assert advice({"loops": 49, "rejections": {ODOMETRY_REJECTION: 60}}, d) == []  # most loops were accepted
+    assert advice({"loops": 0, "rejections": {ODOMETRY_REJECTION: 9}}, d) == []  # too few to say
+    off = PipelineConfig.preset("avia", detector={"odometry_check": False}).detector
+    assert advice({"loops": 0, "rejections": {ODOMETRY_REJECTION: 232}}, off) == []
+
+
+@pytest.mark.parametrize("value", ["0", "-2", "nan", "loose"])
+def test_optimize_refuses_a_noise_scale_that_is_neither_auto_nor_positive(capsys: pytest.CaptureFixture[str], tmp_path: Path, value: str) -> None:
+    code, _, err = run(capsys, "optimize", str(tmp_path), "--poses", "odom.txt", "--odom-noise-scale", value, "-o", str(tmp_path / "out"))
+    assert code == 2 and "--odom-noise-scale" in err and "auto or a finite number > 0" in err
+    assert not (tmp_path / "out").exists()

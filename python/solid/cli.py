@@ -289,6 +289,10 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--odom-sigma-fraction", type=_number(float, "a finite number >= 0", lambda v: math.isfinite(v) and v >= 0), default=None, metavar="F", help=f"translation σ per metre travelled (default {on.translation_fraction:g})")
     g.add_argument("--odom-sigma-deg", type=pos_float, default=None, metavar="DEG", help=f"rotation σ floor, degrees (default {on.rotation_floor_deg:g})")
     g.add_argument("--odom-sigma-deg-per-m", type=_number(float, "a finite number >= 0", lambda v: math.isfinite(v) and v >= 0), default=None, metavar="DEG", help=f"rotation σ per metre travelled, degrees (default {on.rotation_deg_per_m:g})")
+    g.add_argument(
+        "--odom-noise-scale", type=_noise_scale, default=None, metavar="K|auto",
+        help="multiply every odometry σ by K (default auto: 1, unless the optimum then keeps fewer than half of the loops: then the factor they need, fitted so that their median χ² against the odometry is χ²(6)'s; docs/slam.md#drift)",
+    )  # fmt: skip
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plot")
     _add_run_tail(p, poses_required=True)
 
@@ -449,6 +453,8 @@ def cmd_detect(args: argparse.Namespace, out: TextIO) -> int:
         + f"{', map of ' + str(result.map_size) + ' places' if result.map_size else ''}), {rate:.1f} Hz\n"
     )
     out.write(evaluation.describe_loop_delay(evaluation.loop_delay_steps(d)) + "\n")
+    for line in commands.advice({"loops": len(result.loops()), "rejections": commands.rejection_counts(result)}, d):
+        out.write(line + "\n")
     out.write(f"wrote {folder}" + (f" and {args.g2o}" if args.g2o else "") + "\n")
     return 0
 
@@ -506,12 +512,27 @@ def cmd_eval(args: argparse.Namespace, out: TextIO) -> int:
             f"precision {commands.fmt_metric(m['precision'])}, recall {commands.fmt_metric(m['recall'])})\n"
         )
     out.write(evaluation.describe_loop_delay(m["loop_delay_steps"]) + "\n")
+    for line in commands.advice(m, cfg.detector):
+        out.write(line + "\n")
     if m.get("best_threshold_command") is not None:
         out.write(f"best F1 {commands.fmt_metric(m['f1_max'])} at threshold {m['best_threshold']:.6g}; to use it:\n  {m['best_threshold_command']}\n")
     elif m.get("best_threshold") is not None:
         out.write(f"best F1 {commands.fmt_metric(m['f1_max'])} at threshold {m['best_threshold']:.6g}, past what the gate accepts: no detector setting reproduces it\n")
     out.write(f"wrote {run.folder}\n")
     return 0
+
+
+def _noise_scale(text: str) -> float | None:
+    """``--odom-noise-scale``: "auto" (None) or a factor > 0."""
+    if text == "auto":
+        return None
+    try:
+        v = float(text)
+    except ValueError:
+        v = math.nan
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"expected auto or a finite number > 0, got {text!r}")
+    return v
 
 
 def cmd_optimize(args: argparse.Namespace, out: TextIO) -> int:
@@ -531,10 +552,21 @@ def cmd_optimize(args: argparse.Namespace, out: TextIO) -> int:
     with _progress(args, 0 if args.loops else len(ds), "optimize") as bar:
         run = commands.optimize(
             ds, cfg, inputs, output=args.output, map_db=map_db, truth=args.truth, robust=args.robust,
-            noise=noise, plots=not args.no_plots, threads=args.threads, progress=bar.update, loops_from=args.loops,
+            noise=noise, noise_scale=args.odom_noise_scale, plots=not args.no_plots, threads=args.threads,
+            progress=bar.update, loops_from=args.loops,
         )  # fmt: skip
     m = run.metrics
     out.write(f"{len(run.result.frames)} frames, {m['loop_edges']} loop edges ({m['loop_edges_kept']} kept by the {m['robust']} optimum)\n")
+    k = m["odometry_noise_scale"]
+    if k != 1.0:
+        how = "as given" if args.odom_noise_scale is not None else "fitted: with the noise as given the optimum dropped most loops; they say the odometry drifts more than its noise model assumes"
+        out.write(f"odometry noise ×{k:.3g} ({how})\n")
+    if m["loop_edges"] >= 2 and 2 * m["loop_edges_kept"] < m["loop_edges"]:
+        out.write(
+            f"note: the optimum kept {m['loop_edges_kept']} of {m['loop_edges']} loops, so the trajectory is mostly the odometry's. "
+            "Either most loops are false (check them: loops.csv, trajectory.png), or the odometry drifts more than "
+            f"×{k:.3g} its noise model: try --odom-noise-scale with a larger factor, or --robust cauchy (docs/slam.md#drift)\n"
+        )
     for name in ("odometry", "optimized"):
         if name in m:
             e = m[name]

@@ -199,7 +199,42 @@ def _summary(result: PipelineResult, inputs: Inputs, command: str) -> dict[str, 
     if excl is not None:
         doc["exclusion_median_m"] = excl
     doc["loop_delay_steps"] = loop_delay_steps(result.config.detector)
+    doc["rejections"] = rejection_counts(result)
     return doc
+
+
+#: How :attr:`solid.Candidate.rejection` names the odometry check's rejections.
+ODOMETRY_REJECTION = "disagrees with the odometry"
+
+
+def rejection_counts(result: PipelineResult) -> dict[str, int]:
+    """How many registered candidates of the run each reason turned down (the reasons of
+    :attr:`solid.Candidate.rejection`, by name; ``summary.json``/``metrics.json``
+    ``rejections``): where the run's candidates went."""
+    counts: dict[str, int] = {}
+    for d in result.detections:
+        for c in d.candidates:
+            r = c.rejection
+            if r is not None:
+                r = r.split(": ", 1)[-1] if r.startswith("place ") else r  # "place N: its stored cloud ..."
+                counts[r] = counts.get(r, 0) + 1
+    return dict(sorted(counts.items()))
+
+
+def advice(metrics: dict[str, Any], detector: Any) -> list[str]:
+    """Lines that tell a user what a run's figures suggest trying: when the odometry check turned
+    down many registered candidates against few loops, the odometry may drift more than its
+    bounds assume (docs/loops.md#when-the-odometry-drifts)."""
+    n = int(metrics.get("rejections", {}).get(ODOMETRY_REJECTION, 0))
+    loops = int(metrics.get("loops", 0))
+    if not detector.odometry_check or n < 10 or n <= 2 * loops:
+        return []
+    return [
+        f"note: the odometry check turned down {n} registered candidates against {loops} loops accepted. If the odometry "
+        f"drifts more than its bounds assume ({detector.odometry_drift:g} of the path, {detector.odometry_rotation_deg_per_m:g}°/m), "
+        "true revisits are among them: try a larger --odometry-drift and --odometry-rotation-deg-per-m "
+        "(docs/loops.md#when-the-odometry-drifts)"
+    ]
 
 
 def exclusion_in_metres(result: PipelineResult) -> float | None:
@@ -760,6 +795,7 @@ def optimize(
     truth: Path | None = None,
     robust: str | None = None,
     noise: Any | None = None,
+    noise_scale: float | None = None,
     plots: bool = True,
     threads: int | None = None,
     progress: Callable[[int], None] | None = None,
@@ -774,7 +810,8 @@ def optimize(
     ``anchor.txt`` (one KITTI 3×4 row, this session's world → the map's world) and
     ``trajectory_map.kitti``/``.tum`` (the optimised poses in the map's world). With
     ``loops_from`` (a run's g2o file or output folder: :func:`reused_loops`), the detector does
-    not run: that run's loop edges join this run's odometry."""
+    not run: that run's loop edges join this run's odometry. The odometry noise (``noise``) is
+    multiplied by ``noise_scale``, by default as :func:`solid.slam.optimize_run` decides."""
     from . import slam
     from .datasets.poses import load_poses, match_rows
 
@@ -785,11 +822,11 @@ def optimize(
     T = _extrinsic(inputs)
     if loops_from is None:
         result = _run(dataset, config, map_db, threads, progress)
-        run = slam.optimize_run(result, robust=robust, noise=noise)
+        run = slam.optimize_run(result, robust=robust, noise=noise, noise_scale=noise_scale)
     else:
         if map_db is not None:
             raise _solid.ConfigError("--loops reuses a run's own loops, and its graph holds none into a map: drop --map, or drop --loops to run the detector against the map")
-        result, run = _optimize_reused(dataset, config, loops_from, T, robust, noise)
+        result, run = _optimize_reused(dataset, config, loops_from, T, robust, noise, noise_scale)
 
     def to_input(P: Any) -> Any:
         """Poses of the run's (LiDAR) frame in the frame of the given poses."""
@@ -799,7 +836,8 @@ def optimize(
     times = result.timestamps if result.timestamps is not None else np.asarray(result.frame_ids, dtype=np.float64)
     metrics = _summary(result, inputs, "optimize")
     metrics["robust"] = robust
-    metrics["odometry_noise"] = vars(noise or slam.OdometryNoise())
+    metrics["odometry_noise"] = vars((noise or slam.OdometryNoise()).scaled(run.noise_scale))
+    metrics["odometry_noise_scale"] = run.noise_scale
     loops = run.graph.loops()
     metrics["loop_edges"] = len(loops)
     metrics["loop_edges_kept"] = run.trusted_loops()
@@ -862,7 +900,9 @@ def reused_loops(path: Path) -> Path:
     return p
 
 
-def _optimize_reused(dataset: Any, config: PipelineConfig, loops_from: Path, T: Any | None, robust: str, noise: Any | None) -> tuple[PipelineResult, Any]:
+def _optimize_reused(
+    dataset: Any, config: PipelineConfig, loops_from: Path, T: Any | None, robust: str, noise: Any | None, noise_scale: float | None
+) -> tuple[PipelineResult, Any]:
     """The frames the run selects (no scan is read), optimised with the loops of ``loops_from``
     (:func:`solid.slam.optimize_with_loops_of`)."""
     from . import slam
@@ -875,7 +915,7 @@ def _optimize_reused(dataset: Any, config: PipelineConfig, loops_from: Path, T: 
     result = PipelineResult(config, [], None, idx, ids, times, poses, 0, 0, None)
     path = reused_loops(loops_from)
     try:
-        return result, slam.optimize_with_loops_of(path, ids, poses, calib=T, robust=robust, noise=noise)
+        return result, slam.optimize_with_loops_of(path, ids, poses, calib=T, robust=robust, noise=noise, noise_scale=noise_scale)
     except ValueError as e:
         raise _solid.ConfigError(f"{path}: {e}") from None
 

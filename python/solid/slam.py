@@ -29,7 +29,9 @@ from .arrays import F64, I64
 from .transforms import quaternion
 
 __all__ = [
+    "CHI2_6_MEDIAN",
     "GNC_INLIER_CHI2",
+    "ODOMETRY_SCALE_MAX",
     "ROBUST_SCHEMES",
     "Anchor",
     "OdometryNoise",
@@ -39,7 +41,10 @@ __all__ = [
     "add_loop_edges",
     "adjoint",
     "estimate_anchor",
+    "fit_odometry_scale",
     "graph_from_run",
+    "loop_chi2",
+    "loop_residuals",
     "odometry_graph",
     "optimize_graph",
     "optimize_in_map",
@@ -129,6 +134,12 @@ class OdometryNoise:
                 raise ValueError(f"OdometryNoise.{k} must be a finite value >= 0, got {v}")
         if self.translation_floor_m <= 0 or self.rotation_floor_deg <= 0:
             raise ValueError("OdometryNoise floors must be > 0 (an edge needs a finite information)")
+
+    def scaled(self, factor: float) -> OdometryNoise:
+        """The same noise with every standard deviation multiplied by ``factor`` (> 0)."""
+        if not (math.isfinite(factor) and factor > 0):
+            raise ValueError(f"an odometry noise factor must be a finite value > 0, got {factor}")
+        return OdometryNoise(*(factor * v for v in (self.translation_fraction, self.translation_floor_m, self.rotation_deg_per_m, self.rotation_floor_deg)))
 
     def information(self, step_m: float) -> F64:
         """The 6×6 information (translation first) of an odometry edge over ``step_m`` metres."""
@@ -345,6 +356,112 @@ def add_loop_edges(graph: PoseGraph, loops: Any, base: int = 0) -> int:
         graph.add_edge(int(lp.query) - base, int(lp.candidate) - base, lp.pose, lp.information, "loop")
         n += 1
     return n
+
+
+# ---- how far the odometry drifts: measured on the loops ----------------------------------------
+
+#: χ²(6)'s median: what half of the loops' χ² against the odometry stay under when the odometry
+#: noise is honest (:func:`fit_odometry_scale`).
+CHI2_6_MEDIAN = 5.348
+#: The largest factor :func:`fit_odometry_scale` puts on the odometry noise (docs/slam.md#drift).
+ODOMETRY_SCALE_MAX = 16.0
+
+
+def _rotation_vector(R: F64) -> F64:
+    """The rotation vectors (radians) of rotation matrices (..., 3, 3)."""
+    w = np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]], axis=-1) / 2
+    s = np.linalg.norm(w, axis=-1)
+    c = (np.trace(R, axis1=-2, axis2=-1) - 1) / 2
+    angle = np.arctan2(s, c)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        f = np.where(s > 1e-12, angle / np.where(s > 1e-12, s, 1.0), 1.0)
+    return np.asarray(w * f[..., None], dtype=np.float64)
+
+
+def loop_residuals(graph: PoseGraph) -> tuple[F64, F64, F64]:
+    """Each loop edge against the odometry alone: its error ``ξ`` at the graph's initial values
+    (``Exp(ξ) = Z⁻¹·T_i⁻¹·T_j``, translation first, the rotation as a rotation vector), the
+    covariance the odometry edges between its two frames give that relative pose (each edge's
+    covariance carried to the loop's frame by the adjoint and summed: the chain's first-order
+    covariance), and the loop's own covariance. Returns ``(ξ (L, 6), Σ_odometry (L, 6, 6),
+    Σ_loop (L, 6, 6))`` in the order of :meth:`PoseGraph.loops`; a loop whose frames the
+    odometry does not join (no chain of odometry edges, or no poses) gets NaN."""
+    loops = graph.loops()
+    L = len(loops)
+    xi = np.full((L, 6), np.nan)
+    s_odo = np.full((L, 6, 6), np.nan)
+    s_loop = np.full((L, 6, 6), np.nan)
+    n = len(graph)
+    # The odometry edge k → k+1 of each vertex k (its covariance), where the graph has one.
+    step_cov = np.full((max(n - 1, 0), 6, 6), np.nan)
+    for e, kind in enumerate(graph.kinds):
+        i, j = int(graph.edge_from[e]), int(graph.edge_to[e])
+        if kind == "odometry" and j == i + 1:
+            step_cov[i] = np.linalg.inv(graph.information[e])
+    P = graph.poses
+    for k, e in enumerate(loops):
+        a, b = int(graph.edge_from[e]), int(graph.edge_to[e])
+        lo, hi = min(a, b), max(a, b)
+        C = step_cov[lo:hi]
+        if hi == lo or not np.isfinite(C).all() or not np.isfinite(P[[a, b]]).all():
+            continue
+        # T_lo_hi = Z_lo ··· Z_hi−1: a perturbation on Z_m reaches the end through Ad(P_hi⁻¹·P_m+1).
+        A = np.stack([adjoint(M) for M in inv(P[hi])[None] @ P[lo + 1 : hi + 1]])
+        S = np.einsum("kab,kbc,kdc->ad", A, C, A)
+        T = inv(P[a]) @ P[b]
+        if a == hi:  # T_ab = T_lo_hi⁻¹: the perturbation comes out on the left
+            Ad = adjoint(inv(T))
+            S = Ad @ S @ Ad.T
+        d = inv(graph.measurements[e]) @ T
+        xi[k, :3] = d[:3, 3]
+        xi[k, 3:] = _rotation_vector(d[:3, :3])
+        s_odo[k] = S
+        s_loop[k] = np.linalg.inv(graph.information[e])
+    return xi, s_odo, s_loop
+
+
+def loop_chi2(graph: PoseGraph, scale: float = 1.0) -> F64:
+    """Each loop's χ² against the odometry alone, with the odometry's standard deviations
+    multiplied by ``scale`` (:func:`loop_residuals`; NaN where the odometry does not join its
+    frames)."""
+    xi, s_odo, s_loop = loop_residuals(graph)
+    out = np.full(len(xi), np.nan)
+    for k in range(len(xi)):
+        if np.isfinite(xi[k]).all():
+            out[k] = float(xi[k] @ np.linalg.solve(scale**2 * s_odo[k] + s_loop[k], xi[k]))
+    return out
+
+
+def fit_odometry_scale(graph: PoseGraph, *, ceiling: float = ODOMETRY_SCALE_MAX) -> float:
+    """The factor on the odometry noise that the loops say it needs: the smallest ``s ≥ 1`` at
+    which the median of the loops' χ² against the odometry alone (:func:`loop_chi2`) is χ²(6)'s
+    median; 1 without a loop the odometry joins, and 1 when even ``ceiling`` is not enough (the
+    loops then disagree with the odometry beyond any drift it plausibly has: most are false). The median: true loops
+    agree with the odometry within its real drift, false ones are far off whatever the noise,
+    and as long as most loops are true they set it. An odometry that drifts more than the
+    noise model assumes (a wheel odometry, a LIO on a hard stretch) otherwise makes every true
+    loop look like an outlier to a robust back-end."""
+    xi, s_odo, s_loop = loop_residuals(graph)
+    ok = np.isfinite(xi).all(axis=1)
+    if not ok.any():
+        return 1.0
+    xi, s_odo, s_loop = xi[ok], s_odo[ok], s_loop[ok]
+
+    def median_chi2(s: float) -> float:
+        return float(np.median([x @ np.linalg.solve(s**2 * So + Sl, x) for x, So, Sl in zip(xi, s_odo, s_loop)]))
+
+    if median_chi2(1.0) <= CHI2_6_MEDIAN:
+        return 1.0
+    if median_chi2(ceiling) > CHI2_6_MEDIAN:
+        # Beyond any drift the ceiling allows: most loops are false (they agree with each other,
+        # or the odometry would not be this far off), and a looser odometry would let them fold
+        # the map. The noise stays as given.
+        return 1.0
+    lo, hi = 1.0, float(ceiling)
+    for _ in range(30):  # the median falls as s grows: bisection, to 1e-9 of the ceiling
+        mid = math.sqrt(lo * hi)
+        lo, hi = (mid, hi) if median_chi2(mid) > CHI2_6_MEDIAN else (lo, mid)
+    return hi
 
 
 # ---- optimisation ---------------------------------------------------------------------------------
@@ -602,10 +719,33 @@ class SlamResult:
     robust: str
     anchor: Anchor | None = None
     map_poses: F64 | None = None
+    #: The factor the odometry noise was multiplied by (:func:`fit_odometry_scale`, or as given).
+    noise_scale: float = 1.0
 
     def trusted_loops(self) -> int:
         """Loop edges the optimum kept (weight above one half)."""
         return int(np.sum(self.loop_weights > 0.5))
+
+
+def _optimized(build: Any, noise: OdometryNoise | None, noise_scale: float | None, robust: str) -> tuple[PoseGraph, F64, F64, float]:
+    """``build(noise)``'s graph optimised (:func:`optimize_graph`), the odometry noise multiplied
+    by ``noise_scale``; by default (None) as given, unless the robust optimum then keeps fewer
+    than half of the loops: then multiplied by the factor the loops need
+    (:func:`fit_odometry_scale`), when that keeps more of them. Returns the graph, the optimised
+    poses, the loops' weights and the factor used."""
+    noise = noise or OdometryNoise()
+    scale = 1.0 if noise_scale is None else float(noise_scale)
+    graph = build(noise.scaled(scale) if scale != 1.0 else noise)
+    optimized, weights = optimize_graph(graph, robust)
+    kept = int(np.sum(weights > 0.5))
+    if noise_scale is None and 2 * kept < len(weights):
+        fitted = fit_odometry_scale(graph)
+        if fitted > 1.0:
+            wider = build(noise.scaled(fitted))
+            Y, w = optimize_graph(wider, robust)
+            if int(np.sum(w > 0.5)) > kept:
+                return wider, Y, w, fitted
+    return graph, optimized, weights, scale
 
 
 def optimize_run(
@@ -613,18 +753,22 @@ def optimize_run(
     *,
     robust: str = ROBUST_SCHEMES[0],
     noise: OdometryNoise | None = None,
+    noise_scale: float | None = None,
 ) -> SlamResult:
     """The pose graph of a pipeline run (:func:`graph_from_run`), optimised
     (:func:`optimize_graph`); with a map and loops into it, the session optimised into the
     map's world with the map's places held (:func:`optimize_in_map`, started from the
     consensus of :func:`estimate_anchor`), which gives the anchor, the poses in the map's world
     and, carried back by the anchor, the session's optimised poses. When that optimum trusts
-    no loop into the map, the session stays unanchored (``anchor`` None)."""
+    no loop into the map, the session stays unanchored (``anchor`` None). The odometry noise
+    (``noise``, by default :class:`OdometryNoise`'s) is multiplied by ``noise_scale``; by default
+    it is as given unless the optimum then keeps fewer than half of the loops, when it is
+    multiplied by the factor the loops say the odometry needs (:func:`fit_odometry_scale`) if
+    that keeps more of them."""
     if result.poses is None:
         raise ValueError("a pose graph needs the odometry's poses (give --poses)")
-    graph = graph_from_run(result, noise)
-    optimized, weights = optimize_graph(graph, robust)
-    out = SlamResult(graph, graph.poses.copy(), optimized, weights, robust)
+    graph, optimized, weights, scale = _optimized(lambda n: graph_from_run(result, n), noise, noise_scale, robust)
+    out = SlamResult(graph, graph.poses.copy(), optimized, weights, robust, noise_scale=scale)
     base = int(result.map_size)
     if base == 0:
         return out
@@ -657,18 +801,18 @@ def optimize_with_loops_of(
     calib: npt.ArrayLike | None = None,
     robust: str = ROBUST_SCHEMES[0],
     noise: OdometryNoise | None = None,
+    noise_scale: float | None = None,
 ) -> SlamResult:
     """The frames ``ids`` at their ``poses`` (the run's, calibration applied), their odometry
     edges, and the loop edges of a run's g2o file (``solid detect --g2o``, ``graph.g2o``; in the
     frame of that run's given poses, so carried back by ``calib`` when it had one), optimised:
     a run's loops reused without the detector (:meth:`PoseGraph.with_loops_of` refuses a file
-    written for other poses)."""
+    written for other poses); the odometry noise as :func:`optimize_run` makes it."""
     saved = PoseGraph.read_g2o(path)
     if calib is not None:
         saved = saved.in_frame(inv(as4(calib)))
-    graph = odometry_graph(ids, poses, noise).with_loops_of(saved)
-    optimized, weights = optimize_graph(graph, robust)
-    return SlamResult(graph, graph.poses.copy(), optimized, weights, robust)
+    graph, optimized, weights, scale = _optimized(lambda n: odometry_graph(ids, poses, n).with_loops_of(saved), noise, noise_scale, robust)
+    return SlamResult(graph, graph.poses.copy(), optimized, weights, robust, noise_scale=scale)
 
 
 def write_kitti(path: Path | str, poses: npt.ArrayLike) -> None:

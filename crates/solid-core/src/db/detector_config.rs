@@ -48,7 +48,10 @@ pub struct DetectorConfig {
 pub struct VerifyConfig {
     /// Verify at all (the scans' points must then be given, see [`LoopDetector::detect_scan`](super::LoopDetector::detect_scan)).
     pub enabled: bool,
-    /// How many of the step's best candidates (by R-SOLiD distance) are registered.
+    /// How many of the step's best candidates (by R-SOLiD distance) are registered. With the
+    /// odometry check and poses, one of the own session that the poses put beyond reach of an
+    /// accepted loop (as for `pose_candidates`, with the rotation's allowance the check gives
+    /// the descriptor's candidates) is not registered: it could not be accepted.
     pub candidates: usize,
     /// Candidates chosen by pose, registered beside the descriptor's `candidates` when the
     /// query has a pose: the own session's eligible places nearest to the query's position,

@@ -8,11 +8,22 @@
 //! look-alikes among the own places that the current bounds cannot rule out is not accepted
 //! ([`VerifyConfig::lookalike_m`]).
 
-use super::verify::{distance, reject, relative, QueryPlace};
+use super::verify::{distance, reject, relative, rotation_bound, QueryPlace};
 use super::{Candidate, LoopDetector};
 use crate::compare::cosine_distance;
 use crate::db::VerifyConfig;
 use crate::reg::{invert, mul, pose_to_rows, rows_to_pose, Pose, Rejection};
+
+/// Where an own place lies from a step's query by the poses ([`LoopDetector::reach`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) enum Reach {
+    /// The poses do not say (no pose, a map place or another session's).
+    Unknown,
+    /// Within reach, this many metres from the query.
+    Within(f64),
+    /// Too far to give an accepted loop.
+    Beyond,
+}
 
 /// The latest confirmed loop of the own session: the query's pose and metres travelled, the
 /// candidate's id and the loop's pose.
@@ -53,19 +64,58 @@ impl LoopDetector {
     /// of path its drift grows with: through the anchor when `anchor` and its path is the
     /// shorter, else the two places' poses (None without poses or across sessions).
     pub(super) fn expected(&self, at: &QueryPlace, c: u32, anchor: bool) -> Option<(Pose, f64)> {
+        self.expected_through(at, anchor.then(|| self.anchored(at)).flatten(), c)
+    }
+
+    /// [`LoopDetector::expected`] through `anchored` ([`LoopDetector::anchored`] of `at`, None:
+    /// through the two places' poses), for the callers that look at many places in one step.
+    fn expected_through(
+        &self,
+        at: &QueryPlace,
+        anchored: Option<([f64; 12], f64, f64)>,
+        c: u32,
+    ) -> Option<(Pose, f64)> {
         let q = at.pose?;
         let tc = self.travelled_at(c);
         let pc = self.pose(c)?;
         (c as usize).checked_sub(self.session_start)?;
         let global = tc.map_or(0.0, |t| libm::fabs(at.travelled - t));
         let global = if global.is_nan() { 0.0 } else { global };
-        if let (Some((qa, since, t0)), Some(t)) = (self.anchored(at).filter(|_| anchor), tc) {
+        if let (Some((qa, since, t0)), Some(t)) = (anchored, tc) {
             let path = since + libm::fabs(t - t0);
             if path < global {
                 return Some((relative(&qa, &pc), path));
             }
         }
         Some((relative(&q, &pc), global))
+    }
+
+    /// Whether own place `c` lies within reach of the query `at` by the poses (through
+    /// `anchored`, [`LoopDetector::anchored`] of `at`, when its path is the shorter, as the
+    /// odometry check does): no farther than the gate's largest loop plus what the odometry
+    /// check allows after the path between them, with `turn` of the rotation's allowance at the
+    /// rotation's bound ([`LoopDetector::within_drift`]). A loop's length is at least the poses'
+    /// distance less its offset from them, so a place beyond could give no loop the gate and that
+    /// check accept: it is not worth registering.
+    pub(super) fn reach(
+        &self,
+        at: &QueryPlace,
+        anchored: Option<([f64; 12], f64, f64)>,
+        c: u32,
+        turn: f64,
+    ) -> Reach {
+        let Some((e, path)) = self.expected_through(at, anchored, c) else {
+            return Reach::Unknown;
+        };
+        let v = &self.config.verify;
+        let d = libm::sqrt(e[0][3] * e[0][3] + e[1][3] * e[1][3] + e[2][3] * e[2][3]);
+        let swing = turn * rotation_bound(v, path).to_radians() * path / 2.0;
+        let reach = v.gate.max_translation + v.odometry_translation_m + v.odometry_drift * path;
+        if d <= reach + swing {
+            Reach::Within(d)
+        } else {
+            Reach::Beyond
+        }
     }
 
     /// Remembers the step's loop as the anchor of the next steps (own-session loops with poses).

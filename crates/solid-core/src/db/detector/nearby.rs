@@ -9,7 +9,8 @@ use alloc::vec::Vec;
 
 use nalgebra::Matrix3;
 
-use super::verify::{distance, registered, reject, run_jobs, QueryPlace};
+use super::anchor::Reach;
+use super::verify::{registered, reject, run_jobs, QueryPlace};
 use super::{Candidate, LoopDetector};
 use crate::compare::cosine_distance;
 use crate::db::{DbError, VerifyConfig};
@@ -69,36 +70,24 @@ impl LoopDetector {
         let mut best: Vec<(f64, u32)> = Vec::new();
         best.try_reserve_exact(v.pose_candidates + 1)
             .map_err(|_| DbError::OutOfMemory)?;
-        // Through the latest anchor when its path is the shorter ([`LoopDetector::expected`]).
-        let anchored = self.anchored(&QueryPlace {
+        let at = QueryPlace {
             id: 0,
             pose: Some(*q),
             travelled,
             eligible,
-        });
-        for (k, &at) in self.travelled.iter().enumerate() {
-            let id = (self.session_start + k) as u32;
-            if self.session_start + k >= eligible || taken.iter().any(|c| c.id == id) {
+        };
+        // Through the latest anchor when its path is the shorter ([`LoopDetector::expected`]).
+        let anchored = self.anchored(&at);
+        for id in (self.session_start..eligible.min(self.session_start + self.travelled.len()))
+            .map(|k| k as u32)
+        {
+            if taken.iter().any(|c| c.id == id) {
                 continue;
             }
-            let Some(p) = self.pose(id) else { continue };
-            let global = if (travelled - at).is_nan() {
-                0.0
-            } else {
-                libm::fabs(travelled - at)
-            };
-            let (q, path) = match anchored {
-                Some((qa, since, t0)) if since + libm::fabs(at - t0) < global => {
-                    (qa, since + libm::fabs(at - t0))
-                }
-                _ => (*q, global),
-            };
-            let d = distance(&p, &q);
             // A loop chosen by pose must agree with the odometry without the rotation's allowance.
-            let reach = v.gate.max_translation + v.odometry_translation_m + v.odometry_drift * path;
-            if d > reach {
+            let Reach::Within(d) = self.reach(&at, anchored, id, 0.0) else {
                 continue;
-            }
+            };
             let at = best.partition_point(|&(e, _)| e <= d);
             if at < v.pose_candidates {
                 best.insert(at, (d, id));

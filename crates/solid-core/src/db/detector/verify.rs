@@ -4,6 +4,7 @@
 use alloc::sync::Arc;
 use alloc::vec::Vec;
 
+use super::anchor::Reach;
 use super::{Candidate, LoopDetector, Verification};
 use crate::db::{DbError, VerifyConfig};
 use crate::reg::{self, mul, Hypothesis, Pose, PreparedCloud, Rejection};
@@ -41,7 +42,11 @@ impl LoopDetector {
             // independent of each other: in parallel where threads exist.
             let mut jobs: Vec<(usize, Arc<PreparedCloud>)> = Vec::new();
             let mut work = 0usize;
+            let beyond = self.beyond_reach(at.as_ref(), &cands[..n.min(cands.len())])?;
             for (i, c) in cands.iter_mut().enumerate().take(n) {
+                if beyond[i] {
+                    continue;
+                }
                 let Ok(cloud) = self.prepared_cloud(c.id) else {
                     // Never silently unverified: the candidate says its cloud is bad.
                     c.verification = Some(corrupt_cloud());
@@ -89,6 +94,28 @@ impl LoopDetector {
         }
         cands.sort_by(|x, y| x.score.total_cmp(&y.score));
         Ok(())
+    }
+
+    /// Which of `cands` cannot give an accepted loop, so are not registered: with the odometry
+    /// check, the own places the poses put beyond reach of the query `at`
+    /// ([`LoopDetector::reach`], with the rotation's allowance the check gives them).
+    fn beyond_reach(
+        &self,
+        at: Option<&QueryPlace>,
+        cands: &[Candidate],
+    ) -> Result<Vec<bool>, DbError> {
+        let mut beyond = Vec::new();
+        beyond
+            .try_reserve_exact(cands.len())
+            .map_err(|_| DbError::OutOfMemory)?;
+        let at = at.filter(|_| self.config.verify.odometry_check);
+        let anchored = at.and_then(|at| self.anchored(at));
+        beyond.extend(
+            cands
+                .iter()
+                .map(|c| at.is_some_and(|at| self.reach(at, anchored, c.id, 1.0) == Reach::Beyond)),
+        );
+        Ok(beyond)
     }
 
     /// The odometry check, then the support of the previous steps ([`VerifyConfig`]), on the
@@ -684,6 +711,58 @@ pub(super) mod tests {
         let mut cands = [verified(3, near), verified(4, truth(4))];
         det.check_after_gate(&q, &[], &mut cands).unwrap();
         assert!(cands.iter().all(|c| rejection(c).is_none()));
+    }
+
+    #[test]
+    fn only_places_within_reach_are_registered() {
+        use super::super::anchor::Reach;
+        // 40 places 1 m apart along x; the query at x = 40 after 40 m. Place 34 (6 m off after
+        // 6 m of path) is within the gate's 5 m, the odometry's 1 m and 1 % of 6 m and the
+        // swing of 3.9° over 6 m; place 33 (7 m off) is beyond, and so is place 0.
+        let det = detector_with_path(40, |_| {});
+        let q = at(&det, 40.0);
+        let ids = [0u32, 33, 34, 39];
+        let cands = ids.map(|id| verified(id, reg::IDENTITY));
+        let beyond = det.beyond_reach(Some(&q), &cands).unwrap();
+        assert_eq!(beyond, [true, true, false, false]);
+        assert!(matches!(det.reach(&q, None, 34, 1.0), Reach::Within(d) if (d - 6.0).abs() < 1e-9));
+        // Without a query place (a query without adding), or without the odometry check: all
+        // are registered.
+        assert_eq!(det.beyond_reach(None, &cands).unwrap(), [false; 4]);
+        let off = detector_with_path(40, |v| v.odometry_check = false);
+        assert_eq!(off.beyond_reach(Some(&q), &cands).unwrap(), [false; 4]);
+        // Back at x = 40 after 300 m of path, place 0 (40 m off) is beyond the translation bound
+        // (5 + 1 + 3 m) but within the swing a 30° rotation allows the odometry check: a
+        // candidate chosen by pose must lie within the first, the descriptor's within both.
+        let far = QueryPlace {
+            travelled: 300.0,
+            ..q
+        };
+        assert_eq!(det.reach(&far, None, 0, 0.0), Reach::Beyond);
+        assert!(matches!(det.reach(&far, None, 0, 1.0), Reach::Within(_)));
+        // A loop one step back (1 m of path) found the query at x = 39 to be at place 0 (the
+        // odometry drifted by 39 m): through it the query is 1 m from place 0 and 7 m from
+        // place 8 (1 + 8 m of path): place 8 and farther are beyond reach.
+        let mut det = det;
+        det.anchor = Some(super::super::anchor::Anchor {
+            query: pose(0.0, 39.0, 0.0),
+            travelled: 299.0,
+            candidate: 1,
+            pose: relative(&pose(0.0, 0.0, 0.0), &pose(0.0, 1.0, 0.0)),
+        });
+        let anchored = det.anchored(&far);
+        assert!(
+            matches!(det.reach(&far, anchored, 0, 1.0), Reach::Within(d) if (d - 1.0).abs() < 1e-9)
+        );
+        let cands = [0u32, 2, 7, 8, 30].map(|id| verified(id, reg::IDENTITY));
+        assert_eq!(
+            det.beyond_reach(Some(&far), &cands).unwrap(),
+            [false, false, false, true, true]
+        );
+        // A query without a pose: the poses do not say, nothing is beyond reach.
+        let lost = QueryPlace { pose: None, ..far };
+        assert_eq!(det.reach(&lost, None, 0, 1.0), Reach::Unknown);
+        assert_eq!(det.beyond_reach(Some(&lost), &cands).unwrap(), [false; 5]);
     }
 
     #[test]
