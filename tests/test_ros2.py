@@ -244,13 +244,13 @@ def test_overload_errors_and_sigint(avia: Path, listener: Listener, tmp_path: Pa
     # `solid config dump` writes them.
     (tmp_path / "solid.yaml").write_text(
         "solid:\n  ros__parameters:\n    preset: avia\n    queue_size: 2\n"
-        "    descriptor:\n      max_range: 80.0\n    detector:\n      exclude_meters: 20\n      gate:\n        min_fitness: 0.35\n"
+        "    descriptor:\n      max_range: 80.0\n    detector:\n      exclude_meters: 20\n      gate:\n        min_fitness: 0.42\n"
     )
     args = [PY, "-m", "solid.ros2", "run", "--ros-args", "--params-file", str(tmp_path / "solid.yaml")]
     with process(args, tmp_path / "node.log") as node:
         listener.wait(lambda: bool(listener.status) and "config" in listener.last, 60, "the node's first status and configuration", node)
         cfg = json.loads(listener.last["config"].data)
-        assert (cfg["preset"], cfg["descriptor"]["max_range"], cfg["detector"]["exclude_meters"], cfg["detector"]["gate"]["min_fitness"]) == ("avia", 80.0, 20.0, 0.35)
+        assert (cfg["preset"], cfg["descriptor"]["max_range"], cfg["detector"]["exclude_meters"], cfg["detector"]["gate"]["min_fitness"]) == ("avia", 80.0, 20.0, 0.42)
         with process(play_args(avia, "--poses", str(avia / "odom_poses.txt"), "--frames", "0:60", "--rate", "20"), tmp_path / "play.log") as play:
             assert play.wait(timeout=60) == 0
 
@@ -371,3 +371,31 @@ def test_play_bags_of_either_ros(avia: Path, listener: Listener, tmp_path: Path)
         assert listener.status["rejected"] == 0 and listener.status["dropped"] == 0
     path = listener.last["path"]
     assert len(path.poses) == 2 * n
+
+
+def test_parameters_are_the_configuration_tables() -> None:
+    """The node's configuration parameters are the pipeline configuration's fields (as `solid
+    config dump` writes them), checked by the core."""
+    import solid
+    from solid.config import PipelineConfig
+    from solid.ros2 import config_from_parameters, parameter_defaults
+
+    defaults = parameter_defaults("avia")
+    doc = PipelineConfig.preset("avia").to_dict()
+    assert {k for k in defaults if k.startswith("descriptor.")} == {f"descriptor.{k}" for k in doc["descriptor"]}
+    assert defaults["detector.gate.min_fitness"] == doc["detector"]["gate"]["min_fitness"]
+    assert config_from_parameters("avia", defaults) == PipelineConfig.preset("avia")
+    cfg = config_from_parameters("avia", {"detector.exclude_meters": 12, "detector.registration.max_iterations": 7})
+    assert cfg == PipelineConfig.preset("avia", detector={"exclude_meters": 12.0, "registration": {"max_iterations": 7}})
+    with pytest.raises(solid.ConfigError, match="descriptor.n_range|n_range"):
+        config_from_parameters("avia", {"descriptor.n_range": -3})
+    with pytest.raises(solid.ConfigError, match="unknown parameters detector.nope"):
+        config_from_parameters("avia", {"detector.nope": 1})
+    with pytest.raises(solid.ConfigError, match="input.frames"):
+        config_from_parameters("avia", {"input.frames": "0:10"})
+
+
+def test_a_bad_parameter_stops_the_node_with_its_name(tmp_path: Path) -> None:
+    with process(node_args("preset:=avia", "descriptor.max_range:=-5.0"), tmp_path / "node.log") as node:
+        assert node.wait(timeout=60) == 1
+    assert "max_range" in (tmp_path / "node.log").read_text()

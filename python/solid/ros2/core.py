@@ -62,7 +62,9 @@ def config_from_parameters(preset: str | None, values: dict[str, Any], base: Pip
         sec, *path = name.split(".")
         node = tree[sec]
         for key in path[:-1]:
-            node = node[key] = dict(node[key])
+            child = dict(node[key])
+            node[key] = child
+            node = child
         node[path[-1]] = v
     doc.update(tree)
     if tree["input"].get("frames") is not None:

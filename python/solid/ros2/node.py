@@ -156,9 +156,13 @@ class SolidNode(Node):
         base = PipelineConfig.load(cfg_file) if cfg_file else None
         map_file = self.get_parameter("map").value or None
         self.map_db = _solid.Database.load(map_file) if map_file else None
+        if base is not None and preset is not None and preset != base.preset_name:
+            raise _solid.ConfigError(f"preset {preset} contradicts the preset {base.preset_name!r} of {cfg_file}")
         if base is None and preset is None and self.map_db is not None:
             # As `solid detect --map`: the map's own configuration (its preset's when it is one).
             preset = next((n for n, c in _solid.presets().items() if c == self.map_db.config), None)
+            if preset is None:
+                base = PipelineConfig(descriptor=self.map_db.config, detector=_solid.DetectorConfig())
         defaults = parameter_defaults(preset, base)
         for pname, v in defaults.items():
             self.declare_parameter(pname, v, dyn)
