@@ -6,7 +6,7 @@ PY := $(VENV)/bin/python
 PYABS = $(abspath $(PY))
 PYTHON ?= python3
 
-.PHONY: c-deps c-header c-header-check c-lib c-install c-test c-bench crate-copy-check demo test venv dist aarch64 wheel install-test crates docs lint rust-test py-test typecheck bench bench-py bench-search bench-search-py readme-speed readme-results thresholds bench-pcd fuzz fuzz-smoke fuzz-deps cargo-fuzz-run bench-reg bench-step audit clean stubs
+.PHONY: docs-examples c-deps c-header c-header-check c-lib c-install c-test c-bench crate-copy-check demo test venv dist aarch64 wheel install-test crates docs lint rust-test py-test typecheck bench bench-py bench-search bench-search-py readme-speed readme-results thresholds bench-pcd fuzz fuzz-smoke fuzz-deps cargo-fuzz-run bench-reg bench-step audit clean stubs
 
 $(VENV)/.ready: requirements-dev.txt pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -181,11 +181,21 @@ typecheck: wheel
 	$(PY) tools/readme_examples.py docs/describe.md build/docs_describe_blocks.py
 	$(PY) tools/readme_examples.py docs/loops.md build/docs_loops_blocks.py
 	$(PY) tools/readme_examples.py docs/slam.md build/docs_slam_blocks.py
-	$(VENV)/bin/mypy --strict python/solid tests tools build/readme_blocks.py build/docs_describe_blocks.py build/docs_loops_blocks.py build/docs_slam_blocks.py
+	$(PY) tools/readme_examples.py docs/view.md build/docs_view_blocks.py
+	$(VENV)/bin/mypy --strict python/solid tests tools build/readme_blocks.py build/docs_describe_blocks.py build/docs_loops_blocks.py build/docs_slam_blocks.py build/docs_view_blocks.py
 	$(VENV)/bin/mypy --strict fuzz/python
 	$(PY) -m mypy.stubtest solid._solid
 
-test: lint rust-test crates crate-copy-check docs py-test c-test typecheck fuzz-smoke install-test
+## Every fenced command and Python block of the README and the docs, run as written in a
+## workspace where their placeholder names (hku1-avia, my_run, run1, odom.txt, scan.pcd...) are the
+## shared data (tools/readme_examples.py; a block that cannot run here carries a docs-check marker
+## with its reason, printed). The README's, describe's and loops' Python blocks run in install-test.
+DOC_PAGES := $(wildcard docs/*.md)
+docs-examples: wheel
+	$(PY) tools/readme_examples.py --run-docs --shell-only README.md docs/describe.md docs/loops.md
+	$(PY) tools/readme_examples.py --run-docs $(filter-out docs/describe.md docs/loops.md,$(DOC_PAGES))
+
+test: lint rust-test crates crate-copy-check docs py-test c-test typecheck fuzz-smoke install-test docs-examples
 
 bench:
 	cargo bench -p solid-lidar-benches

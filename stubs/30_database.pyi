@@ -56,7 +56,7 @@ class Database:
 
                 Args:
                     descriptor: A descriptor made with the database's configuration.
-                    session: The robot or run it comes from (an unsigned 32-bit integer).
+                    session: The robot or run it comes from (0 to 2^32 - 2: the session after the last must be numbered).
                     timestamp: Seconds, or None for none (stored as NaN).
                     pose: `T_world_sensor` as a 3×4 array or 12 floats (row-major [R|t]), or None.
                     cloud: The place's compact cloud for verification (`solid.encode_cloud` or
@@ -88,7 +88,7 @@ class Database:
         Args:
             r: R-SOLiDs, shape (N, n_range), float32 (read in place) or float64, C-contiguous.
             a: A-SOLiDs, shape (N, n_azimuth), float32 or float64, C-contiguous.
-            session: The robot or run they come from (an unsigned 32-bit integer).
+            session: The robot or run they come from (0 to 2^32 - 2: the session after the last must be numbered).
             timestamps: Seconds, shape (N,), float64 (NaN: none), or None for none.
             poses: `T_world_sensor` of each, float64 of shape (N, 3, 4), (N, 4, 4) or (N, 12)
                 (row-major [R|t]), or None.
@@ -241,21 +241,29 @@ class Database:
             DatabaseError: `other` has another configuration.
             SolidError: `anchor` is not a finite rigid transform.
         """
-    def save(self, path: str | PathLike[str], version: int = 4) -> None:
+    def save(self, path: str | PathLike[str], version: int = 4, *, replace: bool = True) -> None:
         """Writes the database to `path` (docs/spec.md §9), atomically: a temporary file in the
                 same folder, then a rename. Written as it is encoded: no copy of the whole file in
-                memory.
+                memory. Only a regular file is ever replaced: a FIFO, a device, a socket or a
+                directory at `path` (also through a symbolic link) is refused.
 
                 Args:
-                    path: The file to write (replaced if it exists).
+                    path: The file to write (a regular file there is replaced, unless `replace` is
+                        False).
                     version: The file format: 4 (the current one: a pose's rotation as a unit
                         quaternion, read back within 1e-12), 3 for readers before format 4 (poses
                         as matrices), or 2 for older readers (which keeps no `metadata`).
+                    replace: False: refuse when anything exists at `path`, also when it appears
+                        during the save (the file is linked into place, which never replaces
+                        anything): of concurrent saves to one path exactly one succeeds.
 
                 Raises:
                     ConfigError: Another version.
                     DatabaseError: A stored cloud read from the file this map was loaded from is
-                        corrupt (it is never written again under a fresh checksum); nothing is written.
+                        corrupt, or that file changed since it was loaded (it is never written
+                        again under a fresh checksum); nothing is written.
+                    FileExistsError: `path` is not a regular file, or exists and `replace` is False;
+                        nothing is written.
                     OSError: The file cannot be written (the subclass matches the cause, with `filename`).
         """
     @staticmethod
@@ -372,7 +380,9 @@ class Database:
             loaded from a file in format 3 or 4 reads it from the file now.
 
         Raises:
-            DatabaseError: The stored cloud is corrupt (its checksum), named by place and file.
+            DatabaseError: The stored cloud is corrupt (its checksum), named by place and file,
+                or the file was truncated or written since the map was loaded (named).
+            OSError: The file cannot be read.
             ConfigError: No place has this id (negative, beyond 64 bits, or `len(db)` and up).
             TypeError: An id that is not an integer (or a bool).
         """

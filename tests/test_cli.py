@@ -40,6 +40,28 @@ def test_help_and_usage_errors(capsys: pytest.CaptureFixture[str]) -> None:
     assert code == 2 and "invalid float value" in err
 
 
+def test_usage_errors_are_one_line_and_help_is_short(capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 40: the reason and where to look, not argparse's usage block; --help lists the
+    options most runs need, --help-all every one."""
+    code, _, err = run(capsys, "eval", "somewhere", "--preset", "avia")
+    assert code == 2 and err.count("\n") == 1 and "--poses" in err and err.rstrip().endswith("(see solid eval --help)"), err
+    code, short, _ = run(capsys, "eval", "--help")
+    assert code == 0
+    code, full, _ = run(capsys, "eval", "--help-all")
+    assert code == 0
+
+    def shown(text: str) -> set[str]:
+        return {w.rstrip(",") for w in text.split() if w.startswith("--")}
+
+    for flag in ("--poses", "--preset", "--radius", "--map", "--threshold", "--exclude-frames", "--help-all"):
+        assert flag in shown(short), flag
+    for flag in ("--gate-min-fitness", "--occlude-center", "--verify-fan-deg", "--subsample-m", "--sc-max-range"):
+        assert flag not in shown(short) and flag in shown(full), flag
+    assert len(short.splitlines()) < len(full.splitlines()) / 2, (len(short.splitlines()), len(full.splitlines()))
+    # Hidden from --help, still parsed.
+    assert build_parser().parse_args(["eval", "s", "--poses", "p", "--gate-min-fitness", "0.5"]).gate_min_fitness == 0.5
+
+
 @pytest.mark.parametrize(
     "argv",
     [
@@ -153,7 +175,7 @@ def test_subprocess_exit_codes(tmp_path: Path) -> None:
     r = subprocess.run([sys.executable, "-m", "solid.cli", "presets"], capture_output=True, text=True, env=env)
     assert r.returncode == 0 and "avia" in r.stdout
     r = subprocess.run([sys.executable, "-m", "solid.cli", "eval"], capture_output=True, text=True, env=env)
-    assert r.returncode == 2 and "usage:" in r.stderr
+    assert r.returncode == 2 and "see solid eval --help" in r.stderr and r.stderr.count("\n") == 1, r.stderr
     r = subprocess.run(
         [sys.executable, "-m", "solid.cli", "describe", str(tmp_path / "nope.pcd"), "--preset", "vlp16"],
         capture_output=True,

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 import pytest
-from conftest import data_dir
+from conftest import data_dir, run
 
 import solid
 from solid import datasets as sd
@@ -481,3 +481,81 @@ def test_helipr_names_are_nanosecond_times(tmp_path: Path) -> None:
     assert ds.reader == "helipr-avia" and ds.frame_ids.tolist() == stamps
     assert ds.timestamps is not None and np.allclose(ds.timestamps, [s * 1e-9 for s in stamps], rtol=0, atol=1e-6)
     assert ds[0].shape == (os.path.getsize(src) // 19, 3)
+
+
+def test_poses_from_a_bags_odometry_topic(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 40: `--poses /odom` takes the poses of a nav_msgs/Odometry topic of the bag, at the
+    scans' times (interpolated between the odometry's messages), so a bag alone is enough."""
+    pytest.importorskip("rosbags", reason="rosbags is an optional extra: pip install solid-lidar[ros]")
+    from rosbags.rosbag1 import Writer as Writer1
+    from rosbags.rosbag2 import StoragePlugin, Writer as Writer2
+    from rosbags.typesys import Stores, get_typestore
+
+    from solid.datasets.poses import matrix_to_quat
+    from solid.datasets.rosbag import cloud_to_pointcloud2
+
+    rng = np.random.default_rng(3)
+    clouds = [rng.uniform(-30, 30, (400, 3)).astype(np.float32) for _ in range(4)]
+    # Odometry at 4 Hz along x at 2 m/s, turning 10° a second; scans at 1 Hz, 0.1 s after a message.
+    t_odo = np.arange(0, 5.01, 0.25)
+    yaw = np.radians(10.0) * t_odo
+    P = np.zeros((len(t_odo), 3, 4))
+    P[:, 0, 0], P[:, 0, 1], P[:, 1, 0], P[:, 1, 1], P[:, 2, 2] = np.cos(yaw), -np.sin(yaw), np.sin(yaw), np.cos(yaw), 1.0
+    P[:, 0, 3] = 2.0 * t_odo
+    q = matrix_to_quat(P[:, :, :3])
+    t_scan = np.array([1.1, 2.1, 3.1, 4.1])
+
+    def odometry(ts: Any, k: int) -> Any:
+        T = ts.types
+        hdr_t = T["std_msgs/msg/Header"]
+        sec = int(t_odo[k])
+        stamp = T["builtin_interfaces/msg/Time"](sec=sec, nanosec=int(round((t_odo[k] - sec) * 1e9)))
+        hdr = hdr_t(seq=k, stamp=stamp, frame_id="odom") if "seq" in hdr_t.__dataclass_fields__ else hdr_t(stamp=stamp, frame_id="odom")
+        pose = T["geometry_msgs/msg/Pose"](
+            position=T["geometry_msgs/msg/Point"](x=P[k, 0, 3], y=P[k, 1, 3], z=P[k, 2, 3]),
+            orientation=T["geometry_msgs/msg/Quaternion"](x=q[k, 0], y=q[k, 1], z=q[k, 2], w=q[k, 3]),
+        )
+        twist = T["geometry_msgs/msg/Twist"](linear=T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0), angular=T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0))
+        return T["nav_msgs/msg/Odometry"](
+            header=hdr,
+            child_frame_id="base",
+            pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=np.zeros(36)),
+            twist=T["geometry_msgs/msg/TwistWithCovariance"](twist=twist, covariance=np.zeros(36)),
+        )
+
+    def points(ts: Any, k: int) -> Any:
+        rec = np.zeros(len(clouds[k]), dtype={"names": ["x", "y", "z"], "formats": ["<f4"] * 3})
+        rec["x"], rec["y"], rec["z"] = clouds[k].T
+        return cloud_to_pointcloud2(ts, rec, int(t_scan[k]), "lidar")
+
+    pc2, odo = "sensor_msgs/msg/PointCloud2", "nav_msgs/msg/Odometry"
+    ts1, ts2 = get_typestore(Stores.ROS1_NOETIC), get_typestore(Stores.ROS2_HUMBLE)
+    with Writer1(tmp_path / "run.bag") as w1:
+        cp, co = w1.add_connection("/points", pc2, typestore=ts1), w1.add_connection("/odom", odo, typestore=ts1)
+        for k in range(len(t_odo)):
+            w1.write(co, int(round(t_odo[k] * 1e9)), ts1.serialize_ros1(odometry(ts1, k), odo))
+        for k in range(len(t_scan)):
+            w1.write(cp, int(round(t_scan[k] * 1e9)), ts1.serialize_ros1(points(ts1, k), pc2))
+    with Writer2(tmp_path / "run_ros2", version=9, storage_plugin=StoragePlugin.MCAP) as w2:
+        cp, co = w2.add_connection("/points", pc2, typestore=ts2), w2.add_connection("/odom", odo, typestore=ts2)
+        for k in range(len(t_odo)):
+            w2.write(co, int(round(t_odo[k] * 1e9)), ts2.serialize_cdr(odometry(ts2, k), odo))
+        for k in range(len(t_scan)):
+            w2.write(cp, int(round(t_scan[k] * 1e9)), ts2.serialize_cdr(points(ts2, k), pc2))
+    yaw_s = np.radians(10.0) * t_scan
+    for bag in (tmp_path / "run.bag", tmp_path / "run_ros2"):
+        ds = sd.open_dataset(bag, poses="/odom")
+        assert ds.poses is not None and ds.poses.shape == (4, 3, 4) and str(ds.pose_source) == "/odom"
+        assert ds.timestamps is not None
+        np.testing.assert_allclose(ds.timestamps, t_scan, atol=1e-9)
+        np.testing.assert_allclose(ds.poses[:, 0, 3], 2.0 * t_scan, atol=1e-9)  # between two messages
+        np.testing.assert_allclose(np.arctan2(ds.poses[:, 1, 0], ds.poses[:, 0, 0]), yaw_s, atol=1e-9)
+        with pytest.raises(sd.ReadError, match=r"'/points' holds sensor_msgs/msg/PointCloud2; its nav_msgs/msg/Odometry topics: /odom"):
+            sd.open_dataset(bag, poses="/points")
+        with pytest.raises(sd.ReadError, match=r"'/gps' is not in the bag"):
+            sd.open_dataset(bag, poses="/gps")
+    # The command line: the poses feed the detector's metres window, which it says it applied.
+    code, out, err = run(capsys, "detect", str(tmp_path / "run.bag"), "--poses", "/odom", "--preset", "vlp16", "--no-verify", "-o", str(tmp_path / "det"), "-q")
+    assert code == 0 and "/ 30 m" in out, (out, err)
+    code, out, err = run(capsys, "detect", str(tmp_path / "run.bag"), "--preset", "vlp16", "--no-verify", "-o", str(tmp_path / "det2"), "-q")
+    assert code == 0 and "/ 30 m" not in out and "threshold" in out, (out, err)

@@ -7,6 +7,7 @@ with a clean exception and exit code 0, never a signal. Linux only where noted (
 
 from __future__ import annotations
 
+import json
 import os
 import struct
 import subprocess
@@ -23,6 +24,7 @@ import pytest
 
 import solid
 import solid.evaluation
+import solid.io
 from solid import scancontext, sim
 from solid.config import PipelineConfig
 
@@ -449,3 +451,350 @@ def test_the_documented_error_classes(cfg: solid.SolidConfig) -> None:
         with pytest.raises(expected):
             call()
     assert all(issubclass(e, ValueError) for e in (solid.ConfigError, solid.DatabaseError, solid.SolidError))
+
+
+# ---------------------------------------------------------------------------------------------
+# Issue 39: writers that never replace what they did not write, maps that notice they changed,
+# bounded threads, a g2o reader that refuses what it cannot use, forged maps, writer errors.
+
+
+def _special(path: Path, kind: str) -> int:
+    """Makes a FIFO or (as root) a character device of our own (a null device, 1:3) at ``path``."""
+    import stat
+
+    if kind == "fifo":
+        os.mkfifo(path)
+    else:
+        if os.geteuid() != 0:
+            pytest.skip("making a device node needs root")
+        os.mknod(path, stat.S_IFCHR | 0o666, os.makedev(1, 3))
+    return os.stat(path).st_mode
+
+
+SPECIAL_KINDS = [pytest.param("fifo", marks=linux), pytest.param("chardev", marks=linux)]
+
+
+@pytest.mark.parametrize("kind", SPECIAL_KINDS)
+def test_writers_never_replace_a_fifo_or_a_device(tmp_path: Path, kind: str) -> None:
+    """Why: `Database.save`, `write_pcd`, `write_ply` (and the C API's saves) renamed their
+    temporary file over whatever the path was: run as root, `-o /dev/null` turned the system's
+    null device into a regular file. A path that is not a regular file is refused, and kept."""
+    from solid.io import write_pcd, write_ply
+
+    out = tmp_path / "out"
+    mode = _special(out, kind)
+    pts = np.zeros((5, 3), np.float32)
+    writers: dict[str, Callable[[], Any]] = {
+        "Database.save": lambda: solid.Database(solid.SolidConfig.preset("hdl64")).save(out),
+        "Database.save(replace=False)": lambda: solid.Database(solid.SolidConfig.preset("hdl64")).save(out, replace=False),
+        "write_pcd": lambda: write_pcd(out, pts),
+        "write_ply": lambda: write_ply(out, pts),
+        "PipelineConfig.dump": lambda: PipelineConfig.preset("hdl64").dump(out),
+    }
+    for name, write in writers.items():
+        with pytest.raises(FileExistsError, match="not a regular file|exists"):
+            write()
+        assert os.stat(out).st_mode == mode, f"{name} replaced the {kind}"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]  # no temporary file left
+
+
+@pytest.mark.parametrize("kind", SPECIAL_KINDS)
+def test_describe_writes_through_a_stream(tmp_path: Path, kind: str) -> None:
+    """`solid describe -o` is an output that may be a stream (`-o /dev/stdout`): a FIFO or a
+    character device is written through, never replaced."""
+    scan = tmp_path / "s.bin"
+    np.random.default_rng(0).random((2000, 4)).astype(np.float32).tofile(scan)
+    out = tmp_path / "out"
+    mode = _special(out, kind)
+    got: list[bytes] = []
+
+    def read() -> None:
+        with open(out, "rb") as f:
+            got.append(f.read())
+
+    reader = threading.Thread(target=read, daemon=True)
+    if kind == "fifo":
+        reader.start()
+    p = subprocess.run([sys.executable, "-m", "solid", "describe", str(scan), "--preset", "hdl64", "-o", str(out)], capture_output=True, text=True, timeout=60)
+    assert p.returncode == 0, p.stderr
+    if kind == "fifo":
+        reader.join(10)
+        assert got and json.loads(got[0])["n_points"] == 2000
+    assert os.stat(out).st_mode == mode
+
+
+def _changing_map(tmp_path: Path) -> tuple[Path, list[np.ndarray]]:
+    """A map of 14 simulated scans (with clouds) saved to a file, and the scans."""
+    w = sim.World(seed=3)
+    s = sim.simulate(w, sim.Sensor("vlp16"), sim.Trajectory.loop(w, laps=1.1, spacing=6.0))
+    scans = [np.ascontiguousarray(x[:, :3]) for x in s.scans]
+    det = solid.LoopDetector(solid.SolidConfig.preset("vlp16"))
+    det.detect_many(scans[:14])
+    path = tmp_path / "map.soliddb"
+    det.database.save(path)
+    return path, scans
+
+
+def _truncate(path: Path) -> None:
+    os.truncate(path, path.stat().st_size // 2)
+
+
+def _overwrite(path: Path) -> None:
+    size = path.stat().st_size
+    with open(path, "r+b") as f:  # in place: same inode, same size, other bytes
+        f.seek(size // 2)
+        f.write(bytes(size // 2 - 8))
+
+
+@pytest.mark.parametrize("change", [_truncate, _overwrite], ids=["truncated", "overwritten"])
+def test_a_map_changed_while_open_is_an_error_naming_it(tmp_path: Path, change: Callable[[Path], None]) -> None:
+    """Why: a map truncated or overwritten in place under a running detector lost its loops
+    silently (38 verified loops became 0–11), and `Database.cloud` then raised `OSError: [Errno 0]
+    failed to fill whole buffer`. The step now fails with an error naming the map and saying it
+    changed; no candidate whose cloud could not be read is verified."""
+    path, scans = _changing_map(tmp_path)
+    det = solid.LoopDetector.from_database(solid.Database.load(path), exclude_recent=0)
+    db = solid.Database.load(path)
+    change(path)
+    with pytest.raises(solid.DatabaseError, match="changed while it was open") as e:
+        for s in scans[:14]:
+            det.detect(s)
+    assert str(path) in str(e.value)
+    with pytest.raises(solid.DatabaseError, match="changed while it was open"):
+        for i in range(len(db)):
+            db.cloud(i)
+    with pytest.raises(solid.DatabaseError, match="changed while it was open"):
+        db.save(tmp_path / "copy.soliddb")
+    assert not (tmp_path / "copy.soliddb").exists()
+
+
+def test_verify_threads_is_bounded(capsys: pytest.CaptureFixture[str]) -> None:
+    """Why: `verify_threads = 1e6` was accepted and the first verifying step kept starting
+    threads. The parameter table bounds it (0..=256), so every front-end refuses it alike."""
+    from conftest import run
+
+    assert solid.DetectorConfig(verify_threads=256).verify_threads == 256
+    with pytest.raises(solid.ConfigError, match="verify_threads"):
+        solid.DetectorConfig(verify_threads=10**6)
+    with pytest.raises(solid.ConfigError, match="verify_threads"):
+        solid.LoopDetector(solid.SolidConfig.preset("hdl64"), detector=solid.DetectorConfig().replace(verify_threads=257))
+    code, _, err = run(capsys, "config", "dump", "--verify-threads", "1000000")
+    assert code != 0 and "--verify-threads: '1000000' is not an integer in 0..=256" in err, err
+
+
+def _g2o(tmp_path: Path, edge: str) -> Path:
+    f = tmp_path / "loops.g2o"
+    verts = "".join(f"VERTEX_SE3:QUAT {i} {i} 0 0 0 0 0 1\n" for i in range(3))
+    f.write_text(verts + edge + "\n")
+    return f
+
+
+EYE = " ".join("1" if a == b else "0" for a in range(6) for b in range(a, 6))
+BAD_EDGES = {
+    "NaN translation": (f"EDGE_SE3:QUAT 0 2 nan 0 0 0 0 0 1 {EYE}", "not finite"),
+    "zero quaternion": (f"EDGE_SE3:QUAT 0 2 1 0 0 0 0 0 0 {EYE}", "norm 0"),
+    "quaternion of norm 1e200": (f"EDGE_SE3:QUAT 0 2 1 0 0 0 0 0 1e200 {EYE}", "norm 1e"),
+    "information not PSD": (f"EDGE_SE3:QUAT 0 2 1 0 0 0 0 0 1 {EYE.replace('1', '-1', 1)}", "not positive semidefinite"),
+    "all-zero information": (f"EDGE_SE3:QUAT 0 2 1 0 0 0 0 0 1 {' '.join(['0'] * 21)}", "is zero"),
+    "self-edge": (f"EDGE_SE3:QUAT 1 1 1 0 0 0 0 0 1 {EYE}", "to itself"),
+}
+
+
+@pytest.mark.parametrize("case", list(BAD_EDGES))
+def test_g2o_edges_a_graph_cannot_use_are_refused_with_their_line(tmp_path: Path, case: str) -> None:
+    """Why: `solid optimize --loops FILE` accepted a NaN translation (the edge dropped silently),
+    a zero quaternion or one of norm 1e200 (numpy's warnings leaked), information that is not
+    positive semidefinite (the trajectory moved 0.18–0.21 m) or all zero, a self-edge."""
+    import warnings
+
+    from solid.slam import PoseGraph
+
+    edge, why = BAD_EDGES[case]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(solid.io.ReadError, match=f"line 4: .*{why}"):
+            PoseGraph.read_g2o(_g2o(tmp_path, edge))
+    # The same edge, usable, is read.
+    good = f"EDGE_SE3:QUAT 0 2 1 0 0 0 0 0 1 {EYE}"
+    assert len(PoseGraph.read_g2o(_g2o(tmp_path, good)).kinds) == 1
+
+
+def test_registration_voxel_size_zero_works_in_the_detector() -> None:
+    """Why: `registration.voxel_size = 0` ("keeps every point") worked in `solid.register` but made
+    every detector step fail with "invalid grid = 0". The stored clouds then use a fixed grid."""
+    w = sim.World(seed=3)
+    s = sim.simulate(w, sim.Sensor("vlp16"), sim.Trajectory.loop(w, laps=0.2, spacing=3.0))
+    det = solid.LoopDetector(solid.SolidConfig.preset("vlp16"), detector=solid.DetectorConfig(registration={"voxel_size": 0.0}))
+    for x in s.scans[:4]:
+        det.detect(np.ascontiguousarray(x[:, :3]))
+    db = det.database
+    assert db.clouds_stored == 4
+    # Every point kept: a stored cloud holds about as many points as the scan in range.
+    stored = db.cloud(0)
+    assert stored is not None
+    cloud = solid.decode_cloud(stored)
+    assert len(cloud) > 0.5 * len(s.scans[0])
+
+
+def test_saves_without_replace_never_both_win(tmp_path: Path) -> None:
+    """Why: two concurrent `solid map build … -o SAME` both printed "wrote" and one map silently
+    replaced the other (the existence check raced the rename). `save(replace=False)` links the
+    file into place, which fails when the path exists: exactly one of racing saves wins."""
+    cfg = solid.SolidConfig.preset("hdl64")
+    rng = np.random.default_rng(0)
+
+    def db(n: int) -> solid.Database:
+        d = solid.Database(cfg)
+        for _ in range(n):
+            d.add(solid.Descriptor(rng.random(cfg.n_range).astype(np.float32), rng.random(cfg.n_azimuth).astype(np.float32), cfg))
+        return d
+
+    a, b = db(300), db(200)
+    for t in range(20):
+        path = tmp_path / f"m{t}.soliddb"
+        wins: list[int] = []
+        refused: list[BaseException] = []
+
+        def save(d: solid.Database) -> None:
+            try:
+                d.save(path, replace=False)
+                wins.append(len(d))
+            except FileExistsError as e:
+                refused.append(e)
+
+        ts = [threading.Thread(target=save, args=(d,)) for d in (a, b)]
+        for x in ts:
+            x.start()
+        for x in ts:
+            x.join(60)
+        assert len(wins) == 1 and len(refused) == 1, (wins, refused)
+        assert len(solid.Database.load(path)) == wins[0]
+        assert "exists" in str(refused[0]) and str(path) in str(refused[0])
+    assert not [p for p in tmp_path.iterdir() if p.name.endswith(".tmp")]
+
+
+def test_session_2_32_minus_1_is_refused() -> None:
+    """Why: session 2^32 - 1 was accepted, and every later `detect` on that map failed with a
+    misleading "database full"."""
+    cfg = solid.SolidConfig.preset("hdl64")
+    d = solid.Descriptor(np.ones(cfg.n_range, np.float32), np.ones(cfg.n_azimuth, np.float32), cfg)
+    db = solid.Database(cfg)
+    with pytest.raises(solid.ConfigError, match="session"):
+        db.add(d, session=2**32 - 1)
+    db.add(d, session=2**32 - 2)
+    assert len(db) == 1
+
+
+def _forge(b: bytes, kind: int, mutate: Callable[[bytearray], None]) -> bytes:
+    """A format 3/4 map with section ``kind`` changed by ``mutate``, its checksum right again."""
+    out = bytearray(b)
+    for k in range(struct.unpack_from("<I", out, 88)[0]):
+        kd, _, off, ln, _ = struct.unpack_from("<IIQQQ", out, 96 + 32 * k)
+        if kd == kind:
+            sec = bytearray(out[off : off + ln])
+            mutate(sec)
+            out[off : off + ln] = sec
+            struct.pack_into("<I", out, off + ln, zlib.crc32(bytes(sec)))
+            return bytes(out)
+    raise KeyError(kind)
+
+
+def _posed_db() -> solid.Database:
+    cfg = solid.SolidConfig.preset("hdl64")
+    db = solid.Database(cfg)
+    for i in range(4):
+        p = np.eye(3, 4)
+        p[0, 3] = i
+        db.add(solid.Descriptor(np.ones(cfg.n_range, np.float32), np.full(cfg.n_azimuth, i + 1.0, np.float32), cfg), timestamp=float(i), pose=p.ravel())
+    return db
+
+
+FORGED = {
+    "session 2^32-1": (4, 1, lambda s: struct.pack_into("<I", s, 0, 0xFFFFFFFF), "session 2\\^32 - 1"),
+    "not a rotation": (3, 7, lambda s: struct.pack_into("<d", s, 4, 2.0), "rotation"),
+    "A-SOLiD step overflowing": (4, 5, lambda s: struct.pack_into("<f", s, 0, 1e38), "A-SOLiD"),
+}
+
+
+@pytest.mark.parametrize("case", list(FORGED))
+def test_forged_maps_are_refused_at_load_as_add_refuses_them(tmp_path: Path, case: str) -> None:
+    """Why: maps whose poses are not rotations, whose A-SOLiD step overflows to inf, or with
+    session 2^32 - 1 loaded, although `add` refuses such values."""
+    version, kind, mutate, why = FORGED[case]
+    good = _posed_db().to_bytes(version=version)
+    assert len(solid.Database.from_bytes(good)) == 4
+    bad = _forge(good, kind, mutate)
+    with pytest.raises(solid.DatabaseError, match=why):
+        solid.Database.from_bytes(bad)
+    (tmp_path / "bad.soliddb").write_bytes(bad)
+    with pytest.raises(solid.DatabaseError, match=why):
+        solid.Database.load(tmp_path / "bad.soliddb")
+
+
+@pytest.mark.parametrize("writer", ["write_pcd", "write_ply"])
+def test_point_writers_raise_solid_errors_and_honour_the_umask(tmp_path: Path, writer: str) -> None:
+    """Why: `write_pcd`/`write_ply` raised plain `ValueError` for points of the wrong shape (the
+    README promises `SolidError` subclasses) and wrote mode 0600 whatever the umask."""
+    import stat
+
+    write = getattr(solid.io, writer)
+    with pytest.raises(solid.SolidError, match="shape"):
+        write(tmp_path / "x", np.zeros((5, 2), np.float32))
+    with pytest.raises(solid.SolidError):
+        write(tmp_path / "x", [["a", "b", "c"]])
+    with pytest.raises(solid.ConfigError, match="field names"):
+        write(tmp_path / "x", np.zeros((5, 3), np.float32), fields=["x", "y"])
+    with pytest.raises(solid.ConfigError, match="unknown"):
+        write(tmp_path / "x", np.zeros((5, 3), np.float32), data="nope")
+    old = os.umask(0o022)
+    try:
+        write(tmp_path / "a", np.zeros((5, 3), np.float32))
+        os.umask(0o027)
+        write(tmp_path / "b", np.zeros((5, 3), np.float32))
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE((tmp_path / "a").stat().st_mode) == 0o644
+    assert stat.S_IMODE((tmp_path / "b").stat().st_mode) == 0o640
+
+
+def test_a_closed_pipe_ends_a_command_quietly(tmp_path: Path) -> None:
+    """Why: `solid map info | head` printed "solid map: error: [Errno 32] Broken pipe"."""
+    path = tmp_path / "m.soliddb"
+    _posed_db().save(path)
+    p = subprocess.Popen([sys.executable, "-m", "solid", "map", "info", str(path)], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    assert p.stdout is not None and p.stderr is not None
+    p.stdout.close()  # the reader leaves before the command writes
+    with p.stderr:
+        err = p.stderr.read().decode()
+    p.wait(60)
+    assert err == "" and p.returncode == 141, (p.returncode, err)
+
+
+def test_two_concurrent_map_builds_to_one_path_never_both_win(tmp_path: Path) -> None:
+    """Why: two concurrent `solid map build … -o SAME` both printed "wrote"; one map silently
+    replaced the other. Now one writes the map, the other fails saying the path exists."""
+    w = sim.World(seed=2)
+    sim.write_sequence(tmp_path / "run", w, sim.Sensor("vlp16"), sim.Trajectory.loop(w, laps=0.3, spacing=4.0)[:12])
+    out = tmp_path / "map.soliddb"
+    cmd = [sys.executable, "-m", "solid", "map", "build", str(tmp_path / "run"), "--preset", "vlp16", "-o", str(out), "-q"]
+    ps = [subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for _ in range(2)]
+    res = [(*p.communicate(timeout=120), p.returncode) for p in ps]
+    assert sorted(r[2] for r in res) == [0, 1], res
+    assert "exists" in "".join(r[1] for r in res)
+    assert len(solid.Database.load(out)) == 12
+
+
+def test_a_map_appended_to_while_open_still_verifies_as_loaded(tmp_path: Path) -> None:
+    """Appending leaves the header, the section table and every cloud where they were: the map
+    is still the one loaded (each cloud is checked by its checksum when read), so a run goes on
+    and finds what it finds on the unchanged map; only a shorter file or another header is a
+    change."""
+    path, scans = _changing_map(tmp_path)
+    runs = []
+    for append in (False, True):
+        det = solid.LoopDetector.from_database(solid.Database.load(path), exclude_recent=0)
+        if append:
+            with open(path, "ab") as f:
+                f.write(bytes(4096))
+        runs.append([(s.loop.candidate if s.loop else None) for s in (det.detect(x) for x in scans[:14])])
+    assert runs[0] == runs[1] and any(c is not None for c in runs[0])

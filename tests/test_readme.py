@@ -8,6 +8,8 @@ import sys
 from pathlib import Path
 from types import ModuleType
 
+import pytest
+
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO / "tools"))
 
@@ -88,3 +90,26 @@ def test_presets_table_matches_the_core() -> None:
         assert num[:5] == [c.fov_up, c.fov_down, c.n_elevation, c.max_range, c.min_range], name
         assert num[5] == solid.DetectorConfig.preset(name).threshold, name
         assert cells[7] == solid.preset_sensors()[name]
+
+
+def test_docs_check_reads_blocks_and_their_skip_markers() -> None:
+    """Issue 40: the docs' shell and Python blocks are run as written; a block left out says why."""
+    from readme_examples import blocks_of
+
+    md = (
+        "text\n\n```bash\nsolid presets\n```\n\n"
+        "<!-- docs-check: skip needs a robot -->\n```sh\nros2 launch x\n```\n\n"
+        '<!-- docs-check: skip-line "solid demo" a minute of CPU -->\n```bash\nsolid demo\nsolid presets\n```\n\n'
+        "```python\nprint(1)\n```\n\n```rust\nfn main() {}\n```\n"
+    )
+    b = blocks_of(md)
+    assert [x.lang for x in b] == ["bash", "sh", "bash", "python"]
+    assert b[0].skip is None and b[0].body == "solid presets\n" and b[0].line == 4
+    assert b[1].skip == "needs a robot"
+    assert b[2].skip is None and b[2].skip_lines == {"solid demo": "a minute of CPU"}
+    with pytest.raises(SystemExit, match="needs a reason"):
+        blocks_of("<!-- docs-check: skip -->\n```bash\nsolid presets\n```\n")
+    # Every block of the README and the docs parses, and each one left out gives its reason.
+    for md_file in [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]:
+        for x in blocks_of(md_file.read_text()):
+            assert x.skip is None or len(x.skip) > 10, (md_file, x.line)

@@ -1,6 +1,13 @@
-"""Re-runs the hardening audit of issue 10 (items 2, 6 and 8) against the installed ``solid``.
+"""Re-runs the hardening audit of issue 10 (items 2, 6 and 8), and the cases of issues 30 and 39,
+against the installed ``solid``.
 
-    python tools/hardening_audit.py [--json OUT] [--quick]
+    python tools/hardening_audit.py [--json OUT] [--quick] [--only AREA] [--match TEXT]
+
+Issue 39's area: writers over FIFOs and device nodes of its own making (as root; never the
+system's), maps truncated or written in place under a running detector, ``verify_threads``
+bounds, hostile g2o loop files, ``voxel_size`` 0, racing no-replace saves, forged maps, point
+writers' errors and modes, a closed stdout pipe; its C API cases load ``libsolid.so`` with ctypes
+(``$SOLID_C_LIB``, else ``target/{release,debug}``; skipped when there is none).
 
 Every case runs in a child process (allocation limits through ``RLIMIT_AS``/``RLIMIT_FSIZE``, a
 timeout for blocking reads) and is classed as handled cleanly (the package's error, ``TypeError``,
@@ -490,20 +497,348 @@ def issue30(results: Results) -> None:
         record(results, area, name, o.kind == "ok", o)
 
 
+# ---------------------------------------------------------------------------------------------
+# Issue 39: writers and special files, maps changed while open, bounded threads, hostile g2o
+# loops, voxel_size 0, concurrent no-replace writers, forged maps, writer errors and modes, a
+# closed pipe. Each case prints "RESULT ok" when handled as the issue asks.
+
+FORGE = """
+import struct, zlib
+def forge(b, kind, mutate):
+    # A format 3/4 map with section `kind`'s bytes changed by mutate(bytearray), its CRC right.
+    b = bytearray(b)
+    count = struct.unpack_from('<I', b, 88)[0]
+    for k in range(count):
+        kd, _, off, ln, _ = struct.unpack_from('<IIQQQ', b, 96 + 32 * k)
+        if kd == kind:
+            sec = bytearray(b[off:off + ln]); mutate(sec)
+            b[off:off + ln] = sec
+            struct.pack_into('<I', b, off + ln, zlib.crc32(bytes(sec)))
+            return bytes(b)
+    raise KeyError(kind)
+def posed_db(n=4, session=0):
+    db = solid.Database(cfg)
+    for i in range(n):
+        p = np.eye(3, 4); p[0, 3] = i
+        db.add(desc(i), session=session, timestamp=float(i), pose=p.ravel())
+    return db
+def sim_map(path, n=14):
+    w = sim.World(seed=3); s = sim.simulate(w, sim.Sensor('vlp16'), sim.Trajectory.loop(w, laps=1.1, spacing=6.0))
+    scans = [np.ascontiguousarray(x[:, :3]) for x in s.scans]
+    det = solid.LoopDetector(solid.SolidConfig.preset('vlp16'))
+    det.detect_many(scans[:n])
+    det.database.save(path)
+    return scans
+def special(path, kind):
+    import stat
+    if kind == 'fifo':
+        os.mkfifo(path)
+    else:
+        os.mknod(path, stat.S_IFCHR | 0o666, os.makedev(1, 3))  # a null device of our own
+    return os.stat(path).st_mode
+def same_node(path, mode):
+    st = os.stat(path)
+    assert st.st_mode == mode, f"{path} is no longer the special file it was (mode {st.st_mode:o})"
+"""
+
+G2O_EDGE = "EDGE_SE3:QUAT 0 2 {t} {q} {info}"
+
+
+def _g2o_cases() -> dict[str, str]:
+    eye = " ".join("1" if a == b else "0" for a in range(6) for b in range(a, 6))
+    good_q = "0 0 0 1"
+    bad = {
+        "NaN translation": G2O_EDGE.format(t="nan 0 0", q=good_q, info=eye),
+        "zero quaternion": G2O_EDGE.format(t="1 0 0", q="0 0 0 0", info=eye),
+        "quaternion of norm 1e200": G2O_EDGE.format(t="1 0 0", q="0 0 0 1e200", info=eye),
+        "information not positive semidefinite": G2O_EDGE.format(t="1 0 0", q=good_q, info=eye.replace("1", "-1", 1)),
+        "all-zero information": G2O_EDGE.format(t="1 0 0", q=good_q, info=" ".join(["0"] * 21)),
+        "edge from a vertex to itself": G2O_EDGE.format(t="1 0 0", q=good_q, info=eye).replace(" 0 2 ", " 1 1 ", 1),
+    }
+    verts = "".join(f"VERTEX_SE3:QUAT {i} {i} 0 0 0 0 0 1\n" for i in range(3))
+    cases = {}
+    for name, edge in bad.items():
+        cases[f"g2o loops file with {name} refused naming line 4"] = f"""
+            import tempfile, warnings
+            from solid.slam import PoseGraph
+            warnings.simplefilter('error')
+            f = tempfile.mkdtemp() + '/loops.g2o'
+            open(f, 'w').write({verts!r} + {edge + chr(10)!r})
+            try:
+                PoseGraph.read_g2o(f)
+            except solid.SolidError as e:
+                assert 'line 4' in str(e), e
+            else:
+                raise AssertionError('accepted')
+        """
+    return cases
+
+
+def issue39_cases(c_lib: Path | None) -> dict[str, tuple[str, float]]:
+    cases: dict[str, tuple[str, float]] = {}
+    for kind in ("fifo", "chardev"):
+        if kind == "chardev" and os.geteuid() != 0:
+            continue
+        label = "FIFO" if kind == "fifo" else "character device (own mknod 1,3)"
+        writers = {
+            "Database.save": "small_db(3).save(out)",
+            "write_pcd": "from solid.io import write_pcd; write_pcd(out, np.zeros((5, 3), np.float32))",
+            "write_ply": "from solid.io import write_ply; write_ply(out, np.zeros((5, 3), np.float32))",
+            "PipelineConfig.dump": "solid.config.PipelineConfig.preset('hdl64').dump(out)",
+        }
+        for name, call in writers.items():
+            cases[f"{name} over a {label} refused, the node kept"] = (
+                FORGE
+                + f"""
+import tempfile, solid.config
+out = tempfile.mkdtemp() + '/out'
+mode = special(out, {kind!r})
+try:
+    {call}
+except OSError as e:
+    print('refused:', e)
+else:
+    raise AssertionError('written')
+same_node(out, mode)
+""",
+                30,
+            )
+        cases[f"solid describe -o a {label}: written through, the node kept"] = (
+            FORGE
+            + f"""
+import tempfile, subprocess
+d = tempfile.mkdtemp(); out = d + '/out'; scan = d + '/s.bin'
+np.random.default_rng(0).random((2000, 4)).astype(np.float32).tofile(scan)
+mode = special(out, {kind!r})
+got = []
+if {kind!r} == 'fifo':
+    def rd():
+        with open(out, 'rb') as f:
+            got.append(f.read())
+    t = threading.Thread(target=rd); t.start()
+p = subprocess.run([sys.executable, '-m', 'solid', 'describe', scan, '--preset', 'hdl64', '-o', out], capture_output=True, text=True, timeout=60)
+assert p.returncode == 0, p.stderr
+if {kind!r} == 'fifo':
+    t.join(10); assert got and b'"n_points": 2000' in got[0], got
+same_node(out, mode)
+""",
+            60,
+        )
+    if c_lib is not None:
+        for fn in ("solid_database_save", "solid_detector_save"):
+            cases[f"C {fn} over a FIFO refused, the FIFO kept"] = (
+                FORGE
+                + f"""
+import ctypes, tempfile
+lib = ctypes.CDLL({str(c_lib)!r})
+lib.solid_last_error.restype = ctypes.c_char_p
+out = tempfile.mkdtemp() + '/out'
+mode = special(out, 'fifo')
+c = ctypes.c_void_p(); assert lib.solid_config_new(b'hdl64', ctypes.byref(c)) == 0
+h = ctypes.c_void_p()
+if {fn!r} == 'solid_database_save':
+    assert lib.solid_database_new(c, ctypes.byref(h)) == 0
+else:
+    dc = ctypes.c_void_p(); assert lib.solid_detector_config_new(b'hdl64', ctypes.byref(dc)) == 0
+    assert lib.solid_detector_new(c, dc, ctypes.byref(h)) == 0, lib.solid_last_error()
+st = getattr(lib, {fn!r})(h, out.encode())
+assert st != 0, 'written'
+print('refused:', lib.solid_last_error())
+same_node(out, mode)
+""",
+                30,
+            )
+    changed = {
+        "truncated": "os.truncate(path, os.path.getsize(path) // 2)",
+        "overwritten in place": "f = open(path, 'r+b'); f.seek(os.path.getsize(path) // 2); f.write(os.urandom(os.path.getsize(path) // 2 - 8)); f.close()",
+    }
+    for how, change in changed.items():
+        cases[f"map {how} under a running detector: the step fails naming the map"] = (
+            FORGE
+            + f"""
+import tempfile
+path = tempfile.mkdtemp() + '/map.soliddb'
+scans = sim_map(path)
+det = solid.LoopDetector.from_database(solid.Database.load(path), exclude_recent=0)
+{change}
+try:
+    for s in scans[:14]:
+        det.detect(s)
+except solid.SolidError as e:
+    assert path in str(e) and 'changed' in str(e), e
+else:
+    raise AssertionError('the run went on without an error')
+""",
+            120,
+        )
+        cases[f"map {how} while open: Database.cloud fails naming the map"] = (
+            FORGE
+            + f"""
+import tempfile
+path = tempfile.mkdtemp() + '/map.soliddb'
+sim_map(path)
+db = solid.Database.load(path)
+{change}
+try:
+    [db.cloud(i) for i in range(len(db))]
+except solid.SolidError as e:
+    assert path in str(e) and 'changed' in str(e), e
+else:
+    raise AssertionError('read')
+""",
+            120,
+        )
+    cases["DetectorConfig(verify_threads=10**6) refused"] = (
+        "try:\n    solid.DetectorConfig(verify_threads=10**6)\nexcept solid.ConfigError:\n    pass\nelse:\n    raise AssertionError('accepted')",
+        30,
+    )
+    cases["solid config dump --verify-threads 1000000 refused"] = (
+        "import subprocess\np = subprocess.run([sys.executable, '-m', 'solid', 'config', 'dump', '--verify-threads', '1000000'], capture_output=True, text=True, timeout=60)\nassert p.returncode != 0 and '0..=256' in p.stderr, (p.returncode, p.stderr)",
+        60,
+    )
+    if c_lib is not None:
+        cases["C solid_detector_config_set verify_threads 1e6 refused"] = (
+            f"""
+import ctypes
+lib = ctypes.CDLL({str(c_lib)!r})
+h = ctypes.c_void_p(); assert lib.solid_detector_config_new(b'hdl64', ctypes.byref(h)) == 0, 'config'
+lib.solid_detector_config_set.argtypes = [ctypes.c_void_p, ctypes.c_char_p, ctypes.c_double]
+assert lib.solid_detector_config_set(h, b'verify_threads', 1e6) != 0, 'accepted'
+""",
+            30,
+        )
+    cases.update({k: (v, 30) for k, v in _g2o_cases().items()})
+    cases["registration.voxel_size = 0: the detector runs (or the config is refused)"] = (
+        """
+w = sim.World(seed=3); s = sim.simulate(w, sim.Sensor('vlp16'), sim.Trajectory.loop(w, laps=1.1, spacing=6.0))
+try:
+    dc = solid.DetectorConfig(registration={'voxel_size': 0.0})
+except solid.ConfigError:
+    pass
+else:
+    det = solid.LoopDetector(solid.SolidConfig.preset('vlp16'), detector=dc)
+    for x in s.scans[:6]:
+        det.detect(np.ascontiguousarray(x[:, :3]))
+""",
+        120,
+    )
+    cases["two concurrent saves without replacing: exactly one wins x20"] = (
+        """
+import tempfile
+a, b = small_db(300, 1), small_db(200, 2)
+bad = 0
+for t in range(20):
+    path = tempfile.mkdtemp() + '/m.soliddb'
+    wins, errs = [], []
+    def save(db):
+        try:
+            db.save(path, replace=False); wins.append(len(db))
+        except FileExistsError as e:
+            errs.append(e)
+    ts = [threading.Thread(target=save, args=(d,)) for d in (a, b)]
+    [x.start() for x in ts]; [x.join() for x in ts]
+    bad += not (len(wins) == 1 and len(errs) == 1 and len(solid.Database.load(path)) == wins[0])
+assert bad == 0, f'{bad} of 20 trials wrong'
+""",
+        120,
+    )
+    cases["two concurrent `solid map build -o SAME`: exactly one wins x3"] = (
+        """
+import tempfile, subprocess
+d = tempfile.mkdtemp()
+w = sim.World(seed=2)
+sim.write_sequence(d + '/run', w, sim.Sensor('vlp16'), sim.Trajectory.loop(w, laps=0.3, spacing=4.0)[:12])
+bad = []
+for t in range(3):
+    out = f'{d}/map{t}.soliddb'
+    cmd = [sys.executable, '-m', 'solid', 'map', 'build', d + '/run', '--preset', 'vlp16', '-o', out, '-q']
+    ps = [subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for _ in range(2)]
+    res = [p.communicate(timeout=120) + (p.returncode,) for p in ps]
+    codes = sorted(r[2] for r in res)
+    if codes != [0, 1] or 'exists' not in ''.join(r[1] for r in res):
+        bad.append((codes, [r[1][-120:] for r in res]))
+assert not bad, bad
+""",
+        400,
+    )
+    cases["Database.add session=2**32-1 refused"] = (
+        "try:\n    solid.Database(cfg).add(desc(1), session=2**32 - 1)\nexcept solid.SolidError:\n    pass\nelse:\n    raise AssertionError('accepted')",
+        30,
+    )
+    forged = {
+        "session 2^32-1": "forge(posed_db().to_bytes(version=4), 1, lambda s: struct.pack_into('<I', s, 0, 0xFFFFFFFF))",
+        "a pose that is not a rotation": "forge(posed_db().to_bytes(version=3), 7, lambda s: struct.pack_into('<d', s, 4, 2.0))",
+        "an A-SOLiD step that overflows to inf": "forge(posed_db().to_bytes(version=4), 5, lambda s: struct.pack_into('<f', s, 0, 1e38))",
+    }
+    for name, code in forged.items():
+        cases[f"forged map with {name} refused at load"] = (
+            FORGE + f"b = {code}\ntry:\n    solid.Database.from_bytes(b)\nexcept solid.DatabaseError as e:\n    print(e)\nelse:\n    raise AssertionError('loaded')",
+            30,
+        )
+    for w in ("write_pcd", "write_ply"):
+        cases[f"{w} of points of shape (5, 2) is a SolidError"] = (
+            f"import tempfile\nfrom solid.io import {w}\ntry:\n    {w}(tempfile.mkdtemp() + '/x', np.zeros((5, 2), np.float32))\nexcept solid.SolidError:\n    pass",
+            30,
+        )
+        cases[f"{w} honours the umask (022: 0644)"] = (
+            f"import tempfile, stat\nfrom solid.io import {w}\nos.umask(0o022)\nf = tempfile.mkdtemp() + '/x'\n{w}(f, np.zeros((5, 3), np.float32))\nm = stat.S_IMODE(os.stat(f).st_mode)\nassert m == 0o644, oct(m)",
+            30,
+        )
+    cases["solid map info into a closed pipe: no Broken-pipe error"] = (
+        """
+import tempfile, subprocess
+path = tempfile.mkdtemp() + '/m.soliddb'
+small_db(3).save(path)
+p = subprocess.Popen([sys.executable, '-m', 'solid', 'map', 'info', path], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+p.stdout.close()
+err = p.stderr.read().decode(); p.wait(60)
+assert 'Broken pipe' not in err and 'Traceback' not in err and 'error' not in err, err
+""",
+        60,
+    )
+    return cases
+
+
+def issue39(results: Results, c_lib: Path | None, match: str | None = None) -> None:
+    area = "issue 39 writers, changed maps, bounds"
+    if c_lib is None:
+        print("  (C API cases skipped: no libsolid.so; build it with cargo build -p solid-c or set SOLID_C_LIB)")
+    for name, (code, timeout) in issue39_cases(c_lib).items():
+        if match is not None and match not in name:
+            continue
+        o = run(code, timeout=timeout)
+        record(results, area, name, o.kind == "ok", o)
+
+
+def find_c_lib() -> Path | None:
+    """libsolid.so: $SOLID_C_LIB, else this checkout's release or debug build."""
+    env = os.environ.get("SOLID_C_LIB")
+    if env:
+        return Path(env)
+    root = Path(__file__).resolve().parent.parent / "target"
+    for p in (root / "release" / "libsolid.so", root / "debug" / "libsolid.so"):
+        if p.exists():
+            return p
+    return None
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--json", type=Path, help="write the per-case results here")
     ap.add_argument("--quick", action="store_true", help="10 trials instead of 40 for the races and kills")
-    ap.add_argument("--only", choices=["allocation", "files", "api", "issue30"], action="append")
+    ap.add_argument("--only", choices=["allocation", "files", "api", "issue30", "issue39"], action="append")
+    ap.add_argument("--match", help="run only the issue-39 cases whose name holds this text")
     a = ap.parse_args()
     results: Results = {}
-    only = set(a.only or ["allocation", "files", "api", "issue30"])
+    only = set(a.only or ["allocation", "files", "api", "issue30", "issue39"])
     with tempfile.TemporaryDirectory(prefix="solid-audit-") as d:
         tmp = Path(d)
         if "api" in only:
             api(results)
         if "issue30" in only:
             issue30(results)
+        if "issue39" in only:
+            issue39(results, find_c_lib(), a.match)
         if "files" in only:
             files(results, tmp, a.quick)
         if "allocation" in only:

@@ -98,7 +98,7 @@ fn build(base: &Database, n: usize, path: &Path) {
             let mut pose = [0.0; 12];
             (pose[0], pose[5], pose[10]) = (1.0, 1.0, 1.0);
             (pose[3], pose[7]) = (j as f64, (j / BASE) as f64);
-            let cloud = base.cloud(i);
+            let cloud = base.cloud(i).expect("a readable cloud");
             let session = (j / BASE) as u32;
             db.add_with_cloud(&d, session, 0.1 * j as f64, Some(pose), cloud.as_deref())
                 .expect("a place");

@@ -312,7 +312,7 @@ class DetectorConfig:
             verify_fan_deg: The fixed ± yaw fan added to the hypotheses, degrees (0: none) (degrees in [0, 180]; default 25.0).
             cloud_bits: Bits per axis of the compact clouds stored with the places (an integer in 1..=16; default 8).
             cache_bytes: Memory for prepared clouds kept between steps, bytes (an integer >= 0; default 268435456).
-            verify_threads: Threads registering a step's candidates at once (0: one per core) (an integer >= 0; default 0).
+            verify_threads: Threads registering a step's candidates at once (0: one per core) (an integer in 0..=256; default 0).
             verify_step_points: Work budget of one step, in points: each candidate costs its hypotheses times the two clouds' points; the best is always registered (an integer >= 1; default 4000000).
             view_fov_deg: The sensor's horizontal field of view, degrees (the view check's; 360: views always overlap) (degrees in (0, 360]; default 360.0).
             view_min_overlap_deg: Reject a verified loop whose yaw leaves the two fields of view sharing less azimuth than this, degrees (0: off) (degrees in [0, 360]; default 20.0).
@@ -396,7 +396,7 @@ class DetectorConfig:
             verify_fan_deg: The fixed ± yaw fan added to the hypotheses, degrees (0: none) (degrees in [0, 180]; default 25.0).
             cloud_bits: Bits per axis of the compact clouds stored with the places (an integer in 1..=16; default 8).
             cache_bytes: Memory for prepared clouds kept between steps, bytes (an integer >= 0; default 268435456).
-            verify_threads: Threads registering a step's candidates at once (0: one per core) (an integer >= 0; default 0).
+            verify_threads: Threads registering a step's candidates at once (0: one per core) (an integer in 0..=256; default 0).
             verify_step_points: Work budget of one step, in points: each candidate costs its hypotheses times the two clouds' points; the best is always registered (an integer >= 1; default 4000000).
             view_fov_deg: The sensor's horizontal field of view, degrees (the view check's; 360: views always overlap) (degrees in (0, 360]; default 360.0).
             view_min_overlap_deg: Reject a verified loop whose yaw leaves the two fields of view sharing less azimuth than this, degrees (0: off) (degrees in [0, 360]; default 20.0).
@@ -481,7 +481,7 @@ class DetectorConfig:
             verify_fan_deg: The fixed ± yaw fan added to the hypotheses, degrees (0: none) (degrees in [0, 180]; default 25.0).
             cloud_bits: Bits per axis of the compact clouds stored with the places (an integer in 1..=16; default 8).
             cache_bytes: Memory for prepared clouds kept between steps, bytes (an integer >= 0; default 268435456).
-            verify_threads: Threads registering a step's candidates at once (0: one per core) (an integer >= 0; default 0).
+            verify_threads: Threads registering a step's candidates at once (0: one per core) (an integer in 0..=256; default 0).
             verify_step_points: Work budget of one step, in points: each candidate costs its hypotheses times the two clouds' points; the best is always registered (an integer >= 1; default 4000000).
             view_fov_deg: The sensor's horizontal field of view, degrees (the view check's; 360: views always overlap) (degrees in (0, 360]; default 360.0).
             view_min_overlap_deg: Reject a verified loop whose yaw leaves the two fields of view sharing less azimuth than this, degrees (0: off) (degrees in [0, 360]; default 20.0).
@@ -562,7 +562,7 @@ class DetectorConfig:
         """Memory for prepared clouds kept between steps, bytes (an integer >= 0; default 268435456)."""
     @property
     def verify_threads(self) -> int:
-        """Threads registering a step's candidates at once (0: one per core) (an integer >= 0; default 0)."""
+        """Threads registering a step's candidates at once (0: one per core) (an integer in 0..=256; default 0)."""
     @property
     def verify_step_points(self) -> int:
         """Work budget of one step, in points: each candidate costs its hypotheses times the two clouds' points; the best is always registered (an integer >= 1; default 4000000)."""
@@ -1162,7 +1162,7 @@ class Database:
 
                 Args:
                     descriptor: A descriptor made with the database's configuration.
-                    session: The robot or run it comes from (an unsigned 32-bit integer).
+                    session: The robot or run it comes from (0 to 2^32 - 2: the session after the last must be numbered).
                     timestamp: Seconds, or None for none (stored as NaN).
                     pose: `T_world_sensor` as a 3×4 array or 12 floats (row-major [R|t]), or None.
                     cloud: The place's compact cloud for verification (`solid.encode_cloud` or
@@ -1194,7 +1194,7 @@ class Database:
         Args:
             r: R-SOLiDs, shape (N, n_range), float32 (read in place) or float64, C-contiguous.
             a: A-SOLiDs, shape (N, n_azimuth), float32 or float64, C-contiguous.
-            session: The robot or run they come from (an unsigned 32-bit integer).
+            session: The robot or run they come from (0 to 2^32 - 2: the session after the last must be numbered).
             timestamps: Seconds, shape (N,), float64 (NaN: none), or None for none.
             poses: `T_world_sensor` of each, float64 of shape (N, 3, 4), (N, 4, 4) or (N, 12)
                 (row-major [R|t]), or None.
@@ -1347,21 +1347,29 @@ class Database:
             DatabaseError: `other` has another configuration.
             SolidError: `anchor` is not a finite rigid transform.
         """
-    def save(self, path: str | PathLike[str], version: int = 4) -> None:
+    def save(self, path: str | PathLike[str], version: int = 4, *, replace: bool = True) -> None:
         """Writes the database to `path` (docs/spec.md §9), atomically: a temporary file in the
                 same folder, then a rename. Written as it is encoded: no copy of the whole file in
-                memory.
+                memory. Only a regular file is ever replaced: a FIFO, a device, a socket or a
+                directory at `path` (also through a symbolic link) is refused.
 
                 Args:
-                    path: The file to write (replaced if it exists).
+                    path: The file to write (a regular file there is replaced, unless `replace` is
+                        False).
                     version: The file format: 4 (the current one: a pose's rotation as a unit
                         quaternion, read back within 1e-12), 3 for readers before format 4 (poses
                         as matrices), or 2 for older readers (which keeps no `metadata`).
+                    replace: False: refuse when anything exists at `path`, also when it appears
+                        during the save (the file is linked into place, which never replaces
+                        anything): of concurrent saves to one path exactly one succeeds.
 
                 Raises:
                     ConfigError: Another version.
                     DatabaseError: A stored cloud read from the file this map was loaded from is
-                        corrupt (it is never written again under a fresh checksum); nothing is written.
+                        corrupt, or that file changed since it was loaded (it is never written
+                        again under a fresh checksum); nothing is written.
+                    FileExistsError: `path` is not a regular file, or exists and `replace` is False;
+                        nothing is written.
                     OSError: The file cannot be written (the subclass matches the cause, with `filename`).
         """
     @staticmethod
@@ -1478,7 +1486,9 @@ class Database:
             loaded from a file in format 3 or 4 reads it from the file now.
 
         Raises:
-            DatabaseError: The stored cloud is corrupt (its checksum), named by place and file.
+            DatabaseError: The stored cloud is corrupt (its checksum), named by place and file,
+                or the file was truncated or written since the map was loaded (named).
+            OSError: The file cannot be read.
             ConfigError: No place has this id (negative, beyond 64 bits, or `len(db)` and up).
             TypeError: An id that is not an integer (or a bool).
         """

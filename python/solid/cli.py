@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 import traceback
 from collections.abc import Callable, Sequence as AbcSequence, Set as AbcSet
@@ -33,6 +34,7 @@ examples:
   solid optimize run/ --poses odom.txt --preset avia -o out/   # loops + odometry → a consistent trajectory
   solid config dump --preset avia --max-range 40 > avia40.json
   solid bench   ~/data/kitti/00/velodyne --preset hdl64
+  solid ros2 run --ros-args -p preset:=avia     # the ROS 2 node (docs/ros2.md)
 
 A SEQUENCE is a folder of scans (.bin .pcd .ply .npy .npz, natural order; a velodyne/ or Scans/
 sub-folder is used when present), a ROS 1 bag, a ROS 2 bag folder or an MCAP file
@@ -44,8 +46,35 @@ What is computed: {_SPEC}. Exit codes: 0 ok, 1 failure, 2 usage error, 130 inter
 
 class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> NoReturn:
-        self.print_usage(sys.stderr)
-        self.exit(2, f"{self.prog}: error: {message}\n")
+        """A usage error: the reason and where the options are, on one line (not the usage block)."""
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+# ---- a short --help: the options most runs need; --help-all lists every one --------------------
+
+#: Fields of the core's parameter tables that `--help` lists (the rest are under `--help-all`).
+_COMMON_TABLE_FIELDS = frozenset({"max_range", "threshold", "verify", "exclude_frames", "exclude_meters"})
+
+
+def _advanced(action: argparse.Action) -> argparse.Action:
+    """Hides `action` from `--help` (not from parsing): `--help-all` shows it."""
+    action._full_help = action.help  # type: ignore[attr-defined]
+    action.help = argparse.SUPPRESS
+    return action
+
+
+class _HelpAll(argparse.Action):
+    """`--help-all`: the help of every option, those `--help` leaves out included."""
+
+    def __init__(self, option_strings: list[str], dest: str = argparse.SUPPRESS, default: Any = argparse.SUPPRESS, help: str | None = None) -> None:
+        super().__init__(option_strings, dest, default=default, nargs=0, help=help)
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace, values: Any, option_string: str | None = None) -> None:
+        for a in parser._actions:
+            if hasattr(a, "_full_help"):
+                a.help = a._full_help
+        parser.print_help()
+        parser.exit()
 
 
 # ---- value types: a bad value is a usage error (exit 2, one line) ----------------------------
@@ -105,12 +134,14 @@ def _add_table_args(g: Any, table: str, per_preset: AbcSet[str] = frozenset(), p
         flags = ["--" + dest.replace("_", "-"), *_FLAG_ALIASES.get(dest, [])]
         help = f"{f['doc'].rstrip('.')} (default: {default_text(f, per_preset)})"
         if f["type"] == "bool":
-            g.add_argument(*flags, dest=dest, action=argparse.BooleanOptionalAction, default=None, help=help)
+            a = g.add_argument(*flags, dest=dest, action=argparse.BooleanOptionalAction, default=None, help=help)
         elif f["type"] == "str":
-            g.add_argument(*flags, dest=dest, choices=f["choices"], default=None, help=help)
+            a = g.add_argument(*flags, dest=dest, choices=f["choices"], default=None, help=help)
         else:
             metavar = "N" if f["type"] == "int" else "X"
-            g.add_argument(*flags, dest=dest, type=_table_type(f), default=None, metavar=metavar, help=help)
+            a = g.add_argument(*flags, dest=dest, type=_table_type(f), default=None, metavar=metavar, help=help)
+        if prefix or f["name"] not in _COMMON_TABLE_FIELDS:
+            _advanced(a)
 
 
 def _add_config_args(p: argparse.ArgumentParser) -> None:
@@ -142,18 +173,18 @@ def _add_truth_args(p: argparse.ArgumentParser) -> None:
 
 def _add_input_args(p: argparse.ArgumentParser, poses_required: bool = False) -> None:
     g = p.add_argument_group("input")
-    g.add_argument("--format", choices=_formats(), help="force the scan reader (default: chosen from the files' content)")
+    _advanced(g.add_argument("--format", choices=_formats(), help="force the scan reader (default: chosen from the files' content)"))
     g.add_argument("--topic", help="point-cloud topic of a bag (default: the only one)")
-    g.add_argument("--poses", type=Path, required=poses_required, help="KITTI 3×4 rows or TUM (t x y z qx qy qz qw)")
-    g.add_argument("--timestamps", type=Path, help="timestamps file (one per scan)")
+    g.add_argument("--poses", type=Path, required=poses_required, metavar="FILE|TOPIC", help="KITTI 3×4 rows or TUM (t x y z qx qy qz qw); for a bag, also a nav_msgs/Odometry topic of it (e.g. /odom)")
+    _advanced(g.add_argument("--timestamps", type=Path, help="timestamps file (one per scan)"))
     g.add_argument("--calib", type=Path, metavar="FILE", help="sensor → pose-frame extrinsic (KITTI calib.txt 'Tr:' line, or 12 numbers)")
     g.add_argument("--frames", default=None, metavar="SPEC", help="frames to use, e.g. 0:60,284:314 (Python slices)")
-    g.add_argument("--subsample-m", type=pos_float, default=None, metavar="M", help="keep one frame per M metres travelled")
+    _advanced(g.add_argument("--subsample-m", type=pos_float, default=None, metavar="M", help="keep one frame per M metres travelled"))
     g.add_argument("--fov", type=degrees, default=None, metavar="DEG", help="clip every scan to this horizontal FOV")
-    g.add_argument("--fov-center", type=any_float, default=None, metavar="DEG", help="centre of --fov (default 0 = +x, the same for every run; a warning says when the first scan has nothing there)")
-    g.add_argument("--occlude", type=degrees, default=None, metavar="DEG", help="remove a sector this wide from every scan")
-    g.add_argument("--occlude-center", type=any_float, default=None, metavar="DEG")
-    g.add_argument("--threads", type=nonneg_int, default=0, help="threads for describing (default 0: one per core)")
+    _advanced(g.add_argument("--fov-center", type=any_float, default=None, metavar="DEG", help="centre of --fov (default 0 = +x, the same for every run; a warning says when the first scan has nothing there)"))
+    _advanced(g.add_argument("--occlude", type=degrees, default=None, metavar="DEG", help="remove a sector this wide from every scan"))
+    _advanced(g.add_argument("--occlude-center", type=any_float, default=None, metavar="DEG", help="centre of --occlude (default 0 = +x)"))
+    _advanced(g.add_argument("--threads", type=nonneg_int, default=0, help="threads for describing (default 0: one per core)"))
 
 
 def _formats() -> list[str]:
@@ -185,6 +216,8 @@ def _actions(sub: Any, name: str, help: str) -> Any:
 def _add_common(p: argparse.ArgumentParser) -> None:
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
     p.add_argument("--debug", action="store_true", help="show tracebacks for errors")
+    if any(hasattr(a, "_full_help") for a in p._actions):
+        p.add_argument("--help-all", action=_HelpAll, help="show every option (--help lists those most runs need)")
 
 
 def _add_run_head(p: argparse.ArgumentParser, map_help: str) -> None:
@@ -227,7 +260,7 @@ def build_parser() -> argparse.ArgumentParser:
         "solid describe 000000.bin --preset hdl64", "solid describe scan.pcd --preset avia --max-range 40 -o d.json",
     )
     p.add_argument("scan", type=Path, help="a scan file")
-    p.add_argument("-o", "--output", type=Path, help="write the JSON here instead of stdout")
+    p.add_argument("-o", "--output", type=Path, help="write the JSON here instead of stdout (a file is replaced atomically; a FIFO or a character device is written through)")
     p.add_argument("--format", choices=_formats(), help="force the scan reader")
     _add_config_args(p)
     _add_common(p)
@@ -256,8 +289,8 @@ def build_parser() -> argparse.ArgumentParser:
     w.add_argument("--same-world", action="store_true", help="with --map: this session's poses are already in the map's world")
     _add_truth_args(p)
     p.add_argument("--baseline", action="append", choices=["scancontext"], default=[], help="also evaluate this baseline on the same queries")
-    p.add_argument("--sc-max-range", type=pos_float, default=None, metavar="M", help="Scan Context max range (default 80, as the reference)")
-    p.add_argument("--sc-lidar-height", type=any_float, default=None, metavar="M", help="added to z before the max height (default 2.0)")
+    _advanced(p.add_argument("--sc-max-range", type=pos_float, default=None, metavar="M", help="Scan Context max range (default 80, as the reference)"))
+    _advanced(p.add_argument("--sc-lidar-height", type=any_float, default=None, metavar="M", help="added to z before the max height (default 2.0)"))
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     _add_run_tail(p, poses_required=True)
 
@@ -294,6 +327,20 @@ def build_parser() -> argparse.ArgumentParser:
     )  # fmt: skip
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plot")
     _add_run_tail(p, poses_required=True)
+
+    p = _command(
+        sub, "view", "see a run in 3-D: trajectories, places, loops coloured by verdict, a loop's two clouds (pip install solid-lidar[viewer])",
+        "solid view solid_results/latest                 # writes solid_results/latest/view.rrd",
+        "solid view out/ -o run.rrd --loop 305          # the clouds of the loop whose query is frame 305",
+        "solid view out/ --spawn                        # straight into a rerun viewer",
+        note="\nOpen the file with `rerun FILE.rrd` (or `rerun --web-viewer FILE.rrd`). See docs/view.md.\n",
+    )
+    p.add_argument("run", type=Path, help="a run folder of solid eval, detect or optimize")
+    p.add_argument("-o", "--output", type=Path, default=None, help="the .rrd file to write (default RUN/view.rrd)")
+    p.add_argument("--loop", type=nonneg_int, default=None, metavar="FRAME", help="show the clouds of the loop whose query is this frame (default: the first verified loop)")
+    p.add_argument("--no-clouds", action="store_true", help="show no loop's clouds")
+    p.add_argument("--spawn", action="store_true", help="send to a rerun viewer started for it instead of writing a file")
+    _add_common(p)
 
     p = _command(
         sub, "demo", "simulate a drive with a loop under a narrow FOV and score SOLiD against the truth",
@@ -377,6 +424,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--topic", help="point-cloud topic of a bag")
     _add_config_args(p)
     _add_common(p)
+
+    p = _command(
+        sub, "ros2", "the ROS 2 node and a bag player (pip install \"solid-lidar[ros2]\"; docs/ros2.md)",
+        "solid ros2 run --ros-args -p preset:=avia", "solid ros2 play run.bag --rate 1",
+    )
+    p.add_argument("args", nargs=argparse.REMAINDER, help="run|play and their arguments (solid ros2 run --help)")
     return parser
 
 
@@ -423,7 +476,7 @@ def cmd_describe(args: argparse.Namespace, out: TextIO) -> int:
     cfg = make_config(args)
     text = json.dumps(describe_scan(args.scan, cfg, args.format), indent=1) + "\n"
     if args.output is not None:
-        atomic_write_bytes(args.output, text.encode())
+        atomic_write_bytes(args.output, text.encode(), stream=True)  # -o /dev/stdout, a FIFO: written through
     else:
         out.write(text)
     return 0
@@ -439,10 +492,12 @@ def cmd_detect(args: argparse.Namespace, out: TextIO) -> int:
     total = result.timings["detect_s"]
     rate = len(result.frames) / total if total > 0 else math.inf
     d = cfg.detector
+    # What applied: the threshold only without verification, a window only with what it counts.
+    accept = f"verified, gate's largest loop {d.gate.max_translation:g} m" if d.verify else f"threshold {d.threshold:g}"
     out.write(
-        f"{len(result.frames)} scans, {len(result.loops())} loops (threshold {d.threshold:g}, exclude {d.exclude_frames} frames"
-        + (f" / {d.exclude_meters:g} m" if d.exclude_meters else "")
-        + (f" / {d.exclude_seconds:g} s" if d.exclude_seconds else "")
+        f"{len(result.frames)} scans, {len(result.loops())} loops ({accept}, exclude {d.exclude_frames} frames"
+        + (f" / {d.exclude_meters:g} m" if d.exclude_meters and result.poses is not None else "")
+        + (f" / {d.exclude_seconds:g} s" if d.exclude_seconds and result.timestamps is not None else "")
         + f"{', map of ' + str(result.map_size) + ' places' if result.map_size else ''}), {rate:.1f} Hz\n"
     )
     out.write(evaluation.describe_loop_delay(evaluation.loop_delay_steps(d)) + "\n")
@@ -499,10 +554,10 @@ def cmd_eval(args: argparse.Namespace, out: TextIO) -> int:
         out.write(f"exclusion: {cfg.detector.exclude_frames} frames ≈ {excl:.1f} m travelled on this sequence (median)\n")
     if m.get("accepted") is not None:
         out.write(
-            f"at the threshold {m['threshold']:g}: {m['accepted']} loops accepted, {m['false_accepts']} false "
-            f"({m['place_false_accepts']} beyond {m['radius_m']:g} m, {m['pose_false_accepts']} with a pose off by more than "
-            f"{m['pose_tolerance_m']:g} m or {m['pose_tolerance_deg']:g}°; "
-            f"precision {commands.fmt_metric(m['precision'])}, recall {commands.fmt_metric(m['recall'])})\n"
+            f"at the threshold {m['threshold']:g}: {m['accepted']} loops accepted: {m['accepted'] - m['false_accepts']} correct, "
+            f"{m['place_false_accepts']} beyond the {m['radius_m']:g} m radius, {m['pose_false_accepts']} with a pose off by more than "
+            f"{m['pose_tolerance_m']:g} m or {m['pose_tolerance_deg']:g}° "
+            f"(precision {commands.fmt_metric(m['precision'])}, recall {commands.fmt_metric(m['recall'])}: within the radius)\n"
         )
     out.write(evaluation.describe_loop_delay(m["loop_delay_steps"]) + "\n")
     for line in commands.advice(m, cfg.detector):
@@ -533,7 +588,8 @@ def cmd_optimize(args: argparse.Namespace, out: TextIO) -> int:
     from .slam import OdometryNoise, require_gtsam
 
     require_gtsam()  # before the detector runs: say how to install it at once
-    cfg, map_db = commands.config_and_map(args)
+    reused = commands.config_of_reused_loops(args)  # --loops reads no scan: no --preset needed
+    cfg, map_db = (reused, None) if reused is not None and args.map is None else commands.config_and_map(args)
     ds, inputs = _open(args, sys.stderr)
     d = OdometryNoise()
     noise = OdometryNoise(
@@ -549,7 +605,7 @@ def cmd_optimize(args: argparse.Namespace, out: TextIO) -> int:
             progress=bar.update, loops_from=args.loops,
         )  # fmt: skip
     m = run.metrics
-    out.write(f"{len(run.result.frames)} frames, {m['loop_edges']} loop edges ({m['loop_edges_kept']} kept by the {m['robust']} optimum)\n")
+    out.write(f"{len(run.result.frames)} frames, {m['loop_edges']} loop edges within the session ({m['loop_edges_kept']} kept by the {m['robust']} optimum)\n")
     k = m["odometry_noise_scale"]
     if k != 1.0:
         how = "as given" if args.odom_noise_scale is not None else "fitted: with the noise as given the optimum dropped most loops; they say the odometry drifts more than its noise model assumes"
@@ -566,7 +622,12 @@ def cmd_optimize(args: argparse.Namespace, out: TextIO) -> int:
             out.write(f"{name:<10} ATE {e['ate_m']:.3f} m, RPE {e['rpe_m']:.3f} m / {e['rpe_deg']:.3f}° per frame\n")
     if "anchor" in m:
         a = m["anchor"]
-        out.write("anchor: none (no verified loop into the map)\n" if a is None else f"anchor: from {a['inlier_loops']} of {a['cross_session_loops']} loops into the map\n")
+        out.write(
+            "anchor: none (no verified loop into the map)\n"
+            if a is None
+            else f"anchor: from {a['inlier_loops']} of {a['cross_session_loops']} loops into the map (in loops.csv; graph.g2o holds the session's own graph, "
+            "so `--loops` reuses only its loops within the session)\n"
+        )
     out.write(f"wrote {run.folder}\n")
     return 0
 
@@ -598,6 +659,20 @@ def _print_table(out: TextIO, evals: AbcSequence[Any]) -> None:
     for e in evals:
         m = e.metrics()
         out.write(f"{e.name:<14}" + "".join(f"{fmt_metric(m[k]):>10}" for k, _ in keys) + "\n")
+
+
+def cmd_view(args: argparse.Namespace, out: TextIO) -> int:
+    from . import view
+
+    view.require_rerun()
+    run = view.read_run(args.run)
+    for note in run.notes:
+        sys.stderr.write(f"solid view: {note}\n")
+    path = view.view(args.run, args.output, loop=args.loop, clouds=not args.no_clouds, spawn=args.spawn, run=run)
+    kinds = ", ".join(f"{n} {k.replace('_', ' ')}" for k, n in view.counts(run.loops).items()) or "none"
+    out.write(f"{len(run.frame_ids)} frames, trajectories: {', '.join(run.trajectories)}; loops: {kinds}\n")
+    out.write(f"wrote {path}: open it with `rerun {path}`\n" if path is not None else "sent to the rerun viewer\n")
+    return 0
 
 
 def cmd_demo(args: argparse.Namespace, out: TextIO) -> int:
@@ -693,8 +768,14 @@ def cmd_bench(args: argparse.Namespace, out: TextIO) -> int:
 
 def main(argv: AbcSequence[str] | None = None) -> int:
     """Run the ``solid`` command; returns the exit code (argparse exits with 2 on usage errors)."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv[:1] == ["ros2"]:
+        # The node and the player take ROS's own arguments (--ros-args ...): they parse their own.
+        from .ros2 import main as ros2_main
+
+        return ros2_main(argv[1:])
     parser = build_parser()
-    args = parser.parse_args(None if argv is None else list(argv))
+    args = parser.parse_args(argv)
     out = sys.stdout
     handlers: dict[str, Callable[[argparse.Namespace, TextIO], int]] = {
         "describe": cmd_describe,
@@ -702,6 +783,7 @@ def main(argv: AbcSequence[str] | None = None) -> int:
         "detect": cmd_detect,
         "eval": cmd_eval,
         "optimize": cmd_optimize,
+        "view": cmd_view,
         "presets": cmd_presets,
         "config": cmd_config,
         "map": cmd_map,
@@ -716,10 +798,21 @@ def main(argv: AbcSequence[str] | None = None) -> int:
         with warnings.catch_warnings():
             warnings.simplefilter("default", UserWarning)
             warnings.showwarning = one_line
-            return handlers[args.command](args, out)
+            code = handlers[args.command](args, out)
+            out.flush()  # here, where a reader that left is told apart (below)
+            return code
     except KeyboardInterrupt:
         print("solid: interrupted (no partial results were left)", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # The reader left (`solid map info | head`): stop quietly, as a command killed by SIGPIPE
+        # would, and keep Python's final flush of stdout from failing again.
+        try:
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+        except (OSError, ValueError):
+            pass
+        return 141
     except (ValueError, OSError, ImportError, MemoryError, RecursionError) as e:
         if getattr(args, "debug", False):
             traceback.print_exc()

@@ -99,6 +99,7 @@ def open_recording(
         timestamps=ds.timestamp_source,
         calib=ds.calib_source,
         map=map,
+        extra={"topic": ds.topic} if ds.is_bag else {},  # so that a run's bag opens again alike (solid view)
     )
     return ds, inputs
 
@@ -163,6 +164,21 @@ def config_and_map(args: argparse.Namespace) -> tuple[Any, Any]:
         raise _solid.ConfigError(f"{args.map} was built with {m.config!r}; this run asks for {cfg.descriptor!r}")
     check_map_clip(args.map, m, cfg.input)
     return cfg, m
+
+
+def config_of_reused_loops(args: argparse.Namespace) -> Any | None:
+    """The configuration of ``solid optimize --loops RUN`` given without ``--preset`` and
+    ``--config``: no scan is read, so none is needed; the run's own ``config.json`` (beside its g2o
+    file) is taken when it has one, so that ``--frames`` and the input options select the same
+    frames, else a preset's (unused: only the input options matter). None when a preset or a
+    config was given."""
+    if getattr(args, "loops", None) is None or args.preset is not None or args.config is not None:
+        return None
+    g2o = reused_loops(args.loops)
+    saved = g2o.parent / "config.json"
+    # Elsewhere any preset does: its descriptor and detector are not used.
+    base = PipelineConfig.load(saved) if g2o.name in ("graph.g2o", "loops.g2o") and saved.is_file() else PipelineConfig.preset("hdl64")
+    return make_config(args, base)
 
 
 def _run(
@@ -443,7 +459,7 @@ def build_map(
     result = _run(dataset, config, None, threads, progress)
     db = result.database
     db.metadata = json.dumps({"clip": clip_record(config.input, result.fov_center)})
-    db.save(out)
+    db.save(out, replace=False)  # never over a map written meanwhile (no-replace link)
     return db, result
 
 
@@ -502,7 +518,7 @@ def merge_maps(inputs: AbcSequence[Path], output_file: Path, anchors: AbcSequenc
     if record:
         meta = json.loads(db.metadata) if db.metadata else {}
         db.metadata = json.dumps((meta if isinstance(meta, dict) else {}) | {"anchors": record})
-    db.save(out)
+    db.save(out, replace=False)  # never over a map written meanwhile (no-replace link)
     return db
 
 
@@ -605,7 +621,7 @@ def upgrade_map(path: Path, output_file: Path | None = None) -> dict[str, Any]:
     out = Path(output_file) if output_file is not None else Path(path)
     if output_file is not None and out.exists():
         raise FileExistsError(f"{out} exists: choose another file name or remove it")
-    _solid.Database.load(path).save(out)
+    _solid.Database.load(path).save(out, replace=output_file is None)
     return {"before": before, "after": map_info(out)}
 
 
@@ -805,6 +821,7 @@ def optimize(
     optimisation (:func:`solid.slam.optimize_run`). Writes ``trajectory.kitti`` and
     ``trajectory.tum`` (the optimised poses, one per frame, in the frame of the given poses),
     ``graph.g2o`` (the whole graph, initial values = the given poses), ``loops.csv``,
+    ``loop_edges.csv`` (each loop edge of the graph, its robust weight and whether the optimum kept it),
     ``trajectory.png`` (before and after, with the loops) and ``metrics.json``; with ``truth``
     (a pose file of the recording), ATE and RPE of the odometry and of the optimum; with a map,
     ``anchor.txt`` (one KITTI 3×4 row, this session's world → the map's world) and
@@ -868,6 +885,14 @@ def optimize(
             write_csv(out.work / "loops.csv", LOOP_COLUMNS, _reused_loop_rows(run.graph, result.timestamps))
         graph = run.graph if T is None else run.graph.in_frame(T)
         graph.write_g2o(out.work / "graph.g2o")
+        write_csv(
+            out.work / "loop_edges.csv",
+            ("query_frame", "candidate_frame", "weight", "kept"),
+            [
+                {"query_frame": int(run.graph.ids[run.graph.edge_from[e]]), "candidate_frame": int(run.graph.ids[run.graph.edge_to[e]]), "weight": f"{w:.6f}", "kept": bool(w > 0.5)}
+                for e, w in zip(loops, run.loop_weights)
+            ],
+        )
         slam.write_kitti(out.work / "trajectory.kitti", opt)
         slam.write_tum(out.work / "trajectory.tum", times, opt)
         if run.anchor is not None and run.map_poses is not None:

@@ -7,6 +7,8 @@ mixed with a new one). The files are written into a hidden sibling folder that i
 final name only when everything is written: an interrupted or failed run (Ctrl-C, a full disk, an
 error) leaves no folder that looks complete, and removes its partial one. A single file is written
 the same way (:func:`atomic_write_bytes`): to a temporary name, renamed over the target when whole.
+Only a regular file is ever replaced so: a FIFO or a device at an output path is refused (or, for
+an output meant as a stream, ``solid describe -o``, written through), never renamed over.
 """
 
 from __future__ import annotations
@@ -16,8 +18,9 @@ import io as _io
 import json
 import math
 import os
+import secrets
 import shutil
-import tempfile
+import stat
 import time
 from collections.abc import Iterable, Iterator, Sequence as AbcSequence
 from contextlib import contextmanager
@@ -64,18 +67,66 @@ def write_json(path: Path, doc: Any) -> Path:
     return path
 
 
-def atomic_write_bytes(path: Path, data: bytes) -> None:
+def _kind(mode: int) -> str:
+    """A name for a file type that is not a regular file."""
+    for test, name in (
+        (stat.S_ISDIR, "a directory"),
+        (stat.S_ISFIFO, "a FIFO"),
+        (stat.S_ISCHR, "a character device"),
+        (stat.S_ISBLK, "a block device"),
+        (stat.S_ISSOCK, "a socket"),
+    ):
+        if test(mode):
+            return name
+    return "not a regular file"
+
+
+def _special(path: Path) -> int | None:
+    """The mode of what is at ``path`` (through symbolic links) when it is not a regular file."""
+    try:
+        mode = os.stat(path).st_mode
+    except (FileNotFoundError, NotADirectoryError):
+        return None
+    return None if stat.S_ISREG(mode) else mode
+
+
+def _refuse(path: Path, mode: int) -> OutputExistsError:
+    return OutputExistsError(f"{path} exists and is {_kind(mode)}, not a regular file: refusing to replace it")
+
+
+def atomic_write_bytes(path: Path, data: bytes, *, stream: bool = False) -> None:
     """Write ``data`` to a temporary file beside ``path``, then rename it over ``path``. Every call
     creates its own temporary file (exclusively), so that calls from several threads or
-    processes writing one path never share one: the last rename wins, whole."""
+    processes writing one path never share one: the last rename wins, whole. The file gets the
+    mode any new file gets (``0o666`` less the umask).
+
+    Only a regular file is ever replaced: a FIFO, a device, a socket or a directory at ``path``
+    (also through a symbolic link) raises :class:`OutputExistsError`, except that with ``stream``
+    (an output that may be a stream, as ``solid describe -o /dev/stdout``) a FIFO or a character
+    device is written through: opened and written like a shell redirection, never replaced."""
     path = Path(path)
-    fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    tmp = Path(name)
+    mode = _special(path)
+    if mode is not None:
+        if stream and (stat.S_ISFIFO(mode) or stat.S_ISCHR(mode)):
+            with open(path, "wb") as f:
+                f.write(data)
+            return
+        raise _refuse(path, mode)
+    while True:
+        tmp = path.parent / f".{path.name}.{os.getpid()}-{secrets.token_hex(6)}.tmp"
+        try:
+            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0), 0o666)
+        except FileExistsError:
+            continue
+        break
     try:
         with open(fd, "wb") as f:
             f.write(data)
             f.flush()
             os.fsync(f.fileno())
+        mode = _special(path)  # again: something may have appeared meanwhile
+        if mode is not None:
+            raise _refuse(path, mode)
         os.replace(tmp, path)
     except BaseException:
         try:

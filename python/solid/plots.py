@@ -3,7 +3,7 @@
 - ``pr.png`` / ``roc.png``: every method's curve, its F1-max point (a dot) and the run's operating
   threshold (a cross);
 - ``trajectory.png``: the places seen from above with the accepted loops drawn between query and
-  candidate, true ones green and false ones red;
+  candidate, correct ones green, beyond the radius orange, with a wrong pose red;
 - ``distances.png``: the query × database R-SOLiD distance matrix (entries a query could not be
   matched with left blank), with the ground-truth revisits outlined;
 - ``heading.png``: estimated against true heading of the correct top-1 matches.
@@ -25,6 +25,7 @@ __all__ = ["figure", "plot_distance_matrix", "plot_heading", "plot_pr_roc", "plo
 
 TRUE = "#1a9641"  # green: a true loop
 FALSE = "#d7191c"  # red: a false loop
+BEYOND = "#fdae61"  # orange: a loop longer than the radius (not scored as the same place)
 PATH = "0.35"
 
 
@@ -117,15 +118,23 @@ def _draw_loops(ax: Any, xy: npt.NDArray[np.float64], loops: AbcSequence[tuple[i
 
 
 def plot_trajectory(path: Path, ev: Any, poses: npt.NDArray[np.float64], sessions: npt.NDArray[Any], subtitle: str) -> Path:
-    """Places from above (one line per session) and the accepted loops, true green, false red."""
+    """Places from above (one line per session) and the accepted loops: correct green, beyond the
+    radius orange, with a pose off red."""
     fig = figure(6.0, 5.6)
     ax = fig.add_subplot()
     xy = poses[:, :2, 3]
     for k, s in enumerate(np.unique(sessions)):
         m = (sessions == s) & np.isfinite(xy).all(axis=1)
         ax.plot(xy[m, 0], xy[m, 1], color=PATH if k == 0 else "#2c7bb6", lw=1.0, label=f"session {int(s)}")
-    loops = [(int(ev.query[i]), int(ev.ids[i, 0]), bool(ev.correct[i])) for i in np.nonzero(ev.accepted)[0]]
-    _draw_loops(ax, xy, loops, ("true loop", "false loop"), lw=1.0, alpha=0.8)
+    acc = np.nonzero(ev.accepted)[0]
+    loops = [(int(ev.query[i]), int(ev.ids[i, 0]), bool(ev.correct[i])) for i in acc if ev.correct[i] or not ev.place_correct[i]]
+    # Loops longer than the radius are not wrong loops: drawn apart, their count in the legend.
+    beyond = [(int(ev.query[i]), int(ev.ids[i, 0])) for i in acc if not ev.place_correct[i]]
+    for i, j in beyond:
+        ax.plot([xy[i, 0], xy[j, 0]], [xy[i, 1], xy[j, 1]], color=BEYOND, lw=1.0, alpha=0.8, zorder=3)
+    ax.plot([], [], color=BEYOND, label=f"beyond the {ev.radius:g} m radius ({len(beyond)})")
+    loops = [(i, j, ok) for i, j, ok in loops if ok] + [(int(ev.query[i]), int(ev.ids[i, 0]), False) for i in acc if ev.place_correct[i] and not ev.correct[i]]
+    _draw_loops(ax, xy, loops, ("correct loop", "pose off"), lw=1.0, alpha=0.8)
     thr = "" if ev.threshold is None else f" at threshold {ev.threshold:g}"
     ax.set_title(f"Accepted loops{thr}\n{subtitle}", fontsize=9)
     ax.legend(loc="best", fontsize=7)

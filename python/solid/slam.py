@@ -38,6 +38,7 @@ __all__ = [
     "PoseGraph",
     "SlamResult",
     "absolute_trajectory_error",
+    "add_loop_edges",
     "adjoint",
     "estimate_anchor",
     "fit_odometry_scale",
@@ -59,6 +60,10 @@ __all__ = [
 #: The robust schemes :func:`optimize_graph` offers; the first is the default (chosen by
 #: measurement on the simulator with false loops injected: docs/slam.md#robust-back-end).
 ROBUST_SCHEMES = ("gnc-tls", "cauchy", "dcs", "huber", "gnc-gm", "none")
+
+#: How far from 1 the norm of a quaternion :meth:`PoseGraph.read_g2o` reads may be (the files
+#: hold unit quaternions, printed to a few digits).
+QUATERNION_TOLERANCE = 1e-3
 
 _INSTALL = "the pose-graph back-end needs GTSAM: pip install 'solid-lidar[slam]' (or pip install gtsam)"
 
@@ -225,14 +230,41 @@ class PoseGraph:
         between two vertices next to each other in that order is odometry, any other a loop (a
         loop never joins consecutive frames: the detector excludes recent ones). A file without
         vertices (``solid detect --g2o`` without poses) holds loops alone: its vertices are the
-        frames they join, without a pose (NaN)."""
+        frames they join, without a pose (NaN).
+
+        What a graph cannot use is refused with :class:`solid.io.ReadError` naming the file, the
+        line and the reason, never dropped or weighted silently: a value that is not finite, a
+        quaternion whose norm is not 1 (within :data:`QUATERNION_TOLERANCE`), an information
+        matrix that is zero or not positive semidefinite, an edge from a vertex to itself."""
         from .datasets.poses import quat_to_matrix
+        from .errors import ReadError
 
         def pose(v: list[float]) -> F64:
+            if not all(math.isfinite(x) for x in v):
+                raise ValueError("a value is not finite")
+            q = np.asarray(v[3:7])
+            norm = math.hypot(*q)
+            if abs(norm - 1.0) > QUATERNION_TOLERANCE:
+                raise ValueError(f"the quaternion (qx qy qz qw) has norm {norm:.6g}, not 1 (a rotation's)")
             T = np.eye(4)
-            T[:3, :3] = quat_to_matrix(np.asarray(v[3:7])[None])[0]
+            T[:3, :3] = quat_to_matrix((q / norm)[None])[0]
             T[:3, 3] = v[:3]
             return T
+
+        def information(upper: list[float]) -> F64:
+            info = np.zeros((6, 6))
+            k = iter(upper)
+            for a in range(6):
+                for b in range(a, 6):
+                    info[a, b] = info[b, a] = next(k)
+            if not np.isfinite(info).all():
+                raise ValueError("the information matrix holds a value that is not finite")
+            eig = np.linalg.eigvalsh(info)
+            if eig[-1] <= 0.0:
+                raise ValueError("the information matrix is zero (the edge would carry no weight)")
+            if eig[0] < -1e-9 * eig[-1]:
+                raise ValueError(f"the information matrix is not positive semidefinite (eigenvalue {eig[0]:.6g})")
+            return info
 
         ids: list[int] = []
         poses: list[F64] = []
@@ -244,16 +276,14 @@ class PoseGraph:
                     ids.append(int(f[1]))
                     poses.append(pose([float(x) for x in f[2:]]))
                 elif f and f[0] == "EDGE_SE3:QUAT" and len(f) == 31:
-                    upper = iter(float(x) for x in f[10:])
-                    info = np.zeros((6, 6))
-                    for a in range(6):
-                        for b in range(a, 6):
-                            info[a, b] = info[b, a] = next(upper)
-                    edges.append((int(f[1]), int(f[2]), pose([float(x) for x in f[3:10]]), info))
+                    i, j = int(f[1]), int(f[2])
+                    if i == j:
+                        raise ValueError(f"an edge from vertex {i} to itself")
+                    edges.append((i, j, pose([float(x) for x in f[3:10]]), information([float(x) for x in f[10:]])))
                 elif f and not f[0].startswith("#"):
                     raise ValueError(f"not a VERTEX_SE3:QUAT (9 fields) or EDGE_SE3:QUAT (31 fields) line: {f[0]}, {len(f)} fields")
             except ValueError as e:
-                raise ValueError(f"{path}, line {n}: {e}") from None
+                raise ReadError(path, f"line {n}: {e}") from None
         loops_only = not ids
         if loops_only:
             # `solid detect --g2o` without poses: loop edges alone, between frames without a value.
@@ -263,7 +293,7 @@ class PoseGraph:
         g = cls(ids=np.asarray(ids, dtype=np.int64), poses=np.stack(poses) if poses else np.zeros((0, 4, 4)))
         for i, j, Z, info in edges:
             if i not in index or j not in index:
-                raise ValueError(f"{path}: the edge {i} → {j} joins a vertex the file does not hold")
+                raise ReadError(path, f"the edge {i} → {j} joins a vertex the file does not hold")
             a, b = index[i], index[j]
             g.add_edge(a, b, Z, info, "odometry" if abs(a - b) == 1 and not loops_only else "loop")
         return g
@@ -341,12 +371,20 @@ def graph_from_run(
     if P.shape[0] != len(result.frames):
         raise ValueError(f"{P.shape[0]} poses for {len(result.frames)} frames")
     g = odometry_graph(result.frame_ids, P, noise)
-    base = int(result.map_size)
-    for lp in result.loops():
+    add_loop_edges(g, result.loops(), int(result.map_size))
+    return g
+
+
+def add_loop_edges(graph: PoseGraph, loops: Any, base: int = 0) -> int:
+    """Add a loop edge per verified loop between two places of the session (ids from ``base``,
+    the number of prior-map places; loops into the map are left out); returns how many."""
+    n = 0
+    for lp in loops:
         if lp.pose is None or lp.information is None or int(lp.candidate) < base:
             continue
-        g.add_edge(int(lp.query) - base, int(lp.candidate) - base, lp.pose, lp.information, "loop")
-    return g
+        graph.add_edge(int(lp.query) - base, int(lp.candidate) - base, lp.pose, lp.information, "loop")
+        n += 1
+    return n
 
 
 # ---- how far the odometry drifts: measured on the loops ----------------------------------------

@@ -40,7 +40,8 @@ typedef enum SolidStatus {
    */
   SOLID_STATUS_FORMAT = 5,
   /**
-   * A file could not be read or written.
+   * A file could not be read or written, an output path is not a regular file, or the map a
+   * database was loaded from changed while it was open (the message names it).
    */
   SOLID_STATUS_IO = 6,
   /**
@@ -431,7 +432,8 @@ enum SolidStatus solid_database_load(const char *path, struct SolidDatabase **ou
 
 /**
  * Writes the database to `path` atomically (a temporary file renamed over it: a crash leaves
- * the old file or the new one, whole).
+ * the old file or the new one, whole). Only a regular file is replaced: a FIFO, a device, a
+ * socket or a directory at `path` is refused (`SOLID_STATUS_IO`) and left as it is.
  */
 enum SolidStatus solid_database_save(const struct SolidDatabase *database, const char *path);
 

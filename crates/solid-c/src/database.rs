@@ -69,7 +69,8 @@ pub unsafe extern "C" fn solid_database_load(
 }
 
 /// Writes the database to `path` atomically (a temporary file renamed over it: a crash leaves
-/// the old file or the new one, whole).
+/// the old file or the new one, whole). Only a regular file is replaced: a FIFO, a device, a
+/// socket or a directory at `path` is refused (`SOLID_STATUS_IO`) and left as it is.
 #[no_mangle]
 pub unsafe extern "C" fn solid_database_save(
     database: *const SolidDatabase,

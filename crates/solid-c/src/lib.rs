@@ -52,7 +52,8 @@ pub enum SolidStatus {
     ConfigMismatch = 4,
     /// A file or byte string that is not a valid SOLiD database (foreign, truncated, corrupted).
     Format = 5,
-    /// A file could not be read or written.
+    /// A file could not be read or written, an output path is not a regular file, or the map a
+    /// database was loaded from changed while it was open (the message names it).
     Io = 6,
     /// A database already holds 2^32 - 1 entries.
     Full = 7,
@@ -101,7 +102,7 @@ impl From<DbError> for Failure {
             DbError::Core(c) => return Failure::from(*c),
             DbError::ConfigMismatch { .. } => SolidStatus::ConfigMismatch,
             DbError::Format { .. } => SolidStatus::Format,
-            DbError::Io { .. } => SolidStatus::Io,
+            DbError::Io { .. } | DbError::Changed { .. } => SolidStatus::Io,
             DbError::Full => SolidStatus::Full,
             DbError::OutOfMemory => SolidStatus::OutOfMemory,
             _ => SolidStatus::InvalidArgument,

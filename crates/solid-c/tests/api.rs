@@ -537,3 +537,54 @@ fn errors_are_per_thread_and_free_accepts_null() {
         );
     }
 }
+
+/// Issue 39: the saves rename their temporary file into place, but never over what is not a
+/// regular file (run as root, `-o /dev/null` had turned the null device into a file): a FIFO of
+/// the test's own making is refused (`SOLID_STATUS_IO`, the message naming it) and stays a FIFO.
+#[cfg(unix)]
+#[test]
+fn saves_never_replace_a_fifo() {
+    use std::os::unix::fs::FileTypeExt;
+    let dir = std::env::temp_dir().join(format!("solid-c-fifo-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let fifo = dir.join("out");
+    let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+    if !made.is_ok_and(|s| s.success()) {
+        eprintln!("skipped: no mkfifo");
+        return;
+    }
+    let path = c(fifo.to_str().unwrap());
+    let cfg = config("hdl64");
+    let (mut db, mut dc, mut det) = (null_mut(), null_mut(), null_mut());
+    unsafe {
+        assert_eq!(solid_database_new(cfg, &mut db), SolidStatus::Ok);
+        assert_eq!(solid_database_save(db, path.as_ptr()), SolidStatus::Io);
+        assert!(
+            last_error().contains("a FIFO, not a regular file"),
+            "{}",
+            last_error()
+        );
+        solid_detector_config_new(c("hdl64").as_ptr(), &mut dc);
+        assert_eq!(solid_detector_new(cfg, dc, &mut det), SolidStatus::Ok);
+        assert_eq!(solid_detector_save(det, path.as_ptr()), SolidStatus::Io);
+        assert!(
+            last_error().contains("refusing to replace it"),
+            "{}",
+            last_error()
+        );
+        // verify_threads is bounded by the parameter table (a million threads were started).
+        assert_eq!(
+            solid_detector_config_set(dc, c("verify_threads").as_ptr(), 1e6),
+            SolidStatus::InvalidParameter
+        );
+        assert!(last_error().contains("verify_threads"), "{}", last_error());
+        solid_detector_free(det);
+        solid_detector_config_free(dc);
+        solid_database_free(db);
+        solid_config_free(cfg);
+    }
+    assert!(std::fs::metadata(&fifo).unwrap().file_type().is_fifo());
+    let left: Vec<_> = std::fs::read_dir(&dir).unwrap().collect();
+    assert_eq!(left.len(), 1, "a temporary file was left");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -221,6 +221,15 @@ pub enum DbError {
         /// The operating system's error.
         source: std::io::Error,
     },
+    /// The file a database was loaded from, which it still reads clouds from, changed since it
+    /// was opened (truncated or written in place): what it holds now is not what was loaded.
+    #[cfg(feature = "std")]
+    Changed {
+        /// The file.
+        file: String,
+        /// How it changed, in words.
+        how: String,
+    },
     /// More than `u32::MAX` entries (or sessions).
     Full,
     /// Memory for the operation could not be allocated (nothing was changed).
@@ -246,6 +255,12 @@ impl fmt::Display for DbError {
             DbError::Format { file: None, reason } => write!(f, "invalid data: {reason}"),
             #[cfg(feature = "std")]
             DbError::Io { file, source } => write!(f, "{file}: {source}"),
+            #[cfg(feature = "std")]
+            DbError::Changed { file, how } => write!(
+                f,
+                "the map {file} changed while it was open ({how}): its clouds can no longer be \
+                 read as they were loaded; load it again"
+            ),
             DbError::Full => write!(f, "database full: at most 2^32 - 1 entries"),
             DbError::OutOfMemory => write!(f, "out of memory"),
         }

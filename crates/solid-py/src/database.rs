@@ -426,11 +426,20 @@ impl PyDatabase {
     }
 
     /// Saves atomically (temporary file in the same directory, then rename), in format
-    /// `version` (4; 3 or 2 for older readers).
-    #[pyo3(signature = (path, version=4))]
-    fn save(&self, py: Python<'_>, path: PathBuf, version: u32) -> PyResult<()> {
-        py.detach(|| read(&self.inner).save_version(&path, version))
-            .map_err(core_err)
+    /// `version` (4; 3 or 2 for older readers); with `replace=False` only where nothing exists
+    /// yet (of concurrent saves to one path, exactly one succeeds). Never over a FIFO, a device
+    /// or a directory.
+    #[pyo3(signature = (path, version=4, *, replace=true))]
+    fn save(&self, py: Python<'_>, path: PathBuf, version: u32, replace: bool) -> PyResult<()> {
+        py.detach(|| {
+            let db = read(&self.inner);
+            if replace {
+                db.save_version(&path, version)
+            } else {
+                db.save_new(&path, version)
+            }
+        })
+        .map_err(core_err)
     }
 
     /// What the database file at `path` holds, from its header and small sections alone (format

@@ -109,9 +109,18 @@ impl ToPyErr for numpy::ndarray::ShapeError {
     }
 }
 
+/// POSIX's "File exists" (the same number on Linux, the BSDs, macOS and Windows' C runtime).
+const EEXIST: i32 = 17;
+
 /// The `OSError` subclass of an I/O error, with `errno`, `strerror` and (when known) `filename`.
 fn io_err(source: &std::io::Error, file: Option<String>) -> PyErr {
-    let args = (source.raw_os_error().unwrap_or(0), source.to_string(), file);
+    // An error of solid's own (no errno) has the errno of its kind where it has one.
+    let errno = match (source.raw_os_error(), source.kind()) {
+        (Some(e), _) => e,
+        (None, std::io::ErrorKind::AlreadyExists) => EEXIST,
+        _ => 0,
+    };
+    let args = (errno, source.to_string(), file);
     match source.kind() {
         std::io::ErrorKind::NotFound => PyFileNotFoundError::new_err(args),
         std::io::ErrorKind::PermissionDenied => PyPermissionError::new_err(args),

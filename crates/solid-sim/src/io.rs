@@ -12,6 +12,18 @@ use std::path::Path;
 /// Writes `bytes` to `path` through a temporary file in the same folder and a rename, so a reader
 /// never sees a half-written file.
 fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), SimError> {
+    // Only a regular file is ever replaced: a FIFO, a device or a folder there is refused.
+    if let Ok(m) = fs::metadata(path) {
+        if !m.is_file() {
+            return Err(SimError::Io(std::io::Error::new(
+                std::io::ErrorKind::AlreadyExists,
+                format!(
+                    "{}: exists and is not a regular file: refusing to replace it",
+                    path.display()
+                ),
+            )));
+        }
+    }
     let mut tmp = path.as_os_str().to_owned();
     tmp.push(".tmp");
     let tmp = std::path::PathBuf::from(tmp);
@@ -177,6 +189,27 @@ mod tests {
             .file_name()
             .to_string_lossy()
             .ends_with(".tmp")));
+        fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// Issue 39: a writer never replaces what it did not write (a FIFO of the test's own making
+    /// here; a device or a folder alike).
+    #[cfg(unix)]
+    #[test]
+    fn never_replaces_what_is_not_a_regular_file() {
+        use std::os::unix::fs::FileTypeExt;
+        let dir = std::env::temp_dir().join(format!("solid-lidar-sim-fifo-{}", std::process::id()));
+        let _ = fs::remove_dir_all(&dir);
+        fs::create_dir_all(&dir).unwrap();
+        let fifo = dir.join("poses.txt");
+        let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+        if !made.is_ok_and(|s| s.success()) {
+            eprintln!("skipped: no mkfifo");
+            return;
+        }
+        let err = write_poses(&fifo, &[]).unwrap_err();
+        assert!(err.to_string().contains("refusing to replace it"), "{err}");
+        assert!(fs::metadata(&fifo).unwrap().file_type().is_fifo());
         fs::remove_dir_all(&dir).unwrap();
     }
 }

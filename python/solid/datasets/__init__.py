@@ -239,7 +239,9 @@ class OpenOptions(TypedDict, total=False):
     Attributes:
         format: force a reader (see :func:`available`; ``"rosbag"`` for a bag of either type).
         topic: the bag topic to read (needed when a bag has several point-cloud topics).
-        poses: a poses file (KITTI rows, TUM or 4×4 rows; see :mod:`solid.datasets.poses`).
+        poses: a poses file (KITTI rows, TUM or 4×4 rows; see :mod:`solid.datasets.poses`); for a
+            bag, also a ``nav_msgs/Odometry`` topic of it (``"/odom"``: its poses interpolated at
+            the scans' log times, which its messages' log times share).
         timestamps: a timestamps file (one time per scan, seconds; or per frame, see above).
         calib: the sensor → pose-frame extrinsic (a KITTI ``calib.txt`` or 12/16 numbers), applied
             to ``poses``.
@@ -362,7 +364,14 @@ class Dataset:
             t = load_timestamps(self.timestamp_source)
             self.timestamps = take_rows(t, match_rows(self.timestamp_source, t.shape[0], n, numbers, "timestamps", self._wanted))
 
-        if poses is not None:
+        odometry_topic = poses is not None and self._bag is not None and str(poses).startswith("/") and not Path(poses).exists()
+        if odometry_topic:
+            # A topic of the bag (nav_msgs/Odometry): its poses at the scans' times.
+            assert self._bag is not None and self.timestamps is not None
+            self.pose_source = Path(str(poses))
+            t_odo, P_odo = rosbag.read_odometry(self.path, str(poses))
+            self.poses = interpolate_poses(self.path, t_odo, P_odo, self.timestamps)
+        elif poses is not None:
             self.pose_source = resolve(poses, root, "poses")
         elif "poses" in found:
             self.pose_source = found["poses"]
@@ -372,8 +381,9 @@ class Dataset:
                 raise ValueError("calib= needs poses (the calibration turns the poses into sensor poses)")
             self.calib_source = resolve(calib, root, "calibration")
         if self.pose_source is not None:
-            self.poses = self._load_poses(self.pose_source, numbers)
-            if self.calib_source is not None:
+            if not odometry_topic:
+                self.poses = self._load_poses(self.pose_source, numbers)
+            if self.calib_source is not None and self.poses is not None:
                 self.poses = sensor_poses_in_sensor_world(self.poses, load_extrinsic(self.calib_source))
 
     def _load_poses(self, src: Path, numbers: I64 | None) -> F64:

@@ -14,7 +14,7 @@ from ..arrays import PathLike
 from ..errors import ReadError
 from ..outputs import atomic_write_bytes
 from ._common import Cloud, cloud_from_records, read_bytes, stack_columns, unique_names
-from ._write import columns_to_write
+from ._write import columns_to_write, unknown_kind
 from .lzf import decompress_array, lzf_compress
 
 _TYPES: Final = {
@@ -217,5 +217,5 @@ def write_pcd(
         comp = lzf_compress(raw)
         body = np.array([len(comp), len(raw)], dtype="<u4").tobytes() + comp
     else:
-        raise ValueError(f"unknown PCD data kind {data!r}")
+        raise unknown_kind("PCD data kind", data, ("ascii", "binary", "binary_compressed"))
     atomic_write_bytes(Path(path), head + body)

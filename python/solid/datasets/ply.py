@@ -15,7 +15,7 @@ from ..arrays import PathLike
 from ..errors import ReadError
 from ..outputs import atomic_write_bytes
 from ._common import Cloud, cloud_from_records, read_bytes, stack_columns
-from ._write import columns_to_write
+from ._write import columns_to_write, unknown_kind
 
 _TYPES: Final = {
     "char": "i1",
@@ -176,5 +176,5 @@ def write_ply(
     elif data == "binary_big_endian":
         body = pts.astype(">f4").tobytes()
     else:
-        raise ValueError(f"unknown PLY format {data!r}")
+        raise unknown_kind("PLY format", data, ("ascii", "binary_little_endian", "binary_big_endian"))
     atomic_write_bytes(Path(path), head.encode("ascii") + body)

@@ -48,11 +48,81 @@ enum Store {
 #[cfg(feature = "std")]
 #[derive(Debug)]
 pub(super) struct FileClouds {
-    pub(super) file: std::fs::File,
+    file: std::fs::File,
     /// The file's name, for messages.
-    pub(super) name: String,
+    name: String,
     /// Where the section starts in the file.
-    pub(super) at: u64,
+    at: u64,
+    /// The file's length, modification time, header and section table when it was loaded: every
+    /// read checks them, so that a file truncated or written in place is an error naming it,
+    /// never other bytes (see [`FileClouds::check_unchanged`]).
+    len: u64,
+    modified: Option<std::time::SystemTime>,
+    head: Vec<u8>,
+}
+
+/// The bytes of a format 3/4 file's header and section table (`S` sections: 96 + 32·S + 4).
+#[cfg(feature = "std")]
+fn read_head(file: &std::fs::File) -> std::io::Result<Vec<u8>> {
+    let mut count = [0u8; 4];
+    read_file_at(file, &mut count, 88)?;
+    let sections = u32::from_le_bytes(count).min(64) as usize;
+    let mut head = vec![0u8; 96 + 32 * sections + 4];
+    read_file_at(file, &mut head, 0)?;
+    Ok(head)
+}
+
+#[cfg(feature = "std")]
+impl FileClouds {
+    /// The clouds section at `at` of the open `file` (named `name`), as the file is now.
+    pub(super) fn new(file: std::fs::File, name: String, at: u64) -> std::io::Result<FileClouds> {
+        let m = file.metadata()?;
+        let head = read_head(&file)?;
+        Ok(FileClouds {
+            file,
+            name,
+            at,
+            len: m.len(),
+            modified: m.modified().ok(),
+            head,
+        })
+    }
+
+    fn changed(&self, how: String) -> DbError {
+        DbError::Changed {
+            file: self.name.clone(),
+            how,
+        }
+    }
+
+    /// Whether the file's length or modification time differ from when it was loaded.
+    fn touched(&self) -> Result<Option<u64>, DbError> {
+        let m = self.file.metadata().map_err(|source| DbError::Io {
+            file: self.name.clone(),
+            source,
+        })?;
+        let same = m.len() == self.len && m.modified().ok() == self.modified;
+        Ok((!same).then_some(m.len()))
+    }
+
+    /// [`DbError::Changed`] when the file is no longer the one loaded: shorter than it was, or
+    /// written with another header or section table. A file that only grew (appended to) keeps
+    /// the clouds where they were, each checked by its checksum when read ([`Clouds::get`]); one
+    /// renamed over or unlinked is no change (the open file is still the one loaded).
+    fn check_unchanged(&self) -> Result<(), DbError> {
+        let Some(len) = self.touched()? else {
+            return Ok(());
+        };
+        if len < self.len {
+            return Err(self.changed(format!("{} bytes when loaded, {len} now", self.len)));
+        }
+        match read_head(&self.file) {
+            Ok(head) if head == self.head => Ok(()),
+            _ => Err(self.changed(String::from(
+                "written since it was loaded: its header is no longer the one loaded",
+            ))),
+        }
+    }
 }
 
 impl Segment {
@@ -94,19 +164,30 @@ impl Clouds {
             Store::File(f, _) => {
                 let mut buf = super::format::try_vec::<u8>(to - from)?;
                 buf.resize(to - from, 0);
-                read_file_at(&f.file, &mut buf, f.at + from as u64).map_err(|source| {
-                    DbError::Io {
-                        file: f.name.clone(),
-                        source,
-                    }
+                let read = read_file_at(&f.file, &mut buf, f.at + from as u64);
+                f.check_unchanged()?;
+                read.map_err(|source| DbError::Io {
+                    file: f.name.clone(),
+                    source,
                 })?;
                 Cow::Owned(buf)
             }
         };
-        crate::reg::check_cloud(&bytes).map_err(|e| DbError::Format {
-            file: None,
-            reason: self.corrupt(id, seg, e),
-        })?;
+        if let Err(e) = crate::reg::check_cloud(&bytes) {
+            // A cloud written over since the file was loaded is a change, not a corrupt cloud.
+            #[cfg(feature = "std")]
+            if let Store::File(f, _) = &seg.store {
+                if f.touched()?.is_some() {
+                    return Err(f.changed(format!(
+                        "written since it was loaded: the stored cloud of place {id} is no longer the one loaded"
+                    )));
+                }
+            }
+            return Err(DbError::Format {
+                file: None,
+                reason: self.corrupt(id, seg, e),
+            });
+        }
         Ok(Some(bytes))
     }
 

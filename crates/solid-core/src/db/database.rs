@@ -225,6 +225,7 @@ impl Database {
         if let Some(p) = poses {
             expect("poses vs rows", p.len(), m)?;
         }
+        check_session(session)?;
         let first = self.len();
         if first + m >= u32::MAX as usize {
             return Err(DbError::Full);
@@ -390,7 +391,9 @@ impl Database {
             _ => 0,
         };
         let top = other.sessions.iter().max().copied().unwrap_or(0);
-        top.checked_add(offset).ok_or(DbError::Full)?;
+        top.checked_add(offset)
+            .filter(|&s| s != NO_SESSION)
+            .ok_or(DbError::Full)?;
         let base = self.len();
         self.clouds.append(base, &other.clouds)?;
         let reserved = self.reserve(other.len(), 0, true).and_then(|()| {
@@ -475,19 +478,23 @@ impl Database {
     }
 
     /// The compact cloud stored with entry `id` for verification (the wire form of
-    /// [`crate::reg::encode_cloud`]), if any; `None` too when it cannot be had whole (a corrupt
-    /// cloud is never handed out: [`Database::try_cloud`] says why). A database loaded from a
-    /// file in format version 3 or 4 reads it from the file now (clouds on demand).
-    pub fn cloud(&self, id: u32) -> Option<Cow<'_, [u8]>> {
-        self.try_cloud(id).ok().flatten()
-    }
-
-    /// [`Database::cloud`], with the reason when the cloud cannot be had: its checksum is
-    /// checked ([`crate::reg::check_cloud`]) each time it is read.
+    /// [`crate::reg::encode_cloud`]), if any, its checksum checked ([`crate::reg::check_cloud`])
+    /// each time it is read: a corrupt cloud is never handed out, nor is a cloud that cannot be
+    /// read taken for none. A database loaded from a file in format version 3 or 4 reads it from
+    /// the file now (clouds on demand).
     ///
     /// # Errors
     /// [`DbError::Format`] naming the place (and the file it is read from) when its cloud is
-    /// corrupt; [`DbError::Io`] when the file cannot be read.
+    /// corrupt; [`DbError::Changed`] naming the file when it was truncated or written since it
+    /// was loaded; [`DbError::Io`] when the file cannot be read.
+    pub fn cloud(&self, id: u32) -> Result<Option<Cow<'_, [u8]>>, DbError> {
+        self.clouds.get(id as usize)
+    }
+
+    /// [`Database::cloud`] (its former name, when `cloud` gave `None` for an unreadable cloud).
+    ///
+    /// # Errors
+    /// As [`Database::cloud`].
     pub fn try_cloud(&self, id: u32) -> Result<Option<Cow<'_, [u8]>>, DbError> {
         self.clouds.get(id as usize)
     }
@@ -708,6 +715,25 @@ fn check_bins(name: &'static str, v: &[f32]) -> Result<(), Error> {
 fn compose(a: &[f64; 12], b: &[f64; 12]) -> [f64; 12] {
     use crate::reg::{mul, pose_to_rows, rows_to_pose};
     pose_to_rows(&mul(&rows_to_pose(a), &rows_to_pose(b)))
+}
+
+/// 2^32 - 1 is never a session, so that the session a loop detector starts after a map's is
+/// always numbered.
+pub(super) const NO_SESSION: u32 = u32::MAX;
+
+/// Checks a session number (any but [`NO_SESSION`]).
+///
+/// # Errors
+/// [`Error::InvalidParameter`] (name `session`) otherwise.
+pub fn check_session(session: u32) -> Result<(), Error> {
+    if session == NO_SESSION {
+        return Err(Error::InvalidParameter {
+            name: "session",
+            value: f64::from(session),
+            expected: "a session number below 2^32 - 1 (the one after it must be numbered)",
+        });
+    }
+    Ok(())
 }
 
 /// Checks a row-major 3×4 `[R|t]`: finite, and R a rotation (orthonormal, determinant +1, to

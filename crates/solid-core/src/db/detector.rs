@@ -682,9 +682,8 @@ impl LoopDetector {
         let v = self.config.verify;
         let (mut cloud, stored) = match cloud {
             Some(c) if v.enabled => {
-                let bytes =
-                    reg::encode_cloud(&c.fine.points, v.registration.voxel_size, v.cloud_bits)
-                        .map_err(DbError::from)?;
+                let bytes = reg::encode_cloud(&c.fine.points, v.cloud_grid(), v.cloud_bits)
+                    .map_err(DbError::from)?;
                 (Some(Arc::new(c)), Some(bytes))
             }
             _ => (None, None),

@@ -80,7 +80,7 @@ pub struct VerifyConfig {
     /// from the stored compact cloud when needed.
     pub cache_bytes: usize,
     /// Threads that register a step's candidates at once (0: one per core; 1: the calling
-    /// thread). Needs the `parallel` feature (a default); without it, candidates are registered one
+    /// thread; at most [`MAX_VERIFY_THREADS`]). Needs the `parallel` feature (a default); without it, candidates are registered one
     /// by one.
     pub threads: usize,
     /// The work one step may spend registering, in points: each candidate costs its yaw
@@ -253,6 +253,16 @@ pub const DEFAULT_LOOKALIKE_SWING: f64 = 0.25;
 pub const DEFAULT_STEP_POINTS: usize = 4_000_000;
 
 impl VerifyConfig {
+    /// The grid edge the places' compact clouds are stored on (metres): the registration's
+    /// `voxel_size`, or [`UNDOWNSAMPLED_GRID`] when it is 0 (every point kept).
+    pub fn cloud_grid(&self) -> f64 {
+        if self.registration.voxel_size > 0.0 {
+            self.registration.voxel_size
+        } else {
+            UNDOWNSAMPLED_GRID
+        }
+    }
+
     /// Checks the registration parameters and the gate (the detector's own fields are in
     /// [`DetectorConfig::FIELDS`]).
     ///
@@ -335,8 +345,17 @@ impl DetectorConfig {
     }
 }
 
-/// A count of anything (frames, bytes, threads).
+/// The grid of the stored clouds when the registration keeps every point (`voxel_size` 0):
+/// each point within `0.1 / 2^cloud_bits` metres of where it was.
+pub const UNDOWNSAMPLED_GRID: f64 = 0.1;
+
+/// A count of anything (frames, bytes).
 const COUNT: Kind = Kind::at_least(0);
+
+/// The most threads a step may register with ([`VerifyConfig::threads`]): a pool's threads are
+/// started at once, so an unbounded count would start without end (more than any machine's
+/// cores; 0 already means one per core).
+pub const MAX_VERIFY_THREADS: usize = 256;
 
 impl Params for DetectorConfig {
     const NAME: &'static str = "DetectorConfig";
@@ -372,8 +391,8 @@ impl Params for DetectorConfig {
             "Bits per axis of the compact clouds stored with the places."),
         field!(DetectorConfig, "cache_bytes", verify.cache_bytes, COUNT, "an integer >= 0",
             "Memory for prepared clouds kept between steps, bytes."),
-        field!(DetectorConfig, "verify_threads", verify.threads, COUNT, "an integer >= 0",
-            "Threads registering a step's candidates at once (0: one per core)."),
+        field!(DetectorConfig, "verify_threads", verify.threads, Kind::Int { min: 0, max: MAX_VERIFY_THREADS as u64 },
+            "an integer in 0..=256", "Threads registering a step's candidates at once (0: one per core)."),
         field!(DetectorConfig, "verify_step_points", verify.step_points, Kind::at_least(1), "an integer >= 1",
             "Work budget of one step, in points: each candidate costs its hypotheses times the two clouds' points; the best is always registered."),
         field!(DetectorConfig, "view_fov_deg", verify.view_fov_deg, Kind::open_closed(0.0, 360.0),

@@ -221,7 +221,13 @@ impl Database {
         let mut timestamps = try_vec::<f64>(n)?;
         let mut poses = Vec::new();
         for i in 0..n {
-            sessions.push(rd.u32());
+            let session = rd.u32();
+            if super::check_session(session).is_err() {
+                return Err(bad(format!(
+                    "entry {i}: session 2^32 - 1 (never a session)"
+                )));
+            }
+            sessions.push(session);
             let eflags = rd.u32();
             let t = rd.f64();
             if t.is_infinite() {
@@ -238,6 +244,7 @@ impl Database {
                     if pose.iter().any(|v| !v.is_finite()) {
                         return Err(bad(format!("entry {i}: non-finite pose")));
                     }
+                    lean::check_rotation(i as u32, &pose)?;
                     poses.try_reserve(1).map_err(|_| DbError::OutOfMemory)?;
                     poses.push((i as u32, pose));
                 }
@@ -320,8 +327,36 @@ impl Database {
         path: P,
         version: u32,
     ) -> Result<(), DbError> {
+        self.write_file(path.as_ref(), version, true)
+    }
+
+    /// [`Database::save_version`] to a path that must not exist: the file appears whole there, or
+    /// the call fails with [`DbError::Io`] of kind `AlreadyExists` and nothing changes, also when
+    /// another process or thread creates the path meanwhile (the temporary file is linked to
+    /// `path`, which never replaces anything, then removed). Of several calls racing for one
+    /// path exactly one succeeds. On a file system without hard links the existence check and
+    /// the rename are two steps (a writer racing in between may be replaced).
+    ///
+    /// # Errors
+    /// As [`Database::save_version`], and the above.
+    #[cfg(feature = "std")]
+    pub fn save_new<P: AsRef<std::path::Path>>(
+        &self,
+        path: P,
+        version: u32,
+    ) -> Result<(), DbError> {
+        self.write_file(path.as_ref(), version, false)
+    }
+
+    /// Writes the file of [`Database::save_version`] (`replace`) or [`Database::save_new`].
+    #[cfg(feature = "std")]
+    fn write_file(
+        &self,
+        path: &std::path::Path,
+        version: u32,
+        replace: bool,
+    ) -> Result<(), DbError> {
         use std::io::Write;
-        let path = path.as_ref();
         let io = |source| DbError::Io {
             file: path.display().to_string(),
             source,
@@ -334,6 +369,7 @@ impl Database {
             lean::V3 | lean::VERSION => None,
             _ => return Err(bad_version(version)),
         };
+        writable(path, replace).map_err(io)?;
         let (f, tmp) = create_temp(path, name).map_err(io)?;
         let mut out = std::io::BufWriter::with_capacity(1 << 20, f);
         let written = match &bytes {
@@ -346,7 +382,7 @@ impl Database {
                 .map_err(std::io::IntoInnerError::into_error)?;
             f.sync_all()?;
             drop(f);
-            std::fs::rename(&tmp, path)
+            put_in_place(&tmp, path, replace)
         };
         if let Err(e) = written.and_then(|()| write().map_err(io)) {
             let _ = std::fs::remove_file(&tmp);
@@ -745,6 +781,51 @@ fn file_kind(kind: &std::fs::FileType) -> &'static str {
         return "a symbolic link";
     }
     "not a file"
+}
+
+/// Whether a file may be written to `path`: refused (`AlreadyExists`) when something that is not
+/// a regular file is there (a FIFO, a device, a socket, a directory, also through a symbolic
+/// link: a save never replaces what it did not write), or anything at all without `replace`.
+#[cfg(feature = "std")]
+fn writable(path: &std::path::Path, replace: bool) -> std::io::Result<()> {
+    let refuse = |what: &str| {
+        Err(std::io::Error::new(
+            std::io::ErrorKind::AlreadyExists,
+            format!("{what}: refusing to replace it"),
+        ))
+    };
+    match std::fs::metadata(path) {
+        Ok(m) if m.is_dir() => refuse("exists and is a directory, not a regular file"),
+        Ok(m) if !m.is_file() => refuse(&format!(
+            "exists and is {}, not a regular file",
+            file_kind(&m.file_type())
+        )),
+        _ if !replace && std::fs::symlink_metadata(path).is_ok() => refuse("exists"),
+        _ => Ok(()),
+    }
+}
+
+/// Moves the whole temporary file `tmp` to `path`: renamed over it (`replace`, after checking
+/// again what is there), or linked to it, which fails when `path` exists, then removed.
+#[cfg(feature = "std")]
+fn put_in_place(
+    tmp: &std::path::Path,
+    path: &std::path::Path,
+    replace: bool,
+) -> std::io::Result<()> {
+    writable(path, replace)?;
+    if replace {
+        return std::fs::rename(tmp, path);
+    }
+    match std::fs::hard_link(tmp, path) {
+        Ok(()) => std::fs::remove_file(tmp),
+        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => Err(std::io::Error::new(
+            e.kind(),
+            "exists: refusing to replace it",
+        )),
+        // A file system without hard links: checked above, then renamed.
+        Err(_) => std::fs::rename(tmp, path),
+    }
 }
 
 /// Creates a temporary file of its own next to `path`: `.<name>.<pid>-<n>.tmp`, with `n` counting

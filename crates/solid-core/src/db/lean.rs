@@ -540,9 +540,15 @@ pub(super) fn decode(
     let r_scale = column::<f32>(src, sec(R_SCALE)?)?;
     let a_codes = column::<u8>(src, sec(A_CODES)?)?;
     let a_scale = column::<f32>(src, sec(A_STEP)?)?;
-    if let Some(i) = a_scale.iter().position(|s| !is_bin_value(*s)) {
+    // At most the step of an A-SOLiD whose largest value is f32::MAX (what an add can give):
+    // beyond it, the codes times the step overflow to infinity.
+    if let Some(i) = a_scale
+        .iter()
+        .position(|s| !(is_bin_value(*s) && *s <= f32::MAX / 255.0))
+    {
         return Err(bad(format!(
-            "entry {i}: negative or non-finite value in its A-SOLiD"
+            "entry {i}: negative or non-finite value in its A-SOLiD (its step is {})",
+            a_scale[i]
         )));
     }
     let timestamps = match l.get(TIMES) {
@@ -584,8 +590,11 @@ pub(super) fn decode(
                     file: String::from(name),
                     source,
                 })?;
-                let at = c.offset;
-                let name = String::from(name);
+                let clouds = super::clouds::FileClouds::new(file, String::from(name), c.offset)
+                    .map_err(|source| DbError::Io {
+                        file: String::from(name),
+                        source,
+                    })?;
                 return finish(
                     l,
                     runs_free(sessions, timestamps, poses),
@@ -593,7 +602,7 @@ pub(super) fn decode(
                     r_scale,
                     a_codes,
                     a_scale,
-                    Clouds::in_file(offsets, super::clouds::FileClouds { file, name, at }),
+                    Clouds::in_file(offsets, clouds),
                     src,
                 );
             }
@@ -877,7 +886,7 @@ impl<'a> SectionWriter<'a> {
 }
 
 mod poses;
-pub(super) use poses::matrix as pose_matrix;
+pub(super) use poses::{check_rotation, matrix as pose_matrix};
 mod runs;
 mod summary;
 

@@ -46,7 +46,9 @@ pub mod wire;
 
 pub use crate::checksum::crc32;
 pub use crate::error::DbError;
-pub use database::{check_pose, BatchResults, Database, SearchOptions, INDEX_AFTER_PASSES};
+pub use database::{
+    check_pose, check_session, BatchResults, Database, SearchOptions, INDEX_AFTER_PASSES,
+};
 pub use detector::{
     Candidate, Detection, Loop, LoopDetector, Scan, Verification, UNVERIFIED_SCORE,
     VERIFIED_THRESHOLD,
@@ -55,7 +57,7 @@ pub use detector_config::{
     DetectorConfig, VerifyConfig, DEFAULT_EXCLUDE_FRAMES, DEFAULT_EXCLUDE_METERS,
     DEFAULT_MAX_LOOP_DISTANCE, DEFAULT_POSE_CANDIDATES, DEFAULT_POSE_CANDIDATE_MIN_INFORMATION,
     DEFAULT_POSE_CANDIDATE_SHIFT_M, DEFAULT_RERANK, DEFAULT_TOP_K, DEFAULT_VERIFY_CANDIDATES,
-    MAX_TOP_K,
+    MAX_TOP_K, MAX_VERIFY_THREADS,
 };
 pub use exclusion::visible_own_places;
 pub use index_policy::IndexPolicy;

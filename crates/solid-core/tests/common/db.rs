@@ -118,7 +118,7 @@ pub fn unverified() -> DetectorConfig {
 #[cfg(feature = "std")]
 pub fn flip_cloud_byte(db: &Database, id: u32, from: &std::path::Path, to: &std::path::Path) {
     let mut raw = std::fs::read(from).unwrap();
-    let cloud = db.cloud(id).unwrap().into_owned();
+    let cloud = db.cloud(id).unwrap().unwrap().into_owned();
     let at = raw.windows(cloud.len()).position(|w| w == cloud).unwrap();
     raw[at + cloud.len() / 2] ^= 0xFF;
     std::fs::write(to, &raw).unwrap();

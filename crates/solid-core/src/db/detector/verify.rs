@@ -49,10 +49,15 @@ impl LoopDetector {
                 if beyond[i] {
                     continue;
                 }
-                let Ok(cloud) = self.prepared_cloud(c.id) else {
-                    // Never silently unverified: the candidate says its cloud is bad.
-                    c.verification = Some(corrupt_cloud());
-                    continue;
+                let cloud = match self.prepared_cloud(c.id) {
+                    Ok(cloud) => cloud,
+                    // Never silently unverified: the candidate says its cloud is corrupt. A map
+                    // file that changed or cannot be read fails the step (naming it).
+                    Err(DbError::Format { .. }) => {
+                        c.verification = Some(corrupt_cloud());
+                        continue;
+                    }
+                    Err(e) => return Err(e),
                 };
                 if let Some(cp) = cloud {
                     // The step's budget (VerifyConfig::step_points): the best always fits.

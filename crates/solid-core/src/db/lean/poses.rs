@@ -142,6 +142,11 @@ fn check_finite(id: u32, v: &[f64]) -> Result<(), DbError> {
     Ok(())
 }
 
+/// A pose's rotation checked as an add checks it ([`crate::db::check_pose`]).
+pub(in crate::db) fn check_rotation(id: u32, p: &[f64; 12]) -> Result<(), DbError> {
+    crate::db::check_pose(p).map_err(|e| bad(format!("entry {id}: {e}")))
+}
+
 /// The poses of a `poses` section (an id and a matrix each).
 pub(super) fn with_ids(
     src: &(impl Source + ?Sized),
@@ -158,6 +163,7 @@ pub(super) fn with_ids(
             }
             check_id(id, poses.last().map(|(prev, _)| *prev), n)?;
             check_finite(id, &p)?;
+            check_rotation(id, &p)?;
             poses.push((id, p));
         }
         Ok(())

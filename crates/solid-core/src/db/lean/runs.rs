@@ -59,6 +59,11 @@ pub(super) fn sessions_of(
             .checked_add(run.places as usize)
             .filter(|&e| e <= n && run.places > 0)
             .ok_or_else(|| wrong("the runs do not add up to the places"))?;
+        if crate::db::check_session(run.session).is_err() {
+            return Err(wrong(
+                "session 2^32 - 1 (never a session: the one after it must be numbered)",
+            ));
+        }
         sessions.extend(core::iter::repeat_n(run.session, run.places as usize));
         let mut with = 0u32;
         while posed.next_if(|&id| id < end).is_some() {
