@@ -6,7 +6,7 @@ PY := $(VENV)/bin/python
 PYABS = $(abspath $(PY))
 PYTHON ?= python3
 
-.PHONY: docs-examples c-deps c-header c-header-check c-lib c-install c-test c-bench crate-copy-check demo test venv dist aarch64 wheel install-test crates docs lint rust-test py-test typecheck bench bench-py bench-search bench-search-py readme-speed readme-results thresholds bench-pcd fuzz fuzz-smoke fuzz-deps cargo-fuzz-run bench-reg audit clean stubs
+.PHONY: docs-examples c-deps c-header c-header-check c-lib c-install c-test c-bench crate-copy-check demo test venv dist aarch64 wheel install-test crates docs lint rust-test py-test typecheck bench bench-py bench-search bench-search-py readme-speed readme-results thresholds bench-pcd fuzz fuzz-smoke fuzz-deps cargo-fuzz-run bench-reg bench-step audit clean stubs
 
 $(VENV)/.ready: requirements-dev.txt pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -216,7 +216,8 @@ bench-search-py: wheel
 ## Rewrite the README's speed tables: both Python benchmarks write what they print to
 ## benches/results/*.json, and tools/readme_speed.py turns that into the README block (run it on a
 ## quiet machine: every figure is a ratio to a peer timed in the same run, but a busy core still
-## skews them).
+## skews them). STEP_BASELINE=DIR (an older build, pip install --target DIR <wheel>) and
+## STEP_BASELINE_LABEL="main @ <commit>" put the verified step beside it.
 readme-speed: wheel
 	$(PY) -m pip install --quiet -r benches/requirements-bench.txt
 	mkdir -p benches/results
@@ -224,6 +225,8 @@ readme-speed: wheel
 	$(PY) benches/search_peers.py --json benches/results/search.json
 	SOLID_BENCH_MAP_SIZES=1000,10000,100000,1000000 SOLID_BENCH_JSON=$(CURDIR)/benches/results/maps.json \
 		cargo bench -p solid-lidar-benches --bench maps
+	$(PY) benches/detector_step.py --json benches/results/step.json \
+		$(if $(STEP_BASELINE),--baseline $(STEP_BASELINE) --baseline-label "$(STEP_BASELINE_LABEL)")
 	$(PY) tools/readme_speed.py
 
 ## Rewrite the README's hku1 results (SOLiD and Scan Context, 3 m and 5 m) from fresh `solid eval` runs.
@@ -305,6 +308,12 @@ fuzz-smoke: wheel fuzz-deps
 ## Registration speed: solid against small-gicp on the same hku1 pairs, single-threaded.
 bench-reg: wheel
 	$(PY) benches/registration.py
+
+## The verified detector step: CPU per step of the shipped detector on hku1-avia (with and without
+## poses) and a simulated 360° OS1-64 drive, beside small-gicp on the same pairs (a few minutes).
+## Beside an older build: $(PY) benches/detector_step.py --baseline DIR (pip install --target DIR <wheel>).
+bench-step: wheel
+	$(PY) benches/detector_step.py
 
 ## The hardening audit of issue 10 (allocation limits, hostile files, API edges; a few minutes):
 ## prints area | cases tried | handled cleanly | wrong.

@@ -10,7 +10,9 @@ The benchmarks time solid and its peers in one run and write every figure they p
 against the numpy baseline) and `benches/search_peers.py --json benches/results/search.json`
 (search, batch search, bulk add and memory against faiss-cpu and numpy), and
 `SOLID_BENCH_JSON=benches/results/maps.json cargo bench -p solid-lidar-benches --bench maps`
-(maps of 1k to 1M places: file, load, memory, detector, verified step, `map info`). This script
+(maps of 1k to 1M places: file, load, memory, detector, verified step, `map info`), and
+`benches/detector_step.py --baseline DIR --json benches/results/step.json` (the verified detector step on
+hku1-avia and a simulated 360° drive, beside an older build and small_gicp). This script
 turns those files into the tables between `<!-- speed:start -->` and `<!-- speed:end -->`; nothing in
 that block is typed by hand, and a test checks that it is what the committed JSON gives.
 """
@@ -259,9 +261,38 @@ def maps_block(doc: dict[str, Any]) -> list[str]:
     return lines
 
 
+def step_block(doc: dict[str, Any]) -> list[str]:
+    """The verified detector step per walk, beside the baseline build and small_gicp."""
+    base = doc["baseline"] or "no baseline"
+    lines = [
+        "",
+        f"The verified detector step, from `{doc['command']}` (solid {doc['solid']}; {doc['cpu']}, {doc['cores']} cores; "
+        "the machine shared with other work): `LoopDetector.detect(points, timestamp, pose)` with the shipped defaults "
+        "of the walk's preset and one verify thread, CPU time per step (describe, prepare the cloud, search, register, "
+        f"check), this build beside {base} in the same run; then one registration of the pairs this build registered "
+        "(up to 300), solid against small_gicp, both single-threaded with the same two levels from the identity.",
+        "",
+        f"| walk | steps | mean | median | p95 | {base}: mean | ratio | same loops | registered a step | "
+        "one registration: solid | small_gicp | small_gicp ÷ solid |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for name, r in doc["walks"].items():
+        t, b, p = r["this"], r.get("baseline"), r.get("peers")
+        lines.append(
+            f"| {name} | {t['steps']} | {t['mean_ms']:.1f} ms | {t['median_ms']:.1f} ms | {t['p95_ms']:.1f} ms | "
+            + (f"{b['mean_ms']:.1f} ms | {r['ratio']:.2f}× | {'yes' if r['same_loops'] else 'no'} | " if b else "| | | ")
+            + f"{t['registered_per_step']:.2f} | "
+            + (f"{p['solid_ms']:.2f} ms | {p['small_gicp_ms']:.2f} ms | {p['small_gicp_ms'] / p['solid_ms']:.2f}× |" if p else "| | |")
+        )
+    return lines
+
+
 def block() -> str:
     return "\n".join(
-        describe_block(load("describe.json")) + search_block(load("search.json")) + maps_block(load("maps.json"))
+        describe_block(load("describe.json"))
+        + search_block(load("search.json"))
+        + maps_block(load("maps.json"))
+        + step_block(load("step.json"))
     )
 
 

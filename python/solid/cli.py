@@ -34,6 +34,7 @@ examples:
   solid optimize run/ --poses odom.txt --preset avia -o out/   # loops + odometry → a consistent trajectory
   solid config dump --preset avia --max-range 40 > avia40.json
   solid bench   ~/data/kitti/00/velodyne --preset hdl64
+  solid ros2 run --ros-args -p preset:=avia     # the ROS 2 node (docs/ros2.md)
 
 A SEQUENCE is a folder of scans (.bin .pcd .ply .npy .npz, natural order; a velodyne/ or Scans/
 sub-folder is used when present), a ROS 1 bag, a ROS 2 bag folder or an MCAP file
@@ -423,6 +424,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--topic", help="point-cloud topic of a bag")
     _add_config_args(p)
     _add_common(p)
+
+    p = _command(
+        sub, "ros2", "the ROS 2 node and a bag player (pip install \"solid-lidar[ros2]\"; docs/ros2.md)",
+        "solid ros2 run --ros-args -p preset:=avia", "solid ros2 play run.bag --rate 1",
+    )
+    p.add_argument("args", nargs=argparse.REMAINDER, help="run|play and their arguments (solid ros2 run --help)")
     return parser
 
 
@@ -763,8 +770,14 @@ def cmd_bench(args: argparse.Namespace, out: TextIO) -> int:
 
 def main(argv: AbcSequence[str] | None = None) -> int:
     """Run the ``solid`` command; returns the exit code (argparse exits with 2 on usage errors)."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv[:1] == ["ros2"]:
+        # The node and the player take ROS's own arguments (--ros-args ...): they parse their own.
+        from .ros2 import main as ros2_main
+
+        return ros2_main(argv[1:])
     parser = build_parser()
-    args = parser.parse_args(None if argv is None else list(argv))
+    args = parser.parse_args(argv)
     out = sys.stdout
     handlers: dict[str, Callable[[argparse.Namespace, TextIO], int]] = {
         "describe": cmd_describe,

@@ -38,7 +38,7 @@ from .evaluation import evaluate_detections
 from .records import LOOP_COLUMNS, loop_row
 from .transforms import clip_fov, occlude_sector
 
-__all__ = ["DEFAULT_FOV_CENTER", "LOOP_COLUMNS", "LoopClosurePipeline", "PipelineResult", "Progress", "ScanSource", "check_run", "progress_bar"]
+__all__ = ["DEFAULT_FOV_CENTER", "input_points", "LOOP_COLUMNS", "LoopClosurePipeline", "PipelineResult", "Progress", "ScanSource", "check_run", "progress_bar"]
 
 #: The centre of ``input.fov`` when none is given (degrees; 0 = +x, the sensor's forward axis): the
 #: same for every run, so that a map and the runs queried against it clip the same sector.
@@ -48,6 +48,17 @@ DEFAULT_FOV_CENTER = 0.0
 #: last call, ``True`` (a progress bar on stderr), ``False`` (none) or ``None`` (a bar when stderr
 #: is a terminal: interactive use).
 Progress = Union[Callable[[int], None], bool, None]
+
+
+def input_points(pts: F32, opts: Any, fov_center: float | None, *, clipped: bool = False) -> F32:
+    """What the detector is given of one scan: its x y z after the input options' sector clip
+    (``opts.fov`` around ``fov_center``; skipped when ``clipped``, the caller having done it) and
+    occlusion. The pipeline and the ROS 2 node (:mod:`solid.ros2`) prepare every scan with it."""
+    if not clipped and opts.fov is not None and fov_center is not None:
+        pts = clip_fov(pts, opts.fov, fov_center)
+    if opts.occlude is not None:
+        pts = occlude_sector(pts, opts.occlude, opts.occlude_center)
+    return np.ascontiguousarray(pts[:, :3])
 
 
 @contextmanager
@@ -242,9 +253,7 @@ class LoopClosurePipeline:
                         stacklevel=2,
                     )
                 pts = clipped
-            if opts.occlude is not None:
-                pts = occlude_sector(pts, opts.occlude, opts.occlude_center)
-            xyz = np.ascontiguousarray(pts[:, :3])
+            xyz = input_points(pts, opts, fov_center, clipped=True)
             if self.on_scan is not None:
                 self.on_scan(i, xyz)
             batch.append(xyz)

@@ -38,6 +38,7 @@ __all__ = [
     "PoseGraph",
     "SlamResult",
     "absolute_trajectory_error",
+    "add_loop_edges",
     "adjoint",
     "estimate_anchor",
     "fit_odometry_scale",
@@ -370,12 +371,20 @@ def graph_from_run(
     if P.shape[0] != len(result.frames):
         raise ValueError(f"{P.shape[0]} poses for {len(result.frames)} frames")
     g = odometry_graph(result.frame_ids, P, noise)
-    base = int(result.map_size)
-    for lp in result.loops():
+    add_loop_edges(g, result.loops(), int(result.map_size))
+    return g
+
+
+def add_loop_edges(graph: PoseGraph, loops: Any, base: int = 0) -> int:
+    """Add a loop edge per verified loop between two places of the session (ids from ``base``,
+    the number of prior-map places; loops into the map are left out); returns how many."""
+    n = 0
+    for lp in loops:
         if lp.pose is None or lp.information is None or int(lp.candidate) < base:
             continue
-        g.add_edge(int(lp.query) - base, int(lp.candidate) - base, lp.pose, lp.information, "loop")
-    return g
+        graph.add_edge(int(lp.query) - base, int(lp.candidate) - base, lp.pose, lp.information, "loop")
+        n += 1
+    return n
 
 
 # ---- how far the odometry drifts: measured on the loops ----------------------------------------

@@ -151,7 +151,8 @@ pub enum RegError {
     /// An error of the core: an invalid parameter (named), a buffer too small, a bad layout.
     Core(Error),
     /// The two clouds were prepared with other preparation parameters than the config passed
-    /// to registration (voxel sizes, range or neighbours differ).
+    /// to registration (voxel sizes, range or neighbours differ), or one was deferred and not
+    /// completed ([`crate::reg::PreparedCloud::complete`]).
     NotPreparedWith,
     /// A wire-form cloud that cannot be decoded.
     Format {
@@ -181,7 +182,7 @@ impl fmt::Display for RegError {
             RegError::Core(e) => e.fmt(f),
             RegError::NotPreparedWith => write!(
                 f,
-                "the clouds were prepared with other voxel sizes, range or neighbours than the registration config"
+                "the clouds were prepared with other voxel sizes, range or neighbours than the registration config (or one was deferred and not completed)"
             ),
             RegError::Format { reason } => write!(f, "not a valid SOLiD cloud: {reason}"),
         }

@@ -207,25 +207,20 @@ class Bag:
         try:
             self.topic = conns[0].topic
             self.msgtype = conns[0].msgtype
-            self.times_ns = [int(t) for _, t, _ in _guarded(path, lambda: reader.messages(connections=conns))]
+            self.times_ns = [int(t) for _, t, _ in guarded_items(path, lambda: reader.messages(connections=conns))]
         finally:
-            _close(reader)
+            close_reader(reader)
 
     @property
     def reader_name(self) -> str:
         return READER_OF[self.msgtype or POINTCLOUD2]
 
     def _open(self) -> tuple[Any, list[Any]]:
-        hl = _rosbags()
-        try:
-            reader = hl.AnyReader([self.path], default_typestore=_typestore())
-            reader.open()
-        except Exception as e:
-            raise ReadError(self.path, f"cannot open the bag: {type(e).__name__}: {e}") from None
+        reader = open_reader(self.path)
         try:
             return reader, self._connections(reader)
         except BaseException:
-            _close(reader)
+            close_reader(reader)
             raise
 
     def _connections(self, reader: Any) -> list[Any]:
@@ -251,7 +246,7 @@ class Bag:
     def clouds(self, xyz_only: bool) -> Iterator[Cloud]:
         reader, conns = self._open()
         try:
-            for conn, t, raw in _guarded(self.path, lambda: reader.messages(connections=conns)):
+            for conn, t, raw in guarded_items(self.path, lambda: reader.messages(connections=conns)):
                 where = f"{self.path} [{conn.topic} @ {t}]"
                 try:
                     if conn.msgtype == POINTCLOUD2:
@@ -263,7 +258,7 @@ class Bag:
                 except Exception as e:
                     raise ReadError(where, f"undecodable message: {type(e).__name__}: {e}") from None
         finally:
-            _close(reader)
+            close_reader(reader)
 
     def points(self, xyz_only: bool) -> Iterator[F32]:
         for c in self.clouds(xyz_only):
@@ -279,11 +274,7 @@ def read_odometry(path: Path, topic: str) -> tuple[npt.NDArray[np.float64], npt.
     ``T_world_body`` [R|t] (``pose.pose``: position and orientation)."""
     from .poses import quat_to_matrix
 
-    reader = _rosbags().AnyReader([path], default_typestore=_typestore())
-    try:
-        reader.open()
-    except Exception as e:
-        raise ReadError(path, f"cannot open the bag: {type(e).__name__}: {e}") from None
+    reader = open_reader(path)
     try:
         conns = [c for c in reader.connections if c.topic == topic]
         if not conns or conns[0].msgtype != ODOMETRY:
@@ -292,7 +283,7 @@ def read_odometry(path: Path, topic: str) -> tuple[npt.NDArray[np.float64], npt.
             raise ReadError(path, f"topic {topic!r} {held}; its {ODOMETRY} topics: {', '.join(odom) or 'none'}")
         times: list[float] = []
         rows: list[list[float]] = []
-        for conn, t, raw in _guarded(path, lambda: reader.messages(connections=conns)):
+        for conn, t, raw in guarded_items(path, lambda: reader.messages(connections=conns)):
             try:
                 pose = reader.deserialize(raw, conn.msgtype).pose.pose
                 p, q = pose.position, pose.orientation
@@ -301,7 +292,7 @@ def read_odometry(path: Path, topic: str) -> tuple[npt.NDArray[np.float64], npt.
                 raise ReadError(f"{path} [{topic} @ {t}]", f"undecodable message: {type(e).__name__}: {e}") from None
             times.append(int(t) * 1e-9)
     finally:
-        _close(reader)
+        close_reader(reader)
     if not rows:
         raise ReadError(path, f"topic {topic!r} has no messages")
     a = np.asarray(rows, dtype=np.float64)
@@ -311,7 +302,19 @@ def read_odometry(path: Path, topic: str) -> tuple[npt.NDArray[np.float64], npt.
     return np.asarray(times, dtype=np.float64), P
 
 
-def _guarded(path: Path, start: Callable[[], Iterator[Any]]) -> Iterator[Any]:
+def open_reader(path: Path) -> Any:
+    """rosbags' ``AnyReader`` of a bag of either ROS version, open (the Livox types registered);
+    close it with :func:`close_reader`."""
+    hl = _rosbags()
+    try:
+        reader = hl.AnyReader([path], default_typestore=_typestore())
+        reader.open()
+    except Exception as e:
+        raise ReadError(path, f"cannot open the bag: {type(e).__name__}: {e}") from None
+    return reader
+
+
+def guarded_items(path: Path, start: Callable[[], Iterator[Any]]) -> Iterator[Any]:
     """The items of ``start()``, with any error of rosbags' reading turned into a :class:`ReadError`."""
     try:
         it = start()
@@ -327,7 +330,7 @@ def _guarded(path: Path, start: Callable[[], Iterator[Any]]) -> Iterator[Any]:
         yield item
 
 
-def _close(reader: Any) -> None:
+def close_reader(reader: Any) -> None:
     try:
         reader.close()
     except Exception:

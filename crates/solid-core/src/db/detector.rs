@@ -454,7 +454,8 @@ impl LoopDetector {
         if !self.config.verify.enabled {
             return Ok(None);
         }
-        PreparedCloud::new(points, &self.config.verify.registration)
+        // Deferred: completed when the step registers it, or when it is a candidate later.
+        PreparedCloud::deferred(points, &self.config.verify.registration)
             .map(Some)
             .map_err(DbError::from)
     }
@@ -684,7 +685,7 @@ impl LoopDetector {
         let eligible = self.eligible(&s)?;
         let mut candidates = self.rank(&d.r, &d.a, eligible, self.config.top_k)?;
         let v = self.config.verify;
-        let (cloud, stored) = match cloud {
+        let (mut cloud, stored) = match cloud {
             Some(c) if v.enabled => {
                 let bytes = reg::encode_cloud(&c.fine.points, v.cloud_grid(), v.cloud_bits)
                     .map_err(DbError::from)?;
@@ -701,7 +702,10 @@ impl LoopDetector {
             };
             let (r, a, p) = (&d.r, &d.a, s.pose.as_ref());
             let n = self.add_pose_candidates(r, a, p, at.travelled, eligible, &mut candidates)?;
-            self.verify_candidates((r, a), cloud.as_deref(), Some(at), n, &mut candidates)?;
+            let q = cloud.as_deref();
+            if let Some(c) = self.verify_candidates((r, a), q, Some(at), n, &mut candidates)? {
+                cloud = Some(Arc::new(c));
+            }
             if let Some(c) = candidates.first() {
                 self.anchor_on(&at, c);
             }

@@ -53,6 +53,14 @@ impl Level {
     }
 
     fn new(points: Vec<[f64; 3]>, voxel_size: f64, neighbors: usize) -> Result<Level, RegError> {
+        let mut level = Level::ordered(points, voxel_size)?;
+        level.estimate(neighbors)?;
+        Ok(level)
+    }
+
+    /// The level's points in kd-tree order with their tree, without covariances and normals
+    /// ([`Level::estimate`]).
+    fn ordered(points: Vec<[f64; 3]>, voxel_size: f64) -> Result<Level, RegError> {
         let n = points.len();
         let (mut perm, mut axes) = (
             try_filled(n, 0u32, "kd-tree")?,
@@ -70,23 +78,31 @@ impl Level {
         for (i, p) in perm.iter_mut().enumerate() {
             *p = i as u32;
         }
-        let mut level = Level {
+        Ok(Level {
             voxel_size,
             points,
             perm,
             axes,
-            covs: try_filled(n, [0.0; 6], "covariances")?,
-            normals: try_filled(n, [0.0; 3], "normals")?,
-        };
+            covs: Vec::new(),
+            normals: Vec::new(),
+        })
+    }
+
+    /// Each point's covariance and normal from its `neighbors` nearest points.
+    fn estimate(&mut self, neighbors: usize) -> Result<(), RegError> {
+        let n = self.points.len();
+        let mut covs = try_filled(n, [0.0; 6], "covariances")?;
+        let mut normals = try_filled(n, [0.0; 3], "normals")?;
         let mut nb = vec![Nearest::default(); neighbors];
-        let tree = KdTree3::from_parts(&level.points, &level.perm, &level.axes);
-        for (i, p) in level.points.iter().enumerate() {
+        let tree = self.tree();
+        for (i, p) in self.points.iter().enumerate() {
             let k = tree.knn(*p, neighbors, &mut nb).unwrap_or(0);
-            let (cov, normal) = local_plane(&level.points, &nb[..k]);
-            level.covs[i] = cov;
-            level.normals[i] = normal;
+            let (cov, normal) = local_plane(&self.points, &nb[..k]);
+            covs[i] = cov;
+            normals[i] = normal;
         }
-        Ok(level)
+        (self.covs, self.normals) = (covs, normals);
+        Ok(())
     }
 }
 
@@ -145,6 +161,9 @@ pub struct PreparedCloud {
     /// The coarse level (`coarse_voxel_size`, voxelised from the fine points), when enabled.
     pub coarse: Option<Level>,
     prep: [u64; 5],
+    /// Of a deferred cloud ([`PreparedCloud::deferred`]) not yet completed: the coarse level's
+    /// points (or None without one); the fine level then has no covariances yet.
+    pending: Option<Option<Vec<[f64; 3]>>>,
 }
 
 /// Bits of the preparation parameters, to check that two clouds were prepared alike.
@@ -239,9 +258,9 @@ impl PreparedCloud {
         points: Points<'_, T>,
         cfg: &RegConfig,
     ) -> Result<PreparedCloud, RegError> {
-        cfg.validate()?;
-        let fine = filtered(points, cfg.min_range, cfg.max_range, cfg.voxel_size)?;
-        Self::build(fine, cfg)
+        let mut c = Self::deferred(points, cfg)?;
+        c.complete()?;
+        Ok(c)
     }
 
     /// Prepares a cloud from its fine points alone (already filtered and downsampled, for
@@ -256,35 +275,133 @@ impl PreparedCloud {
         // Centroids of in-range points can sit a hair inside min_range: no lower bound here,
         // so that a decoded cloud keeps every point the sender had.
         let pts = Points::new(fine.as_flattened(), 3)?;
-        Self::build(filtered(pts, 0.0, cfg.max_range, 0.0)?, cfg)
+        let mut c = Self::defer(filtered(pts, 0.0, cfg.max_range, 0.0)?, cfg)?;
+        c.complete()?;
+        Ok(c)
     }
 
-    fn build(fine: Vec<[f64; 3]>, cfg: &RegConfig) -> Result<PreparedCloud, RegError> {
+    /// [`PreparedCloud::new`] that defers the work only registration needs: the fine level's
+    /// points (in the same order) and kd-tree are built, the covariances and the coarse level's
+    /// tree wait for [`PreparedCloud::complete`], which makes it exactly what `new` makes. A
+    /// detector step prepares its scan so: most steps register nothing, and a 360° sensor's
+    /// covariances cost most of a step that does not.
+    ///
+    /// # Errors
+    /// As [`PreparedCloud::new`].
+    pub fn deferred<T: Coord>(
+        points: Points<'_, T>,
+        cfg: &RegConfig,
+    ) -> Result<PreparedCloud, RegError> {
+        cfg.validate()?;
+        Self::defer(
+            filtered(points, cfg.min_range, cfg.max_range, cfg.voxel_size)?,
+            cfg,
+        )
+    }
+
+    /// The deferred cloud of the fine points `fine` (the budget applied here); the coarse
+    /// level's points are voxelised from them now, its tree and covariances wait.
+    fn defer(fine: Vec<[f64; 3]>, cfg: &RegConfig) -> Result<PreparedCloud, RegError> {
         let fine = within_budget(fine);
         let coarse = if cfg.coarse_voxel_size > 0.0 {
             // No lower range bound, as in `from_downsampled`.
             let pts = Points::new(fine.as_flattened(), 3)?;
-            let c = filtered(pts, 0.0, cfg.max_range, cfg.coarse_voxel_size)?;
-            Some(Level::new(c, cfg.coarse_voxel_size, cfg.neighbors)?)
+            Some(filtered(pts, 0.0, cfg.max_range, cfg.coarse_voxel_size)?)
         } else {
             None
         };
         Ok(PreparedCloud {
-            fine: Level::new(fine, cfg.voxel_size, cfg.neighbors)?,
-            coarse,
+            fine: Level::ordered(fine, cfg.voxel_size)?,
+            coarse: None,
             prep: prep_key(cfg),
+            pending: Some(coarse),
         })
     }
 
+    /// Builds what [`PreparedCloud::deferred`] left for registration (nothing for a complete
+    /// cloud).
+    ///
+    /// # Errors
+    /// [`RegError::Core`] with [`crate::Error::OutOfMemory`] when it does not fit in memory.
+    pub fn complete(&mut self) -> Result<(), RegError> {
+        let Some(coarse) = self.pending.as_ref() else {
+            return Ok(());
+        };
+        let neighbors = self.prep[4] as usize;
+        let voxel = f64::from_bits(self.prep[1]);
+        // On error the cloud is left as it was (still deferred).
+        let coarse = coarse
+            .as_ref()
+            .map(|c| Level::new(c.clone(), voxel, neighbors))
+            .transpose()?;
+        self.fine.estimate(neighbors)?;
+        self.coarse = coarse;
+        self.pending = None;
+        Ok(())
+    }
+
+    /// Whether the cloud is ready for registration (not deferred, or completed).
+    pub fn is_complete(&self) -> bool {
+        self.pending.is_none()
+    }
+
     /// Whether this cloud was prepared with the preparation parameters of `cfg` (voxel sizes,
-    /// range, neighbours).
+    /// range, neighbours) and is complete ([`PreparedCloud::complete`]).
     pub fn prepared_with(&self, cfg: &RegConfig) -> bool {
-        self.prep == prep_key(cfg)
+        self.prep == prep_key(cfg) && self.is_complete()
     }
 
     /// Bytes of heap memory this cloud holds (points, trees, covariances, normals).
     pub fn heap_bytes(&self) -> usize {
         let level = |l: &Level| l.len() * (24 + 4 + 1 + 48 + 24);
         level(&self.fine) + self.coarse.as_ref().map_or(0, level)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::reg::{register, IDENTITY};
+
+    #[test]
+    fn a_deferred_cloud_registers_only_once_completed() {
+        // A 20 m × 12 m room 3 m high, a point every 0.1 m of its walls, floor and ceiling.
+        let mut xyz = Vec::new();
+        for i in 0..=200 {
+            for j in 0..=30 {
+                let (x, z) = (-10.0 + 0.1 * f64::from(i), 0.1 * f64::from(j));
+                xyz.extend([x, -6.0, z, x, 6.0, z]);
+            }
+            for j in 0..=120 {
+                let (x, y) = (-10.0 + 0.1 * f64::from(i), -6.0 + 0.1 * f64::from(j));
+                xyz.extend([x, y, 0.0, x, y, 3.0]);
+            }
+        }
+        let cfg = RegConfig::default();
+        let points = Points::new(&xyz, 3).unwrap();
+        let full = PreparedCloud::new(points, &cfg).unwrap();
+        let mut d = PreparedCloud::deferred(points, &cfg).unwrap();
+        // The fine points (what a detector stores) are there at once, in the same order.
+        assert_eq!(d.fine.points, full.fine.points);
+        assert!(d.fine.covs.is_empty() && d.coarse.is_none());
+        assert!(!d.is_complete() && !d.prepared_with(&cfg));
+        assert!(matches!(
+            register(&d, &full, &IDENTITY, &cfg),
+            Err(RegError::NotPreparedWith)
+        ));
+        d.complete().unwrap();
+        assert!(d.is_complete() && d.prepared_with(&cfg));
+        let same = |a: &Level, b: &Level| {
+            a.points == b.points && a.covs == b.covs && a.normals == b.normals
+        };
+        assert!(same(&d.fine, &full.fine));
+        assert!(same(
+            d.coarse.as_ref().unwrap(),
+            full.coarse.as_ref().unwrap()
+        ));
+        // Completing again changes nothing; registration then works.
+        d.complete().unwrap();
+        assert!(same(&d.fine, &full.fine));
+        assert!(register(&d, &full, &IDENTITY, &cfg).is_ok());
     }
 }

@@ -24,7 +24,8 @@ impl LoopDetector {
     /// (see [`VerifyConfig`]); candidates end sorted by score. Those after the first
     /// `candidates` were chosen by pose and must reach `pose_candidate_min_information`. With `at` (a step that adds the query),
     /// the candidates that passed the gate are checked against the poses and the previous
-    /// steps, and remembered for the next steps.
+    /// steps, and remembered for the next steps. Returns the query's cloud completed
+    /// ([`PreparedCloud::complete`]) when it was deferred and got registered.
     pub(super) fn verify_candidates(
         &mut self,
         (r_query, a_query): (&[f32], &[f32]),
@@ -32,7 +33,8 @@ impl LoopDetector {
         at: Option<QueryPlace>,
         n: usize,
         cands: &mut [Candidate],
-    ) -> Result<(), DbError> {
+    ) -> Result<Option<PreparedCloud>, DbError> {
+        let mut completed = None;
         let v = self.config.verify;
         for c in cands.iter_mut() {
             c.score = UNVERIFIED_SCORE + c.distance / 2.0;
@@ -67,6 +69,13 @@ impl LoopDetector {
                     jobs.push((i, cp));
                 }
             }
+            let q = if jobs.is_empty() || q.is_complete() {
+                q
+            } else {
+                let mut c = q.clone();
+                c.complete()?;
+                completed.insert(c)
+            };
             let det: &LoopDetector = self;
             let verify_one = |&(i, ref cp): &(usize, Arc<PreparedCloud>)| {
                 verify_pair(&v, a_query, &det.a(cands[i].id), q, cp)
@@ -98,7 +107,7 @@ impl LoopDetector {
             }
         }
         cands.sort_by(|x, y| x.score.total_cmp(&y.score));
-        Ok(())
+        Ok(completed)
     }
 
     /// Which of `cands` cannot give an accepted loop, so are not registered: with the odometry
@@ -299,7 +308,15 @@ impl LoopDetector {
         self.clock += 1;
         if let Some((stamp, c)) = self.prepared.get_mut(&id) {
             *stamp = self.clock;
-            return Ok(Some(Arc::clone(c)));
+            if c.is_complete() {
+                return Ok(Some(Arc::clone(c)));
+            }
+            // A step's own deferred cloud, registered for the first time.
+            let mut done = PreparedCloud::clone(c);
+            done.complete()?;
+            let done = Arc::new(done);
+            self.remember(id, Arc::clone(&done));
+            return Ok(Some(done));
         }
         let Some(bytes) = self.try_cloud(id)? else {
             return Ok(None);
