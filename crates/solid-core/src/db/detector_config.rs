@@ -261,10 +261,10 @@ pub const DEFAULT_LOOKALIKE_MARGIN: f64 = 0.2;
 pub const DEFAULT_LOOKALIKE_SWING: f64 = 0.25;
 
 /// Default [`VerifyConfig::placement_loops`] (docs/performance.md#loops-into-a-map).
-pub const DEFAULT_PLACEMENT_LOOPS: usize = 4;
+pub const DEFAULT_PLACEMENT_LOOPS: usize = 3;
 
 /// Default [`VerifyConfig::placement_m`] (docs/performance.md#loops-into-a-map).
-pub const DEFAULT_PLACEMENT_M: f64 = 30.0;
+pub const DEFAULT_PLACEMENT_M: f64 = 15.0;
 
 /// Default [`VerifyConfig::step_points`]: room for every default candidate of the largest
 /// real scans measured, so that it binds only on outsized clouds (docs/performance.md#work-budgets).
