@@ -721,7 +721,7 @@ fn compose(a: &[f64; 12], b: &[f64; 12]) -> [f64; 12] {
 /// always numbered.
 pub(super) const NO_SESSION: u32 = u32::MAX;
 
-/// Checks a session number (any but [`NO_SESSION`]).
+/// Checks a session number (any but `u32::MAX`, which marks "no session" in a map).
 ///
 /// # Errors
 /// [`Error::InvalidParameter`] (name `session`) otherwise.

@@ -272,7 +272,7 @@ pub const DEFAULT_STEP_POINTS: usize = 4_000_000;
 
 impl VerifyConfig {
     /// The grid edge the places' compact clouds are stored on (metres): the registration's
-    /// `voxel_size`, or [`UNDOWNSAMPLED_GRID`] when it is 0 (every point kept).
+    /// `voxel_size`, or 0.1 m (`UNDOWNSAMPLED_GRID`) when it is 0 (every point kept).
     pub fn cloud_grid(&self) -> f64 {
         if self.registration.voxel_size > 0.0 {
             self.registration.voxel_size
