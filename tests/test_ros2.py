@@ -197,9 +197,11 @@ def _xyzq(m: Any) -> tuple[float, ...]:
 
 
 def test_relocalization_places_the_second_half(avia: Path, listener: Listener, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    """A map of the walk's first half; the return part of the second half, its poses re-based so
-    that its odometry starts at the origin (a new session), is placed in it where it truly is;
-    the save service writes the map with the session's places."""
+    """A map of the walk's first half; the second half, its poses re-based so that its odometry
+    starts at the origin (a new session), is placed in it where it truly is; the save service
+    writes the map with the session's places. The whole second half: the detector places a
+    session only on consistent loops into the map over `placement_m` (15 m) of its path, and the
+    walk's return alone (keyframes 262-313) is 10 m long."""
     m = tmp_path / "first.soliddb"
     assert solid_main(["map", "build", str(avia), "--preset", "avia", "--poses", str(avia / "odom_poses.txt"),
                        "--frames", "0:157", "-o", str(m), "-q"]) == 0
@@ -207,14 +209,14 @@ def test_relocalization_places_the_second_half(avia: Path, listener: Listener, t
     P = np.loadtxt(avia / "odom_poses.txt").reshape(-1, 3, 4)
     P4 = np.tile(np.eye(4), (len(P), 1, 1))
     P4[:, :3] = P
-    start = 262
+    start = 157
     rebased = np.linalg.inv(P4[start]) @ P4
     (tmp_path / "rebased.txt").write_text("\n".join(" ".join(f"{v:.12g}" for v in T[:3].reshape(12)) for T in rebased) + "\n")
     saved = tmp_path / "session.soliddb"
     with process(node_args(f"map:={m}", f"save_file:={saved}", "queue_size:=100"), tmp_path / "node.log") as node:
         listener.wait(lambda: bool(listener.status), 60, "the node's first status", node)
-        with process(play_args(avia, "--poses", str(tmp_path / "rebased.txt"), "--frames", f"{start}:300", "--rate", "4"), tmp_path / "play.log") as play:
-            listener.wait(lambda: listener.status.get("keyframes") == 300 - start, 120, "the second half's keyframes", node)
+        with process(play_args(avia, "--poses", str(tmp_path / "rebased.txt"), "--frames", f"{start}:314", "--rate", "4"), tmp_path / "play.log") as play:
+            listener.wait(lambda: listener.status.get("keyframes") == 314 - start, 180, "the second half's keyframes", node)
             assert play.wait(timeout=30) == 0
         assert listener.status["map_loops"] > 0 and listener.status["placed"] is not None, listener.status
         listener.wait(lambda: "placement" in listener.last, 10, "the placement")
@@ -233,7 +235,7 @@ def test_relocalization_places_the_second_half(avia: Path, listener: Listener, t
     import solid
 
     db = solid.Database.load(saved)
-    assert len(db) == 157 + 300 - start
+    assert len(db) == 157 + 314 - start
 
 
 def test_overload_errors_and_sigint(avia: Path, listener: Listener, tmp_path: Path) -> None:
