@@ -112,7 +112,8 @@ def test_help_texts_say_the_true_defaults() -> None:
     """Every detector and gate flag's help ends with the core's default (today's main said
     --max-loop-distance defaults to "the evaluation radius", which detect does not have)."""
     detect = next(a for a in build_parser()._subparsers._group_actions[0].choices.items() if a[0] == "detect")[1]  # type: ignore[union-attr]
-    helps = {a.dest: a.help or "" for a in detect._actions}
+    # The full help: `--help` hides the less common flags, `--help-all` shows what they keep.
+    helps = {a.dest: getattr(a, "_full_help", a.help) or "" for a in detect._actions}
     per_preset = per_preset_fields()
     gate = solid.DetectorConfig().gate.to_dict()
     for table, prefix, defaults in (("DetectorConfig", "", solid.DetectorConfig().to_dict()), ("AcceptanceGate", "gate_", gate)):
