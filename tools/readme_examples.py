@@ -171,7 +171,12 @@ def run_docs(paths: list[str], shell_only: bool, timeout_s: float = 600.0) -> in
     ran = 0
     for md in paths:
         blocks = blocks_of(Path(md).read_text(encoding="utf-8"))
-        work = Path(tempfile.mkdtemp(prefix="docs-check-"))
+        # The workspace is a checkout's stand-in: `../shared` beside it is the shared folder, as the
+        # docs that run from a checkout (docs/ros2.md) name it.
+        root = Path(tempfile.mkdtemp(prefix="docs-check-"))
+        work = root / "repo"
+        work.mkdir()
+        (root / "shared").symlink_to(data.parent)
         try:
             prepare(work, data)
             namespace: dict[str, object] = {"__name__": "docs_examples_run"}
@@ -212,7 +217,7 @@ def run_docs(paths: list[str], shell_only: bool, timeout_s: float = 600.0) -> in
                 print(f"    ok, {cpu:.1f} s CPU", flush=True)
                 ran += 1
         finally:
-            shutil.rmtree(work, ignore_errors=True)
+            shutil.rmtree(root, ignore_errors=True)
     print(f"{ran} blocks of {', '.join(paths)} ran as written")
     return ran
 
