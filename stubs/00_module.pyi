@@ -30,6 +30,7 @@ __all__ = [
     "Match",
     "LoopDetector",
     "Loop",
+    "MapAnchor",
     "Candidate",
     "Detection",
     "DetectorConfig",

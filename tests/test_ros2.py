@@ -158,7 +158,7 @@ def test_loops_equal_detect_over_the_wire(avia: Path, listener: Listener, tmp_pa
             process(node_args("preset:=avia", f"detector.exclude_meters:={EXCLUDE_M}", "queue_size:=1000"), tmp_path / "node.log") as node:
         listener.wait(lambda: dds_out.exists() and "ready" in dds_out.read_text(), 30, "the DDS reader", dds)
         listener.wait(lambda: bool(listener.status), 60, "the node's first status", node)
-        with process(play_args(avia, "--poses", str(avia / "odom_poses.txt"), "--frames", FRAMES, "--rate", "4", "--max-gap", "1"),
+        with process(play_args(avia, "--poses", str(avia / "odom_poses.txt"), "--frames", FRAMES, "--rate", "2", "--max-gap", "1"),
                      tmp_path / "play.log") as play:
             listener.wait(lambda: listener.status.get("keyframes") == N_FRAMES and len(listener.loops) >= len(want), 180,
                           f"{N_FRAMES} keyframes and {len(want)} loops", node)
@@ -215,7 +215,7 @@ def test_relocalization_places_the_second_half(avia: Path, listener: Listener, t
     saved = tmp_path / "session.soliddb"
     with process(node_args(f"map:={m}", f"save_file:={saved}", "queue_size:=100"), tmp_path / "node.log") as node:
         listener.wait(lambda: bool(listener.status), 60, "the node's first status", node)
-        with process(play_args(avia, "--poses", str(tmp_path / "rebased.txt"), "--frames", f"{start}:314", "--rate", "4"), tmp_path / "play.log") as play:
+        with process(play_args(avia, "--poses", str(tmp_path / "rebased.txt"), "--frames", f"{start}:314", "--rate", "2"), tmp_path / "play.log") as play:
             listener.wait(lambda: listener.status.get("keyframes") == 314 - start, 180, "the second half's keyframes", node)
             assert play.wait(timeout=30) == 0
         assert listener.status["map_loops"] > 0 and listener.status["placed"] is not None, listener.status

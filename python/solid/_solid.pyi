@@ -31,6 +31,7 @@ __all__ = [
     "Match",
     "LoopDetector",
     "Loop",
+    "MapAnchor",
     "Candidate",
     "Detection",
     "DetectorConfig",
