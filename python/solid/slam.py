@@ -453,7 +453,11 @@ def loop_chi2(graph: PoseGraph, scale: float = 1.0) -> F64:
     """Each loop's χ² against the odometry alone, with the odometry's standard deviations
     multiplied by ``scale`` (:func:`loop_residuals`; NaN where the odometry does not join its
     frames)."""
-    xi, s_odo, s_loop = loop_residuals(graph)
+    return _chi2(*loop_residuals(graph), scale)
+
+
+def _chi2(xi: F64, s_odo: F64, s_loop: F64, scale: float) -> F64:
+    """``ξᵀ·(scale²·Σ_odometry + Σ_loop)⁻¹·ξ`` of each loop of :func:`loop_residuals` (NaN where ξ is)."""
     out = np.full(len(xi), np.nan)
     for k in range(len(xi)):
         if np.isfinite(xi[k]).all():
@@ -477,7 +481,7 @@ def fit_odometry_scale(graph: PoseGraph, *, ceiling: float = ODOMETRY_SCALE_MAX)
     xi, s_odo, s_loop = xi[ok], s_odo[ok], s_loop[ok]
 
     def median_chi2(s: float) -> float:
-        return float(np.median([x @ np.linalg.solve(s**2 * So + Sl, x) for x, So, Sl in zip(xi, s_odo, s_loop)]))
+        return float(np.median(_chi2(xi, s_odo, s_loop, s)))
 
     if median_chi2(1.0) <= CHI2_6_MEDIAN:
         return 1.0
