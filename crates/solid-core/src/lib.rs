@@ -40,6 +40,8 @@ mod config;
 #[cfg(feature = "alloc")]
 pub mod db;
 mod describe;
+#[cfg(feature = "alloc")]
+pub mod detector;
 mod error;
 #[cfg(feature = "alloc")]
 pub mod eval;

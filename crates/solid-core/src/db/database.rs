@@ -326,7 +326,7 @@ impl Database {
         Ok(())
     }
 
-    pub(super) fn check_fingerprint(&self, got: u64) -> Result<(), DbError> {
+    pub(crate) fn check_fingerprint(&self, got: u64) -> Result<(), DbError> {
         if got != self.fingerprint {
             return Err(DbError::ConfigMismatch {
                 expected: self.fingerprint,

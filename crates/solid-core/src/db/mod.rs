@@ -29,14 +29,14 @@
 //! ```
 //!
 //! The code is split by what it owns: [`Database`] (storage and search), [`mod@format`] (the file
-//! format), [`LoopDetector`] (online loop closure) and [`wire`] (one place on the wire).
+//! format) and [`wire`] (one place on the wire). The database holds places; the loop detector
+//! that decides loops over it lives in [`crate::detector`] and is re-exported here
+//! ([`LoopDetector`], [`DetectorConfig`], ...) so that `solid_lidar::db::LoopDetector` keeps working.
 
 use crate::Error;
 
 pub mod clouds;
 mod database;
-mod detector;
-mod detector_config;
 mod exclusion;
 pub mod format;
 mod index_policy;
@@ -45,19 +45,19 @@ mod room;
 pub mod wire;
 
 pub use crate::checksum::crc32;
-pub use crate::error::DbError;
-pub use database::{
-    check_pose, check_session, BatchResults, Database, SearchOptions, INDEX_AFTER_PASSES,
-};
-pub use detector::{
+pub use crate::detector::{
     Candidate, Detection, Loop, LoopDetector, MapAnchor, Scan, Verification, UNVERIFIED_SCORE,
     VERIFIED_THRESHOLD,
 };
-pub use detector_config::{
+pub use crate::detector::{
     DetectorConfig, VerifyConfig, DEFAULT_EXCLUDE_FRAMES, DEFAULT_EXCLUDE_METERS,
     DEFAULT_MAX_LOOP_DISTANCE, DEFAULT_POSE_CANDIDATES, DEFAULT_POSE_CANDIDATE_MIN_INFORMATION,
     DEFAULT_POSE_CANDIDATE_SHIFT_M, DEFAULT_RERANK, DEFAULT_TOP_K, DEFAULT_VERIFY_CANDIDATES,
     MAX_TOP_K, MAX_VERIFY_THREADS,
+};
+pub use crate::error::DbError;
+pub use database::{
+    check_pose, check_session, BatchResults, Database, SearchOptions, INDEX_AFTER_PASSES,
 };
 pub use exclusion::visible_own_places;
 pub use index_policy::IndexPolicy;

@@ -11,15 +11,15 @@ use alloc::sync::Arc;
 use alloc::vec;
 use alloc::vec::Vec;
 
-use super::database::check_pose;
-use super::exclusion::visible_own_places;
-use super::{Database, DbError, Method, SearchOptions};
 use crate::compare::aligned_distance;
+use crate::db::{check_pose, visible_own_places};
+use crate::db::{Database, DbError, Method, SearchOptions};
 use crate::reg::{self, PreparedCloud, Registration, Rejection};
 use crate::{heading_refined, Config, Descriptor, Error};
 use crate::{Coord, Points};
 
-use super::detector_config::*;
+mod config;
+pub use config::*;
 
 mod anchor;
 mod consistency;
@@ -767,7 +767,7 @@ impl LoopDetector {
         k: usize,
     ) -> Result<Vec<Candidate>, DbError> {
         let na = self.own.config().n_azimuth;
-        super::same_len("a_solid vs config n_azimuth", a.len(), na)?;
+        crate::db::same_len("a_solid vs config n_azimuth", a.len(), na)?;
         // The map's places are all eligible, the own session's first `eligible - start`; the
         // two searches merged in the search's order (distance, then lower id) are one search.
         let start = self.session_start;

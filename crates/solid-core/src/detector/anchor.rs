@@ -11,7 +11,7 @@
 use super::verify::{distance, reject, relative, rotation_bound, QueryPlace};
 use super::{Candidate, LoopDetector};
 use crate::compare::cosine_distance;
-use crate::db::VerifyConfig;
+use crate::detector::VerifyConfig;
 use crate::reg::{invert, mul, pose_to_rows, rows_to_pose, Pose, Rejection};
 
 /// Where an own place lies from a step's query by the poses ([`LoopDetector::reach`]).

@@ -1,6 +1,6 @@
 //! Candidates chosen by pose: when the query has a pose, the own session's eligible places nearest
 //! to where its odometry puts it are verified beside the descriptor's best
-//! ([`VerifyConfig::pose_candidates`](crate::db::VerifyConfig::pose_candidates)). Among
+//! ([`VerifyConfig::pose_candidates`](crate::detector::VerifyConfig::pose_candidates)). Among
 //! look-alike places the descriptor's few best rarely hold the true one; the odometry still says
 //! roughly where the query is.
 
@@ -13,7 +13,8 @@ use super::anchor::Reach;
 use super::verify::{registered, reject, run_jobs, QueryPlace};
 use super::{Candidate, LoopDetector};
 use crate::compare::cosine_distance;
-use crate::db::{DbError, VerifyConfig};
+use crate::db::DbError;
+use crate::detector::VerifyConfig;
 use crate::heading_refined;
 use crate::reg::{self, PreparedCloud, Rejection};
 
@@ -197,7 +198,7 @@ pub(super) fn keeps_its_pose(
 
 #[cfg(test)]
 mod tests {
-    use crate::db::{DetectorConfig, LoopDetector};
+    use crate::detector::{DetectorConfig, LoopDetector};
     use crate::reg::{self, PreparedCloud};
     use crate::{Config, Descriptor, Stats};
 
@@ -249,13 +250,13 @@ mod tests {
 
     #[test]
     fn a_registration_that_follows_its_start_is_not_kept() {
-        let v = crate::db::VerifyConfig::default();
+        let v = crate::detector::VerifyConfig::default();
         let cfg = &v.registration;
         let keeps = |boxes: &[f64]| {
             let c = PreparedCloud::from_downsampled(&corridor(boxes), cfg).unwrap();
             let r = reg::register(&c, &c, &reg::IDENTITY, cfg).unwrap();
             let off = super::keeps_its_pose(
-                &crate::db::VerifyConfig {
+                &crate::detector::VerifyConfig {
                     pose_candidate_shift_m: 0.0,
                     ..v
                 },

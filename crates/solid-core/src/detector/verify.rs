@@ -6,7 +6,8 @@ use alloc::vec::Vec;
 
 use super::anchor::Reach;
 use super::{Candidate, LoopDetector, Verification};
-use crate::db::{DbError, VerifyConfig};
+use crate::db::DbError;
+use crate::detector::VerifyConfig;
 use crate::reg::{self, mul, Hypothesis, Pose, PreparedCloud, Rejection};
 
 /// The query of a step, for the checks after the gate: its id, pose and metres travelled.
@@ -540,7 +541,7 @@ pub(super) fn run_jobs<J: Sync, R: Send>(
 #[cfg(test)]
 pub(super) mod tests {
     use super::*;
-    use crate::db::DetectorConfig;
+    use crate::detector::DetectorConfig;
     use crate::reg::{Degeneracy, Registration};
     use crate::{Config, Descriptor, Stats};
 
