@@ -332,7 +332,11 @@ impl PreparedCloud {
         let coarse = if with_coarse {
             // No lower range bound, as in `from_downsampled`.
             let pts = Points::new(self.fine.points.as_flattened(), 3)?;
-            Some(Level::new(filtered(pts, 0.0, max_range, voxel)?, voxel, neighbors)?)
+            Some(Level::new(
+                filtered(pts, 0.0, max_range, voxel)?,
+                voxel,
+                neighbors,
+            )?)
         } else {
             None
         };
