@@ -6,7 +6,7 @@ PY := $(VENV)/bin/python
 PYABS = $(abspath $(PY))
 PYTHON ?= python3
 
-.PHONY: docs-examples c-deps c-header c-header-check c-lib c-install c-test c-bench crate-copy-check demo test venv dist aarch64 wheel install-test crates docs lint rust-test py-test typecheck bench bench-py bench-search bench-search-py readme-speed readme-results thresholds bench-pcd fuzz fuzz-smoke fuzz-deps cargo-fuzz-run bench-reg bench-step audit clean stubs
+.PHONY: docs-examples c-deps c-header c-header-check c-lib c-install c-test c-bench crate-copy-check demo test venv dist aarch64 wheel install-test crates docs lint rust-test py-test typecheck bench bench-py bench-search bench-search-py readme-speed readme-results thresholds bench-pcd fuzz fuzz-smoke fuzz-deps cargo-fuzz-run bench-reg bench-basin bench-step audit clean stubs
 
 $(VENV)/.ready: requirements-dev.txt pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -316,6 +316,11 @@ fuzz-smoke: wheel fuzz-deps
 ## Registration speed: solid against small-gicp on the same hku1 pairs, single-threaded.
 bench-reg: wheel
 	$(PY) benches/registration.py
+
+## The convergence basin: true revisit pairs of hku1-avia and a simulated OS1-64 drive registered from
+## starts 1-3 m / ±30° off the truth and from the identity, solid beside small-gicp (a few minutes).
+bench-basin: wheel
+	$(PY) benches/reg_basin.py
 
 ## The verified detector step: CPU per step of the shipped detector on hku1-avia (with and without
 ## poses) and a simulated 360° OS1-64 drive, beside small-gicp on the same pairs (a few minutes).

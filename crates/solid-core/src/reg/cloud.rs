@@ -161,9 +161,9 @@ pub struct PreparedCloud {
     /// The coarse level (`coarse_voxel_size`, voxelised from the fine points), when enabled.
     pub coarse: Option<Level>,
     prep: [u64; 5],
-    /// Of a deferred cloud ([`PreparedCloud::deferred`]) not yet completed: the coarse level's
-    /// points (or None without one); the fine level then has no covariances yet.
-    pending: Option<Option<Vec<[f64; 3]>>>,
+    /// Of a deferred cloud ([`PreparedCloud::deferred`]) not yet completed: whether it has a coarse level; the fine level then holds its points alone (no tree, no
+    /// covariances) and no coarse level is built yet.
+    pending: Option<bool>,
 }
 
 /// Bits of the preparation parameters, to check that two clouds were prepared alike.
@@ -280,11 +280,12 @@ impl PreparedCloud {
         Ok(c)
     }
 
-    /// [`PreparedCloud::new`] that defers the work only registration needs: the fine level's
-    /// points (in the same order) and kd-tree are built, the covariances and the coarse level's
-    /// tree wait for [`PreparedCloud::complete`], which makes it exactly what `new` makes. A
+    /// [`PreparedCloud::new`] that defers the work only registration needs: only the fine
+    /// level's points are made (filtered and voxelised, in the voxel grid's order: what a
+    /// place stores, [`super::wire::encode_cloud`]); the kd-trees, covariances and the coarse
+    /// level wait for [`PreparedCloud::complete`], which makes it exactly what `new` makes. A
     /// detector step prepares its scan so: most steps register nothing, and a 360° sensor's
-    /// covariances cost most of a step that does not.
+    /// trees and covariances cost most of a step that does not.
     ///
     /// # Errors
     /// As [`PreparedCloud::new`].
@@ -299,44 +300,49 @@ impl PreparedCloud {
         )
     }
 
-    /// The deferred cloud of the fine points `fine` (the budget applied here); the coarse
-    /// level's points are voxelised from them now, its tree and covariances wait.
+    /// The deferred cloud of the fine points `fine` (the budget applied here): the points alone,
+    /// in the voxel grid's order; their kd-tree, covariances and the coarse level wait for
+    /// [`PreparedCloud::complete`].
     fn defer(fine: Vec<[f64; 3]>, cfg: &RegConfig) -> Result<PreparedCloud, RegError> {
-        let fine = within_budget(fine);
-        let coarse = if cfg.coarse_voxel_size > 0.0 {
-            // No lower range bound, as in `from_downsampled`.
-            let pts = Points::new(fine.as_flattened(), 3)?;
-            Some(filtered(pts, 0.0, cfg.max_range, cfg.coarse_voxel_size)?)
-        } else {
-            None
-        };
         Ok(PreparedCloud {
-            fine: Level::ordered(fine, cfg.voxel_size)?,
+            fine: Level {
+                voxel_size: cfg.voxel_size,
+                points: within_budget(fine),
+                ..Level::default()
+            },
             coarse: None,
             prep: prep_key(cfg),
-            pending: Some(coarse),
+            pending: Some(cfg.coarse_voxel_size > 0.0),
         })
     }
 
     /// Builds what [`PreparedCloud::deferred`] left for registration (nothing for a complete
-    /// cloud).
+    /// cloud): the coarse level's points, voxelised from the fine points, each level's kd-tree
+    /// (its points reordered along it) and covariances.
     ///
     /// # Errors
     /// [`RegError::Core`] with [`crate::Error::OutOfMemory`] when it does not fit in memory.
     pub fn complete(&mut self) -> Result<(), RegError> {
-        let Some(coarse) = self.pending.as_ref() else {
+        let Some(with_coarse) = self.pending else {
             return Ok(());
         };
         let neighbors = self.prep[4] as usize;
-        let voxel = f64::from_bits(self.prep[1]);
+        let (voxel, max_range) = (f64::from_bits(self.prep[1]), f64::from_bits(self.prep[3]));
         // On error the cloud is left as it was (still deferred).
-        let coarse = coarse
-            .as_ref()
-            .map(|c| Level::new(c.clone(), voxel, neighbors))
-            .transpose()?;
-        self.fine.estimate(neighbors)?;
-        self.coarse = coarse;
-        self.pending = None;
+        let coarse = if with_coarse {
+            // No lower range bound, as in `from_downsampled`.
+            let pts = Points::new(self.fine.points.as_flattened(), 3)?;
+            Some(Level::new(
+                filtered(pts, 0.0, max_range, voxel)?,
+                voxel,
+                neighbors,
+            )?)
+        } else {
+            None
+        };
+        let mut fine = Level::ordered(self.fine.points.clone(), self.fine.voxel_size)?;
+        fine.estimate(neighbors)?;
+        (self.fine, self.coarse, self.pending) = (fine, coarse, None);
         Ok(())
     }
 
@@ -381,8 +387,16 @@ mod tests {
         let points = Points::new(&xyz, 3).unwrap();
         let full = PreparedCloud::new(points, &cfg).unwrap();
         let mut d = PreparedCloud::deferred(points, &cfg).unwrap();
-        // The fine points (what a detector stores) are there at once, in the same order.
-        assert_eq!(d.fine.points, full.fine.points);
+        // The fine points (what a detector stores) are there at once, in the voxel grid's order
+        // (a complete cloud holds them in its tree's): the same points, the same stored form.
+        let sorted = |l: &Level| {
+            let mut p = l.points.clone();
+            p.sort_by(|a, b| a.partial_cmp(b).unwrap());
+            p
+        };
+        assert_eq!(sorted(&d.fine), sorted(&full.fine));
+        let stored = |l: &Level| crate::reg::encode_cloud(&l.points, 0.5, 8).unwrap();
+        assert_eq!(stored(&d.fine), stored(&full.fine));
         assert!(d.fine.covs.is_empty() && d.coarse.is_none());
         assert!(!d.is_complete() && !d.prepared_with(&cfg));
         assert!(matches!(

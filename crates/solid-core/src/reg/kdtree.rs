@@ -326,7 +326,13 @@ mod tests {
             let pts = cloud(n, 42 + n as u64, grid);
             let (mut perm, mut axes) = (vec![0; n], vec![0; n]);
             let tree = KdTree3::build(&pts, &mut perm, &mut axes).unwrap();
-            let queries = cloud(50, 7, 0.0);
+            let mut queries = cloud(50, 7, 0.0);
+            // Queries outside the cloud too.
+            queries.extend(
+                cloud(50, 9, 0.0)
+                    .iter()
+                    .map(|p| [3.0 * p[0], 2.0 * p[1], 8.0 * p[2] - 10.0]),
+            );
             for q in queries.iter().chain(pts.iter().take(20)) {
                 for k in [1, 3, 10] {
                     let mut out = vec![Nearest::default(); k];
