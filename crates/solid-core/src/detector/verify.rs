@@ -878,6 +878,83 @@ pub(super) mod tests {
     }
 
     #[test]
+    fn candidates_start_from_the_odometry_or_a_registered_neighbour_else_from_the_hypotheses() {
+        use crate::detector::nearby::tests::corridor;
+        // Places 0..10 1 m apart along a corridor whose boxes pin the translation; the query at
+        // x = 10 (its clouds: the world seen from there).
+        let world = corridor(&[-13.0, -4.5, 3.0, 11.5]);
+        let run = |tweak: &dyn Fn(&mut VerifyConfig), with_pose: bool| {
+            let det = detector_with_path(10, |v| {
+                v.gate.max_translation = 10.0;
+                tweak(v);
+            });
+            let cfg = &det.config.verify.registration;
+            let seen = |x: f64| {
+                let p: Vec<[f64; 3]> = world.iter().map(|p| [p[0] - x, p[1], p[2]]).collect();
+                Arc::new(PreparedCloud::from_downsampled(&p, cfg).unwrap())
+            };
+            let q = seen(10.0);
+            let mut at = at(&det, 10.0);
+            if !with_pose {
+                at.pose = None;
+            }
+            // Place 8, its neighbour 9 and place 5.
+            let ids = [8u32, 9, 5];
+            let mut cands = ids.map(|id| Candidate {
+                verification: None,
+                ..verified(id, reg::IDENTITY)
+            });
+            let jobs: Vec<(usize, Arc<PreparedCloud>)> = ids
+                .iter()
+                .enumerate()
+                .map(|(i, &id)| (i, seen(f64::from(id))))
+                .collect();
+            let a = alloc::vec![1.0f32; det.map().config().n_azimuth];
+            det.register_jobs(&a, &q, Some(&at), &jobs, &mut cands)
+                .unwrap();
+            cands.map(|c| {
+                let r = c.verification.unwrap();
+                (r.hypotheses, r.registration.translation()[0], r.rejection)
+            })
+        };
+        let near = |x: f64, want: f64| (x - want).abs() < 0.1;
+        // With poses: places 8 and 5 from the odometry, 9 from 8's pose: one registration
+        // each, at the true poses (without the information floor of a start from the odometry).
+        let floor = |v: &mut VerifyConfig| v.pose_candidate_min_information = 0.0;
+        let v = run(&floor, true);
+        assert_eq!(v.map(|(h, _, _)| h), [1, 1, 1], "{v:?}");
+        assert!(
+            near(v[0].1, -2.0) && near(v[1].1, -1.0) && near(v[2].1, -5.0),
+            "{v:?}"
+        );
+        assert_eq!(v.map(|(_, _, r)| r), [None; 3]);
+        // A start from the odometry whose translation information stays below the floor is not
+        // kept: the hypotheses take over (the neighbour still follows its leader).
+        let v = run(
+            &|v: &mut VerifyConfig| v.pose_candidate_min_information = 1e9,
+            true,
+        );
+        assert!(v[0].0 > 1 && v[1].0 == 1 && v[2].0 > 1, "{v:?}");
+        assert!(near(v[0].1, -2.0) && near(v[1].1, -1.0), "{v:?}");
+        // Without a pose the leaders take the hypotheses; the neighbour still follows place 8.
+        let v = run(&floor, false);
+        assert!(v[0].0 > 1 && v[1].0 == 1 && v[2].0 > 1, "{v:?}");
+        assert!(near(v[0].1, -2.0) && near(v[1].1, -1.0), "{v:?}");
+        // A gate that asks for the hypotheses' agreement: every candidate takes them.
+        let v = run(&|v: &mut VerifyConfig| v.gate.min_agreement = 2, true);
+        assert!(v.iter().all(|&(h, _, _)| h > 1), "{v:?}");
+        // Where the odometry's bound exceeds the coarse level's reach, no seed from it.
+        let v = run(
+            &|v: &mut VerifyConfig| {
+                floor(v);
+                v.odometry_drift = 2.0;
+            },
+            true,
+        );
+        assert!(v[0].0 > 1 && v[1].0 == 1, "{v:?}");
+    }
+
+    #[test]
     fn only_places_within_reach_are_registered() {
         use super::super::anchor::Reach;
         // 40 places 1 m apart along x; the query at x = 40 after 40 m. Place 34 (6 m off after
