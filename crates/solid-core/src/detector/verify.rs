@@ -192,17 +192,24 @@ impl LoopDetector {
         for (&k, r) in leaders.iter().zip(first) {
             cands[jobs[k].0].verification = r;
         }
+        let agrees = |id: u32, pose: &Pose| {
+            at.and_then(|at| self.expected_through(at, anchored, id))
+                .is_none_or(|(e, path)| self.within_drift(&e, pose, path, 1.0))
+        };
         let followers: Vec<(usize, Option<Pose>)> = (0..jobs.len())
             .filter_map(|k| {
                 let j = follows[k]?;
                 let (a, b) = (ids[j], ids[k]);
-                // The leader's pose carried over to this place, when it met the quality checks.
-                let start = cands[jobs[j].0].verification.filter(met_quality).map(|r| {
-                    match self.pose(a).zip(self.pose(b)) {
+                // The leader's pose carried over to this place, when it met the quality checks
+                // (and, with the odometry check, agrees with the odometry: a look-alike's pose
+                // would carry its neighbours along).
+                let start = cands[jobs[j].0]
+                    .verification
+                    .filter(|r| met_quality(r) && agrees(a, &r.registration.pose))
+                    .map(|r| match self.pose(a).zip(self.pose(b)) {
                         Some((pa, pb)) => mul(&r.registration.pose, &relative(&pa, &pb)),
                         None => r.registration.pose,
-                    }
-                });
+                    });
                 Some((k, start))
             })
             .collect();
