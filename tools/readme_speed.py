@@ -261,6 +261,14 @@ def maps_block(doc: dict[str, Any]) -> list[str]:
     return lines
 
 
+def same(r: dict[str, Any]) -> str:
+    """Whether both builds accepted the same loops; otherwise how many each accepted (docs/performance.md#starts
+    says which changed and why)."""
+    if r["same_loops"]:
+        return "yes"
+    return f"no ({r['baseline']['loops']:.0f} → {r['this']['loops']:.0f} loops)"
+
+
 def step_block(doc: dict[str, Any]) -> list[str]:
     """The verified detector step per walk, beside the baseline build and small_gicp."""
     base = doc["baseline"] or "no baseline"
@@ -280,7 +288,7 @@ def step_block(doc: dict[str, Any]) -> list[str]:
         t, b, p = r["this"], r.get("baseline"), r.get("peers")
         lines.append(
             f"| {name} | {t['steps']} | {t['mean_ms']:.1f} ms | {t['median_ms']:.1f} ms | {t['p95_ms']:.1f} ms | "
-            + (f"{b['mean_ms']:.1f} ms | {r['ratio']:.2f}× | {'yes' if r['same_loops'] else 'no'} | " if b else "| | | ")
+            + (f"{b['mean_ms']:.1f} ms | {r['ratio']:.2f}× | {same(r)} | " if b else "| | | ")
             + f"{t['registered_per_step']:.2f} | "
             + (f"{p['solid_ms']:.2f} ms | {p['small_gicp_ms']:.2f} ms | {p['small_gicp_ms'] / p['solid_ms']:.2f}× |" if p else "| | |")
         )

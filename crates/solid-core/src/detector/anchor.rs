@@ -69,7 +69,7 @@ impl LoopDetector {
 
     /// [`LoopDetector::expected`] through `anchored` ([`LoopDetector::anchored`] of `at`, None:
     /// through the two places' poses), for the callers that look at many places in one step.
-    fn expected_through(
+    pub(super) fn expected_through(
         &self,
         at: &QueryPlace,
         anchored: Option<([f64; 12], f64, f64)>,

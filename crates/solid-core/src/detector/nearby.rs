@@ -197,7 +197,7 @@ pub(super) fn keeps_its_pose(
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use crate::detector::{DetectorConfig, LoopDetector};
     use crate::reg::{self, PreparedCloud};
     use crate::{Config, Descriptor, Stats};
@@ -220,7 +220,7 @@ mod tests {
 
     /// A 40 m corridor 6 m wide and 3 m high (walls, floor, ceiling every 0.2 m), with boxes at
     /// the given x positions against its left wall.
-    fn corridor(boxes: &[f64]) -> alloc::vec::Vec<[f64; 3]> {
+    pub(crate) fn corridor(boxes: &[f64]) -> alloc::vec::Vec<[f64; 3]> {
         let mut p = alloc::vec::Vec::new();
         for i in -100..=100 {
             let x = f64::from(i) * 0.2;

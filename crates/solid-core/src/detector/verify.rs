@@ -77,14 +77,7 @@ impl LoopDetector {
                 c.complete()?;
                 completed.insert(c)
             };
-            let det: &LoopDetector = self;
-            let verify_one = |&(i, ref cp): &(usize, Arc<PreparedCloud>)| {
-                verify_pair(&v, a_query, &det.a(cands[i].id), q, cp)
-            };
-            let results: Vec<Option<Verification>> = run_jobs(&jobs, v.threads, verify_one)?;
-            for ((i, _), r) in jobs.iter().zip(results) {
-                cands[*i].verification = r;
-            }
+            self.register_jobs(a_query, q, at.as_ref(), &jobs, cands)?;
             if let Some(at) = at {
                 // The candidates chosen by pose follow the descriptor's first `v.candidates`.
                 let by_pose = v.candidates.min(n)..n;
@@ -109,6 +102,122 @@ impl LoopDetector {
         }
         cands.sort_by(|x, y| x.score.total_cmp(&y.score));
         Ok(completed)
+    }
+
+    /// Registers the query `q` with each job's candidate cloud (`jobs[k] = (index in cands, cloud)`)
+    /// and records the verifications in `cands`. Each candidate starts from the best start known
+    /// (spec §8, docs/performance.md#starts):
+    ///
+    /// 1. a *neighbour*: a better-ranked candidate of the same session at most [`CLUSTER_IDS`]
+    ///    places away (an adjacent keyframe of the same place) whose registration met the
+    ///    gate's quality checks ([`registered`]): its pose composed with the two places'
+    ///    relative pose (their poses', the identity without poses). Such candidates are
+    ///    registered after the others, once; kept when the result meets the quality checks;
+    /// 2. the *odometry*: with the odometry check, an own place with poses starts from the
+    ///    relative pose the poses predict (through the anchor when it applies,
+    ///    [`LoopDetector::expected`]), once. A result that meets the quality checks is kept when
+    ///    it also passes the guards of a candidate chosen by pose that need no registration:
+    ///    `pose_candidate_min_information` and the odometry without the rotation's allowance (a
+    ///    start from the odometry must not let a loose translation end where the odometry
+    ///    says); one that fails the quality checks is final (from the odometry's start the
+    ///    hypotheses from the identity measured no loop more);
+    /// 3. otherwise (no start, or a seeded result that met the quality checks but not the guards)
+    ///    the yaw hypotheses from the identity ([`verify_pair`]).
+    fn register_jobs(
+        &self,
+        a_query: &[f32],
+        q: &PreparedCloud,
+        at: Option<&QueryPlace>,
+        jobs: &[(usize, Arc<PreparedCloud>)],
+        cands: &mut [Candidate],
+    ) -> Result<(), DbError> {
+        let v = self.config.verify;
+        // A single start cannot show the hypotheses' agreement: with a gate that asks for it,
+        // every candidate takes the hypotheses.
+        let seeds = v.gate.min_agreement <= 1;
+        let anchored = at.and_then(|at| self.anchored(at));
+        let mut odometry: Vec<Option<(Pose, f64)>> = Vec::new();
+        let mut follows: Vec<Option<usize>> = Vec::new();
+        odometry
+            .try_reserve_exact(jobs.len())
+            .map_err(|_| DbError::OutOfMemory)?;
+        follows
+            .try_reserve_exact(jobs.len())
+            .map_err(|_| DbError::OutOfMemory)?;
+        let ids: Vec<u32> = jobs.iter().map(|&(i, _)| cands[i].id).collect();
+        let session = |id: u32| self.entry(id).0;
+        // Only where the odometry's own bound (without the rotation's swing) lies within the
+        // coarse level's reach: a start farther off than that may miss the true pose.
+        let reach = |path: f64| {
+            v.odometry_translation_m + v.odometry_drift * path
+                <= v.registration.coarse_max_correspondence
+        };
+        let at = at.filter(|_| seeds && v.odometry_check);
+        for (k, &id) in ids.iter().enumerate() {
+            odometry.push(
+                at.and_then(|at| self.expected_through(at, anchored, id))
+                    .filter(|&(_, path)| reach(path)),
+            );
+            // The better-ranked job it may follow: the first within CLUSTER_IDS of its session.
+            follows.push(ids[..k].iter().position(|&id2| {
+                seeds && session(id2) == session(id) && id2.abs_diff(id) <= CLUSTER_IDS
+            }));
+        }
+        let det: &LoopDetector = self;
+        let one = |k: usize, neighbour: Option<Pose>| -> Result<Option<Verification>, DbError> {
+            let cp = &jobs[k].1;
+            if let Some(start) = neighbour {
+                let s = seeded(&v, q, cp, &start)?;
+                if s.as_ref().is_some_and(met_quality) {
+                    return Ok(s);
+                }
+            }
+            if let Some((expected, path)) = odometry[k] {
+                let s = seeded(&v, q, cp, &expected)?;
+                let guarded = |s: &Verification| {
+                    let r = &s.registration;
+                    r.degeneracy.translation >= v.pose_candidate_min_information
+                        && det.within_drift(&expected, &r.pose, path, 0.0)
+                };
+                match s {
+                    Some(s) if !met_quality(&s) || guarded(&s) => return Ok(Some(s)),
+                    _ => {}
+                }
+            }
+            verify_pair(&v, a_query, &det.a(ids[k]), q, cp)
+        };
+        // The leaders first, then the candidates that follow them.
+        let leaders: Vec<usize> = (0..jobs.len()).filter(|&k| follows[k].is_none()).collect();
+        let first = run_jobs(&leaders, v.threads, |&k| one(k, None))?;
+        for (&k, r) in leaders.iter().zip(first) {
+            cands[jobs[k].0].verification = r;
+        }
+        let agrees = |id: u32, pose: &Pose| {
+            at.and_then(|at| self.expected_through(at, anchored, id))
+                .is_none_or(|(e, path)| self.within_drift(&e, pose, path, 1.0))
+        };
+        let followers: Vec<(usize, Option<Pose>)> = (0..jobs.len())
+            .filter_map(|k| {
+                let j = follows[k]?;
+                let (a, b) = (ids[j], ids[k]);
+                // The leader's pose carried over to this place, when it met the quality checks
+                // (and, with the odometry check, agrees with the odometry: a look-alike's pose
+                // would carry its neighbours along).
+                let start = cands[jobs[j].0]
+                    .verification
+                    .filter(|r| met_quality(r) && agrees(a, &r.registration.pose))
+                    .map(|r| match self.pose(a).zip(self.pose(b)) {
+                        Some((pa, pb)) => mul(&r.registration.pose, &relative(&pa, &pb)),
+                        None => r.registration.pose,
+                    });
+                Some((k, start))
+            })
+            .collect();
+        let second = run_jobs(&followers, v.threads, |&(k, start)| one(k, start))?;
+        for (&(k, _), r) in followers.iter().zip(second) {
+            cands[jobs[k].0].verification = r;
+        }
+        Ok(())
     }
 
     /// Which of `cands` cannot give an accepted loop, so are not registered: with the odometry
@@ -367,8 +476,7 @@ pub(super) fn rotation_bound(v: &VerifyConfig, path: f64) -> f64 {
 /// so a loop does not depend on the largest loop asked for (eval's suggestion), only the
 /// lengths accepted do.
 pub(super) fn registered(c: &Candidate) -> bool {
-    c.verification
-        .is_some_and(|r| r.accepted || r.rejection == Some(Rejection::TooFar))
+    c.verification.as_ref().is_some_and(met_quality)
 }
 
 /// Marks a candidate as rejected by a check after the gate.
@@ -455,6 +563,39 @@ fn corrupt_cloud() -> Verification {
         hypotheses: 0,
         agreement: 0,
     }
+}
+
+/// Candidates at most this many places apart in one session are neighbours: adjacent keyframes
+/// of one place, registered from the better-ranked one's pose ([`LoopDetector::register_jobs`]).
+pub const CLUSTER_IDS: u32 = 2;
+
+/// Registers one candidate once from `start` and checks the gate (without the hypotheses'
+/// agreement) and the view; None when the clouds cannot be registered.
+fn seeded(
+    v: &VerifyConfig,
+    query: &PreparedCloud,
+    candidate: &PreparedCloud,
+    start: &Pose,
+) -> Result<Option<Verification>, DbError> {
+    let Ok(r) = reg::register(query, candidate, start, &v.registration) else {
+        return Ok(None);
+    };
+    let check = v
+        .gate
+        .check(&r, &[], 0)
+        .and_then(|()| view_check(v, r.yaw_degrees()));
+    Ok(Some(Verification {
+        registration: r,
+        accepted: check.is_ok(),
+        rejection: check.err(),
+        hypotheses: 1,
+        agreement: 1,
+    }))
+}
+
+/// Whether a verification met the gate's quality checks, whatever its length (see [`registered`]).
+fn met_quality(r: &Verification) -> bool {
+    r.accepted || r.rejection == Some(Rejection::TooFar)
 }
 
 fn verify_pair(
@@ -741,6 +882,83 @@ pub(super) mod tests {
         let mut cands = [verified(3, near), verified(4, truth(4))];
         det.check_after_gate(&q, &[], &mut cands).unwrap();
         assert!(cands.iter().all(|c| rejection(c).is_none()));
+    }
+
+    #[test]
+    fn candidates_start_from_the_odometry_or_a_registered_neighbour_else_from_the_hypotheses() {
+        use crate::detector::nearby::tests::corridor;
+        // Places 0..10 1 m apart along a corridor whose boxes pin the translation; the query at
+        // x = 10 (its clouds: the world seen from there).
+        let world = corridor(&[-13.0, -4.5, 3.0, 11.5]);
+        let run = |tweak: &dyn Fn(&mut VerifyConfig), with_pose: bool| {
+            let det = detector_with_path(10, |v| {
+                v.gate.max_translation = 10.0;
+                tweak(v);
+            });
+            let cfg = &det.config.verify.registration;
+            let seen = |x: f64| {
+                let p: Vec<[f64; 3]> = world.iter().map(|p| [p[0] - x, p[1], p[2]]).collect();
+                Arc::new(PreparedCloud::from_downsampled(&p, cfg).unwrap())
+            };
+            let q = seen(10.0);
+            let mut at = at(&det, 10.0);
+            if !with_pose {
+                at.pose = None;
+            }
+            // Place 8, its neighbour 9 and place 5.
+            let ids = [8u32, 9, 5];
+            let mut cands = ids.map(|id| Candidate {
+                verification: None,
+                ..verified(id, reg::IDENTITY)
+            });
+            let jobs: Vec<(usize, Arc<PreparedCloud>)> = ids
+                .iter()
+                .enumerate()
+                .map(|(i, &id)| (i, seen(f64::from(id))))
+                .collect();
+            let a = alloc::vec![1.0f32; det.map().config().n_azimuth];
+            det.register_jobs(&a, &q, Some(&at), &jobs, &mut cands)
+                .unwrap();
+            cands.map(|c| {
+                let r = c.verification.unwrap();
+                (r.hypotheses, r.registration.translation()[0], r.rejection)
+            })
+        };
+        let near = |x: f64, want: f64| (x - want).abs() < 0.1;
+        // With poses: places 8 and 5 from the odometry, 9 from 8's pose: one registration
+        // each, at the true poses (without the information floor of a start from the odometry).
+        let floor = |v: &mut VerifyConfig| v.pose_candidate_min_information = 0.0;
+        let v = run(&floor, true);
+        assert_eq!(v.map(|(h, _, _)| h), [1, 1, 1], "{v:?}");
+        assert!(
+            near(v[0].1, -2.0) && near(v[1].1, -1.0) && near(v[2].1, -5.0),
+            "{v:?}"
+        );
+        assert_eq!(v.map(|(_, _, r)| r), [None; 3]);
+        // A start from the odometry whose translation information stays below the floor is not
+        // kept: the hypotheses take over (the neighbour still follows its leader).
+        let v = run(
+            &|v: &mut VerifyConfig| v.pose_candidate_min_information = 1e9,
+            true,
+        );
+        assert!(v[0].0 > 1 && v[1].0 == 1 && v[2].0 > 1, "{v:?}");
+        assert!(near(v[0].1, -2.0) && near(v[1].1, -1.0), "{v:?}");
+        // Without a pose the leaders take the hypotheses; the neighbour still follows place 8.
+        let v = run(&floor, false);
+        assert!(v[0].0 > 1 && v[1].0 == 1 && v[2].0 > 1, "{v:?}");
+        assert!(near(v[0].1, -2.0) && near(v[1].1, -1.0), "{v:?}");
+        // A gate that asks for the hypotheses' agreement: every candidate takes them.
+        let v = run(&|v: &mut VerifyConfig| v.gate.min_agreement = 2, true);
+        assert!(v.iter().all(|&(h, _, _)| h > 1), "{v:?}");
+        // Where the odometry's bound exceeds the coarse level's reach, no seed from it.
+        let v = run(
+            &|v: &mut VerifyConfig| {
+                floor(v);
+                v.odometry_drift = 2.0;
+            },
+            true,
+        );
+        assert!(v[0].0 > 1 && v[1].0 == 1, "{v:?}");
     }
 
     #[test]
