@@ -405,7 +405,17 @@ def _rotation_vector(R: F64) -> F64:
     angle = np.arctan2(s, c)
     with np.errstate(invalid="ignore", divide="ignore"):
         f = np.where(s > 1e-12, angle / np.where(s > 1e-12, s, 1.0), 1.0)
-    return np.asarray(w * f[..., None], dtype=np.float64)
+    out = np.asarray(w * f[..., None], dtype=np.float64)
+    # Near 180° the skew part vanishes and carries no axis: R ≈ 2·n·nᵀ − I there, so the axis is
+    # the column of (R + I)/2 with the largest diagonal, normalised (its sign is free at π).
+    near_pi = (s < 1e-6) & (c < 0)
+    if np.any(near_pi):
+        sym = (R[near_pi] + np.eye(3)) / 2
+        col = np.argmax(np.diagonal(sym, axis1=-2, axis2=-1), axis=-1)
+        axis = np.take_along_axis(sym, col[:, None, None], axis=-1)[..., 0]
+        axis /= np.linalg.norm(axis, axis=-1, keepdims=True)
+        out[near_pi] = axis * angle[near_pi][:, None]
+    return out
 
 
 def loop_residuals(graph: PoseGraph) -> tuple[F64, F64, F64]:
