@@ -144,9 +144,22 @@ impl LoopDetector {
     ) -> Result<(), DbError> {
         let v = self.config.verify;
         let passed = |c: &Candidate| c.verification.is_some_and(|r| r.accepted);
+        // Loops within the session that the odometry turns down may be vouched for by their
+        // neighbours' consistency (the odometry drifted beyond its bounds, or broke down).
+        let own = self.record_own(at, cands);
+        let mut vouched = Vec::new();
+        vouched
+            .try_reserve_exact(cands.len())
+            .map_err(|_| DbError::OutOfMemory)?;
+        vouched.resize(cands.len(), false);
         if v.odometry_check {
-            for c in cands.iter_mut().filter(|c| registered(c)) {
-                if !self.agrees_with_odometry(at, c, true) {
+            for (i, c) in cands.iter_mut().enumerate() {
+                if !registered(c) || self.agrees_with_odometry(at, c, true) {
+                    continue;
+                }
+                if own.iter().any(|(j, h)| *j == i && self.vouched(h)) {
+                    vouched[i] = true;
+                } else {
                     reject(c, Rejection::OdometryDisagrees);
                 }
             }
@@ -196,9 +209,10 @@ impl LoopDetector {
             return Ok(());
         }
         let placed = self.places_session(at);
-        for c in cands.iter_mut().filter(|c| passed(c)) {
-            // The placement's consistent set is a map loop's support.
-            if placed && self.in_map(c.id) && self.pose(c.id).is_some() {
+        for (c, &vouched) in cands.iter_mut().zip(&vouched).filter(|(c, _)| passed(c)) {
+            // The placement's consistent set is a map loop's support; the neighbours' that of a
+            // loop they vouched for.
+            if vouched || (placed && self.in_map(c.id) && self.pose(c.id).is_some()) {
                 continue;
             }
             if self.support(at, c) < v.min_support {
