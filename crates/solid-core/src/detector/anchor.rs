@@ -145,14 +145,27 @@ impl LoopDetector {
         cands: &mut [Candidate],
     ) {
         let v: &VerifyConfig = &self.config.verify;
-        if v.lookalike_m <= 0.0 || at.pose.is_none() {
+        if v.lookalike_m <= 0.0 {
             return;
         }
+        let as_near = |id: u32, c: &Candidate| {
+            cosine_distance(r_query, self.r(id)).is_ok_and(|d| d <= c.distance + v.lookalike_margin)
+        };
         for c in cands.iter_mut() {
             let Some(r) = c.verification.filter(|r| r.accepted) else {
                 continue;
             };
-            let Some(pc) = self.pose(c.id) else { continue };
+            let (Some(pc), Some(_)) = (self.pose(c.id), at.pose) else {
+                // Without poses nothing tells a look-alike from the place: any place the query
+                // may match, of another stretch (more than `2·support_window` places from it, as
+                // the support check counts a stretch without poses), as near to the query by its
+                // descriptor, is one.
+                let stretch = 2 * v.support_window as u32;
+                if (0..at.eligible as u32).any(|id| id.abs_diff(c.id) > stretch && as_near(id, c)) {
+                    reject(c, Rejection::LookAlike);
+                }
+                continue;
+            };
             let t = r.registration.pose;
             let alike = (self.session_start..at.eligible).any(|k| {
                 let id = k as u32;
@@ -163,8 +176,7 @@ impl LoopDetector {
                     && self
                         .expected(at, id, true)
                         .is_some_and(|(e, path)| self.within_drift(&e, &t, path, v.lookalike_swing))
-                    && cosine_distance(r_query, self.r(id))
-                        .is_ok_and(|d| d <= c.distance + v.lookalike_margin)
+                    && as_near(id, c)
             });
             if alike {
                 reject(c, Rejection::LookAlike);
@@ -235,5 +247,45 @@ mod tests {
         let mut cands = [verified(2, truth(15.0))];
         det.check_after_gate(&q, &r, &mut cands).unwrap();
         assert_eq!(rejection(&cands[0]), Some(Rejection::LookAlike));
+    }
+
+    #[test]
+    fn without_poses_a_loop_whose_place_has_a_look_alike_elsewhere_is_rejected() {
+        // 60 places, all with the same descriptor; a query without a pose registers with place 2.
+        let mut det = detector_with_path(60, |v| {
+            v.unique = false;
+            v.min_support = 0;
+        });
+        let lost = |det: &LoopDetector| QueryPlace {
+            id: det.len() as u32,
+            pose: None,
+            travelled: f64::NAN,
+            eligible: det.len(),
+        };
+        let n = det.map().config().n_range;
+        let alike = alloc::vec![1.0f32; n];
+        let q = lost(&det);
+        // Places 43.. (more than 2 · 20 places from it) look as near: another stretch may be
+        // what the query sees.
+        let mut cands = [verified(2, reg::IDENTITY)];
+        det.check_after_gate(&q, &alike, &mut cands).unwrap();
+        assert_eq!(rejection(&cands[0]), Some(Rejection::LookAlike));
+        // A query that none of them resembles (by the descriptor): kept.
+        let mut other = alloc::vec![0.0f32; n];
+        other[0] = 1.0;
+        let mut cands = [verified(2, reg::IDENTITY)];
+        det.check_after_gate(&q, &other, &mut cands).unwrap();
+        assert_eq!(rejection(&cands[0]), None);
+        // Only places 0..42 may be matched: all of the candidate's own stretch, kept.
+        let q = QueryPlace { eligible: 42, ..q };
+        let mut cands = [verified(2, reg::IDENTITY)];
+        det.check_after_gate(&q, &alike, &mut cands).unwrap();
+        assert_eq!(rejection(&cands[0]), None);
+        // The check off: kept.
+        det.config.verify.lookalike_m = 0.0;
+        let q = lost(&det);
+        let mut cands = [verified(2, reg::IDENTITY)];
+        det.check_after_gate(&q, &alike, &mut cands).unwrap();
+        assert_eq!(rejection(&cands[0]), None);
     }
 }

@@ -26,10 +26,6 @@ use crate::reg::{invert, mul, rows_to_pose, Pose, Rejection};
 /// Hypotheses kept for the consistency search (the most recent).
 const WINDOW: usize = 96;
 
-/// Loops within the session are vouched for by the neighbours of the last `OWN_REACH ·
-/// placement_m` metres of the path.
-const OWN_REACH: f64 = 2.0;
-
 /// Supporting loops the placement's transform is fitted to (the most recent).
 const FIT: usize = 48;
 
@@ -232,14 +228,14 @@ impl LoopDetector {
                 },
             ));
         }
-        let reach = OWN_REACH * self.config.verify.placement_m;
+        let window = self.config.verify.support_window as u32;
         let own = &mut self.placement.own;
         own.extend(mine.iter().map(|(_, h)| *h));
-        // Only the neighbours along the path vouch: the older ones are of no use.
+        // Only the neighbours of the last `support_window` steps vouch.
         while own.len() > WINDOW
             || own
                 .front()
-                .is_some_and(|h| !(at.travelled - h.travelled <= reach))
+                .is_some_and(|h| at.id.saturating_sub(h.query) > window)
         {
             own.pop_front();
         }
@@ -247,15 +243,16 @@ impl LoopDetector {
     }
 
     /// Whether a loop within the session that the odometry check turned down is vouched for by
-    /// its neighbours: a set of mutually consistent loops holding it spans `placement_loops`
-    /// distinct queries over `placement_m` metres of the path (the neighbours of the last
-    /// `2·placement_m` metres, each pair consistent through the short paths between them, as
-    /// for the placement in a map), with more than twice the queries of any consistent set
-    /// of other loops of the same queries that disagrees with it. The odometry drifted beyond its bounds, or broke down on the way;
-    /// its short stretches still hold, and a look-alike repeats a place, not a stretch.
+    /// its neighbours: a set of mutually consistent loops holding it (each pair consistent
+    /// through the short paths between them, as for the placement in a map) holds the loops of
+    /// `min_support + 1` distinct queries among the last `support_window` steps (the support
+    /// check's), with more than twice the queries of any consistent set of other loops of the
+    /// same queries that disagrees with it. The odometry drifted beyond its bounds, or broke
+    /// down on the way; its short stretches still hold, and a look-alike has to be the only
+    /// reading of a stretch to pass.
     pub(super) fn vouched(&self, h: &Hypothesis) -> bool {
         let v = &self.config.verify;
-        if v.placement_loops == 0 {
+        if v.min_support == 0 || v.support_window == 0 {
             return false;
         }
         let w: Vec<Hypothesis> = self.placement.own.iter().copied().collect();
@@ -263,7 +260,7 @@ impl LoopDetector {
             return false;
         };
         let (set, _) = self.consistent_sets_in(&w, me);
-        if !self.qualifies(&set) {
+        if distinct(&set) <= v.min_support {
             return false;
         }
         // The rivals are other readings of the same queries (look-alikes along the stretch),
@@ -583,12 +580,12 @@ mod tests {
     }
 
     /// A session of 60 places 1 m apart along x (all alike to the descriptor: the look-alike
-    /// check is off), placing with 3 loops over 3 m.
+    /// check is off); a loop needs the support of one of the previous 20 steps.
     fn drifting_session() -> LoopDetector {
         detector_with_path(60, |v| {
-            v.placement_loops = 3;
-            v.placement_m = 3.0;
             v.lookalike_m = 0.0;
+            v.min_support = 1;
+            v.support_window = 20;
         })
     }
 
@@ -620,13 +617,13 @@ mod tests {
 
     #[test]
     fn loops_the_odometry_drifted_away_from_are_kept_when_their_neighbours_vouch_for_them() {
-        // 20 m off: the odometry check turns down the first steps, then three queries over 3 m
-        // agree through their short paths and the loops are kept.
+        // 20 m off: the odometry check turns down the first step, then two queries agree
+        // through their short paths and the loops are kept.
         let mut det = drifting_session();
         for k in 0..10 {
             let (at, mut cands) = revisit(&det, k, 20.0, false);
             det.check_after_gate(&at, &[], &mut cands).unwrap();
-            let want = if k < 3 {
+            let want = if k < 1 {
                 Some(Rejection::OdometryDisagrees)
             } else {
                 None
@@ -642,9 +639,9 @@ mod tests {
                 assert_eq!(rejection(c), Some(Rejection::OdometryDisagrees), "step {k}");
             }
         }
-        // Off (placement_loops 0): the odometry check decides alone.
+        // Without the support check (min_support 0) the odometry check decides alone.
         let mut det = drifting_session();
-        det.config.verify.placement_loops = 0;
+        det.config.verify.min_support = 0;
         for k in 0..10 {
             let (at, mut cands) = revisit(&det, k, 20.0, false);
             det.check_after_gate(&at, &[], &mut cands).unwrap();
@@ -655,7 +652,7 @@ mod tests {
     #[test]
     fn an_odometry_that_breaks_down_costs_only_the_loops_of_its_stretch() {
         // The odometry jumps 30 m between steps 5 and 6: the loops after it disagree with those
-        // before, and are kept again once three of them over 3 m agree with each other.
+        // before, and are kept again once two of them agree with each other.
         let mut det = drifting_session();
         let mut kept = Vec::new();
         for k in 0..14 {
@@ -666,6 +663,6 @@ mod tests {
                 kept.push(k);
             }
         }
-        assert_eq!(kept, [3, 4, 5, 9, 10, 11, 12, 13]);
+        assert_eq!(kept, [1, 2, 3, 4, 5, 7, 8, 9, 10, 11, 12, 13]);
     }
 }
