@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import pickle
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -394,7 +395,7 @@ def test_odometry_drifts_as_configured_and_noise_is_seeded() -> None:
     per_frame = line.odometry(yaw_bias_deg_per_frame=b)  # 1 m per frame: the same drift
     np.testing.assert_allclose(per_frame.poses, odom.poses, atol=1e-9)
     # Noise: reproducible by seed, different across seeds, and growing with the path.
-    noisy = dict(translation_noise=0.02, rotation_noise_deg=0.05)
+    noisy: dict[str, Any] = dict(translation_noise=0.02, rotation_noise_deg=0.05)
     a = line.odometry(seed=7, **noisy)
     assert a.poses.tobytes() == line.odometry(seed=7, **noisy).poses.tobytes()
     assert a.poses.tobytes() != line.odometry(seed=8, **noisy).poses.tobytes()
@@ -406,6 +407,38 @@ def test_odometry_drifts_as_configured_and_noise_is_seeded() -> None:
     np.testing.assert_array_equal(a.times, line.times)
     with pytest.raises(ValueError, match="scale_error"):
         line.odometry(scale_error=1.5)
+
+
+def test_odometry_can_break_down_for_a_stretch_and_drift_by_a_documented_percent() -> None:
+    """Issue 41's cases: a few keyframe steps of tens of metres and tens of metres of climb, then
+    right steps again (the error stays); the drift class "p %" grows linearly with p."""
+    world = sim.World(seed=1, slope=(0.0, 0.0))
+    line = sim.Trajectory.from_waypoints(world, [(0.0, 0.0), (120.0, 0.0)], spacing=4.0)
+    odom = line.odometry(breakdown=(10, 13), breakdown_jump_m=25.0, breakdown_climb_m=60.0, seed=3)
+    steps = np.linalg.norm(np.diff(odom.positions[:, :2], axis=0), axis=1)
+    climb = np.diff(odom.positions[:, 2] - line.positions[:, 2])
+    inside = np.zeros(len(steps), dtype=bool)
+    inside[9:12] = True  # the steps into frames 10, 11, 12
+    assert np.all((steps[inside] > 20.0) & (steps[inside] < 30.0))
+    np.testing.assert_allclose(steps[~inside], 4.0, atol=1e-6)
+    np.testing.assert_allclose(climb[inside], 20.0, atol=1e-6)
+    np.testing.assert_allclose(climb[~inside], 0.0, atol=1e-6)
+    np.testing.assert_allclose(odom.positions[9], line.positions[9], atol=1e-9)
+    with pytest.raises(ValueError, match="breakdown"):
+        line.odometry(breakdown=(5, 2))
+    # The drift class: the end's error grows with the percent (1 % of scale per percent and yaw).
+    loop = sim.Trajectory.loop(world, spacing=4.0)
+    end = [np.linalg.norm(loop.drifting(p, seed=1).positions[-1] - loop.positions[-1]) for p in (1, 2, 5)]
+    assert 0.5 < end[0] < end[1] < end[2]
+    assert end[2] / end[0] > 3.0
+
+
+def test_the_away_route_never_comes_near_the_maps_lap() -> None:
+    world = sim.World(seed=1, repetition=0.9)
+    lap, _ = sim.session_routes(world, spacing=4.0)
+    away = sim.away_route(world, spacing=4.0)
+    d = np.linalg.norm(away.positions[:, None, :2] - lap.positions[None, :, :2], axis=2)
+    assert d.min() > 30.0
 
 
 def test_odometry_is_written_beside_the_truth(tmp_path: Path) -> None:

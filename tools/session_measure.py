@@ -1,19 +1,22 @@
-"""Loops into a map from another session (issue 41), on the simulator's look-alike corridors: a map
-built from one walk around the ring, a second walk (starting elsewhere, 90° apart) detected against
-it with its poses in its own frame (or without poses, or with a drifting odometry), and a session in
-another world that never enters the map. Every loop into the map is scored against the truth (more
-than 1 m or 5° off the true relative pose: wrong); recall counts the second session's queries that
-got a right loop into the map over those with a map place within 5 m.
+"""Loops into a map from another session (issue 41), on the simulator: a map built from one lap
+with its poses, a second session (starting elsewhere) detected against it with its poses in its
+own frame (or without poses, or with an odometry drifting or breaking down), and a session that
+never enters the map. Every loop into the map is scored against the truth (more than 1 m or 5° off
+the true relative pose: wrong); recall counts the second session's queries that got a right loop
+into the map over those with a map place within 5 m. tools/trust_matrix.py runs these cases as
+the issue's matrix; this prints one line per case.
 
     PYTHONPATH=python python tools/session_measure.py                   # seeds 1-3, three views
     PYTHONPATH=python python tools/session_measure.py '{"placement_loops": 3}' 1 hdl64
-    PYTHONPATH=python python tools/session_measure.py '{}' 1,2 avia,os1-64:90 nopose,drift5
+    PYTHONPATH=python python tools/session_measure.py '{}' 1,2 avia,os1-64:90 nopose,drift5 lookalike
 
 Arguments: detector overrides (JSON), seeds, views (preset[:fov]), cases (poses, nopose, drift1,
-drift2, drift3, drift5, never; default: poses, nopose, never), and the world: city (the default city with
-its repeated blocks: a lap around a block and a route that drives half of it, then streets the lap
-never saw) or the blocks of a corridor grid (1 or 2; its ring rotated by 90° about the block's
-centre is a copy of itself, so a second walk's placement is ambiguous there).
+drift2, drift3, drift5 (``Trajectory.drifting``), breakdown (drift 1 % with a breakdown stretch,
+see :data:`BREAKDOWN`), never; default: poses, nopose, never), and the world: city (the default
+city with its repeated blocks: a lap around a block and a route that drives half of it, then
+streets the lap never saw), lookalike (the same city with ``repetition=0.9``: most blocks copy one
+of three templates) or the blocks of a corridor grid (1 or 2; its ring rotated by 90° about the
+block's centre is a copy of itself, so a second walk's placement is ambiguous there).
 """
 
 from __future__ import annotations
@@ -29,6 +32,11 @@ import solid
 from solid import sim
 from solid.config import PipelineConfig
 
+#: The breakdown case: from a third of the second session on, 3 steps jump 20 m sideways and the
+#: odometry climbs 30 m over them (the issue's real drive: keyframe steps of 16–46 m, 90 m of
+#: vertical drift), on top of a 1 % drift.
+BREAKDOWN = {"frames": 3, "jump_m": 20.0, "climb_m": 30.0, "drift": 1.0}
+
 
 def h(p: np.ndarray) -> np.ndarray:
     out = np.eye(4)
@@ -36,7 +44,25 @@ def h(p: np.ndarray) -> np.ndarray:
     return out
 
 
-def run(world: sim.World, view: str, detector: dict[str, Any], case: str, seed: int, spacing: float) -> str:
+def world_of(kind: str, seed: int) -> sim.World:
+    if kind == "city":
+        return sim.World(seed=seed)
+    if kind == "lookalike":
+        return sim.World(seed=seed, repetition=0.9)
+    return sim.World.corridors(seed=seed, modules=2, blocks=int(kind))
+
+
+def off_truth(truth: np.ndarray, pose: Any) -> bool:
+    """More than 1 m or 5° off the true relative pose."""
+    e = np.linalg.inv(truth) @ np.asarray(pose)
+    deg = np.degrees(np.arccos(np.clip((np.trace(e[:3, :3]) - 1) / 2, -1, 1)))
+    return bool(np.linalg.norm(e[:3, 3]) > 1.0 or deg > 5.0)
+
+
+def measure(world: sim.World, view: str, detector: dict[str, Any], case: str, seed: int, spacing: float = 3.0) -> dict[str, Any]:
+    """One case through ``LoopDetector`` (a map from the first session, the second against it):
+    loops into the map, how many are wrong, recall, the placement (``map_anchor``) and its error
+    at the session's origin, the queries that got a right loop (``found``, session frames)."""
     preset, _, fov = view.partition(":")
     sensor = sim.Sensor(preset, h_fov=float(fov) if fov else None)
     cfg = PipelineConfig.preset(preset, radius=5.0, detector=detector)
@@ -48,9 +74,7 @@ def run(world: sim.World, view: str, detector: dict[str, Any], case: str, seed: 
     mapper = solid.LoopDetector(cfg.descriptor, detector=cfg.detector)
     mapper.detect_many(sim.simulate(world, sensor, first).scans, poses=a.trajectory.poses)
     if case == "never" and world.layout == "city":
-        # Streets north-east of the centre, which the map's lap (south-west) never saw.
-        p = world.block_pitch
-        second = sim.Trajectory.from_waypoints(world, [(0.0, p), (2 * p, p), (2 * p, 2 * p)], spacing=spacing)
+        second = sim.away_route(world, spacing=spacing)
         scans = sim.simulate(world, sensor, second).scans
     elif case == "never":
         # Another building: corridors of another module and pitch.
@@ -61,9 +85,16 @@ def run(world: sim.World, view: str, detector: dict[str, Any], case: str, seed: 
         scans = sim.simulate(world, sensor, second).scans
     b = sim.Session.of(second)
     poses: Any = b.trajectory.poses
-    if case.startswith("drift"):
-        pct = float(case[5:]) / 100.0
-        odo = second.odometry(yaw_bias_deg_per_m=pct, scale_error=pct, translation_noise=0.01, rotation_noise_deg=0.02, seed=seed)
+    stretch: list[int] = []
+    if case.startswith("drift") or case == "breakdown":
+        pct = float(case[5:]) if case.startswith("drift") else BREAKDOWN["drift"]
+        if case == "breakdown":
+            s0 = len(second) // 3
+            stretch = [s0, s0 + int(BREAKDOWN["frames"])]
+        odo = second.drifting(
+            pct, seed=seed, breakdown=(stretch[0], stretch[1]) if stretch else (0, 0),
+            breakdown_jump_m=BREAKDOWN["jump_m"], breakdown_climb_m=BREAKDOWN["climb_m"],
+        )
         poses = sim.Session.of(odo, b.frame).trajectory.poses
     elif case == "nopose":
         poses = None
@@ -81,33 +112,36 @@ def run(world: sim.World, view: str, detector: dict[str, Any], case: str, seed: 
         if lp is None or lp.candidate >= start:
             continue
         q = d.query - start
-        truth = np.linalg.inv(B[q]) @ A[lp.candidate]
-        if case == "never":
-            wrong += 1
-            continue
-        e = np.linalg.inv(truth) @ np.asarray(lp.pose)
-        deg = np.degrees(np.arccos(np.clip((np.trace(e[:3, :3]) - 1) / 2, -1, 1)))
-        if np.linalg.norm(e[:3, 3]) > 1.0 or deg > 5.0:
+        if case == "never" or off_truth(np.linalg.inv(B[q]) @ A[lp.candidate], lp.pose):
             wrong += 1
         else:
             right += 1
             found.add(q)
     XA = np.array([m[:3, 3] for m in A])
     revisits = set() if case == "never" else {q for q in range(len(B)) if (np.linalg.norm(XA - B[q][:3, 3], axis=1) <= 5.0).any()}
-    anchor = getattr(det, "map_anchor", None)
-    placed = "no anchor"
+    anchor = det.map_anchor
+    out: dict[str, Any] = {
+        "case": case, "seed": seed, "view": view, "frames": len(second), "loops": right + wrong, "wrong": wrong,
+        "revisits": len(revisits), "recall": len(found & revisits) / len(revisits) if revisits else None,
+        "found": sorted(found), "stretch": stretch, "anchor": None, "cpu_s": round(cpu, 1),
+    }
     if anchor is not None:
-        truth_anchor = h(b.anchor(a)) if case != "never" else None
-        err = ""
-        if truth_anchor is not None:
-            e = np.linalg.inv(truth_anchor) @ anchor.transform
-            err = f", {np.linalg.norm(e[:3, 3]):.2f} m off at the session origin"
-        placed = f"anchor at query {anchor.first_query - start} from {anchor.loops} loops over {anchor.metres:.0f} m{err}"
-    rec = len(found & revisits) / max(1, len(revisits))
-    return (
-        f"{case}: {right + wrong} loops into the map, {wrong} wrong, recall {len(found & revisits)}/{len(revisits)} = {rec:.3f}, "
-        f"{placed} ({cpu:.0f} s CPU)"
-    )
+        err = None
+        if case != "never":
+            e = np.linalg.inv(h(b.anchor(a))) @ anchor.transform
+            err = float(np.linalg.norm(e[:3, 3]))
+        out["anchor"] = {"first_query": anchor.first_query - start, "loops": anchor.loops, "metres": anchor.metres, "error_m": err}
+    return out
+
+
+def line(m: dict[str, Any]) -> str:
+    a = m["anchor"]
+    placed = "no anchor"
+    if a is not None:
+        off = "" if a["error_m"] is None else f", {a['error_m']:.2f} m off at the session origin"
+        placed = f"anchor at query {a['first_query']} from {a['loops']} loops over {a['metres']:.0f} m{off}"
+    rec = "" if m["recall"] is None else f", recall {round(m['recall'] * m['revisits'])}/{m['revisits']} = {m['recall']:.3f}"
+    return f"{m['case']}: {m['loops']} loops into the map, {m['wrong']} wrong{rec}, {placed} ({m['cpu_s']:.0f} s CPU)"
 
 
 def main() -> None:
@@ -117,10 +151,10 @@ def main() -> None:
     cases = sys.argv[4].split(",") if len(sys.argv) > 4 else ["poses", "nopose", "never"]
     kind = sys.argv[5] if len(sys.argv) > 5 else "city"
     for seed in seeds:
-        world = sim.World(seed=seed) if kind == "city" else sim.World.corridors(seed=seed, modules=2, blocks=int(kind))
+        world = world_of(kind, seed)
         for view in views:
             for case in cases:
-                print(f"seed {seed}, {view}, {run(world, view, detector, case, seed, 3.0)}", flush=True)
+                print(f"seed {seed}, {view}, {line(measure(world, view, detector, case, seed))}", flush=True)
 
 
 if __name__ == "__main__":

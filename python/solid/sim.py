@@ -57,6 +57,7 @@ __all__ = [
     "Session",
     "Trajectory",
     "World",
+    "away_route",
     "corridor_sessions",
     "demo_summary",
     "run_demo",
@@ -475,6 +476,9 @@ class Trajectory:
         translation_noise: float = 0.0,
         rotation_noise_deg: float = 0.0,
         seed: int = 0,
+        breakdown: tuple[int, int] = (0, 0),
+        breakdown_jump_m: float = 0.0,
+        breakdown_climb_m: float = 0.0,
     ) -> Trajectory:
         """The odometry a drifting estimator would report along this true trajectory: same
         first pose, frame and time stamps. Every relative motion ``Δ = T_{k−1}⁻¹ T_k`` is
@@ -486,6 +490,12 @@ class Trajectory:
         and about b·L²/2 (radians) metres sideways off). The noise is seeded: the same seed gives
         the same odometry.
 
+        ``breakdown`` = ``(first, end)`` makes the odometry break down for the steps into frames
+        ``first … end − 1``: each of them also jumps ``breakdown_jump_m`` metres in a seeded
+        horizontal direction and climbs its share of ``breakdown_climb_m`` (a LIO losing track:
+        keyframe steps of tens of metres where the platform moved a few, tens of metres of
+        vertical drift). The steps after it are right again; the error it made stays.
+
         >>> w = World(seed=1)
         >>> truth = Trajectory.loop(w, spacing=2.0)
         >>> odom = truth.odometry(yaw_bias_deg_per_m=0.01, scale_error=0.01, seed=3)
@@ -496,8 +506,30 @@ class Trajectory:
             self.poses, [float(t) for t in self.times], yaw_bias_deg_per_m=yaw_bias_deg_per_m,
             yaw_bias_deg_per_frame=yaw_bias_deg_per_frame, scale_error=scale_error,
             translation_noise=translation_noise, rotation_noise_deg=rotation_noise_deg, seed=seed,
+            breakdown=(int(breakdown[0]), int(breakdown[1])), breakdown_jump_m=breakdown_jump_m,
+            breakdown_climb_m=breakdown_climb_m,
         )
         return Trajectory(poses, times)
+
+    def drifting(
+        self, percent: float, *, seed: int = 0, breakdown: tuple[int, int] = (0, 0), breakdown_jump_m: float = 0.0,
+        breakdown_climb_m: float = 0.0,
+    ) -> Trajectory:
+        """The odometry of the documented drift class "``percent`` %" (docs/slam.md#drift): a yaw
+        bias of 0.025°/m and a scale error of 1 % per percent, plus 0.05° of yaw and 1 cm of
+        translation noise per step — the issue-41 cases use 1, 2, 3 and 5 %. A LiDAR(-inertial)
+        odometry on an easy route drifts about 1 %, wheel odometry or a LIO on a hard stretch
+        several times more. ``breakdown*``: as :meth:`odometry`'s.
+
+        >>> truth = Trajectory.loop(World(seed=1), spacing=4.0)
+        >>> bool(np.allclose(truth.drifting(0).poses, truth.odometry(rotation_noise_deg=0.05, translation_noise=0.01).poses))
+        True
+        """
+        return self.odometry(
+            yaw_bias_deg_per_m=0.025 * percent, scale_error=0.01 * percent, rotation_noise_deg=0.05,
+            translation_noise=0.01, seed=seed, breakdown=breakdown, breakdown_jump_m=breakdown_jump_m,
+            breakdown_climb_m=breakdown_climb_m,
+        )
 
     def in_frame(self, frame: npt.ArrayLike) -> Trajectory:
         """The same poses expressed in ``frame`` ((3, 4) or (4, 4) ``T_world_frame``): each pose P
@@ -626,6 +658,15 @@ def session_routes(world: World, spacing: float = 2.0) -> tuple[Trajectory, Traj
         world, [(-2 * pitch, -pitch), (0.0, -pitch), (0.0, pitch), (pitch, pitch)], spacing=spacing
     )
     return lap, second
+
+
+def away_route(world: World, spacing: float = 2.0) -> Trajectory:
+    """A session that never visits the map of :func:`session_routes`' lap: streets north-east of
+    the centre (from one block north of it, east for two blocks and north for one), which that
+    lap, round the block south-west of the centre, never saw. In a look-alike world its places
+    resemble the map's; every loop it gets into the lap's map is false and no anchor is right."""
+    p = world.block_pitch
+    return Trajectory.from_waypoints(world, [(0.0, p), (2 * p, p), (2 * p, 2 * p)], spacing=spacing)
 
 
 def corridor_sessions(world: World, *, laps: float = 1.0, spacing: float = 2.0) -> tuple[Trajectory, Trajectory]:

@@ -509,7 +509,7 @@ fn _sim_turn<'py>(
 }
 
 #[pyfunction]
-#[pyo3(signature = (poses, times, yaw_bias_deg_per_m = 0.0, yaw_bias_deg_per_frame = 0.0, scale_error = 0.0, translation_noise = 0.0, rotation_noise_deg = 0.0, seed = 0))]
+#[pyo3(signature = (poses, times, yaw_bias_deg_per_m = 0.0, yaw_bias_deg_per_frame = 0.0, scale_error = 0.0, translation_noise = 0.0, rotation_noise_deg = 0.0, seed = 0, breakdown = (0, 0), breakdown_jump_m = 0.0, breakdown_climb_m = 0.0))]
 #[allow(clippy::too_many_arguments)]
 fn _sim_odometry<'py>(
     py: Python<'py>,
@@ -521,6 +521,9 @@ fn _sim_odometry<'py>(
     translation_noise: f64,
     rotation_noise_deg: f64,
     #[pyo3(from_py_with = args::seed)] seed: u64,
+    breakdown: (usize, usize),
+    breakdown_jump_m: f64,
+    breakdown_climb_m: f64,
 ) -> PyResult<PathArrays<'py>> {
     let truth = Trajectory {
         poses: read_poses(&poses)?,
@@ -533,6 +536,9 @@ fn _sim_odometry<'py>(
         translation_noise,
         rotation_noise_deg,
         seed,
+        breakdown: [breakdown.0, breakdown.1],
+        breakdown_jump_m,
+        breakdown_climb_m,
     };
     let t = py.detach(|| truth.odometry(&opts)).map_err(core_err)?;
     trajectory_arrays(py, t)

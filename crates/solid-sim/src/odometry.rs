@@ -22,6 +22,17 @@ pub struct DriftOptions {
     pub rotation_noise_deg: f64,
     /// Seed of the noise.
     pub seed: u64,
+    /// The frames whose step (from the frame before) the odometry gets badly wrong, `[first,
+    /// end)`: a stretch where it breaks down (a LIO on a featureless or fast stretch). Empty
+    /// (the default `[0, 0]`): none.
+    pub breakdown: [usize; 2],
+    /// Metres added to each step inside [`Self::breakdown`], in a seeded random horizontal
+    /// direction of the sensor's frame (tens of metres: keyframe jumps where the platform
+    /// moved a few).
+    pub breakdown_jump_m: f64,
+    /// Vertical metres the odometry drifts over the whole [`Self::breakdown`] stretch (spread
+    /// evenly over its steps, along the sensor's z axis).
+    pub breakdown_climb_m: f64,
 }
 
 impl DriftOptions {
@@ -57,6 +68,26 @@ impl DriftOptions {
             0.0,
             90.0,
             "[0, 90] deg",
+        )?;
+        let [first, end] = self.breakdown;
+        check(
+            "breakdown",
+            first as f64,
+            first <= end,
+            "[first, end) with first <= end",
+        )?;
+        check_in(
+            "breakdown_jump_m",
+            self.breakdown_jump_m,
+            0.0,
+            1000.0,
+            "[0, 1000] m",
+        )?;
+        check(
+            "breakdown_climb_m",
+            self.breakdown_climb_m,
+            self.breakdown_climb_m.abs() <= 1000.0,
+            "|climb| <= 1000 m",
         )
     }
 }
@@ -67,7 +98,10 @@ impl Trajectory {
     /// is corrupted — its translation scaled by `1 + scale_error` plus noise, its rotation
     /// followed by a yaw about the sensor's z axis of `yaw_bias_deg_per_m · |t_Δ| +
     /// yaw_bias_deg_per_frame` plus noise — and integrated, so the error grows with the path as
-    /// a real odometry's does. The time stamps are the truth's.
+    /// a real odometry's does. Inside the `breakdown` stretch each step also jumps
+    /// `breakdown_jump_m` sideways (a seeded horizontal direction) and climbs its share of
+    /// `breakdown_climb_m`; outside it the steps are right again, so the error the stretch made
+    /// stays in every later pose, as a real breakdown's does. The time stamps are the truth's.
     ///
     /// # Errors
     /// [`SimError::InvalidParameter`] for an option outside its range;
@@ -76,8 +110,15 @@ impl Trajectory {
         opts.validate()?;
         let mut poses = try_vec(self.poses.len(), "odometry poses")?;
         let mut rng = Rng::new(mix_seed(&[opts.seed, 50]));
+        let mut jumps = Rng::new(mix_seed(&[opts.seed, 51]));
+        let [first, end] = opts.breakdown;
+        let climb = if end > first {
+            opts.breakdown_climb_m / (end - first) as f64
+        } else {
+            0.0
+        };
         let mut prev: Option<(&Pose, Pose)> = None;
-        for truth in &self.poses {
+        for (i, truth) in self.poses.iter().enumerate() {
             let here = match prev {
                 None => *truth,
                 Some((last_truth, last_odom)) => {
@@ -92,6 +133,12 @@ impl Trajectory {
                     let mut m = delta.compose(&Pose::from_xyz_yaw(0.0, 0.0, 0.0, yaw)).m;
                     for (axis, n) in noise.iter().enumerate() {
                         m[4 * axis + 3] = k * t[axis] + opts.translation_noise * n;
+                    }
+                    if (first..end).contains(&i) {
+                        let a = jumps.uniform() * core::f64::consts::TAU;
+                        m[3] += opts.breakdown_jump_m * libm::cos(a);
+                        m[7] += opts.breakdown_jump_m * libm::sin(a);
+                        m[11] += climb;
                     }
                     last_odom.compose(&Pose { m })
                 }
@@ -208,6 +255,43 @@ mod tests {
             .odometry(&DriftOptions {
                 scale_error: 1.0,
                 ..opts
+            })
+            .is_err());
+    }
+
+    #[test]
+    fn a_breakdown_jumps_inside_its_stretch_and_keeps_the_error_after_it() {
+        let t = straight(60.0, 2.0);
+        let o = t
+            .odometry(&DriftOptions {
+                breakdown: [10, 13],
+                breakdown_jump_m: 20.0,
+                breakdown_climb_m: 30.0,
+                seed: 2,
+                ..DriftOptions::default()
+            })
+            .unwrap();
+        let step = |p: &[Pose], i: usize| {
+            let d = p[i - 1].inverse().compose(&p[i]);
+            let t = d.translation();
+            (libm::sqrt(t[0] * t[0] + t[1] * t[1]), t[2])
+        };
+        for i in 1..t.poses.len() {
+            let (horizontal, up) = step(&o.poses, i);
+            if (10..13).contains(&i) {
+                // 2 m forward plus a 20 m jump: between 18 and 22 m; a third of the climb.
+                assert!((18.0..=22.0).contains(&horizontal), "{i}: {horizontal}");
+                assert!((up - 10.0).abs() < 1e-9);
+            } else {
+                assert!((horizontal - 2.0).abs() < 1e-9 && up.abs() < 1e-9, "{i}");
+            }
+        }
+        let last = t.poses.len() - 1;
+        assert!((o.poses[last].m[11] - t.poses[last].m[11] - 30.0).abs() < 1e-9);
+        assert!(t
+            .odometry(&DriftOptions {
+                breakdown: [5, 3],
+                ..DriftOptions::default()
             })
             .is_err());
     }
