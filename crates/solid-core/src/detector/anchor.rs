@@ -157,11 +157,17 @@ impl LoopDetector {
             };
             let (Some(pc), Some(_)) = (self.pose(c.id), at.pose) else {
                 // Without poses nothing tells a look-alike from the place: any place the query
-                // may match, of another stretch (more than `2·support_window` places from it, as
-                // the support check counts a stretch without poses), as near to the query by its
-                // descriptor, is one.
-                let stretch = 2 * v.support_window as u32;
-                if (0..at.eligible as u32).any(|id| id.abs_diff(c.id) > stretch && as_near(id, c)) {
+                // may match, as near to it by its descriptor, outside the run of places around
+                // the candidate that are all that near (its own stretch of the path), is one.
+                let n = at.eligible as u32;
+                let (mut lo, mut hi) = (c.id, c.id);
+                while lo > 0 && as_near(lo - 1, c) {
+                    lo -= 1;
+                }
+                while hi + 1 < n && as_near(hi + 1, c) {
+                    hi += 1;
+                }
+                if (0..n).any(|id| !(lo..=hi).contains(&id) && as_near(id, c)) {
                     reject(c, Rejection::LookAlike);
                 }
                 continue;
@@ -189,7 +195,9 @@ impl LoopDetector {
 mod tests {
     use super::super::verify::tests::{detector_with_path, pose, rejection, verified};
     use super::*;
+    use crate::db::DetectorConfig;
     use crate::reg;
+    use crate::{Config, Descriptor, Stats};
 
     #[test]
     fn poses_convert_and_invert() {
@@ -251,41 +259,57 @@ mod tests {
 
     #[test]
     fn without_poses_a_loop_whose_place_has_a_look_alike_elsewhere_is_rejected() {
-        // 60 places, all with the same descriptor; a query without a pose registers with place 2.
-        let mut det = detector_with_path(60, |v| {
-            v.unique = false;
-            v.min_support = 0;
-        });
-        let lost = |det: &LoopDetector| QueryPlace {
-            id: det.len() as u32,
+        // 60 places whose descriptors repeat every 20 places (a look-alike world): 0-4, 20-24
+        // and 40-44 look the same (R-SOLiD (1, 0, 0, ...)), the others differ ((0, 1, 0, ...)).
+        let c = Config::preset("hdl64").unwrap();
+        let mut dc = DetectorConfig::default();
+        dc.verify.enabled = false;
+        let mut det = LoopDetector::new(c, dc).unwrap();
+        let unit = |k: usize| {
+            let mut r = alloc::vec![0.0f32; c.n_range];
+            r[k] = 1.0;
+            r
+        };
+        for i in 0..60u32 {
+            let d = Descriptor {
+                r: unit(usize::from(i % 20 >= 5)),
+                a: alloc::vec![1.0; c.n_azimuth],
+                stats: Stats::default(),
+                fingerprint: c.fingerprint(),
+            };
+            det.detect(&d, f64::NAN, None).unwrap();
+        }
+        dc.verify.enabled = true;
+        dc.verify.unique = false;
+        dc.verify.min_support = 0;
+        det.set_config(dc).unwrap();
+        let lost = |eligible: usize| QueryPlace {
+            id: 60,
             pose: None,
             travelled: f64::NAN,
-            eligible: det.len(),
+            eligible,
         };
-        let n = det.map().config().n_range;
-        let alike = alloc::vec![1.0f32; n];
-        let q = lost(&det);
-        // Places 43.. (more than 2 · 20 places from it) look as near: another stretch may be
-        // what the query sees.
+        // A query like places 0-4 registers with place 2: places 20-24 (another stretch) look
+        // as near.
         let mut cands = [verified(2, reg::IDENTITY)];
-        det.check_after_gate(&q, &alike, &mut cands).unwrap();
+        det.check_after_gate(&lost(60), &unit(0), &mut cands)
+            .unwrap();
         assert_eq!(rejection(&cands[0]), Some(Rejection::LookAlike));
-        // A query that none of them resembles (by the descriptor): kept.
-        let mut other = alloc::vec![0.0f32; n];
-        other[0] = 1.0;
+        // Only places 0-19 may be matched: 0-4 are the candidate's own stretch, kept.
         let mut cands = [verified(2, reg::IDENTITY)];
-        det.check_after_gate(&q, &other, &mut cands).unwrap();
+        det.check_after_gate(&lost(20), &unit(0), &mut cands)
+            .unwrap();
         assert_eq!(rejection(&cands[0]), None);
-        // Only places 0..42 may be matched: all of the candidate's own stretch, kept.
-        let q = QueryPlace { eligible: 42, ..q };
+        // A query like none of them (by the descriptor): kept.
         let mut cands = [verified(2, reg::IDENTITY)];
-        det.check_after_gate(&q, &alike, &mut cands).unwrap();
+        det.check_after_gate(&lost(60), &unit(2), &mut cands)
+            .unwrap();
         assert_eq!(rejection(&cands[0]), None);
         // The check off: kept.
         det.config.verify.lookalike_m = 0.0;
-        let q = lost(&det);
         let mut cands = [verified(2, reg::IDENTITY)];
-        det.check_after_gate(&q, &alike, &mut cands).unwrap();
+        det.check_after_gate(&lost(60), &unit(0), &mut cands)
+            .unwrap();
         assert_eq!(rejection(&cands[0]), None);
     }
 }

@@ -46,6 +46,8 @@ pub(super) struct Hypothesis {
     /// Metres the session travelled at the place, for a loop within the session (NaN for a map
     /// place: the path between two map places is the distance between their poses).
     place_travelled: f64,
+    /// For a loop within the session: it agrees with the odometry (the odometry check's bounds).
+    odometry: bool,
     /// The registration `T_query_candidate`.
     pose: Pose,
 }
@@ -152,6 +154,7 @@ impl LoopDetector {
                     travelled: at.travelled,
                     place,
                     place_travelled: f64::NAN,
+                    odometry: false,
                     pose: r.registration.pose,
                 },
             ));
@@ -224,6 +227,7 @@ impl LoopDetector {
                     travelled: at.travelled,
                     place,
                     place_travelled: t,
+                    odometry: self.agrees_with_odometry(at, c, true),
                     pose: r.registration.pose,
                 },
             ));
@@ -263,12 +267,14 @@ impl LoopDetector {
         if distinct(&set) <= v.min_support {
             return false;
         }
-        // The rivals are other readings of the same queries (look-alikes along the stretch),
-        // not the loops of a stretch before a breakdown, which disagree with it and are right.
+        // The rivals: other readings of the same queries (look-alikes along the stretch), and
+        // the loops of the window that agree with the odometry (it held there: a look-alike
+        // stretch that disagrees with them is no drift). Not the other loops of the window that
+        // disagree with it: those of a stretch before a breakdown are right too.
         let queries: Vec<u32> = set.iter().map(|x| x.query).collect();
         let w: Vec<Hypothesis> = w
             .into_iter()
-            .filter(|x| queries.contains(&x.query))
+            .filter(|x| x.odometry || queries.contains(&x.query))
             .collect();
         let Some(me) = w.iter().rposition(|x| same(x, h)) else {
             return false;
@@ -646,6 +652,27 @@ mod tests {
             let (at, mut cands) = revisit(&det, k, 20.0, false);
             det.check_after_gate(&at, &[], &mut cands).unwrap();
             assert_eq!(rejection(&cands[0]), Some(Rejection::OdometryDisagrees));
+        }
+    }
+
+    #[test]
+    fn a_look_alike_stretch_is_not_vouched_for_where_the_odometry_holds() {
+        // Steps 0-4 find their true places, which agree with the odometry; steps 5-11 see only
+        // a look-alike 20 places on (consistent with each other, 20 m off the odometry).
+        let mut det = drifting_session();
+        for k in 0..12 {
+            let (at, mut cands) = revisit(&det, k, 0.0, false);
+            if k >= 5 {
+                let t = cands[0].verification.unwrap().registration.pose;
+                cands = alloc::vec![verified(25 + k, t)];
+            }
+            det.check_after_gate(&at, &[], &mut cands).unwrap();
+            let want = match k {
+                0 => Some(Rejection::Unsupported),
+                1..=4 => None,
+                _ => Some(Rejection::OdometryDisagrees),
+            };
+            assert_eq!(rejection(&cands[0]), want, "step {k}");
         }
     }
 
