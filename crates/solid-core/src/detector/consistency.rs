@@ -250,10 +250,11 @@ impl LoopDetector {
     /// its neighbours: a set of mutually consistent loops holding it (each pair consistent
     /// through the short paths between them, as for the placement in a map) holds the loops of
     /// `min_support + 1` distinct queries among the last `support_window` steps (the support
-    /// check's), with more than twice the queries of any consistent set of other loops of the
-    /// same queries that disagrees with it. The odometry drifted beyond its bounds, or broke
-    /// down on the way; its short stretches still hold, and a look-alike has to be the only
-    /// reading of a stretch to pass.
+    /// check's), with more than twice the queries of any consistent set that disagrees with it
+    /// among the other loops of the same queries and the loops of those steps that agree with
+    /// the odometry. The odometry drifted beyond its bounds, or broke down on the way; its short
+    /// stretches still hold, and a look-alike has to be the only reading of a stretch where the
+    /// odometry did not hold to pass.
     pub(super) fn vouched(&self, h: &Hypothesis) -> bool {
         let v = &self.config.verify;
         if v.min_support == 0 || v.support_window == 0 {
@@ -596,7 +597,8 @@ mod tests {
     }
 
     /// Step `k` of a revisit of places 5.. after 200 m, its odometry `off` metres to the side of
-    /// the truth (drifted beyond the bounds, 1 m + 1 % of 195 m): the query, its true loop to
+    /// the truth (beyond the bounds, 1 m + 1 % of 195 m, at 3 m; within five times their drift,
+    /// 1 m + 5 % of 195 m, up to 10.75 m): the query, its true loop to
     /// place `5 + k` and, with `lookalike`, a look-alike 20 places on (as good, the same pose).
     fn revisit(
         det: &LoopDetector,
@@ -623,11 +625,11 @@ mod tests {
 
     #[test]
     fn loops_the_odometry_drifted_away_from_are_kept_when_their_neighbours_vouch_for_them() {
-        // 20 m off: the odometry check turns down the first step, then two queries agree
+        // 8 m off: the odometry check turns down the first step, then two queries agree
         // through their short paths and the loops are kept.
         let mut det = drifting_session();
         for k in 0..10 {
-            let (at, mut cands) = revisit(&det, k, 20.0, false);
+            let (at, mut cands) = revisit(&det, k, 8.0, false);
             det.check_after_gate(&at, &[], &mut cands).unwrap();
             let want = if k < 1 {
                 Some(Rejection::OdometryDisagrees)
@@ -639,7 +641,7 @@ mod tests {
         // A look-alike at every step: two readings of the stretch as consistent, neither kept.
         let mut det = drifting_session();
         for k in 0..10 {
-            let (at, mut cands) = revisit(&det, k, 20.0, true);
+            let (at, mut cands) = revisit(&det, k, 8.0, true);
             det.check_after_gate(&at, &[], &mut cands).unwrap();
             for c in &cands {
                 assert_eq!(rejection(c), Some(Rejection::OdometryDisagrees), "step {k}");
@@ -648,6 +650,14 @@ mod tests {
         // Without the support check (min_support 0) the odometry check decides alone.
         let mut det = drifting_session();
         det.config.verify.min_support = 0;
+        for k in 0..10 {
+            let (at, mut cands) = revisit(&det, k, 8.0, false);
+            det.check_after_gate(&at, &[], &mut cands).unwrap();
+            assert_eq!(rejection(&cands[0]), Some(Rejection::OdometryDisagrees));
+        }
+        // 20 m off, beyond five times the drift bounds: as likely a look-alike stretch (a
+        // corridor's copies a module apart), never vouched for.
+        let mut det = drifting_session();
         for k in 0..10 {
             let (at, mut cands) = revisit(&det, k, 20.0, false);
             det.check_after_gate(&at, &[], &mut cands).unwrap();
@@ -678,12 +688,12 @@ mod tests {
 
     #[test]
     fn an_odometry_that_breaks_down_costs_only_the_loops_of_its_stretch() {
-        // The odometry jumps 30 m between steps 5 and 6: the loops after it disagree with those
+        // The odometry jumps 6 m between steps 5 and 6: the loops after it disagree with those
         // before, and are kept again once two of them agree with each other.
         let mut det = drifting_session();
         let mut kept = Vec::new();
         for k in 0..14 {
-            let off = if k < 6 { 20.0 } else { 50.0 };
+            let off = if k < 6 { 3.5 } else { 9.5 };
             let (at, mut cands) = revisit(&det, k, off, false);
             det.check_after_gate(&at, &[], &mut cands).unwrap();
             if rejection(&cands[0]).is_none() {

@@ -157,7 +157,9 @@ impl LoopDetector {
                 if !registered(c) || self.agrees_with_odometry(at, c, true) {
                     continue;
                 }
-                if own.iter().any(|(j, h)| *j == i && self.vouched(h)) {
+                if self.within_vouched_drift(at, c)
+                    && own.iter().any(|(j, h)| *j == i && self.vouched(h))
+                {
                     vouched[i] = true;
                 } else {
                     reject(c, Rejection::OdometryDisagrees);
@@ -268,13 +270,38 @@ impl LoopDetector {
     /// needs only the scale drift. `turn` is the fraction of that allowance taken (0: the
     /// translation bound is the scale drift's alone).
     pub(super) fn within_drift(&self, expected: &Pose, pose: &Pose, path: f64, turn: f64) -> bool {
+        self.within_drift_times(expected, pose, path, turn, 1.0)
+    }
+
+    /// [`LoopDetector::within_drift`] with the drift per metre (translation and rotation) and
+    /// the rotation's ceiling (at most 180°) `k` times the configured ones.
+    pub(super) fn within_drift_times(
+        &self,
+        expected: &Pose,
+        pose: &Pose,
+        path: f64,
+        turn: f64,
+        k: f64,
+    ) -> bool {
         let v = &self.config.verify;
         let path = if path.is_nan() { 0.0 } else { path };
         reg::pose_distance(expected, pose).is_some_and(|(m, deg)| {
             let swing = turn * deg.to_radians() * path / 2.0;
-            deg <= rotation_bound(v, path)
-                && m <= v.odometry_translation_m + v.odometry_drift * path + swing
+            let rotation = (v.odometry_rotation_deg + k * v.odometry_rotation_deg_per_m * path)
+                .min((k * v.odometry_rotation_max_deg).min(180.0));
+            deg <= rotation && m <= v.odometry_translation_m + k * v.odometry_drift * path + swing
         })
+    }
+
+    /// Whether a candidate's pose lies within [`VOUCHED_DRIFT`] times the odometry check's drift
+    /// bounds of the poses' prediction (as [`LoopDetector::agrees_with_odometry`]): how far a
+    /// loop its neighbours vouch for may be off the odometry.
+    fn within_vouched_drift(&self, at: &QueryPlace, c: &Candidate) -> bool {
+        let (Some(r), Some((expected, path))) = (c.verification, self.expected(at, c.id, true))
+        else {
+            return true;
+        };
+        self.within_drift_times(&expected, &r.registration.pose, path, 1.0, VOUCHED_DRIFT)
     }
 
     /// How many of the remembered previous steps had a candidate that agrees with `c`.
@@ -375,6 +402,13 @@ pub(super) fn rotation_bound(v: &VerifyConfig, path: f64) -> f64 {
     (v.odometry_rotation_deg + v.odometry_rotation_deg_per_m * path)
         .min(v.odometry_rotation_max_deg)
 }
+
+/// A loop its neighbours vouch for may be off the odometry by up to this many times the odometry
+/// check's drift per metre (and its rotation ceiling): 5 % where the check assumes 1 %, the
+/// drift of a wheel odometry or a LIO on a hard stretch. Beyond, a stretch that agrees with
+/// itself is as likely a look-alike stretch (a world that repeats exactly along a corridor puts
+/// its copies a module apart whatever the path) as an odometry gone wrong.
+pub(super) const VOUCHED_DRIFT: f64 = 5.0;
 
 /// Whether a candidate's registration met the gate's quality checks, whatever its length (it
 /// passed, or failed only `max_translation`): uniqueness and support compare with all of these,
