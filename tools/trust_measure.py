@@ -11,8 +11,8 @@ within 5 m at least 50 frames back.
 ``drift``: docs/slam.md#drift's world (``World(seed, repetition=0.9)``, a loop of 1.2 laps, frames
 6 m apart, VLP-16) with its odometry drifting 1, 2, 3 and 5 % (0.025°/m of yaw bias and 1 % of
 scale per percent, 0.05° of yaw noise per frame). ``breakdown``: the same at 1 %, and with the
-odometry breaking down on the first lap: frames 20-22 each jump 30 m sideways, or 40 m of vertical
-drift over frames 20-30. ``noposes``: the same world and the look-alike corridors
+odometry breaking down on the first lap: frames 20-22 each jump 4 m or 30 m sideways, or 12 m or
+40 m of vertical drift over frames 20-30. ``noposes``: the same world and the look-alike corridors
 (``World.corridors``, OS1-64 and Avia) without any pose. OVERRIDES is a JSON object of detector
 parameters; SEEDS comma-separated. ``hku1``: the shared Livox walk with its poses and without (scored
 against its poses) (default 0,1,2,3,4).
@@ -150,6 +150,8 @@ def main() -> None:
             jump = np.array([*(30.0 * a / np.linalg.norm(a)), 0.0])
             for name, P in (
                 ("1 %", odo),
+                ("1 %, frames 20-22 jump 4 m", broken(odo, range(20, 23), jump * 4.0 / 30.0, 0.0)),
+                ("1 %, 12 m vertical over frames 20-30", broken(odo, range(20, 31), None, 12.0)),
                 ("1 %, frames 20-22 jump 30 m", broken(odo, range(20, 23), jump, 0.0)),
                 ("1 %, 40 m vertical over frames 20-30", broken(odo, range(20, 31), None, 40.0)),
             ):

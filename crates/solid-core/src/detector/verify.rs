@@ -270,25 +270,25 @@ impl LoopDetector {
     /// needs only the scale drift. `turn` is the fraction of that allowance taken (0: the
     /// translation bound is the scale drift's alone).
     pub(super) fn within_drift(&self, expected: &Pose, pose: &Pose, path: f64, turn: f64) -> bool {
-        self.within_drift_times(expected, pose, path, turn, 1.0)
+        self.within_drift_times(expected, pose, path, turn, (1.0, 1.0))
     }
 
-    /// [`LoopDetector::within_drift`] with the drift per metre (translation and rotation) and
-    /// the rotation's ceiling (at most 180°) `k` times the configured ones.
+    /// [`LoopDetector::within_drift`] with the drift per metre (translation and rotation) `k`
+    /// times the configured one and the rotation's ceiling `ceiling` times (at most 180°).
     pub(super) fn within_drift_times(
         &self,
         expected: &Pose,
         pose: &Pose,
         path: f64,
         turn: f64,
-        k: f64,
+        (k, ceiling): (f64, f64),
     ) -> bool {
         let v = &self.config.verify;
         let path = if path.is_nan() { 0.0 } else { path };
         reg::pose_distance(expected, pose).is_some_and(|(m, deg)| {
             let swing = turn * deg.to_radians() * path / 2.0;
             let rotation = (v.odometry_rotation_deg + k * v.odometry_rotation_deg_per_m * path)
-                .min((k * v.odometry_rotation_max_deg).min(180.0));
+                .min((ceiling * v.odometry_rotation_max_deg).min(180.0));
             deg <= rotation && m <= v.odometry_translation_m + k * v.odometry_drift * path + swing
         })
     }
@@ -404,11 +404,13 @@ pub(super) fn rotation_bound(v: &VerifyConfig, path: f64) -> f64 {
 }
 
 /// A loop its neighbours vouch for may be off the odometry by up to this many times the odometry
-/// check's drift per metre (and its rotation ceiling): 5 % where the check assumes 1 %, the
-/// drift of a wheel odometry or a LIO on a hard stretch. Beyond, a stretch that agrees with
-/// itself is as likely a look-alike stretch (a world that repeats exactly along a corridor puts
-/// its copies a module apart whatever the path) as an odometry gone wrong.
-pub(super) const VOUCHED_DRIFT: f64 = 5.0;
+/// check's drift per metre (translation and rotation; 5 % where the check assumes 1 %, the drift
+/// of a wheel odometry or a LIO on a hard stretch) and this many times its rotation ceiling (60°
+/// for the default 30°: 5 % after a lap of 300 m is 40° off, corridors that meet at right
+/// angles 90°). Beyond, a stretch that agrees with itself is as likely a look-alike stretch (a
+/// world that repeats exactly along a corridor puts its copies a module apart whatever the
+/// path; the corridor round the corner is turned by 90°) as an odometry gone wrong.
+pub(super) const VOUCHED_DRIFT: (f64, f64) = (5.0, 2.0);
 
 /// Whether a candidate's registration met the gate's quality checks, whatever its length (it
 /// passed, or failed only `max_translation`): uniqueness and support compare with all of these,
