@@ -158,8 +158,11 @@ impl LoopDetector {
             let (Some(pc), Some(_)) = (self.pose(c.id), at.pose) else {
                 // Without poses nothing tells a look-alike from the place: any place the query
                 // may match, as near to it by its descriptor, outside the run of places around
-                // the candidate that are all that near (its own stretch of the path), is one.
+                // the candidate that are all that near (its own stretch of the path), is one;
+                // and a run longer than the support check's stretch (`2·support_window` places
+                // each way) is a repeating stretch (a corridor), not a place.
                 let n = at.eligible as u32;
+                let reach = 2 * v.support_window as u32;
                 let (mut lo, mut hi) = (c.id, c.id);
                 while lo > 0 && as_near(lo - 1, c) {
                     lo -= 1;
@@ -167,7 +170,8 @@ impl LoopDetector {
                 while hi + 1 < n && as_near(hi + 1, c) {
                     hi += 1;
                 }
-                if (0..n).any(|id| !(lo..=hi).contains(&id) && as_near(id, c)) {
+                let long = c.id - lo > reach || hi - c.id > reach;
+                if long || (0..n).any(|id| !(lo..=hi).contains(&id) && as_near(id, c)) {
                     reject(c, Rejection::LookAlike);
                 }
                 continue;
