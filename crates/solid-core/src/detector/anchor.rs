@@ -145,37 +145,14 @@ impl LoopDetector {
         cands: &mut [Candidate],
     ) {
         let v: &VerifyConfig = &self.config.verify;
-        if v.lookalike_m <= 0.0 {
+        if v.lookalike_m <= 0.0 || at.pose.is_none() {
             return;
         }
-        let as_near = |id: u32, c: &Candidate| {
-            cosine_distance(r_query, self.r(id)).is_ok_and(|d| d <= c.distance + v.lookalike_margin)
-        };
         for c in cands.iter_mut() {
             let Some(r) = c.verification.filter(|r| r.accepted) else {
                 continue;
             };
-            let (Some(pc), Some(_)) = (self.pose(c.id), at.pose) else {
-                // Without poses nothing tells a look-alike from the place: any place the query
-                // may match, as near to it by its descriptor, outside the run of places around
-                // the candidate that are all that near (its own stretch of the path), is one;
-                // and a run longer than the support check's stretch (`2·support_window` places
-                // each way) is a repeating stretch (a corridor), not a place.
-                let n = at.eligible as u32;
-                let reach = 2 * v.support_window as u32;
-                let (mut lo, mut hi) = (c.id, c.id);
-                while lo > 0 && as_near(lo - 1, c) {
-                    lo -= 1;
-                }
-                while hi + 1 < n && as_near(hi + 1, c) {
-                    hi += 1;
-                }
-                let long = c.id - lo > reach || hi - c.id > reach;
-                if long || (0..n).any(|id| !(lo..=hi).contains(&id) && as_near(id, c)) {
-                    reject(c, Rejection::LookAlike);
-                }
-                continue;
-            };
+            let Some(pc) = self.pose(c.id) else { continue };
             let t = r.registration.pose;
             let alike = (self.session_start..at.eligible).any(|k| {
                 let id = k as u32;
@@ -186,7 +163,8 @@ impl LoopDetector {
                     && self
                         .expected(at, id, true)
                         .is_some_and(|(e, path)| self.within_drift(&e, &t, path, v.lookalike_swing))
-                    && as_near(id, c)
+                    && cosine_distance(r_query, self.r(id))
+                        .is_ok_and(|d| d <= c.distance + v.lookalike_margin)
             });
             if alike {
                 reject(c, Rejection::LookAlike);
@@ -199,9 +177,7 @@ impl LoopDetector {
 mod tests {
     use super::super::verify::tests::{detector_with_path, pose, rejection, verified};
     use super::*;
-    use crate::db::DetectorConfig;
     use crate::reg;
-    use crate::{Config, Descriptor, Stats};
 
     #[test]
     fn poses_convert_and_invert() {
@@ -259,61 +235,5 @@ mod tests {
         let mut cands = [verified(2, truth(15.0))];
         det.check_after_gate(&q, &r, &mut cands).unwrap();
         assert_eq!(rejection(&cands[0]), Some(Rejection::LookAlike));
-    }
-
-    #[test]
-    fn without_poses_a_loop_whose_place_has_a_look_alike_elsewhere_is_rejected() {
-        // 60 places whose descriptors repeat every 20 places (a look-alike world): 0-4, 20-24
-        // and 40-44 look the same (R-SOLiD (1, 0, 0, ...)), the others differ ((0, 1, 0, ...)).
-        let c = Config::preset("hdl64").unwrap();
-        let mut dc = DetectorConfig::default();
-        dc.verify.enabled = false;
-        let mut det = LoopDetector::new(c, dc).unwrap();
-        let unit = |k: usize| {
-            let mut r = alloc::vec![0.0f32; c.n_range];
-            r[k] = 1.0;
-            r
-        };
-        for i in 0..60u32 {
-            let d = Descriptor {
-                r: unit(usize::from(i % 20 >= 5)),
-                a: alloc::vec![1.0; c.n_azimuth],
-                stats: Stats::default(),
-                fingerprint: c.fingerprint(),
-            };
-            det.detect(&d, f64::NAN, None).unwrap();
-        }
-        dc.verify.enabled = true;
-        dc.verify.unique = false;
-        dc.verify.min_support = 0;
-        det.set_config(dc).unwrap();
-        let lost = |eligible: usize| QueryPlace {
-            id: 60,
-            pose: None,
-            travelled: f64::NAN,
-            eligible,
-        };
-        // A query like places 0-4 registers with place 2: places 20-24 (another stretch) look
-        // as near.
-        let mut cands = [verified(2, reg::IDENTITY)];
-        det.check_after_gate(&lost(60), &unit(0), &mut cands)
-            .unwrap();
-        assert_eq!(rejection(&cands[0]), Some(Rejection::LookAlike));
-        // Only places 0-19 may be matched: 0-4 are the candidate's own stretch, kept.
-        let mut cands = [verified(2, reg::IDENTITY)];
-        det.check_after_gate(&lost(20), &unit(0), &mut cands)
-            .unwrap();
-        assert_eq!(rejection(&cands[0]), None);
-        // A query like none of them (by the descriptor): kept.
-        let mut cands = [verified(2, reg::IDENTITY)];
-        det.check_after_gate(&lost(60), &unit(2), &mut cands)
-            .unwrap();
-        assert_eq!(rejection(&cands[0]), None);
-        // The check off: kept.
-        det.config.verify.lookalike_m = 0.0;
-        let mut cands = [verified(2, reg::IDENTITY)];
-        det.check_after_gate(&lost(60), &unit(0), &mut cands)
-            .unwrap();
-        assert_eq!(rejection(&cands[0]), None);
     }
 }

@@ -174,10 +174,7 @@ pub struct VerifyConfig {
     /// poses), with an R-SOLiD distance to the query at most `lookalike_margin` above the
     /// loop's, lies where the loop's pose would put the query within the drift bounds too
     /// (through the anchor of `loop_reset_m` when there is one): the bounds cannot tell which
-    /// of the two the query sees. Without poses (the query's or the loop place's) nothing can
-    /// tell them apart: a loop is rejected when any place the query may match, outside the run
-    /// of consecutive places around the loop's that are all that near (its own stretch of the
-    /// path), is within `lookalike_margin` of its distance by descriptor. 0: off.
+    /// of the two the query sees. 0: off.
     pub lookalike_m: f64,
     /// How much farther (R-SOLiD cosine distance) than the loop's candidate a look-alike may be.
     pub lookalike_margin: f64,
@@ -454,7 +451,7 @@ impl Params for DetectorConfig {
         field!(DetectorConfig, "loop_reset_m", verify.loop_reset_m, Kind::closed(0.0, FINITE), "a finite number >= 0",
             "Metres of path after an accepted loop during which the odometry check and the places chosen by pose go through that loop (0: off)."),
         field!(DetectorConfig, "lookalike_m", verify.lookalike_m, Kind::closed(0.0, FINITE), "a finite number >= 0",
-            "Reject a loop when an own place farther than this from its place, about as close by descriptor, fits the drift bounds too; without poses, when any place outside its own stretch is as close by descriptor (0: off)."),
+            "Reject a loop when an own place farther than this from its place, about as close by descriptor, fits the drift bounds too (0: off)."),
         field!(DetectorConfig, "lookalike_margin", verify.lookalike_margin, Kind::closed(0.0, 1.0), "a number in [0, 1]",
             "How much larger a look-alike's R-SOLiD distance may be than the loop's candidate's."),
         field!(DetectorConfig, "lookalike_swing", verify.lookalike_swing, Kind::closed(0.0, 1.0), "a number in [0, 1]",
