@@ -14,6 +14,7 @@ import pytest
 from conftest import run
 
 import solid
+import solid.cli
 from solid import sim
 from solid.config import PipelineConfig
 
@@ -24,6 +25,12 @@ def h(p: Any) -> np.ndarray:
     out = np.eye(4)
     out[:3, :] = np.asarray(p).reshape(3, 4)
     return out
+
+
+def away_route(world: sim.World) -> sim.Trajectory:
+    """Streets north-east of the centre; the map's lap went round a block south-west of it."""
+    p = world.block_pitch
+    return sim.Trajectory.from_waypoints(world, [(0.0, p), (1.5 * p, p)], spacing=SPACING)
 
 
 @pytest.fixture(scope="module")
@@ -69,23 +76,30 @@ def test_a_session_in_its_own_frame_is_placed_in_the_map_by_consistent_loops(cit
 
 def test_a_session_that_never_enters_the_map_gets_no_loop_into_it(city: Any) -> None:
     world, _, db, cfg, sensor = city
-    p = world.block_pitch
-    # Streets north-east of the centre; the map's lap went round a block south-west of it.
-    away = sim.Trajectory.from_waypoints(world, [(0.0, p), (1.5 * p, p)], spacing=SPACING)
+    away = away_route(world)
     det = solid.LoopDetector.from_database(db, detector=cfg.detector)
     dets = det.detect_many(sim.simulate(world, sensor, away).scans, poses=sim.Session.of(away).trajectory.poses)
     assert not [d for d in dets if d.loop is not None and d.loop.candidate < det.session_start]
     assert det.map_anchor is None
 
 
-def test_detect_with_a_map_reports_where_the_session_is_placed(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
-    """`solid detect --map` prints the placement and writes it to summary.json (T_map_world within
-    0.3 m of the simulator's anchor.txt)."""
+@pytest.fixture(scope="module")
+def written(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, str]:
+    """The lap and the first 26 frames of the second route written as two sessions in their own
+    frames (anchor.txt: the exact T_map_session), the lap built into a map by `solid map build`."""
+    tmp = tmp_path_factory.mktemp("written")
     world = sim.World(seed=1)
     lap, second = sim.session_routes(world, spacing=SPACING)
-    s0, s1 = sim.write_sessions(tmp_path / "sim", world, sim.Sensor("vlp16"), [lap, second[:26]], own_frames=True)
-    db = str(tmp_path / "map.soliddb")
-    assert run(capsys, "map", "build", str(s0), "--poses", str(s0 / "poses.txt"), "-o", db, "--preset", "vlp16", "-q")[0] == 0
+    s0, s1 = sim.write_sessions(tmp / "sim", world, sim.Sensor("vlp16"), [lap, second[:26]], own_frames=True)
+    db = str(tmp / "map.soliddb")
+    assert solid.cli.main(["map", "build", str(s0), "--poses", str(s0 / "poses.txt"), "-o", db, "--preset", "vlp16", "-q"]) == 0
+    return s0, s1, db
+
+
+def test_detect_with_a_map_reports_where_the_session_is_placed(capsys: pytest.CaptureFixture[str], tmp_path: Path, written: Any) -> None:
+    """`solid detect --map` prints the placement and writes it to summary.json (T_map_world within
+    0.3 m of the simulator's anchor.txt)."""
+    _, s1, db = written
     out_dir = tmp_path / "out"
     code, out, _ = run(capsys, "detect", str(s1), "--poses", str(s1 / "poses.txt"), "--map", db, "--preset", "vlp16", "-q", "-o", str(out_dir))
     assert code == 0 and "placed in the map from frame" in out
@@ -93,3 +107,60 @@ def test_detect_with_a_map_reports_where_the_session_is_placed(capsys: pytest.Ca
     truth = np.loadtxt(s1 / "anchor.txt").reshape(3, 4)
     assert np.allclose(np.asarray(a["transform"])[:3], truth, atol=0.3)
     assert a["loops"] >= 4 and a["metres"] >= 30.0 and 0 <= a["first_frame"] <= a["last_frame"] < 26
+
+
+def test_localize_reports_when_where_and_how_sure_and_eval_uses_the_same_anchor(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, written: Any
+) -> None:
+    """`solid localize MAP RECORDING`: the placement as a table, as JSON (fields, T_map_odom
+    within 0.3 m of the truth) and as anchor.txt; `solid eval --map` places the session by the
+    same anchor (the detector's placement), not by a consensus of its own."""
+    _, s1, db = written
+    truth = np.loadtxt(s1 / "anchor.txt").reshape(3, 4)
+    code, out, _ = run(capsys, "localize", db, str(s1), "--poses", str(s1 / "poses.txt"), "-q", "--json", "-o", str(tmp_path / "loc"))
+    assert code == 0
+    doc = json.loads(out)
+    table = solid.cli._placement_table(doc)
+    assert f"at frame {doc['placed_frame']}" in table and "T_map_odom" in table and f"{doc['loops']} consistent loops over" in table
+    assert "placed  no: too few loops into the map agree" in solid.cli._placement_table(dict(doc, placed=False))
+    assert doc["placed"] is True
+    assert {"transform", "loops", "metres", "first_frame", "last_frame", "placed_frame", "placed_time", "sigma_translation_m",
+            "sigma_rotation_deg", "covariance", "frames", "map_places", "loops_into_map", "loops_in_session"} <= set(doc)
+    assert np.allclose(np.asarray(doc["transform"])[:3], truth, atol=0.3)
+    assert doc["first_frame"] <= doc["placed_frame"] < doc["frames"] == 26 and doc["loops_into_map"] >= 1
+    assert doc["sigma_translation_m"] is not None and doc["sigma_translation_m"] < 0.5
+    saved = np.loadtxt(tmp_path / "loc" / "anchor.txt").reshape(3, 4)
+    assert np.allclose(saved, np.asarray(doc["transform"])[:3], atol=1e-6)
+    assert json.loads((tmp_path / "loc" / "placement.json").read_text())["placement"]["loops"] == doc["loops"]
+    code, out, _ = run(capsys, "eval", str(s1), "--poses", str(s1 / "poses.txt"), "--map", db, "-q", "--no-plots", "-o", str(tmp_path / "ev"))
+    assert code == 0 and "the detector's placement" in out
+    m = json.loads((tmp_path / "ev" / "metrics.json").read_text())["anchor"]
+    assert m["source"] == "placed" and np.allclose(np.asarray(m["T_map_session"]), doc["transform"][:3], atol=1e-9)
+
+
+def test_a_localizer_places_a_stream_and_never_a_session_that_does_not_visit(city: Any) -> None:
+    """The stream form (`solid.localize.Localizer`, what a live sensor or the ROS 2 node feeds):
+    None until placed, then T_map_odom within 0.3 m of the truth; nothing for a session that
+    never enters the map."""
+    from solid.localize import Localizer
+
+    world, lap, db, cfg, sensor = city
+    _, second = sim.session_routes(world, spacing=SPACING)
+    mine = sim.Session.of(second[:26])
+    loc = Localizer(db, cfg)
+    seen = [loc.add(pts, pose=pose, timestamp=float(t)) for pts, pose, t in
+            zip(sim.simulate(world, sensor, second[:26]).scans, mine.trajectory.poses, mine.trajectory.times)]
+    assert seen[0] is None and seen[-1] is not None
+    p = loc.placement
+    assert p is not None and p is seen[-1] and len(loc.history) >= 1
+    assert np.allclose(p.transform[:3], mine.anchor(sim.Session.of(lap)), atol=0.3)
+    assert p.placed_frame == seen.index(next(x for x in seen if x is not None))
+    assert p.first_frame is not None and p.first_frame <= p.placed_frame
+    # A pose of the session in the map's frame (the lap's first pose): where the truth has it.
+    in_map = np.linalg.inv(h(lap.poses[0])) @ h(second.poses[20])
+    assert np.linalg.norm(p.map_pose(mine.trajectory.poses[20])[:3, 3] - in_map[:3, 3]) < 0.3
+    away = away_route(world)
+    never = Localizer(db, cfg)
+    for pts, pose in zip(sim.simulate(world, sensor, away).scans, sim.Session.of(away).trajectory.poses):
+        assert never.add(pts, pose=pose) is None
+    assert never.history == []

@@ -554,3 +554,20 @@ def test_a_map_merged_with_its_anchor_shares_the_first_maps_world(tmp_path: Path
     (tmp_path / "two.txt").write_text((tmp_path / "opt" / "anchor.txt").read_text() * 2)
     assert main([*merge, "--anchor", str(tmp_path / "two.txt"), "-o", str(tmp_path / "bad.soliddb")]) == 1
     assert not (tmp_path / "bad.soliddb").exists()
+
+
+def test_rotation_vector_keeps_the_angle_at_half_a_turn() -> None:
+    """At 180° the skew part of R vanishes: the axis comes from (R + I)/2, the angle stays π."""
+    from solid.slam import _rotation_vector
+
+    def rot(axis: list[float], a: float) -> npt.NDArray[np.float64]:
+        n = np.asarray(axis, float) / np.linalg.norm(axis)
+        k = np.array([[0, -n[2], n[1]], [n[2], 0, -n[0]], [-n[1], n[0], 0]])
+        return np.asarray(np.eye(3) + np.sin(a) * k + (1 - np.cos(a)) * k @ k, dtype=np.float64)
+
+    cases: list[tuple[list[float], float]] = [([0, 0, 1], np.pi), ([1, 2, 3], np.pi), ([0, -1, 0], np.pi), ([1, 0, 0], 0.3), ([0, 1, 1], np.pi - 1e-9)]
+    got = _rotation_vector(np.stack([rot(ax, a) for ax, a in cases]))
+    for (ax, a), v in zip(cases, got):
+        assert np.linalg.norm(v) == pytest.approx(a, abs=1e-9)
+        n = np.asarray(ax, float) / np.linalg.norm(ax)
+        assert abs(float(v @ n)) == pytest.approx(a, abs=1e-7)  # along the axis (either sign at π)

@@ -276,6 +276,20 @@ def build_parser() -> argparse.ArgumentParser:
     _add_run_tail(p, poses_required=False)
 
     p = _command(
+        sub, "localize", "place a recording in a saved map: when, where and how sure (relocalization)",
+        "solid localize run1.soliddb run2/ --poses run2/poses.txt",
+        "solid localize run1.soliddb run2/ --poses odom.txt --json > placement.json",
+        "solid localize run1.soliddb run2/ --poses odom.txt -o loc2/   # writes loc2/anchor.txt for `solid map merge --anchor`",
+        note="\nThe session is placed when mutually consistent loops into the map agree on one transform\n"
+        "(docs/loops.md#relocalization); T_map_odom maps its --poses frame into the map's world.\n",
+    )
+    p.add_argument("map", type=Path, help="a map from `solid map build` with poses")
+    p.add_argument("sequence", type=Path, help="the recording to place (with --poses: its odometry, in its own frame)")
+    p.add_argument("-o", "--output", type=Path, default=None, help="also write placement.json, anchor.txt, loops.csv here (must not exist or be empty)")
+    p.add_argument("--json", action="store_true", help="print the placement as JSON instead of the table")
+    _add_run_tail(p, poses_required=True)
+
+    p = _command(
         sub, "eval", f"score the detector's candidates against poses ({_SPEC} §5): metrics, CSV, plots",
         "solid eval hku1-avia --poses odom_poses.txt --preset avia --radius 3 --baseline scancontext",
         "solid eval ~/kitti/00 --poses poses.txt --calib calib.txt --preset hdl64 --radius 10 --fov 60",
@@ -509,6 +523,43 @@ def cmd_detect(args: argparse.Namespace, out: TextIO) -> int:
     return 0
 
 
+def cmd_localize(args: argparse.Namespace, out: TextIO) -> int:
+    from . import commands
+
+    cfg, map_db = commands.config_and_map(args)
+    ds, inputs = _open(args, sys.stderr, cfg)
+    with _progress(args, len(ds), "localize") as bar:
+        _, doc, folder = commands.localize(ds, cfg, inputs, map_db, output=args.output, threads=args.threads, progress=bar.update)
+    if args.json:
+        out.write(json.dumps(doc, indent=1) + "\n")
+        return 0
+    out.write(_placement_table(doc))
+    if folder is not None:
+        out.write(f"wrote {folder}\n")
+    return 0
+
+
+def _placement_table(doc: dict[str, Any]) -> str:
+    """``solid localize``'s table: when, where and how sure the session is placed."""
+    rows = [("frames", f"{doc['frames']} against a map of {doc['map_places']} places")]
+    if not doc["placed"]:
+        rows.append(("placed", "no: too few loops into the map agree with each other (none is accepted before)"))
+    else:
+        T = doc["transform"]
+        yaw = math.degrees(math.atan2(T[1][0], T[0][0]))
+        when = f"at frame {doc['placed_frame']}" + ("" if doc["placed_time"] is None else f" (t = {doc['placed_time']:.2f} s)")
+        rows += [
+            ("placed", when),
+            ("T_map_odom", f"translation {T[0][3]:.2f}, {T[1][3]:.2f}, {T[2][3]:.2f} m, yaw {yaw:.2f}°"),
+            ("support", f"{doc['loops']} consistent loops over {doc['metres']:.0f} m (frames {doc['first_frame']}–{doc['last_frame']})"),
+        ]
+        if doc["sigma_translation_m"] is not None:
+            rows.append(("spread", f"{doc['sigma_translation_m']:.3f} m, {doc['sigma_rotation_deg']:.3f}° (of the supporting loops' placements)"))
+    rows.append(("loops", f"{doc['loops_into_map']} into the map, {doc['loops_in_session']} within the session"))
+    width = max(len(k) for k, _ in rows)
+    return "".join(f"{k:<{width}}  {v}\n" for k, v in rows)
+
+
 def cmd_eval(args: argparse.Namespace, out: TextIO) -> int:
     from . import commands, evaluation
 
@@ -549,7 +600,11 @@ def cmd_eval(args: argparse.Namespace, out: TextIO) -> int:
     m = run.metrics
     a = m.get("anchor")
     if a is not None:
-        how = {"estimated": f"estimated from {a.get('inlier_loops')} of {a.get('cross_session_loops')} verified loops into the map", "given": f"from {args.anchor}"}
+        how = {
+            "placed": f"the detector's placement, {a.get('inlier_loops')} consistent loops into the map (solid localize)",
+            "estimated": f"estimated from {a.get('inlier_loops')} of {a.get('cross_session_loops')} verified loops into the map",
+            "given": f"from {args.anchor}",
+        }
         out.write(f"session placed in the map's world: {how.get(a['source'], a['source'])}\n")
     excl = m.get("exclusion_median_m")
     if excl is not None:
@@ -627,7 +682,8 @@ def cmd_optimize(args: argparse.Namespace, out: TextIO) -> int:
         out.write(
             "anchor: none (no verified loop into the map)\n"
             if a is None
-            else f"anchor: from {a['inlier_loops']} of {a['cross_session_loops']} loops into the map (in loops.csv; graph.g2o holds the session's own graph, "
+            else ("anchor: from the detector's placement in the map (solid localize), refined with " if a.get("source") == "placed" else "anchor: from ")
+            + f"{a['inlier_loops']} of {a['cross_session_loops']} loops into the map (in loops.csv; graph.g2o holds the session's own graph, "
             "so `--loops` reuses only its loops within the session)\n"
         )
     out.write(f"wrote {run.folder}\n")
@@ -783,6 +839,7 @@ def main(argv: AbcSequence[str] | None = None) -> int:
         "describe": cmd_describe,
         "demo": cmd_demo,
         "detect": cmd_detect,
+        "localize": cmd_localize,
         "eval": cmd_eval,
         "optimize": cmd_optimize,
         "view": cmd_view,

@@ -225,18 +225,10 @@ def anchor_dict(result: Any) -> dict[str, Any] | None:
     """The session's placement in the map for ``summary.json`` (None: not placed): ``transform``
     (T_map_world, 4×4 rows), the supporting ``loops`` and the ``metres`` they span, the recording
     frames of the first and latest, and ``covariance`` (6×6 rows, rotation then translation)."""
-    a = result.map_anchor
-    if a is None:
-        return None
-    cov = a.covariance
-    return {
-        "transform": np.asarray(a.transform).tolist(),
-        "loops": int(a.loops),
-        "metres": round(float(a.metres), 3),
-        "first_frame": result.frame_of(a.first_query),
-        "last_frame": result.frame_of(a.last_query),
-        "covariance": None if cov is None else np.asarray(cov).tolist(),
-    }
+    from .localize import placement_of_run
+
+    p = placement_of_run(result)
+    return None if p is None else p.to_dict()
 
 
 def describe_anchor(result: Any) -> str:
@@ -326,6 +318,47 @@ def detect(
     if g2o is not None:
         atomic_write_bytes(Path(g2o), (out.final / "loops.g2o").read_bytes())
     return result, out.final
+
+
+def localize(
+    dataset: Any,
+    config: PipelineConfig,
+    inputs: Inputs,
+    map_db: Any,
+    *,
+    output: Path | None = None,
+    threads: int | None = None,
+    progress: Progress = None,
+) -> tuple[PipelineResult, dict[str, Any], Path | None]:
+    """``solid localize``: the recording run against a saved map and its placement there
+    (:func:`solid.localize.placement_of_run`) as a dict (``placed`` False when not placed); with
+    ``output``, a folder with ``placement.json``, ``loops.csv``, ``config.json`` and, when placed,
+    ``anchor.txt`` (``T_map_odom`` as one KITTI 3×4 row: ``solid map merge --anchor``'s file)."""
+    from .localize import placement_of_run
+
+    if getattr(dataset, "poses", None) is None:
+        raise _solid.ConfigError("placing a session in a map needs its poses (its odometry): give --poses")
+    result = _run(dataset, config, map_db, threads, progress)
+    p = placement_of_run(result)
+    base = result.map_size
+    doc: dict[str, Any] = {"placed": False} if p is None else p.to_dict()
+    doc.update(
+        frames=len(result.frames),
+        map_places=base,
+        loops_into_map=sum(1 for lp in result.loops() if int(lp.candidate) < base),
+        loops_in_session=sum(1 for lp in result.loops() if int(lp.candidate) >= base),
+        rejections=rejection_counts(result),
+    )
+    if output is None:
+        return result, doc, None
+    with output_folder(output, "localize", inputs.sequence.name) as out:
+        _write_common(out, result)
+        write_json(out.work / "placement.json", _summary(result, inputs, "localize") | {"placement": doc})
+        if p is not None:
+            from .slam import write_kitti
+
+            write_kitti(out.work / "anchor.txt", p.transform[None])
+    return result, doc, out.final
 
 
 def write_g2o(path: Path, result: PipelineResult, calib: Any | None = None, noise: Any | None = None) -> int:
@@ -499,7 +532,7 @@ def merge_maps(inputs: AbcSequence[Path], output_file: Path, anchors: AbcSequenc
     """``solid map merge``: one database from several, each input's sessions renumbered to follow
     the previous ones (so that runs stay apart). Poses are only comparable within one world:
     ``anchors`` holds, for each map after the first, ``"same"`` when its poses already are in
-    the first map's world, or an anchor file (``anchor.txt`` of ``solid optimize --map``: one
+    the first map's world, or an anchor file (``anchor.txt`` of ``solid localize`` or ``solid optimize --map``: one
     KITTI 3×4 row, ``T_map_session``, that map's world → the first map's world) by which its
     poses are carried into the first map's world. The merged map's metadata records, per
     session, the anchor applied (:func:`map_anchors`). Two maps with poses and nothing said about
@@ -535,7 +568,7 @@ def merge_maps(inputs: AbcSequence[Path], output_file: Path, anchors: AbcSequenc
             if first_posed is not None and not given:
                 raise _solid.ConfigError(
                     f"{first_posed} and {p} both hold poses, each in the world of the run that made it, and nothing says "
-                    "those worlds are one: give --anchor FILE for each map after the first (anchor.txt of `solid optimize "
+                    "those worlds are one: give --anchor FILE for each map after the first (anchor.txt of `solid localize` or `solid optimize "
                     "--map` run on that session against the first map), or --anchor same if they are one world (one ground "
                     "truth, one SLAM map); otherwise keep the maps apart"
                 )
@@ -788,7 +821,8 @@ def place_in_map(result: PipelineResult, anchor: Any) -> tuple[PipelineResult, d
     """A run against a map with its session's poses in the map's world, and how that world was
     known: ``anchor`` is a 4×4 ``T_map_session`` (given), ``"same"`` (the user says the poses
     already are in the map's world), or None: estimated from the run's verified loops into the
-    map (:func:`solid.slam.estimate_anchor`), an error when there is none."""
+    map (:func:`solid.slam.anchor_of_run`: the detector's placement, or the loops' consensus when
+    the run has none), an error when there is none."""
     import dataclasses
 
     from . import slam
@@ -799,22 +833,18 @@ def place_in_map(result: PipelineResult, anchor: Any) -> tuple[PipelineResult, d
     if anchor is None:
         if result.poses is None:
             raise _solid.ConfigError("placing a session in a map needs its poses")
-        stored = slam.as4(np.asarray(result.database.poses, dtype=np.float64)[:base])
-        ok = [lp for lp in result.loops() if lp.pose is not None and int(lp.candidate) < base and np.isfinite(stored[int(lp.candidate)]).all()]
-        est = slam.estimate_anchor(
-            result.poses,
-            stored,
-            [int(lp.query) - base for lp in ok],
-            [int(lp.candidate) for lp in ok],
-            np.stack([lp.pose for lp in ok]) if ok else np.zeros((0, 4, 4)),
-        )
+        est = slam.anchor_of_run(result)
         if est is None:
             raise _solid.ConfigError(
                 "no verified loop into the map, so nothing says where this session lies in the map's world: "
                 "give --anchor FILE (anchor.txt of `solid optimize --map`) or --same-world"
             )
         T = est.T_map_session
-        how: dict[str, Any] = {"source": "estimated", "inlier_loops": est.inliers, "cross_session_loops": est.loops}
+        how: dict[str, Any] = {
+            "source": "placed" if result.map_anchor is not None else "estimated",
+            "inlier_loops": est.inliers,
+            "cross_session_loops": est.loops,
+        }
     else:
         T = slam.as4(np.asarray(anchor, dtype=np.float64))
         how = {"source": "given"}
@@ -903,6 +933,7 @@ def optimize(
             "T_map_session": run.anchor.T_map_session[:3].tolist(),
             "inlier_loops": run.anchor.inliers,
             "cross_session_loops": run.anchor.loops,
+            "source": "placed" if result.map_anchor is not None else "estimated",
         }
     elif map_db is not None:
         metrics["anchor"] = None

@@ -40,6 +40,7 @@ __all__ = [
     "absolute_trajectory_error",
     "add_loop_edges",
     "adjoint",
+    "anchor_of_run",
     "estimate_anchor",
     "fit_odometry_scale",
     "graph_from_run",
@@ -404,7 +405,17 @@ def _rotation_vector(R: F64) -> F64:
     angle = np.arctan2(s, c)
     with np.errstate(invalid="ignore", divide="ignore"):
         f = np.where(s > 1e-12, angle / np.where(s > 1e-12, s, 1.0), 1.0)
-    return np.asarray(w * f[..., None], dtype=np.float64)
+    out = np.asarray(w * f[..., None], dtype=np.float64)
+    # Near 180° the skew part vanishes and carries no axis: R ≈ 2·n·nᵀ − I there, so the axis is
+    # the column of (R + I)/2 with the largest diagonal, normalised (its sign is free at π).
+    near_pi = (s < 1e-6) & (c < 0)
+    if np.any(near_pi):
+        sym = (R[near_pi] + np.eye(3)) / 2
+        col = np.argmax(np.diagonal(sym, axis1=-2, axis2=-1), axis=-1)
+        axis = np.take_along_axis(sym, col[:, None, None], axis=-1)[..., 0]
+        axis /= np.linalg.norm(axis, axis=-1, keepdims=True)
+        out[near_pi] = axis * angle[near_pi][:, None]
+    return out
 
 
 def loop_residuals(graph: PoseGraph) -> tuple[F64, F64, F64]:
@@ -682,6 +693,38 @@ def estimate_anchor(
     return Anchor(T, int(best.sum()), len(q))
 
 
+def map_loops(result: Any) -> tuple[F64, list[Any]]:
+    """A run against a map: the map's stored poses (4×4) and the run's verified loops into map
+    places that have a pose."""
+    base = int(result.map_size)
+    stored = as4(np.asarray(result.database.poses, dtype=np.float64)[:base])
+    ok = [
+        lp
+        for lp in result.loops()
+        if lp.pose is not None and lp.information is not None and int(lp.candidate) < base and np.isfinite(stored[int(lp.candidate)]).all()
+    ]
+    return stored, ok
+
+
+def anchor_of_run(result: Any, session_poses: npt.ArrayLike | None = None) -> Anchor | None:
+    """The session's placement in the map of a run against one — the one anchor ``solid
+    localize``, ``optimize --map``, ``eval --map`` and the ROS 2 node start from: the detector's
+    own (``result.map_anchor``: mutually consistent loops into the map, docs/spec.md §8), whose
+    ``inliers`` are its supporting loops. A run without it (placement off, ``placement_loops``
+    0) falls back to the consensus of its verified loops into the map (:func:`estimate_anchor`
+    over ``session_poses``, by default the run's). None when neither places the session."""
+    stored, ok = map_loops(result)
+    anchor = getattr(result, "map_anchor", None)
+    if anchor is not None:
+        return Anchor(as4(anchor.transform), int(anchor.loops), len(ok))
+    poses = result.poses if session_poses is None else session_poses
+    if poses is None:
+        return None
+    base = int(result.map_size)
+    Z = np.stack([lp.pose for lp in ok]) if ok else np.zeros((0, 4, 4))
+    return estimate_anchor(poses, stored, [int(lp.query) - base for lp in ok], [int(lp.candidate) for lp in ok], Z)
+
+
 def optimize_in_map(
     graph: PoseGraph,
     map_poses: npt.ArrayLike,
@@ -802,19 +845,14 @@ def optimize_run(
         raise ValueError("a pose graph needs the odometry's poses (give --poses)")
     graph, optimized, weights, scale = _optimized(lambda n: graph_from_run(result, n), noise, noise_scale, robust)
     out = SlamResult(graph, graph.poses.copy(), optimized, weights, robust, noise_scale=scale)
-    base = int(result.map_size)
-    if base == 0:
+    if int(result.map_size) == 0:
         return out
-    stored = as4(np.asarray(result.database.poses)[:base])
-    ok = [
-        lp
-        for lp in result.loops()
-        if lp.pose is not None and lp.information is not None and int(lp.candidate) < base and np.isfinite(stored[int(lp.candidate)]).all()
-    ]
+    stored, ok = map_loops(result)
+    base = int(result.map_size)
     q = [int(lp.query) - base for lp in ok]
     c = [int(lp.candidate) for lp in ok]
     Z = np.stack([lp.pose for lp in ok]) if ok else np.zeros((0, 4, 4))
-    initial = estimate_anchor(optimized, stored, q, c, Z)
+    initial = anchor_of_run(result, optimized)
     if initial is None:
         return out
     info = np.stack([lp.information for lp in ok])
