@@ -330,7 +330,7 @@ class DetectorConfig:
             support_window: Consistency over time: the previous steps that may support a loop (0: off) (an integer >= 0; default 20).
             min_support: Fewest of the previous support_window steps whose verified candidates must agree with a loop; a loop the odometry check turns down passes when this many of them agree with it through their short paths (0: off) (an integer >= 0; default 1).
             loop_reset_m: Metres of path after an accepted loop during which the odometry check and the places chosen by pose go through that loop (0: off) (a finite number >= 0; default 200.0).
-            lookalike_m: Reject a loop when an own place farther than this from its place, about as close by descriptor, fits the drift bounds too; without poses, when any place of another stretch is as close by descriptor (0: off) (a finite number >= 0; default 10.0).
+            lookalike_m: Reject a loop when an own place farther than this from its place, about as close by descriptor, fits the drift bounds too (0: off) (a finite number >= 0; default 10.0).
             lookalike_margin: How much larger a look-alike's R-SOLiD distance may be than the loop's candidate's (a number in [0, 1]; default 0.2).
             lookalike_swing: The fraction of the odometry check's rotation allowance the look-alike check's bound takes (a number in [0, 1]; default 0.25).
             placement_loops: Loops into a map are accepted once this many queries' loops into it agree with each other (the session is placed in the map), then when they agree with that placement (0: off) (an integer >= 0; default 3).
@@ -418,7 +418,7 @@ class DetectorConfig:
             support_window: Consistency over time: the previous steps that may support a loop (0: off) (an integer >= 0; default 20).
             min_support: Fewest of the previous support_window steps whose verified candidates must agree with a loop; a loop the odometry check turns down passes when this many of them agree with it through their short paths (0: off) (an integer >= 0; default 1).
             loop_reset_m: Metres of path after an accepted loop during which the odometry check and the places chosen by pose go through that loop (0: off) (a finite number >= 0; default 200.0).
-            lookalike_m: Reject a loop when an own place farther than this from its place, about as close by descriptor, fits the drift bounds too; without poses, when any place of another stretch is as close by descriptor (0: off) (a finite number >= 0; default 10.0).
+            lookalike_m: Reject a loop when an own place farther than this from its place, about as close by descriptor, fits the drift bounds too (0: off) (a finite number >= 0; default 10.0).
             lookalike_margin: How much larger a look-alike's R-SOLiD distance may be than the loop's candidate's (a number in [0, 1]; default 0.2).
             lookalike_swing: The fraction of the odometry check's rotation allowance the look-alike check's bound takes (a number in [0, 1]; default 0.25).
             placement_loops: Loops into a map are accepted once this many queries' loops into it agree with each other (the session is placed in the map), then when they agree with that placement (0: off) (an integer >= 0; default 3).
@@ -507,7 +507,7 @@ class DetectorConfig:
             support_window: Consistency over time: the previous steps that may support a loop (0: off) (an integer >= 0; default 20).
             min_support: Fewest of the previous support_window steps whose verified candidates must agree with a loop; a loop the odometry check turns down passes when this many of them agree with it through their short paths (0: off) (an integer >= 0; default 1).
             loop_reset_m: Metres of path after an accepted loop during which the odometry check and the places chosen by pose go through that loop (0: off) (a finite number >= 0; default 200.0).
-            lookalike_m: Reject a loop when an own place farther than this from its place, about as close by descriptor, fits the drift bounds too; without poses, when any place of another stretch is as close by descriptor (0: off) (a finite number >= 0; default 10.0).
+            lookalike_m: Reject a loop when an own place farther than this from its place, about as close by descriptor, fits the drift bounds too (0: off) (a finite number >= 0; default 10.0).
             lookalike_margin: How much larger a look-alike's R-SOLiD distance may be than the loop's candidate's (a number in [0, 1]; default 0.2).
             lookalike_swing: The fraction of the odometry check's rotation allowance the look-alike check's bound takes (a number in [0, 1]; default 0.25).
             placement_loops: Loops into a map are accepted once this many queries' loops into it agree with each other (the session is placed in the map), then when they agree with that placement (0: off) (an integer >= 0; default 3).
@@ -620,7 +620,7 @@ class DetectorConfig:
         """Metres of path after an accepted loop during which the odometry check and the places chosen by pose go through that loop (0: off) (a finite number >= 0; default 200.0)."""
     @property
     def lookalike_m(self) -> float:
-        """Reject a loop when an own place farther than this from its place, about as close by descriptor, fits the drift bounds too; without poses, when any place of another stretch is as close by descriptor (0: off) (a finite number >= 0; default 10.0)."""
+        """Reject a loop when an own place farther than this from its place, about as close by descriptor, fits the drift bounds too (0: off) (a finite number >= 0; default 10.0)."""
     @property
     def lookalike_margin(self) -> float:
         """How much larger a look-alike's R-SOLiD distance may be than the loop's candidate's (a number in [0, 1]; default 0.2)."""
