@@ -134,7 +134,7 @@ c-install: c-deps c-lib
 
 ## The examples built against the installed package as a user builds them (examples/CMakeLists.txt:
 ## find_package, pkg-config, the static library, AddressSanitizer), then tests/c/c_api_check.py runs
-## them against the Python package and under valgrind.
+## them against the Python package and under valgrind (in parallel, pytest-xdist).
 C_CMAKE = cmake -S examples -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_PREFIX_PATH="$(PREFIX)" --log-level=WARNING
 c-test: wheel c-header-check
 	$(MAKE) --no-print-directory c-install PREFIX="$(CURDIR)/$(C_BUILD)/prefix"
@@ -143,7 +143,7 @@ c-test: wheel c-header-check
 	PKG_CONFIG_PATH="$(CURDIR)/$(C_BUILD)/prefix/lib/pkgconfig" $(C_CMAKE) -B $(C_BUILD)/pkgconfig -DSOLID_PKGCONFIG=ON && cmake --build $(C_BUILD)/pkgconfig -j 2
 	$(C_CMAKE) -B $(C_BUILD)/static -DSOLID_STATIC=ON && cmake --build $(C_BUILD)/static -j 2
 	$(C_CMAKE) -B $(C_BUILD)/asan -DSOLID_SANITIZE=ON && cmake --build $(C_BUILD)/asan -j 2
-	SOLID_C_BUILD="$(CURDIR)/$(C_BUILD)" PATH="$(abspath $(VENV))/bin:$$PATH" $(PY) -m pytest tests/c/c_api_check.py
+	SOLID_C_BUILD="$(CURDIR)/$(C_BUILD)" PATH="$(abspath $(VENV))/bin:$$PATH" $(PY) -m pytest -n auto tests/c/c_api_check.py
 
 
 ## The C API's describe against the Rust call in one process, and the bytes a warm C call
@@ -165,8 +165,13 @@ rust-test:
 	# The unit tests without threads or std (the serial paths of the database, among others).
 	cargo test -p solid-lidar --no-default-features --features alloc --lib
 
+## The Python tests in two steps: most of them spread over the cores (pytest-xdist, `--dist
+## loadfile`: a file's tests in one process, so that a module's fixtures are made once), then the
+## tests marked serial (tests/conftest.py: the ROS 2 node against a player over the middleware,
+## Ctrl-C within a bound) alone, as their timing needs.
 py-test: wheel
-	$(PY) -m pytest
+	$(PY) -m pytest -n auto --dist loadfile -m "not serial" --durations=25
+	$(PY) -m pytest -m serial --durations=10
 
 ## Write python/solid/_solid.pyi from its hand-written parts (stubs/*.pyi, one per binding module)
 ## and the core's parameter tables, and the parameter tables of docs/spec.md (tools/stubgen.py);
@@ -190,10 +195,13 @@ typecheck: wheel
 ## workspace where their placeholder names (hku1-avia, my_run, run1, odom.txt, scan.pcd...) are the
 ## shared data (tools/readme_examples.py; a block that cannot run here carries a docs-check marker
 ## with its reason, printed). The README's, describe's and loops' Python blocks run in install-test.
+## Each page runs in a fresh workspace of its own, so pages run two at a time (the longest,
+## docs/slam.md, first).
 DOC_PAGES := $(wildcard docs/*.md)
+DOC_RUNS := docs/slam.md $(filter-out docs/slam.md docs/describe.md docs/loops.md,$(DOC_PAGES)) \
+	--shell-only:README.md --shell-only:docs/describe.md --shell-only:docs/loops.md
 docs-examples: wheel
-	$(PY) tools/readme_examples.py --run-docs --shell-only README.md docs/describe.md docs/loops.md
-	$(PY) tools/readme_examples.py --run-docs $(filter-out docs/describe.md docs/loops.md,$(DOC_PAGES))
+	printf '%s\n' $(DOC_RUNS) | tr ':' ' ' | xargs -P 2 -L 1 $(PY) tools/readme_examples.py --run-docs
 
 test: lint rust-test crates crate-copy-check docs py-test c-test typecheck fuzz-smoke install-test docs-examples
 

@@ -22,6 +22,18 @@ if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
     signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
+#: Modules whose tests time something against the clock or another process (the ROS 2 node
+#: against a player over the middleware; Ctrl-C within a bound): marked `serial`, which `make
+#: test` runs alone after the others have run in parallel (pytest-xdist).
+SERIAL_MODULES = {"test_ros2", "test_interrupts"}
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    for item in items:
+        if item.path.stem in SERIAL_MODULES:
+            item.add_marker(pytest.mark.serial)
+
+
 def shared_dir() -> Path:
     """`SOLID_SHARED`, else `<repo>/../shared`."""
     env = os.environ.get("SOLID_SHARED")

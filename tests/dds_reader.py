@@ -2,7 +2,9 @@
 
 ``python tests/dds_reader.py DOMAIN TOPIC OUT SECONDS``: reads ``nav_msgs/Odometry`` samples of
 the ROS 2 topic TOPIC (DDS topic ``rt`` + TOPIC, type ``nav_msgs::msg::dds_::Odometry_``) for
-at most SECONDS and appends one JSON line per sample to OUT as it arrives. Used by
+at most SECONDS and appends one JSON line per sample to OUT as it arrives: first ``{"ready": true}``
+once the reader exists, ``{"matched": N}`` once it has matched a writer (the node's), then the
+samples. Used by
 tests/test_ros2.py to show that the node speaks ROS 2 on the wire, to a DDS that is not its own.
 """
 
@@ -96,7 +98,12 @@ def main() -> int:
     end = time.monotonic() + seconds
     with open(out, "a", encoding="utf-8") as f:
         print(json.dumps({"ready": True}), file=f, flush=True)
+        matched = 0
         while time.monotonic() < end:
+            if not matched:
+                matched = reader.get_subscription_matched_status().current_count  # type: ignore[no-untyped-call]
+                if matched:
+                    print(json.dumps({"matched": matched}), file=f, flush=True)
             for s in reader.take(N=100):
                 if not isinstance(s, Odometry_):  # invalid samples (a writer gone) carry no data
                     continue

@@ -49,7 +49,7 @@ try:
 except ImportError as e:  # pragma: no cover - the [ros2] extra is not installed
     raise ImportError(f"{HINT} ({e})") from None
 
-__all__ = ["NODE_PARAMETERS", "SolidNode", "run"]
+__all__ = ["INPUT_QOS", "NODE_PARAMETERS", "RELIABLE_HISTORY", "SolidNode", "input_qos", "run"]
 
 #: The node's own parameters (everything else is the pipeline configuration's): name → (default, doc).
 NODE_PARAMETERS: dict[str, tuple[Any, str]] = {
@@ -61,8 +61,19 @@ NODE_PARAMETERS: dict[str, tuple[Any, str]] = {
     "save_file": ("solid_session.soliddb", "where the ~/save_map service writes the map"),
     "map_frame": ("map", "frame of the corrected trajectory, map -> odom and the markers"),
     "queue_size": (10, "keyframes waiting for the detector before the oldest is dropped"),
+    "input_qos": (
+        "sensor_data",
+        "QoS of the cloud and odometry subscriptions: sensor_data (best effort, for live sensors) or reliable "
+        "(recordings played back: nothing lost on the way; the publisher must be reliable)",
+    ),
     "robust": ("gnc-tls", "the pose-graph back-end's treatment of loop edges (solid.slam.ROBUST_SCHEMES)"),
 }
+
+#: The values of the parameter input_qos.
+INPUT_QOS = ("sensor_data", "reliable")
+#: Messages a reliable input (and ``solid ros2 play``'s publishers) keeps for resending: 40 s of
+#: keyframes at 2.5 a second, a bounded memory for large clouds.
+RELIABLE_HISTORY = 100
 
 #: Odometry messages kept for pairing, and clouds waiting for their odometry.
 _ODOM_KEPT = 400
@@ -75,6 +86,22 @@ def _latched(depth: int = 1) -> QoSProfile:
 
 def _reliable(depth: int) -> QoSProfile:
     return QoSProfile(depth=depth, reliability=ReliabilityPolicy.RELIABLE)
+
+
+def input_qos(kind: str) -> QoSProfile:
+    """The QoS of the node's inputs (the parameter ``input_qos``).
+
+    ``sensor_data``: best effort and volatile, as a sensor driver publishes (a history of 20 rather
+    than ROS's 5: a moment of a busy machine between two callbacks does not lose a keyframe); what
+    the middleware loses stays lost. ``reliable``: reliable and volatile, a history of
+    :data:`RELIABLE_HISTORY`: every message a reliable publisher sends after it has matched the
+    node arrives (the middleware resends what is lost); a best-effort publisher is incompatible
+    (rclpy warns of it). The overload policy (the bounded queue) is the same for both."""
+    if kind == "sensor_data":
+        return QoSProfile(depth=20, reliability=ReliabilityPolicy.BEST_EFFORT, durability=DurabilityPolicy.VOLATILE)
+    if kind == "reliable":
+        return QoSProfile(depth=RELIABLE_HISTORY, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
+    raise _solid.ConfigError(f"input_qos must be one of {', '.join(INPUT_QOS)}, got {kind!r}")
 
 
 def msg_stamp_ns(stamp: Any) -> int:
@@ -173,6 +200,8 @@ class SolidNode(Node):
         self.queue_size = int(self.get_parameter("queue_size").value)
         if self.queue_size < 1:
             raise _solid.ConfigError(f"queue_size must be >= 1, got {self.queue_size}")
+        self.input_qos = str(self.get_parameter("input_qos").value)
+        input_qos(self.input_qos)  # a bad value stops the node before anything starts
         self.map_frame = str(self.get_parameter("map_frame").value)
         self.robust = str(self.get_parameter("robust").value)
         from ..slam import ROBUST_SCHEMES
@@ -231,9 +260,7 @@ class SolidNode(Node):
         self.last_stamp: int | None = None
 
         sensor = MutuallyExclusiveCallbackGroup()
-        # Sensor-data QoS (best effort, volatile), with a history of 20 rather than 5: a moment
-        # of a busy machine between two callbacks does not lose a keyframe.
-        qos = QoSProfile(depth=20, reliability=ReliabilityPolicy.BEST_EFFORT, durability=DurabilityPolicy.VOLATILE)
+        qos = input_qos(self.input_qos)
         self.create_subscription(PointCloud2, self.get_parameter("cloud_topic").value, self.on_cloud, qos, callback_group=sensor)
         self.create_subscription(Odometry, self.get_parameter("odom_topic").value, self.on_odometry, qos, callback_group=sensor)
         self.pub_loops = self.create_publisher(Odometry, "~/loops", _reliable(100))
@@ -254,7 +281,7 @@ class SolidNode(Node):
         mode = f"relocalization in {map_file} ({self.map_size} places)" if self.map_db is not None else "loops within the session"
         self.get_logger().info(
             f"solid {_solid.__version__}: {mode}; preset {self.config.preset_name}; clouds on {self.get_parameter('cloud_topic').value}, "
-            f"odometry on {self.get_parameter('odom_topic').value}; queue of {self.queue_size}"
+            f"odometry on {self.get_parameter('odom_topic').value} ({self.input_qos} QoS); queue of {self.queue_size}"
         )
 
     # ---- callbacks (never block: pair, queue, return) -----------------------------------------

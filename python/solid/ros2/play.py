@@ -14,7 +14,11 @@ Two kinds of source:
 
 The player waits (``--wait`` seconds) until the node subscribes, so that nothing is lost to
 discovery; ``--rate`` scales the pace (2: twice as fast) and ``--max-gap`` shortens the pauses
-(of a recording, or between the parts of a ``--frames`` selection).
+(of a recording, or between the parts of a ``--frames`` selection). It publishes reliably (a
+history of 100 messages to resend from) and, before it exits, waits (at most ``--wait`` seconds)
+until the subscribers have acknowledged every message: a node subscribed with
+``input_qos:=reliable`` receives all of them; one with the default sensor-data QoS (best effort,
+as for a live sensor) may lose some on the way.
 """
 
 from __future__ import annotations
@@ -30,11 +34,12 @@ import numpy as np
 
 from ..arrays import F64
 from ..datasets.rosbag import POINTCLOUD2, is_bag
-from .node import fill_pose, to_stamp
+from .node import RELIABLE_HISTORY, fill_pose, to_stamp
 
 import rclpy
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
+from rclpy.duration import Duration
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import PointCloud2, PointField
 
@@ -136,7 +141,7 @@ def play_main(argv: Sequence[str]) -> int:
     ap.add_argument("source", type=Path, help="a bag, or a folder of keyframes (with --poses)")
     ap.add_argument("--rate", type=float, default=1.0, help="pace relative to the recording (default 1)")
     ap.add_argument("--max-gap", type=float, default=None, help="shorten every pause of the recording to at most this many seconds")
-    ap.add_argument("--wait", type=float, default=10.0, help="seconds to wait for the node to subscribe (default 10)")
+    ap.add_argument("--wait", type=float, default=10.0, help="seconds to wait for the node to subscribe, and at the end for its acknowledgements (default 10)")
     ap.add_argument("--cloud-topic", help="a bag's PointCloud2 topic (default: every one)")
     ap.add_argument("--odom-topic", help="a bag's Odometry topic (default: every one)")
     ap.add_argument("--cloud-out", default="/cloud_registered_body", help="topic the clouds are published on")
@@ -158,7 +163,9 @@ def play_main(argv: Sequence[str]) -> int:
     messages = bag_messages(a.source, a.cloud_topic, a.odom_topic) if bag else dataset_messages(a.source, a)
     rclpy.init(args=["solid_play", *ros_args])
     node = Node("solid_play")
-    qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+    # Reliable: a reliable subscriber (the node with input_qos:=reliable) gets every message,
+    # resent from the last 100 if lost; best-effort subscribers (sensor data) are served too.
+    qos = QoSProfile(depth=RELIABLE_HISTORY, reliability=ReliabilityPolicy.RELIABLE)
     pubs = {"cloud": node.create_publisher(PointCloud2, a.cloud_out, qos), "odom": node.create_publisher(Odometry, a.odom_out, qos)}
     sent = {"cloud": 0, "odom": 0}
     try:
@@ -183,7 +190,11 @@ def play_main(argv: Sequence[str]) -> int:
                 time.sleep(delay)
             pubs[kind].publish(msg)
             sent[kind] += 1
-        time.sleep(0.2)  # let the last messages leave before the publishers go
+        # The last messages must reach reliable subscribers before the publishers go.
+        unacked = [p.topic_name for p in pubs.values() if not p.wait_for_all_acked(Duration(seconds=a.wait))]
+        if unacked:
+            node.get_logger().warning(f"messages on {', '.join(unacked)} not acknowledged after {a.wait:g} s")
+        time.sleep(0.2)  # and best-effort ones, which acknowledge nothing
     except KeyboardInterrupt:
         pass
     finally:
