@@ -319,7 +319,7 @@ class DetectorConfig:
             verify_step_points: Work budget of one step, in points: each candidate costs its hypotheses times the two clouds' points; the best is always registered (an integer >= 1; default 4000000).
             view_fov_deg: The sensor's horizontal field of view, degrees (the view check's; 360: views always overlap) (degrees in (0, 360]; default 360.0).
             view_min_overlap_deg: Reject a verified loop whose yaw leaves the two fields of view sharing less azimuth than this, degrees (0: off) (degrees in [0, 360]; default 20.0).
-            odometry_check: Reject a verified loop whose pose disagrees with the poses of its two places (same session) beyond the drift bounds (a bool; default True).
+            odometry_check: Reject a verified loop whose pose disagrees with the poses of its two places (same session) beyond the drift bounds, unless its neighbours vouch for it (min_support) (a bool; default True).
             odometry_translation_m: Translation a loop may differ from the poses' relative pose by at no path, metres (a finite number >= 0; default 1.0).
             odometry_drift: Translation the odometry may drift per metre travelled between the two places (a fraction; the rotation difference adds angle · path / 2) (a finite number >= 0; default 0.01).
             odometry_rotation_deg: Rotation a loop may differ from the poses' relative rotation by at no path, degrees (degrees in [0, 180]; default 3.0).
@@ -328,7 +328,7 @@ class DetectorConfig:
             unique: Reject verified candidates of a step that disagree with another verified one through the poses (a bool; default True).
             unique_ratio: Of two disagreeing candidates, keep the one whose distance from the poses' relative pose is under this fraction of the other's (0: reject both) (a number in [0, 1]; default 0.5).
             support_window: Consistency over time: the previous steps that may support a loop (0: off) (an integer >= 0; default 20).
-            min_support: Fewest of the previous support_window steps whose verified candidates must agree with a loop (0: off) (an integer >= 0; default 1).
+            min_support: Fewest of the previous support_window steps whose verified candidates must agree with a loop; a loop the odometry check turns down passes when this many of them agree with it through their short paths (0: off) (an integer >= 0; default 1).
             loop_reset_m: Metres of path after an accepted loop during which the odometry check and the places chosen by pose go through that loop (0: off) (a finite number >= 0; default 200.0).
             lookalike_m: Reject a loop when an own place farther than this from its place, about as close by descriptor, fits the drift bounds too (0: off) (a finite number >= 0; default 10.0).
             lookalike_margin: How much larger a look-alike's R-SOLiD distance may be than the loop's candidate's (a number in [0, 1]; default 0.2).
@@ -407,7 +407,7 @@ class DetectorConfig:
             verify_step_points: Work budget of one step, in points: each candidate costs its hypotheses times the two clouds' points; the best is always registered (an integer >= 1; default 4000000).
             view_fov_deg: The sensor's horizontal field of view, degrees (the view check's; 360: views always overlap) (degrees in (0, 360]; default 360.0).
             view_min_overlap_deg: Reject a verified loop whose yaw leaves the two fields of view sharing less azimuth than this, degrees (0: off) (degrees in [0, 360]; default 20.0).
-            odometry_check: Reject a verified loop whose pose disagrees with the poses of its two places (same session) beyond the drift bounds (a bool; default True).
+            odometry_check: Reject a verified loop whose pose disagrees with the poses of its two places (same session) beyond the drift bounds, unless its neighbours vouch for it (min_support) (a bool; default True).
             odometry_translation_m: Translation a loop may differ from the poses' relative pose by at no path, metres (a finite number >= 0; default 1.0).
             odometry_drift: Translation the odometry may drift per metre travelled between the two places (a fraction; the rotation difference adds angle · path / 2) (a finite number >= 0; default 0.01).
             odometry_rotation_deg: Rotation a loop may differ from the poses' relative rotation by at no path, degrees (degrees in [0, 180]; default 3.0).
@@ -416,7 +416,7 @@ class DetectorConfig:
             unique: Reject verified candidates of a step that disagree with another verified one through the poses (a bool; default True).
             unique_ratio: Of two disagreeing candidates, keep the one whose distance from the poses' relative pose is under this fraction of the other's (0: reject both) (a number in [0, 1]; default 0.5).
             support_window: Consistency over time: the previous steps that may support a loop (0: off) (an integer >= 0; default 20).
-            min_support: Fewest of the previous support_window steps whose verified candidates must agree with a loop (0: off) (an integer >= 0; default 1).
+            min_support: Fewest of the previous support_window steps whose verified candidates must agree with a loop; a loop the odometry check turns down passes when this many of them agree with it through their short paths (0: off) (an integer >= 0; default 1).
             loop_reset_m: Metres of path after an accepted loop during which the odometry check and the places chosen by pose go through that loop (0: off) (a finite number >= 0; default 200.0).
             lookalike_m: Reject a loop when an own place farther than this from its place, about as close by descriptor, fits the drift bounds too (0: off) (a finite number >= 0; default 10.0).
             lookalike_margin: How much larger a look-alike's R-SOLiD distance may be than the loop's candidate's (a number in [0, 1]; default 0.2).
@@ -496,7 +496,7 @@ class DetectorConfig:
             verify_step_points: Work budget of one step, in points: each candidate costs its hypotheses times the two clouds' points; the best is always registered (an integer >= 1; default 4000000).
             view_fov_deg: The sensor's horizontal field of view, degrees (the view check's; 360: views always overlap) (degrees in (0, 360]; default 360.0).
             view_min_overlap_deg: Reject a verified loop whose yaw leaves the two fields of view sharing less azimuth than this, degrees (0: off) (degrees in [0, 360]; default 20.0).
-            odometry_check: Reject a verified loop whose pose disagrees with the poses of its two places (same session) beyond the drift bounds (a bool; default True).
+            odometry_check: Reject a verified loop whose pose disagrees with the poses of its two places (same session) beyond the drift bounds, unless its neighbours vouch for it (min_support) (a bool; default True).
             odometry_translation_m: Translation a loop may differ from the poses' relative pose by at no path, metres (a finite number >= 0; default 1.0).
             odometry_drift: Translation the odometry may drift per metre travelled between the two places (a fraction; the rotation difference adds angle · path / 2) (a finite number >= 0; default 0.01).
             odometry_rotation_deg: Rotation a loop may differ from the poses' relative rotation by at no path, degrees (degrees in [0, 180]; default 3.0).
@@ -505,7 +505,7 @@ class DetectorConfig:
             unique: Reject verified candidates of a step that disagree with another verified one through the poses (a bool; default True).
             unique_ratio: Of two disagreeing candidates, keep the one whose distance from the poses' relative pose is under this fraction of the other's (0: reject both) (a number in [0, 1]; default 0.5).
             support_window: Consistency over time: the previous steps that may support a loop (0: off) (an integer >= 0; default 20).
-            min_support: Fewest of the previous support_window steps whose verified candidates must agree with a loop (0: off) (an integer >= 0; default 1).
+            min_support: Fewest of the previous support_window steps whose verified candidates must agree with a loop; a loop the odometry check turns down passes when this many of them agree with it through their short paths (0: off) (an integer >= 0; default 1).
             loop_reset_m: Metres of path after an accepted loop during which the odometry check and the places chosen by pose go through that loop (0: off) (a finite number >= 0; default 200.0).
             lookalike_m: Reject a loop when an own place farther than this from its place, about as close by descriptor, fits the drift bounds too (0: off) (a finite number >= 0; default 10.0).
             lookalike_margin: How much larger a look-alike's R-SOLiD distance may be than the loop's candidate's (a number in [0, 1]; default 0.2).
@@ -587,7 +587,7 @@ class DetectorConfig:
         """Reject a verified loop whose yaw leaves the two fields of view sharing less azimuth than this, degrees (0: off) (degrees in [0, 360]; default 20.0)."""
     @property
     def odometry_check(self) -> bool:
-        """Reject a verified loop whose pose disagrees with the poses of its two places (same session) beyond the drift bounds (a bool; default True)."""
+        """Reject a verified loop whose pose disagrees with the poses of its two places (same session) beyond the drift bounds, unless its neighbours vouch for it (min_support) (a bool; default True)."""
     @property
     def odometry_translation_m(self) -> float:
         """Translation a loop may differ from the poses' relative pose by at no path, metres (a finite number >= 0; default 1.0)."""
@@ -614,7 +614,7 @@ class DetectorConfig:
         """Consistency over time: the previous steps that may support a loop (0: off) (an integer >= 0; default 20)."""
     @property
     def min_support(self) -> int:
-        """Fewest of the previous support_window steps whose verified candidates must agree with a loop (0: off) (an integer >= 0; default 1)."""
+        """Fewest of the previous support_window steps whose verified candidates must agree with a loop; a loop the odometry check turns down passes when this many of them agree with it through their short paths (0: off) (an integer >= 0; default 1)."""
     @property
     def loop_reset_m(self) -> float:
         """Metres of path after an accepted loop during which the odometry check and the places chosen by pose go through that loop (0: off) (a finite number >= 0; default 200.0)."""

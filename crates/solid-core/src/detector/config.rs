@@ -108,7 +108,9 @@ pub struct VerifyConfig {
     /// drift bounds below of `inv(T_world_query)·T_world_candidate`, or the candidate is
     /// rejected ([`Rejection::OdometryDisagrees`](crate::reg::Rejection::OdometryDisagrees)) and
     /// the next one may win. A false loop between look-alike places is metres to tens of metres
-    /// off the poses; a drifting odometry drifts with the path.
+    /// off the poses; a drifting odometry drifts with the path. A loop the check turns down
+    /// still passes when its neighbours vouch for it (see [`VerifyConfig::min_support`]): the
+    /// odometry drifted beyond these bounds, or broke down on the way.
     pub odometry_check: bool,
     /// Translation a loop may differ from the poses' relative pose by at no path (metres): the
     /// registration's own error and the odometry's noise.
@@ -150,6 +152,15 @@ pub struct VerifyConfig {
     /// have poses, through the poses (`inv(T_wq)·T_wq'·T_q'c'·inv(T_wc')·T_wc` against `T_qc`
     /// within the drift bounds above, the path being the metres between q and q' plus between
     /// c and c'); without, when c' lies within `2·support_window` places of c. 0 turns it off.
+    ///
+    /// The same neighbours decide a loop within the session that the odometry check turned
+    /// down: it passes when a set of mutually consistent registered loops holding it (each pair
+    /// through the short paths between their queries and between their places, the odometry
+    /// bounds without the rotation's allowance, as for the placement in a map) holds
+    /// `min_support + 1` distinct queries of the last `support_window` steps, more than twice
+    /// the queries of any consistent set that disagrees with it among the other loops of the
+    /// same queries and the loops of those steps that agree with the odometry. An odometry that drifts beyond its bounds, or breaks down for a stretch, keeps its
+    /// short stretches: it costs the first loop of each revisit, as the support does.
     pub min_support: usize,
     /// Metres of the query's path after an accepted loop (with poses) during which the odometry
     /// check, uniqueness and the places chosen by pose go through that loop: the relative pose
@@ -418,7 +429,7 @@ impl Params for DetectorConfig {
         field!(DetectorConfig, "view_min_overlap_deg", verify.view_min_overlap_deg, Kind::closed(0.0, 360.0), "degrees in [0, 360]",
             "Reject a verified loop whose yaw leaves the two fields of view sharing less azimuth than this, degrees (0: off)."),
         field!(DetectorConfig, "odometry_check", verify.odometry_check, Kind::Bool, "a bool",
-            "Reject a verified loop whose pose disagrees with the poses of its two places (same session) beyond the drift bounds."),
+            "Reject a verified loop whose pose disagrees with the poses of its two places (same session) beyond the drift bounds, unless its neighbours vouch for it (min_support)."),
         field!(DetectorConfig, "odometry_translation_m", verify.odometry_translation_m, Kind::closed(0.0, FINITE),
             "a finite number >= 0", "Translation a loop may differ from the poses' relative pose by at no path, metres."),
         field!(DetectorConfig, "odometry_drift", verify.odometry_drift, Kind::closed(0.0, FINITE),
@@ -436,7 +447,7 @@ impl Params for DetectorConfig {
         field!(DetectorConfig, "support_window", verify.support_window, COUNT, "an integer >= 0",
             "Consistency over time: the previous steps that may support a loop (0: off)."),
         field!(DetectorConfig, "min_support", verify.min_support, COUNT, "an integer >= 0",
-            "Fewest of the previous support_window steps whose verified candidates must agree with a loop (0: off)."),
+            "Fewest of the previous support_window steps whose verified candidates must agree with a loop; a loop the odometry check turns down passes when this many of them agree with it through their short paths (0: off)."),
         field!(DetectorConfig, "loop_reset_m", verify.loop_reset_m, Kind::closed(0.0, FINITE), "a finite number >= 0",
             "Metres of path after an accepted loop during which the odometry check and the places chosen by pose go through that loop (0: off)."),
         field!(DetectorConfig, "lookalike_m", verify.lookalike_m, Kind::closed(0.0, FINITE), "a finite number >= 0",

@@ -41,8 +41,13 @@ pub(super) struct Hypothesis {
     query_pose: [f64; 12],
     /// Metres the session travelled at the query.
     travelled: f64,
-    /// `T_mc` (the map's frame).
+    /// `T_mc` (the map's frame; for a loop within the session, its own frame).
     place: [f64; 12],
+    /// Metres the session travelled at the place, for a loop within the session (NaN for a map
+    /// place: the path between two map places is the distance between their poses).
+    place_travelled: f64,
+    /// For a loop within the session: it agrees with the odometry (the odometry check's bounds).
+    odometry: bool,
     /// The registration `T_query_candidate`.
     pose: Pose,
 }
@@ -87,6 +92,9 @@ pub(super) struct Placement {
     support: VecDeque<Hypothesis>,
     /// Distinct supporting queries since the placement was made.
     loops: usize,
+    /// The recent hypotheses of loops within the session (registered candidates into its own
+    /// places, whatever the odometry said), oldest first.
+    own: VecDeque<Hypothesis>,
     /// The first supporting query and its metres travelled.
     first: Option<(u32, f64)>,
 }
@@ -98,13 +106,16 @@ impl LoopDetector {
             &mul(&relative(&a.query_pose, &b.query_pose), &b.pose),
             &relative(&b.place, &a.place),
         );
-        let own = libm::fabs(a.travelled - b.travelled);
-        let own = if own.is_nan() {
-            distance(&a.query_pose, &b.query_pose)
-        } else {
-            own
+        let along = |t1: f64, t2: f64, p1: &[f64; 12], p2: &[f64; 12]| {
+            let d = libm::fabs(t1 - t2);
+            if d.is_nan() {
+                distance(p1, p2)
+            } else {
+                d
+            }
         };
-        let path = own + distance(&a.place, &b.place);
+        let path = along(a.travelled, b.travelled, &a.query_pose, &b.query_pose)
+            + along(a.place_travelled, b.place_travelled, &a.place, &b.place);
         self.within_drift(&expected, &a.pose, path, 0.0)
     }
 
@@ -142,6 +153,8 @@ impl LoopDetector {
                     query_pose: q,
                     travelled: at.travelled,
                     place,
+                    place_travelled: f64::NAN,
+                    odometry: false,
                     pose: r.registration.pose,
                 },
             ));
@@ -188,6 +201,89 @@ impl LoopDetector {
         }
     }
 
+    /// The hypotheses of the step's registered candidates into the session's own places with
+    /// poses (by index in `cands`), remembered for the next steps' [`LoopDetector::vouched`].
+    pub(super) fn record_own(
+        &mut self,
+        at: &QueryPlace,
+        cands: &[Candidate],
+    ) -> Vec<(usize, Hypothesis)> {
+        let mut mine = Vec::new();
+        let Some(q) = at.pose else { return mine };
+        for (i, c) in cands.iter().enumerate() {
+            if !registered(c) || self.in_map(c.id) {
+                continue;
+            }
+            let (Some(r), Some(place), Some(t)) =
+                (c.verification, self.pose(c.id), self.travelled_at(c.id))
+            else {
+                continue;
+            };
+            mine.push((
+                i,
+                Hypothesis {
+                    query: at.id,
+                    query_pose: q,
+                    travelled: at.travelled,
+                    place,
+                    place_travelled: t,
+                    odometry: self.agrees_with_odometry(at, c, true),
+                    pose: r.registration.pose,
+                },
+            ));
+        }
+        let window = self.config.verify.support_window as u32;
+        let own = &mut self.placement.own;
+        own.extend(mine.iter().map(|(_, h)| *h));
+        // Only the neighbours of the last `support_window` steps vouch.
+        while own.len() > WINDOW
+            || own
+                .front()
+                .is_some_and(|h| at.id.saturating_sub(h.query) > window)
+        {
+            own.pop_front();
+        }
+        mine
+    }
+
+    /// Whether a loop within the session that the odometry check turned down is vouched for by
+    /// its neighbours: a set of mutually consistent loops holding it (each pair consistent
+    /// through the short paths between them, as for the placement in a map) holds the loops of
+    /// `min_support + 1` distinct queries among the last `support_window` steps (the support
+    /// check's), with more than twice the queries of any consistent set that disagrees with it
+    /// among the other loops of the same queries and the loops of those steps that agree with
+    /// the odometry. The odometry drifted beyond its bounds, or broke down on the way; its short
+    /// stretches still hold, and a look-alike has to be the only reading of a stretch where the
+    /// odometry did not hold to pass.
+    pub(super) fn vouched(&self, h: &Hypothesis) -> bool {
+        let v = &self.config.verify;
+        if v.min_support == 0 || v.support_window == 0 {
+            return false;
+        }
+        let w: Vec<Hypothesis> = self.placement.own.iter().copied().collect();
+        let Some(me) = w.iter().rposition(|x| same(x, h)) else {
+            return false;
+        };
+        let (set, _) = self.consistent_sets_in(&w, me);
+        if distinct(&set) <= v.min_support {
+            return false;
+        }
+        // The rivals: other readings of the same queries (look-alikes along the stretch), and
+        // the loops of the window that agree with the odometry (it held there: a look-alike
+        // stretch that disagrees with them is no drift). Not the other loops of the window that
+        // disagree with it: those of a stretch before a breakdown are right too.
+        let queries: Vec<u32> = set.iter().map(|x| x.query).collect();
+        let w: Vec<Hypothesis> = w
+            .into_iter()
+            .filter(|x| x.odometry || queries.contains(&x.query))
+            .collect();
+        let Some(me) = w.iter().rposition(|x| same(x, h)) else {
+            return false;
+        };
+        let (_, rival) = self.consistent_sets_in(&w, me);
+        distinct(&set) > RIVAL_RATIO * rival
+    }
+
     /// Whether `h` agrees with the placement's supporting loop nearest to it along the path
     /// (None while the session is not placed).
     fn agrees_with_placement(&self, h: &Hypothesis) -> Option<bool> {
@@ -201,7 +297,15 @@ impl LoopDetector {
     /// greedily from it, nearest along the path first), and the most distinct queries of a set
     /// grown so from any hypothesis that disagrees with `h`.
     fn consistent_sets(&self, h: &Hypothesis) -> (Vec<Hypothesis>, usize) {
-        let w = &self.placement.window;
+        let w: Vec<Hypothesis> = self.placement.window.iter().copied().collect();
+        match w.iter().rposition(|x| same(x, h)) {
+            Some(me) => self.consistent_sets_in(&w, me),
+            None => (alloc::vec![*h], 0),
+        }
+    }
+
+    /// [`LoopDetector::consistent_sets`] among the hypotheses `w`, for `w[me]`.
+    fn consistent_sets_in(&self, w: &[Hypothesis], me: usize) -> (Vec<Hypothesis>, usize) {
         let n = w.len();
         let mut ok = alloc::vec![false; n * n];
         for i in 0..n {
@@ -226,9 +330,6 @@ impl LoopDetector {
                 }
             }
             set
-        };
-        let Some(me) = w.iter().rposition(|x| same(x, h)) else {
-            return (alloc::vec![*h], 0);
         };
         let set: Vec<Hypothesis> = grow(me).into_iter().map(|i| w[i]).collect();
         let rival = (0..n)
@@ -372,7 +473,7 @@ fn spread(mean: &Pose, xs: &[Pose]) -> Option<[[f64; 6]; 6]> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::verify::tests::{pose, rejection, verified};
+    use super::super::verify::tests::{detector_with_path, pose, rejection, verified};
     use super::*;
     use crate::db::{Database, DetectorConfig};
     use crate::{Config, Descriptor, Stats};
@@ -483,5 +584,122 @@ mod tests {
             assert_eq!(rejection(&cands[0]), Some(Rejection::NotPlaced), "step {k}");
         }
         assert!(det.map_anchor().is_none());
+    }
+
+    /// A session of 60 places 1 m apart along x (all alike to the descriptor: the look-alike
+    /// check is off); a loop needs the support of one of the previous 20 steps.
+    fn drifting_session() -> LoopDetector {
+        detector_with_path(60, |v| {
+            v.lookalike_m = 0.0;
+            v.min_support = 1;
+            v.support_window = 20;
+        })
+    }
+
+    /// Step `k` of a revisit of places 5.. after 200 m, its odometry `off` metres to the side of
+    /// the truth (beyond the bounds, 1 m + 1 % of 195 m, at 3 m; within five times their drift,
+    /// 1 m + 5 % of 195 m, up to 10.75 m): the query, its true loop to
+    /// place `5 + k` and, with `lookalike`, a look-alike 20 places on (as good, the same pose).
+    fn revisit(
+        det: &LoopDetector,
+        k: u32,
+        off: f64,
+        lookalike: bool,
+    ) -> (QueryPlace, Vec<Candidate>) {
+        let at = QueryPlace {
+            id: det.len() as u32 + k,
+            pose: Some(pose(0.0, f64::from(5 + k), off)),
+            travelled: 200.0 + f64::from(k),
+            eligible: det.len(),
+        };
+        let t = relative(
+            &pose(0.0, f64::from(5 + k), 0.0),
+            &pose(0.0, f64::from(5 + k), 0.0),
+        );
+        let mut cands = alloc::vec![verified(5 + k, t)];
+        if lookalike {
+            cands.push(verified(25 + k, t));
+        }
+        (at, cands)
+    }
+
+    #[test]
+    fn loops_the_odometry_drifted_away_from_are_kept_when_their_neighbours_vouch_for_them() {
+        // 8 m off: the odometry check turns down the first step, then two queries agree
+        // through their short paths and the loops are kept.
+        let mut det = drifting_session();
+        for k in 0..10 {
+            let (at, mut cands) = revisit(&det, k, 8.0, false);
+            det.check_after_gate(&at, &[], &mut cands).unwrap();
+            let want = if k < 1 {
+                Some(Rejection::OdometryDisagrees)
+            } else {
+                None
+            };
+            assert_eq!(rejection(&cands[0]), want, "step {k}");
+        }
+        // A look-alike at every step: two readings of the stretch as consistent, neither kept.
+        let mut det = drifting_session();
+        for k in 0..10 {
+            let (at, mut cands) = revisit(&det, k, 8.0, true);
+            det.check_after_gate(&at, &[], &mut cands).unwrap();
+            for c in &cands {
+                assert_eq!(rejection(c), Some(Rejection::OdometryDisagrees), "step {k}");
+            }
+        }
+        // Without the support check (min_support 0) the odometry check decides alone.
+        let mut det = drifting_session();
+        det.config.verify.min_support = 0;
+        for k in 0..10 {
+            let (at, mut cands) = revisit(&det, k, 8.0, false);
+            det.check_after_gate(&at, &[], &mut cands).unwrap();
+            assert_eq!(rejection(&cands[0]), Some(Rejection::OdometryDisagrees));
+        }
+        // 20 m off, beyond five times the drift bounds: as likely a look-alike stretch (a
+        // corridor's copies a module apart), never vouched for.
+        let mut det = drifting_session();
+        for k in 0..10 {
+            let (at, mut cands) = revisit(&det, k, 20.0, false);
+            det.check_after_gate(&at, &[], &mut cands).unwrap();
+            assert_eq!(rejection(&cands[0]), Some(Rejection::OdometryDisagrees));
+        }
+    }
+
+    #[test]
+    fn a_look_alike_stretch_is_not_vouched_for_where_the_odometry_holds() {
+        // Steps 0-4 find their true places, which agree with the odometry; steps 5-11 see only
+        // a look-alike 20 places on (consistent with each other, 20 m off the odometry).
+        let mut det = drifting_session();
+        for k in 0..12 {
+            let (at, mut cands) = revisit(&det, k, 0.0, false);
+            if k >= 5 {
+                let t = cands[0].verification.unwrap().registration.pose;
+                cands = alloc::vec![verified(25 + k, t)];
+            }
+            det.check_after_gate(&at, &[], &mut cands).unwrap();
+            let want = match k {
+                0 => Some(Rejection::Unsupported),
+                1..=4 => None,
+                _ => Some(Rejection::OdometryDisagrees),
+            };
+            assert_eq!(rejection(&cands[0]), want, "step {k}");
+        }
+    }
+
+    #[test]
+    fn an_odometry_that_breaks_down_costs_only_the_loops_of_its_stretch() {
+        // The odometry jumps 6 m between steps 5 and 6: the loops after it disagree with those
+        // before, and are kept again once two of them agree with each other.
+        let mut det = drifting_session();
+        let mut kept = Vec::new();
+        for k in 0..14 {
+            let off = if k < 6 { 3.5 } else { 9.5 };
+            let (at, mut cands) = revisit(&det, k, off, false);
+            det.check_after_gate(&at, &[], &mut cands).unwrap();
+            if rejection(&cands[0]).is_none() {
+                kept.push(k);
+            }
+        }
+        assert_eq!(kept, [1, 2, 3, 4, 5, 7, 8, 9, 10, 11, 12, 13]);
     }
 }

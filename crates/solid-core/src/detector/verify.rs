@@ -253,9 +253,24 @@ impl LoopDetector {
     ) -> Result<(), DbError> {
         let v = self.config.verify;
         let passed = |c: &Candidate| c.verification.is_some_and(|r| r.accepted);
+        // Loops within the session that the odometry turns down may be vouched for by their
+        // neighbours' consistency (the odometry drifted beyond its bounds, or broke down).
+        let own = self.record_own(at, cands);
+        let mut vouched = Vec::new();
+        vouched
+            .try_reserve_exact(cands.len())
+            .map_err(|_| DbError::OutOfMemory)?;
+        vouched.resize(cands.len(), false);
         if v.odometry_check {
-            for c in cands.iter_mut().filter(|c| registered(c)) {
-                if !self.agrees_with_odometry(at, c, true) {
+            for (i, c) in cands.iter_mut().enumerate() {
+                if !registered(c) || self.agrees_with_odometry(at, c, true) {
+                    continue;
+                }
+                if self.within_vouched_drift(at, c)
+                    && own.iter().any(|(j, h)| *j == i && self.vouched(h))
+                {
+                    vouched[i] = true;
+                } else {
                     reject(c, Rejection::OdometryDisagrees);
                 }
             }
@@ -305,9 +320,10 @@ impl LoopDetector {
             return Ok(());
         }
         let placed = self.places_session(at);
-        for c in cands.iter_mut().filter(|c| passed(c)) {
-            // The placement's consistent set is a map loop's support.
-            if placed && self.in_map(c.id) && self.pose(c.id).is_some() {
+        for (c, &vouched) in cands.iter_mut().zip(&vouched).filter(|(c, _)| passed(c)) {
+            // The placement's consistent set is a map loop's support; the neighbours' that of a
+            // loop they vouched for.
+            if vouched || (placed && self.in_map(c.id) && self.pose(c.id).is_some()) {
                 continue;
             }
             if self.support(at, c) < v.min_support {
@@ -363,13 +379,38 @@ impl LoopDetector {
     /// needs only the scale drift. `turn` is the fraction of that allowance taken (0: the
     /// translation bound is the scale drift's alone).
     pub(super) fn within_drift(&self, expected: &Pose, pose: &Pose, path: f64, turn: f64) -> bool {
+        self.within_drift_times(expected, pose, path, turn, (1.0, 1.0))
+    }
+
+    /// [`LoopDetector::within_drift`] with the drift per metre (translation and rotation) `k`
+    /// times the configured one and the rotation's ceiling `ceiling` times (at most 180°).
+    pub(super) fn within_drift_times(
+        &self,
+        expected: &Pose,
+        pose: &Pose,
+        path: f64,
+        turn: f64,
+        (k, ceiling): (f64, f64),
+    ) -> bool {
         let v = &self.config.verify;
         let path = if path.is_nan() { 0.0 } else { path };
         reg::pose_distance(expected, pose).is_some_and(|(m, deg)| {
             let swing = turn * deg.to_radians() * path / 2.0;
-            deg <= rotation_bound(v, path)
-                && m <= v.odometry_translation_m + v.odometry_drift * path + swing
+            let rotation = (v.odometry_rotation_deg + k * v.odometry_rotation_deg_per_m * path)
+                .min((ceiling * v.odometry_rotation_max_deg).min(180.0));
+            deg <= rotation && m <= v.odometry_translation_m + k * v.odometry_drift * path + swing
         })
+    }
+
+    /// Whether a candidate's pose lies within [`VOUCHED_DRIFT`] times the odometry check's drift
+    /// bounds of the poses' prediction (as [`LoopDetector::agrees_with_odometry`]): how far a
+    /// loop its neighbours vouch for may be off the odometry.
+    fn within_vouched_drift(&self, at: &QueryPlace, c: &Candidate) -> bool {
+        let (Some(r), Some((expected, path))) = (c.verification, self.expected(at, c.id, true))
+        else {
+            return true;
+        };
+        self.within_drift_times(&expected, &r.registration.pose, path, 1.0, VOUCHED_DRIFT)
     }
 
     /// How many of the remembered previous steps had a candidate that agrees with `c`.
@@ -470,6 +511,15 @@ pub(super) fn rotation_bound(v: &VerifyConfig, path: f64) -> f64 {
     (v.odometry_rotation_deg + v.odometry_rotation_deg_per_m * path)
         .min(v.odometry_rotation_max_deg)
 }
+
+/// A loop its neighbours vouch for may be off the odometry by up to this many times the odometry
+/// check's drift per metre (translation and rotation; 5 % where the check assumes 1 %, the drift
+/// of a wheel odometry or a LIO on a hard stretch) and this many times its rotation ceiling (60°
+/// for the default 30°: 5 % after a lap of 300 m is 40° off, corridors that meet at right
+/// angles 90°). Beyond, a stretch that agrees with itself is as likely a look-alike stretch (a
+/// world that repeats exactly along a corridor puts its copies a module apart whatever the
+/// path; the corridor round the corner is turned by 90°) as an odometry gone wrong.
+pub(super) const VOUCHED_DRIFT: (f64, f64) = (5.0, 2.0);
 
 /// Whether a candidate's registration met the gate's quality checks, whatever its length (it
 /// passed, or failed only `max_translation`): uniqueness and support compare with all of these,
