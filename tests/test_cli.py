@@ -226,12 +226,13 @@ def test_eval_end_to_end_hku(capsys: pytest.CaptureFixture[str], tmp_path: Path)
 
 def test_eval_accepted_rows_are_exactly_detects_loops(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     """One configuration (verification on): the rows of eval's queries.csv with accepted true are
-    detect's loops.csv, poses included, and the library's detector made the same decisions. Eval
-    hands its poses to the detector and detect here has none, so candidates chosen by pose are off
-    (test_trust compares the two with the same poses and every default)."""
+    detect's loops.csv, poses included (eval hands its poses to the detector, so detect gets them
+    too: the odometry starts registrations and checks loops); without poses, detect's g2o file
+    holds its loops and the library's detector made the same decisions. Candidates chosen by pose
+    are off (test_trust compares detect and eval with every default)."""
     seq = str(data_dir() / "hku1-avia")
     common = ["--preset", "avia", "--frames", "0:40,260:314", "--exclude-m", "0", "--pose-candidates", "0", "-q"]
-    code, _, err = run(capsys, "detect", seq, *common, "--max-loop-distance", "3", "-o", str(tmp_path / "d"), "--g2o", str(tmp_path / "loops.g2o"))
+    code, _, err = run(capsys, "detect", seq, *common, "--max-loop-distance", "3", "--poses", "odom_poses.txt", "-o", str(tmp_path / "d"))
     assert code == 0, err
     code, _, err = run(capsys, "eval", seq, *common, "--max-loop-distance", "3", "--radius", "3", "--poses", "odom_poses.txt", "--no-plots", "-o", str(tmp_path / "e"))
     assert code == 0, err
@@ -244,6 +245,10 @@ def test_eval_accepted_rows_are_exactly_detects_loops(capsys: pytest.CaptureFixt
     assert m["accepted"] == len(loops) and m["pose_error_m_median"] < 0.1
     # Without poses, the g2o file has one EDGE_SE3:QUAT per verified loop, between frame
     # numbers (issue 27), with the same pose.
+    code, _, err = run(capsys, "detect", seq, *common, "--max-loop-distance", "3", "-o", str(tmp_path / "n"), "--g2o", str(tmp_path / "loops.g2o"))
+    assert code == 0, err
+    loops = read_csv(tmp_path / "n" / "loops.csv")
+    assert loops
     edges = (tmp_path / "loops.g2o").read_text().splitlines()
     assert len(edges) == len(loops)
     for e, r in zip(edges, loops):

@@ -630,10 +630,7 @@ fn seeded(
     let Ok(r) = reg::register(query, candidate, start, &v.registration) else {
         return Ok(None);
     };
-    let check = v
-        .gate
-        .check(&r, &[], 0)
-        .and_then(|()| view_check(v, r.yaw_degrees()));
+    let check = gate_and_view(v, &r, &[], 0);
     Ok(Some(Verification {
         registration: r,
         accepted: check.is_ok(),
@@ -669,10 +666,7 @@ fn verify_pair(
         return Ok(None);
     };
     let tried = &hyps[..h.count];
-    let check = v
-        .gate
-        .check(&h.registration, tried, h.best)
-        .and_then(|()| view_check(v, h.registration.yaw_degrees()));
+    let check = gate_and_view(v, &h.registration, tried, h.best);
     Ok(Some(Verification {
         registration: h.registration,
         accepted: check.is_ok(),
@@ -694,6 +688,24 @@ fn shared_azimuth_deg(fov: f64, yaw: f64) -> f64 {
     let d = libm::fabs(libm::remainder(yaw, 360.0));
     let overlap = (fov - d).max(0.0) + (fov - (360.0 - d)).max(0.0);
     overlap.min(fov)
+}
+
+/// The gate, then the view check; a registration the gate finds too long is checked for the
+/// view too, so that [`Rejection::TooFar`] means "every check but the length passed" whatever
+/// `max_translation` is (a neighbour's start and [`registered`] must not depend on the largest
+/// loop asked for: eval's suggested detect run reproduces its rows).
+fn gate_and_view(
+    v: &VerifyConfig,
+    r: &reg::Registration,
+    hypotheses: &[Hypothesis],
+    best: usize,
+) -> Result<(), Rejection> {
+    let view = || view_check(v, r.yaw_degrees());
+    match v.gate.check(r, hypotheses, best) {
+        Ok(()) => view(),
+        Err(Rejection::TooFar) => view().and(Err(Rejection::TooFar)),
+        Err(e) => Err(e),
+    }
 }
 
 /// The view check ([`VerifyConfig::view_min_overlap_deg`]) of a loop turned by `yaw` degrees.
@@ -779,6 +791,60 @@ pub(super) mod tests {
         assert_eq!(view_check(&avia, 100.0), Err(Rejection::NoSharedView));
         let hdl64 = DetectorConfig::for_preset("hdl64").unwrap().verify;
         assert_eq!(view_check(&hdl64, 180.0), Ok(()));
+    }
+
+    #[test]
+    fn too_far_means_every_other_check_passed_whatever_the_largest_loop() {
+        // A registration that meets every quality check, 4 m long, turned by 100° (beyond an
+        // Avia's shared view), or not turned.
+        let open = reg::Gate {
+            require_converged: false,
+            min_fitness: 0.0,
+            min_structure_fitness: 0.0,
+            max_rmse: f64::INFINITY,
+            min_translation_information: 0.0,
+            min_rotation_information: 0.0,
+            min_marginal_translation_information: 0.0,
+            min_agreement: 0,
+            max_translation: 5.0,
+            ..reg::Gate::default()
+        };
+        let avia = DetectorConfig::for_preset("avia").unwrap().verify;
+        let turned = |yaw: f64| {
+            let (s, c) = (yaw.to_radians().sin(), yaw.to_radians().cos());
+            reg::Registration {
+                pose: [
+                    [c, -s, 0.0, 4.0],
+                    [s, c, 0.0, 0.0],
+                    [0.0, 0.0, 1.0, 0.0],
+                    [0.0, 0.0, 0.0, 1.0],
+                ],
+                ..reg::Registration::default()
+            }
+        };
+        for max in [5.0, 3.0] {
+            let v = VerifyConfig {
+                gate: reg::Gate {
+                    max_translation: max,
+                    ..open
+                },
+                ..avia
+            };
+            // Beyond the view: the view's rejection, with a largest loop of 5 m or of 3 m.
+            assert_eq!(
+                gate_and_view(&v, &turned(100.0), &[], 0),
+                Err(Rejection::NoSharedView)
+            );
+            let straight = gate_and_view(&v, &turned(0.0), &[], 0);
+            assert_eq!(
+                straight,
+                if max > 4.0 {
+                    Ok(())
+                } else {
+                    Err(Rejection::TooFar)
+                }
+            );
+        }
     }
 
     #[test]
