@@ -32,9 +32,10 @@ def scored(seq: sim.Sequence, odometry: sim.Trajectory | None, truth: F64) -> tu
     """The pipeline given `odometry` (None: no poses): (pose-false loops, queries with a right loop)."""
     given = dataclasses.replace(seq, trajectory=odometry) if odometry is not None else _without_poses(seq)
     res = LoopClosurePipeline(given, PipelineConfig.preset("vlp16")).run()
-    wrong, right = 0, set()
+    wrong, right = 0, set[int]()
     for lp in res.loops():
         q, c = res.frame_of(lp.query), res.frame_of(lp.candidate)
+        assert q is not None and c is not None  # every place is a frame of this run
         d = np.linalg.inv(np.linalg.inv(truth[q]) @ truth[c]) @ np.asarray(lp.pose)
         deg = np.degrees(np.arccos(np.clip((np.trace(d[:3, :3]) - 1) / 2, -1, 1)))
         if np.linalg.norm(d[:3, 3]) > 1.0 or deg > 5.0:
