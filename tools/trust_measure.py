@@ -7,6 +7,7 @@ within 5 m at least 50 frames back.
     PYTHONPATH=python python tools/trust_measure.py breakdown [OVERRIDES] [SEEDS]
     PYTHONPATH=python python tools/trust_measure.py noposes [OVERRIDES] [SEEDS]
     PYTHONPATH=python python tools/trust_measure.py hku1 [OVERRIDES]
+    PYTHONPATH=python python tools/trust_measure.py hku1-drift [OVERRIDES]
 
 ``drift``: docs/slam.md#drift's world (``World(seed, repetition=0.9)``, a loop of 1.2 laps, frames
 6 m apart, VLP-16) with its odometry drifting 1, 2, 3 and 5 % (0.025°/m of yaw bias and 1 % of
@@ -15,7 +16,8 @@ odometry breaking down on the first lap: frames 20-22 each jump 4 m or 30 m side
 40 m of vertical drift over frames 20-30. ``noposes``: the same world and the look-alike corridors
 (``World.corridors``, OS1-64 and Avia) without any pose. OVERRIDES is a JSON object of detector
 parameters; SEEDS comma-separated. ``hku1``: the shared Livox walk with its poses and without (scored
-against its poses) (default 0,1,2,3,4).
+against its poses) (default 0,1,2,3,4); ``hku1-drift``: the walk given its poses drifted by 0.5°/m of
+yaw and 8 % of scale, and by 0.2°/m and 4 %.
 """
 
 from __future__ import annotations
@@ -121,7 +123,7 @@ def main() -> None:
         for i in range(4):
             t[i] += r[i]
 
-    if what == "hku1":
+    if what in ("hku1", "hku1-drift"):
         import os
         from pathlib import Path
 
@@ -130,7 +132,17 @@ def main() -> None:
         shared = Path(os.environ.get("SOLID_SHARED", Path(__file__).resolve().parents[2] / "shared"))
         ds = solid.datasets.open_dataset(shared / "data" / "hku1-avia", poses="odom_poses.txt")
         truth = as4(np.asarray(ds.poses)[:, :3, :])
-        for name, poses in (("poses", ds.poses), ("no poses", None)):
+        given: list[tuple[str, Any]] = [("poses", ds.poses), ("no poses", None)]
+        if what == "hku1-drift":
+            # docs/loops.md#when-the-odometry-drifts: the walk's odometry drifted by 0.5°/m of yaw
+            # and 8 % of scale (6.1 m off at the end), and by 0.2°/m and 4 %.
+            P = np.asarray(ds.poses)
+            traj = sim.Trajectory(P, np.arange(len(P), dtype=np.float64))
+            given = [
+                (f"{deg}°/m and {pct} %", traj.odometry(yaw_bias_deg_per_m=deg, scale_error=pct / 100).poses)
+                for deg, pct in ((0.5, 8), (0.2, 4))
+            ]
+        for name, poses in given:
             res = LoopClosurePipeline(Given(ds, poses), PipelineConfig.preset("avia", detector=detector)).run()
             print(line(f"hku1-avia, {name}", score(res, truth)), flush=True)
         return

@@ -2503,7 +2503,7 @@ def _sim_odometry(
     translation_noise: float = 0.0,
     rotation_noise_deg: float = 0.0,
     seed: int = 0,
-    breakdown: tuple[int, int] = (0, 0),
+    breakdown: tuple[int, int] | None = None,
     breakdown_jump_m: float = 0.0,
     breakdown_climb_m: float = 0.0,
 ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...

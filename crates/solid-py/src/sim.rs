@@ -509,7 +509,7 @@ fn _sim_turn<'py>(
 }
 
 #[pyfunction]
-#[pyo3(signature = (poses, times, yaw_bias_deg_per_m = 0.0, yaw_bias_deg_per_frame = 0.0, scale_error = 0.0, translation_noise = 0.0, rotation_noise_deg = 0.0, seed = 0, breakdown = (0, 0), breakdown_jump_m = 0.0, breakdown_climb_m = 0.0))]
+#[pyo3(signature = (poses, times, yaw_bias_deg_per_m = 0.0, yaw_bias_deg_per_frame = 0.0, scale_error = 0.0, translation_noise = 0.0, rotation_noise_deg = 0.0, seed = 0, breakdown = None, breakdown_jump_m = 0.0, breakdown_climb_m = 0.0))]
 #[allow(clippy::too_many_arguments)]
 fn _sim_odometry<'py>(
     py: Python<'py>,
@@ -521,10 +521,12 @@ fn _sim_odometry<'py>(
     translation_noise: f64,
     rotation_noise_deg: f64,
     #[pyo3(from_py_with = args::seed)] seed: u64,
-    breakdown: (usize, usize),
+    breakdown: Option<(usize, usize)>,
     breakdown_jump_m: f64,
     breakdown_climb_m: f64,
 ) -> PyResult<PathArrays<'py>> {
+    // None: no breakdown (a tuple default would not read back in the signature stubtest checks).
+    let breakdown = breakdown.unwrap_or((0, 0));
     let truth = Trajectory {
         poses: read_poses(&poses)?,
         times,
