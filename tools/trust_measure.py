@@ -8,6 +8,7 @@ within 5 m at least 50 frames back.
     PYTHONPATH=python python tools/trust_measure.py noposes [OVERRIDES] [SEEDS]
     PYTHONPATH=python python tools/trust_measure.py hku1 [OVERRIDES]
     PYTHONPATH=python python tools/trust_measure.py hku1-drift [OVERRIDES]
+    PYTHONPATH=python python tools/trust_measure.py chain [OVERRIDES] [SEEDS]
 
 ``drift``: docs/slam.md#drift's world (``World(seed, repetition=0.9)``, a loop of 1.2 laps, frames
 6 m apart, VLP-16) with its odometry drifting 1, 2, 3 and 5 % (0.025°/m of yaw bias and 1 % of
@@ -17,7 +18,11 @@ odometry breaking down on the first lap: frames 20-22 each jump 4 m or 30 m side
 (``World.corridors``, OS1-64 and Avia) without any pose. OVERRIDES is a JSON object of detector
 parameters; SEEDS comma-separated. ``hku1``: the shared Livox walk with its poses and without (scored
 against its poses) (default 0,1,2,3,4); ``hku1-drift``: the walk given its poses drifted by 0.5°/m of
-yaw and 8 % of scale, and by 0.2°/m and 4 %.
+yaw and 8 % of scale, and by 0.2°/m and 4 %. ``chain``: the detector's own odometry without poses
+(``Detection.pose``: each scan registered with the previous keyframe, chained) against the truth
+(hku1's odom_poses.txt; the loop world and the corridors' simulated poses): its drift over every
+stretch of 10, 25 and 50 m of path inside one frame (mean and 95th percentile of the relative
+pose's error, metres per metre and degrees per metre), the frames it started (links that failed).
 """
 
 from __future__ import annotations
@@ -112,6 +117,40 @@ def drifted(traj: sim.Trajectory, pct: float, seed: int) -> np.ndarray:
     return as4(odo.poses)
 
 
+def chain_drift(name: str, res: Any, truth: np.ndarray) -> None:
+    """Prints the drift of the detector's own odometry (the detections' poses) against `truth`."""
+    frames, est, frame_of_pose = [], [], []
+    frame = -1
+    for d in res.detections:
+        if d.pose_source == "started":
+            frame += 1
+        if d.pose is None or d.pose_source == "given":
+            continue
+        frames.append(res.frame_of(d.query))
+        est.append(np.asarray(d.pose))
+        frame_of_pose.append(frame)
+    E, T = np.asarray(est), truth[frames]
+    X = T[:, :3, 3]
+    path = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(X, axis=0), axis=1))])
+    parts = [f"{name}: {len(est)} poses in {frame + 1} frame(s), {path[-1]:.0f} m"]
+    for length in (10.0, 25.0, 50.0):
+        tr, rot = [], []
+        for i in range(len(E)):
+            j = int(np.searchsorted(path, path[i] + length))
+            if j >= len(E) or frame_of_pose[j] != frame_of_pose[i]:
+                continue
+            d = np.linalg.inv(np.linalg.inv(E[i]) @ E[j]) @ (np.linalg.inv(T[i]) @ T[j])
+            seg = path[j] - path[i]
+            tr.append(np.linalg.norm(d[:3, 3]) / seg)
+            rot.append(np.degrees(np.arccos(np.clip((np.trace(d[:3, :3]) - 1) / 2, -1, 1))) / seg)
+        if tr:
+            parts.append(
+                f"{length:.0f} m: {100 * np.mean(tr):.2f} % (p95 {100 * np.percentile(tr, 95):.2f} %), "
+                f"{np.mean(rot):.3f}°/m (p95 {np.percentile(rot, 95):.3f})"
+            )
+    print("; ".join(parts), flush=True)
+
+
 def main() -> None:
     what = sys.argv[1]
     detector: dict[str, Any] = json.loads(sys.argv[2]) if len(sys.argv) > 2 else {}
@@ -123,6 +162,28 @@ def main() -> None:
         for i in range(4):
             t[i] += r[i]
 
+    if what == "chain":
+        import os
+        from pathlib import Path
+
+        import solid.datasets
+
+        shared = Path(os.environ.get("SOLID_SHARED", Path(__file__).resolve().parents[2] / "shared"))
+        if (shared / "data" / "hku1-avia").exists():
+            ds = solid.datasets.open_dataset(shared / "data" / "hku1-avia", poses="odom_poses.txt")
+            res = LoopClosurePipeline(Given(ds, None), PipelineConfig.preset("avia", detector=detector)).run()
+            chain_drift("hku1-avia (against odom_poses.txt)", res, as4(np.asarray(ds.poses)[:, :3, :]))
+        for seed in seeds:
+            seq, traj = loop_world(seed)
+            res = LoopClosurePipeline(Given(seq, None), PipelineConfig.preset("vlp16", detector=detector)).run()
+            chain_drift(f"seed {seed}, loop world, vlp16", res, as4(traj.poses))
+            world = sim.World.corridors(seed=seed + 1)
+            walk = sim.Trajectory.corridor_walk(world, laps=1.3)
+            for preset, fov in (("os1-64", 90.0), ("avia", None)):
+                cs = sim.simulate(world, sim.Sensor(preset, h_fov=fov), walk)
+                res = LoopClosurePipeline(Given(cs, None), PipelineConfig.preset(preset, detector=detector)).run()
+                chain_drift(f"seed {seed + 1}, corridors, {preset} {fov or 'own'}°", res, as4(walk.poses))
+        return
     if what in ("hku1", "hku1-drift"):
         import os
         from pathlib import Path

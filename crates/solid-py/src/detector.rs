@@ -274,10 +274,37 @@ pub struct PyDetection {
     pub eligible: u32,
     candidates: Vec<PyCandidate>,
     accepted: Option<PyLoop>,
+    pose: Option<[f64; 12]>,
+    pose_source: Option<db::PoseSource>,
 }
 
 #[pymethods]
 impl PyDetection {
+    /// T_world_sensor (4, 4) the step's checks used for the query: the caller's, or without
+    /// one the detector's own odometry (None: neither).
+    #[getter]
+    fn pose<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray2<f64>>> {
+        self.pose.map(|p| {
+            let mut t = [[0.0, 0.0, 0.0, 1.0]; 4];
+            for (i, row) in t.iter_mut().take(3).enumerate() {
+                row.copy_from_slice(&p[4 * i..4 * i + 4]);
+            }
+            pose_array(py, &t)
+        })
+    }
+
+    /// Where `pose` came from: "given" (the caller's), "chained" (the scan registered with the
+    /// previous keyframe, chained), "started" (the own odometry starts a frame here: the first
+    /// scan, or the first after a link that failed); None without a pose.
+    #[getter]
+    fn pose_source(&self) -> Option<&'static str> {
+        self.pose_source.map(|s| match s {
+            db::PoseSource::Given => "given",
+            db::PoseSource::Chained => "chained",
+            db::PoseSource::Started => "started",
+        })
+    }
+
     /// Up to top_k candidates, best first.
     #[getter]
     fn candidates(&self) -> Vec<PyCandidate> {
@@ -310,6 +337,8 @@ impl From<db::Detection> for PyDetection {
             eligible: d.eligible,
             candidates: d.candidates.iter().map(PyCandidate::from).collect(),
             accepted: d.accepted.map(PyLoop::from),
+            pose: d.pose,
+            pose_source: d.pose_source,
         }
     }
 }

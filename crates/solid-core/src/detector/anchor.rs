@@ -53,7 +53,7 @@ impl LoopDetector {
         if since.is_nan() || since > v.loop_reset_m {
             return None;
         }
-        let c0 = self.pose(a.candidate)?;
+        let c0 = self.known_pose(a.candidate)?;
         let t0 = self.travelled_at(a.candidate)?;
         let moved = relative(&a.query, &q);
         let p = mul(&mul(&rows_to_pose(&c0), &invert(&a.pose)), &moved);
@@ -77,7 +77,7 @@ impl LoopDetector {
     ) -> Option<(Pose, f64)> {
         let q = at.pose?;
         let tc = self.travelled_at(c);
-        let pc = self.pose(c)?;
+        let pc = self.known_pose(c)?;
         (c as usize).checked_sub(self.session_start)?;
         let global = tc.map_or(0.0, |t| libm::fabs(at.travelled - t));
         let global = if global.is_nan() { 0.0 } else { global };
@@ -123,7 +123,7 @@ impl LoopDetector {
         let (Some(q), Some(r)) = (at.pose, c.verification.filter(|r| r.accepted)) else {
             return;
         };
-        if self.travelled_at(c.id).is_some() && self.pose(c.id).is_some() {
+        if self.travelled_at(c.id).is_some() && self.known_pose(c.id).is_some() {
             self.anchor = Some(Anchor {
                 query: q,
                 travelled: at.travelled,
@@ -152,13 +152,15 @@ impl LoopDetector {
             let Some(r) = c.verification.filter(|r| r.accepted) else {
                 continue;
             };
-            let Some(pc) = self.pose(c.id) else { continue };
+            let Some(pc) = self.known_pose(c.id) else {
+                continue;
+            };
             let t = r.registration.pose;
             let alike = (self.session_start..at.eligible).any(|k| {
                 let id = k as u32;
                 id != c.id
                     && self
-                        .pose(id)
+                        .known_pose(id)
                         .is_some_and(|p2| distance(&p2, &pc) > v.lookalike_m)
                     && self
                         .expected(at, id, true)

@@ -143,7 +143,7 @@ impl LoopDetector {
             if !registered(c) || !self.in_map(c.id) {
                 continue;
             }
-            let (Some(r), Some(place)) = (c.verification, self.pose(c.id)) else {
+            let (Some(r), Some(place)) = (c.verification, self.known_pose(c.id)) else {
                 continue;
             };
             mine.push((
@@ -214,9 +214,11 @@ impl LoopDetector {
             if !registered(c) || self.in_map(c.id) {
                 continue;
             }
-            let (Some(r), Some(place), Some(t)) =
-                (c.verification, self.pose(c.id), self.travelled_at(c.id))
-            else {
+            let (Some(r), Some(place), Some(t)) = (
+                c.verification,
+                self.known_pose(c.id),
+                self.travelled_at(c.id),
+            ) else {
                 continue;
             };
             mine.push((

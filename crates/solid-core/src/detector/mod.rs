@@ -22,10 +22,12 @@ mod config;
 pub use config::*;
 
 mod anchor;
+mod chain;
 mod consistency;
 mod nearby;
 mod verify;
 
+pub use chain::PoseSource;
 pub use consistency::MapAnchor;
 pub use verify::{UNVERIFIED_SCORE, VERIFIED_THRESHOLD};
 
@@ -100,6 +102,12 @@ pub struct Detection {
     pub candidates: Vec<Candidate>,
     /// The loop, when the best candidate's score is at most the threshold.
     pub accepted: Option<Loop>,
+    /// The pose `T_world_sensor` (row-major 3×4) the step's checks used for the query: the
+    /// caller's, or without one the detector's own odometry ([`PoseSource`], spec §8); None when
+    /// the step had neither (verification off, or no cloud).
+    pub pose: Option<[f64; 12]>,
+    /// Where `pose` came from.
+    pub pose_source: Option<PoseSource>,
 }
 
 /// An online loop-closure detector (see the module documentation).
@@ -136,6 +144,11 @@ pub struct LoopDetector {
     anchor: Option<anchor::Anchor>,
     /// The session's placement in its map (loops into the map's places).
     placement: consistency::Placement,
+    /// The own odometry: every own place's pose as the checks know it (the caller's or the
+    /// chain's) and the frame it is in.
+    known: Vec<Option<([f64; 12], u32)>>,
+    /// The chain's state: the current frame and how the last link moved.
+    chain: chain::Chain,
 }
 
 /// One scan ready for a detector step: its descriptor and, for verification, its prepared cloud
@@ -261,6 +274,8 @@ impl LoopDetector {
             recent: VecDeque::new(),
             anchor: None,
             placement: consistency::Placement::default(),
+            known: Vec::new(),
+            chain: chain::Chain::default(),
         })
     }
 
@@ -327,10 +342,29 @@ impl LoopDetector {
         }
     }
 
-    /// The pose stored with place `id`, if any.
+    /// The pose stored with place `id`, if any: a map place's, or the one the caller gave with
+    /// an own place (the pose the detector's own odometry gave a step is its
+    /// [`Detection::pose`]).
     pub fn pose(&self, id: u32) -> Option<[f64; 12]> {
         let (db, i) = self.part(id);
         db.pose(i)
+    }
+
+    /// The pose the checks use for place `id`: a map place's stored pose; an own place's pose
+    /// (the caller's or the own odometry's) while it is in the current frame of the session's
+    /// odometry (None for a place before a break of the chain: no odometry relates it to the
+    /// current query).
+    pub(super) fn known_pose(&self, id: u32) -> Option<[f64; 12]> {
+        match (id as usize).checked_sub(self.session_start) {
+            Some(k) => self
+                .known
+                .get(k)
+                .copied()
+                .flatten()
+                .filter(|&(_, frame)| frame == self.chain.frame)
+                .map(|(p, _)| p),
+            None => self.map.pose(id),
+        }
     }
 
     /// The session of place `id` and its timestamp (NaN: none).
@@ -682,8 +716,6 @@ impl LoopDetector {
         cloud: Option<PreparedCloud>,
         s: Step,
     ) -> Result<Detection, DbError> {
-        let eligible = self.eligible(&s)?;
-        let mut candidates = self.rank(&d.r, &d.a, eligible, self.config.top_k)?;
         let v = self.config.verify;
         let (mut cloud, stored) = match cloud {
             Some(c) if v.enabled => {
@@ -693,6 +725,12 @@ impl LoopDetector {
             }
             _ => (None, None),
         };
+        // Without the caller's pose, the detector's own odometry (chain.rs).
+        let given = s.pose;
+        let mut s = s;
+        let source = self.odometry_of(&d.a, &mut s, &mut cloud)?;
+        let eligible = self.eligible(&s)?;
+        let mut candidates = self.rank(&d.r, &d.a, eligible, self.config.top_k)?;
         if v.enabled {
             let at = verify::QueryPlace {
                 id: self.len() as u32,
@@ -716,10 +754,11 @@ impl LoopDetector {
         self.latest_time
             .try_reserve(1)
             .map_err(|_| DbError::OutOfMemory)?;
-        let id =
-            self.own
-                .add_with_cloud(d, self.session, s.timestamp, s.pose, stored.as_deref())?
-                + self.session_start as u32;
+        let id = self
+            .own
+            .add_with_cloud(d, self.session, s.timestamp, given, stored.as_deref())?
+            + self.session_start as u32;
+        self.known.push(s.pose.map(|p| (p, self.chain.frame)));
         self.travelled.push(s.trail.travelled);
         self.latest_time.push(s.trail.clock);
         self.trail = s.trail;
@@ -731,6 +770,8 @@ impl LoopDetector {
             eligible: eligible as u32,
             accepted: self.accept(&candidates, id),
             candidates,
+            pose: s.pose,
+            pose_source: source,
         })
     }
 

@@ -206,7 +206,7 @@ impl LoopDetector {
                 let start = cands[jobs[j].0]
                     .verification
                     .filter(|r| met_quality(r) && agrees(a, &r.registration.pose))
-                    .map(|r| match self.pose(a).zip(self.pose(b)) {
+                    .map(|r| match self.known_pose(a).zip(self.known_pose(b)) {
                         Some((pa, pb)) => mul(&r.registration.pose, &relative(&pa, &pb)),
                         None => r.registration.pose,
                     });
@@ -220,8 +220,9 @@ impl LoopDetector {
         Ok(())
     }
 
-    /// Which of `cands` cannot give an accepted loop, so are not registered: with the odometry
-    /// check, the own places the poses put beyond reach of the query `at`
+    /// Which of `cands` cannot give an accepted loop, so are not registered: own places in
+    /// another frame of the own odometry than the query's ([`LoopDetector::other_frame`]), and
+    /// with the odometry check, the own places the poses put beyond reach of the query `at`
     /// ([`LoopDetector::reach`], with the rotation's allowance the check gives them).
     fn beyond_reach(
         &self,
@@ -234,11 +235,10 @@ impl LoopDetector {
             .map_err(|_| DbError::OutOfMemory)?;
         let at = at.filter(|_| self.config.verify.odometry_check);
         let anchored = at.and_then(|at| self.anchored(at));
-        beyond.extend(
-            cands
-                .iter()
-                .map(|c| at.is_some_and(|at| self.reach(at, anchored, c.id, 1.0) == Reach::Beyond)),
-        );
+        beyond.extend(cands.iter().map(|c| {
+            self.other_frame(c.id)
+                || at.is_some_and(|at| self.reach(at, anchored, c.id, 1.0) == Reach::Beyond)
+        }));
         Ok(beyond)
     }
 
@@ -323,7 +323,7 @@ impl LoopDetector {
         for (c, &vouched) in cands.iter_mut().zip(&vouched).filter(|(c, _)| passed(c)) {
             // The placement's consistent set is a map loop's support; the neighbours' that of a
             // loop they vouched for.
-            if vouched || (placed && self.in_map(c.id) && self.pose(c.id).is_some()) {
+            if vouched || (placed && self.in_map(c.id) && self.known_pose(c.id).is_some()) {
                 continue;
             }
             if self.support(at, c) < v.min_support {
@@ -422,7 +422,7 @@ impl LoopDetector {
             .iter()
             .filter(|(q2, list)| {
                 list.iter().any(|&(c2, t2)| {
-                    let poses = at.pose.zip(self.pose(*q2));
+                    let poses = at.pose.zip(self.known_pose(*q2));
                     poses
                         .and_then(|(q, pq2)| {
                             self.agree_through_poses(
@@ -444,7 +444,7 @@ impl LoopDetector {
         (q, c, t): (&[f64; 12], u32, &Pose),
         (q2, c2, t2): (&[f64; 12], u32, &Pose),
     ) -> Option<bool> {
-        let (pc2, pc) = (self.pose(c2)?, self.pose(c)?);
+        let (pc2, pc) = (self.known_pose(c2)?, self.known_pose(c)?);
         let expected = mul(&mul(&relative(q, q2), t2), &relative(&pc2, &pc));
         let path = distance(q, q2) + distance(&pc2, &pc);
         Some(self.within_drift(&expected, t, path, 1.0))
@@ -455,7 +455,10 @@ impl LoopDetector {
     ///
     /// # Errors
     /// As [`LoopDetector::try_cloud`]: the stored cloud is corrupt or cannot be read.
-    fn prepared_cloud(&mut self, id: u32) -> Result<Option<Arc<PreparedCloud>>, DbError> {
+    pub(super) fn prepared_cloud(
+        &mut self,
+        id: u32,
+    ) -> Result<Option<Arc<PreparedCloud>>, DbError> {
         self.clock += 1;
         if let Some((stamp, c)) = self.prepared.get_mut(&id) {
             *stamp = self.clock;
@@ -621,7 +624,7 @@ pub const CLUSTER_IDS: u32 = 2;
 
 /// Registers one candidate once from `start` and checks the gate (without the hypotheses'
 /// agreement) and the view; None when the clouds cannot be registered.
-fn seeded(
+pub(super) fn seeded(
     v: &VerifyConfig,
     query: &PreparedCloud,
     candidate: &PreparedCloud,
@@ -641,7 +644,7 @@ fn seeded(
 }
 
 /// Whether a verification met the gate's quality checks, whatever its length (see [`registered`]).
-fn met_quality(r: &Verification) -> bool {
+pub(super) fn met_quality(r: &Verification) -> bool {
     r.accepted || r.rejection == Some(Rejection::TooFar)
 }
 
@@ -652,6 +655,18 @@ fn verify_pair(
     query: &PreparedCloud,
     candidate: &PreparedCloud,
 ) -> Result<Option<Verification>, DbError> {
+    verify_pair_from(v, (a_query, a_candidate), query, candidate, &reg::IDENTITY)
+}
+
+/// [`verify_pair`] with each yaw hypothesis applied to `base` (`yaw_pose(yaw) · base`) instead of
+/// the identity.
+pub(super) fn verify_pair_from(
+    v: &VerifyConfig,
+    (a_query, a_candidate): (&[f32], &[f32]),
+    query: &PreparedCloud,
+    candidate: &PreparedCloud,
+    base: &Pose,
+) -> Result<Option<Verification>, DbError> {
     let mut yaws = [0.0f64; 16];
     let m = yaw_hypotheses(a_query, a_candidate, v.hypotheses, v.fan_deg, &mut yaws)?;
     let mut hyps = [Hypothesis::default(); 16];
@@ -659,7 +674,7 @@ fn verify_pair(
         query,
         candidate,
         &yaws[..m],
-        &reg::IDENTITY,
+        base,
         &v.registration,
         &mut hyps[..m],
     ) else {

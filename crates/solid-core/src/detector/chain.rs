@@ -1,0 +1,172 @@
+//! The detector's own odometry, for steps without the caller's pose (spec §8,
+//! docs/loops.md#without-poses).
+//!
+//! A step without a pose registers its scan with the previous keyframe of its session, once from
+//! the previous relative motion (constant velocity), and when there is none or that start fails
+//! the gate's quality checks, from the yaw hypotheses a candidate without a start gets (the
+//! detector's `verify_pair`: 0°, the A-SOLiD minima, ±`fan_deg`). It chains the result onto the previous
+//! keyframe's pose: `T_w_query = T_w_prev · inv(T_query_prev)`. Every check that uses the
+//! odometry then uses that pose as it would the caller's (the odometry start of a registration,
+//! the reach, the odometry bound, the neighbours' vouching, the look-alikes, the placement into a
+//! map).
+//!
+//! A link whose registration fails the gate's quality checks (no overlap after a fast turn or a
+//! gap, a degenerate corridor, a cloud too small) is not bridged: the chain starts again there,
+//! in a new frame whose origin is that scan ([`PoseSource::Started`], the identity). Places of an
+//! earlier frame keep no odometry relation to the current query ([`LoopDetector::known_pose`] is
+//! None for them): they are matched as places without poses are, and the odometry's state that
+//! spans frames (the anchor of the latest loop, the placement into a map and its hypotheses)
+//! starts again too. A caller's pose after steps of the chain's own frame also starts a frame
+//! (the caller's).
+
+use alloc::sync::Arc;
+
+use super::verify::{met_quality, relative, seeded, verify_pair_from};
+use super::{LoopDetector, Step, Trail};
+use crate::db::DbError;
+use crate::reg::{self, invert, mul, pose_to_rows, rows_to_pose, PreparedCloud};
+
+/// Where a step's pose ([`super::Detection::pose`]) came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PoseSource {
+    /// The caller gave it.
+    Given,
+    /// The detector's own odometry: the scan registered with the previous keyframe of its
+    /// session, chained onto that keyframe's pose.
+    Chained,
+    /// The detector's own odometry starts a frame here (the identity): the session's first scan
+    /// without a pose, or the first after a link that failed the registration's quality checks.
+    /// No odometry relates this frame to the places before it.
+    Started,
+}
+
+/// The state of the own odometry.
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct Chain {
+    /// The current frame: own places whose pose is in another frame have no odometry relation
+    /// to the current query.
+    pub frame: u32,
+    /// The current frame is the caller's (its poses were given).
+    given: bool,
+}
+
+/// The identity pose, row-major 3×4.
+const ORIGIN: [f64; 12] = [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0];
+
+impl LoopDetector {
+    /// The step's pose: the caller's (`s.pose`), or, with verification and a cloud, the own
+    /// odometry's (`s` then gets it, with its trail). Completes the query's cloud when it links.
+    /// Returns where the pose came from (None: the step has none).
+    pub(super) fn odometry_of(
+        &mut self,
+        a_query: &[f32],
+        s: &mut Step,
+        cloud: &mut Option<Arc<PreparedCloud>>,
+    ) -> Result<Option<super::PoseSource>, DbError> {
+        if s.pose.is_some() {
+            if !self.chain.given {
+                if self.known.iter().any(Option::is_some) {
+                    self.new_frame();
+                }
+                self.chain.given = true;
+            }
+            return Ok(Some(PoseSource::Given));
+        }
+        if !self.config.verify.enabled || cloud.is_none() {
+            return Ok(None);
+        }
+        let (pose, source) = match self.link(a_query, cloud)? {
+            Some(pose) => {
+                s.trail = self.trail.after(s.timestamp, Some(&pose));
+                (pose, PoseSource::Chained)
+            }
+            None => {
+                if !self.known.is_empty() {
+                    self.new_frame();
+                }
+                self.chain.given = false;
+                let travelled = if self.trail.travelled.is_nan() {
+                    0.0
+                } else {
+                    self.trail.travelled
+                };
+                s.trail = Trail {
+                    position: Some([0.0; 3]),
+                    travelled,
+                    clock: s.trail.clock,
+                };
+                (ORIGIN, PoseSource::Started)
+            }
+        };
+        s.pose = Some(pose);
+        Ok(Some(source))
+    }
+
+    /// Whether own place `id` has a pose in an earlier frame of the own odometry than the
+    /// current one: no odometry relates it to the current query, so no loop into it is
+    /// accepted (it is not registered).
+    pub(super) fn other_frame(&self, id: u32) -> bool {
+        (id as usize)
+            .checked_sub(self.session_start)
+            .and_then(|k| self.known.get(k).copied().flatten())
+            .is_some_and(|(_, frame)| frame != self.chain.frame)
+    }
+
+    /// Starts a new frame of the own odometry: what relates places through the old one goes.
+    fn new_frame(&mut self) {
+        self.chain.frame += 1;
+        self.anchor = None;
+        self.placement = Default::default();
+    }
+
+    /// The query's pose chained onto the previous keyframe's (None: there is no previous
+    /// keyframe with a pose in the current frame and a cloud, or no start gave a registration
+    /// that met the gate's quality checks).
+    fn link(
+        &mut self,
+        a_query: &[f32],
+        cloud: &mut Option<Arc<PreparedCloud>>,
+    ) -> Result<Option<[f64; 12]>, DbError> {
+        let Some(k) = self.own.len().checked_sub(1) else {
+            return Ok(None);
+        };
+        let id = (self.session_start + k) as u32;
+        let Some(prev) = self.known_pose(id) else {
+            return Ok(None);
+        };
+        let Some(cp) = self.prepared_cloud(id)? else {
+            return Ok(None);
+        };
+        let Some(q) = cloud.as_mut() else {
+            return Ok(None);
+        };
+        if !q.is_complete() {
+            let mut c = PreparedCloud::clone(q);
+            c.complete()?;
+            *q = Arc::new(c);
+        }
+        // Constant velocity: the previous relative motion `T_prev_prevprev`, as a start for
+        // `T_query_prev`.
+        let motion = k
+            .checked_sub(1)
+            .and_then(|j| self.known_pose((self.session_start + j) as u32))
+            .map(|before| relative(&prev, &before));
+        let v = self.config.verify;
+        let seeded_link = match &motion {
+            Some(m) => seeded(&v, q, &cp, m)?.filter(met_quality),
+            None => None,
+        };
+        // The hypotheses turn about the previous motion (a turn at constant speed).
+        let base = motion.unwrap_or(reg::IDENTITY);
+        let found = match seeded_link {
+            Some(r) => Some(r),
+            None => {
+                verify_pair_from(&v, (a_query, &self.a(id)), q, &cp, &base)?.filter(met_quality)
+            }
+        };
+        Ok(found.map(|r| {
+            let pose = mul(&rows_to_pose(&prev), &invert(&r.registration.pose));
+            pose_to_rows(&pose)
+        }))
+    }
+}
