@@ -24,7 +24,7 @@ use alloc::sync::Arc;
 use super::verify::{met_quality, relative, seeded, verify_pair_from};
 use super::{LoopDetector, Step, Trail};
 use crate::db::DbError;
-use crate::reg::{self, invert, mul, pose_to_rows, rows_to_pose, PreparedCloud};
+use crate::reg::{self, invert, mul, pose_to_rows, rows_to_pose, PreparedCloud, Rejection};
 
 /// Where a step's pose ([`super::Detection::pose`]) came from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -48,6 +48,20 @@ pub(super) struct Chain {
     pub frame: u32,
     /// The current frame is the caller's (its poses were given).
     given: bool,
+    /// The current step could not be linked: it has no pose, and no own place with one is
+    /// related to it.
+    unlinked: bool,
+}
+
+/// Whether a registration met the gate's quality checks but for the information along some
+/// direction (a corridor, a wall): from the previous motion, that direction keeps the motion.
+fn weak_only(r: &super::Verification) -> bool {
+    matches!(
+        r.rejection,
+        Some(Rejection::DegenerateTranslation)
+            | Some(Rejection::DegenerateRotation)
+            | Some(Rejection::WeakMarginalTranslation)
+    )
 }
 
 /// The identity pose, row-major 3×4.
@@ -63,6 +77,7 @@ impl LoopDetector {
         s: &mut Step,
         cloud: &mut Option<Arc<PreparedCloud>>,
     ) -> Result<Option<super::PoseSource>, DbError> {
+        self.chain.unlinked = false;
         if s.pose.is_some() {
             if !self.chain.given {
                 if self.known.iter().any(Option::is_some) {
@@ -79,6 +94,12 @@ impl LoopDetector {
             Some(pose) => {
                 s.trail = self.trail.after(s.timestamp, Some(&pose));
                 (pose, PoseSource::Chained)
+            }
+            // One scan the chain cannot link is skipped: it stays without a pose (and matches no
+            // place of the chain: nothing checks its loops), the next links over it.
+            None if self.known.last().is_some_and(Option::is_some) => {
+                self.chain.unlinked = true;
+                return Ok(None);
             }
             None => {
                 if !self.known.is_empty() {
@@ -109,7 +130,7 @@ impl LoopDetector {
         (id as usize)
             .checked_sub(self.session_start)
             .and_then(|k| self.known.get(k).copied().flatten())
-            .is_some_and(|(_, frame)| frame != self.chain.frame)
+            .is_some_and(|(_, frame)| self.chain.unlinked || frame != self.chain.frame)
     }
 
     /// Starts a new frame of the own odometry: what relates places through the old one goes.
@@ -127,13 +148,20 @@ impl LoopDetector {
         a_query: &[f32],
         cloud: &mut Option<Arc<PreparedCloud>>,
     ) -> Result<Option<[f64; 12]>, DbError> {
-        let Some(k) = self.own.len().checked_sub(1) else {
+        let Some(last) = self.own.len().checked_sub(1) else {
             return Ok(None);
         };
-        let id = (self.session_start + k) as u32;
-        let Some(prev) = self.known_pose(id) else {
+        let start = self.session_start;
+        let at = |k: usize| (start + k) as u32;
+        // The previous keyframe, or over one the chain could not link, the one before it.
+        let Some(k) = (last.saturating_sub(1)..=last)
+            .rev()
+            .find(|&k| self.known_pose(at(k)).is_some())
+        else {
             return Ok(None);
         };
+        let id = at(k);
+        let prev = self.known_pose(id).unwrap_or(ORIGIN);
         let Some(cp) = self.prepared_cloud(id)? else {
             return Ok(None);
         };
@@ -149,11 +177,12 @@ impl LoopDetector {
         // `T_query_prev`.
         let motion = k
             .checked_sub(1)
-            .and_then(|j| self.known_pose((self.session_start + j) as u32))
-            .map(|before| relative(&prev, &before));
+            .and_then(|j| self.known_pose(at(j)))
+            .map(|before| relative(&prev, &before))
+            .map(|m| if k < last { mul(&m, &m) } else { m });
         let v = self.config.verify;
         let seeded_link = match &motion {
-            Some(m) => seeded(&v, q, &cp, m)?.filter(met_quality),
+            Some(m) => seeded(&v, q, &cp, m)?.filter(|r| met_quality(r) || weak_only(r)),
             None => None,
         };
         // The hypotheses turn about the previous motion (a turn at constant speed).
