@@ -64,6 +64,9 @@ fn weak_only(r: &super::Verification) -> bool {
     )
 }
 
+/// The frame of a scan the chain could not link: none.
+const UNLINKED: u32 = u32::MAX;
+
 /// The identity pose, row-major 3×4.
 const ORIGIN: [f64; 12] = [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0];
 
@@ -90,35 +93,39 @@ impl LoopDetector {
         if !self.config.verify.enabled || cloud.is_none() {
             return Ok(None);
         }
-        let (pose, source) = match self.link(a_query, cloud)? {
-            Some(pose) => {
-                s.trail = self.trail.after(s.timestamp, Some(&pose));
-                (pose, PoseSource::Chained)
-            }
-            // One scan the chain cannot link is skipped: it stays without a pose (and matches no
-            // place of the chain: nothing checks its loops), the next links over it.
-            None if self.known.last().is_some_and(Option::is_some) => {
-                self.chain.unlinked = true;
-                return Ok(None);
-            }
-            None => {
-                if !self.known.is_empty() {
-                    self.new_frame();
+        let (pose, source) =
+            match self.link(a_query, cloud)? {
+                Some(pose) => {
+                    s.trail = self.trail.after(s.timestamp, Some(&pose));
+                    (pose, PoseSource::Chained)
                 }
-                self.chain.given = false;
-                let travelled = if self.trail.travelled.is_nan() {
-                    0.0
-                } else {
-                    self.trail.travelled
-                };
-                s.trail = Trail {
-                    position: Some([0.0; 3]),
-                    travelled,
-                    clock: s.trail.clock,
-                };
-                (ORIGIN, PoseSource::Started)
-            }
-        };
+                // One scan the chain cannot link is skipped: it stays without a pose (and matches no
+                // place of the chain: nothing checks its loops), the next links over it.
+                None if self.own.len().checked_sub(1).is_some_and(|k| {
+                    self.known_pose((self.session_start + k) as u32).is_some()
+                }) =>
+                {
+                    self.chain.unlinked = true;
+                    return Ok(None);
+                }
+                None => {
+                    if !self.known.is_empty() {
+                        self.new_frame();
+                    }
+                    self.chain.given = false;
+                    let travelled = if self.trail.travelled.is_nan() {
+                        0.0
+                    } else {
+                        self.trail.travelled
+                    };
+                    s.trail = Trail {
+                        position: Some([0.0; 3]),
+                        travelled,
+                        clock: s.trail.clock,
+                    };
+                    (ORIGIN, PoseSource::Started)
+                }
+            };
         s.pose = Some(pose);
         Ok(Some(source))
     }
@@ -131,6 +138,17 @@ impl LoopDetector {
             .checked_sub(self.session_start)
             .and_then(|k| self.known.get(k).copied().flatten())
             .is_some_and(|(_, frame)| self.chain.unlinked || frame != self.chain.frame)
+    }
+
+    /// What [`LoopDetector::known`] holds for the step just added with `pose`: the pose in the
+    /// current frame; for a scan the chain could not link, no frame (it is related to no place,
+    /// and no later query to it).
+    pub(super) fn known_entry(&self, pose: Option<[f64; 12]>) -> Option<([f64; 12], u32)> {
+        match pose {
+            Some(p) => Some((p, self.chain.frame)),
+            None if self.chain.unlinked => Some((ORIGIN, UNLINKED)),
+            None => None,
+        }
     }
 
     /// Starts a new frame of the own odometry: what relates places through the old one goes.

@@ -758,7 +758,7 @@ impl LoopDetector {
             .own
             .add_with_cloud(d, self.session, s.timestamp, given, stored.as_deref())?
             + self.session_start as u32;
-        self.known.push(s.pose.map(|p| (p, self.chain.frame)));
+        self.known.push(self.known_entry(s.pose));
         self.travelled.push(s.trail.travelled);
         self.latest_time.push(s.trail.clock);
         self.trail = s.trail;
