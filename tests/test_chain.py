@@ -102,4 +102,4 @@ def test_given_poses_are_used_as_given(loop_world: tuple[sim.Sequence, F64]) -> 
     det = _detector("vlp16", exclude=3)
     for i in range(4):
         s = det.detect(seq.scans[i], timestamp=float(i), pose=truth[i][:3, :])
-        assert s.pose_source == "given" and np.allclose(s.pose, truth[i])
+        assert s.pose_source == "given" and np.allclose(np.asarray(s.pose), truth[i])

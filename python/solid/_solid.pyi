@@ -1685,6 +1685,17 @@ class Detection:
     @property
     def loop(self) -> Loop | None:
         """The loop, when the best candidate's score is at most the threshold; else None."""
+    @property
+    def pose(self) -> npt.NDArray[np.float64] | None:
+        """T_world_sensor (4, 4) the step's checks used for the query: the caller's, or without one
+        the detector's own odometry (the scan registered with the previous keyframe, chained;
+        docs/loops.md#without-poses); None when the step had neither (verification off)."""
+    @property
+    def pose_source(self) -> str | None:
+        """Where `pose` came from: "given" (the caller's), "chained" (the own odometry), "started"
+        (the own odometry starts a frame here, the identity: the first scan without a pose, or the
+        first after a link that failed the registration's quality checks; no odometry relates it
+        to the places before); None without a pose."""
 
 
 @final
