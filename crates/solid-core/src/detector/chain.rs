@@ -24,7 +24,8 @@ use alloc::sync::Arc;
 use super::verify::{met_quality, relative, seeded, verify_pair_from};
 use super::{LoopDetector, Step, Trail};
 use crate::db::DbError;
-use crate::reg::{self, invert, mul, pose_to_rows, rows_to_pose, PreparedCloud, Rejection};
+use crate::detector::VerifyConfig;
+use crate::reg::{self, invert, mul, pose_to_rows, rows_to_pose, Pose, PreparedCloud, Rejection};
 
 /// Where a step's pose ([`super::Detection::pose`]) came from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -53,15 +54,20 @@ pub(super) struct Chain {
     unlinked: bool,
 }
 
-/// Whether a registration met the gate's quality checks but for the information along some
-/// direction (a corridor, a wall): from the previous motion, that direction keeps the motion.
-fn weak_only(r: &super::Verification) -> bool {
-    matches!(
-        r.rejection,
-        Some(Rejection::DegenerateTranslation)
-            | Some(Rejection::DegenerateRotation)
-            | Some(Rejection::WeakMarginalTranslation)
-    )
+/// Whether a link registered from the previous motion `start` that met the gate's quality
+/// checks but for the information along some direction (a corridor, a wall) is kept: that
+/// direction keeps the motion, so the result must stay within the odometry check's bounds at no
+/// path (`odometry_translation_m`; `odometry_rotation_deg` when the rotation is the weak part) of
+/// the start, else it slid (a corridor's corner turned by the motion's start).
+fn held(v: &VerifyConfig, start: &Pose, r: &super::Verification) -> bool {
+    let weak_rotation = match r.rejection {
+        Some(Rejection::DegenerateTranslation | Rejection::WeakMarginalTranslation) => false,
+        Some(Rejection::DegenerateRotation) => true,
+        _ => return false,
+    };
+    reg::pose_distance(start, &r.registration.pose).is_some_and(|(m, deg)| {
+        m <= v.odometry_translation_m && (!weak_rotation || deg <= v.odometry_rotation_deg)
+    })
 }
 
 /// The frame of a scan the chain could not link: none.
@@ -200,7 +206,7 @@ impl LoopDetector {
             .map(|m| if k < last { mul(&m, &m) } else { m });
         let v = self.config.verify;
         let seeded_link = match &motion {
-            Some(m) => seeded(&v, q, &cp, m)?.filter(|r| met_quality(r) || weak_only(r)),
+            Some(m) => seeded(&v, q, &cp, m)?.filter(|r| met_quality(r) || held(&v, m, r)),
             None => None,
         };
         // The hypotheses turn about the previous motion (a turn at constant speed).
