@@ -1248,6 +1248,7 @@ pub(super) mod tests {
             .add_with_cloud(&d, det.session, f64::NAN, q.pose, None)
             .unwrap();
         det.travelled.push(12.0);
+        det.known.push(q.pose.map(|p| (p, 0)));
         // Step 13: place 3 agrees with step 12's loop through the poses; a loop to place 3
         // with a pose 2 m off does not.
         let q = at(&det, 13.0);
