@@ -221,6 +221,34 @@ def _summary(result: PipelineResult, inputs: Inputs, command: str) -> dict[str, 
     return doc
 
 
+ODOMETRY_COLUMNS = ("frame", "source", "chain_frame", "pose")
+
+
+def write_own_odometry(path: Path, result: PipelineResult) -> dict[str, Any] | None:
+    """The detector's own odometry of a run without poses (``Detection.pose`` where
+    ``pose_source`` is "chained" or "started", docs/loops.md#without-poses) as CSV: the frame, the
+    source, the chain's frame (a new one after each break: poses of different chain frames are
+    not related) and the pose ``T_world_sensor`` as the 12 numbers of a KITTI row. Returns the
+    summary's ``own_odometry`` (poses, chain frames, scans without a pose), or None (and writes
+    nothing) when the run had given poses or no verification."""
+    rows, frames, unlinked = [], -1, 0
+    for d in result.detections:
+        src = d.pose_source
+        if src == "given":
+            return None
+        if src == "started":
+            frames += 1
+        if d.pose is None:
+            unlinked += frames >= 0
+            continue
+        p = np.asarray(d.pose)[:3, :].reshape(-1)
+        rows.append({"frame": result.frame_of(d.query), "source": src, "chain_frame": frames, "pose": " ".join(f"{v:.9g}" for v in p)})
+    if not rows:
+        return None
+    write_csv(path, ODOMETRY_COLUMNS, rows)
+    return {"poses": len(rows), "chain_frames": frames + 1, "without_pose": unlinked, "file": path.name}
+
+
 def anchor_dict(result: Any) -> dict[str, Any] | None:
     """The session's placement in the map for ``summary.json`` (None: not placed): ``transform``
     (T_map_world, 4×4 rows), the supporting ``loops`` and the ``metres`` they span, the recording
@@ -312,7 +340,11 @@ def detect(
     result = _run(dataset, config, map_db, threads, progress)
     with output_folder(output, "detect", inputs.sequence.name) as out:
         _write_common(out, result)
-        write_json(out.work / "summary.json", _summary(result, inputs, "detect"))
+        doc = _summary(result, inputs, "detect")
+        own = write_own_odometry(out.work / "odometry.csv", result)
+        if own is not None:
+            doc["own_odometry"] = own
+        write_json(out.work / "summary.json", doc)
         if g2o is not None:
             write_g2o(out.work / "loops.g2o", result, calib=_extrinsic(inputs))
     if g2o is not None:
