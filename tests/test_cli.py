@@ -244,8 +244,10 @@ def test_eval_accepted_rows_are_exactly_detects_loops(capsys: pytest.CaptureFixt
     m = json.loads((tmp_path / "e" / "metrics.json").read_text())
     assert m["accepted"] == len(loops) and m["pose_error_m_median"] < 0.1
     # Without poses, the g2o file has one EDGE_SE3:QUAT per verified loop, between frame
-    # numbers (issue 27), with the same pose.
-    code, _, err = run(capsys, "detect", seq, *common, "--max-loop-distance", "3", "-o", str(tmp_path / "n"), "--g2o", str(tmp_path / "loops.g2o"))
+    # numbers (issue 27), with the same pose. (One stretch of the walk: without poses the
+    # detector's own odometry relates no place across a gap in the frames.)
+    alone = [*common[:2], "--frames", "100:190", *common[4:]]
+    code, _, err = run(capsys, "detect", seq, *alone, "--max-loop-distance", "3", "-o", str(tmp_path / "n"), "--g2o", str(tmp_path / "loops.g2o"))
     assert code == 0, err
     loops = read_csv(tmp_path / "n" / "loops.csv")
     assert loops
@@ -256,10 +258,10 @@ def test_eval_accepted_rows_are_exactly_detects_loops(capsys: pytest.CaptureFixt
         assert f[0] == "EDGE_SE3:QUAT" and (f[1], f[2]) == (r["query_frame"], r["candidate_frame"]) and len(f) == 3 + 7 + 21
         assert [float(x) for x in f[3:10]] == pytest.approx([float(r[k]) for k in ("x", "y", "z", "qx", "qy", "qz", "qw")], abs=1e-6)
     # and the library's detector, run by hand on the same frames, made the same decisions
-    cfg = solid.config.PipelineConfig.preset("avia", radius=3.0, detector={"gate": {"max_translation": 3.0}, "pose_candidates": 0})
+    cfg = solid.config.PipelineConfig.preset("avia", radius=3.0, detector={"gate": {"max_translation": 3.0}, "pose_candidates": 0, "exclude_meters": 0.0})
     det = solid.LoopDetector(cfg.descriptor, detector=cfg.detector)
     ds = sio.Dataset(seq)
-    frames = list(range(0, 40)) + list(range(260, 314))
+    frames = list(range(100, 190))
     mine = [lp for i in frames if (lp := det.add(ds[i])) is not None]
     assert [(lp.query, lp.candidate, f"{lp.distance:.6f}", f"{lp.pose[0, 3]:.6f}") for lp in mine if lp.pose is not None] == [
         (int(r["query"]), int(r["candidate"]), r["distance"], r["x"]) for r in loops
