@@ -227,7 +227,7 @@ impl LoopDetector {
                     travelled: at.travelled,
                     place,
                     place_travelled: t,
-                    odometry: self.agrees_with_odometry(at, c, true),
+                    odometry: !self.across_break(at, c) && self.agrees_with_odometry(at, c, true),
                     pose: r.registration.pose,
                 },
             ));
@@ -256,16 +256,10 @@ impl LoopDetector {
     /// stretches still hold, and a look-alike has to be the only reading of a stretch where the
     /// odometry did not hold to pass.
     pub(super) fn vouched(&self, h: &Hypothesis) -> bool {
-        let v = &self.config.verify;
-        if v.min_support == 0 || v.support_window == 0 {
-            return false;
-        }
-        let w: Vec<Hypothesis> = self.placement.own.iter().copied().collect();
-        let Some(me) = w.iter().rposition(|x| same(x, h)) else {
+        let Some((w, set, _)) = self.own_sets(h) else {
             return false;
         };
-        let (set, _) = self.consistent_sets_in(&w, me);
-        if distinct(&set) <= v.min_support {
+        if distinct(&set) <= self.config.verify.min_support {
             return false;
         }
         // The rivals: other readings of the same queries (look-alikes along the stretch), and
@@ -282,6 +276,50 @@ impl LoopDetector {
         };
         let (_, rival) = self.consistent_sets_in(&w, me);
         distinct(&set) > RIVAL_RATIO * rival
+    }
+
+    /// Whether a loop within the session across a break of the odometry (no path between its
+    /// query and its place that the odometry holds, [`breaks`](super::breaks)) is placed by the
+    /// loops across the same break, as a session is in a map: a set of mutually consistent
+    /// loops holding it spans `placement_loops` distinct queries (at least `min_support + 1`)
+    /// over `placement_m` metres among the last `support_window` steps, and more than twice the
+    /// queries of any consistent set that disagrees with it. The odometry says nothing across
+    /// a break, so a stretch of look-alikes is told from the true places by the loops alone.
+    pub(super) fn placed_across(&self, h: &Hypothesis) -> bool {
+        let v = &self.config.verify;
+        let Some((_, set, rival)) = self.own_sets(h) else {
+            return false;
+        };
+        let n = distinct(&set);
+        n > v.min_support
+            && n >= v.placement_loops
+            && span(&set) >= v.placement_m
+            && n > RIVAL_RATIO * rival
+    }
+
+    /// The recent loops within the session comparable with `h` through the odometry (their
+    /// queries and their places on the same sides of every break as `h`'s), the largest
+    /// consistent set among them holding `h` and its rivals' most distinct queries
+    /// ([`LoopDetector::consistent_sets_in`]); None when the support check is off or `h` is not
+    /// among the recent loops.
+    fn own_sets(&self, h: &Hypothesis) -> Option<(Vec<Hypothesis>, Vec<Hypothesis>, usize)> {
+        let v = &self.config.verify;
+        if v.min_support == 0 || v.support_window == 0 {
+            return None;
+        }
+        let w: Vec<Hypothesis> = self
+            .placement
+            .own
+            .iter()
+            .filter(|x| {
+                !self.crosses_break(x.travelled, h.travelled)
+                    && !self.crosses_break(x.place_travelled, h.place_travelled)
+            })
+            .copied()
+            .collect();
+        let me = w.iter().rposition(|x| same(x, h))?;
+        let (set, rival) = self.consistent_sets_in(&w, me);
+        Some((w, set, rival))
     }
 
     /// Whether `h` agrees with the placement's supporting loop nearest to it along the path
@@ -473,7 +511,9 @@ fn spread(mean: &Pose, xs: &[Pose]) -> Option<[[f64; 6]; 6]> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::verify::tests::{detector_with_path, pose, rejection, verified};
+    use super::super::verify::tests::{
+        detector_along, detector_with_path, pose, rejection, verified,
+    };
     use super::*;
     use crate::db::{Database, DetectorConfig};
     use crate::{Config, Descriptor, Stats};
@@ -589,11 +629,14 @@ mod tests {
     /// A session of 60 places 1 m apart along x (all alike to the descriptor: the look-alike
     /// check is off); a loop needs the support of one of the previous 20 steps.
     fn drifting_session() -> LoopDetector {
-        detector_with_path(60, |v| {
-            v.lookalike_m = 0.0;
-            v.min_support = 1;
-            v.support_window = 20;
-        })
+        detector_with_path(60, vouching)
+    }
+
+    /// The look-alike check off; a loop needs the support of one of the previous 20 steps.
+    fn vouching(v: &mut crate::detector::VerifyConfig) {
+        v.lookalike_m = 0.0;
+        v.min_support = 1;
+        v.support_window = 20;
     }
 
     /// Step `k` of a revisit of places 5.. after 200 m, its odometry `off` metres to the side of
@@ -701,5 +744,108 @@ mod tests {
             }
         }
         assert_eq!(kept, [1, 2, 3, 4, 5, 7, 8, 9, 10, 11, 12, 13]);
+    }
+
+    /// A session of 60 places along x, 1 m and `seconds` apart, all alike to the descriptor (the
+    /// look-alike check off; a loop needs the support of one of the previous 20 steps, and
+    /// loops across a break place it with 3 queries over 3 m): the odometry jumps 30 m to the
+    /// side in the step into place 40 (one second or, with `seconds` NaN, no time for it), or,
+    /// with `subsampled`, the frames skip 30 m in 30 seconds there.
+    fn session_with_a_jump(seconds: f64, subsampled: bool) -> LoopDetector {
+        let place = |i: u32| {
+            let i = f64::from(i);
+            let (x, y) = match (i < 40.0, subsampled) {
+                (true, _) => (i, 0.0),
+                (false, false) => (i, 30.0),
+                (false, true) => (i + 29.0, 0.0),
+            };
+            (pose(0.0, x, y), (if subsampled { x } else { i }) * seconds)
+        };
+        detector_along(60, place, |v| {
+            vouching(v);
+            v.placement_m = 3.0;
+        })
+    }
+
+    /// Step `k` of a revisit of places 5.. (before the jump), the odometry's pose carrying the
+    /// jump (30 m to the side); its true loop and, with `lookalike`, one 20 places on.
+    fn revisit_after_jump(
+        det: &LoopDetector,
+        k: u32,
+        lookalike: bool,
+    ) -> (QueryPlace, Vec<Candidate>) {
+        let (mut at, mut cands) = revisit(det, k, 30.0, lookalike);
+        at.travelled = 300.0 + f64::from(k);
+        if !lookalike {
+            cands.truncate(1);
+        }
+        (at, cands)
+    }
+
+    #[test]
+    fn loops_across_a_break_of_the_odometry_are_placed_by_each_other() {
+        // 30 m to the side, beyond five times the drift bounds: without the break the odometry
+        // would turn every one down. Across it, the first two wait (3 queries over 3 m place
+        // the stretch), then every loop is kept.
+        for seconds in [1.0, f64::NAN] {
+            let mut det = session_with_a_jump(seconds, false);
+            assert_eq!(det.odometry_breaks(), 1);
+            let mut kept = Vec::new();
+            for k in 0..12 {
+                let (at, mut cands) = revisit_after_jump(&det, k, false);
+                det.check_after_gate(&at, &[], &mut cands).unwrap();
+                match rejection(&cands[0]) {
+                    None => kept.push(k),
+                    Some(r) => assert_eq!(r, Rejection::NotPlaced, "step {k}"),
+                }
+            }
+            assert_eq!(kept, [3, 4, 5, 6, 7, 8, 9, 10, 11], "{seconds} s a step");
+        }
+        // A look-alike at every step: two readings of the stretch as consistent, neither kept.
+        let mut det = session_with_a_jump(1.0, false);
+        for k in 0..12 {
+            let (at, mut cands) = revisit_after_jump(&det, k, true);
+            det.check_after_gate(&at, &[], &mut cands).unwrap();
+            for c in &cands {
+                assert_eq!(rejection(c), Some(Rejection::NotPlaced), "step {k}");
+            }
+        }
+        // Loops on one side of the break are judged by the odometry as before.
+        let mut det = session_with_a_jump(1.0, false);
+        let q = QueryPlace {
+            id: det.len() as u32,
+            pose: Some(pose(0.0, 48.0, 30.5)),
+            travelled: det.travelled_at(48).unwrap() + 0.5,
+            eligible: det.len(),
+        };
+        let t = |c: f64| relative(&q.pose.unwrap(), &pose(0.0, c, 30.0));
+        let mut cands = [verified(45, t(45.0)), verified(50, t(53.0))];
+        det.check_after_gate(&q, &[], &mut cands).unwrap();
+        assert!(!det.across_break(&q, &cands[0]));
+        assert_eq!(rejection(&cands[1]), Some(Rejection::OdometryDisagrees));
+    }
+
+    #[test]
+    fn frames_subsampled_make_a_long_step_not_a_break() {
+        // The frames skip 30 m in 30 s: the speed is the session's, no break; a stretch of
+        // look-alikes 20 m off the odometry is turned down by it, never placed on its own.
+        let mut det = session_with_a_jump(1.0, true);
+        assert_eq!(det.odometry_breaks(), 0);
+        for k in 0..12 {
+            let (at, cands) = revisit(&det, k, 0.0, false);
+            let t = cands[0].verification.unwrap().registration.pose;
+            let mut cands = alloc::vec![verified(25 + k, t)];
+            det.check_after_gate(&at, &[], &mut cands).unwrap();
+            assert_eq!(
+                rejection(&cands[0]),
+                Some(Rejection::OdometryDisagrees),
+                "step {k}"
+            );
+        }
+        // The same frames without time: the long step is a break (the length alone cannot
+        // tell), and the look-alike stretch with no rival is placed across it — what a session
+        // without timestamps risks.
+        let det = session_with_a_jump(f64::NAN, true);
+        assert_eq!(det.odometry_breaks(), 1);
     }
 }

@@ -22,6 +22,7 @@ mod config;
 pub use config::*;
 
 mod anchor;
+mod breaks;
 mod consistency;
 mod nearby;
 mod verify;
@@ -136,6 +137,8 @@ pub struct LoopDetector {
     anchor: Option<anchor::Anchor>,
     /// The session's placement in its map (loops into the map's places).
     placement: consistency::Placement,
+    /// The own odometry's steps and breaks.
+    breaks: breaks::Breaks,
 }
 
 /// One scan ready for a detector step: its descriptor and, for verification, its prepared cloud
@@ -261,6 +264,7 @@ impl LoopDetector {
             recent: VecDeque::new(),
             anchor: None,
             placement: consistency::Placement::default(),
+            breaks: breaks::Breaks::default(),
         })
     }
 
@@ -683,6 +687,13 @@ impl LoopDetector {
         s: Step,
     ) -> Result<Detection, DbError> {
         let eligible = self.eligible(&s)?;
+        // The step into the query, when the odometry could not have made it, is a break.
+        if s.pose.is_some() {
+            let seconds = s.timestamp - self.trail.clock;
+            let largest = self.config.verify.gate.max_translation;
+            let (before, after) = (self.trail.travelled, s.trail.travelled);
+            self.breaks.note(before, after, seconds, largest);
+        }
         let mut candidates = self.rank(&d.r, &d.a, eligible, self.config.top_k)?;
         let v = self.config.verify;
         let (mut cloud, stored) = match cloud {

@@ -263,7 +263,19 @@ impl LoopDetector {
         vouched.resize(cands.len(), false);
         if v.odometry_check {
             for (i, c) in cands.iter_mut().enumerate() {
-                if !registered(c) || self.agrees_with_odometry(at, c, true) {
+                if !registered(c) {
+                    continue;
+                }
+                // Across a break of the odometry, the loops across it decide (as in a map).
+                if self.across_break(at, c) {
+                    if own.iter().any(|(j, h)| *j == i && self.placed_across(h)) {
+                        vouched[i] = true;
+                    } else {
+                        reject(c, Rejection::NotPlaced);
+                    }
+                    continue;
+                }
+                if self.agrees_with_odometry(at, c, true) {
                     continue;
                 }
                 if self.within_vouched_drift(at, c)
@@ -905,6 +917,15 @@ pub(super) mod tests {
     /// A detector (verification on) whose own session holds `n` places 1 m apart along x,
     /// facing +x, with poses; the next query is at x = `n`.
     pub(crate) fn detector_with_path(n: u32, tweak: impl Fn(&mut VerifyConfig)) -> LoopDetector {
+        detector_along(n, |i| (pose(0.0, f64::from(i), 0.0), f64::NAN), tweak)
+    }
+
+    /// [`detector_with_path`] with place `i`'s pose and timestamp `place(i)`.
+    pub(crate) fn detector_along(
+        n: u32,
+        place: impl Fn(u32) -> ([f64; 12], f64),
+        tweak: impl Fn(&mut VerifyConfig),
+    ) -> LoopDetector {
         let c = Config::preset("hdl64").unwrap();
         let mut dc = DetectorConfig::default();
         dc.verify.enabled = false;
@@ -916,8 +937,8 @@ pub(super) mod tests {
                 stats: Stats::default(),
                 fingerprint: c.fingerprint(),
             };
-            det.detect(&d, f64::NAN, Some(pose(0.0, f64::from(i), 0.0)))
-                .unwrap();
+            let (p, t) = place(i);
+            det.detect(&d, t, Some(p)).unwrap();
         }
         dc.verify.enabled = true;
         tweak(&mut dc.verify);
