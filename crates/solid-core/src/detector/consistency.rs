@@ -787,13 +787,18 @@ mod tests {
         // 30 m to the side, beyond five times the drift bounds: without the break the odometry
         // would turn every one down. Across it, the first two wait (3 queries over 3 m place
         // the stretch), then every loop is kept.
+        // Each step also registers a place after the jump where the odometry puts it: the two
+        // loops' paths cross the break, so they are not each other's rivals (uniqueness).
         for seconds in [1.0, f64::NAN] {
             let mut det = session_with_a_jump(seconds, false);
             assert_eq!(det.odometry_breaks(), 1);
             let mut kept = Vec::new();
             for k in 0..12 {
                 let (at, mut cands) = revisit_after_jump(&det, k, false);
+                let after = pose(0.0, f64::from(45 + k % 10), 30.0);
+                cands.push(verified(45 + k % 10, relative(&at.pose.unwrap(), &after)));
                 det.check_after_gate(&at, &[], &mut cands).unwrap();
+                assert_ne!(rejection(&cands[1]), Some(Rejection::Ambiguous), "step {k}");
                 match rejection(&cands[0]) {
                     None => kept.push(k),
                     Some(r) => assert_eq!(r, Rejection::NotPlaced, "step {k}"),

@@ -450,13 +450,19 @@ impl LoopDetector {
 
     /// Whether loop `(q, c, t)` agrees with loop `(q2, c2, t2)` through the four places' poses
     /// (`q`, `q2` given): `inv(T_wq)·T_wq2·t2·inv(T_wc2)·T_wc` against `t` (None when a
-    /// candidate has no pose).
+    /// candidate has no pose, or the path between the two candidates crosses a break of the
+    /// odometry: the poses do not say).
     fn agree_through_poses(
         &self,
         (q, c, t): (&[f64; 12], u32, &Pose),
         (q2, c2, t2): (&[f64; 12], u32, &Pose),
     ) -> Option<bool> {
         let (pc2, pc) = (self.pose(c2)?, self.pose(c)?);
+        if let (Some(a), Some(b)) = (self.travelled_at(c), self.travelled_at(c2)) {
+            if self.crosses_break(a, b) {
+                return None;
+            }
+        }
         let expected = mul(&mul(&relative(q, q2), t2), &relative(&pc2, &pc));
         let path = distance(q, q2) + distance(&pc2, &pc);
         Some(self.within_drift(&expected, t, path, 1.0))
