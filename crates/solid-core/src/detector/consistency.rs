@@ -183,6 +183,7 @@ impl LoopDetector {
                 .placement
                 .support
                 .iter()
+                .filter(|s| !self.crosses_break(s.travelled, h.travelled))
                 .filter(|s| self.placement.window.iter().any(|w| same(w, s)))
                 .count();
             let n = distinct(&set);
@@ -323,9 +324,12 @@ impl LoopDetector {
     }
 
     /// Whether `h` agrees with the placement's supporting loop nearest to it along the path
-    /// (None while the session is not placed).
+    /// (None while the session is not placed, or placed only across a break of its odometry).
     fn agrees_with_placement(&self, h: &Hypothesis) -> Option<bool> {
-        let nearest = self.placement.support.iter().min_by(|a, b| {
+        // A break of the session's odometry between them: that support says nothing of `h`.
+        let support = self.placement.support.iter();
+        let comparable = support.filter(|s| !self.crosses_break(s.travelled, h.travelled));
+        let nearest = comparable.min_by(|a, b| {
             libm::fabs(a.travelled - h.travelled).total_cmp(&libm::fabs(b.travelled - h.travelled))
         })?;
         Some(self.consistent(h, nearest))
@@ -333,9 +337,13 @@ impl LoopDetector {
 
     /// The largest set of mutually consistent hypotheses of the window holding `h` (grown
     /// greedily from it, nearest along the path first), and the most distinct queries of a set
-    /// grown so from any hypothesis that disagrees with `h`.
+    /// grown so from any hypothesis that disagrees with `h` (those of queries on the same side
+    /// of every break of the session's odometry).
     fn consistent_sets(&self, h: &Hypothesis) -> (Vec<Hypothesis>, usize) {
-        let w: Vec<Hypothesis> = self.placement.window.iter().copied().collect();
+        let w: Vec<Hypothesis> = (self.placement.window.iter())
+            .filter(|x| !self.crosses_break(x.travelled, h.travelled))
+            .copied()
+            .collect();
         match w.iter().rposition(|x| same(x, h)) {
             Some(me) => self.consistent_sets_in(&w, me),
             None => (alloc::vec![*h], 0),
