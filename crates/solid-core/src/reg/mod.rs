@@ -86,8 +86,9 @@ pub use information::{Information, LOOP_SIGMA_M, LOOP_SIGMA_ROT_DEG};
 pub use kdtree::{KdTree3, Nearest};
 pub(crate) use solve::weakest_direction;
 pub use solve::{
-    agreement, hypothesis_yaws, pose_distance, register, register_hypotheses, Hypotheses,
-    Hypothesis, HORIZONTAL, MAX_HYPOTHESES, ROTATION_TOLERANCE,
+    agreement, hypothesis_yaws, pose_distance, register, register_hypotheses,
+    register_hypotheses_for, Hypotheses, Hypothesis, HORIZONTAL, MAX_HYPOTHESES,
+    ROTATION_TOLERANCE,
 };
 pub use wire::{check_cloud, decode_cloud, encode_cloud};
 

@@ -460,6 +460,19 @@ fn fine_from(
             o = p;
         }
     }
+    measure(query, candidate, x, &o, cfg, iterations)
+}
+
+/// The measures of a registration ended at `x` (overlaps, RMSE, the fine level's final
+/// linearisation `o`: convergence, degeneracy, Hessian) after `iterations` in all.
+fn measure(
+    query: &PreparedCloud,
+    candidate: &PreparedCloud,
+    x: &Rigid,
+    o: &LevelOutcome,
+    cfg: &RegConfig,
+    iterations: usize,
+) -> Registration {
     let oc = overlap(&query.fine, &candidate.fine, x, cfg.inlier_distance);
     let oq = overlap(
         &candidate.fine,
@@ -566,7 +579,40 @@ pub fn register_hypotheses(
     cfg: &RegConfig,
     out: &mut [Hypothesis],
 ) -> Result<Hypotheses, RegError> {
+    register_hypotheses_for(query, candidate, yaws_deg, init, cfg, out, 0.0)
+}
+
+/// [`register_hypotheses`] for a gate that asks for a fitness of at least `min_fitness`: a
+/// candidate that is clearly no match gives up before the fine level. When the best
+/// hypothesis's normalised cost exceeds `1 − min_fitness` (its fine-level robust cost as high
+/// as if fewer than `min_fitness` of the candidate's points had a match) and its fitness
+/// measured there is below `min_fitness`, the registration is that measurement (the best
+/// hypothesis's pose, not converged, no fine-level Hessian): the gate rejects it for its
+/// overlap, and the fine level (about 40 % of the work of a wrong candidate on a 360° sensor) is
+/// not run. Otherwise, and with `min_fitness` 0, exactly [`register_hypotheses`].
+///
+/// Allocates nothing.
+///
+/// # Errors
+/// As [`register_hypotheses`]; [`Error::InvalidParameter`] (name `min_fitness`) outside `[0, 1]`.
+pub fn register_hypotheses_for(
+    query: &PreparedCloud,
+    candidate: &PreparedCloud,
+    yaws_deg: &[f64],
+    init: &Pose,
+    cfg: &RegConfig,
+    out: &mut [Hypothesis],
+    min_fitness: f64,
+) -> Result<Hypotheses, RegError> {
     cfg.validate()?;
+    if !(0.0..=1.0).contains(&min_fitness) {
+        return Err(Error::InvalidParameter {
+            name: "min_fitness",
+            value: min_fitness,
+            expected: "a fitness in [0, 1]",
+        }
+        .into());
+    }
     if !query.prepared_with(cfg) || !candidate.prepared_with(cfg) {
         return Err(RegError::NotPreparedWith);
     }
@@ -655,6 +701,21 @@ pub fn register_hypotheses(
     // The fine level goes on from the best hypothesis's pose (and from its other pose too when
     // the schedule runs both).
     let mut x = Rigid::from_pose(&out[best].pose).unwrap_or(base);
+    if min_fitness > 0.0 && out[best].cost > 1.0 - min_fitness {
+        let none = LevelOutcome {
+            iterations: 0,
+            converged: false,
+            last: None,
+        };
+        let r = measure(query, candidate, &x, &none, cfg, out[best].iterations);
+        if r.fitness < min_fitness {
+            return Ok(Hypotheses {
+                count: yaws_deg.len(),
+                best,
+                registration: r,
+            });
+        }
+    }
     let alt = (has_coarse && cfg.schedule == Schedule::Both).then_some(best_other);
     Ok(Hypotheses {
         count: yaws_deg.len(),
