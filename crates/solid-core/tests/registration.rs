@@ -148,7 +148,7 @@ fn hku1_revisits_match_the_ground_truth_and_the_gate_lets_no_wrong_pose_through(
         ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
     };
     let (mut errors, mut pairs, mut accepted_wrong) = (vec![], 0, vec![]);
-    let mut gave_up = 0;
+    let mut gave_up = 0usize;
     let mut hyps = vec![Hypothesis::default(); 8];
     // Every query's nearest earlier keyframe within 3 m (exclude 50), and a keyframe 30 or more
     // metres away as a wrong candidate.
