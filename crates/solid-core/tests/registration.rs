@@ -196,10 +196,7 @@ fn hku1_revisits_match_the_ground_truth_and_the_gate_lets_no_wrong_pose_through(
     // Measured: 12 of the true pairs the gate rejects gave up, none of the wrong (their ground
     // and walls overlap enough on the narrow Avia); the other gave-up case is in
     // hypotheses_give_up_before_the_fine_level_only_on_a_candidate_the_gate_rejects.
-    println!(
-        "gave up before the fine level: {} of the pairs",
-        gave_up.len()
-    );
+    println!("gave up before the fine level: {gave_up} of the pairs");
     // Most true revisits pass the gate (measured: 36 of 66 with the default gate), and their
     // poses are close to the odometry's ground truth.
     assert!(errors.len() >= 30, "only {} accepted", errors.len());
