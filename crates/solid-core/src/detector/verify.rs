@@ -673,13 +673,15 @@ fn verify_pair(
     let mut yaws = [0.0f64; 16];
     let m = yaw_hypotheses(a_query, a_candidate, v.hypotheses, v.fan_deg, &mut yaws)?;
     let mut hyps = [Hypothesis::default(); 16];
-    let Ok(h) = reg::register_hypotheses(
+    // A candidate clearly no match gives up before the fine level (it cannot pass the gate).
+    let Ok(h) = reg::register_hypotheses_for(
         query,
         candidate,
         &yaws[..m],
         &reg::IDENTITY,
         &v.registration,
         &mut hyps[..m],
+        v.gate.min_fitness.clamp(0.0, 1.0),
     ) else {
         return Ok(None);
     };
