@@ -5,14 +5,19 @@
 //! (the session's own frame) and the place's `T_mc` (the map's frame), implies a placement of the
 //! session in the map, `X = T_mc · inv(T) · inv(T_wq)`. Two such hypotheses agree when each
 //! predicts the other's loop through the short paths between them: `inv(T_wq1)·T_wq2 · T2 ·
-//! inv(T_mc2)·T_mc1 ≈ T1` within the odometry check's drift bounds after the metres the session
-//! travelled between `q1` and `q2` plus those between `c1` and `c2` (PCM's pairwise consistency).
-//! A look-alike repeats a place, not a whole stretch of the world: the loops into it agree with
-//! each other only as far as the repetition goes. So the session is placed only when a set of
-//! mutually consistent hypotheses holds `placement_loops` queries over `placement_m` metres of its
-//! path; from then on a loop into the map is accepted when it agrees with the placement's nearest
-//! supporting loop (by path), and the placement is revised when a larger consistent set among
-//! the recent hypotheses disagrees with it.
+//! inv(T_mc2)·T_mc1 ≈ T1` within the odometry check's drift bounds (five times their drift per
+//! metre while a set is grown: a session's odometry may drift several percent) after the metres
+//! the session travelled between `q1` and `q2` plus those between `c1` and `c2` (PCM's pairwise
+//! consistency). A look-alike world repeats a stretch (a street's face, a corridor's module),
+//! not a stretch with a turn: the loops into a copy agree with each other as far as the
+//! repetition goes. So the session is placed only when a set of mutually consistent hypotheses
+//! holds `placement_loops` queries over `placement_m` metres of its path, facing directions
+//! [`PLACEMENT_TURN_DEG`] apart, with more than twice the queries of any set that disagrees;
+//! loops into the map that passed the gate before are held, and released with the placement
+//! when they agree with it. From then on a loop into the map is accepted when it agrees with
+//! the placement's nearest supporting loop (by path), and the placement is revised when a
+//! larger consistent set among the recent hypotheses disagrees with it (the loops already
+//! released stay released: the step says "revised").
 
 use alloc::collections::VecDeque;
 use alloc::vec::Vec;
