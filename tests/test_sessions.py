@@ -91,6 +91,7 @@ def test_a_session_that_never_enters_the_map_gets_no_loop_into_it(city: Any) -> 
     det = solid.LoopDetector.from_database(db, detector=cfg.detector)
     dets = det.detect_many(sim.simulate(world, sensor, away).scans, poses=sim.Session.of(away).trajectory.poses)
     assert not [d for d in dets if d.loop is not None and d.loop.candidate < det.session_start]
+    assert not [d for d in dets if d.released or d.placement is not None]
     assert det.map_anchor is None
 
 
