@@ -117,7 +117,8 @@ pub enum PlacementChange {
     Revised,
 }
 
-/// The loop of candidate `c` for `query` (its registration when it passed the gate).
+/// The loop of candidate `c` for `query` (its registration when it passed the gate, which
+/// gives a verified loop its score and heading, as the step's ranking does).
 fn loop_of(c: &Candidate, query: u32) -> Loop {
     let reg = c
         .verification
@@ -127,8 +128,8 @@ fn loop_of(c: &Candidate, query: u32) -> Loop {
         query,
         candidate: c.id,
         distance: c.distance,
-        heading_deg: c.heading_deg,
-        score: c.score,
+        heading_deg: reg.map_or(c.heading_deg, |r| r.yaw_degrees()),
+        score: reg.map_or(c.score, |r| verify::loop_length_score(&r)),
         pose: reg.map(|r| r.pose),
         fitness: reg.map(|r| r.fitness),
         rmse: reg.map(|r| r.rmse),
