@@ -127,6 +127,12 @@ class Detection:
     @property
     def loop(self) -> Loop | None:
         """The loop, when the best candidate's score is at most the threshold; else None."""
+    @property
+    def released(self) -> list[Loop]:
+        """Loops into the map of earlier queries, held until this step placed the session in the map (or revised the placement) and found them consistent with it: released late, in query order (docs/spec.md §8, placement)."""
+    @property
+    def placement(self) -> str | None:
+        """What this step did to the session's placement in its map (`LoopDetector.map_anchor`): "placed" (the first placement), "revised" (a larger consistent set that disagreed replaced it), or None."""
 
 
 @final

@@ -274,10 +274,22 @@ pub struct PyDetection {
     pub eligible: u32,
     candidates: Vec<PyCandidate>,
     accepted: Option<PyLoop>,
+    released: Vec<PyLoop>,
+    /// "placed" or "revised" when this step placed the session in its map or revised the
+    /// placement; None otherwise.
+    #[pyo3(get)]
+    pub placement: Option<&'static str>,
 }
 
 #[pymethods]
 impl PyDetection {
+    /// Loops into the map of earlier queries, held until this step's placement (or revision)
+    /// found them consistent with it: released late, in query order.
+    #[getter]
+    fn released(&self) -> Vec<PyLoop> {
+        self.released.clone()
+    }
+
     /// Up to top_k candidates, best first.
     #[getter]
     fn candidates(&self) -> Vec<PyCandidate> {
@@ -310,6 +322,11 @@ impl From<db::Detection> for PyDetection {
             eligible: d.eligible,
             candidates: d.candidates.iter().map(PyCandidate::from).collect(),
             accepted: d.accepted.map(PyLoop::from),
+            released: d.released.into_iter().map(PyLoop::from).collect(),
+            placement: d.placement.map(|p| match p {
+                db::PlacementChange::Placed => "placed",
+                db::PlacementChange::Revised => "revised",
+            }),
         }
     }
 }

@@ -101,6 +101,41 @@ pub struct Detection {
     pub candidates: Vec<Candidate>,
     /// The loop, when the best candidate's score is at most the threshold.
     pub accepted: Option<Loop>,
+    /// Loops into the map of earlier queries, held until this step's placement of the session
+    /// in the map (or its revision) found them consistent with it: released late, in query
+    /// order (spec §8, placement).
+    pub released: Vec<Loop>,
+    /// Whether this step placed the session in the map, or revised the placement.
+    pub placement: Option<PlacementChange>,
+}
+
+/// What a detector step did to the session's placement in its map ([`LoopDetector::map_anchor`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PlacementChange {
+    /// The session was placed (its first placement).
+    Placed,
+    /// A larger consistent set that disagrees with the placement replaced it.
+    Revised,
+}
+
+/// The loop of candidate `c` for `query` (its registration when it passed the gate, which
+/// gives a verified loop its score and heading, as the step's ranking does).
+fn loop_of(c: &Candidate, query: u32) -> Loop {
+    let reg = c
+        .verification
+        .filter(|v| v.accepted)
+        .map(|v| v.registration);
+    Loop {
+        query,
+        candidate: c.id,
+        distance: c.distance,
+        heading_deg: reg.map_or(c.heading_deg, |r| r.yaw_degrees()),
+        score: reg.map_or(c.score, |r| verify::loop_length_score(&r)),
+        pose: reg.map(|r| r.pose),
+        fitness: reg.map(|r| r.fitness),
+        rmse: reg.map(|r| r.rmse),
+        information: reg.map(|r| r.information()),
+    }
 }
 
 /// An online loop-closure detector (see the module documentation).
@@ -737,11 +772,15 @@ impl LoopDetector {
         if let Some(c) = cloud {
             self.remember(id, c);
         }
+        let accepted = self.accept(&candidates, id);
+        let (released, placement) = self.placement_news(accepted.is_some().then_some(id));
         Ok(Detection {
             query: id,
             eligible: eligible as u32,
-            accepted: self.accept(&candidates, id),
+            accepted,
             candidates,
+            released,
+            placement,
         })
     }
 
@@ -752,21 +791,7 @@ impl LoopDetector {
         } else {
             c.score <= self.config.threshold
         };
-        let reg = c
-            .verification
-            .filter(|v| v.accepted)
-            .map(|v| v.registration);
-        ok.then_some(Loop {
-            query,
-            candidate: c.id,
-            distance: c.distance,
-            heading_deg: c.heading_deg,
-            score: c.score,
-            pose: reg.map(|r| r.pose),
-            fitness: reg.map(|r| r.fitness),
-            rmse: reg.map(|r| r.rmse),
-            information: reg.map(|r| r.information()),
-        })
+        ok.then(|| loop_of(c, query))
     }
 
     /// The `k` best candidates among ids `0..eligible`, in the detector's order.

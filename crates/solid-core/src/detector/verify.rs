@@ -579,7 +579,7 @@ pub(super) fn distance(a: &[f64; 12], b: &[f64; 12]) -> f64 {
 /// as `|t| / (1 + |t|)`, so that a step's nearest verified place is its loop (the shortest loop
 /// constrains a pose graph best: it has the most overlap) and sweeping the scores sweeps the
 /// loops by length (docs/performance.md#loop-length-score).
-fn loop_length_score(r: &reg::Registration) -> f64 {
+pub(super) fn loop_length_score(r: &reg::Registration) -> f64 {
     let t = r.translation();
     let len = libm::sqrt(t[0] * t[0] + t[1] * t[1] + t[2] * t[2]);
     len / (1.0 + len)
