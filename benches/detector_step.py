@@ -4,6 +4,7 @@ small_gicp, in the same run.
     make bench-step                                          # this build alone (and small_gicp)
     .venv/bin/python benches/detector_step.py --baseline DIR # beside an older build installed in DIR
     .venv/bin/python benches/detector_step.py --json benches/results/step.json
+    .venv/bin/python benches/detector_step.py --threads --walks hku1-avia/no-poses --steps 120
 
 Walks: hku1-avia (314 keyframes, the shared data; skipped with a reason when absent) with its
 odometry poses and without poses, and a simulated 360° OS1-64 drive (``sim.World(seed=0)``, 1.6
@@ -78,6 +79,28 @@ def child(name: str) -> None:
         if d.loop is not None:
             loops.append((d.query, d.loop.candidate))
     print(json.dumps({"cpu": cpu, "pairs": pairs, "loops": loops, "solid": solid.__file__}))
+
+
+def threads(name: str, steps: int | None) -> None:
+    """`verify_threads` 1, 2, 1, 2 over one walk in one process: CPU (every thread's) and wall
+    time per step, with the load average before and after (the machine may be shared)."""
+    import solid
+    from solid.config import PipelineConfig
+
+    preset, scans, T, P = walk(name)
+    n = min(steps or len(scans), len(scans))
+    for k in (1, 2, 1, 2):
+        cfg = PipelineConfig.preset(preset, detector={"verify_threads": k})
+        det = solid.LoopDetector(cfg.descriptor, detector=cfg.detector)
+        load = os.getloadavg()[0]
+        c, w = time.process_time(), time.perf_counter()
+        loops = sum(det.detect(scans[i], T[i], P[i]).loop is not None for i in range(n))
+        c, w = time.process_time() - c, time.perf_counter() - w
+        print(
+            f"  verify_threads {k}: CPU {1e3 * c / n:.1f} ms a step, wall {1e3 * w / n:.1f} ms, {loops} loops "
+            f"(load average {load:.1f} -> {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores)",
+            flush=True,
+        )
 
 
 def run(name: str, path: str | None) -> dict[str, Any]:
@@ -160,12 +183,19 @@ def main() -> int:
     ap.add_argument("--baseline", metavar="DIR", help="a directory holding another build of the package (pip install --target DIR <wheel>)")
     ap.add_argument("--walks", default=",".join(WALKS), help="comma-separated walks (default: all)")
     ap.add_argument("--baseline-label", default="an older build", help="what the baseline is, for the JSON (e.g. main @ fcb11b6)")
+    ap.add_argument("--threads", action="store_true", help="instead: verify_threads 1, 2, 1, 2 on each walk, CPU and wall time per step")
+    ap.add_argument("--steps", type=int, help="with --threads: the first N steps of each walk")
     ap.add_argument("--json", type=Path, help="write the figures here (tools/readme_speed.py reads benches/results/step.json)")
     args = ap.parse_args()
     if args.child:
         child(args.child)
         return 0
     results: dict[str, Any] = {}
+    if args.threads:
+        for name in args.walks.split(","):
+            print(f"{name}: verify threads", flush=True)
+            threads(name, args.steps)
+        return 0
     for name in args.walks.split(","):
         if name.startswith("hku1") and not HKU.is_dir():
             if os.environ.get("CI") == "true":

@@ -128,6 +128,12 @@ class Detection:
     def loop(self) -> Loop | None:
         """The loop, when the best candidate's score is at most the threshold; else None."""
     @property
+    def released(self) -> list[Loop]:
+        """Loops into the map of earlier queries, held until this step placed the session in the map (or revised the placement) and found them consistent with it: released late, in query order (docs/spec.md §8, placement)."""
+    @property
+    def placement(self) -> str | None:
+        """What this step did to the session's placement in its map (`LoopDetector.map_anchor`): "placed" (the first placement), "revised" (a larger consistent set that disagreed replaced it), or None."""
+    @property
     def pose(self) -> npt.NDArray[np.float64] | None:
         """T_world_sensor (4, 4) the step's checks used for the query: the caller's, or without one
         the detector's own odometry (the scan registered with the previous keyframe, chained;

@@ -459,7 +459,7 @@ def test_a_run_counts_its_rejections_and_says_when_the_odometry_turned_down_most
     odometry agrees with its loops gets no such line."""
     from types import SimpleNamespace
 
-    from solid.commands import ODOMETRY_REJECTION, advice, rejection_counts
+    from solid.commands import ODOMETRY_REJECTION, advice, measured_drift, rejection_counts
     from solid.config import PipelineConfig
 
     def step(*reasons: str | None) -> SimpleNamespace:
@@ -477,6 +477,27 @@ def test_a_run_counts_its_rejections_and_says_when_the_odometry_turned_down_most
     assert advice({"loops": 0, "rejections": {ODOMETRY_REJECTION: 9}}, d) == []  # too few to say
     off = PipelineConfig.preset("avia", detector={"odometry_check": False}).detector
     assert advice({"loops": 0, "rejections": {ODOMETRY_REJECTION: 232}}, off) == []
+    # The drift the accepted loops measure: one loop back to the start of a straight 100 m path,
+    # 3 m and 2° off the poses' prediction: 2 m beyond the check's constant 1 m less the 2°'s
+    # swing (1.75 m) over 100 m, and 0°/m beyond its constant 3°.
+    P = np.tile(np.eye(4)[:3], (101, 1, 1))
+    P[:, 0, 3] = np.arange(101.0)
+    c, s = np.cos(np.radians(2.0)), np.sin(np.radians(2.0))
+    pose = np.array([[c, -s, 0, -97.0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]])
+    run = SimpleNamespace(poses=P, map_size=0, config=PipelineConfig.preset("avia"), loops=lambda: [SimpleNamespace(query=100, candidate=0, pose=pose)])
+    m = measured_drift(run)  # type: ignore[arg-type]
+    assert m is not None and m["loops"] == 1 and m["rotation_deg_per_m"] == 0.0
+    assert m["drift"] == pytest.approx((3.0 - 1.0 - np.radians(2.0) * 100 / 2) / 100)
+    assert measured_drift(SimpleNamespace(poses=None)) is None  # type: ignore[arg-type]
+    assert m["rotation_max_deg"] == pytest.approx(2.0)
+    m = {"loops": 1, "drift": 0.05, "rotation_deg_per_m": 0.1, "rotation_max_deg": 37.0}
+    (line,) = advice({"loops": 1, "rejections": {ODOMETRY_REJECTION: 40}, "odometry_drift_measured": m}, d)
+    assert "measure it at 0.05 of the path" in line and ": --odometry-drift 0.05 --odometry-rotation-max-deg 37 (docs" in line
+    # Many candidates waiting for a placement against few loops: the session never entered its
+    # map, or its odometry broke.
+    (line,) = advice({"loops": 2, "rejections": {"not placed yet: too few loops": 30}}, d)
+    assert "30 registered candidates waited for a placement" in line and "#breakdowns" in line
+    assert advice({"loops": 20, "rejections": {"not placed yet: too few loops": 30}}, d) == []
 
 
 @pytest.mark.parametrize("value", ["0", "-2", "nan", "loose"])

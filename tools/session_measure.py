@@ -107,11 +107,12 @@ def measure(world: sim.World, view: str, detector: dict[str, Any], case: str, se
     B = [h(p) for p in second.poses]
     wrong = right = 0
     found: set[int] = set()
-    for d in dets:
-        lp = d.loop
-        if lp is None or lp.candidate >= start:
+    # Each step's loop and the loops into the map a later step's placement released.
+    loops = [d.loop for d in dets if d.loop is not None] + [lp for d in dets for lp in getattr(d, "released", ())]
+    for lp in loops:
+        if lp.candidate >= start:
             continue
-        q = d.query - start
+        q = lp.query - start
         if case == "never" or off_truth(np.linalg.inv(B[q]) @ A[lp.candidate], lp.pose):
             wrong += 1
         else:

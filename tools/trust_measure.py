@@ -16,7 +16,8 @@ scale per percent, 0.05° of yaw noise per frame). ``breakdown``: the same at 1 
 odometry breaking down on the first lap: frames 20-22 each jump 4 m or 30 m sideways, or 12 m or
 40 m of vertical drift over frames 20-30. ``noposes``: the same world and the look-alike corridors
 (``World.corridors``, OS1-64 and Avia) without any pose. OVERRIDES is a JSON object of detector
-parameters; SEEDS comma-separated. ``hku1``: the shared Livox walk with its poses and without (scored
+parameters; SEEDS comma-separated. Each run also prints the drift its accepted loops measure
+(``solid.commands.measured_drift``). ``hku1``: the shared Livox walk with its poses and without (scored
 against its poses) (default 0,1,2,3,4); ``hku1-drift``: the walk given its poses drifted by 0.5°/m of
 yaw and 8 % of scale, and by 0.2°/m and 4 %. ``chain``: the detector's own odometry without poses
 (``Detection.pose``: each scan registered with the previous keyframe, chained) against the truth
@@ -35,6 +36,7 @@ from typing import Any
 import numpy as np
 
 from solid import sim
+from solid.commands import measured_drift
 from solid.config import PipelineConfig
 from solid.pipeline import LoopClosurePipeline
 
@@ -82,6 +84,9 @@ def score(res: Any, truth: np.ndarray) -> tuple[int, int, int, int]:
 
 def run(seq: sim.Sequence, poses: Any, truth: np.ndarray, preset: str, detector: dict[str, Any]) -> tuple[int, int, int, int]:
     res = LoopClosurePipeline(Given(seq, poses), PipelineConfig.preset(preset, detector=detector)).run()
+    m = measured_drift(res)
+    if m is not None:
+        print(f"  the drift its {m['loops']} loops measure: {m['drift']:.3f} of the path, {m['rotation_deg_per_m']:.3f}°/m (summary.json odometry_drift_measured)")
     return score(res, truth)
 
 

@@ -333,7 +333,7 @@ class DetectorConfig:
             lookalike_m: Reject a loop when an own place farther than this from its place, about as close by descriptor, fits the drift bounds too (0: off) (a finite number >= 0; default 10.0).
             lookalike_margin: How much larger a look-alike's R-SOLiD distance may be than the loop's candidate's (a number in [0, 1]; default 0.2).
             lookalike_swing: The fraction of the odometry check's rotation allowance the look-alike check's bound takes (a number in [0, 1]; default 0.25).
-            placement_loops: Loops into a map are accepted once this many queries' loops into it agree with each other (the session is placed in the map), then when they agree with that placement (0: off) (an integer >= 0; default 3).
+            placement_loops: Loops into a map are accepted once this many queries' loops into it agree with each other over a turn (the session is placed in the map; the loops held before are released then), then when they agree with that placement (0: off) (an integer >= 0; default 3).
             placement_m: Metres of the session's path the loops that place it in the map must span (a finite number >= 0; default 15.0).
             registration: The registration parameters (an object, or a dict of overrides of the current ones).
             gate: The acceptance gate (an object, or a dict of overrides of the current one).
@@ -421,7 +421,7 @@ class DetectorConfig:
             lookalike_m: Reject a loop when an own place farther than this from its place, about as close by descriptor, fits the drift bounds too (0: off) (a finite number >= 0; default 10.0).
             lookalike_margin: How much larger a look-alike's R-SOLiD distance may be than the loop's candidate's (a number in [0, 1]; default 0.2).
             lookalike_swing: The fraction of the odometry check's rotation allowance the look-alike check's bound takes (a number in [0, 1]; default 0.25).
-            placement_loops: Loops into a map are accepted once this many queries' loops into it agree with each other (the session is placed in the map), then when they agree with that placement (0: off) (an integer >= 0; default 3).
+            placement_loops: Loops into a map are accepted once this many queries' loops into it agree with each other over a turn (the session is placed in the map; the loops held before are released then), then when they agree with that placement (0: off) (an integer >= 0; default 3).
             placement_m: Metres of the session's path the loops that place it in the map must span (a finite number >= 0; default 15.0).
             registration: The registration parameters (an object, or a dict of overrides of the current ones).
             gate: The acceptance gate (an object, or a dict of overrides of the current one).
@@ -510,7 +510,7 @@ class DetectorConfig:
             lookalike_m: Reject a loop when an own place farther than this from its place, about as close by descriptor, fits the drift bounds too (0: off) (a finite number >= 0; default 10.0).
             lookalike_margin: How much larger a look-alike's R-SOLiD distance may be than the loop's candidate's (a number in [0, 1]; default 0.2).
             lookalike_swing: The fraction of the odometry check's rotation allowance the look-alike check's bound takes (a number in [0, 1]; default 0.25).
-            placement_loops: Loops into a map are accepted once this many queries' loops into it agree with each other (the session is placed in the map), then when they agree with that placement (0: off) (an integer >= 0; default 3).
+            placement_loops: Loops into a map are accepted once this many queries' loops into it agree with each other over a turn (the session is placed in the map; the loops held before are released then), then when they agree with that placement (0: off) (an integer >= 0; default 3).
             placement_m: Metres of the session's path the loops that place it in the map must span (a finite number >= 0; default 15.0).
             registration: The registration parameters (an object, or a dict of overrides of the current ones).
             gate: The acceptance gate (an object, or a dict of overrides of the current one).
@@ -629,7 +629,7 @@ class DetectorConfig:
         """The fraction of the odometry check's rotation allowance the look-alike check's bound takes (a number in [0, 1]; default 0.25)."""
     @property
     def placement_loops(self) -> int:
-        """Loops into a map are accepted once this many queries' loops into it agree with each other (the session is placed in the map), then when they agree with that placement (0: off) (an integer >= 0; default 3)."""
+        """Loops into a map are accepted once this many queries' loops into it agree with each other over a turn (the session is placed in the map; the loops held before are released then), then when they agree with that placement (0: off) (an integer >= 0; default 3)."""
     @property
     def placement_m(self) -> float:
         """Metres of the session's path the loops that place it in the map must span (a finite number >= 0; default 15.0)."""
@@ -1685,6 +1685,12 @@ class Detection:
     @property
     def loop(self) -> Loop | None:
         """The loop, when the best candidate's score is at most the threshold; else None."""
+    @property
+    def released(self) -> list[Loop]:
+        """Loops into the map of earlier queries, held until this step placed the session in the map (or revised the placement) and found them consistent with it: released late, in query order (docs/spec.md §8, placement)."""
+    @property
+    def placement(self) -> str | None:
+        """What this step did to the session's placement in its map (`LoopDetector.map_anchor`): "placed" (the first placement), "revised" (a larger consistent set that disagreed replaced it), or None."""
     @property
     def pose(self) -> npt.NDArray[np.float64] | None:
         """T_world_sensor (4, 4) the step's checks used for the query: the caller's, or without one

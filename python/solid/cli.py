@@ -517,7 +517,8 @@ def cmd_detect(args: argparse.Namespace, out: TextIO) -> int:
     out.write(evaluation.describe_loop_delay(evaluation.loop_delay_steps(d)) + "\n")
     if result.map_size and result.poses is not None and d.verify and d.placement_loops:
         out.write(commands.describe_anchor(result) + "\n")
-    for line in commands.advice({"loops": len(result.loops()), "rejections": commands.rejection_counts(result)}, d):
+    figures = {"loops": len(result.loops()), "rejections": commands.rejection_counts(result), "odometry_drift_measured": commands.measured_drift(result)}
+    for line in commands.advice(figures, d):
         out.write(line + "\n")
     out.write(f"wrote {folder}" + (f" and {args.g2o}" if args.g2o else "") + "\n")
     return 0

@@ -216,6 +216,9 @@ def _summary(result: PipelineResult, inputs: Inputs, command: str) -> dict[str, 
         doc["exclusion_median_m"] = excl
     doc["loop_delay_steps"] = loop_delay_steps(result.config.detector)
     doc["rejections"] = rejection_counts(result)
+    measured = measured_drift(result)
+    if measured is not None:
+        doc["odometry_drift_measured"] = measured
     if result.map_size:
         doc["map_anchor"] = anchor_dict(result)
     return doc
@@ -289,20 +292,95 @@ def rejection_counts(result: PipelineResult) -> dict[str, int]:
     return dict(sorted(counts.items()))
 
 
+#: How :attr:`solid.Candidate.rejection` begins for a loop held until loops agree on a placement
+#: (into a map, or across a break of the odometry).
+NOT_PLACED_REJECTION = "not placed yet"
+
+
+def measured_drift(result: PipelineResult) -> dict[str, float] | None:
+    """The odometry's drift as the run's accepted loops within the session measure it: each loop's
+    offset from the relative pose the poses predict, beyond the odometry check's constant part
+    (``odometry_translation_m``, ``odometry_rotation_deg``; the translation also beyond the
+    rotation's swing, angle · path / 2, as the check allows), per metre of path between its two
+    places; the 90th percentile over the loops (``drift``: a fraction of the path,
+    ``rotation_deg_per_m``), the largest rotation offset (``rotation_max_deg``) and how many
+    (``loops``). None without poses or loops within the session."""
+    P = result.poses
+    if P is None or len(P) < 2:
+        return None
+    P = np.asarray(P, dtype=np.float64)
+    path = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(P[:, :, 3], axis=0), axis=1))]
+    d = result.config.detector
+    trans, rot, turned = [], [], []
+    for lp in result.loops():
+        q, c = lp.query - result.map_size, lp.candidate - result.map_size
+        if lp.pose is None or not (0 <= c < len(P) and 0 <= q < len(P)) or path[q] - path[c] <= 0:
+            continue
+        Rq, Rc = P[q, :, :3], P[c, :, :3]
+        R_exp, t_exp = Rq.T @ Rc, Rq.T @ (P[c, :, 3] - P[q, :, 3])
+        T = np.asarray(lp.pose, dtype=np.float64)
+        cos = (np.trace(R_exp.T @ T[:3, :3]) - 1.0) / 2.0
+        deg = float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))))
+        m = float(np.linalg.norm(T[:3, 3] - t_exp))
+        walked = float(path[q] - path[c])
+        # The check allows the rotation's swing (angle · path / 2) beside the drift.
+        swing = np.radians(deg) * walked / 2.0
+        trans.append(max(0.0, m - d.odometry_translation_m - swing) / walked)
+        rot.append(max(0.0, deg - d.odometry_rotation_deg) / walked)
+        turned.append(deg)
+    if not trans:
+        return None
+    return {
+        "loops": len(trans),
+        "drift": float(np.quantile(trans, 0.9)),
+        "rotation_deg_per_m": float(np.quantile(rot, 0.9)),
+        "rotation_max_deg": float(max(turned)),
+    }
+
+
 def advice(metrics: dict[str, Any], detector: Any) -> list[str]:
     """Lines that tell a user what a run's figures suggest trying: when the odometry check turned
     down many registered candidates against few loops, the odometry may drift more than its
-    bounds assume (docs/loops.md#when-the-odometry-drifts)."""
-    n = int(metrics.get("rejections", {}).get(ODOMETRY_REJECTION, 0))
+    bounds assume, and the drift the accepted loops measure (``odometry_drift_measured``) says by
+    how much (docs/loops.md#when-the-odometry-drifts); when many waited for a placement, the
+    session was not placed in its map, or its odometry broke down (docs/loops.md#breakdowns)."""
+    rejections = metrics.get("rejections", {})
+    n = int(rejections.get(ODOMETRY_REJECTION, 0))
     loops = int(metrics.get("loops", 0))
-    if not detector.odometry_check or n < 10 or n <= 2 * loops:
-        return []
-    return [
-        f"note: the odometry check turned down {n} registered candidates against {loops} loops accepted. If the odometry "
-        f"drifts more than its bounds assume ({detector.odometry_drift:g} of the path, {detector.odometry_rotation_deg_per_m:g}°/m), "
-        "true revisits are among them: try a larger --odometry-drift and --odometry-rotation-deg-per-m "
-        "(docs/loops.md#when-the-odometry-drifts)"
-    ]
+    lines = []
+    if detector.odometry_check and n >= 10 and n > 2 * loops:
+        line = (
+            f"note: the odometry check turned down {n} registered candidates against {loops} loops accepted. If the odometry "
+            f"drifts more than its bounds assume ({detector.odometry_drift:g} of the path, {detector.odometry_rotation_deg_per_m:g}°/m), "
+            "true revisits are among them: try a larger --odometry-drift and --odometry-rotation-deg-per-m"
+        )
+        m = metrics.get("odometry_drift_measured")
+        if m is not None:
+            line += (
+                f"; the {m['loops']} accepted loops measure it at {m['drift']:.3g} of the path and {m['rotation_deg_per_m']:.3g}°/m "
+                f"(90th percentile), up to {m['rotation_max_deg']:.3g}° off (the ceiling: {detector.odometry_rotation_max_deg:g}°)"
+            )
+            wider = [
+                f"--{name} {value:.2g}"
+                for name, value, now in (
+                    ("odometry-drift", m["drift"], detector.odometry_drift),
+                    ("odometry-rotation-deg-per-m", m["rotation_deg_per_m"], detector.odometry_rotation_deg_per_m),
+                    ("odometry-rotation-max-deg", m["rotation_max_deg"], detector.odometry_rotation_max_deg),
+                )
+                if value > now
+            ]
+            if wider:
+                line += ": " + " ".join(wider)
+        lines.append(line + " (docs/loops.md#when-the-odometry-drifts)")
+    held = sum(int(v) for k, v in rejections.items() if k.startswith(NOT_PLACED_REJECTION))
+    if held >= 10 and held > 2 * loops:
+        lines.append(
+            f"note: {held} registered candidates waited for a placement against {loops} loops accepted: loops into a map, and "
+            "loops across a break of the odometry (a step far longer and faster than the session's own), are accepted only once "
+            f"{detector.placement_loops} of them agree over {detector.placement_m:g} m with no rival as large. With a map, the "
+            "session may not visit it; without one, check the odometry for jumps (docs/loops.md#breakdowns)"
+        )
+    return lines
 
 
 def exclusion_in_metres(result: PipelineResult) -> float | None:

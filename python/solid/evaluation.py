@@ -311,8 +311,11 @@ def evaluate_detections(
     pose_tolerance_deg: float = _solid.DEFAULT_POSE_TOLERANCE_DEG,
 ) -> Evaluation:
     """Score the steps of a :class:`solid.LoopDetector` run (``Detection`` objects) against the
-    poses stored with the database's places; steps with nothing eligible are skipped (docs/spec.md §5)."""
+    poses stored with the database's places; steps with nothing eligible are skipped (docs/spec.md §5).
+    A loop into the map that a later step released (``Detection.released``: held until the
+    session's placement) is scored as its own query's loop."""
     steps = [d for d in detections if d.eligible > 0]
+    late = {int(lp.query): lp for d in detections for lp in getattr(d, "released", ())}
     k = max((len(d.candidates) for d in steps), default=1)
     ids = np.full((len(steps), max(k, 1)), -1, dtype=np.int64)
     dist = np.full(len(steps), np.nan)
@@ -330,6 +333,14 @@ def evaluate_detections(
             if best.accepted:
                 pose[i] = best.pose
                 fit[i], rms[i] = best.fitness, best.rmse
+        lp = late.get(int(d.query))
+        if lp is not None:
+            others = [c.id for c in d.candidates if c.id != lp.candidate]
+            ids[i] = -1
+            ids[i, : min(k, 1 + len(others))] = ([lp.candidate] + others)[:k]
+            dist[i], score[i], head[i] = lp.distance, lp.score, lp.heading
+            pose[i] = lp.pose
+            fit[i], rms[i] = lp.fitness, lp.rmse
     return evaluate_candidates(
         name,
         np.array([d.query for d in steps], dtype=np.int64),

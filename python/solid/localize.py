@@ -126,10 +126,10 @@ def _placement(anchor: Any, frame_of: Any, placed_frame: int | None, placed_time
 
 def placement_of_run(result: Any) -> Placement | None:
     """The placement of a finished run against a map (a :class:`solid.pipeline.PipelineResult`
-    with ``map_anchor``): None when the run was not placed. It was placed at the step of its first
-    loop into the map (no loop into the map is released before the placement)."""
+    with ``map_anchor``): None when the run was not placed. It was placed at the step whose
+    ``Detection.placement`` says so (the loops into the map held before it are released then)."""
     base = int(result.map_size)
-    placed = next((d for d in result.detections if d.loop is not None and int(d.loop.candidate) < base), None)
+    placed = next((d for d in result.detections if d.placement == "placed"), None)
     frame = None if placed is None else result.frame_of(int(placed.query))
     t = None
     if placed is not None and result.timestamps is not None:
@@ -172,14 +172,14 @@ class Localizer:
         """One scan (its points, ``pose`` ``T_odom_sensor``, ``timestamp``): the detector's step
         against the map; returns the placement after it (None: not placed yet)."""
         frame = self._frames
-        self.detector.detect(points, timestamp=timestamp, pose=pose)
+        step = self.detector.detect(points, timestamp=timestamp, pose=pose)
         self._frames += 1
         anchor = self.detector.map_anchor
         last = self.placement
         if anchor is None:
             return last
         start = int(self.detector.session_start)
-        revised = last is None or last.first_frame != int(anchor.first_query) - start
+        revised = last is None or step.placement is not None
         when = (frame, timestamp) if revised or last is None else (last.placed_frame, last.placed_time)
         now = _placement(anchor, lambda q: q - start, *when)
         assert now is not None

@@ -130,8 +130,12 @@ class PipelineResult:
         return [d for d in self.detections if d.eligible > 0]
 
     def loops(self) -> list[Any]:
-        """The accepted loops (``solid.Loop``), in query order."""
-        return [d.loop for d in self.detections if d.loop is not None]
+        """The accepted loops (``solid.Loop``), in query order: each step's loop and the loops into
+        the map a later step released (``Detection.released``: held until the session's placement
+        in the map, docs/spec.md §8)."""
+        out = [d.loop for d in self.detections if d.loop is not None]
+        late = [lp for d in self.detections for lp in d.released]
+        return sorted(out + late, key=lambda lp: int(lp.query)) if late else out
 
     def frame_of(self, entry_id: int) -> int | None:
         """The recording frame number of a database entry of this session (None for map places)."""

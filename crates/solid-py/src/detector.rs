@@ -274,12 +274,24 @@ pub struct PyDetection {
     pub eligible: u32,
     candidates: Vec<PyCandidate>,
     accepted: Option<PyLoop>,
+    released: Vec<PyLoop>,
+    /// "placed" or "revised" when this step placed the session in its map or revised the
+    /// placement; None otherwise.
+    #[pyo3(get)]
+    pub placement: Option<&'static str>,
     pose: Option<[f64; 12]>,
     pose_source: Option<db::PoseSource>,
 }
 
 #[pymethods]
 impl PyDetection {
+    /// Loops into the map of earlier queries, held until this step's placement (or revision)
+    /// found them consistent with it: released late, in query order.
+    #[getter]
+    fn released(&self) -> Vec<PyLoop> {
+        self.released.clone()
+    }
+
     /// T_world_sensor (4, 4) the step's checks used for the query: the caller's, or without
     /// one the detector's own odometry (None: neither).
     #[getter]
@@ -337,6 +349,11 @@ impl From<db::Detection> for PyDetection {
             eligible: d.eligible,
             candidates: d.candidates.iter().map(PyCandidate::from).collect(),
             accepted: d.accepted.map(PyLoop::from),
+            released: d.released.into_iter().map(PyLoop::from).collect(),
+            placement: d.placement.map(|p| match p {
+                db::PlacementChange::Placed => "placed",
+                db::PlacementChange::Revised => "revised",
+            }),
             pose: d.pose,
             pose_source: d.pose_source,
         }

@@ -430,19 +430,21 @@ class SolidNode(Node):
         self.stamps.append(kf.stamp_ns)
         self.odom_poses.append(kf.T_odom)
         lp = d.loop
-        if lp is not None:
-            self.loop_list.append(lp)
-            in_map = int(lp.candidate) < self.map_size
+        # The step's loop, then the loops into the map that its placement released (held since
+        # their own keyframes: Detection.released).
+        found = ([lp] if lp is not None else []) + list(getattr(d, "released", ()))
+        for x in found:
+            self.loop_list.append(x)
             with self.lock:
                 self.counts.loops += 1
-                self.counts.map_loops += int(in_map)
-            self.publish_loop(lp)
-            if in_map:
-                placed = placement(self.detector, lp, kf.T_odom)
-                if placed is not None:
-                    self.T_map_odom, self.support = placed
-                    self.support["stamp_ns"] = kf.stamp_ns
-                    self.publish_placement(kf.stamp_ns)
+                self.counts.map_loops += int(int(x.candidate) < self.map_size)
+            self.publish_loop(x)
+        if any(int(x.candidate) < self.map_size for x in found) or getattr(d, "placement", None) is not None:
+            placed = placement(self.detector, lp if lp is not None and int(lp.candidate) < self.map_size else None, kf.T_odom)
+            if placed is not None:
+                self.T_map_odom, self.support = placed
+                self.support["stamp_ns"] = kf.stamp_ns
+                self.publish_placement(kf.stamp_ns)
         self.update_trajectory(new_loop=lp is not None and int(lp.candidate) >= self.map_size and lp.pose is not None)
         self.publish_trajectory(kf.stamp_ns)
         if lp is not None or len(self.stamps) % 10 == 1:

@@ -46,8 +46,8 @@ pub mod wire;
 
 pub use crate::checksum::crc32;
 pub use crate::detector::{
-    Candidate, Detection, Loop, LoopDetector, MapAnchor, PoseSource, Scan, Verification,
-    UNVERIFIED_SCORE, VERIFIED_THRESHOLD,
+    Candidate, Detection, Loop, LoopDetector, MapAnchor, PlacementChange, PoseSource, Scan,
+    Verification, UNVERIFIED_SCORE, VERIFIED_THRESHOLD,
 };
 pub use crate::detector::{
     DetectorConfig, VerifyConfig, DEFAULT_EXCLUDE_FRAMES, DEFAULT_EXCLUDE_METERS,

@@ -62,7 +62,8 @@ impl LoopDetector {
 
     /// The relative pose the poses predict between the query and own place `c`, and the metres
     /// of path its drift grows with: through the anchor when `anchor` and its path is the
-    /// shorter, else the two places' poses (None without poses or across sessions).
+    /// shorter, else the two places' poses (None without poses, across sessions, or when every
+    /// path crosses a break of the odometry: [`breaks`](super::breaks)).
     pub(super) fn expected(&self, at: &QueryPlace, c: u32, anchor: bool) -> Option<(Pose, f64)> {
         self.expected_through(at, anchor.then(|| self.anchored(at)).flatten(), c)
     }
@@ -81,13 +82,16 @@ impl LoopDetector {
         (c as usize).checked_sub(self.session_start)?;
         let global = tc.map_or(0.0, |t| libm::fabs(at.travelled - t));
         let global = if global.is_nan() { 0.0 } else { global };
+        let broken = tc.is_some_and(|t| self.crosses_break(at.travelled, t));
         if let (Some((qa, since, t0)), Some(t)) = (anchored, tc) {
             let path = since + libm::fabs(t - t0);
-            if path < global {
+            let through = !self.crosses_break(at.travelled - since, at.travelled)
+                && !self.crosses_break(t0, t);
+            if through && (path < global || broken) {
                 return Some((relative(&qa, &pc), path));
             }
         }
-        Some((relative(&q, &pc), global))
+        (!broken).then(|| (relative(&q, &pc), global))
     }
 
     /// Whether own place `c` lies within reach of the query `at` by the poses (through

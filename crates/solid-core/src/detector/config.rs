@@ -184,10 +184,12 @@ pub struct VerifyConfig {
     /// Loops into another session's places (a prior map) are accepted by the session's
     /// placement in the map: its first loops only once this many distinct queries' loops into
     /// the map agree with each other through the short paths between them (pairwise
-    /// consistency within the odometry bounds above), over `placement_m` metres of the path;
-    /// later ones when they agree with it. A look-alike repeats a place, not a stretch of the
-    /// world. 0: off (loops into the map then pass as within one session, by the support of
-    /// the previous steps).
+    /// consistency within five times the odometry bounds' drift above), over `placement_m`
+    /// metres of the path, with a turn of at least 45° among their queries; the loops held
+    /// until then are released with the placement
+    /// ([`Detection::released`](crate::detector::Detection::released)); later ones when they
+    /// agree with it. A look-alike repeats a stretch, not a stretch with a turn. 0: off (loops
+    /// into the map then pass as within one session, by the support of the previous steps).
     pub placement_loops: usize,
     /// Metres of the session's path the loops that place it in the map must span.
     pub placement_m: f64,
@@ -457,7 +459,7 @@ impl Params for DetectorConfig {
         field!(DetectorConfig, "lookalike_swing", verify.lookalike_swing, Kind::closed(0.0, 1.0), "a number in [0, 1]",
             "The fraction of the odometry check's rotation allowance the look-alike check's bound takes."),
         field!(DetectorConfig, "placement_loops", verify.placement_loops, COUNT, "an integer >= 0",
-            "Loops into a map are accepted once this many queries' loops into it agree with each other (the session is placed in the map), then when they agree with that placement (0: off)."),
+            "Loops into a map are accepted once this many queries' loops into it agree with each other over a turn (the session is placed in the map; the loops held before are released then), then when they agree with that placement (0: off)."),
         field!(DetectorConfig, "placement_m", verify.placement_m, Kind::closed(0.0, FINITE), "a finite number >= 0",
             "Metres of the session's path the loops that place it in the map must span."),
     ];

@@ -5,22 +5,27 @@
 //! (the session's own frame) and the place's `T_mc` (the map's frame), implies a placement of the
 //! session in the map, `X = T_mc · inv(T) · inv(T_wq)`. Two such hypotheses agree when each
 //! predicts the other's loop through the short paths between them: `inv(T_wq1)·T_wq2 · T2 ·
-//! inv(T_mc2)·T_mc1 ≈ T1` within the odometry check's drift bounds after the metres the session
-//! travelled between `q1` and `q2` plus those between `c1` and `c2` (PCM's pairwise consistency).
-//! A look-alike repeats a place, not a whole stretch of the world: the loops into it agree with
-//! each other only as far as the repetition goes. So the session is placed only when a set of
-//! mutually consistent hypotheses holds `placement_loops` queries over `placement_m` metres of its
-//! path; from then on a loop into the map is accepted when it agrees with the placement's nearest
-//! supporting loop (by path), and the placement is revised when a larger consistent set among
-//! the recent hypotheses disagrees with it.
+//! inv(T_mc2)·T_mc1 ≈ T1` within the odometry check's drift bounds (five times their drift per
+//! metre while a set is grown: a session's odometry may drift several percent) after the metres
+//! the session travelled between `q1` and `q2` plus those between `c1` and `c2` (PCM's pairwise
+//! consistency). A look-alike world repeats a stretch (a street's face, a corridor's module),
+//! not a stretch with a turn: the loops into a copy agree with each other as far as the
+//! repetition goes. So the session is placed only when a set of mutually consistent hypotheses
+//! holds `placement_loops` queries over `placement_m` metres of its path, facing directions
+//! [`PLACEMENT_TURN_DEG`] apart, with more than twice the queries of any set that disagrees;
+//! loops into the map that passed the gate before are held, and released with the placement
+//! when they agree with it. From then on a loop into the map is accepted when it agrees with
+//! the placement's nearest supporting loop (by path), and the placement is revised when a
+//! larger consistent set among the recent hypotheses disagrees with it (the loops already
+//! released stay released: the step says "revised").
 
 use alloc::collections::VecDeque;
 use alloc::vec::Vec;
 
 use nalgebra::{Matrix3, Rotation3, Vector3};
 
-use super::verify::{distance, registered, reject, relative, QueryPlace};
-use super::{Candidate, LoopDetector};
+use super::verify::{distance, registered, reject, relative, QueryPlace, VOUCHED_DRIFT};
+use super::{loop_of, Candidate, Loop, LoopDetector, PlacementChange};
 use crate::reg::{invert, mul, rows_to_pose, Pose, Rejection};
 
 /// Hypotheses kept for the consistency search (the most recent).
@@ -32,6 +37,18 @@ const FIT: usize = 48;
 /// A consistent set places the session only with more than this many times the distinct
 /// queries of every set that disagrees with it.
 const RIVAL_RATIO: usize = 2;
+
+/// A consistent set places the session only when its queries face directions at least this
+/// many degrees apart (the session turned within it): a look-alike world repeats a stretch
+/// (a street's face, a corridor's module) along one direction, so a set along one straight
+/// stretch is as likely a copy as the place (the trust matrix's never-visiting sessions were
+/// placed by straight sets of 7-10 loops over 18-57 m), while a turn needs the copy of an
+/// intersection in the same arrangement.
+const PLACEMENT_TURN_DEG: f64 = 45.0;
+
+/// Loops into the map held before the placement (or off it), kept for a late release (the
+/// most recent).
+const HELD: usize = 4 * WINDOW;
 
 /// One registered candidate into a map place: where it places the session.
 #[derive(Debug, Clone, Copy)]
@@ -50,6 +67,9 @@ pub(super) struct Hypothesis {
     odometry: bool,
     /// The registration `T_query_candidate`.
     pose: Pose,
+    /// For a candidate into the map that passed the gate: its loop (released when the placement
+    /// that holds it comes later).
+    found: Option<Loop>,
 }
 
 impl Hypothesis {
@@ -97,11 +117,27 @@ pub(super) struct Placement {
     own: VecDeque<Hypothesis>,
     /// The first supporting query and its metres travelled.
     first: Option<(u32, f64)>,
+    /// The recent queries that have a loop (accepted at their step, or released).
+    looped: VecDeque<u32>,
+    /// Hypotheses of loops into the map that passed the gate but were held (not placed yet,
+    /// or off the placement), oldest first: released when a placement agrees with them.
+    held: VecDeque<Hypothesis>,
+    /// Loops released by this step's placement, not yet reported.
+    released: Vec<Loop>,
+    /// What this step did to the placement, not yet reported.
+    change: Option<PlacementChange>,
 }
 
 impl LoopDetector {
-    /// Whether two hypotheses agree through the short paths between them.
+    /// Whether two hypotheses agree through the short paths between them (within the odometry
+    /// check's drift bounds).
     fn consistent(&self, a: &Hypothesis, b: &Hypothesis) -> bool {
+        self.consistent_times(a, b, (1.0, 1.0))
+    }
+
+    /// [`LoopDetector::consistent`] within `k` times the drift bounds
+    /// ([`LoopDetector::within_drift_times`]).
+    fn consistent_times(&self, a: &Hypothesis, b: &Hypothesis, k: (f64, f64)) -> bool {
         let expected = mul(
             &mul(&relative(&a.query_pose, &b.query_pose), &b.pose),
             &relative(&b.place, &a.place),
@@ -116,7 +152,7 @@ impl LoopDetector {
         };
         let path = along(a.travelled, b.travelled, &a.query_pose, &b.query_pose)
             + along(a.place_travelled, b.place_travelled, &a.place, &b.place);
-        self.within_drift(&expected, &a.pose, path, 0.0)
+        self.within_drift_times(&expected, &a.pose, path, 0.0, k)
     }
 
     /// Whether loops into the map are judged by the placement: placement on, the query has a
@@ -156,6 +192,7 @@ impl LoopDetector {
                     place_travelled: f64::NAN,
                     odometry: false,
                     pose: r.registration.pose,
+                    found: r.accepted.then(|| loop_of(c, at.id)),
                 },
             ));
         }
@@ -183,11 +220,12 @@ impl LoopDetector {
                 .placement
                 .support
                 .iter()
+                .filter(|s| !self.crosses_break(s.travelled, h.travelled))
                 .filter(|s| self.placement.window.iter().any(|w| same(w, s)))
                 .count();
             let n = distinct(&set);
             if self.qualifies(&set) && n > RIVAL_RATIO * rival.max(held) {
-                self.place_on(&set);
+                self.place_on(&set, at.id);
                 continue;
             }
             reject(
@@ -198,6 +236,11 @@ impl LoopDetector {
                     Rejection::OffPlacement
                 },
             );
+            let held = &mut self.placement.held;
+            if held.len() == HELD {
+                held.pop_front();
+            }
+            held.push_back(*h);
         }
     }
 
@@ -229,8 +272,9 @@ impl LoopDetector {
                     travelled: at.travelled,
                     place,
                     place_travelled: t,
-                    odometry: self.agrees_with_odometry(at, c, true),
+                    odometry: !self.across_break(at, c) && self.agrees_with_odometry(at, c, true),
                     pose: r.registration.pose,
+                    found: None,
                 },
             ));
         }
@@ -258,16 +302,10 @@ impl LoopDetector {
     /// stretches still hold, and a look-alike has to be the only reading of a stretch where the
     /// odometry did not hold to pass.
     pub(super) fn vouched(&self, h: &Hypothesis) -> bool {
-        let v = &self.config.verify;
-        if v.min_support == 0 || v.support_window == 0 {
-            return false;
-        }
-        let w: Vec<Hypothesis> = self.placement.own.iter().copied().collect();
-        let Some(me) = w.iter().rposition(|x| same(x, h)) else {
+        let Some((w, set, _)) = self.own_sets(h) else {
             return false;
         };
-        let (set, _) = self.consistent_sets_in(&w, me);
-        if distinct(&set) <= v.min_support {
+        if distinct(&set) <= self.config.verify.min_support {
             return false;
         }
         // The rivals: other readings of the same queries (look-alikes along the stretch), and
@@ -282,37 +320,96 @@ impl LoopDetector {
         let Some(me) = w.iter().rposition(|x| same(x, h)) else {
             return false;
         };
-        let (_, rival) = self.consistent_sets_in(&w, me);
+        let (_, rival) = self.consistent_sets_in(&w, me, (1.0, 1.0));
         distinct(&set) > RIVAL_RATIO * rival
     }
 
+    /// Whether a loop within the session across a break of the odometry (no path between its
+    /// query and its place that the odometry holds, [`breaks`](super::breaks)) is placed by the
+    /// loops across the same break, as a session is in a map: a set of mutually consistent
+    /// loops holding it spans `placement_loops` distinct queries (at least `min_support + 1`)
+    /// over `placement_m` metres among the last `support_window` steps, and more than twice the
+    /// queries of any consistent set that disagrees with it. The odometry says nothing across
+    /// a break, so a stretch of look-alikes is told from the true places by the loops alone.
+    pub(super) fn placed_across(&self, h: &Hypothesis) -> bool {
+        let v = &self.config.verify;
+        let Some((_, set, rival)) = self.own_sets(h) else {
+            return false;
+        };
+        let n = distinct(&set);
+        n > v.min_support
+            && n >= v.placement_loops
+            && span(&set) >= v.placement_m
+            && n > RIVAL_RATIO * rival
+    }
+
+    /// The recent loops within the session comparable with `h` through the odometry (their
+    /// queries and their places on the same sides of every break as `h`'s), the largest
+    /// consistent set among them holding `h` and its rivals' most distinct queries
+    /// ([`LoopDetector::consistent_sets_in`]); None when the support check is off or `h` is not
+    /// among the recent loops.
+    fn own_sets(&self, h: &Hypothesis) -> Option<(Vec<Hypothesis>, Vec<Hypothesis>, usize)> {
+        let v = &self.config.verify;
+        if v.min_support == 0 || v.support_window == 0 {
+            return None;
+        }
+        let w: Vec<Hypothesis> = self
+            .placement
+            .own
+            .iter()
+            .filter(|x| {
+                !self.crosses_break(x.travelled, h.travelled)
+                    && !self.crosses_break(x.place_travelled, h.place_travelled)
+            })
+            .copied()
+            .collect();
+        let me = w.iter().rposition(|x| same(x, h))?;
+        let (set, rival) = self.consistent_sets_in(&w, me, (1.0, 1.0));
+        Some((w, set, rival))
+    }
+
     /// Whether `h` agrees with the placement's supporting loop nearest to it along the path
-    /// (None while the session is not placed).
+    /// (None while the session is not placed, or placed only across a break of its odometry).
     fn agrees_with_placement(&self, h: &Hypothesis) -> Option<bool> {
-        let nearest = self.placement.support.iter().min_by(|a, b| {
-            libm::fabs(a.travelled - h.travelled).total_cmp(&libm::fabs(b.travelled - h.travelled))
-        })?;
+        // A break of the session's odometry between them: that support says nothing of `h`.
+        let support = self.placement.support.iter();
+        let comparable = support.filter(|s| !self.crosses_break(s.travelled, h.travelled));
+        let nearest = nearest(comparable, h)?;
         Some(self.consistent(h, nearest))
     }
 
     /// The largest set of mutually consistent hypotheses of the window holding `h` (grown
     /// greedily from it, nearest along the path first), and the most distinct queries of a set
-    /// grown so from any hypothesis that disagrees with `h`.
+    /// grown so from any hypothesis that disagrees with `h` (those of queries on the same side
+    /// of every break of the session's odometry). Consistent within [`VOUCHED_DRIFT`] times the
+    /// odometry check's drift bounds: the session's odometry may drift several percent over the
+    /// paths between a set's loops (the 1 % bounds broke the true set of a session drifting 3-5 %
+    /// into pieces that a look-alike set outnumbered).
     fn consistent_sets(&self, h: &Hypothesis) -> (Vec<Hypothesis>, usize) {
-        let w: Vec<Hypothesis> = self.placement.window.iter().copied().collect();
+        let w: Vec<Hypothesis> = (self.placement.window.iter())
+            .filter(|x| !self.crosses_break(x.travelled, h.travelled))
+            .copied()
+            .collect();
         match w.iter().rposition(|x| same(x, h)) {
-            Some(me) => self.consistent_sets_in(&w, me),
+            Some(me) => self.consistent_sets_in(&w, me, VOUCHED_DRIFT),
             None => (alloc::vec![*h], 0),
         }
     }
 
-    /// [`LoopDetector::consistent_sets`] among the hypotheses `w`, for `w[me]`.
-    fn consistent_sets_in(&self, w: &[Hypothesis], me: usize) -> (Vec<Hypothesis>, usize) {
+    /// [`LoopDetector::consistent_sets`] among the hypotheses `w`, for `w[me]`, consistent within
+    /// `k` times the drift bounds ([`LoopDetector::consistent_times`]).
+    fn consistent_sets_in(
+        &self,
+        w: &[Hypothesis],
+        me: usize,
+        k: (f64, f64),
+    ) -> (Vec<Hypothesis>, usize) {
         let n = w.len();
         let mut ok = alloc::vec![false; n * n];
         for i in 0..n {
             for j in 0..i {
-                let c = self.consistent(&w[i], &w[j]) && self.consistent(&w[j], &w[i]);
+                let c = self.consistent_times(&w[i], &w[j], k)
+                    && self.consistent_times(&w[j], &w[i], k);
                 ok[i * n + j] = c;
                 ok[j * n + i] = c;
             }
@@ -343,17 +440,64 @@ impl LoopDetector {
     }
 
     /// Whether a consistent set may place the session: `placement_loops` distinct queries over
-    /// `placement_m` metres of path.
+    /// `placement_m` metres of path, facing directions [`PLACEMENT_TURN_DEG`] apart.
     fn qualifies(&self, set: &[Hypothesis]) -> bool {
         let v = &self.config.verify;
-        distinct(set) >= v.placement_loops && span(set) >= v.placement_m
+        distinct(set) >= v.placement_loops && span(set) >= v.placement_m && turns(set)
     }
 
-    /// Makes `set` the placement (a new one, or a revision).
-    fn place_on(&mut self, set: &[Hypothesis]) {
+    /// Makes `set` the placement (a new one, or a revision) at query `now`, and releases the
+    /// loops of its earlier queries that passed the gate and were held (the best-scored one of
+    /// each query that has no loop yet).
+    fn place_on(&mut self, set: &[Hypothesis], now: u32) {
         let mut s: Vec<Hypothesis> = set.to_vec();
         s.sort_by_key(|h| h.query);
         let p = &mut self.placement;
+        let change = if p.support.is_empty() {
+            PlacementChange::Placed
+        } else {
+            PlacementChange::Revised
+        };
+        if p.change != Some(PlacementChange::Placed) {
+            p.change = Some(change);
+        }
+        // The held loops that agree with the placement's loop nearest to them along the path
+        // (as a loop after the placement must), the best-scored of each query.
+        let held: Vec<Hypothesis> = p.held.drain(..).collect();
+        let agree: Vec<Hypothesis> = held
+            .iter()
+            .filter(|h| h.query < now)
+            .filter(|h| {
+                // Only the set's loops on the same side of every break of the odometry say
+                // anything of `h` (as for a loop after the placement).
+                let comparable = s
+                    .iter()
+                    .filter(|n| !self.crosses_break(n.travelled, h.travelled));
+                nearest(comparable, h).is_some_and(|n| self.consistent(h, n))
+            })
+            .copied()
+            .collect();
+        let p = &mut self.placement;
+        p.held.extend(
+            held.into_iter()
+                .filter(|h| !agree.iter().any(|a| same(a, h))),
+        );
+        let mut best: Vec<Loop> = Vec::new();
+        for lp in agree.iter().filter_map(|h| h.found) {
+            if p.looped.contains(&lp.query) {
+                continue;
+            }
+            match best.iter_mut().find(|b| b.query == lp.query) {
+                Some(b) if lp.score < b.score => *b = lp,
+                Some(_) => {}
+                None => best.push(lp),
+            }
+        }
+        best.sort_by_key(|l| l.query);
+        for lp in &best {
+            note_looped(&mut p.looped, lp.query);
+        }
+        p.released.extend(best);
         p.support.clear();
         p.support.extend(s.iter().rev().take(FIT).rev().copied());
         p.loops = distinct(&s);
@@ -370,6 +514,20 @@ impl LoopDetector {
             p.support.pop_front();
         }
         p.support.push_back(*h);
+    }
+
+    /// What the step just decided did to the placement (the loops it released, placed or
+    /// revised), taken for its [`Detection`](super::Detection); `looped`: the step's query when
+    /// it got a loop.
+    pub(super) fn placement_news(
+        &mut self,
+        looped: Option<u32>,
+    ) -> (Vec<Loop>, Option<PlacementChange>) {
+        let p = &mut self.placement;
+        if let Some(q) = looped {
+            note_looped(&mut p.looped, q);
+        }
+        (core::mem::take(&mut p.released), p.change.take())
     }
 
     /// The session's placement in the map (None until loops into the map have placed it:
@@ -390,6 +548,38 @@ impl LoopDetector {
             covariance: spread(&transform, &xs),
         })
     }
+}
+
+/// Remembers that query `q` has a loop (the latest `2·WINDOW` such queries: older ones have
+/// left the hypotheses' window).
+fn note_looped(looped: &mut VecDeque<u32>, q: u32) {
+    if looped.back() == Some(&q) {
+        return;
+    }
+    if looped.len() == 2 * WINDOW {
+        looped.pop_front();
+    }
+    looped.push_back(q);
+}
+
+/// The hypothesis of `set` nearest to `h` along the session's path.
+fn nearest<'a>(
+    set: impl Iterator<Item = &'a Hypothesis>,
+    h: &Hypothesis,
+) -> Option<&'a Hypothesis> {
+    set.min_by(|a, b| {
+        libm::fabs(a.travelled - h.travelled).total_cmp(&libm::fabs(b.travelled - h.travelled))
+    })
+}
+
+/// Whether a set's queries face directions [`PLACEMENT_TURN_DEG`] apart (any two of them).
+fn turns(set: &[Hypothesis]) -> bool {
+    let rots: Vec<Pose> = set.iter().map(|h| rows_to_pose(&h.query_pose)).collect();
+    rots.iter().enumerate().any(|(i, a)| {
+        rots[..i].iter().any(|b| {
+            crate::reg::pose_distance(a, b).is_some_and(|(_, deg)| deg >= PLACEMENT_TURN_DEG)
+        })
+    })
 }
 
 fn same(a: &Hypothesis, b: &Hypothesis) -> bool {
@@ -439,6 +629,23 @@ fn mean_pose(xs: &[Pose]) -> Pose {
     out
 }
 
+/// The rotation vector of a rotation matrix, from its skew part and trace (`atan2`: no NaN
+/// where rounding puts the trace a hair above 3, as `acos` gives).
+fn rotation_vector(m: &Matrix3<f64>) -> Vector3<f64> {
+    let v = Vector3::new(
+        m[(2, 1)] - m[(1, 2)],
+        m[(0, 2)] - m[(2, 0)],
+        m[(1, 0)] - m[(0, 1)],
+    ) * 0.5;
+    let s = v.norm();
+    let angle = libm::atan2(s, (m.trace() - 1.0) / 2.0);
+    if s < 1e-12 {
+        v
+    } else {
+        v * (angle / s)
+    }
+}
+
 /// The sample covariance of the poses about `mean` (rotation vector of `R_mean^T·R`, then the
 /// translations' difference); None with fewer than two.
 fn spread(mean: &Pose, xs: &[Pose]) -> Option<[[f64; 6]; 6]> {
@@ -449,7 +656,7 @@ fn spread(mean: &Pose, xs: &[Pose]) -> Option<[[f64; 6]; 6]> {
     let mut cov = [[0.0; 6]; 6];
     for x in xs {
         let r = Matrix3::from_fn(|i, j| x[i][j]);
-        let w = Rotation3::from_matrix_unchecked(rm.transpose() * r).scaled_axis();
+        let w = rotation_vector(&(rm.transpose() * r));
         let e = [
             w[0],
             w[1],
@@ -475,7 +682,9 @@ fn spread(mean: &Pose, xs: &[Pose]) -> Option<[[f64; 6]; 6]> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::verify::tests::{detector_with_path, pose, rejection, verified};
+    use super::super::verify::tests::{
+        detector_along, detector_with_path, pose, rejection, verified,
+    };
     use super::*;
     use crate::db::{Database, DetectorConfig};
     use crate::{Config, Descriptor, Stats};
@@ -508,10 +717,20 @@ mod tests {
     }
 
     /// Step `k` of a session that drives the map's places 5.. in its own frame, half a metre
-    /// to the side: the query, its true loop to place `5 + k` and a look-alike 20 places on (the
-    /// registration as good, the same relative pose).
+    /// to the side, turning by 15° a step: the query, its true loop to place `5 + k` and a
+    /// look-alike 20 places on (the registration as good, the same relative pose).
     fn step(det: &LoopDetector, k: u32, lookalike: bool) -> (QueryPlace, [Candidate; 2]) {
-        let in_map = pose(0.0, f64::from(5 + k), 0.5);
+        step_turning(det, k, lookalike, 15.0)
+    }
+
+    /// [`step`], turning by `deg` a step.
+    fn step_turning(
+        det: &LoopDetector,
+        k: u32,
+        lookalike: bool,
+        deg: f64,
+    ) -> (QueryPlace, [Candidate; 2]) {
+        let in_map = pose(deg * f64::from(k), f64::from(5 + k), 0.5);
         let q = crate::reg::pose_to_rows(&mul(&invert(&truth()), &rows_to_pose(&in_map)));
         let at = QueryPlace {
             id: det.len() as u32 + k,
@@ -565,13 +784,108 @@ mod tests {
         assert!((a.metres - 15.0).abs() < 1e-12);
         assert!(a
             .covariance
-            .is_some_and(|c| c.iter().flatten().all(|v| v.abs() < 1e-12)));
+            .is_some_and(|c| c.iter().flatten().all(|v| v.abs() < 1e-9)));
         // Off: loops into the map pass as before.
         let mut det = over_map(0);
         let (at, mut cands) = step(&det, 0, false);
         det.check_after_gate(&at, &[], &mut cands).unwrap();
         assert_eq!(rejection(&cands[0]), None);
         assert!(det.map_anchor().is_none());
+    }
+
+    #[test]
+    fn loops_held_before_the_placement_are_released_when_it_comes() {
+        // Four queries over 3 m place the session at the fourth step: the first three's loops
+        // were held (NotPlaced) and are released then, once each, in query order.
+        let mut det = over_map(4);
+        for k in 0..6 {
+            let (at, mut cands) = step(&det, k, false);
+            det.check_after_gate(&at, &[], &mut cands).unwrap();
+            let (released, change) =
+                det.placement_news(rejection(&cands[0]).is_none().then_some(at.id));
+            let got: Vec<(u32, u32)> = released.iter().map(|l| (l.query, l.candidate)).collect();
+            match k {
+                0..=2 => {
+                    assert_eq!(rejection(&cands[0]), Some(Rejection::NotPlaced), "step {k}");
+                    assert!(got.is_empty() && change.is_none(), "step {k}");
+                }
+                3 => {
+                    assert_eq!(rejection(&cands[0]), None);
+                    assert_eq!(got, [(60, 5), (61, 6), (62, 7)]);
+                    assert_eq!(change, Some(PlacementChange::Placed));
+                    // As a step's loop: the registration's score (within the verified
+                    // threshold) and yaw.
+                    assert!(released.iter().all(
+                        |l| l.pose.is_some() && l.score <= crate::detector::VERIFIED_THRESHOLD
+                    ));
+                }
+                _ => {
+                    assert_eq!(rejection(&cands[0]), None, "step {k}");
+                    assert!(got.is_empty() && change.is_none(), "step {k}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_larger_set_that_disagrees_revises_the_placement() {
+        // Steps 0-3 see only a look-alike 20 places on (consistent with each other): the session
+        // is placed there. From step 4 on only the true places: their loops are off the
+        // placement until their set holds more than twice the placement's loops in the window
+        // (9 queries > 2 × 4), then the placement is revised, and the true loops held meanwhile
+        // are released; those of the first placement stay released (a step cannot take back
+        // loops it reported: `placement` says "revised").
+        let mut det = over_map(4);
+        let mut revised = None;
+        let mut late = Vec::new();
+        for k in 0..16 {
+            let (at, [good, alike]) = step(&det, k, true);
+            let mut cands = if k < 4 { [alike] } else { [good] };
+            det.check_after_gate(&at, &[], &mut cands).unwrap();
+            let (released, change) =
+                det.placement_news(rejection(&cands[0]).is_none().then_some(at.id));
+            if change == Some(PlacementChange::Revised) {
+                revised = Some(k);
+                late = released.iter().map(|l| l.candidate).collect();
+            }
+            if k == 3 {
+                assert_eq!(change, Some(PlacementChange::Placed));
+                assert_eq!(released.len(), 3);
+            }
+        }
+        assert_eq!(revised, Some(12));
+        assert_eq!(late, (9..17).collect::<Vec<u32>>());
+        let a = det.map_anchor().unwrap();
+        assert!(crate::reg::pose_distance(&a.transform, &truth())
+            .is_some_and(|(m, deg)| m < 1e-9 && deg < 1e-6));
+        assert_eq!(a.first_query, 64);
+    }
+
+    #[test]
+    fn a_straight_stretch_does_not_place_the_session_until_it_turns() {
+        // 30 steps along one straight stretch, every loop consistent with the others and no
+        // rival: a look-alike world's copy of a street would give the same (the never-visiting
+        // session of the trust matrix); not placed, the loops held.
+        let mut det = over_map(3);
+        for k in 0..30 {
+            let (at, mut cands) = step_turning(&det, k, false, 0.0);
+            det.check_after_gate(&at, &[], &mut cands).unwrap();
+            assert_eq!(rejection(&cands[0]), Some(Rejection::NotPlaced), "step {k}");
+            assert_eq!(det.placement_news(None), (Vec::new(), None));
+        }
+        assert!(det.map_anchor().is_none());
+        // The same stretch turning by 10° a step: placed once its queries face 45° apart (step
+        // 5: 50°, over 5 m), the loops held before released then.
+        let mut det = over_map(3);
+        for k in 0..8 {
+            let (at, mut cands) = step_turning(&det, k, false, 10.0);
+            det.check_after_gate(&at, &[], &mut cands).unwrap();
+            let (released, change) =
+                det.placement_news(rejection(&cands[0]).is_none().then_some(at.id));
+            assert_eq!(change.is_some(), k == 5, "step {k}");
+            assert_eq!(rejection(&cands[0]).is_none(), k >= 5, "step {k}");
+            assert_eq!(released.len(), if k == 5 { 5 } else { 0 }, "step {k}");
+        }
     }
 
     #[test]
@@ -591,11 +905,14 @@ mod tests {
     /// A session of 60 places 1 m apart along x (all alike to the descriptor: the look-alike
     /// check is off); a loop needs the support of one of the previous 20 steps.
     fn drifting_session() -> LoopDetector {
-        detector_with_path(60, |v| {
-            v.lookalike_m = 0.0;
-            v.min_support = 1;
-            v.support_window = 20;
-        })
+        detector_with_path(60, vouching)
+    }
+
+    /// The look-alike check off; a loop needs the support of one of the previous 20 steps.
+    fn vouching(v: &mut crate::detector::VerifyConfig) {
+        v.lookalike_m = 0.0;
+        v.min_support = 1;
+        v.support_window = 20;
     }
 
     /// Step `k` of a revisit of places 5.. after 200 m, its odometry `off` metres to the side of
@@ -703,5 +1020,113 @@ mod tests {
             }
         }
         assert_eq!(kept, [1, 2, 3, 4, 5, 7, 8, 9, 10, 11, 12, 13]);
+    }
+
+    /// A session of 60 places along x, 1 m and `seconds` apart, all alike to the descriptor (the
+    /// look-alike check off; a loop needs the support of one of the previous 20 steps, and
+    /// loops across a break place it with 3 queries over 3 m): the odometry jumps 30 m to the
+    /// side in the step into place 40 (one second or, with `seconds` NaN, no time for it), or,
+    /// with `subsampled`, the frames skip 30 m in 30 seconds there.
+    fn session_with_a_jump(seconds: f64, subsampled: bool) -> LoopDetector {
+        let place = |i: u32| {
+            let i = f64::from(i);
+            let (x, y) = match (i < 40.0, subsampled) {
+                (true, _) => (i, 0.0),
+                (false, false) => (i, 30.0),
+                (false, true) => (i + 29.0, 0.0),
+            };
+            (pose(0.0, x, y), (if subsampled { x } else { i }) * seconds)
+        };
+        detector_along(60, place, |v| {
+            vouching(v);
+            v.placement_m = 3.0;
+        })
+    }
+
+    /// Step `k` of a revisit of places 5.. (before the jump), the odometry's pose carrying the
+    /// jump (30 m to the side); its true loop and, with `lookalike`, one 20 places on.
+    fn revisit_after_jump(
+        det: &LoopDetector,
+        k: u32,
+        lookalike: bool,
+    ) -> (QueryPlace, Vec<Candidate>) {
+        let (mut at, mut cands) = revisit(det, k, 30.0, lookalike);
+        at.travelled = 300.0 + f64::from(k);
+        if !lookalike {
+            cands.truncate(1);
+        }
+        (at, cands)
+    }
+
+    #[test]
+    fn loops_across_a_break_of_the_odometry_are_placed_by_each_other() {
+        // 30 m to the side, beyond five times the drift bounds: without the break the odometry
+        // would turn every one down. Across it, the first two wait (3 queries over 3 m place
+        // the stretch), then every loop is kept.
+        // Each step also registers a place after the jump where the odometry puts it: the two
+        // loops' paths cross the break, so they are not each other's rivals (uniqueness).
+        for seconds in [1.0, f64::NAN] {
+            let mut det = session_with_a_jump(seconds, false);
+            assert_eq!(det.odometry_breaks(), 1);
+            let mut kept = Vec::new();
+            for k in 0..12 {
+                let (at, mut cands) = revisit_after_jump(&det, k, false);
+                let after = pose(0.0, f64::from(45 + k % 10), 30.0);
+                cands.push(verified(45 + k % 10, relative(&at.pose.unwrap(), &after)));
+                det.check_after_gate(&at, &[], &mut cands).unwrap();
+                assert_ne!(rejection(&cands[1]), Some(Rejection::Ambiguous), "step {k}");
+                match rejection(&cands[0]) {
+                    None => kept.push(k),
+                    Some(r) => assert_eq!(r, Rejection::NotPlaced, "step {k}"),
+                }
+            }
+            assert_eq!(kept, [3, 4, 5, 6, 7, 8, 9, 10, 11], "{seconds} s a step");
+        }
+        // A look-alike at every step: two readings of the stretch as consistent, neither kept.
+        let mut det = session_with_a_jump(1.0, false);
+        for k in 0..12 {
+            let (at, mut cands) = revisit_after_jump(&det, k, true);
+            det.check_after_gate(&at, &[], &mut cands).unwrap();
+            for c in &cands {
+                assert_eq!(rejection(c), Some(Rejection::NotPlaced), "step {k}");
+            }
+        }
+        // Loops on one side of the break are judged by the odometry as before.
+        let mut det = session_with_a_jump(1.0, false);
+        let q = QueryPlace {
+            id: det.len() as u32,
+            pose: Some(pose(0.0, 48.0, 30.5)),
+            travelled: det.travelled_at(48).unwrap() + 0.5,
+            eligible: det.len(),
+        };
+        let t = |c: f64| relative(&q.pose.unwrap(), &pose(0.0, c, 30.0));
+        let mut cands = [verified(45, t(45.0)), verified(50, t(53.0))];
+        det.check_after_gate(&q, &[], &mut cands).unwrap();
+        assert!(!det.across_break(&q, &cands[0]));
+        assert_eq!(rejection(&cands[1]), Some(Rejection::OdometryDisagrees));
+    }
+
+    #[test]
+    fn frames_subsampled_make_a_long_step_not_a_break() {
+        // The frames skip 30 m in 30 s: the speed is the session's, no break; a stretch of
+        // look-alikes 20 m off the odometry is turned down by it, never placed on its own.
+        let mut det = session_with_a_jump(1.0, true);
+        assert_eq!(det.odometry_breaks(), 0);
+        for k in 0..12 {
+            let (at, cands) = revisit(&det, k, 0.0, false);
+            let t = cands[0].verification.unwrap().registration.pose;
+            let mut cands = alloc::vec![verified(25 + k, t)];
+            det.check_after_gate(&at, &[], &mut cands).unwrap();
+            assert_eq!(
+                rejection(&cands[0]),
+                Some(Rejection::OdometryDisagrees),
+                "step {k}"
+            );
+        }
+        // The same frames without time: the long step is a break (the length alone cannot
+        // tell), and the look-alike stretch with no rival is placed across it — what a session
+        // without timestamps risks.
+        let det = session_with_a_jump(f64::NAN, true);
+        assert_eq!(det.odometry_breaks(), 1);
     }
 }

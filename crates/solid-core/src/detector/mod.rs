@@ -22,6 +22,7 @@ mod config;
 pub use config::*;
 
 mod anchor;
+mod breaks;
 mod chain;
 mod consistency;
 mod nearby;
@@ -102,12 +103,47 @@ pub struct Detection {
     pub candidates: Vec<Candidate>,
     /// The loop, when the best candidate's score is at most the threshold.
     pub accepted: Option<Loop>,
+    /// Loops into the map of earlier queries, held until this step's placement of the session
+    /// in the map (or its revision) found them consistent with it: released late, in query
+    /// order (spec §8, placement).
+    pub released: Vec<Loop>,
+    /// Whether this step placed the session in the map, or revised the placement.
+    pub placement: Option<PlacementChange>,
     /// The pose `T_world_sensor` (row-major 3×4) the step's checks used for the query: the
     /// caller's, or without one the detector's own odometry ([`PoseSource`], spec §8); None when
     /// the step had neither (verification off, or no cloud).
     pub pose: Option<[f64; 12]>,
     /// Where `pose` came from.
     pub pose_source: Option<PoseSource>,
+}
+
+/// What a detector step did to the session's placement in its map ([`LoopDetector::map_anchor`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PlacementChange {
+    /// The session was placed (its first placement).
+    Placed,
+    /// A larger consistent set that disagrees with the placement replaced it.
+    Revised,
+}
+
+/// The loop of candidate `c` for `query` (its registration when it passed the gate, which
+/// gives a verified loop its score and heading, as the step's ranking does).
+fn loop_of(c: &Candidate, query: u32) -> Loop {
+    let reg = c
+        .verification
+        .filter(|v| v.accepted)
+        .map(|v| v.registration);
+    Loop {
+        query,
+        candidate: c.id,
+        distance: c.distance,
+        heading_deg: reg.map_or(c.heading_deg, |r| r.yaw_degrees()),
+        score: reg.map_or(c.score, |r| verify::loop_length_score(&r)),
+        pose: reg.map(|r| r.pose),
+        fitness: reg.map(|r| r.fitness),
+        rmse: reg.map(|r| r.rmse),
+        information: reg.map(|r| r.information()),
+    }
 }
 
 /// An online loop-closure detector (see the module documentation).
@@ -144,6 +180,8 @@ pub struct LoopDetector {
     anchor: Option<anchor::Anchor>,
     /// The session's placement in its map (loops into the map's places).
     placement: consistency::Placement,
+    /// The own odometry's steps and breaks.
+    breaks: breaks::Breaks,
     /// The own odometry: every own place's pose as the checks know it (the caller's or the
     /// chain's) and the frame it is in.
     known: Vec<Option<([f64; 12], u32)>>,
@@ -274,6 +312,7 @@ impl LoopDetector {
             recent: VecDeque::new(),
             anchor: None,
             placement: consistency::Placement::default(),
+            breaks: breaks::Breaks::default(),
             known: Vec::new(),
             chain: chain::Chain::default(),
         })
@@ -730,6 +769,13 @@ impl LoopDetector {
         let mut s = s;
         let source = self.odometry_of(&d.a, &mut s, &mut cloud)?;
         let eligible = self.eligible(&s)?;
+        // The step into the query, when the odometry could not have made it, is a break.
+        if s.pose.is_some() {
+            let seconds = s.timestamp - self.trail.clock;
+            let largest = self.config.verify.gate.max_translation;
+            let (before, after) = (self.trail.travelled, s.trail.travelled);
+            self.breaks.note(before, after, seconds, largest);
+        }
         let mut candidates = self.rank(&d.r, &d.a, eligible, self.config.top_k)?;
         if v.enabled {
             let at = verify::QueryPlace {
@@ -765,11 +811,15 @@ impl LoopDetector {
         if let Some(c) = cloud {
             self.remember(id, c);
         }
+        let accepted = self.accept(&candidates, id);
+        let (released, placement) = self.placement_news(accepted.is_some().then_some(id));
         Ok(Detection {
             query: id,
             eligible: eligible as u32,
-            accepted: self.accept(&candidates, id),
+            accepted,
             candidates,
+            released,
+            placement,
             pose: s.pose,
             pose_source: source,
         })
@@ -782,21 +832,7 @@ impl LoopDetector {
         } else {
             c.score <= self.config.threshold
         };
-        let reg = c
-            .verification
-            .filter(|v| v.accepted)
-            .map(|v| v.registration);
-        ok.then_some(Loop {
-            query,
-            candidate: c.id,
-            distance: c.distance,
-            heading_deg: c.heading_deg,
-            score: c.score,
-            pose: reg.map(|r| r.pose),
-            fitness: reg.map(|r| r.fitness),
-            rmse: reg.map(|r| r.rmse),
-            information: reg.map(|r| r.information()),
-        })
+        ok.then(|| loop_of(c, query))
     }
 
     /// The `k` best candidates among ids `0..eligible`, in the detector's order.

@@ -263,7 +263,19 @@ impl LoopDetector {
         vouched.resize(cands.len(), false);
         if v.odometry_check {
             for (i, c) in cands.iter_mut().enumerate() {
-                if !registered(c) || self.agrees_with_odometry(at, c, true) {
+                if !registered(c) {
+                    continue;
+                }
+                // Across a break of the odometry, the loops across it decide (as in a map).
+                if self.across_break(at, c) {
+                    if own.iter().any(|(j, h)| *j == i && self.placed_across(h)) {
+                        vouched[i] = true;
+                    } else {
+                        reject(c, Rejection::NotPlaced);
+                    }
+                    continue;
+                }
+                if self.agrees_with_odometry(at, c, true) {
                     continue;
                 }
                 if self.within_vouched_drift(at, c)
@@ -438,13 +450,19 @@ impl LoopDetector {
 
     /// Whether loop `(q, c, t)` agrees with loop `(q2, c2, t2)` through the four places' poses
     /// (`q`, `q2` given): `inv(T_wq)·T_wq2·t2·inv(T_wc2)·T_wc` against `t` (None when a
-    /// candidate has no pose).
+    /// candidate has no pose, or the path between the two candidates crosses a break of the
+    /// odometry: the poses do not say).
     fn agree_through_poses(
         &self,
         (q, c, t): (&[f64; 12], u32, &Pose),
         (q2, c2, t2): (&[f64; 12], u32, &Pose),
     ) -> Option<bool> {
         let (pc2, pc) = (self.known_pose(c2)?, self.known_pose(c)?);
+        if let (Some(a), Some(b)) = (self.travelled_at(c), self.travelled_at(c2)) {
+            if self.crosses_break(a, b) {
+                return None;
+            }
+        }
         let expected = mul(&mul(&relative(q, q2), t2), &relative(&pc2, &pc));
         let path = distance(q, q2) + distance(&pc2, &pc);
         Some(self.within_drift(&expected, t, path, 1.0))
@@ -564,7 +582,7 @@ pub(super) fn distance(a: &[f64; 12], b: &[f64; 12]) -> f64 {
 /// as `|t| / (1 + |t|)`, so that a step's nearest verified place is its loop (the shortest loop
 /// constrains a pose graph best: it has the most overlap) and sweeping the scores sweeps the
 /// loops by length (docs/performance.md#loop-length-score).
-fn loop_length_score(r: &reg::Registration) -> f64 {
+pub(super) fn loop_length_score(r: &reg::Registration) -> f64 {
     let t = r.translation();
     let len = libm::sqrt(t[0] * t[0] + t[1] * t[1] + t[2] * t[2]);
     len / (1.0 + len)
@@ -670,13 +688,15 @@ pub(super) fn verify_pair_from(
     let mut yaws = [0.0f64; 16];
     let m = yaw_hypotheses(a_query, a_candidate, v.hypotheses, v.fan_deg, &mut yaws)?;
     let mut hyps = [Hypothesis::default(); 16];
-    let Ok(h) = reg::register_hypotheses(
+    // A candidate clearly no match gives up before the fine level (it cannot pass the gate).
+    let Ok(h) = reg::register_hypotheses_for(
         query,
         candidate,
         &yaws[..m],
         base,
         &v.registration,
         &mut hyps[..m],
+        v.gate.min_fitness.clamp(0.0, 1.0),
     ) else {
         return Ok(None);
     };
@@ -920,6 +940,15 @@ pub(super) mod tests {
     /// A detector (verification on) whose own session holds `n` places 1 m apart along x,
     /// facing +x, with poses; the next query is at x = `n`.
     pub(crate) fn detector_with_path(n: u32, tweak: impl Fn(&mut VerifyConfig)) -> LoopDetector {
+        detector_along(n, |i| (pose(0.0, f64::from(i), 0.0), f64::NAN), tweak)
+    }
+
+    /// [`detector_with_path`] with place `i`'s pose and timestamp `place(i)`.
+    pub(crate) fn detector_along(
+        n: u32,
+        place: impl Fn(u32) -> ([f64; 12], f64),
+        tweak: impl Fn(&mut VerifyConfig),
+    ) -> LoopDetector {
         let c = Config::preset("hdl64").unwrap();
         let mut dc = DetectorConfig::default();
         dc.verify.enabled = false;
@@ -931,8 +960,8 @@ pub(super) mod tests {
                 stats: Stats::default(),
                 fingerprint: c.fingerprint(),
             };
-            det.detect(&d, f64::NAN, Some(pose(0.0, f64::from(i), 0.0)))
-                .unwrap();
+            let (p, t) = place(i);
+            det.detect(&d, t, Some(p)).unwrap();
         }
         dc.verify.enabled = true;
         tweak(&mut dc.verify);

@@ -46,9 +46,10 @@ pub enum Rejection {
     /// descriptor) lies where the loop's pose would put the query within the drift bounds too:
     /// the odometry cannot tell which place the query sees.
     LookAlike,
-    /// A loop into another session's map before the session is placed in it: too few loops
-    /// into the map agree with each other yet (the detector's `placement_loops` over
-    /// `placement_m` metres).
+    /// A loop into another session's map before the session is placed in it, or a loop within
+    /// the session across a break of its odometry before the loops across that break place one
+    /// side on the other: too few of those loops agree with each other yet (the detector's
+    /// `placement_loops` over `placement_m` metres).
     NotPlaced,
     /// A loop into another session's map that disagrees with the session's placement in it.
     OffPlacement,
@@ -74,7 +75,9 @@ impl fmt::Display for Rejection {
             Rejection::Ambiguous => "another candidate disagrees",
             Rejection::Unsupported => "not supported by the previous steps",
             Rejection::LookAlike => "a look-alike the odometry cannot rule out",
-            Rejection::NotPlaced => "the session is not placed in the map yet",
+            Rejection::NotPlaced => {
+                "not placed yet: too few loops into the map (or across a break of the odometry) agree with each other"
+            }
             Rejection::OffPlacement => "disagrees with the session's placement in the map",
             Rejection::CorruptCloud => "its stored cloud is corrupt or unreadable",
         })

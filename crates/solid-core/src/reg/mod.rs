@@ -61,11 +61,15 @@
 //!   ranked by the fine level's robust cost at its end; the fine level then continues from the
 //!   best. On the narrow Avia the A-SOLiD cost has a single minimum, near 0°: the fixed ±25°
 //!   give the other hypotheses.
+//! - **Giving up** ([`register_hypotheses_for`]): a verifying detector's hypotheses skip the
+//!   fine level when the best one is clearly no match for the gate's `min_fitness` (on a
+//!   simulated 360° drive, 78 of 80 candidates that took the hypotheses ended at low overlap).
 //! - **Convergence**: updates below 0.1° and 1 mm (small-gicp's), 10× looser on the coarse
 //!   level, at most 20 iterations per level: the same budget as small-gicp.
 //!
 //! # Allocation
-//! [`register`], [`register_hypotheses`], [`hypothesis_yaws`], [`Gate::check`] and the
+//! [`register`], [`register_hypotheses`] ([`register_hypotheses_for`]), [`hypothesis_yaws`],
+//! [`Gate::check`] and the
 //! [`KdTree3`] queries allocate nothing. [`PreparedCloud`] owns its storage (points, tree,
 //! covariances, normals: about 105 bytes a point) and allocates while it is built, once per
 //! place; the [`wire`] form allocates its output.
@@ -86,8 +90,9 @@ pub use information::{Information, LOOP_SIGMA_M, LOOP_SIGMA_ROT_DEG};
 pub use kdtree::{KdTree3, Nearest};
 pub(crate) use solve::weakest_direction;
 pub use solve::{
-    agreement, hypothesis_yaws, pose_distance, register, register_hypotheses, Hypotheses,
-    Hypothesis, HORIZONTAL, MAX_HYPOTHESES, ROTATION_TOLERANCE,
+    agreement, hypothesis_yaws, pose_distance, register, register_hypotheses,
+    register_hypotheses_for, Hypotheses, Hypothesis, HORIZONTAL, MAX_HYPOTHESES,
+    ROTATION_TOLERANCE,
 };
 pub use wire::{check_cloud, decode_cloud, encode_cloud};
 
