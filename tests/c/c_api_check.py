@@ -96,13 +96,18 @@ def test_loops_equal_solid_detect_on_the_walk(data: Path, tmp_path: Path, verify
     scans = data / "hku1-avia" / "Scans"
     want = solid_detect(scans, "avia", tmp_path / "py", verify)
     got = run([str(build_dir() / "cmake" / "loops"), str(scans), "avia", *([] if verify else ["--no-verify"])])
-    assert want.count("\n") > 50, "the walk has loops"
+    # Without poses the verified walk has 49 loops (the detector's own odometry,
+    # docs/loops.md#without-poses), without verification more.
+    assert want.count("\n") > 40, "the walk has loops"
     assert got == want
 
 
 def test_examples_clean_under_address_sanitizer(data: Path, tmp_path: Path) -> None:
     env = dict(os.environ, ASAN_OPTIONS="detect_leaks=1:halt_on_error=1:abort_on_error=0")
-    folder = stretch(data, tmp_path)
+    # The whole walk: verified without poses, the detector's own odometry links every keyframe to
+    # the one before, so a stretch with a gap (stretch()) relates its two ends by no odometry
+    # and has no loop (docs/loops.md#without-poses).
+    folder = data / "hku1-avia" / "Scans"
     got = run([str(build_dir() / "asan" / "loops"), str(folder), "avia"], env=env)
     assert got == solid_detect(folder, "avia", tmp_path / "py", True)
     assert got.count("\n") > 5

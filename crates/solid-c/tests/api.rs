@@ -418,10 +418,21 @@ fn detector_finds_a_verified_loop_with_its_pose() {
     unsafe {
         solid_detector_config_new(c("vlp16").as_ptr(), &mut dc);
         solid_detector_config_set(dc, c("exclude_frames").as_ptr(), 2.0);
+        // One revisit, no steps before it to support it, excluded by frames only (the poses
+        // give a path, which the metres window would otherwise count).
+        solid_detector_config_set(dc, c("exclude_meters").as_ptr(), 0.0);
+        solid_detector_config_set(dc, c("min_support").as_ptr(), 0.0);
         assert_eq!(solid_detector_new(cfg, dc, &mut det), SolidStatus::Ok);
         let mut loops = Vec::new();
+        // The sensor moves 3 m a step along -x, then is carried back near its start: its poses
+        // (T_world_sensor, row-major 4x4) say so. Without them the detector's own odometry
+        // (scan-to-scan registration) could not link the jump back, and a scan it cannot link
+        // is related to no place (spec §8).
         for (k, shift) in [0.0, 3.0, 6.0, 9.0, 0.4].into_iter().enumerate() {
             let scan = room(shift);
+            let pose = [
+                1.0, 0.0, 0.0, -shift, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0,
+            ];
             let mut lp = std::mem::MaybeUninit::<SolidLoop>::uninit();
             let mut found = false;
             let s = if k % 2 == 0 {
@@ -429,7 +440,7 @@ fn detector_finds_a_verified_loop_with_its_pose() {
                     det,
                     &points(&scan),
                     k as f64,
-                    null(),
+                    pose.as_ptr(),
                     lp.as_mut_ptr(),
                     &mut found,
                 )
@@ -439,7 +450,14 @@ fn detector_finds_a_verified_loop_with_its_pose() {
                     solid_detector_prepare(det, &points(&scan), &mut sc),
                     SolidStatus::Ok
                 );
-                solid_detector_add_scan(det, sc, k as f64, null(), lp.as_mut_ptr(), &mut found)
+                solid_detector_add_scan(
+                    det,
+                    sc,
+                    k as f64,
+                    pose.as_ptr(),
+                    lp.as_mut_ptr(),
+                    &mut found,
+                )
             };
             assert_eq!(s, SolidStatus::Ok, "{}", last_error());
             if found {
