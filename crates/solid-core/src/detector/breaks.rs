@@ -101,7 +101,8 @@ impl LoopDetector {
             && self.expected(at, c.id, true).is_none()
     }
 
-    /// How many breaks the session's odometry has had so far ([`breaks`](self)).
+    /// How many breaks the session's odometry has had so far (a step it cannot have made: spec §8,
+    /// "Breaks").
     pub fn odometry_breaks(&self) -> usize {
         self.breaks.count()
     }
