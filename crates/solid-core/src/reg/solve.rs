@@ -897,12 +897,12 @@ pub fn hypothesis_yaws(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::reg::{mul, yaw_pose, IDENTITY};
+    use crate::reg::{yaw_pose, IDENTITY};
     use crate::Points;
 
-    /// A room with a pillar (the candidate), the same room seen 0.4 m and 3° away (the query),
-    /// and that true pose.
-    fn room() -> (PreparedCloud, PreparedCloud, Pose) {
+    #[test]
+    fn the_fine_level_measures_the_same_overlap_as_a_pass_of_its_own() {
+        // A room with a pillar, and the same room seen 0.4 m and 3° away.
         let mut xyz = Vec::new();
         for i in 0..=160 {
             for j in 0..=24 {
@@ -925,41 +925,6 @@ mod tests {
         let cfg = RegConfig::default();
         let q = PreparedCloud::new(Points::new(&query, 3).unwrap(), &cfg).unwrap();
         let c = PreparedCloud::new(Points::new(&xyz, 3).unwrap(), &cfg).unwrap();
-        (q, c, moved)
-    }
-
-    #[test]
-    fn a_start_within_the_fine_level_s_reach_needs_no_coarse_level() {
-        let (q, c, truth) = room();
-        let cfg = RegConfig::default();
-        // 0.3 m and 1° off the truth: what a neighbour's registration carried over by drifting
-        // poses gives.
-        let mut start = mul(&yaw_pose(1.0), &truth);
-        start[1][3] += 0.3;
-        let full = register(&q, &c, &start, &cfg).unwrap();
-        let fine = register_fine(&q, &c, &start, &cfg).unwrap();
-        assert!(full.converged && fine.converged);
-        let (dt, dr) = pose_distance(&fine.pose, &full.pose).unwrap();
-        assert!(dt < 0.01 && dr < 0.1, "{dt} m, {dr}°");
-        let (dt, dr) = pose_distance(&fine.pose, &truth).unwrap();
-        assert!(dt < 0.02 && dr < 0.2, "{dt} m, {dr}° from the truth");
-        assert!((fine.fitness - full.fitness).abs() < 0.01);
-        assert!(fine.iterations < full.iterations);
-        // Clouds prepared otherwise are refused as by `register`.
-        let other = RegConfig {
-            neighbors: 12,
-            ..cfg
-        };
-        assert!(matches!(
-            register_fine(&q, &c, &start, &other),
-            Err(RegError::NotPreparedWith)
-        ));
-    }
-
-    #[test]
-    fn the_fine_level_measures_the_same_overlap_as_a_pass_of_its_own() {
-        let (q, c, moved) = room();
-        let cfg = RegConfig::default();
         let mut measured = 0;
         for start in [IDENTITY, yaw_pose(10.0), moved] {
             let mut x = Rigid::from_pose(&start).unwrap();
