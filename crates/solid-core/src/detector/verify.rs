@@ -112,8 +112,7 @@ impl LoopDetector {
     ///    places away (an adjacent keyframe of the same place) whose registration met the
     ///    gate's quality checks ([`registered`]): its pose composed with the two places'
     ///    relative pose (their poses', the identity without poses). Such candidates are
-    ///    registered after the others, once, on the fine level alone when the two poses carried
-    ///    the start over ([`reg::register_fine`]); kept when the result meets the quality checks;
+    ///    registered after the others, once; kept when the result meets the quality checks;
     /// 2. the *odometry*: with the odometry check, an own place with poses starts from the
     ///    relative pose the poses predict (through the anchor when it applies,
     ///    [`LoopDetector::expected`]), once. A result that meets the quality checks is kept when
@@ -165,31 +164,28 @@ impl LoopDetector {
             }));
         }
         let det: &LoopDetector = self;
-        // `neighbour`: a neighbour's start, and whether the poses carried it over (within the
-        // fine level's reach: the coarse level is skipped).
-        let one =
-            |k: usize, neighbour: Option<(Pose, bool)>| -> Result<Option<Verification>, DbError> {
-                let cp = &jobs[k].1;
-                if let Some((start, carried)) = neighbour {
-                    let s = seeded_on(&v, q, cp, &start, carried)?;
-                    if s.as_ref().is_some_and(met_quality) {
-                        return Ok(s);
-                    }
+        let one = |k: usize, neighbour: Option<Pose>| -> Result<Option<Verification>, DbError> {
+            let cp = &jobs[k].1;
+            if let Some(start) = neighbour {
+                let s = seeded(&v, q, cp, &start)?;
+                if s.as_ref().is_some_and(met_quality) {
+                    return Ok(s);
                 }
-                if let Some((expected, path)) = odometry[k] {
-                    let s = seeded(&v, q, cp, &expected)?;
-                    let guarded = |s: &Verification| {
-                        let r = &s.registration;
-                        r.degeneracy.translation >= v.pose_candidate_min_information
-                            && det.within_drift(&expected, &r.pose, path, 0.0)
-                    };
-                    match s {
-                        Some(s) if !met_quality(&s) || guarded(&s) => return Ok(Some(s)),
-                        _ => {}
-                    }
+            }
+            if let Some((expected, path)) = odometry[k] {
+                let s = seeded(&v, q, cp, &expected)?;
+                let guarded = |s: &Verification| {
+                    let r = &s.registration;
+                    r.degeneracy.translation >= v.pose_candidate_min_information
+                        && det.within_drift(&expected, &r.pose, path, 0.0)
+                };
+                match s {
+                    Some(s) if !met_quality(&s) || guarded(&s) => return Ok(Some(s)),
+                    _ => {}
                 }
-                verify_pair(&v, a_query, &det.a(ids[k]), q, cp)
-            };
+            }
+            verify_pair(&v, a_query, &det.a(ids[k]), q, cp)
+        };
         // The leaders first, then the candidates that follow them.
         let leaders: Vec<usize> = (0..jobs.len()).filter(|&k| follows[k].is_none()).collect();
         let first = run_jobs(&leaders, v.threads, |&k| one(k, None))?;
@@ -200,7 +196,7 @@ impl LoopDetector {
             at.and_then(|at| self.expected_through(at, anchored, id))
                 .is_none_or(|(e, path)| self.within_drift(&e, pose, path, 1.0))
         };
-        let followers: Vec<(usize, Option<(Pose, bool)>)> = (0..jobs.len())
+        let followers: Vec<(usize, Option<Pose>)> = (0..jobs.len())
             .filter_map(|k| {
                 let j = follows[k]?;
                 let (a, b) = (ids[j], ids[k]);
@@ -211,8 +207,8 @@ impl LoopDetector {
                     .verification
                     .filter(|r| met_quality(r) && agrees(a, &r.registration.pose))
                     .map(|r| match self.known_pose(a).zip(self.known_pose(b)) {
-                        Some((pa, pb)) => (mul(&r.registration.pose, &relative(&pa, &pb)), true),
-                        None => (r.registration.pose, false),
+                        Some((pa, pb)) => mul(&r.registration.pose, &relative(&pa, &pb)),
+                        None => r.registration.pose,
                     });
                 Some((k, start))
             })
@@ -652,23 +648,7 @@ pub(super) fn seeded(
     candidate: &PreparedCloud,
     start: &Pose,
 ) -> Result<Option<Verification>, DbError> {
-    seeded_on(v, query, candidate, start, false)
-}
-
-/// [`seeded`], on the fine level alone when `fine_only` ([`reg::register_fine`]).
-fn seeded_on(
-    v: &VerifyConfig,
-    query: &PreparedCloud,
-    candidate: &PreparedCloud,
-    start: &Pose,
-    fine_only: bool,
-) -> Result<Option<Verification>, DbError> {
-    let register = if fine_only {
-        reg::register_fine
-    } else {
-        reg::register
-    };
-    let Ok(r) = register(query, candidate, start, &v.registration) else {
+    let Ok(r) = reg::register(query, candidate, start, &v.registration) else {
         return Ok(None);
     };
     let check = gate_and_view(v, &r, &[], 0);

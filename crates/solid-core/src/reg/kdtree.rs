@@ -17,7 +17,7 @@ use core::cmp::Ordering;
 use crate::Error;
 
 /// Largest number of entries a node scans linearly instead of splitting.
-pub const LEAF_SIZE: usize = 4;
+pub const LEAF_SIZE: usize = 8;
 
 /// One neighbour found by a query: the point's index and its squared Euclidean distance.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]

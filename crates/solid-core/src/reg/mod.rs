@@ -90,7 +90,7 @@ pub use information::{Information, LOOP_SIGMA_M, LOOP_SIGMA_ROT_DEG};
 pub use kdtree::{KdTree3, Nearest};
 pub(crate) use solve::weakest_direction;
 pub use solve::{
-    agreement, hypothesis_yaws, pose_distance, register, register_fine, register_hypotheses,
+    agreement, hypothesis_yaws, pose_distance, register, register_hypotheses,
     register_hypotheses_for, Hypotheses, Hypothesis, HORIZONTAL, MAX_HYPOTHESES,
     ROTATION_TOLERANCE,
 };

@@ -431,28 +431,6 @@ pub fn register(
     Ok(register_from(query, candidate, &mut x, cfg))
 }
 
-/// [`register`] on the fine level alone, from `init`: for a start already within the fine
-/// level's reach (`max_correspondence`), such as a neighbouring place's registration carried
-/// over by the two places' poses, where the coarse level would only confirm it. On a 360°
-/// sensor the coarse level of such a start costs about as much as its fine level
-/// (docs/performance.md, "Verified step").
-///
-/// # Errors
-/// As [`register`].
-pub fn register_fine(
-    query: &PreparedCloud,
-    candidate: &PreparedCloud,
-    init: &Pose,
-    cfg: &RegConfig,
-) -> Result<Registration, RegError> {
-    cfg.validate()?;
-    if !query.prepared_with(cfg) || !candidate.prepared_with(cfg) {
-        return Err(RegError::NotPreparedWith);
-    }
-    let mut x = Rigid::from_pose(init)?;
-    Ok(fine_from(query, candidate, &mut x, None, cfg, 0))
-}
-
 fn register_from(
     query: &PreparedCloud,
     candidate: &PreparedCloud,
