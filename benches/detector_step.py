@@ -5,6 +5,7 @@ small_gicp, in the same run.
     .venv/bin/python benches/detector_step.py --baseline DIR # beside an older build installed in DIR
     .venv/bin/python benches/detector_step.py --json benches/results/step.json
     .venv/bin/python benches/detector_step.py --threads --walks hku1-avia/no-poses --steps 120
+    .venv/bin/python benches/detector_step.py --walks sim-os1-64 --detector '{"verify_step_points": 120000}'
 
 Walks: hku1-avia (314 keyframes, the shared data; skipped with a reason when absent) with its
 odometry poses and without poses, and a simulated 360° OS1-64 drive (``sim.World(seed=0)``, 1.6
@@ -60,13 +61,14 @@ def walk(name: str) -> tuple[str, list[Any], list[float], list[Any]]:
     return "os1-64", list(seq.scans), [float(t) for t in seq.times], list(np.asarray(odo.poses))
 
 
-def child(name: str) -> None:
-    """Runs one walk with the importable build; prints its steps as JSON."""
+def child(name: str, overrides: dict[str, Any]) -> None:
+    """Runs one walk with the importable build (its preset's detector with `overrides`); prints its
+    steps as JSON."""
     import solid
     from solid.config import PipelineConfig
 
     preset, scans, T, P = walk(name)
-    cfg = PipelineConfig.preset(preset, detector={"verify_threads": 1})
+    cfg = PipelineConfig.preset(preset, detector={"verify_threads": 1, **overrides})
     det = solid.LoopDetector(cfg.descriptor, detector=cfg.detector)
     cpu: list[float] = []
     pairs: list[tuple[int, int]] = []
@@ -103,11 +105,11 @@ def threads(name: str, steps: int | None) -> None:
         )
 
 
-def run(name: str, path: str | None) -> dict[str, Any]:
+def run(name: str, path: str | None, overrides: dict[str, Any]) -> dict[str, Any]:
     env = dict(os.environ)
     if path is not None:
         env["PYTHONPATH"] = os.pathsep.join([path, env.get("PYTHONPATH", "")])
-    out = subprocess.run([sys.executable, __file__, "--child", name], env=env, capture_output=True, text=True, check=False, timeout=7200)
+    out = subprocess.run([sys.executable, __file__, "--child", name, "--detector", json.dumps(overrides)], env=env, capture_output=True, text=True, check=False, timeout=7200)
     if out.returncode != 0:
         raise SystemExit(f"{name} ({path or 'this build'}) failed:\n{out.stderr[-3000:]}")
     doc: dict[str, Any] = json.loads(out.stdout.strip().splitlines()[-1])
@@ -185,10 +187,11 @@ def main() -> int:
     ap.add_argument("--baseline-label", default="an older build", help="what the baseline is, for the JSON (e.g. main @ fcb11b6)")
     ap.add_argument("--threads", action="store_true", help="instead: verify_threads 1, 2, 1, 2 on each walk, CPU and wall time per step")
     ap.add_argument("--steps", type=int, help="with --threads: the first N steps of each walk")
+    ap.add_argument("--detector", type=json.loads, default={}, help="detector parameters over the preset's, both builds (JSON, DetectorConfig names)")
     ap.add_argument("--json", type=Path, help="write the figures here (tools/readme_speed.py reads benches/results/step.json)")
     args = ap.parse_args()
     if args.child:
-        child(args.child)
+        child(args.child, args.detector)
         return 0
     results: dict[str, Any] = {}
     if args.threads:
@@ -203,10 +206,10 @@ def main() -> int:
             print(f"{name}: skipped, {HKU} not found (SOLID_SHARED)")
             continue
         print(f"{name}: CPU per verified step (LoopDetector.detect, shipped defaults, 1 verify thread)", flush=True)
-        now = run(name, None)
+        now = run(name, None, args.detector)
         row: dict[str, Any] = {"this": stats(now)}
         if args.baseline:
-            base = run(name, args.baseline)
+            base = run(name, args.baseline, args.detector)
             row["baseline"] = stats(base)
             row["ratio"] = row["this"]["mean_ms"] / row["baseline"]["mean_ms"]
             row["same_loops"] = base["loops"] == now["loops"]
@@ -234,6 +237,7 @@ def main() -> int:
             "cpu": cpu_model(),
             "cores": os.cpu_count(),
             "baseline": args.baseline_label if args.baseline else None,
+            "detector": args.detector,
             "walks": results,
         }
         args.json.write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
