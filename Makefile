@@ -195,11 +195,13 @@ typecheck: wheel
 ## workspace where their placeholder names (hku1-avia, my_run, run1, odom.txt, scan.pcd...) are the
 ## shared data (tools/readme_examples.py; a block that cannot run here carries a docs-check marker
 ## with its reason, printed). The README's, describe's and loops' Python blocks run in install-test.
-## Each page runs in a fresh workspace of its own, so pages run two at a time (the longest,
-## docs/slam.md, first).
+## Each page runs in a fresh workspace of its own, so pages run two at a time, the two longest
+## first (docs/slam.md, ~40 s of CPU, and docs/loops.md's commands, ~50 s; the rest, ~30 s, follow
+## beside slam.md), so that neither waits alone at the end.
 DOC_PAGES := $(wildcard docs/*.md)
-DOC_RUNS := docs/slam.md $(filter-out docs/slam.md docs/describe.md docs/loops.md,$(DOC_PAGES)) \
-	--shell-only:README.md --shell-only:docs/describe.md --shell-only:docs/loops.md
+DOC_RUNS := docs/slam.md --shell-only:docs/loops.md \
+	$(filter-out docs/slam.md docs/describe.md docs/loops.md,$(DOC_PAGES)) \
+	--shell-only:README.md --shell-only:docs/describe.md
 docs-examples: wheel
 	printf '%s\n' $(DOC_RUNS) | tr ':' ' ' | xargs -P 2 -L 1 $(PY) tools/readme_examples.py --run-docs
 
@@ -277,14 +279,11 @@ fuzz-deps:
 fuzz_executed = n=$$(sed -n 's/^stat::number_of_executed_units: *//p' $(1) | tail -1); \
   echo "$$name: $${n:-0} inputs executed"; [ "$${n:-0}" -gt 0 ] || { echo "$$name executed no input"; exit 1; }
 
+# Each run is one process on one core: two at a time (a sub-make with -j 2), each target's log
+# in build/fuzz/TARGET.log and its tail printed when it fails.
 define run_fuzz
 	mkdir -p build/fuzz
-	for a in $(FUZZ_AREAS); do \
-	  echo "atheris $$a: $(1) s"; \
-	  (cd fuzz/python && $(PYABS) fuzz.py $$a -max_total_time=$(1) -timeout=10 -rss_limit_mb=4096 -print_final_stats=1) \
-	    > build/fuzz/$$a.log 2>&1 || { tail -40 build/fuzz/$$a.log; exit 1; }; \
-	  name="atheris $$a"; $(call fuzz_executed,build/fuzz/$$a.log); \
-	done
+	$(MAKE) --no-print-directory -j 2 FUZZ_TIME=$(1) $(addprefix atheris-,$(FUZZ_AREAS))
 endef
 
 define run_cargo_fuzz
@@ -292,14 +291,23 @@ define run_cargo_fuzz
 	(cd fuzz/python && $(PYABS) seed_lzf.py ../../build/fuzz/corpus/lzf)
 	$(PY) fuzz/python/seed_core.py build/fuzz/corpus
 	cd fuzz && CARGO_NET_OFFLINE=true $(NIGHTLY_FUZZ) build
-	for t in $(CARGO_FUZZ_TARGETS); do \
-	  echo "cargo-fuzz $$t: $(1) s"; \
-	  (cd fuzz && CARGO_NET_OFFLINE=true $(NIGHTLY_FUZZ) run $$t ../build/fuzz/corpus/$$t -- -max_total_time=$(1) \
-	    -rss_limit_mb=4096 -artifact_prefix=../build/fuzz/artifacts/$$t- -print_final_stats=1) \
-	    > build/fuzz/$$t.log 2>&1 || { tail -40 build/fuzz/$$t.log; exit 1; }; \
-	  name="cargo-fuzz $$t"; $(call fuzz_executed,build/fuzz/$$t.log); \
-	done
+	$(MAKE) --no-print-directory -j 2 FUZZ_TIME=$(1) $(addprefix cargo-fuzz-,$(CARGO_FUZZ_TARGETS))
 endef
+
+# One harness for FUZZ_TIME seconds (run_fuzz and run_cargo_fuzz start them).
+.PHONY: $(addprefix atheris-,$(FUZZ_AREAS)) $(addprefix cargo-fuzz-,$(CARGO_FUZZ_TARGETS))
+$(addprefix atheris-,$(FUZZ_AREAS)): atheris-%:
+	@echo "atheris $*: $(FUZZ_TIME) s"
+	@(cd fuzz/python && $(PYABS) fuzz.py $* -max_total_time=$(FUZZ_TIME) -timeout=10 -rss_limit_mb=4096 -print_final_stats=1) \
+	  > build/fuzz/$*.log 2>&1 || { tail -40 build/fuzz/$*.log; exit 1; }
+	@name="atheris $*"; $(call fuzz_executed,build/fuzz/$*.log)
+
+$(addprefix cargo-fuzz-,$(CARGO_FUZZ_TARGETS)): cargo-fuzz-%:
+	@echo "cargo-fuzz $*: $(FUZZ_TIME) s"
+	@(cd fuzz && CARGO_NET_OFFLINE=true $(NIGHTLY_FUZZ) run $* ../build/fuzz/corpus/$* -- -max_total_time=$(FUZZ_TIME) \
+	  -rss_limit_mb=4096 -artifact_prefix=../build/fuzz/artifacts/$*- -print_final_stats=1) \
+	  > build/fuzz/$*.log 2>&1 || { tail -40 build/fuzz/$*.log; exit 1; }
+	@name="cargo-fuzz $*"; $(call fuzz_executed,build/fuzz/$*.log)
 
 fuzz: wheel fuzz-deps
 	$(call run_fuzz,$(FUZZ_SECONDS))

@@ -158,15 +158,16 @@ def test_loops_equal_detect_over_the_wire(avia: Path, listener: Listener, tmp_pa
     assert len(want) >= 20
     dds_out = tmp_path / "dds.jsonl"
     # Reliable inputs (as for any recording played back): every keyframe the player sends arrives,
-    # however busy the machine; a queue that never overflows. The DDS reader has matched the
-    # node's loop writer before the first keyframe is sent.
+    # however busy the machine; a queue that never overflows. So the pace is free: 4x the
+    # recorded one (~10 s instead of ~40 s). The DDS reader has matched the node's loop writer
+    # before the first keyframe is sent.
     with process([PY, str(REPO / "tests" / "dds_reader.py"), str(DOMAIN), "/solid/loops", str(dds_out), "300"], tmp_path / "dds.log") as dds, \
             process(node_args("preset:=avia", f"detector.exclude_meters:={EXCLUDE_M}", "queue_size:=1000", "input_qos:=reliable"), tmp_path / "node.log") as node:
         listener.wait(lambda: dds_out.exists() and "ready" in dds_out.read_text(), 30, "the DDS reader", dds)
         listener.wait(lambda: bool(listener.status), 60, "the node's first status", node)
         listener.wait(lambda: "matched" in dds_out.read_text(), 30, "the DDS reader to match the node's loop writer", dds)
         listener.wait(lambda: listener.loop_writers > 0, 30, "the listener to match the node's loop writer", node)
-        with process(play_args(avia, "--poses", str(avia / "odom_poses.txt"), "--frames", FRAMES, "--rate", "1", "--max-gap", "1"),
+        with process(play_args(avia, "--poses", str(avia / "odom_poses.txt"), "--frames", FRAMES, "--rate", "4", "--max-gap", "1"),
                      tmp_path / "play.log") as play:
             listener.wait(lambda: listener.status.get("keyframes") == N_FRAMES and len(listener.loops) >= len(want), 180,
                           f"{N_FRAMES} keyframes and {len(want)} loops", node)
@@ -224,9 +225,11 @@ def test_relocalization_places_the_second_half(avia: Path, listener: Listener, t
     rebased = np.linalg.inv(P4[start]) @ P4
     (tmp_path / "rebased.txt").write_text("\n".join(" ".join(f"{v:.12g}" for v in T[:3].reshape(12)) for T in rebased) + "\n")
     saved = tmp_path / "session.soliddb"
-    with process(node_args(f"map:={m}", f"save_file:={saved}", "queue_size:=100", "input_qos:=reliable"), tmp_path / "node.log") as node:
+    # Reliable inputs and a queue that never overflows: every keyframe arrives at 8x the recorded
+    # pace (~10 s of playing instead of ~40 s).
+    with process(node_args(f"map:={m}", f"save_file:={saved}", "queue_size:=1000", "input_qos:=reliable"), tmp_path / "node.log") as node:
         listener.wait(lambda: bool(listener.status), 60, "the node's first status", node)
-        with process(play_args(avia, "--poses", str(tmp_path / "rebased.txt"), "--frames", f"{start}:314", "--rate", "2"), tmp_path / "play.log") as play:
+        with process(play_args(avia, "--poses", str(tmp_path / "rebased.txt"), "--frames", f"{start}:314", "--rate", "8"), tmp_path / "play.log") as play:
             listener.wait(lambda: listener.status.get("keyframes") == 314 - start, 180, "the second half's keyframes", node)
             assert play.wait(timeout=30) == 0
         assert listener.status["map_loops"] > 0 and listener.status["placed"] is not None, listener.status
