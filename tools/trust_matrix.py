@@ -56,8 +56,9 @@ from solid import sim, slam  # noqa: E402
 from solid.config import PipelineConfig  # noqa: E402
 from solid.pipeline import LoopClosurePipeline  # noqa: E402
 
-#: Every preset at its own view and cropped to 90° (the Avia sees 70°: its own only).
-VIEWS = ["hdl64", "hdl64:90", "hdl32", "hdl32:90", "vlp16", "vlp16:90", "os1-64", "os1-64:90", "avia", "aeva", "aeva:90"]
+#: Every simulated sensor at its own view and cropped to 90° (the Avia sees 70°: its own only;
+#: the descriptor's hdl32 preset has no simulated sensor).
+VIEWS = [v for s in sim.SENSORS for v in ([s] if s == "avia" else [s, f"{s}:90"])]
 QUICK_VIEWS = ["hdl64", "avia", "os1-64:90"]
 DRIFTS = [1, 2, 3, 5]
 ROWS = ["sessions", "never", "drift", "breakdown", "single"]
