@@ -7,6 +7,7 @@ registered candidates' disagreement with the poses (what the odometry check judg
     PYTHONPATH=python python tools/gate_measure.py '{}' presets          # corridors per preset
     PYTHONPATH=python python tools/gate_measure.py '{}' presets 1,2      # ... seeds 1 and 2 only
     PYTHONPATH=python python tools/gate_measure.py '{}' drift            # a drifting odometry
+    PYTHONPATH=python python tools/gate_measure.py '{}' tests            # tests/test_gate.py's runs
 
 The optional first argument is a JSON object of detector overrides (the names of DetectorConfig);
 the second, ``presets``, runs the default look-alike world (``World.corridors()``'s modules) for
@@ -14,7 +15,9 @@ every preset at its own view and a 90° one, seeds 1–3 (or the comma-separated
 argument), instead of the room and the three corridor runs; ``drift`` gives the detector
 tests/test_gate.py's drifting odometry (0.01°/m of yaw, 1 % scale) instead of the true poses, on
 the two-module world (frames 3 m apart, as that test) and the default one (4 m), and scores the
-loops against the truth. docs/performance.md#loops-a-pose-graph-can-trust gives the figures.
+loops against the truth; ``tests`` runs tests/test_gate.py's scenarios (its corridor views, the
+turning room, its drifting odometry) with the overrides and prints what the tests assert on.
+docs/performance.md#loops-a-pose-graph-can-trust gives the figures.
 """
 
 from __future__ import annotations
@@ -116,8 +119,37 @@ def measure_drift(name: str, world: sim.World, traj: sim.Trajectory, sensor: sim
     )
 
 
+def measure_tests(detector: dict[str, Any]) -> None:
+    """tests/test_gate.py's runs with `detector`'s overrides merged into each: accepted loops,
+    pose-false, recall (and for its drifting odometry the loops off the truth and the revisits found)."""
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+    import test_gate as T
+
+    def line(name: str, ev: Any) -> str:
+        m = ev.metrics()
+        return f"{name}: {int(np.sum(ev.accepted))} accepted, {m['pose_false_accepts']} pose-false, recall {m['recall']:.3f}"
+
+    for preset, fov, seed, kind in T.VIEWS:
+        world, walk = T.corridor_walk(seed, kind)
+        seq = sim.simulate(world, sim.Sensor(preset, h_fov=fov), walk)
+        ev = LoopClosurePipeline(seq, PipelineConfig.preset(preset, radius=5.0, detector=detector)).run().evaluate()
+        print(line(f"corridors seed {seed} ({kind}), {preset} {fov or 'own'}°", ev), flush=True)
+    for preset in ("avia", "os1-64"):
+        room = sim.World.room(seed=1)
+        walk = sim.Trajectory.turn_in_place(room, sweep=330.0, step=3.0, wobble=0.3, seed=1)
+        cfg = PipelineConfig.preset(preset, radius=5.0, detector={"exclude_meters": 0.0, **detector})
+        print(line(f"turning in place, {preset}", LoopClosurePipeline(sim.simulate(room, sim.Sensor(preset), walk), cfg).run().evaluate()), flush=True)
+    world, walk = T.corridor_walk(3)
+    measure_drift("drifting odometry, 2-module corridors seed 3, os1-64 with a 90° view", world, walk, sim.Sensor("os1-64", h_fov=90.0), "os1-64", detector, 3)
+
+
 def main() -> None:
     detector: dict[str, Any] = json.loads(sys.argv[1]) if len(sys.argv) > 1 else {}
+    if sys.argv[2:3] == ["tests"]:
+        measure_tests(detector)
+        return
     if sys.argv[2:3] == ["drift"]:
         for modules, spacing in ((2, 3.0), (4, 4.0)):
             for preset, fov, seed in (("os1-64", 90.0, 3), ("vlp16", None, 2), ("hdl64", 90.0, 2), ("avia", None, 1), ("aeva", 90.0, 2), ("os1-64", None, 3)):

@@ -4,11 +4,14 @@ Run by `make c-test` (not collected by the plain pytest run: the examples must b
 which sets SOLID_C_BUILD to the folder holding the builds: cmake/ (find_package), pkgconfig/,
 static/ (libsolid.a) and asan/ (AddressSanitizer). Checks that `describe` prints the Python
 descriptor bit for bit, that `loops` prints `solid detect`'s loops.csv (verified and
---no-verify), and that both run clean under AddressSanitizer and valgrind.
+--no-verify, alone and into a map: the loops a placement released, the anchor) and its
+odometry.csv (the detector's own odometry, `SolidStep`), and that both run clean under
+AddressSanitizer and valgrind.
 """
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import subprocess
@@ -76,17 +79,17 @@ def test_describe_names_what_is_wrong(data: Path, tmp_path: Path) -> None:
     assert p.returncode == 1 and "16-byte" in p.stderr
 
 
-def solid_detect(scans: Path, preset: str, out: Path, verify: bool) -> str:
-    cmd = [sys.executable, "-m", "solid", "detect", str(scans), "--preset", preset, "-o", str(out), "-q"]
+def solid_detect(scans: Path, preset: str, out: Path, verify: bool, *more: str) -> str:
+    cmd = [sys.executable, "-m", "solid", "detect", str(scans), "--preset", preset, "-o", str(out), "-q", *more]
     run(cmd + ([] if verify else ["--no-verify"]))
     return (out / "loops.csv").read_text()
 
 
-def stretch(data: Path, tmp_path: Path) -> Path:
-    """The start and the end of the hku1 walk (the revisit), as links to its keyframes."""
+def stretch(data: Path, tmp_path: Path, frames: list[int] | range | None = None) -> Path:
+    """Keyframes of the hku1 walk as links (default: its start and its end, the revisit)."""
     folder = tmp_path / "stretch"
     folder.mkdir()
-    for i in [*range(0, 30), *range(262, 314)]:
+    for i in frames if frames is not None else [*range(0, 30), *range(262, 314)]:
         (folder / f"{i:06d}.pcd").symlink_to(data / "hku1-avia" / "Scans" / f"{i:06d}.pcd")
     return folder
 
@@ -95,11 +98,44 @@ def stretch(data: Path, tmp_path: Path) -> Path:
 def test_loops_equal_solid_detect_on_the_walk(data: Path, tmp_path: Path, verify: bool) -> None:
     scans = data / "hku1-avia" / "Scans"
     want = solid_detect(scans, "avia", tmp_path / "py", verify)
-    got = run([str(build_dir() / "cmake" / "loops"), str(scans), "avia", *([] if verify else ["--no-verify"])])
+    odometry = tmp_path / "odometry.csv"
+    flags = ["--odometry", str(odometry)] if verify else ["--no-verify"]
+    got = run([str(build_dir() / "cmake" / "loops"), str(scans), "avia", *flags])
     # Without poses the verified walk has 49 loops (the detector's own odometry,
     # docs/loops.md#without-poses), without verification more.
     assert want.count("\n") > 40, "the walk has loops"
     assert got == want
+    if verify:
+        # The poses the steps used (SolidStep: the detector's own odometry), as solid detect
+        # writes them.
+        assert odometry.read_text() == (tmp_path / "py" / "odometry.csv").read_text()
+        assert odometry.read_text().count(",chained,") > 250
+
+
+def test_loops_into_a_map_are_released_when_the_session_is_placed(data: Path, tmp_path: Path) -> None:
+    """The first half of the walk as a map (with its poses), the second half as a new session
+    against it, without poses: its loops into the map wait for the placement (frame 265), which
+    releases them (solid_detector_last_step, solid_detector_released), and the anchor
+    (solid_detector_map_anchor) is the one solid detect reports."""
+    walk = data / "hku1-avia"
+    m = tmp_path / "first.soliddb"
+    run([sys.executable, "-m", "solid", "map", "build", str(walk / "Scans"), "--frames", "0:157",
+         "--poses", str(walk / "odom_poses.txt"), "--preset", "avia", "-o", str(m), "-q"])
+    second = stretch(data, tmp_path, range(157, 314))
+    want = solid_detect(second, "avia", tmp_path / "py", True, "--map", str(m))
+    p = subprocess.run([str(build_dir() / "cmake" / "loops"), str(second), "avia", "--map", str(m)],
+                       capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stderr
+    assert p.stdout == want
+    placed = [ln for ln in p.stderr.splitlines() if ln.startswith("placed in the map")]
+    assert len(placed) == 1, p.stderr
+    released = int(placed[0].split("released ")[1].split()[0])
+    # Loops of queries before the placement, in loops.csv but accepted at no step of their own.
+    assert released >= 10
+    a = json.loads((tmp_path / "py" / "summary.json").read_text())["map_anchor"]
+    t = np.array(a["transform"])
+    assert f"anchor: {a['loops']} loops over {a['metres']:.3f} m" in p.stderr
+    assert "translation " + " ".join(f"{v:.6f}" for v in t[:3, 3]) in p.stderr
 
 
 def test_examples_clean_under_address_sanitizer(data: Path, tmp_path: Path) -> None:

@@ -9,6 +9,50 @@
 #include <stdint.h>
 
 /**
+ * What a step did to the session's placement in its prior map ([`SolidStep`]).
+ */
+typedef enum SolidPlacement {
+  /**
+   * Nothing.
+   */
+  SOLID_PLACEMENT_NONE = 0,
+  /**
+   * The session was placed in the map (its first placement, [`solid_detector_map_anchor`]).
+   */
+  SOLID_PLACEMENT_PLACED = 1,
+  /**
+   * A larger consistent set of loops that disagrees with the placement replaced it.
+   */
+  SOLID_PLACEMENT_REVISED = 2,
+} SolidPlacement;
+
+/**
+ * Where a step's pose came from ([`SolidStep`]).
+ */
+typedef enum SolidPoseSource {
+  /**
+   * The step had no pose: none was given and the detector's own odometry had none
+   * (verification off, or a link it could not make: the scan is related to no place).
+   */
+  SOLID_POSE_SOURCE_NONE = 0,
+  /**
+   * The caller gave it.
+   */
+  SOLID_POSE_SOURCE_GIVEN = 1,
+  /**
+   * The detector's own odometry (without the caller's pose): the scan registered with the
+   * previous keyframe of its session and chained onto that keyframe's pose.
+   */
+  SOLID_POSE_SOURCE_CHAINED = 2,
+  /**
+   * The detector's own odometry starts a frame here (the identity): the session's first scan
+   * without a pose, or the first after a link that failed. No odometry relates this frame to
+   * the places before it.
+   */
+  SOLID_POSE_SOURCE_STARTED = 3,
+} SolidPoseSource;
+
+/**
  * What a call returned. Every value but `SOLID_STATUS_OK` comes with a message from
  * [`solid_last_error`].
  */
@@ -243,6 +287,68 @@ typedef struct SolidLoop {
    */
   double rmse;
 } SolidLoop;
+
+/**
+ * What a detector step reported beside its loop ([`solid_detector_last_step`]).
+ */
+typedef struct SolidStep {
+  /**
+   * Id of the step's query (the scan it added).
+   */
+  uint32_t query;
+  /**
+   * Where `pose` came from.
+   */
+  enum SolidPoseSource pose_source;
+  /**
+   * The pose `T_world_sensor` (row-major 4x4) the step's checks used for the query: the
+   * caller's or, without one, the detector's own odometry (docs/loops.md#without-poses);
+   * NaN when `pose_source` is `SOLID_POSE_SOURCE_NONE`.
+   */
+  double pose[16];
+  /**
+   * Whether the step placed the session in the map or revised the placement.
+   */
+  enum SolidPlacement placement;
+  /**
+   * Number of loops into the map that this step released: loops of earlier queries, held
+   * until a placement agreed with them ([`solid_detector_released`] gives them).
+   */
+  size_t released;
+} SolidStep;
+
+/**
+ * Where the detector's session lies in its prior map ([`solid_detector_map_anchor`]): the
+ * placement that mutually consistent loops into the map support (docs/spec.md §8).
+ */
+typedef struct SolidMapAnchor {
+  /**
+   * `T_map_world`, row-major 4x4: maps the session's pose frame ("odom") into the map's
+   * frame, fitted to the latest supporting loops.
+   */
+  double transform[16];
+  /**
+   * Mutually consistent loops into the map that support it (distinct queries).
+   */
+  size_t loops;
+  /**
+   * Metres of the session's path they span.
+   */
+  double metres;
+  /**
+   * Id of the first supporting query.
+   */
+  uint32_t first_query;
+  /**
+   * Id of the latest supporting query.
+   */
+  uint32_t last_query;
+  /**
+   * The spread of the supporting loops' placements about `transform`: 6x6 row-major,
+   * rotation (radians) first, then translation (metres); NaN with fewer than two loops.
+   */
+  double covariance[36];
+} SolidMapAnchor;
 
 /**
  * The outcome of [`solid_register`].
@@ -591,6 +697,39 @@ enum SolidStatus solid_detector_add(struct SolidDetector *detector,
                                     const double *pose,
                                     struct SolidLoop *loop_out,
                                     bool *found);
+
+/**
+ * What the latest step on this detector reported beside its loop (see [`SolidStep`]): the
+ * pose its checks used and where it came from, what it did to the placement in the map, how
+ * many held loops it released. Steps run one at a time; with several threads adding, "latest"
+ * is the last one to finish. Fails (`SOLID_STATUS_INVALID_ARGUMENT`) before the first step.
+ */
+enum SolidStatus solid_detector_last_step(const struct SolidDetector *detector,
+                                          struct SolidStep *step);
+
+/**
+ * The loops into the map that the latest step released (`SolidStep.released` of them, in
+ * query order): loops of earlier queries, held until the session's placement in the map (or
+ * its revision) found them consistent with it (docs/spec.md §8). Each is that earlier query's
+ * loop, as the step's own loop is the step's; a pose graph adds them as it adds the others.
+ * Writes them to `loops` (room for `capacity`) and their number to `*count`; a `capacity`
+ * below their number is `SOLID_STATUS_BUFFER_TOO_SMALL` (the message says how many). They are
+ * kept until the next step.
+ */
+enum SolidStatus solid_detector_released(const struct SolidDetector *detector,
+                                         struct SolidLoop *loops,
+                                         size_t capacity,
+                                         size_t *count);
+
+/**
+ * The session's placement in the detector's prior map: when mutually consistent loops into
+ * the map have placed it, `*placed` is true and `*anchor` holds the placement; otherwise
+ * `*placed` is false and `*anchor` is not written (NULL allowed then). Without a map, never
+ * placed. A step that places or revises it says so in `SolidStep.placement`.
+ */
+enum SolidStatus solid_detector_map_anchor(const struct SolidDetector *detector,
+                                           struct SolidMapAnchor *anchor,
+                                           bool *placed);
 
 /**
  * Number of places (a prior map's and every scan added).

@@ -6,12 +6,14 @@
 use std::ffi::c_char;
 use std::sync::{Arc, RwLock};
 
-use solid_lidar::db::{Database, Loop, LoopDetector, Scan};
+use solid_lidar::db::{
+    Database, Detection, Loop, LoopDetector, MapAnchor, PlacementChange, PoseSource, Scan,
+};
 
 use crate::config::{SolidConfig, SolidDetectorConfig};
 use crate::database::{entry, optional_pose, SolidDatabase};
-use crate::{flat_pose, guard, new_handle, nonnull, out, points, put, read, release, string};
-use crate::{with_points, write};
+use crate::{flat_pose, guard, new_handle, nonnull, out, points, put, read, release, slice_mut};
+use crate::{string, with_points, write};
 use crate::{Failure, SolidPoints, SolidStatus};
 
 /// A loop detector and its database of places.
@@ -20,6 +22,15 @@ use crate::{Failure, SolidPoints, SolidStatus};
 /// reads; adding a scan waits for them and runs alone (the steps of one detector are ordered).
 pub struct SolidDetector {
     det: RwLock<LoopDetector>,
+    /// What the latest step reported beside its loop (None before the first), written while
+    /// the step holds `det` for writing.
+    last: RwLock<Option<LastStep>>,
+}
+
+/// The latest step's report: [`solid_detector_last_step`] and [`solid_detector_released`].
+struct LastStep {
+    step: SolidStep,
+    released: Vec<SolidLoop>,
 }
 
 /// A scan described and prepared by [`solid_detector_prepare`], ready for
@@ -94,6 +105,116 @@ impl SolidLoop {
     }
 }
 
+/// Where a step's pose came from ([`SolidStep`]).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SolidPoseSource {
+    /// The step had no pose: none was given and the detector's own odometry had none
+    /// (verification off, or a link it could not make: the scan is related to no place).
+    None = 0,
+    /// The caller gave it.
+    Given = 1,
+    /// The detector's own odometry (without the caller's pose): the scan registered with the
+    /// previous keyframe of its session and chained onto that keyframe's pose.
+    Chained = 2,
+    /// The detector's own odometry starts a frame here (the identity): the session's first scan
+    /// without a pose, or the first after a link that failed. No odometry relates this frame to
+    /// the places before it.
+    Started = 3,
+}
+
+/// What a step did to the session's placement in its prior map ([`SolidStep`]).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SolidPlacement {
+    /// Nothing.
+    None = 0,
+    /// The session was placed in the map (its first placement, [`solid_detector_map_anchor`]).
+    Placed = 1,
+    /// A larger consistent set of loops that disagrees with the placement replaced it.
+    Revised = 2,
+}
+
+/// What a detector step reported beside its loop ([`solid_detector_last_step`]).
+#[repr(C)]
+#[derive(Debug, Clone, Copy)]
+pub struct SolidStep {
+    /// Id of the step's query (the scan it added).
+    pub query: u32,
+    /// Where `pose` came from.
+    pub pose_source: SolidPoseSource,
+    /// The pose `T_world_sensor` (row-major 4x4) the step's checks used for the query: the
+    /// caller's or, without one, the detector's own odometry (docs/loops.md#without-poses);
+    /// NaN when `pose_source` is `SOLID_POSE_SOURCE_NONE`.
+    pub pose: [f64; 16],
+    /// Whether the step placed the session in the map or revised the placement.
+    pub placement: SolidPlacement,
+    /// Number of loops into the map that this step released: loops of earlier queries, held
+    /// until a placement agreed with them ([`solid_detector_released`] gives them).
+    pub released: usize,
+}
+
+impl SolidStep {
+    fn from_detection(d: &Detection) -> SolidStep {
+        let pose_source = match d.pose_source {
+            Some(PoseSource::Given) => SolidPoseSource::Given,
+            Some(PoseSource::Chained) => SolidPoseSource::Chained,
+            Some(PoseSource::Started) => SolidPoseSource::Started,
+            None => SolidPoseSource::None,
+        };
+        let mut pose = [f64::NAN; 16];
+        if let Some(m) = &d.pose {
+            pose[..12].copy_from_slice(m);
+            pose[12..].copy_from_slice(&[0.0, 0.0, 0.0, 1.0]);
+        }
+        SolidStep {
+            query: d.query,
+            pose_source,
+            pose,
+            placement: match d.placement {
+                Some(PlacementChange::Placed) => SolidPlacement::Placed,
+                Some(PlacementChange::Revised) => SolidPlacement::Revised,
+                None => SolidPlacement::None,
+            },
+            released: d.released.len(),
+        }
+    }
+}
+
+/// Where the detector's session lies in its prior map ([`solid_detector_map_anchor`]): the
+/// placement that mutually consistent loops into the map support (docs/spec.md §8).
+#[repr(C)]
+#[derive(Debug, Clone, Copy)]
+pub struct SolidMapAnchor {
+    /// `T_map_world`, row-major 4x4: maps the session's pose frame ("odom") into the map's
+    /// frame, fitted to the latest supporting loops.
+    pub transform: [f64; 16],
+    /// Mutually consistent loops into the map that support it (distinct queries).
+    pub loops: usize,
+    /// Metres of the session's path they span.
+    pub metres: f64,
+    /// Id of the first supporting query.
+    pub first_query: u32,
+    /// Id of the latest supporting query.
+    pub last_query: u32,
+    /// The spread of the supporting loops' placements about `transform`: 6x6 row-major,
+    /// rotation (radians) first, then translation (metres); NaN with fewer than two loops.
+    pub covariance: [f64; 36],
+}
+
+impl SolidMapAnchor {
+    fn from_anchor(a: &MapAnchor) -> SolidMapAnchor {
+        SolidMapAnchor {
+            transform: flat_pose(&a.transform),
+            loops: a.loops,
+            metres: a.metres,
+            first_query: a.first_query,
+            last_query: a.last_query,
+            covariance: a.covariance.as_ref().map_or([f64::NAN; 36], flat6),
+        }
+    }
+}
+
 /// A row-major 6×6 matrix as 36 numbers.
 fn flat6(m: &[[f64; 6]; 6]) -> [f64; 36] {
     core::array::from_fn(|k| m[k / 6][k % 6])
@@ -103,6 +224,7 @@ impl From<LoopDetector> for SolidDetector {
     fn from(det: LoopDetector) -> SolidDetector {
         SolidDetector {
             det: RwLock::new(det),
+            last: RwLock::new(None),
         }
     }
 }
@@ -243,7 +365,17 @@ unsafe fn step(
     found: *mut bool,
 ) -> Result<(), Failure> {
     let pose = optional_pose(pose, "pose")?;
-    let detection = write(&d.det)?.detect_scan(scan, timestamp, pose)?;
+    let mut det = write(&d.det)?;
+    let detection = det.detect_scan(scan, timestamp, pose)?;
+    *write(&d.last)? = Some(LastStep {
+        step: SolidStep::from_detection(&detection),
+        released: detection
+            .released
+            .iter()
+            .map(SolidLoop::from_loop)
+            .collect(),
+    });
+    drop(det);
     if let Some(f) = found.as_mut() {
         *f = detection.accepted.is_some();
     }
@@ -251,6 +383,82 @@ unsafe fn step(
         *o = SolidLoop::from_loop(lp);
     }
     Ok(())
+}
+
+/// What the latest step on this detector reported beside its loop (see [`SolidStep`]): the
+/// pose its checks used and where it came from, what it did to the placement in the map, how
+/// many held loops it released. Steps run one at a time; with several threads adding, "latest"
+/// is the last one to finish. Fails (`SOLID_STATUS_INVALID_ARGUMENT`) before the first step.
+#[no_mangle]
+pub unsafe extern "C" fn solid_detector_last_step(
+    detector: *const SolidDetector,
+    step: *mut SolidStep,
+) -> SolidStatus {
+    guard("solid_detector_last_step", || {
+        let d = nonnull(detector, "detector")?;
+        let o = out(step, "step")?;
+        let last = read(&d.last)?;
+        let l = last
+            .as_ref()
+            .ok_or_else(|| Failure::arg("no scan was added yet"))?;
+        *o = l.step;
+        Ok(())
+    })
+}
+
+/// The loops into the map that the latest step released (`SolidStep.released` of them, in
+/// query order): loops of earlier queries, held until the session's placement in the map (or
+/// its revision) found them consistent with it (docs/spec.md §8). Each is that earlier query's
+/// loop, as the step's own loop is the step's; a pose graph adds them as it adds the others.
+/// Writes them to `loops` (room for `capacity`) and their number to `*count`; a `capacity`
+/// below their number is `SOLID_STATUS_BUFFER_TOO_SMALL` (the message says how many). They are
+/// kept until the next step.
+#[no_mangle]
+pub unsafe extern "C" fn solid_detector_released(
+    detector: *const SolidDetector,
+    loops: *mut SolidLoop,
+    capacity: usize,
+    count: *mut usize,
+) -> SolidStatus {
+    guard("solid_detector_released", || {
+        let d = nonnull(detector, "detector")?;
+        let last = read(&d.last)?;
+        let released = last.as_ref().map_or(&[][..], |l| &l.released[..]);
+        if capacity < released.len() {
+            return Err(Failure::new(
+                SolidStatus::BufferTooSmall,
+                format!(
+                    "the step released {} loops: loops has room for {capacity}",
+                    released.len()
+                ),
+            ));
+        }
+        let n = out(count, "count")?;
+        slice_mut(loops, released.len(), "loops")?.copy_from_slice(released);
+        *n = released.len();
+        Ok(())
+    })
+}
+
+/// The session's placement in the detector's prior map: when mutually consistent loops into
+/// the map have placed it, `*placed` is true and `*anchor` holds the placement; otherwise
+/// `*placed` is false and `*anchor` is not written (NULL allowed then). Without a map, never
+/// placed. A step that places or revises it says so in `SolidStep.placement`.
+#[no_mangle]
+pub unsafe extern "C" fn solid_detector_map_anchor(
+    detector: *const SolidDetector,
+    anchor: *mut SolidMapAnchor,
+    placed: *mut bool,
+) -> SolidStatus {
+    guard("solid_detector_map_anchor", || {
+        let a = read(&nonnull(detector, "detector")?.det)?.map_anchor();
+        let p = out(placed, "placed")?;
+        if let Some(a) = &a {
+            *out(anchor, "anchor")? = SolidMapAnchor::from_anchor(a);
+        }
+        *p = a.is_some();
+        Ok(())
+    })
 }
 
 /// Number of places (a prior map's and every scan added).

@@ -606,3 +606,111 @@ fn saves_never_replace_a_fifo() {
     assert_eq!(left.len(), 1, "a temporary file was left");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn a_loop_keeps_its_layout() {
+    // SolidLoop is written into the caller's memory: a program built against an earlier header
+    // must find every field where it was (new reports come in new structs and functions).
+    use std::mem::{offset_of, size_of};
+    assert_eq!(size_of::<SolidLoop>(), 472);
+    let offsets = [
+        offset_of!(SolidLoop, query),
+        offset_of!(SolidLoop, candidate),
+        offset_of!(SolidLoop, distance),
+        offset_of!(SolidLoop, heading_deg),
+        offset_of!(SolidLoop, score),
+        offset_of!(SolidLoop, verified),
+        offset_of!(SolidLoop, pose),
+        offset_of!(SolidLoop, information),
+        offset_of!(SolidLoop, fitness),
+        offset_of!(SolidLoop, rmse),
+    ];
+    assert_eq!(offsets, [0, 4, 8, 16, 24, 32, 40, 168, 456, 464]);
+}
+
+#[test]
+fn a_step_reports_its_pose_and_where_it_came_from() {
+    let cfg = config("vlp16");
+    let mut dc = null_mut();
+    let mut det = null_mut();
+    unsafe {
+        solid_detector_config_new(c("vlp16").as_ptr(), &mut dc);
+        assert_eq!(solid_detector_new(cfg, dc, &mut det), SolidStatus::Ok);
+        let mut step = std::mem::MaybeUninit::<SolidStep>::uninit();
+        assert_eq!(
+            solid_detector_last_step(det, step.as_mut_ptr()),
+            SolidStatus::InvalidArgument
+        );
+        assert!(
+            last_error().contains("no scan was added yet"),
+            "{}",
+            last_error()
+        );
+        // No map: never placed, and the anchor is not written (NULL is fine).
+        let mut placed = true;
+        assert_eq!(
+            solid_detector_map_anchor(det, null_mut(), &mut placed),
+            SolidStatus::Ok
+        );
+        assert!(!placed);
+        let add = |shift: f64, pose: Option<&[f64; 16]>| {
+            let scan = room(shift);
+            let p = pose.map_or(null(), |p| p.as_ptr());
+            let s = solid_detector_add(det, &points(&scan), f64::NAN, p, null_mut(), null_mut());
+            assert_eq!(s, SolidStatus::Ok, "{}", last_error());
+            let mut step = std::mem::MaybeUninit::<SolidStep>::uninit();
+            assert_eq!(
+                solid_detector_last_step(det, step.as_mut_ptr()),
+                SolidStatus::Ok
+            );
+            step.assume_init()
+        };
+        // Without the caller's pose the detector's own odometry starts a frame (the identity),
+        // then chains each scan onto the previous one: the room's points 0.5 m further along x
+        // are the sensor 0.5 m back.
+        let first = add(0.0, None);
+        assert_eq!(
+            (
+                first.query,
+                first.pose_source,
+                first.placement,
+                first.released
+            ),
+            (0, SolidPoseSource::Started, SolidPlacement::None, 0)
+        );
+        let identity = [
+            1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0,
+        ];
+        assert_eq!(first.pose, identity);
+        let second = add(0.5, None);
+        assert_eq!(
+            (second.query, second.pose_source),
+            (1, SolidPoseSource::Chained)
+        );
+        assert!((second.pose[3] + 0.5).abs() < 0.05, "{:?}", second.pose);
+        assert!(second.pose[7].abs() < 0.05 && second.pose[11].abs() < 0.05);
+        assert_eq!(second.pose[12..], [0.0, 0.0, 0.0, 1.0]);
+        // A given pose is the step's, as given.
+        let mut given = identity;
+        given[3] = 7.0;
+        let third = add(1.0, Some(&given));
+        assert_eq!(
+            (third.pose_source, third.pose),
+            (SolidPoseSource::Given, given)
+        );
+        // No loop was held, so none was released: an empty buffer is enough.
+        let mut n = 99;
+        assert_eq!(
+            solid_detector_released(det, null_mut(), 0, &mut n),
+            SolidStatus::Ok
+        );
+        assert_eq!(n, 0);
+        assert_eq!(
+            solid_detector_released(det, null_mut(), 0, null_mut()),
+            SolidStatus::InvalidArgument
+        );
+        solid_detector_free(det);
+        solid_detector_config_free(dc);
+        solid_config_free(cfg);
+    }
+}
