@@ -205,7 +205,8 @@ def main() -> int:
                 raise SystemExit(f"{HKU} is missing")
             print(f"{name}: skipped, {HKU} not found (SOLID_SHARED)")
             continue
-        print(f"{name}: CPU per verified step (LoopDetector.detect, shipped defaults, 1 verify thread)", flush=True)
+        given = f" with {json.dumps(args.detector)}" if args.detector else ""
+        print(f"{name}: CPU per verified step (LoopDetector.detect, shipped defaults{given}, 1 verify thread)", flush=True)
         now = run(name, None, args.detector)
         row: dict[str, Any] = {"this": stats(now)}
         if args.baseline:
