@@ -72,6 +72,16 @@ pub(super) struct Hypothesis {
     found: Option<Loop>,
 }
 
+/// What the neighbours say of a loop the odometry check turned down ([`LoopDetector::vouch`]).
+pub(super) enum Vouch {
+    /// Nothing: too few agree, or a rival reading is as strong.
+    No,
+    /// A set that holds it lacks only the turn: the loop waits (held) for it.
+    Waits,
+    /// The set (holding it) vouches for it.
+    Yes(Vec<Hypothesis>),
+}
+
 impl Hypothesis {
     /// `X = T_mc · inv(T) · inv(T_wq)`: the session's frame in the map's.
     fn placement(&self) -> Pose {
@@ -122,7 +132,12 @@ pub(super) struct Placement {
     /// Hypotheses of loops into the map that passed the gate but were held (not placed yet,
     /// or off the placement), oldest first: released when a placement agrees with them.
     held: VecDeque<Hypothesis>,
-    /// Loops released by this step's placement, not yet reported.
+    /// Hypotheses of loops within the session that the odometry check turned down and whose
+    /// neighbours' set lacked only the turn, oldest first: released when a set that qualifies
+    /// holds them ([`LoopDetector::vouch`]).
+    waiting: VecDeque<Hypothesis>,
+    /// Loops released by this step (a placement, or a set of neighbours that vouches), not yet
+    /// reported.
     released: Vec<Loop>,
     /// What this step did to the placement, not yet reported.
     change: Option<PlacementChange>,
@@ -296,17 +311,21 @@ impl LoopDetector {
     /// its neighbours: a set of mutually consistent loops holding it (each pair consistent
     /// through the short paths between them, as for the placement in a map) holds the loops of
     /// `min_support + 1` distinct queries among the last `support_window` steps (the support
-    /// check's), with more than twice the queries of any consistent set that disagrees with it
+    /// check's), two of them facing directions [`PLACEMENT_TURN_DEG`] apart (a straight run of
+    /// agreeing look-alikes vouched for itself on the four-module corridors with a drifting
+    /// odometry: 33 wrong loops on three views, `tools/gate_measure.py '{}' drift`), with more
+    /// than twice the queries of any consistent set that disagrees with it
     /// among the other loops of the same queries and the loops of those steps that agree with
     /// the odometry. The odometry drifted beyond its bounds, or broke down on the way; its short
     /// stretches still hold, and a look-alike has to be the only reading of a stretch where the
-    /// odometry did not hold to pass.
-    pub(super) fn vouched(&self, h: &Hypothesis) -> bool {
+    /// odometry did not hold to pass. A set that lacks only the turn makes the loop wait
+    /// ([`Vouch::Waits`]: held, and released by the set that turns).
+    pub(super) fn vouch(&self, h: &Hypothesis) -> Vouch {
         let Some((w, set, _)) = self.own_sets(h) else {
-            return false;
+            return Vouch::No;
         };
         if distinct(&set) <= self.config.verify.min_support {
-            return false;
+            return Vouch::No;
         }
         // The rivals: other readings of the same queries (look-alikes along the stretch), and
         // the loops of the window that agree with the odometry (it held there: a look-alike
@@ -318,10 +337,56 @@ impl LoopDetector {
             .filter(|x| x.odometry || queries.contains(&x.query))
             .collect();
         let Some(me) = w.iter().rposition(|x| same(x, h)) else {
-            return false;
+            return Vouch::No;
         };
         let (_, rival) = self.consistent_sets_in(&w, me, (1.0, 1.0));
-        distinct(&set) > RIVAL_RATIO * rival
+        if distinct(&set) <= RIVAL_RATIO * rival {
+            Vouch::No
+        } else if turns(&set) {
+            Vouch::Yes(set)
+        } else {
+            Vouch::Waits
+        }
+    }
+
+    /// Holds loop `lp` of hypothesis `h`, waiting for its neighbours' set to turn (the latest
+    /// [`HELD`]).
+    pub(super) fn wait_for_turn(&mut self, h: Hypothesis, lp: Loop) {
+        let waiting = &mut self.placement.waiting;
+        if waiting.len() == HELD {
+            waiting.pop_front();
+        }
+        waiting.push_back(Hypothesis {
+            found: Some(lp),
+            ..h
+        });
+    }
+
+    /// Releases the waiting loops of queries before `now` that the vouching `set` holds (the
+    /// best-scored of each query that has no loop yet).
+    pub(super) fn release_vouched(&mut self, set: &[Hypothesis], now: u32) {
+        let p = &mut self.placement;
+        let (mut out, keep): (Vec<Hypothesis>, Vec<Hypothesis>) = p
+            .waiting
+            .drain(..)
+            .partition(|h| h.query < now && set.iter().any(|s| same(s, h)));
+        p.waiting.extend(keep);
+        out.sort_by_key(|h| h.query);
+        let mut best: Vec<Loop> = Vec::new();
+        for lp in out.iter().filter_map(|h| h.found) {
+            if p.looped.contains(&lp.query) {
+                continue;
+            }
+            match best.iter_mut().find(|b| b.query == lp.query) {
+                Some(b) if lp.score < b.score => *b = lp,
+                Some(_) => {}
+                None => best.push(lp),
+            }
+        }
+        for lp in &best {
+            note_looped(&mut p.looped, lp.query);
+        }
+        p.released.extend(best);
     }
 
     /// Whether a loop within the session across a break of the odometry (no path between its
@@ -942,25 +1007,64 @@ mod tests {
         (at, cands)
     }
 
+    /// [`revisit`] of a query turning `turn` degrees a step (the places face +x): the same
+    /// places, the registrations relate the turned query to them.
+    fn revisit_turning(
+        det: &LoopDetector,
+        k: u32,
+        off: f64,
+        lookalike: bool,
+        turn: f64,
+    ) -> (QueryPlace, Vec<Candidate>) {
+        let (mut at, mut cands) = revisit(det, k, off, lookalike);
+        let (x, yaw) = (f64::from(5 + k), turn * f64::from(k));
+        at.pose = Some(pose(yaw, x, off));
+        let t = relative(&pose(yaw, x, 0.0), &pose(0.0, x, 0.0));
+        for c in &mut cands {
+            *c = verified(c.id, t);
+        }
+        (at, cands)
+    }
+
     #[test]
     fn loops_the_odometry_drifted_away_from_are_kept_when_their_neighbours_vouch_for_them() {
-        // 8 m off: the odometry check turns down the first step, then two queries agree
-        // through their short paths and the loops are kept.
+        // 8 m off, the revisit turning 10° a step: the odometry check turns down the first
+        // steps, then queries that agree through their short paths and face directions 45°
+        // apart vouch for each other and the loops are kept.
+        // The loops that waited for the turn (steps 1-4: step 0 had no neighbour yet) are
+        // released with it, once.
         let mut det = drifting_session();
+        let first = det.len() as u32;
         for k in 0..10 {
-            let (at, mut cands) = revisit(&det, k, 8.0, false);
+            let (at, mut cands) = revisit_turning(&det, k, 8.0, false, 10.0);
             det.check_after_gate(&at, &[], &mut cands).unwrap();
-            let want = if k < 1 {
+            let want = if k < 5 {
                 Some(Rejection::OdometryDisagrees)
             } else {
                 None
             };
             assert_eq!(rejection(&cands[0]), want, "step {k}");
+            let (released, _) = det.placement_news(want.is_none().then_some(at.id));
+            let queries: Vec<u32> = released.iter().map(|l| l.query - first).collect();
+            let want: &[u32] = if k == 5 { &[1, 2, 3, 4] } else { &[] };
+            assert_eq!(queries, want, "step {k}");
+        }
+        // A straight revisit: as likely a stretch of look-alikes (a corridor repeating along its
+        // length: the four-module drift world's wrong runs), never vouched for.
+        let mut det = drifting_session();
+        for k in 0..10 {
+            let (at, mut cands) = revisit(&det, k, 8.0, false);
+            det.check_after_gate(&at, &[], &mut cands).unwrap();
+            assert_eq!(
+                rejection(&cands[0]),
+                Some(Rejection::OdometryDisagrees),
+                "step {k}"
+            );
         }
         // A look-alike at every step: two readings of the stretch as consistent, neither kept.
         let mut det = drifting_session();
         for k in 0..10 {
-            let (at, mut cands) = revisit(&det, k, 8.0, true);
+            let (at, mut cands) = revisit_turning(&det, k, 8.0, true, 10.0);
             det.check_after_gate(&at, &[], &mut cands).unwrap();
             for c in &cands {
                 assert_eq!(rejection(c), Some(Rejection::OdometryDisagrees), "step {k}");
@@ -1008,18 +1112,25 @@ mod tests {
     #[test]
     fn an_odometry_that_breaks_down_costs_only_the_loops_of_its_stretch() {
         // The odometry jumps 6 m between steps 5 and 6: the loops after it disagree with those
-        // before, and are kept again once two of them agree with each other.
+        // before, and are kept again once they agree with each other (the revisit turning 10°
+        // a step).
         let mut det = drifting_session();
-        let mut kept = Vec::new();
+        let first = det.len() as u32;
+        let (mut kept, mut late) = (Vec::new(), Vec::new());
         for k in 0..14 {
             let off = if k < 6 { 3.5 } else { 9.5 };
-            let (at, mut cands) = revisit(&det, k, off, false);
+            let (at, mut cands) = revisit_turning(&det, k, off, false, 10.0);
             det.check_after_gate(&at, &[], &mut cands).unwrap();
             if rejection(&cands[0]).is_none() {
                 kept.push(k);
             }
+            let (released, _) = det.placement_news(rejection(&cands[0]).is_none().then_some(at.id));
+            late.extend(released.iter().map(|l| l.query - first));
         }
-        assert_eq!(kept, [1, 2, 3, 4, 5, 7, 8, 9, 10, 11, 12, 13]);
+        // Each stretch waits for its queries to face directions 45° apart (steps 0-5: 50°;
+        // 6-11: 50°), and the loops it waited for are released then.
+        assert_eq!(kept, [5, 11, 12, 13]);
+        assert_eq!(late, [1, 2, 3, 4, 7, 8, 9, 10]);
     }
 
     /// A session of 60 places along x, 1 m and `seconds` apart, all alike to the descriptor (the

@@ -5,7 +5,8 @@ use alloc::sync::Arc;
 use alloc::vec::Vec;
 
 use super::anchor::Reach;
-use super::{Candidate, LoopDetector, Verification};
+use super::consistency::Vouch;
+use super::{loop_of, Candidate, LoopDetector, Verification};
 use crate::db::DbError;
 use crate::detector::VerifyConfig;
 use crate::reg::{self, mul, Hypothesis, Pose, PreparedCloud, Rejection};
@@ -261,6 +262,7 @@ impl LoopDetector {
             .try_reserve_exact(cands.len())
             .map_err(|_| DbError::OutOfMemory)?;
         vouched.resize(cands.len(), false);
+        let (mut sets, mut waiting) = (Vec::new(), Vec::new());
         if v.odometry_check {
             for (i, c) in cands.iter_mut().enumerate() {
                 if !registered(c) {
@@ -278,14 +280,28 @@ impl LoopDetector {
                 if self.agrees_with_odometry(at, c, true) {
                     continue;
                 }
-                if self.within_vouched_drift(at, c)
-                    && own.iter().any(|(j, h)| *j == i && self.vouched(h))
-                {
-                    vouched[i] = true;
-                } else {
-                    reject(c, Rejection::OdometryDisagrees);
+                if self.within_vouched_drift(at, c) {
+                    if let Some((_, h)) = own.iter().find(|(j, _)| *j == i) {
+                        match self.vouch(h) {
+                            Vouch::Yes(set) => {
+                                vouched[i] = true;
+                                sets.push(set);
+                                continue;
+                            }
+                            Vouch::Waits if passed(c) => waiting.push((*h, loop_of(c, at.id))),
+                            _ => {}
+                        }
+                    }
                 }
+                reject(c, Rejection::OdometryDisagrees);
             }
+        }
+        // The loops that waited for the turn of a set that now vouches are released with it.
+        for (h, lp) in waiting {
+            self.wait_for_turn(h, lp);
+        }
+        for set in &sets {
+            self.release_vouched(set, at.id);
         }
         // Loops into the map: judged by the session's placement in it.
         self.check_placement(at, cands);
