@@ -366,27 +366,12 @@ impl LoopDetector {
     /// best-scored of each query that has no loop yet).
     pub(super) fn release_vouched(&mut self, set: &[Hypothesis], now: u32) {
         let p = &mut self.placement;
-        let (mut out, keep): (Vec<Hypothesis>, Vec<Hypothesis>) = p
+        let (out, keep): (Vec<Hypothesis>, Vec<Hypothesis>) = p
             .waiting
             .drain(..)
             .partition(|h| h.query < now && set.iter().any(|s| same(s, h)));
         p.waiting.extend(keep);
-        out.sort_by_key(|h| h.query);
-        let mut best: Vec<Loop> = Vec::new();
-        for lp in out.iter().filter_map(|h| h.found) {
-            if p.looped.contains(&lp.query) {
-                continue;
-            }
-            match best.iter_mut().find(|b| b.query == lp.query) {
-                Some(b) if lp.score < b.score => *b = lp,
-                Some(_) => {}
-                None => best.push(lp),
-            }
-        }
-        for lp in &best {
-            note_looped(&mut p.looped, lp.query);
-        }
-        p.released.extend(best);
+        release(p, &out);
     }
 
     /// Whether a loop within the session across a break of the odometry (no path between its
@@ -547,22 +532,7 @@ impl LoopDetector {
             held.into_iter()
                 .filter(|h| !agree.iter().any(|a| same(a, h))),
         );
-        let mut best: Vec<Loop> = Vec::new();
-        for lp in agree.iter().filter_map(|h| h.found) {
-            if p.looped.contains(&lp.query) {
-                continue;
-            }
-            match best.iter_mut().find(|b| b.query == lp.query) {
-                Some(b) if lp.score < b.score => *b = lp,
-                Some(_) => {}
-                None => best.push(lp),
-            }
-        }
-        best.sort_by_key(|l| l.query);
-        for lp in &best {
-            note_looped(&mut p.looped, lp.query);
-        }
-        p.released.extend(best);
+        release(p, &agree);
         p.support.clear();
         p.support.extend(s.iter().rev().take(FIT).rev().copied());
         p.loops = distinct(&s);
@@ -613,6 +583,27 @@ impl LoopDetector {
             covariance: spread(&transform, &xs),
         })
     }
+}
+
+/// Releases the loops of `agree` (held hypotheses a placement or a vouching set now holds): the
+/// best-scored of each query that has no loop yet, in query order.
+fn release(p: &mut Placement, agree: &[Hypothesis]) {
+    let mut best: Vec<Loop> = Vec::new();
+    for lp in agree.iter().filter_map(|h| h.found) {
+        if p.looped.contains(&lp.query) {
+            continue;
+        }
+        match best.iter_mut().find(|b| b.query == lp.query) {
+            Some(b) if lp.score < b.score => *b = lp,
+            Some(_) => {}
+            None => best.push(lp),
+        }
+    }
+    best.sort_by_key(|l| l.query);
+    for lp in &best {
+        note_looped(&mut p.looped, lp.query);
+    }
+    p.released.extend(best);
 }
 
 /// Remembers that query `q` has a loop (the latest `2·WINDOW` such queries: older ones have
