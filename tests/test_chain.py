@@ -1,8 +1,8 @@
 """The detector's own odometry without poses (issue 41 item 2, docs/loops.md#without-poses): a
 step without the caller's pose registers its scan with the previous keyframe and chains the
 result (`Detection.pose`, `pose_source`); every odometry check then uses it. A link that fails
-the registration's quality checks starts a new frame (the identity) instead of inventing a pose,
-and places of an earlier frame are not registered."""
+the registration's quality checks starts a new frame (the identity) instead of inventing a pose:
+a break of the odometry, across which loops are accepted only when they place each other."""
 
 from __future__ import annotations
 
@@ -39,8 +39,9 @@ def test_the_chain_follows_the_truth_and_a_broken_link_invents_no_pose(loop_worl
     poses stay within 0.3 m and 1° of the truth (relative to the frame's first scan); at the jump
     the link fails the quality checks: that scan gets no pose (the next may link over it), and
     when the next fails too, it starts a new frame at the identity, whose poses then follow the
-    truth from there; from the jump on no place of the first frame is registered (no odometry
-    relates them), though the exclusion would allow it."""
+    truth from there. The frame's start is a break of the odometry: the first frame's places
+    are registered from the second (the loops across a break decide), but the second frame
+    never sees them, so no loop is accepted across it."""
     seq, truth = loop_world
     frames = [*range(0, 12), *range(40, 48)]
     det = _detector("vlp16", exclude=3)
@@ -55,9 +56,34 @@ def test_the_chain_follows_the_truth_and_a_broken_link_invents_no_pose(loop_worl
             assert pose is not None
             m, deg = _off(np.linalg.inv(truth[frames[first]]) @ truth[frames[i]], pose)
             assert m < 0.3 and deg < 1.0, (frames[i], m, deg)
-    for s in steps[12:]:
-        for c in s.candidates:
-            assert c.id >= 12 or not c.verified, (s.query, c.id)
+    assert all(s.loop is None for s in steps)
+
+
+def test_revisits_across_a_frame_the_chain_started_are_found_by_their_consistency(loop_world: tuple[sim.Sequence, F64]) -> None:
+    """The chain breaks (a jump of 170 m: two links fail) and the second frame then drives the
+    first frame's places again (frames 53-64 revisit 0-11): no odometry relates the two frames,
+    so each loop across is accepted only when the loops across the break place each other
+    (`placement_loops` queries over `placement_m` metres, facing directions 45° apart, more
+    than twice any rival) — the same rule as across a break of a caller's odometry. The path
+    turns about 7° a frame: the loops of the last four revisits are accepted, none is pose-false
+    (before, places of an earlier frame were never registered: no loop at all)."""
+    seq, truth = loop_world
+    frames = [*range(0, 12), *range(40, 65)]
+    det = _detector("vlp16", exclude=3)
+    steps = [det.detect(seq.scans[f], timestamp=float(i)) for i, f in enumerate(frames)]
+    assert [s.pose_source for s in steps[12:14]] == [None, "started"]
+    found = set()
+    for s in steps:
+        lp = s.loop
+        if lp is None:
+            continue
+        q, c = frames[lp.query], frames[lp.candidate]
+        m, deg = _off(np.linalg.inv(truth[q]) @ truth[c], np.asarray(lp.pose))
+        assert m < 1.0 and deg < 5.0, (q, c, m, deg)
+        found.add(q)
+    # The revisits 53-64; the first ones place the frames once the path has turned 45° (they
+    # are not released late).
+    assert len(found & set(range(53, 65))) >= 4, sorted(found)
 
 
 def test_without_poses_the_look_alike_corridors_give_no_wrong_loop() -> None:

@@ -11,8 +11,9 @@
 //! typical speed: frames subsampled (a keyframe selection that skips a stretch) make one long
 //! step in a long time, not a break.
 
-use super::verify::QueryPlace;
+use super::verify::{relative, QueryPlace};
 use super::{Candidate, LoopDetector};
+use crate::reg::Pose;
 
 /// How many times the session's typical step (and speed) a break's step is at least.
 pub(super) const BREAK_RATIO: f64 = 3.0;
@@ -42,19 +43,7 @@ impl Breaks {
             return false;
         }
         let speed = if seconds > 0.0 { m / seconds } else { f64::NAN };
-        let typical = |k: usize| {
-            let mut xs: alloc::vec::Vec<f64> = self
-                .steps
-                .iter()
-                .map(|s| s[k])
-                .filter(|x| !x.is_nan())
-                .collect();
-            if xs.len() < BREAK_MIN_STEPS {
-                return None;
-            }
-            xs.sort_by(f64::total_cmp);
-            Some(xs[xs.len() / 2])
-        };
+        let typical = |k: usize| self.median(k, BREAK_MIN_STEPS);
         let long = typical(0).is_some_and(|t| m > BREAK_RATIO * t && m - t > largest);
         let fast = speed.is_nan() || typical(1).is_none_or(|t| speed > BREAK_RATIO * t);
         let broke = long && fast;
@@ -68,6 +57,38 @@ impl Breaks {
             self.steps.push_back([m, speed]);
         }
         broke
+    }
+
+    /// Notes a break where nothing relates the poses on its two sides: the detector's own
+    /// odometry starts a new frame (a link failed, or the caller's poses follow the chain's, or
+    /// the chain follows them) after `before` metres travelled. How far the session moved across
+    /// it is unknown: its typical step (the median of the recent steps), and at least the next
+    /// metre value above `before`, so that the break lies between the places on its two sides.
+    /// Returns the metres travelled after it (`before` when NaN: no pose before, no break).
+    pub(super) fn frame(&mut self, before: f64) -> f64 {
+        if before.is_nan() {
+            return before;
+        }
+        let step = self.median(0, 1).unwrap_or(0.0);
+        let after = (before + step).max(before.next_up());
+        self.at.push([before, after]);
+        after
+    }
+
+    /// The median of the recent steps' metres (`k` 0) or speeds (`k` 1), when at least `least`
+    /// of them are known.
+    fn median(&self, k: usize, least: usize) -> Option<f64> {
+        let mut xs: alloc::vec::Vec<f64> = self
+            .steps
+            .iter()
+            .map(|s| s[k])
+            .filter(|x| !x.is_nan())
+            .collect();
+        if xs.len() < least.max(1) {
+            return None;
+        }
+        xs.sort_by(f64::total_cmp);
+        Some(xs[xs.len() / 2])
     }
 
     /// Whether the path between `a` and `b` metres travelled crosses a break (false when either
@@ -88,6 +109,18 @@ impl LoopDetector {
     /// odometry.
     pub(super) fn crosses_break(&self, a: f64, b: f64) -> bool {
         self.breaks.crossed(a, b)
+    }
+
+    /// The relative pose `inv(T_wa)·T_wb` of two own places by the poses, when a path the
+    /// odometry holds joins them (no break between them).
+    pub(super) fn related(&self, a: u32, b: u32) -> Option<Pose> {
+        let (pa, pb) = (self.known_pose(a)?, self.known_pose(b)?);
+        if let (Some(x), Some(y)) = (self.travelled_at(a), self.travelled_at(b)) {
+            if self.crosses_break(x, y) {
+                return None;
+            }
+        }
+        Some(relative(&pa, &pb))
     }
 
     /// Whether a candidate is an own place whose every path to the query `at` (through the
@@ -138,5 +171,24 @@ mod tests {
         assert!(!b.note(10.0, 14.0, 0.1, 5.0));
         assert!(b.note(14.0, 21.0, 0.1, 5.0));
         assert_eq!(b.count(), 1);
+    }
+
+    #[test]
+    fn a_frame_the_chain_starts_is_a_break_of_the_sessions_typical_step() {
+        let mut b = Breaks::default();
+        // Before any step: still a break, between the places on its two sides.
+        let after = b.frame(0.0);
+        assert!(after > 0.0 && b.crossed(0.0, after) && !b.crossed(after, after + 1.0));
+        let mut t = after;
+        for _ in 0..5 {
+            assert!(!b.note(t, t + 2.0, f64::NAN, 5.0));
+            t += 2.0;
+        }
+        assert_eq!(b.frame(t), t + 2.0);
+        assert!(b.crossed(t - 4.0, t + 2.0) && b.crossed(0.0, t + 3.0));
+        assert!(!b.crossed(after, t) && !b.crossed(t + 2.0, t + 9.0));
+        assert_eq!(b.count(), 2);
+        // No pose before: no break.
+        assert!(Breaks::default().frame(f64::NAN).is_nan());
     }
 }

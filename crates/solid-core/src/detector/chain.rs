@@ -11,13 +11,14 @@
 //! map).
 //!
 //! A link whose registration fails the gate's quality checks (no overlap after a fast turn or a
-//! gap, a degenerate corridor, a cloud too small) is not bridged: the chain starts again there,
-//! in a new frame whose origin is that scan ([`PoseSource::Started`], the identity). Places of an
-//! earlier frame keep no odometry relation to the current query ([`LoopDetector::known_pose`] is
-//! None for them): they are matched as places without poses are, and the odometry's state that
-//! spans frames (the anchor of the latest loop, the placement into a map and its hypotheses)
-//! starts again too. A caller's pose after steps of the chain's own frame also starts a frame
-//! (the caller's).
+//! gap, a degenerate corridor, a cloud too small) is not bridged: one such scan stays without a
+//! pose, and after two in a row the chain starts again, in a new frame whose origin is that scan
+//! ([`PoseSource::Started`], the identity). The odometry relates nothing across the frame's
+//! start: it is a break of the odometry ([`breaks`](super::breaks), the metres travelled across
+//! it taken as the session's typical step), and loops across it are what loops across any
+//! break are: registered, and accepted when the loops across it place each other
+//! ([`LoopDetector::placed_across`]). A caller's pose after steps of the chain's own frame (or
+//! the chain after the caller's poses) also starts a frame, across a break.
 
 use alloc::sync::Arc;
 
@@ -44,8 +45,8 @@ pub enum PoseSource {
 /// The state of the own odometry.
 #[derive(Debug, Clone, Copy, Default)]
 pub(super) struct Chain {
-    /// The current frame: own places whose pose is in another frame have no odometry relation
-    /// to the current query.
+    /// The current frame (how many the chain started before it): a frame's start is a break
+    /// of the odometry.
     pub frame: u32,
     /// The current frame is the caller's (its poses were given).
     given: bool,
@@ -71,7 +72,7 @@ fn held(v: &VerifyConfig, start: &Pose, r: &super::Verification) -> bool {
 }
 
 /// The frame of a scan the chain could not link: none.
-const UNLINKED: u32 = u32::MAX;
+pub(super) const UNLINKED: u32 = u32::MAX;
 
 /// The identity pose, row-major 3×4.
 const ORIGIN: [f64; 12] = [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0];
@@ -90,12 +91,20 @@ impl LoopDetector {
         if s.pose.is_some() {
             if !self.chain.given {
                 if self.known.iter().any(Option::is_some) {
-                    self.new_frame();
+                    let travelled = self.new_frame();
+                    let p = s.pose.unwrap_or(ORIGIN);
+                    s.trail = Trail {
+                        position: Some([p[3], p[7], p[11]]),
+                        travelled,
+                        clock: s.trail.clock,
+                    };
                 }
                 self.chain.given = true;
             }
             return Ok(Some(PoseSource::Given));
         }
+        // The path as it stands now (a batch's steps were worked out before the chain's).
+        s.trail = self.trail.after(s.timestamp, None);
         if !self.config.verify.enabled || cloud.is_none() {
             return Ok(None);
         }
@@ -115,15 +124,13 @@ impl LoopDetector {
                     return Ok(None);
                 }
                 None => {
-                    if !self.known.is_empty() {
-                        self.new_frame();
-                    }
-                    self.chain.given = false;
-                    let travelled = if self.trail.travelled.is_nan() {
-                        0.0
-                    } else {
+                    let travelled = if self.known.is_empty() {
                         self.trail.travelled
+                    } else {
+                        self.new_frame()
                     };
+                    self.chain.given = false;
+                    let travelled = if travelled.is_nan() { 0.0 } else { travelled };
                     s.trail = Trail {
                         position: Some([0.0; 3]),
                         travelled,
@@ -136,14 +143,14 @@ impl LoopDetector {
         Ok(Some(source))
     }
 
-    /// Whether own place `id` has a pose in an earlier frame of the own odometry than the
-    /// current one: no odometry relates it to the current query, so no loop into it is
-    /// accepted (it is not registered).
-    pub(super) fn other_frame(&self, id: u32) -> bool {
+    /// Whether own place `id` is a scan the chain could not link, or the query is one (and the
+    /// place has a pose): no odometry relates the two, nor any loop of theirs to another loop,
+    /// so no loop between them is accepted (it is not registered).
+    pub(super) fn unlinked(&self, id: u32) -> bool {
         (id as usize)
             .checked_sub(self.session_start)
             .and_then(|k| self.known.get(k).copied().flatten())
-            .is_some_and(|(_, frame)| self.chain.unlinked || frame != self.chain.frame)
+            .is_some_and(|(_, frame)| self.chain.unlinked || frame == UNLINKED)
     }
 
     /// What [`LoopDetector::known`] holds for the step just added with `pose`: the pose in the
@@ -157,11 +164,11 @@ impl LoopDetector {
         }
     }
 
-    /// Starts a new frame of the own odometry: what relates places through the old one goes.
-    fn new_frame(&mut self) {
+    /// Starts a new frame of the own odometry: a break of the odometry after the session's
+    /// last pose. Returns the metres travelled after it ([`breaks::Breaks::frame`](super::breaks)).
+    fn new_frame(&mut self) -> f64 {
         self.chain.frame += 1;
-        self.anchor = None;
-        self.placement = Default::default();
+        self.breaks.frame(self.trail.travelled)
     }
 
     /// The query's pose chained onto the previous keyframe's (None: there is no previous

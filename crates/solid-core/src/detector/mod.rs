@@ -183,7 +183,7 @@ pub struct LoopDetector {
     /// The own odometry's steps and breaks.
     breaks: breaks::Breaks,
     /// The own odometry: every own place's pose as the checks know it (the caller's or the
-    /// chain's) and the frame it is in.
+    /// chain's) and the frame it is in (`chain::UNLINKED`: a scan the chain could not link).
     known: Vec<Option<([f64; 12], u32)>>,
     /// The chain's state: the current frame and how the last link moved.
     chain: chain::Chain,
@@ -390,9 +390,9 @@ impl LoopDetector {
     }
 
     /// The pose the checks use for place `id`: a map place's stored pose; an own place's pose
-    /// (the caller's or the own odometry's) while it is in the current frame of the session's
-    /// odometry (None for a place before a break of the chain: no odometry relates it to the
-    /// current query).
+    /// (the caller's or the own odometry's; None for a scan the chain could not link). Poses on
+    /// the two sides of a break of the odometry (a frame the chain started) are related by no
+    /// path ([`breaks`]).
     pub(super) fn known_pose(&self, id: u32) -> Option<[f64; 12]> {
         match (id as usize).checked_sub(self.session_start) {
             Some(k) => self
@@ -400,7 +400,7 @@ impl LoopDetector {
                 .get(k)
                 .copied()
                 .flatten()
-                .filter(|&(_, frame)| frame == self.chain.frame)
+                .filter(|&(_, frame)| frame != chain::UNLINKED)
                 .map(|(p, _)| p),
             None => self.map.pose(id),
         }
@@ -769,8 +769,9 @@ impl LoopDetector {
         let mut s = s;
         let source = self.odometry_of(&d.a, &mut s, &mut cloud)?;
         let eligible = self.eligible(&s)?;
-        // The step into the query, when the odometry could not have made it, is a break.
-        if s.pose.is_some() {
+        // The step into the query, when the odometry could not have made it, is a break (a
+        // frame the chain started is one already).
+        if s.pose.is_some() && !self.breaks.crossed(self.trail.travelled, s.trail.travelled) {
             let seconds = s.timestamp - self.trail.clock;
             let largest = self.config.verify.gate.max_translation;
             let (before, after) = (self.trail.travelled, s.trail.travelled);

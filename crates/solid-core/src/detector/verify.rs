@@ -207,8 +207,8 @@ impl LoopDetector {
                 let start = cands[jobs[j].0]
                     .verification
                     .filter(|r| met_quality(r) && agrees(a, &r.registration.pose))
-                    .map(|r| match self.known_pose(a).zip(self.known_pose(b)) {
-                        Some((pa, pb)) => mul(&r.registration.pose, &relative(&pa, &pb)),
+                    .map(|r| match self.related(a, b) {
+                        Some(ab) => mul(&r.registration.pose, &ab),
                         None => r.registration.pose,
                     });
                 Some((k, start))
@@ -221,8 +221,8 @@ impl LoopDetector {
         Ok(())
     }
 
-    /// Which of `cands` cannot give an accepted loop, so are not registered: own places in
-    /// another frame of the own odometry than the query's ([`LoopDetector::other_frame`]), and
+    /// Which of `cands` cannot give an accepted loop, so are not registered: own places the
+    /// own odometry could not link, or all when the query is one ([`LoopDetector::unlinked`]), and
     /// with the odometry check, the own places the poses put beyond reach of the query `at`
     /// ([`LoopDetector::reach`], with the rotation's allowance the check gives them).
     fn beyond_reach(
@@ -237,7 +237,7 @@ impl LoopDetector {
         let at = at.filter(|_| self.config.verify.odometry_check);
         let anchored = at.and_then(|at| self.anchored(at));
         beyond.extend(cands.iter().map(|c| {
-            self.other_frame(c.id)
+            self.unlinked(c.id)
                 || at.is_some_and(|at| self.reach(at, anchored, c.id, 1.0) == Reach::Beyond)
         }));
         Ok(beyond)
@@ -450,7 +450,11 @@ impl LoopDetector {
             .iter()
             .filter(|(q2, list)| {
                 list.iter().any(|&(c2, t2)| {
-                    let poses = at.pose.zip(self.known_pose(*q2));
+                    // Across a break the poses do not relate the two queries.
+                    let across = self
+                        .travelled_at(*q2)
+                        .is_some_and(|t| self.crosses_break(at.travelled, t));
+                    let poses = at.pose.zip(self.known_pose(*q2)).filter(|_| !across);
                     poses
                         .and_then(|(q, pq2)| {
                             self.agree_through_poses(
