@@ -38,7 +38,8 @@ pub enum PoseSource {
     Chained,
     /// The detector's own odometry starts a frame here (the identity): the session's first scan
     /// without a pose, or the first after a link that failed the registration's quality checks.
-    /// No odometry relates this frame to the places before it.
+    /// No odometry relates this frame to the places before it: its start is a break of the
+    /// odometry, across which loops are accepted when they place each other.
     Started,
 }
 
