@@ -17,12 +17,12 @@
 //! start: it is a break of the odometry ([`breaks`](super::breaks), the metres travelled across
 //! it taken as the session's typical step), and loops across it are what loops across any
 //! break are: registered, and accepted when the loops across it place each other
-//! ([`LoopDetector::placed_across`]). A caller's pose after steps of the chain's own frame (or
+//! ([`LoopDetector::vouch`]). A caller's pose after steps of the chain's own frame (or
 //! the chain after the caller's poses) also starts a frame, across a break.
 
 use alloc::sync::Arc;
 
-use super::verify::{met_quality, relative, seeded, verify_pair_from};
+use super::verify::{met_quality, relative, seeded, verify_pair_from, verify_yaws};
 use super::{LoopDetector, Step, Trail};
 use crate::db::DbError;
 use crate::detector::VerifyConfig;
@@ -70,6 +70,28 @@ fn held(v: &VerifyConfig, start: &Pose, r: &super::Verification) -> bool {
     reg::pose_distance(start, &r.registration.pose).is_some_and(|(m, deg)| {
         m <= v.odometry_translation_m && (!weak_rotation || deg <= v.odometry_rotation_deg)
     })
+}
+
+/// Degrees between the starts of a link's last attempt, the motion turned across the fan
+/// (`verify_fan_deg` either way): the registration's basin in yaw is narrow where little of the
+/// view is shared (a 90° view turning 16-21° between keyframes 3 m apart converged from starts
+/// within about 5° of the truth; the descriptor's headings and the fan's ends missed the start
+/// and the end of each turn, so the chain broke at every corner of the look-alike city).
+const FAN_STEP_DEG: f64 = 8.0;
+
+/// The yaws 0, ±[`FAN_STEP_DEG`], ±2·[`FAN_STEP_DEG`], … within ±`fan_deg` (at most `out`'s
+/// length); how many.
+fn fan(fan_deg: f64, out: &mut [f64; 16]) -> usize {
+    let mut n = 1;
+    out[0] = 0.0;
+    let mut y = FAN_STEP_DEG;
+    while y <= fan_deg && n + 2 <= out.len() {
+        out[n] = y;
+        out[n + 1] = -y;
+        n += 2;
+        y += FAN_STEP_DEG;
+    }
+    n
 }
 
 /// The frame of a scan the chain could not link: none.
@@ -224,6 +246,17 @@ impl LoopDetector {
             None => {
                 verify_pair_from(&v, (a_query, &self.a(id)), q, &cp, &base)?.filter(met_quality)
             }
+        };
+        // The turn changed between the keyframes (its start or its end): the motion turned by
+        // every [`FAN_STEP_DEG`] within the fan.
+        let found = match (found, &motion) {
+            (Some(r), _) => Some(r),
+            (None, Some(m)) => {
+                let mut yaws = [0.0f64; 16];
+                let n = fan(v.fan_deg, &mut yaws);
+                verify_yaws(&v, &yaws[..n], q, &cp, m)?.filter(met_quality)
+            }
+            (None, None) => None,
         };
         Ok(found.map(|r| {
             let pose = mul(&rows_to_pose(&prev), &invert(&r.registration.pose));

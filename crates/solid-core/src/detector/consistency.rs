@@ -307,49 +307,61 @@ impl LoopDetector {
         mine
     }
 
-    /// Whether a loop within the session that the odometry check turned down is vouched for by
-    /// its neighbours: a set of mutually consistent loops holding it (each pair consistent
-    /// through the short paths between them, as for the placement in a map) holds the loops of
-    /// `min_support + 1` distinct queries among the last `support_window` steps (the support
-    /// check's), two of them facing directions [`PLACEMENT_TURN_DEG`] apart (a straight run of
-    /// agreeing look-alikes vouched for itself on the four-module corridors with a drifting
-    /// odometry: 33 wrong loops on three views, `tools/gate_measure.py '{}' drift`), with more
-    /// than twice the queries of any consistent set that disagrees with it
-    /// among the other loops of the same queries and the loops of those steps that agree with
-    /// the odometry. The odometry drifted beyond its bounds, or broke down on the way; its short
-    /// stretches still hold, and a look-alike has to be the only reading of a stretch where the
-    /// odometry did not hold to pass. A set that lacks only the turn makes the loop wait
-    /// ([`Vouch::Waits`]: held, and released by the set that turns).
-    pub(super) fn vouch(&self, h: &Hypothesis) -> Vouch {
-        let Some((w, set, _)) = self.own_sets(h) else {
+    /// Whether a loop within the session that the odometry does not hold is vouched for by its
+    /// neighbours: the odometry check turned it down (`across` false: the odometry drifted
+    /// beyond its bounds, or broke down on the way), or no path the odometry holds joins its
+    /// query and its place (`across`: a break, [`breaks`](super::breaks), a jump of the
+    /// caller's odometry or a frame the own odometry started). A set of mutually consistent
+    /// loops holding it (each pair consistent through the short paths between them, as for the
+    /// placement in a map) vouches when it
+    /// - holds the loops of `min_support + 1` distinct queries among the last `support_window`
+    ///   steps (the support check's), and across a break also `placement_loops` distinct
+    ///   queries over `placement_m` metres, as a session is placed in a map;
+    /// - faces directions [`PLACEMENT_TURN_DEG`] apart: a straight run of agreeing look-alikes
+    ///   vouched for itself on the four-module corridors with a drifting odometry (33 wrong
+    ///   loops on three views, `tools/gate_measure.py '{}' drift`), and placed every loop across
+    ///   the chain's frames on a copy (313 of 313, OS1-64 90°, `tools/trust_measure.py
+    ///   noposes`);
+    /// - holds more than twice the queries of any consistent set that disagrees with it: among
+    ///   the other loops of the same queries and the loops that agree with the odometry (a
+    ///   look-alike has to be the only reading of a stretch where the odometry did not hold),
+    ///   or across a break among all the loops across it (the odometry says nothing there).
+    ///
+    /// A set without rivals that lacks only its size or its turn makes the loop wait
+    /// ([`Vouch::Waits`]: held, and released by the set that qualifies).
+    pub(super) fn vouch(&self, h: &Hypothesis, across: bool) -> Vouch {
+        let v = &self.config.verify;
+        let Some((w, set, rival)) = self.own_sets(h) else {
             return Vouch::No;
         };
-        if distinct(&set) <= self.config.verify.min_support {
-            return Vouch::No;
-        }
-        // The rivals: other readings of the same queries (look-alikes along the stretch), and
-        // the loops of the window that agree with the odometry (it held there: a look-alike
-        // stretch that disagrees with them is no drift). Not the other loops of the window that
-        // disagree with it: those of a stretch before a breakdown are right too.
-        let queries: Vec<u32> = set.iter().map(|x| x.query).collect();
-        let w: Vec<Hypothesis> = w
-            .into_iter()
-            .filter(|x| x.odometry || queries.contains(&x.query))
-            .collect();
-        let Some(me) = w.iter().rposition(|x| same(x, h)) else {
-            return Vouch::No;
+        let n = distinct(&set);
+        let rival = if across {
+            rival
+        } else {
+            // Not the other loops of the window that disagree with the odometry: those of a
+            // stretch before a breakdown are right too.
+            let queries: Vec<u32> = set.iter().map(|x| x.query).collect();
+            let w: Vec<Hypothesis> = w
+                .into_iter()
+                .filter(|x| x.odometry || queries.contains(&x.query))
+                .collect();
+            let Some(me) = w.iter().rposition(|x| same(x, h)) else {
+                return Vouch::No;
+            };
+            self.consistent_sets_in(&w, me, (1.0, 1.0)).1
         };
-        let (_, rival) = self.consistent_sets_in(&w, me, (1.0, 1.0));
-        if distinct(&set) <= RIVAL_RATIO * rival {
+        let large = n > v.min_support
+            && (!across || (n >= v.placement_loops && span(&set) >= v.placement_m));
+        if n <= RIVAL_RATIO * rival {
             Vouch::No
-        } else if turns(&set) {
+        } else if large && turns(&set) {
             Vouch::Yes(set)
         } else {
             Vouch::Waits
         }
     }
 
-    /// Holds loop `lp` of hypothesis `h`, waiting for its neighbours' set to turn (the latest
+    /// Holds loop `lp` of hypothesis `h`, waiting for its neighbours' set to qualify (the latest
     /// [`HELD`]).
     pub(super) fn wait_for_turn(&mut self, h: Hypothesis, lp: Loop) {
         let waiting = &mut self.placement.waiting;
@@ -372,26 +384,6 @@ impl LoopDetector {
             .partition(|h| h.query < now && set.iter().any(|s| same(s, h)));
         p.waiting.extend(keep);
         release(p, &out);
-    }
-
-    /// Whether a loop within the session across a break of the odometry (no path between its
-    /// query and its place that the odometry holds, [`breaks`](super::breaks)) is placed by the
-    /// loops across the same break, as a session is in a map: a set of mutually consistent
-    /// loops holding it spans `placement_loops` distinct queries (at least `min_support + 1`)
-    /// over `placement_m` metres among the last `support_window` steps, facing directions
-    /// [`PLACEMENT_TURN_DEG`] apart ([`LoopDetector::qualifies`]), and more than twice the
-    /// queries of any consistent set that disagrees with it. The odometry says nothing across
-    /// a break (a jump of the caller's odometry, or a frame the own odometry started), so a
-    /// stretch of look-alikes is told from the true places by the loops alone: a straight
-    /// stretch of the look-alike corridors placed every loop across the chain's frames on a
-    /// copy (313 of 313 loops, OS1-64 90°, `tools/trust_measure.py noposes`) before the turn.
-    pub(super) fn placed_across(&self, h: &Hypothesis) -> bool {
-        let v = &self.config.verify;
-        let Some((_, set, rival)) = self.own_sets(h) else {
-            return false;
-        };
-        let n = distinct(&set);
-        n > v.min_support && self.qualifies(&set) && n > RIVAL_RATIO * rival
     }
 
     /// The recent loops within the session comparable with `h` through the odometry (their
@@ -1023,8 +1015,7 @@ mod tests {
         // 8 m off, the revisit turning 10° a step: the odometry check turns down the first
         // steps, then queries that agree through their short paths and face directions 45°
         // apart vouch for each other and the loops are kept.
-        // The loops that waited for the turn (steps 1-4: step 0 had no neighbour yet) are
-        // released with it, once.
+        // The loops that waited for the turn (steps 0-4) are released with it, once.
         let mut det = drifting_session();
         let first = det.len() as u32;
         for k in 0..10 {
@@ -1038,7 +1029,7 @@ mod tests {
             assert_eq!(rejection(&cands[0]), want, "step {k}");
             let (released, _) = det.placement_news(want.is_none().then_some(at.id));
             let queries: Vec<u32> = released.iter().map(|l| l.query - first).collect();
-            let want: &[u32] = if k == 5 { &[1, 2, 3, 4] } else { &[] };
+            let want: &[u32] = if k == 5 { &[0, 1, 2, 3, 4] } else { &[] };
             assert_eq!(queries, want, "step {k}");
         }
         // A straight revisit: as likely a stretch of look-alikes (a corridor repeating along its
@@ -1120,9 +1111,9 @@ mod tests {
             late.extend(released.iter().map(|l| l.query - first));
         }
         // Each stretch waits for its queries to face directions 45° apart (steps 0-5: 50°;
-        // 6-11: 50°), and the loops it waited for are released then.
+        // 6-11: 50°), and the loops it waited for (the whole stretch) are released then.
         assert_eq!(kept, [5, 11, 12, 13]);
-        assert_eq!(late, [1, 2, 3, 4, 7, 8, 9, 10]);
+        assert_eq!(late, [0, 1, 2, 3, 4, 6, 7, 8, 9, 10]);
     }
 
     /// A session of 60 places along x, 1 m and `seconds` apart, all alike to the descriptor (the
@@ -1173,14 +1164,15 @@ mod tests {
     fn loops_across_a_break_of_the_odometry_are_placed_by_each_other() {
         // 30 m to the side, beyond five times the drift bounds: without the break the odometry
         // would turn every one down. Across it, the revisit turning 10° a step: the first five
-        // wait (3 queries over 3 m, facing directions 45° apart, place the stretch), then every
-        // loop is kept.
+        // wait (3 queries over 3 m, facing directions 45° apart, place the stretch) and are
+        // released with step 5, once; then every loop is kept.
         // Each step also registers a place after the jump where the odometry puts it: the two
         // loops' paths cross the break, so they are not each other's rivals (uniqueness).
         for seconds in [1.0, f64::NAN] {
             let mut det = session_with_a_jump(seconds, false);
             assert_eq!(det.odometry_breaks(), 1);
-            let mut kept = Vec::new();
+            let (mut kept, mut late) = (Vec::new(), Vec::new());
+            let first = det.len() as u32;
             for k in 0..12 {
                 let (at, mut cands) = revisit_after_jump(&det, k, false, 10.0);
                 let after = pose(0.0, f64::from(45 + k % 10), 30.0);
@@ -1191,8 +1183,13 @@ mod tests {
                     None => kept.push(k),
                     Some(r) => assert_eq!(r, Rejection::NotPlaced, "step {k}"),
                 }
+                let looped = rejection(&cands[0]).is_none().then_some(at.id);
+                let (released, _) = det.placement_news(looped);
+                late.extend(released.iter().map(|l| (k, l.query - first, l.candidate)));
             }
             assert_eq!(kept, [5, 6, 7, 8, 9, 10, 11], "{seconds} s a step");
+            let want: Vec<(u32, u32, u32)> = (0..5).map(|q| (5, q, 5 + q)).collect();
+            assert_eq!(late, want, "{seconds} s a step");
         }
         // A straight revisit: as likely a stretch of look-alikes (a corridor repeating along
         // its length), never placed.
@@ -1201,6 +1198,7 @@ mod tests {
             let (at, mut cands) = revisit_after_jump(&det, k, false, 0.0);
             det.check_after_gate(&at, &[], &mut cands).unwrap();
             assert_eq!(rejection(&cands[0]), Some(Rejection::NotPlaced), "step {k}");
+            assert!(det.placement_news(None).0.is_empty(), "step {k}");
         }
         // A look-alike at every step: two readings of the stretch as consistent, neither kept.
         let mut det = session_with_a_jump(1.0, false);
@@ -1210,6 +1208,7 @@ mod tests {
             for c in &cands {
                 assert_eq!(rejection(c), Some(Rejection::NotPlaced), "step {k}");
             }
+            assert!(det.placement_news(None).0.is_empty(), "step {k}");
         }
         // Loops on one side of the break are judged by the odometry as before.
         let mut det = session_with_a_jump(1.0, false);

@@ -269,20 +269,13 @@ impl LoopDetector {
                     continue;
                 }
                 // Across a break of the odometry, the loops across it decide (as in a map).
-                if self.across_break(at, c) {
-                    if own.iter().any(|(j, h)| *j == i && self.placed_across(h)) {
-                        vouched[i] = true;
-                    } else {
-                        reject(c, Rejection::NotPlaced);
-                    }
+                let across = self.across_break(at, c);
+                if !across && self.agrees_with_odometry(at, c, true) {
                     continue;
                 }
-                if self.agrees_with_odometry(at, c, true) {
-                    continue;
-                }
-                if self.within_vouched_drift(at, c) {
+                if across || self.within_vouched_drift(at, c) {
                     if let Some((_, h)) = own.iter().find(|(j, _)| *j == i) {
-                        match self.vouch(h) {
+                        match self.vouch(h, across) {
                             Vouch::Yes(set) => {
                                 vouched[i] = true;
                                 sets.push(set);
@@ -293,7 +286,14 @@ impl LoopDetector {
                         }
                     }
                 }
-                reject(c, Rejection::OdometryDisagrees);
+                reject(
+                    c,
+                    if across {
+                        Rejection::NotPlaced
+                    } else {
+                        Rejection::OdometryDisagrees
+                    },
+                );
             }
         }
         // The loops that waited for the turn of a set that now vouches are released with it.
@@ -707,7 +707,21 @@ pub(super) fn verify_pair_from(
 ) -> Result<Option<Verification>, DbError> {
     let mut yaws = [0.0f64; 16];
     let m = yaw_hypotheses(a_query, a_candidate, v.hypotheses, v.fan_deg, &mut yaws)?;
+    verify_yaws(v, &yaws[..m], query, candidate, base)
+}
+
+/// Registers `candidate` to `query` from each of `yaws` (degrees, at most 16) applied to `base`
+/// (`yaw_pose(yaw) · base`) and checks the gate with the best; None when the clouds cannot be
+/// registered.
+pub(super) fn verify_yaws(
+    v: &VerifyConfig,
+    yaws: &[f64],
+    query: &PreparedCloud,
+    candidate: &PreparedCloud,
+    base: &Pose,
+) -> Result<Option<Verification>, DbError> {
     let mut hyps = [Hypothesis::default(); 16];
+    let m = yaws.len().min(hyps.len());
     // A candidate clearly no match gives up before the fine level (it cannot pass the gate).
     let Ok(h) = reg::register_hypotheses_for(
         query,
