@@ -137,45 +137,47 @@ impl LoopDetector {
         }
     }
 
-    /// Rejects each passed candidate that has a look-alike: an own place `..eligible` more
-    /// than `lookalike_m` from it where the loop's pose would put the query within the drift
-    /// bounds too (with `lookalike_swing` of the rotation's allowance) and whose descriptor is
-    /// within `lookalike_margin` of the candidate's distance to the query: the odometry (or the
-    /// anchor) cannot tell which of the two the query sees.
+    /// Rejects each passed candidate that has a look-alike ([`LoopDetector::lookalike`]).
     pub(super) fn reject_lookalikes(
         &self,
         at: &QueryPlace,
         r_query: &[f32],
         cands: &mut [Candidate],
     ) {
-        let v: &VerifyConfig = &self.config.verify;
-        if v.lookalike_m <= 0.0 || at.pose.is_none() {
-            return;
-        }
         for c in cands.iter_mut() {
-            let Some(r) = c.verification.filter(|r| r.accepted) else {
-                continue;
-            };
-            let Some(pc) = self.known_pose(c.id) else {
-                continue;
-            };
-            let t = r.registration.pose;
-            let alike = (self.session_start..at.eligible).any(|k| {
-                let id = k as u32;
-                id != c.id
-                    && self
-                        .known_pose(id)
-                        .is_some_and(|p2| distance(&p2, &pc) > v.lookalike_m)
-                    && self
-                        .expected(at, id, true)
-                        .is_some_and(|(e, path)| self.within_drift(&e, &t, path, v.lookalike_swing))
-                    && cosine_distance(r_query, self.r(id))
-                        .is_ok_and(|d| d <= c.distance + v.lookalike_margin)
-            });
-            if alike {
+            if c.verification.is_some_and(|r| r.accepted) && self.lookalike(at, r_query, c) {
                 reject(c, Rejection::LookAlike);
             }
         }
+    }
+
+    /// Whether registered candidate `c` has a look-alike: an own place `..eligible` more than
+    /// `lookalike_m` from it where the loop's pose would put the query within the drift bounds
+    /// too (with `lookalike_swing` of the rotation's allowance) and whose descriptor is within
+    /// `lookalike_margin` of the candidate's distance to the query: the odometry (or the anchor)
+    /// cannot tell which of the two the query sees. Also asked of a loop held for a later
+    /// release (it must pass its own step's check).
+    pub(super) fn lookalike(&self, at: &QueryPlace, r_query: &[f32], c: &Candidate) -> bool {
+        let v: &VerifyConfig = &self.config.verify;
+        if v.lookalike_m <= 0.0 || at.pose.is_none() {
+            return false;
+        }
+        let (Some(r), Some(pc)) = (c.verification, self.known_pose(c.id)) else {
+            return false;
+        };
+        let t = r.registration.pose;
+        (self.session_start..at.eligible).any(|k| {
+            let id = k as u32;
+            id != c.id
+                && self
+                    .known_pose(id)
+                    .is_some_and(|p2| distance(&p2, &pc) > v.lookalike_m)
+                && self
+                    .expected(at, id, true)
+                    .is_some_and(|(e, path)| self.within_drift(&e, &t, path, v.lookalike_swing))
+                && cosine_distance(r_query, self.r(id))
+                    .is_ok_and(|d| d <= c.distance + v.lookalike_margin)
+        })
     }
 }
 

@@ -281,7 +281,10 @@ impl LoopDetector {
                                 sets.push(set);
                                 continue;
                             }
-                            Vouch::Waits if passed(c) => waiting.push((*h, loop_of(c, at.id))),
+                            // Held only when it passes its own step's look-alike check.
+                            Vouch::Waits if passed(c) && !self.lookalike(at, r_query, c) => {
+                                waiting.push((*h, loop_of(c, at.id)));
+                            }
                             _ => {}
                         }
                     }
@@ -304,7 +307,7 @@ impl LoopDetector {
             self.release_vouched(set, at.id);
         }
         // Loops into the map: judged by the session's placement in it.
-        self.check_placement(at, cands);
+        self.check_placement(at, r_query, cands);
         let mut mine = Vec::new();
         let mut offsets = Vec::new();
         let n = cands.iter().filter(|c| registered(c)).count();
