@@ -25,11 +25,13 @@ mod anchor;
 mod breaks;
 mod chain;
 mod consistency;
+mod defer;
 mod nearby;
 mod verify;
 
 pub use chain::PoseSource;
 pub use consistency::MapAnchor;
+pub use defer::{DEFERRED_QUERIES, DEFERRED_STEPS};
 pub use verify::{UNVERIFIED_SCORE, VERIFIED_THRESHOLD};
 
 /// One candidate of a detector step, in the detector's ranking order.
@@ -187,6 +189,8 @@ pub struct LoopDetector {
     known: Vec<Option<([f64; 12], u32)>>,
     /// The chain's state: the current frame and how the last link moved.
     chain: chain::Chain,
+    /// Candidates over a step's budget, registered by the next steps.
+    deferred: defer::Queue,
 }
 
 /// One scan ready for a detector step: its descriptor and, for verification, its prepared cloud
@@ -315,6 +319,7 @@ impl LoopDetector {
             breaks: breaks::Breaks::default(),
             known: Vec::new(),
             chain: chain::Chain::default(),
+            deferred: defer::Queue::default(),
         })
     }
 
@@ -809,6 +814,7 @@ impl LoopDetector {
         self.latest_time.push(s.trail.clock);
         self.trail = s.trail;
         if let Some(c) = cloud {
+            self.keep_deferred_cloud(id, &c);
             self.remember(id, c);
         }
         let accepted = self.accept(&candidates, id);
