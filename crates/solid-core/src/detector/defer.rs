@@ -44,6 +44,8 @@ pub(super) struct Queue {
     queries: VecDeque<Deferred>,
     /// Candidates dropped without a registration (the queue full, or too old).
     dropped: usize,
+    /// Candidates not registered because their query found its loop.
+    looped: usize,
 }
 
 impl LoopDetector {
@@ -126,10 +128,25 @@ impl LoopDetector {
         Ok(())
     }
 
-    /// Keeps the prepared cloud of query `id` when its step deferred candidates.
-    pub(super) fn keep_deferred_cloud(&mut self, id: u32, cloud: &Arc<PreparedCloud>) {
-        if let Some(d) = self.deferred.queries.back_mut().filter(|d| d.at.id == id) {
-            d.cloud = Some(Arc::clone(cloud));
+    /// At the end of query `id`'s step: keeps its prepared cloud `cloud` with its deferred
+    /// candidates, or drops them when the step found its loop (`looped`: the query needs no
+    /// other, and the loop's registration supports the next steps).
+    pub(super) fn end_deferring(
+        &mut self,
+        id: u32,
+        cloud: Option<&Arc<PreparedCloud>>,
+        looped: bool,
+    ) {
+        let q = &mut self.deferred;
+        if q.queries.back().is_none_or(|d| d.at.id != id) {
+            return;
+        }
+        match (cloud.filter(|_| !looped), q.queries.back_mut()) {
+            (Some(c), Some(d)) => d.cloud = Some(Arc::clone(c)),
+            _ => {
+                let n = q.queries.pop_back().map_or(0, |d| d.waiting.len());
+                q.looped += n;
+            }
         }
     }
 
@@ -137,6 +154,11 @@ impl LoopDetector {
     /// query too old ([`DEFERRED_QUERIES`], [`DEFERRED_STEPS`]), since the detector was made.
     pub fn deferred_dropped(&self) -> usize {
         self.deferred.dropped
+    }
+
+    /// Candidates deferred and not registered because their step found its loop.
+    pub fn deferred_unneeded(&self) -> usize {
+        self.deferred.looped
     }
 
     /// Candidates deferred by earlier steps and still waiting.
@@ -190,13 +212,8 @@ impl LoopDetector {
                         }
                         Err(e) => return Err(e),
                     };
-                if work.saturating_add(cost) > v.step_points {
-                    // More than a whole step's budget alone: it never fits.
-                    if cost > v.step_points {
-                        d.waiting.pop_front();
-                        self.deferred.dropped += 1;
-                        continue;
-                    }
+                // The first of a step always fits (one over a whole budget would never).
+                if work > 0 && work.saturating_add(cost) > v.step_points {
                     break;
                 }
                 d.waiting.pop_front();
@@ -210,8 +227,10 @@ impl LoopDetector {
                 cands.push(c);
                 by_pose.push(pose);
             }
-            if !jobs.is_empty() {
-                self.verify_deferred(&d, &q, &jobs, &mut cands, &by_pose)?;
+            if !jobs.is_empty() && self.verify_deferred(&d, &q, &jobs, &mut cands, &by_pose)? {
+                // Its loop found: the query needs no other.
+                self.deferred.looped += d.waiting.len();
+                continue;
             }
             if !d.waiting.is_empty() {
                 d.cloud = Some(q);
@@ -223,7 +242,7 @@ impl LoopDetector {
     }
 
     /// Registers the deferred candidates `cands` of `d` (`jobs`: their clouds), checks them as
-    /// their own step would have, and releases the best one's loop.
+    /// their own step would have, and releases the best one's loop; whether one passed.
     fn verify_deferred(
         &mut self,
         d: &Deferred,
@@ -231,7 +250,7 @@ impl LoopDetector {
         jobs: &[(usize, Arc<PreparedCloud>)],
         cands: &mut [Candidate],
         by_pose: &[bool],
-    ) -> Result<(), DbError> {
+    ) -> Result<bool, DbError> {
         let at = d.at;
         let a = self.a(at.id);
         self.register_jobs(&a, q, Some(&at), jobs, cands, &d.done)?;
@@ -261,7 +280,7 @@ impl LoopDetector {
             }
             self.release_late(loop_of(&c, at.id));
         }
-        Ok(())
+        Ok(best.is_some())
     }
 }
 
@@ -397,5 +416,11 @@ mod tests {
         // Reported once: the next steps release nothing more.
         let d = step(&mut det, 41.0, (0, 1));
         assert!(d.released.is_empty());
+        // A step that found its loop keeps nothing for later: place 8 first, the decoy waits
+        // for nothing.
+        let mut det = corridor_places(Some(one));
+        let d = step(&mut det, 10.0, (8, 9));
+        assert!(d.accepted.is_some_and(|l| near(&l)), "{:?}", d.accepted);
+        assert_eq!((det.deferred_waiting(), det.deferred_unneeded()), (0, 1));
     }
 }

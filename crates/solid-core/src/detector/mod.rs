@@ -813,11 +813,11 @@ impl LoopDetector {
         self.travelled.push(s.trail.travelled);
         self.latest_time.push(s.trail.clock);
         self.trail = s.trail;
+        let accepted = self.accept(&candidates, id);
+        self.end_deferring(id, cloud.as_ref(), accepted.is_some());
         if let Some(c) = cloud {
-            self.keep_deferred_cloud(id, &c);
             self.remember(id, c);
         }
-        let accepted = self.accept(&candidates, id);
         let (released, placement) = self.placement_news(accepted.is_some().then_some(id));
         Ok(Detection {
             query: id,
