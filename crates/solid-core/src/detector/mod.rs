@@ -105,9 +105,10 @@ pub struct Detection {
     pub candidates: Vec<Candidate>,
     /// The loop, when the best candidate's score is at most the threshold.
     pub accepted: Option<Loop>,
-    /// Loops into the map of earlier queries, held until this step's placement of the session
-    /// in the map (or its revision) found them consistent with it: released late, in query
-    /// order (spec §8, placement).
+    /// Loops of earlier queries reported late, in query order: loops into the map held until
+    /// this step's placement of the session in the map (or its revision) found them consistent
+    /// with it (spec §8, placement), loops the neighbours' vouching waited for, and the loops
+    /// of candidates a step's budget deferred to this one ([`VerifyConfig::step_points`]).
     pub released: Vec<Loop>,
     /// Whether this step placed the session in the map, or revised the placement.
     pub placement: Option<PlacementChange>,
