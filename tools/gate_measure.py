@@ -15,8 +15,10 @@ every preset at its own view and a 90° one, seeds 1–3 (or the comma-separated
 argument), instead of the room and the three corridor runs; ``drift`` gives the detector
 tests/test_gate.py's drifting odometry (0.01°/m of yaw, 1 % scale) instead of the true poses, on
 the two-module world (frames 3 m apart, as that test) and the default one (4 m), and scores the
-loops against the truth; ``tests`` runs tests/test_gate.py's scenarios (its corridor views, the
-turning room, its drifting odometry) with the overrides and prints what the tests assert on.
+loops against the truth (``test_gate.drift_run``; the loops off it are listed: query frame, place
+frame, metres and degrees off); ``tests`` runs tests/test_gate.py's scenarios (its corridor views,
+the turning room, its drifting odometry on both worlds) with the overrides and prints what the
+tests assert on.
 docs/performance.md#loops-a-pose-graph-can-trust gives the figures.
 """
 
@@ -24,6 +26,7 @@ from __future__ import annotations
 
 import json
 import sys
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -31,6 +34,9 @@ import numpy as np
 from solid import sim
 from solid.config import PipelineConfig
 from solid.pipeline import LoopClosurePipeline
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+import test_gate as T  # noqa: E402  (the tests' worlds, odometry and scoring)
 
 
 def disagreement(res: Any, P: np.ndarray) -> tuple[list[float], list[float]]:
@@ -76,57 +82,23 @@ def measure(name: str, world: sim.World, traj: sim.Trajectory, sensor: sim.Senso
     )
 
 
-class Odometry:
-    """A simulated sequence whose poses are a drifting odometry (what the pipeline gives the detector)."""
-
-    def __init__(self, seq: sim.Sequence, odometry: sim.Trajectory) -> None:
-        self.scans, self.poses, self.timestamps = seq.scans, odometry.poses, seq.times
-
-    def __len__(self) -> int:
-        return len(self.scans)
-
-    def __getitem__(self, i: int) -> Any:
-        return self.scans[i]
-
-
 def measure_drift(name: str, world: sim.World, traj: sim.Trajectory, sensor: sim.Sensor, preset: str, detector: dict[str, Any], seed: int) -> None:
-    """The detector on tests/test_gate.py's drifting odometry; its loops scored against the truth
-    (within 1 m and 5° of the true relative pose), recall over the queries with a true place within
-    5 m at least 50 frames back."""
-    seq = sim.simulate(world, sensor, traj)
-    odo = traj.odometry(yaw_bias_deg_per_m=0.01, scale_error=0.01, translation_noise=0.01, rotation_noise_deg=0.02, seed=seed)
-    res = LoopClosurePipeline(Odometry(seq, odo), PipelineConfig.preset(preset, radius=5.0, detector=detector)).run()
-    P = np.asarray(traj.poses).reshape(-1, 3, 4)
-    T = np.tile(np.eye(4), (len(P), 1, 1))
-    T[:, :3, :] = P
-    wrong = 0
-    found = set()
-    loops = res.loops()
-    for lp in loops:
-        q, c = res.frame_of(lp.query), res.frame_of(lp.candidate)
-        d = np.linalg.inv(np.linalg.inv(T[q]) @ T[c]) @ np.asarray(lp.pose)
-        deg = np.degrees(np.arccos(np.clip((np.trace(d[:3, :3]) - 1) / 2, -1, 1)))
-        if np.linalg.norm(d[:3, 3]) > 1.0 or deg > 5.0:
-            wrong += 1
-        elif np.linalg.norm((np.linalg.inv(T[q]) @ T[c])[:3, 3]) <= 5.0:
-            found.add(q)
-    X = P[:, :, 3]
-    revisits = {q for q in range(50, len(X)) if (np.linalg.norm(X[: q - 50] - X[q], axis=1) <= 5.0).any()}
+    """The detector on tests/test_gate.py's drifting odometry (``drift_run``); its loops scored
+    against the truth (within 1 m and 5° of the true relative pose), recall over the queries with
+    a true place within 5 m at least 50 frames back."""
+    run = T.drift_run(world, traj, sensor, preset, seed, detector)
     print(
-        f"{name}: {len(seq)} frames, {len(loops)} accepted, {wrong} off the truth by > 1 m or 5°, "
-        f"recall {len(found & revisits)}/{len(revisits)} = {len(found & revisits) / max(1, len(revisits)):.3f}",
+        f"{name}: {len(traj.poses)} frames, {run.loops} accepted, {len(run.wrong)} off the truth by > 1 m or 5°, "
+        f"recall {len(run.found & run.revisits)}/{len(run.revisits)} = {run.recall():.3f}",
         flush=True,
     )
+    if run.wrong:
+        print(f"  off (query, place, m, °): {run.describe()}", flush=True)
 
 
 def measure_tests(detector: dict[str, Any]) -> None:
     """tests/test_gate.py's runs with `detector`'s overrides merged into each: accepted loops,
     pose-false, recall (and for its drifting odometry the loops off the truth and the revisits found)."""
-    from pathlib import Path
-
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-    import test_gate as T
-
     def line(name: str, ev: Any) -> str:
         m = ev.metrics()
         return f"{name}: {int(np.sum(ev.accepted))} accepted, {m['pose_false_accepts']} pose-false, recall {m['recall']:.3f}"
@@ -143,6 +115,10 @@ def measure_tests(detector: dict[str, Any]) -> None:
         print(line(f"turning in place, {preset}", LoopClosurePipeline(sim.simulate(room, sim.Sensor(preset), walk), cfg).run().evaluate()), flush=True)
     world, walk = T.corridor_walk(3)
     measure_drift("drifting odometry, 2-module corridors seed 3, os1-64 with a 90° view", world, walk, sim.Sensor("os1-64", h_fov=90.0), "os1-64", detector, 3)
+    world, walk = T.corridor_walk(1, "default", spacing=6.0, laps=1.2)
+    for preset, fov in T.FOUR_MODULE_DRIFT:
+        name = f"drifting odometry, 4-module corridors seed 1 (frames 6 m apart, 1.2 laps), {preset} with a {fov:g}° view"
+        measure_drift(name, world, walk, sim.Sensor(preset, h_fov=fov), preset, detector, 1)
 
 
 def main() -> None:
@@ -151,10 +127,9 @@ def main() -> None:
         measure_tests(detector)
         return
     if sys.argv[2:3] == ["drift"]:
-        for modules, spacing in ((2, 3.0), (4, 4.0)):
+        for modules, kind in ((2, "short"), (4, "default")):
             for preset, fov, seed in (("os1-64", 90.0, 3), ("vlp16", None, 2), ("hdl64", 90.0, 2), ("avia", None, 1), ("aeva", 90.0, 2), ("os1-64", None, 3)):
-                world = sim.World.corridors(seed=seed, modules=modules)
-                walk = sim.Trajectory.corridor_walk(world, laps=1.3, spacing=spacing)
+                world, walk = T.corridor_walk(seed, kind)
                 view = "its own view" if fov is None else f"a {fov:g}° view"
                 sensor = sim.Sensor(preset, h_fov=fov)
                 measure_drift(f"drift, {modules}-module corridors seed {seed}, {preset} with {view}", world, walk, sensor, preset, detector, seed)
