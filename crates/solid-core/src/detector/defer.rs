@@ -2,8 +2,9 @@
 //! registration costs, and the candidates a step could not afford, registered by the next steps.
 //!
 //! A step registers its candidates in their order while their cost fits the budget (its best
-//! always); the others are *deferred*: kept with the query's place and cloud, and registered,
-//! oldest query first, by the next steps before their own candidates, while the budget lasts.
+//! always); the others are *deferred* unless the step found its loop: kept with the query's
+//! place and cloud, and registered, oldest query first, by the next steps before their own
+//! candidates, while the budget lasts (a step's first always, so that none waits forever).
 //! Most steps of a drive register nothing (no revisit), so their budget clears the backlog a
 //! step or two later. A deferred registration goes through the same gate and checks as at its
 //! own step (against the query's pose and the detector's state when it runs); its loop, when the
