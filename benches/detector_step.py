@@ -80,7 +80,10 @@ def child(name: str, overrides: dict[str, Any]) -> None:
         pairs.extend((d.query, x.id) for x in d.candidates if x.verified and x.pose is not None)
         if d.loop is not None:
             loops.append((d.query, d.loop.candidate))
-    print(json.dumps({"cpu": cpu, "pairs": pairs, "loops": loops, "solid": solid.__file__}))
+        # Loops a later step released (held for a placement, or a candidate deferred by its
+        # step's budget): each once, the query's.
+        loops.extend((int(lp.query), int(lp.candidate)) for lp in getattr(d, "released", ()))
+    print(json.dumps({"cpu": cpu, "pairs": pairs, "loops": sorted(loops), "solid": solid.__file__}))
 
 
 def threads(name: str, steps: int | None) -> None:

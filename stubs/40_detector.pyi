@@ -129,7 +129,7 @@ class Detection:
         """The loop, when the best candidate's score is at most the threshold; else None."""
     @property
     def released(self) -> list[Loop]:
-        """Loops into the map of earlier queries, held until this step placed the session in the map (or revised the placement) and found them consistent with it: released late, in query order (docs/spec.md §8, placement)."""
+        """Loops of earlier queries reported late, in query order: loops into the map held until this step placed the session in the map (or revised the placement) and found them consistent with it (docs/spec.md §8, placement), and the loops of candidates a step's budget deferred to this one (`verify_step_points`, docs/spec.md §8, budget)."""
     @property
     def placement(self) -> str | None:
         """What this step did to the session's placement in its map (`LoopDetector.map_anchor`): "placed" (the first placement), "revised" (a larger consistent set that disagreed replaced it), or None."""

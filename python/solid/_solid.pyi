@@ -275,7 +275,7 @@ class DetectorConfig:
         cloud_bits: int = 8,
         cache_bytes: int = 268435456,
         verify_threads: int = 0,
-        verify_step_points: int = 4000000,
+        verify_step_points: int = 60000,
         view_fov_deg: float = 360.0,
         view_min_overlap_deg: float = 20.0,
         odometry_check: bool = True,
@@ -316,7 +316,7 @@ class DetectorConfig:
             cloud_bits: Bits per axis of the compact clouds stored with the places (an integer in 1..=16; default 8).
             cache_bytes: Memory for prepared clouds kept between steps, bytes (an integer >= 0; default 268435456).
             verify_threads: Threads registering a step's candidates at once (0: one per core) (an integer in 0..=256; default 0).
-            verify_step_points: Work budget of one step, in points: each candidate costs its hypotheses times the two clouds' points; the best is always registered (an integer >= 1; default 4000000).
+            verify_step_points: Work budget of one step, in points: each candidate costs its registrations (1 from a known start, else its hypotheses) times the two clouds' points; the best is always registered, the rest deferred to the next steps (an integer >= 1; default 60000).
             view_fov_deg: The sensor's horizontal field of view, degrees (the view check's; 360: views always overlap) (degrees in (0, 360]; default 360.0).
             view_min_overlap_deg: Reject a verified loop whose yaw leaves the two fields of view sharing less azimuth than this, degrees (0: off) (degrees in [0, 360]; default 20.0).
             odometry_check: Reject a verified loop whose pose disagrees with the poses of its two places (same session) beyond the drift bounds, unless its neighbours vouch for it (min_support) (a bool; default True).
@@ -404,7 +404,7 @@ class DetectorConfig:
             cloud_bits: Bits per axis of the compact clouds stored with the places (an integer in 1..=16; default 8).
             cache_bytes: Memory for prepared clouds kept between steps, bytes (an integer >= 0; default 268435456).
             verify_threads: Threads registering a step's candidates at once (0: one per core) (an integer in 0..=256; default 0).
-            verify_step_points: Work budget of one step, in points: each candidate costs its hypotheses times the two clouds' points; the best is always registered (an integer >= 1; default 4000000).
+            verify_step_points: Work budget of one step, in points: each candidate costs its registrations (1 from a known start, else its hypotheses) times the two clouds' points; the best is always registered, the rest deferred to the next steps (an integer >= 1; default 60000).
             view_fov_deg: The sensor's horizontal field of view, degrees (the view check's; 360: views always overlap) (degrees in (0, 360]; default 360.0).
             view_min_overlap_deg: Reject a verified loop whose yaw leaves the two fields of view sharing less azimuth than this, degrees (0: off) (degrees in [0, 360]; default 20.0).
             odometry_check: Reject a verified loop whose pose disagrees with the poses of its two places (same session) beyond the drift bounds, unless its neighbours vouch for it (min_support) (a bool; default True).
@@ -493,7 +493,7 @@ class DetectorConfig:
             cloud_bits: Bits per axis of the compact clouds stored with the places (an integer in 1..=16; default 8).
             cache_bytes: Memory for prepared clouds kept between steps, bytes (an integer >= 0; default 268435456).
             verify_threads: Threads registering a step's candidates at once (0: one per core) (an integer in 0..=256; default 0).
-            verify_step_points: Work budget of one step, in points: each candidate costs its hypotheses times the two clouds' points; the best is always registered (an integer >= 1; default 4000000).
+            verify_step_points: Work budget of one step, in points: each candidate costs its registrations (1 from a known start, else its hypotheses) times the two clouds' points; the best is always registered, the rest deferred to the next steps (an integer >= 1; default 60000).
             view_fov_deg: The sensor's horizontal field of view, degrees (the view check's; 360: views always overlap) (degrees in (0, 360]; default 360.0).
             view_min_overlap_deg: Reject a verified loop whose yaw leaves the two fields of view sharing less azimuth than this, degrees (0: off) (degrees in [0, 360]; default 20.0).
             odometry_check: Reject a verified loop whose pose disagrees with the poses of its two places (same session) beyond the drift bounds, unless its neighbours vouch for it (min_support) (a bool; default True).
@@ -578,7 +578,7 @@ class DetectorConfig:
         """Threads registering a step's candidates at once (0: one per core) (an integer in 0..=256; default 0)."""
     @property
     def verify_step_points(self) -> int:
-        """Work budget of one step, in points: each candidate costs its hypotheses times the two clouds' points; the best is always registered (an integer >= 1; default 4000000)."""
+        """Work budget of one step, in points: each candidate costs its registrations (1 from a known start, else its hypotheses) times the two clouds' points; the best is always registered, the rest deferred to the next steps (an integer >= 1; default 60000)."""
     @property
     def view_fov_deg(self) -> float:
         """The sensor's horizontal field of view, degrees (the view check's; 360: views always overlap) (degrees in (0, 360]; default 360.0)."""
@@ -1687,7 +1687,7 @@ class Detection:
         """The loop, when the best candidate's score is at most the threshold; else None."""
     @property
     def released(self) -> list[Loop]:
-        """Loops into the map of earlier queries, held until this step placed the session in the map (or revised the placement) and found them consistent with it: released late, in query order (docs/spec.md §8, placement)."""
+        """Loops of earlier queries reported late, in query order: loops into the map held until this step placed the session in the map (or revised the placement) and found them consistent with it (docs/spec.md §8, placement), and the loops of candidates a step's budget deferred to this one (`verify_step_points`, docs/spec.md §8, budget)."""
     @property
     def placement(self) -> str | None:
         """What this step did to the session's placement in its map (`LoopDetector.map_anchor`): "placed" (the first placement), "revised" (a larger consistent set that disagreed replaced it), or None."""

@@ -285,8 +285,9 @@ pub struct PyDetection {
 
 #[pymethods]
 impl PyDetection {
-    /// Loops into the map of earlier queries, held until this step's placement (or revision)
-    /// found them consistent with it: released late, in query order.
+    /// Loops of earlier queries reported late, in query order: loops into the map held until
+    /// this step's placement (or revision) found them consistent with it, and the loops of
+    /// candidates a step's budget deferred to this one (verify_step_points).
     #[getter]
     fn released(&self) -> Vec<PyLoop> {
         self.released.clone()

@@ -170,10 +170,21 @@ impl LoopDetector {
     /// place has a pose): no odometry relates the two, nor any loop of theirs to another loop,
     /// so no loop between them is accepted (it is not registered).
     pub(super) fn unlinked(&self, id: u32) -> bool {
+        self.place_frame(id)
+            .is_some_and(|frame| self.chain.unlinked || frame == UNLINKED)
+    }
+
+    /// Whether own place `id` is a scan the chain could not link (whatever the query).
+    pub(super) fn unlinked_place(&self, id: u32) -> bool {
+        self.place_frame(id) == Some(UNLINKED)
+    }
+
+    /// The frame of own place `id` with a pose (None: a map place, or no pose).
+    fn place_frame(&self, id: u32) -> Option<u32> {
         (id as usize)
             .checked_sub(self.session_start)
             .and_then(|k| self.known.get(k).copied().flatten())
-            .is_some_and(|(_, frame)| self.chain.unlinked || frame == UNLINKED)
+            .map(|(_, frame)| frame)
     }
 
     /// What [`LoopDetector::known`] holds for the step just added with `pose`: the pose in the

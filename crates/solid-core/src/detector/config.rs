@@ -83,9 +83,18 @@ pub struct VerifyConfig {
     /// thread; at most [`MAX_VERIFY_THREADS`]). Needs the `parallel` feature (a default); without it, candidates are registered one
     /// by one.
     pub threads: usize,
-    /// The work one step may spend registering, in points: each candidate costs its yaw
-    /// hypotheses times the query's plus its own fine points; the best candidate is always
-    /// registered, the next ones while the sum stays within this, the rest stay unverified.
+    /// The work one step may spend registering, in points: each candidate costs the query's
+    /// plus its own fine points times the registrations it runs (one from a known start, the
+    /// odometry's or a registered neighbour's, otherwise one per yaw hypothesis; a candidate
+    /// chosen by pose two more for its restarts). The best candidate is always registered, the
+    /// next ones while the sum stays within this. The others are *deferred* unless the step
+    /// found its loop: the next steps register them first, oldest query first, while their
+    /// budget lasts (the first always), with the same checks, and a loop found for a query
+    /// without one is reported by the step that found it ([`Detection::released`](super::Detection::released)). At most
+    /// [`DEFERRED_QUERIES`](super::DEFERRED_QUERIES) queries wait, each at most
+    /// [`DEFERRED_STEPS`](super::DEFERRED_STEPS) steps (older ones are dropped); without a next
+    /// step ([`LoopDetector::query_scan`](super::LoopDetector::query_scan)) they stay
+    /// unverified.
     pub step_points: usize,
     /// The registration parameters (the stored clouds use its `voxel_size`).
     pub registration: RegConfig,
@@ -279,9 +288,10 @@ pub const DEFAULT_PLACEMENT_LOOPS: usize = 3;
 /// Default [`VerifyConfig::placement_m`] (docs/performance.md#loops-into-a-map).
 pub const DEFAULT_PLACEMENT_M: f64 = 15.0;
 
-/// Default [`VerifyConfig::step_points`]: room for every default candidate of the largest
-/// real scans measured, so that it binds only on outsized clouds (docs/performance.md#work-budgets).
-pub const DEFAULT_STEP_POINTS: usize = 4_000_000;
+/// Default [`VerifyConfig::step_points`]: on a 360° sensor (about 12k fine points a cloud) the
+/// best candidate and one or two seeded ones a step, the rest deferred; on a narrow one (the
+/// Avia's 1-2k) every default candidate (docs/performance.md#deferred-candidates-the-budget-in-registrations-run-r12-budget).
+pub const DEFAULT_STEP_POINTS: usize = 60_000;
 
 impl VerifyConfig {
     /// The grid edge the places' compact clouds are stored on (metres): the registration's
@@ -425,7 +435,7 @@ impl Params for DetectorConfig {
         field!(DetectorConfig, "verify_threads", verify.threads, Kind::Int { min: 0, max: MAX_VERIFY_THREADS as u64 },
             "an integer in 0..=256", "Threads registering a step's candidates at once (0: one per core)."),
         field!(DetectorConfig, "verify_step_points", verify.step_points, Kind::at_least(1), "an integer >= 1",
-            "Work budget of one step, in points: each candidate costs its hypotheses times the two clouds' points; the best is always registered."),
+            "Work budget of one step, in points: each candidate costs its registrations (1 from a known start, else its hypotheses) times the two clouds' points; the best is always registered, the rest deferred to the next steps."),
         field!(DetectorConfig, "view_fov_deg", verify.view_fov_deg, Kind::open_closed(0.0, 360.0),
             "degrees in (0, 360]", "The sensor's horizontal field of view, degrees (the view check's; 360: views always overlap)."),
         field!(DetectorConfig, "view_min_overlap_deg", verify.view_min_overlap_deg, Kind::closed(0.0, 360.0), "degrees in [0, 360]",

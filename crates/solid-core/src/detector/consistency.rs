@@ -588,6 +588,24 @@ impl LoopDetector {
     }
 }
 
+impl LoopDetector {
+    /// Releases the loop of a query that a later step registered (a candidate its step's
+    /// budget deferred: defer.rs), unless the query has a loop.
+    pub(super) fn release_late(&mut self, lp: Loop) {
+        release_loops(&mut self.placement, alloc::vec![lp]);
+    }
+}
+
+/// Releases `loops` (one per query) whose query has no loop yet, in query order.
+fn release_loops(p: &mut Placement, mut loops: Vec<Loop>) {
+    loops.retain(|l| !p.looped.contains(&l.query));
+    loops.sort_by_key(|l| l.query);
+    for lp in &loops {
+        note_looped(&mut p.looped, lp.query);
+    }
+    p.released.extend(loops);
+}
+
 /// Releases the loops of `agree` (held hypotheses a placement or a vouching set now holds): the
 /// best-scored of each query that has no loop yet, in query order.
 fn release(p: &mut Placement, agree: &[Hypothesis]) {
@@ -602,11 +620,7 @@ fn release(p: &mut Placement, agree: &[Hypothesis]) {
             None => best.push(lp),
         }
     }
-    best.sort_by_key(|l| l.query);
-    for lp in &best {
-        note_looped(&mut p.looped, lp.query);
-    }
-    p.released.extend(best);
+    release_loops(p, best);
 }
 
 /// Remembers that query `q` has a loop (the latest `2·WINDOW` such queries: older ones have

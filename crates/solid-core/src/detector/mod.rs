@@ -25,11 +25,13 @@ mod anchor;
 mod breaks;
 mod chain;
 mod consistency;
+mod defer;
 mod nearby;
 mod verify;
 
 pub use chain::PoseSource;
 pub use consistency::MapAnchor;
+pub use defer::{DEFERRED_QUERIES, DEFERRED_STEPS};
 pub use verify::{UNVERIFIED_SCORE, VERIFIED_THRESHOLD};
 
 /// One candidate of a detector step, in the detector's ranking order.
@@ -103,9 +105,10 @@ pub struct Detection {
     pub candidates: Vec<Candidate>,
     /// The loop, when the best candidate's score is at most the threshold.
     pub accepted: Option<Loop>,
-    /// Loops into the map of earlier queries, held until this step's placement of the session
-    /// in the map (or its revision) found them consistent with it: released late, in query
-    /// order (spec §8, placement).
+    /// Loops of earlier queries reported late, in query order: loops into the map held until
+    /// this step's placement of the session in the map (or its revision) found them consistent
+    /// with it (spec §8, placement), loops the neighbours' vouching waited for, and the loops
+    /// of candidates a step's budget deferred to this one ([`VerifyConfig::step_points`]).
     pub released: Vec<Loop>,
     /// Whether this step placed the session in the map, or revised the placement.
     pub placement: Option<PlacementChange>,
@@ -187,6 +190,8 @@ pub struct LoopDetector {
     known: Vec<Option<([f64; 12], u32)>>,
     /// The chain's state: the current frame and how the last link moved.
     chain: chain::Chain,
+    /// Candidates over a step's budget, registered by the next steps.
+    deferred: defer::Queue,
 }
 
 /// One scan ready for a detector step: its descriptor and, for verification, its prepared cloud
@@ -315,6 +320,7 @@ impl LoopDetector {
             breaks: breaks::Breaks::default(),
             known: Vec::new(),
             chain: chain::Chain::default(),
+            deferred: defer::Queue::default(),
         })
     }
 
@@ -809,10 +815,11 @@ impl LoopDetector {
         self.travelled.push(s.trail.travelled);
         self.latest_time.push(s.trail.clock);
         self.trail = s.trail;
+        let accepted = self.accept(&candidates, id);
+        self.end_deferring(id, cloud.as_ref(), accepted.is_some());
         if let Some(c) = cloud {
             self.remember(id, c);
         }
-        let accepted = self.accept(&candidates, id);
         let (released, placement) = self.placement_news(accepted.is_some().then_some(id));
         Ok(Detection {
             query: id,

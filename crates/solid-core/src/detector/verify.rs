@@ -42,33 +42,54 @@ impl LoopDetector {
             c.score = UNVERIFIED_SCORE + c.distance / 2.0;
         }
         if let Some(q) = query {
+            // The step's budget (VerifyConfig::step_points): the candidates deferred by earlier
+            // steps take it first, then this step's in their order (the best always
+            // registered); this step's beyond it are deferred to the next steps.
+            let mut work = match at {
+                Some(at) => self.run_deferred(at.id)?,
+                None => 0,
+            };
             // The clouds first (the cache needs `&mut self`), then the registrations, which are
             // independent of each other: in parallel where threads exist.
             let mut jobs: Vec<(usize, Arc<PreparedCloud>)> = Vec::new();
-            let mut work = 0usize;
+            let mut over: Vec<usize> = Vec::new();
             let beyond = self.beyond_reach(at.as_ref(), &cands[..n.min(cands.len())])?;
-            for (i, c) in cands.iter_mut().enumerate().take(n) {
+            let anchored = at.and_then(|at| self.anchored(&at));
+            for i in 0..n.min(cands.len()) {
                 if beyond[i] {
                     continue;
                 }
-                let cloud = match self.prepared_cloud(c.id) {
-                    Ok(cloud) => cloud,
-                    // Never silently unverified: the candidate says its cloud is corrupt. A map
-                    // file that changed or cannot be read fails the step (naming it).
-                    Err(DbError::Format { .. }) => {
-                        c.verification = Some(corrupt_cloud());
-                        continue;
+                if !over.is_empty() {
+                    over.push(i);
+                    continue;
+                }
+                let (id, by_pose) = (cands[i].id, i >= v.candidates);
+                let led: Vec<u32> = jobs.iter().map(|&(j, _)| cands[j].id).collect();
+                // Never silently unverified: the candidate says its cloud is corrupt. A map
+                // file that changed or cannot be read fails the step (naming it).
+                let corrupt = |c: &mut Candidate| c.verification = Some(corrupt_cloud());
+                let cost =
+                    match self.registration_cost(q, at.as_ref(), anchored, (id, by_pose), &led) {
+                        Ok(Some(cost)) => cost,
+                        Ok(None) => continue,
+                        Err(DbError::Format { .. }) => {
+                            corrupt(&mut cands[i]);
+                            continue;
+                        }
+                        Err(e) => return Err(e),
+                    };
+                if !jobs.is_empty() && work.saturating_add(cost) > v.step_points {
+                    over.push(i);
+                    continue;
+                }
+                match self.prepared_cloud(id) {
+                    Ok(Some(cp)) => {
+                        work = work.saturating_add(cost);
+                        jobs.push((i, cp));
                     }
+                    Ok(None) => {}
+                    Err(DbError::Format { .. }) => corrupt(&mut cands[i]),
                     Err(e) => return Err(e),
-                };
-                if let Some(cp) = cloud {
-                    // The step's budget (VerifyConfig::step_points): the best always fits.
-                    let cost = (q.fine.len() + cp.fine.len()).saturating_mul(v.hypotheses);
-                    work = work.saturating_add(cost);
-                    if !jobs.is_empty() && work > v.step_points {
-                        break;
-                    }
-                    jobs.push((i, cp));
                 }
             }
             let q = if jobs.is_empty() || q.is_complete() {
@@ -78,8 +99,10 @@ impl LoopDetector {
                 c.complete()?;
                 completed.insert(c)
             };
-            self.register_jobs(a_query, q, at.as_ref(), &jobs, cands)?;
+            self.register_jobs(a_query, q, at.as_ref(), &jobs, cands, &[])?;
             if let Some(at) = at {
+                // Before the checks after the gate: the deferred ones' neighbours' starts.
+                self.defer(at, cands, &over)?;
                 // The candidates chosen by pose follow the descriptor's first `v.candidates`.
                 let by_pose = v.candidates.min(n)..n;
                 let mut clouds = Vec::new();
@@ -124,13 +147,17 @@ impl LoopDetector {
     ///    hypotheses from the identity measured no loop more);
     /// 3. otherwise (no start, or a seeded result that met the quality checks but not the guards)
     ///    the yaw hypotheses from the identity ([`verify_pair`]).
-    fn register_jobs(
+    ///
+    /// `done`: the query's candidates registered before (by its own step, for candidates it
+    /// deferred), as the gate left them: neighbours too, after the jobs.
+    pub(super) fn register_jobs(
         &self,
         a_query: &[f32],
         q: &PreparedCloud,
         at: Option<&QueryPlace>,
         jobs: &[(usize, Arc<PreparedCloud>)],
         cands: &mut [Candidate],
+        done: &[Candidate],
     ) -> Result<(), DbError> {
         let v = self.config.verify;
         // A single start cannot show the hypotheses' agreement: with a gate that asks for it,
@@ -138,7 +165,8 @@ impl LoopDetector {
         let seeds = v.gate.min_agreement <= 1;
         let anchored = at.and_then(|at| self.anchored(at));
         let mut odometry: Vec<Option<(Pose, f64)>> = Vec::new();
-        let mut follows: Vec<Option<usize>> = Vec::new();
+        // The better-ranked candidate each may follow: a job (its index) or one of `done`.
+        let mut follows: Vec<Option<Result<usize, usize>>> = Vec::new();
         odometry
             .try_reserve_exact(jobs.len())
             .map_err(|_| DbError::OutOfMemory)?;
@@ -146,23 +174,18 @@ impl LoopDetector {
             .try_reserve_exact(jobs.len())
             .map_err(|_| DbError::OutOfMemory)?;
         let ids: Vec<u32> = jobs.iter().map(|&(i, _)| cands[i].id).collect();
-        let session = |id: u32| self.entry(id).0;
-        // Only where the odometry's own bound (without the rotation's swing) lies within the
-        // coarse level's reach: a start farther off than that may miss the true pose.
-        let reach = |path: f64| {
-            v.odometry_translation_m + v.odometry_drift * path
-                <= v.registration.coarse_max_correspondence
-        };
         let at = at.filter(|_| seeds && v.odometry_check);
         for (k, &id) in ids.iter().enumerate() {
-            odometry.push(
-                at.and_then(|at| self.expected_through(at, anchored, id))
-                    .filter(|&(_, path)| reach(path)),
-            );
+            odometry.push(at.and_then(|at| self.odometry_start(at, anchored, id)));
             // The better-ranked job it may follow: the first within CLUSTER_IDS of its session.
-            follows.push(ids[..k].iter().position(|&id2| {
-                seeds && session(id2) == session(id) && id2.abs_diff(id) <= CLUSTER_IDS
-            }));
+            let near = |id2: u32| seeds && self.neighbours(id2, id);
+            follows.push(
+                ids[..k]
+                    .iter()
+                    .position(|&id2| near(id2))
+                    .map(Ok)
+                    .or_else(|| done.iter().position(|c| near(c.id)).map(Err)),
+            );
         }
         let det: &LoopDetector = self;
         let one = |k: usize, neighbour: Option<Pose>| -> Result<Option<Verification>, DbError> {
@@ -199,13 +222,15 @@ impl LoopDetector {
         };
         let followers: Vec<(usize, Option<Pose>)> = (0..jobs.len())
             .filter_map(|k| {
-                let j = follows[k]?;
-                let (a, b) = (ids[j], ids[k]);
+                let (a, lead) = match follows[k]? {
+                    Ok(j) => (ids[j], cands[jobs[j].0].verification),
+                    Err(d) => (done[d].id, done[d].verification),
+                };
+                let b = ids[k];
                 // The leader's pose carried over to this place, when it met the quality checks
                 // (and, with the odometry check, agrees with the odometry: a look-alike's pose
                 // would carry its neighbours along).
-                let start = cands[jobs[j].0]
-                    .verification
+                let start = lead
                     .filter(|r| met_quality(r) && agrees(a, &r.registration.pose))
                     .map(|r| match self.related(a, b) {
                         Some(ab) => mul(&r.registration.pose, &ab),
@@ -219,6 +244,29 @@ impl LoopDetector {
             cands[jobs[k].0].verification = r;
         }
         Ok(())
+    }
+
+    /// The start the odometry gives the registration of own place `id` with the query `at`
+    /// (through `anchored`, [`LoopDetector::anchored`]) and the metres it spans: only where the
+    /// odometry's own bound (without the rotation's swing) lies within the coarse level's
+    /// reach, since a start farther off than that may miss the true pose.
+    pub(super) fn odometry_start(
+        &self,
+        at: &QueryPlace,
+        anchored: Option<([f64; 12], f64, f64)>,
+        id: u32,
+    ) -> Option<(Pose, f64)> {
+        let v = &self.config.verify;
+        self.expected_through(at, anchored, id)
+            .filter(|&(_, path)| {
+                v.odometry_translation_m + v.odometry_drift * path
+                    <= v.registration.coarse_max_correspondence
+            })
+    }
+
+    /// Whether two places are neighbours: of one session, at most [`CLUSTER_IDS`] apart.
+    pub(super) fn neighbours(&self, a: u32, b: u32) -> bool {
+        self.entry(a).0 == self.entry(b).0 && a.abs_diff(b) <= CLUSTER_IDS
     }
 
     /// Which of `cands` cannot give an accepted loop, so are not registered: own places the
@@ -308,25 +356,33 @@ impl LoopDetector {
         }
         // Loops into the map: judged by the session's placement in it.
         self.check_placement(at, r_query, cands);
+        // The step's registered candidates, then (for candidates a step deferred) those its own
+        // step registered, remembered for the support.
+        let earlier = self.recent.iter().find(|(q, _)| *q == at.id);
+        let earlier = earlier.map_or(&[][..], |(_, list)| &list[..]);
         let mut mine = Vec::new();
         let mut offsets = Vec::new();
         let n = cands.iter().filter(|c| registered(c)).count();
-        mine.try_reserve_exact(n)
+        mine.try_reserve_exact(n + earlier.len())
             .map_err(|_| DbError::OutOfMemory)?;
         offsets
-            .try_reserve_exact(n)
+            .try_reserve_exact(n + earlier.len())
             .map_err(|_| DbError::OutOfMemory)?;
         for c in cands.iter().filter(|c| registered(c)) {
             mine.extend(c.verification.map(|r| (c.id, r.registration.pose)));
-            offsets.push(self.odometry_offset(at, c));
         }
+        mine.extend_from_slice(earlier);
+        for (id, pose) in &mine {
+            offsets.push(self.odometry_offset(at, *id, pose));
+        }
+        mine.truncate(n);
         // After the support list: a look-alike's registration still supports the next steps.
         self.reject_lookalikes(at, r_query, cands);
         if let (true, Some(q)) = (v.unique, at.pose) {
             for c in cands.iter_mut().filter(|c| passed(c)) {
                 let Some(r) = c.verification else { continue };
                 let me = (&q, c.id, &r.registration.pose);
-                let mine_off = self.odometry_offset(at, c);
+                let mine_off = self.odometry_offset(at, c.id, &r.registration.pose);
                 // The one much nearer the odometry wins; otherwise the step cannot tell.
                 // Nearer both through the anchor and through the two places' poses: a loop's
                 // small error, carried by the anchor, must not outvote exact poses.
@@ -336,11 +392,15 @@ impl LoopDetector {
                         .zip(o)
                         .all(|(a, b)| a.zip(b).is_some_and(|(a, b)| a < v.unique_ratio * b))
                 };
-                let disagree = mine.iter().zip(&offsets).any(|(&(c2, ref t2), &o2)| {
-                    c2 != c.id
-                        && self.agree_through_poses(me, (&q, c2, t2)) == Some(false)
-                        && !nearer(o2)
-                });
+                let disagree =
+                    mine.iter()
+                        .chain(earlier)
+                        .zip(&offsets)
+                        .any(|(&(c2, ref t2), &o2)| {
+                            c2 != c.id
+                                && self.agree_through_poses(me, (&q, c2, t2)) == Some(false)
+                                && !nearer(o2)
+                        });
                 if disagree {
                     reject(c, Rejection::Ambiguous);
                 }
@@ -360,6 +420,16 @@ impl LoopDetector {
             if self.support(at, c) < v.min_support {
                 reject(c, Rejection::Unsupported);
             }
+        }
+        // A deferred candidate's registration joins its query's step (when still remembered).
+        if let Some((_, list)) = self.recent.iter_mut().find(|(q, _)| *q == at.id) {
+            list.try_reserve(mine.len())
+                .map_err(|_| DbError::OutOfMemory)?;
+            list.extend(mine);
+            return Ok(());
+        }
+        if self.recent.back().is_some_and(|(q, _)| *q > at.id) {
+            return Ok(());
         }
         while self
             .recent
@@ -395,11 +465,10 @@ impl LoopDetector {
     /// Metres between a registered candidate's pose and the relative pose the poses predict,
     /// through the anchor when it applies ([`LoopDetector::expected`]) and through the two
     /// places' poses (None without poses or across sessions).
-    fn odometry_offset(&self, at: &QueryPlace, c: &Candidate) -> [Option<f64>; 2] {
+    fn odometry_offset(&self, at: &QueryPlace, id: u32, pose: &Pose) -> [Option<f64>; 2] {
         [true, false].map(|anchor| {
-            let r = c.verification?;
-            let (expected, _) = self.expected(at, c.id, anchor)?;
-            reg::pose_distance(&expected, &r.registration.pose).map(|(m, _)| m)
+            let (expected, _) = self.expected(at, id, anchor)?;
+            reg::pose_distance(&expected, pose).map(|(m, _)| m)
         })
     }
 
@@ -451,6 +520,7 @@ impl LoopDetector {
         let near = 2 * v.support_window as u32;
         self.recent
             .iter()
+            .filter(|(q2, _)| *q2 != at.id)
             .filter(|(q2, list)| {
                 list.iter().any(|&(c2, t2)| {
                     // Across a break the poses do not relate the two queries.
@@ -1114,7 +1184,7 @@ pub(super) mod tests {
                 .map(|(i, &id)| (i, seen(f64::from(id))))
                 .collect();
             let a = alloc::vec![1.0f32; det.map().config().n_azimuth];
-            det.register_jobs(&a, &q, Some(&at), &jobs, &mut cands)
+            det.register_jobs(&a, &q, Some(&at), &jobs, &mut cands, &[])
                 .unwrap();
             cands.map(|c| {
                 let r = c.verification.unwrap();

@@ -94,7 +94,7 @@ pub use solve::{
     register_hypotheses_for, Hypotheses, Hypothesis, HORIZONTAL, MAX_HYPOTHESES,
     ROTATION_TOLERANCE,
 };
-pub use wire::{check_cloud, decode_cloud, encode_cloud};
+pub use wire::{check_cloud, cloud_points, decode_cloud, encode_cloud};
 
 use crate::Error;
 

@@ -203,6 +203,15 @@ pub fn check_cloud(bytes: &[u8]) -> Result<(), RegError> {
     Ok(())
 }
 
+/// The number of points of a cloud encoded by [`encode_cloud`], without decoding it.
+///
+/// # Errors
+/// As [`check_cloud`].
+pub fn cloud_points(bytes: &[u8]) -> Result<usize, RegError> {
+    check_cloud(bytes)?;
+    Ok(u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as usize)
+}
+
 /// Decodes a cloud encoded by [`encode_cloud`] (points in Morton order of their cells).
 ///
 /// # Errors
