@@ -74,7 +74,8 @@ def test_revisits_across_a_frame_the_chain_started_are_found_by_their_consistenc
     det = _detector("vlp16", exclude=3)
     steps = [det.detect(seq.scans[f], timestamp=float(i)) for i, f in enumerate(frames)]
     assert [s.pose_source for s in steps[12:14]] == [None, "started"]
-    found, late = set(), set()
+    found: set[int] = set()
+    late: set[int] = set()
     for s in steps:
         now = [(s.loop, found)] if s.loop is not None else []
         for lp, into in [*now, *((lp, late) for lp in s.released)]:
@@ -145,7 +146,7 @@ def test_a_narrow_view_is_chained_through_the_turns_of_a_street_corner() -> None
     world = sim.World(seed=2, repetition=0.9)
     _, second = sim.session_routes(world, spacing=3.0)
     frames = [*range(48, 60), *range(100, 111)]
-    part = second[frames]
+    part = sim.Trajectory(second.poses[frames], second.times[frames])
     seq = sim.simulate(world, sim.Sensor("hdl64", h_fov=90.0), part)
     truth = slam.as4(part.poses)
     det = _detector("hdl64", exclude=50)
