@@ -813,6 +813,7 @@ impl LoopDetector {
         }
         let accepted = self.accept(&candidates, id);
         let (released, placement) = self.placement_news(accepted.is_some().then_some(id));
+        self.anchor_released(&released);
         Ok(Detection {
             query: id,
             eligible: eligible as u32,
