@@ -115,9 +115,9 @@ def measure_tests(detector: dict[str, Any]) -> None:
         print(line(f"turning in place, {preset}", LoopClosurePipeline(sim.simulate(room, sim.Sensor(preset), walk), cfg).run().evaluate()), flush=True)
     world, walk = T.corridor_walk(3)
     measure_drift("drifting odometry, 2-module corridors seed 3, os1-64 with a 90° view", world, walk, sim.Sensor("os1-64", h_fov=90.0), "os1-64", detector, 3)
-    world, walk = T.corridor_walk(1, "default", spacing=6.0, laps=1.2)
-    for preset, fov in T.FOUR_MODULE_DRIFT:
-        name = f"drifting odometry, 4-module corridors seed 1 (frames 6 m apart, 1.2 laps), {preset} with a {fov:g}° view"
+    for preset, fov, spacing, _ in T.FOUR_MODULE_DRIFT:
+        world, walk = T.corridor_walk(1, "default", spacing=spacing, laps=1.2)
+        name = f"drifting odometry, 4-module corridors seed 1 (frames {spacing:g} m apart, 1.2 laps), {preset} with a {fov:g}° view"
         measure_drift(name, world, walk, sim.Sensor(preset, h_fov=fov), preset, detector, 1)
 
 

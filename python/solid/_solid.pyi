@@ -321,7 +321,7 @@ class DetectorConfig:
             view_min_overlap_deg: Reject a verified loop whose yaw leaves the two fields of view sharing less azimuth than this, degrees (0: off) (degrees in [0, 360]; default 20.0).
             odometry_check: Reject a verified loop whose pose disagrees with the poses of its two places (same session) beyond the drift bounds, unless its neighbours vouch for it (min_support) (a bool; default True).
             odometry_translation_m: Translation a loop may differ from the poses' relative pose by at no path, metres (a finite number >= 0; default 1.0).
-            odometry_drift: Translation the odometry may drift per metre travelled between the two places (a fraction; the rotation difference adds angle · path / 2) (a finite number >= 0; default 0.01).
+            odometry_drift: Translation the odometry may drift per metre travelled between the two places (a fraction), beside the displacement the rotation difference predicts along the path (a finite number >= 0; default 0.01).
             odometry_rotation_deg: Rotation a loop may differ from the poses' relative rotation by at no path, degrees (degrees in [0, 180]; default 3.0).
             odometry_rotation_deg_per_m: Rotation the odometry may drift per metre travelled between the two places, degrees (a finite number >= 0; default 0.15).
             odometry_rotation_max_deg: Ceiling of the rotation a loop may differ from the poses' relative rotation by, whatever the path, degrees (degrees in [0, 180]; default 30.0).
@@ -409,7 +409,7 @@ class DetectorConfig:
             view_min_overlap_deg: Reject a verified loop whose yaw leaves the two fields of view sharing less azimuth than this, degrees (0: off) (degrees in [0, 360]; default 20.0).
             odometry_check: Reject a verified loop whose pose disagrees with the poses of its two places (same session) beyond the drift bounds, unless its neighbours vouch for it (min_support) (a bool; default True).
             odometry_translation_m: Translation a loop may differ from the poses' relative pose by at no path, metres (a finite number >= 0; default 1.0).
-            odometry_drift: Translation the odometry may drift per metre travelled between the two places (a fraction; the rotation difference adds angle · path / 2) (a finite number >= 0; default 0.01).
+            odometry_drift: Translation the odometry may drift per metre travelled between the two places (a fraction), beside the displacement the rotation difference predicts along the path (a finite number >= 0; default 0.01).
             odometry_rotation_deg: Rotation a loop may differ from the poses' relative rotation by at no path, degrees (degrees in [0, 180]; default 3.0).
             odometry_rotation_deg_per_m: Rotation the odometry may drift per metre travelled between the two places, degrees (a finite number >= 0; default 0.15).
             odometry_rotation_max_deg: Ceiling of the rotation a loop may differ from the poses' relative rotation by, whatever the path, degrees (degrees in [0, 180]; default 30.0).
@@ -498,7 +498,7 @@ class DetectorConfig:
             view_min_overlap_deg: Reject a verified loop whose yaw leaves the two fields of view sharing less azimuth than this, degrees (0: off) (degrees in [0, 360]; default 20.0).
             odometry_check: Reject a verified loop whose pose disagrees with the poses of its two places (same session) beyond the drift bounds, unless its neighbours vouch for it (min_support) (a bool; default True).
             odometry_translation_m: Translation a loop may differ from the poses' relative pose by at no path, metres (a finite number >= 0; default 1.0).
-            odometry_drift: Translation the odometry may drift per metre travelled between the two places (a fraction; the rotation difference adds angle · path / 2) (a finite number >= 0; default 0.01).
+            odometry_drift: Translation the odometry may drift per metre travelled between the two places (a fraction), beside the displacement the rotation difference predicts along the path (a finite number >= 0; default 0.01).
             odometry_rotation_deg: Rotation a loop may differ from the poses' relative rotation by at no path, degrees (degrees in [0, 180]; default 3.0).
             odometry_rotation_deg_per_m: Rotation the odometry may drift per metre travelled between the two places, degrees (a finite number >= 0; default 0.15).
             odometry_rotation_max_deg: Ceiling of the rotation a loop may differ from the poses' relative rotation by, whatever the path, degrees (degrees in [0, 180]; default 30.0).
@@ -593,7 +593,7 @@ class DetectorConfig:
         """Translation a loop may differ from the poses' relative pose by at no path, metres (a finite number >= 0; default 1.0)."""
     @property
     def odometry_drift(self) -> float:
-        """Translation the odometry may drift per metre travelled between the two places (a fraction; the rotation difference adds angle · path / 2) (a finite number >= 0; default 0.01)."""
+        """Translation the odometry may drift per metre travelled between the two places (a fraction), beside the displacement the rotation difference predicts along the path (a finite number >= 0; default 0.01)."""
     @property
     def odometry_rotation_deg(self) -> float:
         """Rotation a loop may differ from the poses' relative rotation by at no path, degrees (degrees in [0, 180]; default 3.0)."""

@@ -137,6 +137,33 @@ impl LoopDetector {
         }
     }
 
+    /// Remembers the latest of `released` (loops of earlier queries released at this step: the
+    /// neighbours vouched for them) as the anchor of the next steps, as [`LoopDetector::anchor_on`]
+    /// does a step's own loop, when its query is later than the anchor's.
+    pub(super) fn anchor_released(&mut self, released: &[super::Loop]) {
+        for lp in released {
+            let (Some(q), Some(t), Some(pose)) = (
+                self.known_pose(lp.query),
+                self.travelled_at(lp.query),
+                lp.pose,
+            ) else {
+                continue;
+            };
+            let later = self.anchor.is_none_or(|a| t > a.travelled);
+            if later
+                && self.travelled_at(lp.candidate).is_some()
+                && self.known_pose(lp.candidate).is_some()
+            {
+                self.anchor = Some(Anchor {
+                    query: q,
+                    travelled: t,
+                    candidate: lp.candidate,
+                    pose,
+                });
+            }
+        }
+    }
+
     /// Rejects each passed candidate that has a look-alike ([`LoopDetector::lookalike`]).
     pub(super) fn reject_lookalikes(
         &self,
@@ -195,6 +222,23 @@ mod tests {
         assert_eq!(pose_to_rows(&t), p);
         let i = mul(&t, &invert(&t));
         assert!(reg::pose_distance(&i, &reg::IDENTITY).is_some_and(|(m, d)| m < 1e-12 && d < 1e-9));
+    }
+
+    #[test]
+    fn a_loop_released_late_anchors_the_next_steps_when_it_is_the_latest() {
+        let mut det = detector_with_path(40, |_| {});
+        let truth =
+            |q: u32, c: u32| relative(&pose(0.0, f64::from(q), 0.0), &pose(0.0, f64::from(c), 0.0));
+        let released = [
+            super::super::loop_of(&verified(2, truth(30, 2)), 30),
+            super::super::loop_of(&verified(3, truth(31, 3)), 31),
+        ];
+        det.anchor_released(&released);
+        let a = det.anchor.unwrap();
+        assert_eq!((a.candidate, a.travelled), (3, 31.0));
+        // An older loop released later does not replace it.
+        det.anchor_released(&[super::super::loop_of(&verified(1, truth(29, 1)), 29)]);
+        assert_eq!(det.anchor.unwrap().candidate, 3);
     }
 
     #[test]

@@ -125,9 +125,12 @@ pub struct VerifyConfig {
     /// registration's own error and the odometry's noise.
     pub odometry_translation_m: f64,
     /// Translation the odometry may drift per metre travelled between the two places (a
-    /// fraction: 0.01 allows 1 m of disagreement after 100 m), its scale error. The rotation
-    /// the loop and the poses differ by (within its bound) adds `angle · path / 2`: the
-    /// displacement a rotation drift causes along the path.
+    /// fraction: 0.01 allows 1 m of disagreement after 100 m), its scale error. Beside it, the
+    /// rotation `ω` the loop and the poses differ by (within its bound) displaces the query as a
+    /// rotation drift at a constant rate per metre would: by `ω × arm`, `arm` from the path's
+    /// centroid to the place (through the two places' poses; at most `angle · path / 2`, the
+    /// straight path's; through an anchor, any direction up to that). The check measures the
+    /// translation after that displacement.
     pub odometry_drift: f64,
     /// Rotation a loop may differ from the poses' relative rotation by at no path (degrees).
     pub odometry_rotation_deg: f64,
@@ -445,7 +448,7 @@ impl Params for DetectorConfig {
         field!(DetectorConfig, "odometry_translation_m", verify.odometry_translation_m, Kind::closed(0.0, FINITE),
             "a finite number >= 0", "Translation a loop may differ from the poses' relative pose by at no path, metres."),
         field!(DetectorConfig, "odometry_drift", verify.odometry_drift, Kind::closed(0.0, FINITE),
-            "a finite number >= 0", "Translation the odometry may drift per metre travelled between the two places (a fraction; the rotation difference adds angle · path / 2)."),
+            "a finite number >= 0", "Translation the odometry may drift per metre travelled between the two places (a fraction), beside the displacement the rotation difference predicts along the path."),
         field!(DetectorConfig, "odometry_rotation_deg", verify.odometry_rotation_deg, Kind::closed(0.0, 180.0),
             "degrees in [0, 180]", "Rotation a loop may differ from the poses' relative rotation by at no path, degrees."),
         field!(DetectorConfig, "odometry_rotation_deg_per_m", verify.odometry_rotation_deg_per_m, Kind::closed(0.0, FINITE),

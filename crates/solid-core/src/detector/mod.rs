@@ -821,6 +821,7 @@ impl LoopDetector {
             self.remember(id, c);
         }
         let (released, placement) = self.placement_news(accepted.is_some().then_some(id));
+        self.anchor_released(&released);
         Ok(Detection {
             query: id,
             eligible: eligible as u32,

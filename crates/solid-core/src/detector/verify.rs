@@ -449,17 +449,96 @@ impl LoopDetector {
     /// (through the latest anchor when that is the shorter path: [`LoopDetector::expected`])
     /// within the drift bounds, `turn`: with the rotation's allowance (true when they have no
     /// poses or are of different sessions).
+    ///
+    /// Through the two places' poses, the rotation's allowance is the displacement the rotation
+    /// they differ by predicts ([`LoopDetector::within_drift_along`]), not any displacement up
+    /// to `angle · path / 2`.
     pub(super) fn agrees_with_odometry(&self, at: &QueryPlace, c: &Candidate, turn: bool) -> bool {
         let (Some(r), Some((expected, path))) = (c.verification, self.expected(at, c.id, true))
         else {
             return true;
         };
-        self.within_drift(
-            &expected,
-            &r.registration.pose,
-            path,
-            if turn { 1.0 } else { 0.0 },
-        )
+        let pose = &r.registration.pose;
+        if turn {
+            // Through the two places' poses (not the anchor's shorter path), the drift's arm.
+            let direct = self
+                .expected(at, c.id, false)
+                .is_some_and(|(_, global)| global <= path);
+            if let Some(arm) = direct.then(|| self.drift_arm(at, c.id)).flatten() {
+                return self.within_drift_along(&expected, pose, path, &arm);
+            }
+        }
+        self.within_drift(&expected, pose, path, if turn { 1.0 } else { 0.0 })
+    }
+
+    /// The arm of a rotation drift between own place `c` and the query `at` along the path the
+    /// poses give: the place's position less the path's centroid (each stretch weighted by its
+    /// metres, the places without a pose in the current frame left out), in the query's frame.
+    /// A rotation drift `ω` at a constant rate per metre moves the query's position as seen
+    /// from the place by `ω × arm` (to first order): half the path along a straight path, near
+    /// nothing after a lap around a square. None without poses.
+    pub(super) fn drift_arm(&self, at: &QueryPlace, c: u32) -> Option<[f64; 3]> {
+        let q = at.pose?;
+        let pc = self.known_pose(c)?;
+        let k0 = (c as usize).checked_sub(self.session_start)?;
+        let position = |p: &[f64; 12]| [p[3], p[7], p[11]];
+        let posed = (k0..self.known.len())
+            .filter_map(|k| self.known_pose((self.session_start + k) as u32))
+            .map(|p| position(&p))
+            .chain(core::iter::once(position(&q)));
+        let (mut sum, mut metres, mut last) = ([0.0; 3], 0.0, position(&pc));
+        for p in posed {
+            let step = libm::sqrt((0..3).map(|i| (p[i] - last[i]) * (p[i] - last[i])).sum());
+            for i in 0..3 {
+                sum[i] += step * (p[i] + last[i]) / 2.0;
+            }
+            metres += step;
+            last = p;
+        }
+        let from = position(&pc);
+        let d: [f64; 3] = if metres > 0.0 {
+            core::array::from_fn(|i| from[i] - sum[i] / metres)
+        } else {
+            [0.0; 3]
+        };
+        // Into the query's frame: R_wq^T · d.
+        Some(core::array::from_fn(|i| {
+            (0..3).map(|j| q[4 * j + i] * d[j]).sum()
+        }))
+    }
+
+    /// [`LoopDetector::within_drift`] with the rotation's allowance taken as the displacement
+    /// the rotation the two differ by predicts: `pose` agrees with `expected` when their
+    /// rotations differ within the rotation's bound after `path` metres, and their
+    /// translations, less `ω × arm` (`ω` the rotation vector of `R_expected · R_poseᵀ`, `arm`
+    /// from [`LoopDetector::drift_arm`]), within the translation's bound (the registration's
+    /// error and the scale drift). Along a straight path `|ω × arm|` reaches `angle · path / 2`,
+    /// the allowance of [`LoopDetector::within_drift`]; in any direction it stays within it, so
+    /// this is the tighter check: after a lap the odometry's offset from the true place is what
+    /// its rotation says, and a look-alike one period away is the period off it.
+    pub(super) fn within_drift_along(
+        &self,
+        expected: &Pose,
+        pose: &Pose,
+        path: f64,
+        arm: &[f64; 3],
+    ) -> bool {
+        let v = &self.config.verify;
+        let path = if path.is_nan() { 0.0 } else { path };
+        let Some((_, deg)) = reg::pose_distance(expected, pose) else {
+            return false;
+        };
+        let swing = rotation_displacement(expected, pose, arm);
+        let off = libm::sqrt(
+            (0..3)
+                .map(|i| {
+                    let d = expected[i][3] - pose[i][3] - swing[i];
+                    d * d
+                })
+                .sum(),
+        );
+        let rotation = rotation_bound(v, path).min(180.0);
+        deg <= rotation && off <= v.odometry_translation_m + v.odometry_drift * path
     }
 
     /// Metres between a registered candidate's pose and the relative pose the poses predict,
@@ -624,6 +703,28 @@ impl LoopDetector {
 pub(super) fn rotation_bound(v: &VerifyConfig, path: f64) -> f64 {
     (v.odometry_rotation_deg + v.odometry_rotation_deg_per_m * path)
         .min(v.odometry_rotation_max_deg)
+}
+
+/// `ω × arm`: the displacement of the query that the rotation `pose` and `expected` differ by
+/// (`ω`, the rotation vector of `R_expected · R_poseᵀ`) predicts for a rotation drift at a
+/// constant rate along a path with `arm` ([`LoopDetector::drift_arm`]).
+pub(super) fn rotation_displacement(expected: &Pose, pose: &Pose, arm: &[f64; 3]) -> [f64; 3] {
+    let r: [[f64; 3]; 3] = core::array::from_fn(|i| {
+        core::array::from_fn(|j| (0..3).map(|k| expected[i][k] * pose[j][k]).sum())
+    });
+    let angle = libm::acos(((r[0][0] + r[1][1] + r[2][2] - 1.0) / 2.0).clamp(-1.0, 1.0));
+    let s = libm::sin(angle);
+    let f = if s > 1e-12 { angle / (2.0 * s) } else { 0.5 };
+    let w = [
+        f * (r[2][1] - r[1][2]),
+        f * (r[0][2] - r[2][0]),
+        f * (r[1][0] - r[0][1]),
+    ];
+    [
+        w[1] * arm[2] - w[2] * arm[1],
+        w[2] * arm[0] - w[0] * arm[2],
+        w[0] * arm[1] - w[1] * arm[0],
+    ]
 }
 
 /// A loop its neighbours vouch for may be off the odometry by up to this many times the odometry
@@ -1085,6 +1186,18 @@ pub(super) mod tests {
         }
     }
 
+    /// `pose` moved to where the rotation it differs from the poses' prediction by puts the
+    /// query after the path to place `c` ([`rotation_displacement`]): no other translation off.
+    pub(crate) fn explained(det: &LoopDetector, q: &QueryPlace, c: u32, pose: Pose) -> Pose {
+        let (e, _) = det.expected(q, c, true).unwrap();
+        let d = rotation_displacement(&e, &pose, &det.drift_arm(q, c).unwrap());
+        let mut p = pose;
+        for i in 0..3 {
+            p[i][3] = e[i][3] - d[i];
+        }
+        p
+    }
+
     pub(crate) fn rejection(c: &Candidate) -> Option<Rejection> {
         c.verification.and_then(|v| v.rejection)
     }
@@ -1288,13 +1401,19 @@ pub(super) mod tests {
         });
         let q = at(&det, 110.0);
         let truth = relative(&q.pose.unwrap(), &pose(0.0, 2.0, 0.0));
-        // 2.5 m and 2° off the poses after 108 m of path: within the bounds with the turn's
-        // allowance (1 + 1.08 + 1.88 m), beyond them without it (2.08 m).
-        let mut off = mul(
-            &truth,
-            &relative(&pose(0.0, 0.0, 0.0), &pose(2.0, 0.0, 0.0)),
+        // 2° off the poses after 108 m of path, and 1.5 m beyond the 1.88 m the rotation
+        // displaces the query by (at right angles): within the bounds with the turn's allowance
+        // (1 + 1.08 m after it), beyond them without it (2.4 m against 2.08 m).
+        let mut off = explained(
+            &det,
+            &q,
+            2,
+            mul(
+                &truth,
+                &relative(&pose(0.0, 0.0, 0.0), &pose(2.0, 0.0, 0.0)),
+            ),
         );
-        off[0][3] += 2.5;
+        off[0][3] += 1.5;
         let informed = |mut c: Candidate, info: f64| {
             if let Some(r) = c.verification.as_mut() {
                 r.registration.degeneracy.translation = info;
@@ -1332,20 +1451,87 @@ pub(super) mod tests {
     }
 
     #[test]
+    fn after_a_lap_the_rotation_says_where_the_drift_moved_the_query() {
+        // A square lap of 4 × 50 m, places 1 m apart, the odometry's heading drifting 0.05°/m:
+        // back on the first side after 201 m, the poses are 10° and about 6 m off the truth.
+        let heading = |s: f64| 90.0 * libm::floor((s % 200.0) / 50.0);
+        let truth = |s: f64| {
+            let side = s % 200.0;
+            let along = side % 50.0;
+            let (x, y) = match libm::floor(side / 50.0) as u32 {
+                0 => (along, 0.0),
+                1 => (50.0, along),
+                2 => (50.0 - along, 50.0),
+                _ => (0.0, 50.0 - along),
+            };
+            pose(heading(s), x, y)
+        };
+        let odometry = |i: u32| {
+            let (mut x, mut y) = (0.0, 0.0);
+            for s in 0..i {
+                let yaw = (heading(f64::from(s)) + 0.05 * f64::from(s)).to_radians();
+                x += libm::cos(yaw);
+                y += libm::sin(yaw);
+            }
+            pose(heading(f64::from(i)) + 0.05 * f64::from(i), x, y)
+        };
+        let mut det = detector_along(
+            203,
+            |i| (odometry(i), f64::NAN),
+            |v| {
+                v.support_window = 0;
+                v.unique = false;
+                v.lookalike_m = 0.0;
+            },
+        );
+        let q = QueryPlace {
+            id: 203,
+            pose: Some(odometry(203)),
+            travelled: 203.0,
+            eligible: 203,
+        };
+        // The true loop into place 2 (the query at s = 203 is 1 m on from it).
+        let right = relative(&truth(203.0), &truth(2.0));
+        let (expected, path) = det.expected(&q, 2, true).unwrap();
+        let (m, deg) = reg::pose_distance(&expected, &right).unwrap();
+        assert!(m > 5.0 && (9.0..11.0).contains(&deg), "{m} m, {deg}°");
+        // A look-alike as far off the poses, on the other side: the drift cannot have put it
+        // there. The allowance in any direction (`angle · path / 2`, 18 m) took it.
+        let mut wrong = right;
+        for i in 0..3 {
+            wrong[i][3] += 2.0 * (expected[i][3] - right[i][3]);
+        }
+        assert!(det.within_drift(&expected, &wrong, path, 1.0));
+        let mut cands = [verified(2, right), verified(2, wrong)];
+        det.check_after_gate(&q, &[], &mut cands).unwrap();
+        assert_eq!(rejection(&cands[0]), None);
+        assert_eq!(rejection(&cands[1]), Some(Rejection::OdometryDisagrees));
+        // Along a straight path the arm is half the path: from its middle back to the place.
+        let line = detector_with_path(10, |_| {});
+        let arm = line.drift_arm(&at(&line, 10.0), 2).unwrap();
+        assert!(
+            (arm[0] + 4.0).abs() < 1e-9 && arm[1].abs() < 1e-9,
+            "{arm:?}"
+        );
+    }
+
+    #[test]
     fn no_path_allows_a_rotation_beyond_the_ceiling() {
         // 400 m of path would allow 63° by the per-metre bound: a loop 40° off the poses (a
-        // look-alike in a corridor at an angle) is rejected by the 30° ceiling.
+        // look-alike in a corridor at an angle), its translation where that rotation drift
+        // would put the query, is rejected by the 30° ceiling.
         let q = |det: &LoopDetector| at(det, 410.0);
-        let turned = |q: &QueryPlace| {
+        let turned = |det: &LoopDetector, q: &QueryPlace| {
             let t = relative(&q.pose.unwrap(), &pose(0.0, 2.0, 0.0));
-            mul(&t, &relative(&pose(0.0, 0.0, 0.0), &pose(40.0, 0.0, 0.0)))
+            let t = mul(&t, &relative(&pose(0.0, 0.0, 0.0), &pose(40.0, 0.0, 0.0)));
+            explained(det, q, 2, t)
         };
         let mut det = detector_with_path(10, |v| {
             v.support_window = 0;
             v.unique = false;
         });
         let at = q(&det);
-        let mut cands = [verified(2, turned(&at))];
+        let mut cands = [verified(2, turned(&det, &at))];
         det.check_after_gate(&at, &[], &mut cands).unwrap();
         assert_eq!(rejection(&cands[0]), Some(Rejection::OdometryDisagrees));
         let mut det = detector_with_path(10, |v| {
@@ -1353,7 +1539,7 @@ pub(super) mod tests {
             v.unique = false;
             v.odometry_rotation_max_deg = 180.0;
         });
-        let mut cands = [verified(2, turned(&at))];
+        let mut cands = [verified(2, turned(&det, &at))];
         det.check_after_gate(&at, &[], &mut cands).unwrap();
         assert_eq!(rejection(&cands[0]), None);
     }
