@@ -182,8 +182,7 @@ impl LoopDetector {
     /// `lookalike_m` from it where the loop's pose would put the query within the drift bounds
     /// too (with `lookalike_swing` of the rotation's allowance) and whose descriptor is within
     /// `lookalike_margin` of the candidate's distance to the query: the odometry (or the anchor)
-    /// cannot tell which of the two the query sees. Also asked of a loop held for a later
-    /// release (it must pass its own step's check).
+    /// cannot tell which of the two the query sees.
     pub(super) fn lookalike(&self, at: &QueryPlace, r_query: &[f32], c: &Candidate) -> bool {
         let v: &VerifyConfig = &self.config.verify;
         if v.lookalike_m <= 0.0 || at.pose.is_none() {

@@ -207,12 +207,7 @@ impl LoopDetector {
     /// window; a candidate that passed is accepted only when the placement (made, kept or
     /// revised here) agrees with it, else rejected ([`Rejection::NotPlaced`] before there is
     /// one, [`Rejection::OffPlacement`] after).
-    pub(super) fn check_placement(
-        &mut self,
-        at: &QueryPlace,
-        r_query: &[f32],
-        cands: &mut [Candidate],
-    ) {
+    pub(super) fn check_placement(&mut self, at: &QueryPlace, cands: &mut [Candidate]) {
         let Some(q) = at.pose.filter(|_| self.places_session(at)) else {
             return;
         };
@@ -261,8 +256,6 @@ impl LoopDetector {
                 self.place_on(&set, at.id);
                 continue;
             }
-            // Held only when it passes its own step's look-alike check.
-            let alike = self.lookalike(at, r_query, c);
             reject(
                 c,
                 if agrees.is_none() {
@@ -271,9 +264,6 @@ impl LoopDetector {
                     Rejection::OffPlacement
                 },
             );
-            if alike {
-                continue;
-            }
             let held = &mut self.placement.held;
             if held.len() == HELD {
                 held.pop_front();

@@ -329,10 +329,7 @@ impl LoopDetector {
                                 sets.push(set);
                                 continue;
                             }
-                            // Held only when it passes its own step's look-alike check.
-                            Vouch::Waits if passed(c) && !self.lookalike(at, r_query, c) => {
-                                waiting.push((*h, loop_of(c, at.id)));
-                            }
+                            Vouch::Waits if passed(c) => waiting.push((*h, loop_of(c, at.id))),
                             _ => {}
                         }
                     }
@@ -355,7 +352,7 @@ impl LoopDetector {
             self.release_vouched(set, at.id);
         }
         // Loops into the map: judged by the session's placement in it.
-        self.check_placement(at, r_query, cands);
+        self.check_placement(at, cands);
         // The step's registered candidates, then (for candidates a step deferred) those its own
         // step registered, remembered for the support.
         let earlier = self.recent.iter().find(|(q, _)| *q == at.id);
