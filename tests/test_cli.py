@@ -480,18 +480,22 @@ def test_a_run_counts_its_rejections_and_says_when_the_odometry_turned_down_most
     off = PipelineConfig.preset("avia", detector={"odometry_check": False}).detector
     assert advice({"loops": 0, "rejections": {ODOMETRY_REJECTION: 232}}, off) == []
     # The drift the accepted loops measure: one loop back to the start of a straight 100 m path,
-    # 3 m and 2° off the poses' prediction: 2 m beyond the check's constant 1 m less the 2°'s
-    # swing (1.75 m) over 100 m, and 0°/m beyond its constant 3°.
+    # 2° and 2 m along the path off the poses' prediction, and sideways by what the 2° predict
+    # at the path's half (the swing the check allows, ω × arm: 1.75 m): 1 m beyond the check's
+    # constant 1 m over 100 m, and 0°/m beyond its constant 3°. Sideways the other way is not the
+    # rotation's: 4.02 m off, 3.02 beyond.
     P = np.tile(np.eye(4)[:3], (101, 1, 1))
     P[:, 0, 3] = np.arange(101.0)
     c, s = np.cos(np.radians(2.0)), np.sin(np.radians(2.0))
-    pose = np.array([[c, -s, 0, -97.0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]])
-    run = SimpleNamespace(poses=P, map_size=0, config=PipelineConfig.preset("avia"), loops=lambda: [SimpleNamespace(query=100, candidate=0, pose=pose)])
-    m = measured_drift(run)  # type: ignore[arg-type]
-    assert m is not None and m["loops"] == 1 and m["rotation_deg_per_m"] == 0.0
-    assert m["drift"] == pytest.approx((3.0 - 1.0 - np.radians(2.0) * 100 / 2) / 100)
+    swing = np.radians(2.0) * 50.0
+    for t, drift in (([-98.0, -swing], 0.01), ([-98.0, swing], (np.hypot(2.0, 2.0 * swing) - 1.0) / 100)):
+        pose = np.array([[c, -s, 0, t[0]], [s, c, 0, t[1]], [0, 0, 1, 0], [0, 0, 0, 1]])
+        run = SimpleNamespace(poses=P, map_size=0, config=PipelineConfig.preset("avia"), loops=lambda pose=pose: [SimpleNamespace(query=100, candidate=0, pose=pose)])
+        m = measured_drift(run)  # type: ignore[arg-type]
+        assert m is not None and m["loops"] == 1 and m["rotation_deg_per_m"] == 0.0
+        assert m["drift"] == pytest.approx(drift, abs=1e-4)
+        assert m["rotation_max_deg"] == pytest.approx(2.0)
     assert measured_drift(SimpleNamespace(poses=None)) is None  # type: ignore[arg-type]
-    assert m["rotation_max_deg"] == pytest.approx(2.0)
     m = {"loops": 1, "drift": 0.05, "rotation_deg_per_m": 0.1, "rotation_max_deg": 37.0}
     (line,) = advice({"loops": 1, "rejections": {ODOMETRY_REJECTION: 40}, "odometry_drift_measured": m}, d)
     assert "measure it at 0.05 of the path" in line and ": --odometry-drift 0.05 --odometry-rotation-max-deg 37 (docs" in line

@@ -119,3 +119,28 @@ def test_detector_config_round_trips_with_registration_and_gate() -> None:
     assert PipelineConfig.preset("avia", radius=3.0).detector.gate.max_translation == solid.DetectorConfig().gate.max_translation == 5.0
     assert PipelineConfig.preset("avia", radius=3.0, detector={"gate": {"max_translation": 8.0}}).detector.gate.max_translation == 8.0
 
+
+
+def test_a_step_over_its_budget_says_which_candidates_wait() -> None:
+    """`verify_step_points` (docs/spec.md §8, budget): a step registers its candidates while their
+    cost fits (its first always) and defers the rest, naming them in `Detection.deferred`
+    (unverified among its candidates; the next steps register them and release a loop of theirs,
+    crates/solid-core's defer tests); a step that found its loop keeps none waiting. The look-alike
+    city's revisits (frames 53-64 of 0-11, with poses): a budget of one point defers, an unlimited
+    one never does, and both find the same loops."""
+    world = sim.World(seed=1, repetition=0.9)
+    traj = sim.Trajectory.loop(world, laps=1.2, spacing=6.0)
+    seq = sim.simulate(world, sim.Sensor("vlp16"), traj)
+    frames = [*range(0, 12), *range(48, 65)]
+    runs = {}
+    for budget in (1, 2**40):
+        dc = solid.DetectorConfig.preset("vlp16").replace(verify_step_points=budget)
+        det = solid.LoopDetector(solid.SolidConfig.preset("vlp16"), exclude_recent=3, detector=dc)
+        runs[budget] = [det.detect(seq.scans[f], timestamp=float(f), pose=np.asarray(traj.poses[f])) for f in frames]
+    for s in runs[1]:
+        assert set(s.deferred) <= {c.id for c in s.candidates if not c.verified}, (s.query, s.deferred)
+        assert not (s.loop is not None and s.deferred)
+    assert sum(len(s.deferred) for s in runs[1]) >= 2
+    assert all(not s.deferred for s in runs[2**40])
+    loops = {b: [(s.query, s.loop.candidate) for s in r if s.loop is not None] for b, r in runs.items()}
+    assert len(loops[1]) >= 10 and {q for q, _ in loops[1]} == {q for q, _ in loops[2**40]}

@@ -1687,7 +1687,10 @@ class Detection:
         """The loop, when the best candidate's score is at most the threshold; else None."""
     @property
     def released(self) -> list[Loop]:
-        """Loops of earlier queries reported late, in query order: loops into the map held until this step placed the session in the map (or revised the placement) and found them consistent with it (docs/spec.md §8, placement), and the loops of candidates a step's budget deferred to this one (`verify_step_points`, docs/spec.md §8, budget)."""
+        """Loops of earlier queries reported late, in query order: loops into the map held until this step placed the session in the map (or revised the placement) and found them consistent with it (docs/spec.md §8, placement), loops the neighbours' vouching waited for (docs/loops.md#when-the-odometry-drifts), and the loops of candidates a step's budget deferred to this one (`verify_step_points`, docs/spec.md §8, budget)."""
+    @property
+    def deferred(self) -> list[int]:
+        """Ids of the candidates this step's budget deferred (`verify_step_points`, docs/spec.md §8, budget): unverified among `candidates`; the next steps register them, and a loop of theirs comes in `released` of the step that does. Empty when the step found its loop."""
     @property
     def placement(self) -> str | None:
         """What this step did to the session's placement in its map (`LoopDetector.map_anchor`): "placed" (the first placement), "revised" (a larger consistent set that disagreed replaced it), or None."""

@@ -311,10 +311,18 @@ typedef struct SolidStep {
    */
   enum SolidPlacement placement;
   /**
-   * Number of loops into the map that this step released: loops of earlier queries, held
-   * until a placement agreed with them ([`solid_detector_released`] gives them).
+   * Number of loops of earlier queries this step released ([`solid_detector_released`] gives
+   * them): loops into the map held until a placement agreed with them, loops the
+   * neighbours' vouching waited for, and loops of candidates an earlier step's budget
+   * deferred to this one.
    */
   size_t released;
+  /**
+   * Number of this step's candidates its budget (`verify_step_points`) deferred: not
+   * registered yet; the next steps register them and release a loop of theirs (0 when the
+   * step found its loop).
+   */
+  size_t deferred;
 } SolidStep;
 
 /**
@@ -708,9 +716,10 @@ enum SolidStatus solid_detector_last_step(const struct SolidDetector *detector,
                                           struct SolidStep *step);
 
 /**
- * The loops into the map that the latest step released (`SolidStep.released` of them, in
- * query order): loops of earlier queries, held until the session's placement in the map (or
- * its revision) found them consistent with it (docs/spec.md §8). Each is that earlier query's
+ * The loops that the latest step released (`SolidStep.released` of them, in query order):
+ * loops of earlier queries, held until the session's placement in the map (or its revision)
+ * found them consistent with it, until their neighbours vouched for them, or deferred by their
+ * step's budget (docs/spec.md §8). Each is that earlier query's
  * loop, as the step's own loop is the step's; a pose graph adds them as it adds the others.
  * Writes them to `loops` (room for `capacity`) and their number to `*count`; a `capacity`
  * below their number is `SOLID_STATUS_BUFFER_TOO_SMALL` (the message says how many). They are

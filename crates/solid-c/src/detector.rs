@@ -149,9 +149,15 @@ pub struct SolidStep {
     pub pose: [f64; 16],
     /// Whether the step placed the session in the map or revised the placement.
     pub placement: SolidPlacement,
-    /// Number of loops into the map that this step released: loops of earlier queries, held
-    /// until a placement agreed with them ([`solid_detector_released`] gives them).
+    /// Number of loops of earlier queries this step released ([`solid_detector_released`] gives
+    /// them): loops into the map held until a placement agreed with them, loops the
+    /// neighbours' vouching waited for, and loops of candidates an earlier step's budget
+    /// deferred to this one.
     pub released: usize,
+    /// Number of this step's candidates its budget (`verify_step_points`) deferred: not
+    /// registered yet; the next steps register them and release a loop of theirs (0 when the
+    /// step found its loop).
+    pub deferred: usize,
 }
 
 impl SolidStep {
@@ -177,6 +183,7 @@ impl SolidStep {
                 None => SolidPlacement::None,
             },
             released: d.released.len(),
+            deferred: d.deferred.len(),
         }
     }
 }
@@ -406,9 +413,10 @@ pub unsafe extern "C" fn solid_detector_last_step(
     })
 }
 
-/// The loops into the map that the latest step released (`SolidStep.released` of them, in
-/// query order): loops of earlier queries, held until the session's placement in the map (or
-/// its revision) found them consistent with it (docs/spec.md §8). Each is that earlier query's
+/// The loops that the latest step released (`SolidStep.released` of them, in query order):
+/// loops of earlier queries, held until the session's placement in the map (or its revision)
+/// found them consistent with it, until their neighbours vouched for them, or deferred by their
+/// step's budget (docs/spec.md §8). Each is that earlier query's
 /// loop, as the step's own loop is the step's; a pose graph adds them as it adds the others.
 /// Writes them to `loops` (room for `capacity`) and their number to `*count`; a `capacity`
 /// below their number is `SOLID_STATUS_BUFFER_TOO_SMALL` (the message says how many). They are

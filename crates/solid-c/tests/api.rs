@@ -674,9 +674,10 @@ fn a_step_reports_its_pose_and_where_it_came_from() {
                 first.query,
                 first.pose_source,
                 first.placement,
-                first.released
+                first.released,
+                first.deferred
             ),
-            (0, SolidPoseSource::Started, SolidPlacement::None, 0)
+            (0, SolidPoseSource::Started, SolidPlacement::None, 0, 0)
         );
         let identity = [
             1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0,

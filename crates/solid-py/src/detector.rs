@@ -279,6 +279,11 @@ pub struct PyDetection {
     /// placement; None otherwise.
     #[pyo3(get)]
     pub placement: Option<&'static str>,
+    /// Ids of the candidates this step's budget deferred (verify_step_points): not registered
+    /// yet (unverified among candidates); the next steps register them, and a loop of theirs
+    /// comes in the released list of the step that does. Empty when the step found its loop.
+    #[pyo3(get)]
+    pub deferred: Vec<u32>,
     pose: Option<[f64; 12]>,
     pose_source: Option<db::PoseSource>,
 }
@@ -286,8 +291,9 @@ pub struct PyDetection {
 #[pymethods]
 impl PyDetection {
     /// Loops of earlier queries reported late, in query order: loops into the map held until
-    /// this step's placement (or revision) found them consistent with it, and the loops of
-    /// candidates a step's budget deferred to this one (verify_step_points).
+    /// this step's placement (or revision) found them consistent with it, loops the
+    /// neighbours' vouching waited for, and the loops of candidates a step's budget deferred to
+    /// this one (verify_step_points).
     #[getter]
     fn released(&self) -> Vec<PyLoop> {
         self.released.clone()
@@ -351,6 +357,7 @@ impl From<db::Detection> for PyDetection {
             candidates: d.candidates.iter().map(PyCandidate::from).collect(),
             accepted: d.accepted.map(PyLoop::from),
             released: d.released.into_iter().map(PyLoop::from).collect(),
+            deferred: d.deferred,
             placement: d.placement.map(|p| match p {
                 db::PlacementChange::Placed => "placed",
                 db::PlacementChange::Revised => "revised",

@@ -6,10 +6,13 @@
 //! on its two sides are related only by the loops between them, as a session's poses are to a
 //! map's. A step is a break when it is more than [`BREAK_RATIO`] times the session's typical
 //! step (the median of its last [`BREAK_HISTORY`] steps with poses), longer than that by more
-//! than the gate's largest loop (a smaller error the drift bounds and the neighbours' vouching
-//! absorb), and, when the timestamps say, [`BREAK_RATIO`] times as fast as the session's
-//! typical speed: frames subsampled (a keyframe selection that skips a stretch) make one long
-//! step in a long time, not a break.
+//! than the gate's largest loop (a smaller error leaves the loops over it off the odometry by
+//! less than a loop's length: beyond the drift bounds they are vouched for by each other as
+//! any loop the odometry does not hold, `consistency::vouch`), and, when the timestamps say,
+//! [`BREAK_RATIO`] times as fast as the session's typical speed: frames subsampled (a keyframe
+//! selection that skips a stretch) make one long step in a long time, not a break. Without the
+//! caller's poses, the start of each of the detector's own chain frames is a break too
+//! (`Breaks::frame`): loops across it are vouched for in the same way.
 
 use super::verify::{relative, QueryPlace};
 use super::{Candidate, LoopDetector};

@@ -131,22 +131,34 @@ impl LoopDetector {
 
     /// At the end of query `id`'s step: keeps its prepared cloud `cloud` with its deferred
     /// candidates, or drops them when the step found its loop (`looped`: the query needs no
-    /// other, and the loop's registration supports the next steps).
+    /// other, and the loop's registration supports the next steps). Returns the ids of the
+    /// candidates kept waiting ([`Detection::deferred`](super::Detection::deferred)).
+    ///
+    /// # Errors
+    /// [`DbError::OutOfMemory`] when the list cannot be allocated.
     pub(super) fn end_deferring(
         &mut self,
         id: u32,
         cloud: Option<&Arc<PreparedCloud>>,
         looped: bool,
-    ) {
+    ) -> Result<Vec<u32>, DbError> {
         let q = &mut self.deferred;
         if q.queries.back().is_none_or(|d| d.at.id != id) {
-            return;
+            return Ok(Vec::new());
         }
         match (cloud.filter(|_| !looped), q.queries.back_mut()) {
-            (Some(c), Some(d)) => d.cloud = Some(Arc::clone(c)),
+            (Some(c), Some(d)) => {
+                d.cloud = Some(Arc::clone(c));
+                let mut ids = Vec::new();
+                ids.try_reserve_exact(d.waiting.len())
+                    .map_err(|_| DbError::OutOfMemory)?;
+                ids.extend(d.waiting.iter().map(|(c, _)| c.id));
+                Ok(ids)
+            }
             _ => {
                 let n = q.queries.pop_back().map_or(0, |d| d.waiting.len());
                 q.looped += n;
+                Ok(Vec::new())
             }
         }
     }
@@ -403,9 +415,10 @@ mod tests {
         let d = step(&mut det, 10.0, (9, 8));
         let c8 = d.candidates.iter().find(|c| c.id == 8).unwrap();
         assert!(d.accepted.is_none() && c8.verification.is_none(), "{d:?}");
-        assert_eq!(det.deferred_waiting(), 1);
+        assert_eq!((det.deferred_waiting(), &d.deferred[..]), (1, &[8][..]));
         let d = step(&mut det, 40.0, (0, 1));
         assert_eq!(d.accepted, None);
+        assert_eq!(d.deferred, [1]);
         assert_eq!(d.released.len(), 1, "{:?}", d.released);
         assert!(
             d.released[0].query == 10 && near(&d.released[0]),
@@ -422,6 +435,7 @@ mod tests {
         let mut det = corridor_places(Some(one));
         let d = step(&mut det, 10.0, (8, 9));
         assert!(d.accepted.is_some_and(|l| near(&l)), "{:?}", d.accepted);
+        assert!(d.deferred.is_empty());
         assert_eq!((det.deferred_waiting(), det.deferred_unneeded()), (0, 1));
     }
 }

@@ -110,6 +110,11 @@ pub struct Detection {
     /// with it (spec §8, placement), loops the neighbours' vouching waited for, and the loops
     /// of candidates a step's budget deferred to this one ([`VerifyConfig::step_points`]).
     pub released: Vec<Loop>,
+    /// The candidates (ids) this step's budget deferred ([`VerifyConfig::step_points`]): not
+    /// registered yet (`verification` None among `candidates`), registered by the next steps,
+    /// and a loop of theirs is reported with the step that registers it (`released`). Empty
+    /// when the step found its loop (the query needs no other).
+    pub deferred: Vec<u32>,
     /// Whether this step placed the session in the map, or revised the placement.
     pub placement: Option<PlacementChange>,
     /// The pose `T_world_sensor` (row-major 3×4) the step's checks used for the query: the
@@ -816,7 +821,7 @@ impl LoopDetector {
         self.latest_time.push(s.trail.clock);
         self.trail = s.trail;
         let accepted = self.accept(&candidates, id);
-        self.end_deferring(id, cloud.as_ref(), accepted.is_some());
+        let deferred = self.end_deferring(id, cloud.as_ref(), accepted.is_some())?;
         if let Some(c) = cloud {
             self.remember(id, c);
         }
@@ -828,6 +833,7 @@ impl LoopDetector {
             accepted,
             candidates,
             released,
+            deferred,
             placement,
             pose: s.pose,
             pose_source: source,
