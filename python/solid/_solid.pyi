@@ -291,7 +291,6 @@ class DetectorConfig:
         loop_reset_m: float = 200.0,
         lookalike_m: float = 10.0,
         lookalike_margin: float = 0.2,
-        lookalike_swing: float = 0.25,
         placement_loops: int = 3,
         placement_m: float = 15.0,
         registration: RegistrationConfig | dict[str, Any] | None = None,
@@ -332,7 +331,6 @@ class DetectorConfig:
             loop_reset_m: Metres of path after an accepted loop during which the odometry check and the places chosen by pose go through that loop (0: off) (a finite number >= 0; default 200.0).
             lookalike_m: Reject a loop when an own place farther than this from its place, about as close by descriptor, fits the drift bounds too (0: off) (a finite number >= 0; default 10.0).
             lookalike_margin: How much larger a look-alike's R-SOLiD distance may be than the loop's candidate's (a number in [0, 1]; default 0.2).
-            lookalike_swing: The fraction of the odometry check's rotation allowance the look-alike check's bound takes (a number in [0, 1]; default 0.25).
             placement_loops: Loops into a map are accepted once this many queries' loops into it agree with each other over a turn (the session is placed in the map; the loops held before are released then), then when they agree with that placement (0: off) (an integer >= 0; default 3).
             placement_m: Metres of the session's path the loops that place it in the map must span (a finite number >= 0; default 15.0).
             registration: The registration parameters (an object, or a dict of overrides of the current ones).
@@ -378,7 +376,6 @@ class DetectorConfig:
         loop_reset_m: float | None = None,
         lookalike_m: float | None = None,
         lookalike_margin: float | None = None,
-        lookalike_swing: float | None = None,
         placement_loops: int | None = None,
         placement_m: float | None = None,
         registration: RegistrationConfig | dict[str, Any] | None = None,
@@ -420,7 +417,6 @@ class DetectorConfig:
             loop_reset_m: Metres of path after an accepted loop during which the odometry check and the places chosen by pose go through that loop (0: off) (a finite number >= 0; default 200.0).
             lookalike_m: Reject a loop when an own place farther than this from its place, about as close by descriptor, fits the drift bounds too (0: off) (a finite number >= 0; default 10.0).
             lookalike_margin: How much larger a look-alike's R-SOLiD distance may be than the loop's candidate's (a number in [0, 1]; default 0.2).
-            lookalike_swing: The fraction of the odometry check's rotation allowance the look-alike check's bound takes (a number in [0, 1]; default 0.25).
             placement_loops: Loops into a map are accepted once this many queries' loops into it agree with each other over a turn (the session is placed in the map; the loops held before are released then), then when they agree with that placement (0: off) (an integer >= 0; default 3).
             placement_m: Metres of the session's path the loops that place it in the map must span (a finite number >= 0; default 15.0).
             registration: The registration parameters (an object, or a dict of overrides of the current ones).
@@ -468,7 +464,6 @@ class DetectorConfig:
         loop_reset_m: float | None = None,
         lookalike_m: float | None = None,
         lookalike_margin: float | None = None,
-        lookalike_swing: float | None = None,
         placement_loops: int | None = None,
         placement_m: float | None = None,
         registration: RegistrationConfig | dict[str, Any] | None = None,
@@ -509,7 +504,6 @@ class DetectorConfig:
             loop_reset_m: Metres of path after an accepted loop during which the odometry check and the places chosen by pose go through that loop (0: off) (a finite number >= 0; default 200.0).
             lookalike_m: Reject a loop when an own place farther than this from its place, about as close by descriptor, fits the drift bounds too (0: off) (a finite number >= 0; default 10.0).
             lookalike_margin: How much larger a look-alike's R-SOLiD distance may be than the loop's candidate's (a number in [0, 1]; default 0.2).
-            lookalike_swing: The fraction of the odometry check's rotation allowance the look-alike check's bound takes (a number in [0, 1]; default 0.25).
             placement_loops: Loops into a map are accepted once this many queries' loops into it agree with each other over a turn (the session is placed in the map; the loops held before are released then), then when they agree with that placement (0: off) (an integer >= 0; default 3).
             placement_m: Metres of the session's path the loops that place it in the map must span (a finite number >= 0; default 15.0).
             registration: The registration parameters (an object, or a dict of overrides of the current ones).
@@ -523,7 +517,7 @@ class DetectorConfig:
             TypeError: An unknown parameter, or a value of the wrong type.
         """
     def to_dict(self) -> dict[str, Any]:
-        """The parameters by name (exclude_frames, exclude_meters, exclude_seconds, threshold, top_k, rerank, verify, verify_candidates, pose_candidates, pose_candidate_min_information, pose_candidate_shift_m, verify_hypotheses, verify_fan_deg, cloud_bits, cache_bytes, verify_threads, verify_step_points, view_fov_deg, view_min_overlap_deg, odometry_check, odometry_translation_m, odometry_drift, odometry_rotation_deg, odometry_rotation_deg_per_m, odometry_rotation_max_deg, unique, unique_ratio, support_window, min_support, loop_reset_m, lookalike_m, lookalike_margin, lookalike_swing, placement_loops, placement_m, registration, gate): what `DetectorConfig(**d)` takes back.
+        """The parameters by name (exclude_frames, exclude_meters, exclude_seconds, threshold, top_k, rerank, verify, verify_candidates, pose_candidates, pose_candidate_min_information, pose_candidate_shift_m, verify_hypotheses, verify_fan_deg, cloud_bits, cache_bytes, verify_threads, verify_step_points, view_fov_deg, view_min_overlap_deg, odometry_check, odometry_translation_m, odometry_drift, odometry_rotation_deg, odometry_rotation_deg_per_m, odometry_rotation_max_deg, unique, unique_ratio, support_window, min_support, loop_reset_m, lookalike_m, lookalike_margin, placement_loops, placement_m, registration, gate): what `DetectorConfig(**d)` takes back.
 
         Returns:
             A new dict.
@@ -624,9 +618,6 @@ class DetectorConfig:
     @property
     def lookalike_margin(self) -> float:
         """How much larger a look-alike's R-SOLiD distance may be than the loop's candidate's (a number in [0, 1]; default 0.2)."""
-    @property
-    def lookalike_swing(self) -> float:
-        """The fraction of the odometry check's rotation allowance the look-alike check's bound takes (a number in [0, 1]; default 0.25)."""
     @property
     def placement_loops(self) -> int:
         """Loops into a map are accepted once this many queries' loops into it agree with each other over a turn (the session is placed in the map; the loops held before are released then), then when they agree with that placement (0: off) (an integer >= 0; default 3)."""

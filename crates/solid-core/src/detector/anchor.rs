@@ -179,8 +179,9 @@ impl LoopDetector {
     }
 
     /// Whether registered candidate `c` has a look-alike: an own place `..eligible` more than
-    /// `lookalike_m` from it where the loop's pose would put the query within the drift bounds
-    /// too (with `lookalike_swing` of the rotation's allowance) and whose descriptor is within
+    /// `lookalike_m` from it that the loop's pose, taken as a loop to that place, would join to
+    /// the query within the odometry check's bounds too ([`LoopDetector::odometry_holds`], the
+    /// rotation's allowance in its direction), and whose descriptor is within
     /// `lookalike_margin` of the candidate's distance to the query: the odometry (or the anchor)
     /// cannot tell which of the two the query sees.
     pub(super) fn lookalike(&self, at: &QueryPlace, r_query: &[f32], c: &Candidate) -> bool {
@@ -198,9 +199,7 @@ impl LoopDetector {
                 && self
                     .known_pose(id)
                     .is_some_and(|p2| distance(&p2, &pc) > v.lookalike_m)
-                && self
-                    .expected(at, id, true)
-                    .is_some_and(|(e, path)| self.within_drift(&e, &t, path, v.lookalike_swing))
+                && self.odometry_holds(at, id, &t, true) == Some(true)
                 && cosine_distance(r_query, self.r(id))
                     .is_ok_and(|d| d <= c.distance + v.lookalike_margin)
         })
@@ -209,7 +208,9 @@ impl LoopDetector {
 
 #[cfg(test)]
 mod tests {
-    use super::super::verify::tests::{detector_with_path, pose, rejection, verified};
+    use super::super::verify::tests::{
+        detector_with_path, lap_odometry, lap_truth, pose, rejection, square_lap, verified,
+    };
     use super::*;
     use crate::reg;
 
@@ -284,6 +285,36 @@ mod tests {
         // Too old an anchor is not used.
         det.config.verify.loop_reset_m = 0.5;
         let mut cands = [verified(2, truth(15.0))];
+        det.check_after_gate(&q, &r, &mut cands).unwrap();
+        assert_eq!(rejection(&cands[0]), Some(Rejection::LookAlike));
+    }
+
+    #[test]
+    fn a_look_alike_is_a_place_the_odometry_check_would_take_the_same_pose_to() {
+        // After a square lap whose heading drifted 16° (verify's `square_lap`, 0.08°/m), every
+        // place looking the same: the true loop into place 2 is 9 m off the poses, where the
+        // rotation drift put the query. Places 13-16, 11-14 m from place 2, lie within a
+        // quarter of the allowance in any direction (9-10 m) of where the same pose would put
+        // the query: as look-alikes they turned it down. Taken in its direction (the
+        // odometry check's form) the drift explains the true place alone.
+        let mut det = square_lap(0.08, |v| {
+            v.support_window = 0;
+            v.unique = false;
+        });
+        let q = QueryPlace {
+            id: 203,
+            pose: Some(lap_odometry(0.08, 203)),
+            travelled: 203.0,
+            eligible: 190,
+        };
+        let r = alloc::vec![1.0f32; det.map().config().n_range];
+        let right = relative(&lap_truth(203.0), &lap_truth(2.0));
+        let mut cands = [verified(2, right)];
+        det.check_after_gate(&q, &r, &mut cands).unwrap();
+        assert_eq!(rejection(&cands[0]), None);
+        // A look-alike within the bound's reach of place 2 still is one.
+        det.config.verify.lookalike_m = 1.5;
+        let mut cands = [verified(2, right)];
         det.check_after_gate(&q, &r, &mut cands).unwrap();
         assert_eq!(rejection(&cands[0]), Some(Rejection::LookAlike));
     }

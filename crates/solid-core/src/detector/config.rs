@@ -184,15 +184,13 @@ pub struct VerifyConfig {
     /// A loop is rejected ([`Rejection::LookAlike`](crate::reg::Rejection::LookAlike)) when an
     /// own place the query may match, more than this many metres from the loop's place (by the
     /// poses), with an R-SOLiD distance to the query at most `lookalike_margin` above the
-    /// loop's, lies where the loop's pose would put the query within the drift bounds too
-    /// (through the anchor of `loop_reset_m` when there is one): the bounds cannot tell which
-    /// of the two the query sees. 0: off.
+    /// loop's, is a place the loop's pose, taken as a loop to it, would join to the query within
+    /// the odometry check's bounds too (the same check, the rotation's allowance in the
+    /// direction the rotation drift moves the query; through the anchor of `loop_reset_m` when
+    /// there is one): the bounds cannot tell which of the two the query sees. 0: off.
     pub lookalike_m: f64,
     /// How much farther (R-SOLiD cosine distance) than the loop's candidate a look-alike may be.
     pub lookalike_margin: f64,
-    /// The fraction of the odometry check's rotation allowance (`angle · path / 2`) the
-    /// look-alike check's bound takes.
-    pub lookalike_swing: f64,
     /// Loops into another session's places (a prior map) are accepted by the session's
     /// placement in the map: its first loops only once this many distinct queries' loops into
     /// the map agree with each other through the short paths between them (pairwise
@@ -245,7 +243,6 @@ impl Default for VerifyConfig {
             loop_reset_m: DEFAULT_LOOP_RESET_M,
             lookalike_m: DEFAULT_LOOKALIKE_M,
             lookalike_margin: DEFAULT_LOOKALIKE_MARGIN,
-            lookalike_swing: DEFAULT_LOOKALIKE_SWING,
             placement_loops: DEFAULT_PLACEMENT_LOOPS,
             placement_m: DEFAULT_PLACEMENT_M,
         }
@@ -281,9 +278,6 @@ pub const DEFAULT_LOOKALIKE_M: f64 = 10.0;
 
 /// Default [`VerifyConfig::lookalike_margin`] (docs/performance.md#loops-a-pose-graph-can-trust).
 pub const DEFAULT_LOOKALIKE_MARGIN: f64 = 0.2;
-
-/// Default [`VerifyConfig::lookalike_swing`] (docs/performance.md#loops-a-pose-graph-can-trust).
-pub const DEFAULT_LOOKALIKE_SWING: f64 = 0.25;
 
 /// Default [`VerifyConfig::placement_loops`] (docs/performance.md#loops-into-a-map).
 pub const DEFAULT_PLACEMENT_LOOPS: usize = 3;
@@ -469,8 +463,6 @@ impl Params for DetectorConfig {
             "Reject a loop when an own place farther than this from its place, about as close by descriptor, fits the drift bounds too (0: off)."),
         field!(DetectorConfig, "lookalike_margin", verify.lookalike_margin, Kind::closed(0.0, 1.0), "a number in [0, 1]",
             "How much larger a look-alike's R-SOLiD distance may be than the loop's candidate's."),
-        field!(DetectorConfig, "lookalike_swing", verify.lookalike_swing, Kind::closed(0.0, 1.0), "a number in [0, 1]",
-            "The fraction of the odometry check's rotation allowance the look-alike check's bound takes."),
         field!(DetectorConfig, "placement_loops", verify.placement_loops, COUNT, "an integer >= 0",
             "Loops into a map are accepted once this many queries' loops into it agree with each other over a turn (the session is placed in the map; the loops held before are released then), then when they agree with that placement (0: off)."),
         field!(DetectorConfig, "placement_m", verify.placement_m, Kind::closed(0.0, FINITE), "a finite number >= 0",

@@ -443,29 +443,49 @@ impl LoopDetector {
     }
 
     /// Whether a candidate's registered pose agrees with the relative pose the poses predict
-    /// (through the latest anchor when that is the shorter path: [`LoopDetector::expected`])
-    /// within the drift bounds, `turn`: with the rotation's allowance (true when they have no
-    /// poses or are of different sessions).
+    /// ([`LoopDetector::odometry_holds`]; true when the poses do not say).
+    pub(super) fn agrees_with_odometry(&self, at: &QueryPlace, c: &Candidate, turn: bool) -> bool {
+        c.verification.is_none_or(|r| {
+            self.odometry_holds(at, c.id, &r.registration.pose, turn)
+                .unwrap_or(true)
+        })
+    }
+
+    /// Whether `pose`, taken as the loop from the query `at` to own place `c`, agrees with the
+    /// relative pose the poses predict (through the latest anchor when that is the shorter
+    /// path: [`LoopDetector::expected`]) within the drift bounds, `turn`: with the rotation's
+    /// allowance; None when the poses do not say (no poses, another session, a break).
     ///
     /// Through the two places' poses, the rotation's allowance is the displacement the rotation
     /// they differ by predicts ([`LoopDetector::within_drift_along`]), not any displacement up
-    /// to `angle · path / 2`.
-    pub(super) fn agrees_with_odometry(&self, at: &QueryPlace, c: &Candidate, turn: bool) -> bool {
-        let (Some(r), Some((expected, path))) = (c.verification, self.expected(at, c.id, true))
-        else {
-            return true;
-        };
-        let pose = &r.registration.pose;
+    /// to `angle · path / 2`. The odometry check asks it of a candidate's own place; the
+    /// look-alike check of the other places the same pose could join the query to
+    /// ([`LoopDetector::lookalike`]).
+    pub(super) fn odometry_holds(
+        &self,
+        at: &QueryPlace,
+        c: u32,
+        pose: &Pose,
+        turn: bool,
+    ) -> Option<bool> {
+        let (expected, path) = self.expected(at, c, true)?;
         if turn {
             // Through the two places' poses (not the anchor's shorter path), the drift's arm.
             let direct = self
-                .expected(at, c.id, false)
+                .expected(at, c, false)
                 .is_some_and(|(_, global)| global <= path);
-            if let Some(arm) = direct.then(|| self.drift_arm(at, c.id)).flatten() {
-                return self.within_drift_along(&expected, pose, path, &arm);
+            if direct {
+                // The directed allowance never exceeds `angle · path / 2` (the arm is at most
+                // half the path): that cheap test first, the arm's walk along the path after.
+                if !self.within_drift(&expected, pose, path, 1.0 + 1e-9) {
+                    return Some(false);
+                }
+                if let Some(arm) = self.drift_arm(at, c) {
+                    return Some(self.within_drift_along(&expected, pose, path, &arm));
+                }
             }
         }
-        self.within_drift(&expected, pose, path, if turn { 1.0 } else { 0.0 })
+        Some(self.within_drift(&expected, pose, path, if turn { 1.0 } else { 0.0 }))
     }
 
     /// The arm of a rotation drift between own place `c` and the query `at` along the path the
@@ -1447,48 +1467,56 @@ pub(super) mod tests {
         assert_eq!(rejection(&by_pose[0]), None);
     }
 
+    /// A square lap of 4 × 50 m, places 1 m apart (203 of them), the odometry's heading drifting
+    /// `rate` °/m ([`lap_truth`], [`lap_odometry`]).
+    pub(crate) fn square_lap(rate: f64, tweak: impl Fn(&mut VerifyConfig)) -> LoopDetector {
+        detector_along(203, |i| (lap_odometry(rate, i), f64::NAN), tweak)
+    }
+
+    fn lap_heading(s: f64) -> f64 {
+        90.0 * libm::floor((s % 200.0) / 50.0)
+    }
+
+    /// The true pose after `s` metres of [`square_lap`].
+    pub(crate) fn lap_truth(s: f64) -> [f64; 12] {
+        let side = s % 200.0;
+        let along = side % 50.0;
+        let (x, y) = match libm::floor(side / 50.0) as u32 {
+            0 => (along, 0.0),
+            1 => (50.0, along),
+            2 => (50.0 - along, 50.0),
+            _ => (0.0, 50.0 - along),
+        };
+        pose(lap_heading(s), x, y)
+    }
+
+    /// The pose of place `i` of [`square_lap`] by its odometry drifting `rate` °/m.
+    pub(crate) fn lap_odometry(rate: f64, i: u32) -> [f64; 12] {
+        let (mut x, mut y) = (0.0, 0.0);
+        for s in 0..i {
+            let yaw = (lap_heading(f64::from(s)) + rate * f64::from(s)).to_radians();
+            x += libm::cos(yaw);
+            y += libm::sin(yaw);
+        }
+        pose(lap_heading(f64::from(i)) + rate * f64::from(i), x, y)
+    }
+
     #[test]
     fn after_a_lap_the_rotation_says_where_the_drift_moved_the_query() {
-        // A square lap of 4 × 50 m, places 1 m apart, the odometry's heading drifting 0.05°/m:
-        // back on the first side after 201 m, the poses are 10° and about 6 m off the truth.
-        let heading = |s: f64| 90.0 * libm::floor((s % 200.0) / 50.0);
-        let truth = |s: f64| {
-            let side = s % 200.0;
-            let along = side % 50.0;
-            let (x, y) = match libm::floor(side / 50.0) as u32 {
-                0 => (along, 0.0),
-                1 => (50.0, along),
-                2 => (50.0 - along, 50.0),
-                _ => (0.0, 50.0 - along),
-            };
-            pose(heading(s), x, y)
-        };
-        let odometry = |i: u32| {
-            let (mut x, mut y) = (0.0, 0.0);
-            for s in 0..i {
-                let yaw = (heading(f64::from(s)) + 0.05 * f64::from(s)).to_radians();
-                x += libm::cos(yaw);
-                y += libm::sin(yaw);
-            }
-            pose(heading(f64::from(i)) + 0.05 * f64::from(i), x, y)
-        };
-        let mut det = detector_along(
-            203,
-            |i| (odometry(i), f64::NAN),
-            |v| {
-                v.support_window = 0;
-                v.unique = false;
-                v.lookalike_m = 0.0;
-            },
-        );
+        // Back on the first side after 201 m, the poses are 10° and about 6 m off the truth.
+        let mut det = square_lap(0.05, |v| {
+            v.support_window = 0;
+            v.unique = false;
+            v.lookalike_m = 0.0;
+        });
         let q = QueryPlace {
             id: 203,
-            pose: Some(odometry(203)),
+            pose: Some(lap_odometry(0.05, 203)),
             travelled: 203.0,
             eligible: 203,
         };
         // The true loop into place 2 (the query at s = 203 is 1 m on from it).
-        let right = relative(&truth(203.0), &truth(2.0));
+        let right = relative(&lap_truth(203.0), &lap_truth(2.0));
         let (expected, path) = det.expected(&q, 2, true).unwrap();
         let (m, deg) = reg::pose_distance(&expected, &right).unwrap();
         assert!(m > 5.0 && (9.0..11.0).contains(&deg), "{m} m, {deg}°");
