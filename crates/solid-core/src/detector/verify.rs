@@ -191,13 +191,13 @@ impl LoopDetector {
         let one = |k: usize, neighbour: Option<Pose>| -> Result<Option<Verification>, DbError> {
             let cp = &jobs[k].1;
             if let Some(start) = neighbour {
-                let s = seeded(&v, q, cp, &start)?;
+                let s = seeded(&v, q, cp, &start, None)?;
                 if s.as_ref().is_some_and(met_quality) {
                     return Ok(s);
                 }
             }
             if let Some((expected, path)) = odometry[k] {
-                let s = seeded(&v, q, cp, &expected)?;
+                let s = seeded(&v, q, cp, &expected, None)?;
                 let guarded = |s: &Verification| {
                     let r = &s.registration;
                     r.degeneracy.translation >= v.pose_candidate_min_information
@@ -851,6 +851,11 @@ fn corrupt_cloud() -> Verification {
 /// of one place, registered from the better-ranked one's pose ([`LoopDetector::register_jobs`]).
 pub const CLUSTER_IDS: u32 = 2;
 
+/// The A-SOLiDs (query, candidate) of a chain link's two scans: the gate's overlap floors then
+/// count only the share of each view the other sees ([`shared_view`]). None: a loop candidate,
+/// held to the gate's floors.
+pub(super) type LinkViews<'a> = Option<(&'a [f32], &'a [f32])>;
+
 /// Registers one candidate once from `start` and checks the gate (without the hypotheses'
 /// agreement) and the view; None when the clouds cannot be registered.
 pub(super) fn seeded(
@@ -858,11 +863,12 @@ pub(super) fn seeded(
     query: &PreparedCloud,
     candidate: &PreparedCloud,
     start: &Pose,
+    link: LinkViews<'_>,
 ) -> Result<Option<Verification>, DbError> {
     let Ok(r) = reg::register(query, candidate, start, &v.registration) else {
         return Ok(None);
     };
-    let check = gate_and_view(v, &r, &[], 0);
+    let check = gate_and_view(v, &r, &[], 0, link);
     Ok(Some(Verification {
         registration: r,
         accepted: check.is_ok(),
@@ -884,36 +890,52 @@ fn verify_pair(
     query: &PreparedCloud,
     candidate: &PreparedCloud,
 ) -> Result<Option<Verification>, DbError> {
-    verify_pair_from(v, (a_query, a_candidate), query, candidate, &reg::IDENTITY)
+    verify_pair_from(
+        v,
+        (a_query, a_candidate),
+        query,
+        candidate,
+        &reg::IDENTITY,
+        false,
+    )
 }
 
 /// [`verify_pair`] with each yaw hypothesis applied to `base` (`yaw_pose(yaw) · base`) instead of
-/// the identity.
+/// the identity; for a chain `link`, with the floors of [`LinkViews`].
 pub(super) fn verify_pair_from(
     v: &VerifyConfig,
     (a_query, a_candidate): (&[f32], &[f32]),
     query: &PreparedCloud,
     candidate: &PreparedCloud,
     base: &Pose,
+    link: bool,
 ) -> Result<Option<Verification>, DbError> {
     let mut yaws = [0.0f64; 16];
     let m = yaw_hypotheses(a_query, a_candidate, v.hypotheses, v.fan_deg, &mut yaws)?;
-    verify_yaws(v, &yaws[..m], query, candidate, base)
+    let views = link.then_some((a_query, a_candidate));
+    verify_yaws(v, &yaws[..m], query, candidate, base, views)
 }
 
 /// Registers `candidate` to `query` from each of `yaws` (degrees, at most 16) applied to `base`
 /// (`yaw_pose(yaw) · base`) and checks the gate with the best; None when the clouds cannot be
-/// registered.
+/// registered. A chain link (`link`: its [`LinkViews`]) never gives up before the fine level:
+/// its floor depends on the pose it reaches.
 pub(super) fn verify_yaws(
     v: &VerifyConfig,
     yaws: &[f64],
     query: &PreparedCloud,
     candidate: &PreparedCloud,
     base: &Pose,
+    link: LinkViews<'_>,
 ) -> Result<Option<Verification>, DbError> {
     let mut hyps = [Hypothesis::default(); 16];
     let m = yaws.len().min(hyps.len());
     // A candidate clearly no match gives up before the fine level (it cannot pass the gate).
+    let give_up = if link.is_some() {
+        0.0
+    } else {
+        v.gate.min_fitness.clamp(0.0, 1.0)
+    };
     let Ok(h) = reg::register_hypotheses_for(
         query,
         candidate,
@@ -921,12 +943,12 @@ pub(super) fn verify_yaws(
         base,
         &v.registration,
         &mut hyps[..m],
-        v.gate.min_fitness.clamp(0.0, 1.0),
+        give_up,
     ) else {
         return Ok(None);
     };
     let tried = &hyps[..h.count];
-    let check = gate_and_view(v, &h.registration, tried, h.best);
+    let check = gate_and_view(v, &h.registration, tried, h.best, link);
     Ok(Some(Verification {
         registration: h.registration,
         accepted: check.is_ok(),
@@ -954,18 +976,62 @@ fn shared_azimuth_deg(fov: f64, yaw: f64) -> f64 {
 /// view too, so that [`Rejection::TooFar`] means "every check but the length passed" whatever
 /// `max_translation` is (a neighbour's start and [`registered`] must not depend on the largest
 /// loop asked for: eval's suggested detect run reproduces its rows).
+/// A chain link's overlap floors (`link`) are the gate's times the share of the views the two
+/// scans have in common at the registered pose ([`shared_view`]).
 fn gate_and_view(
     v: &VerifyConfig,
     r: &reg::Registration,
     hypotheses: &[Hypothesis],
     best: usize,
+    link: LinkViews<'_>,
 ) -> Result<(), Rejection> {
     let view = || view_check(v, r.yaw_degrees());
-    match v.gate.check(r, hypotheses, best) {
+    let gate = match link {
+        None => v.gate,
+        Some((a_query, a_candidate)) => {
+            let share = shared_view(a_query, a_candidate, r.yaw_degrees());
+            reg::Gate {
+                min_fitness: v.gate.min_fitness * share,
+                min_structure_fitness: v.gate.min_structure_fitness * share,
+                ..v.gate
+            }
+        }
+    };
+    match gate.check(r, hypotheses, best) {
         Ok(()) => view(),
         Err(Rejection::TooFar) => view().and(Err(Rejection::TooFar)),
         Err(e) => Err(e),
     }
+}
+
+/// The share of their views two scans have in common when the query is turned by `yaw` degrees
+/// from the candidate (`p_query ≈ Rz(yaw) · p_candidate`), from their A-SOLiDs (each azimuth
+/// sector's weighted points): the part of the query's weight in sectors where the turned
+/// candidate has points, the candidate's likewise, the smaller of the two (the most of either
+/// scan the other can match: a registration's fitness, the smaller overlap, cannot exceed it).
+/// 1 for two full views or an empty A-SOLiD (no information: the gate's floors as they are).
+///
+/// A narrow view that turns between keyframes shares only part of itself: a 90° VLP-16 turning
+/// 21.5° at a street corner matched 0.31 of its points at the true pose, 0.56 of the 0.54 it
+/// shared, as its straight links match (0.54-0.60 of a whole view).
+pub(super) fn shared_view(a_query: &[f32], a_candidate: &[f32], yaw: f64) -> f64 {
+    let n = a_query.len();
+    let weight = |a: &[f32]| a.iter().map(|&w| f64::from(w)).sum::<f64>();
+    let (all_query, all_candidate) = (weight(a_query), weight(a_candidate));
+    if a_candidate.len() != n || all_query <= 0.0 || all_candidate <= 0.0 {
+        return 1.0;
+    }
+    // Query sector j sees what candidate sector j − s saw.
+    let s = libm::round(libm::remainder(yaw, 360.0) * n as f64 / 360.0) as isize;
+    // The weight of `a`'s sectors whose sector `shift` before in `other` has points.
+    let seen = |a: &[f32], other: &[f32], shift: isize| -> f64 {
+        a.iter()
+            .enumerate()
+            .filter(|&(j, _)| other[(j as isize - shift).rem_euclid(n as isize) as usize] > 0.0)
+            .map(|(_, &w)| f64::from(w))
+            .sum()
+    };
+    (seen(a_query, a_candidate, s) / all_query).min(seen(a_candidate, a_query, -s) / all_candidate)
 }
 
 /// The view check ([`VerifyConfig::view_min_overlap_deg`]) of a loop turned by `yaw` degrees.
@@ -1054,6 +1120,62 @@ pub(super) mod tests {
     }
 
     #[test]
+    fn a_link_shares_the_sectors_its_turn_keeps_in_both_views() {
+        // 60 sectors of 6°: the candidate sees 0-66° (sectors 0-10), the query 60-126° (10-20).
+        let sectors = |from: usize, to: usize, w: f32| -> Vec<f32> {
+            (0..60)
+                .map(|j| if (from..to).contains(&j) { w } else { 0.0 })
+                .collect()
+        };
+        let (c, q) = (sectors(0, 11, 1.0), sectors(10, 21, 2.0));
+        // Turned by +60° (p_query = Rz(60°) p_candidate) the query sees what the candidate saw.
+        assert!((shared_view(&q, &c, 60.0) - 1.0).abs() < 1e-12);
+        // Turned the other way they share one sector of eleven.
+        assert!((shared_view(&q, &c, -60.0) - 0.0).abs() < 1e-12);
+        assert!((shared_view(&q, &c, 0.0) - 1.0 / 11.0).abs() < 1e-12);
+        // Half a turn's sector rounds to the nearest; whole views share everything.
+        assert!((shared_view(&q, &c, 56.0) - 10.0 / 11.0).abs() < 1e-12);
+        let full = sectors(0, 60, 1.0);
+        assert_eq!(shared_view(&full, &full, 123.0), 1.0);
+        // No information (an empty A-SOLiD, another length): the gate's floors.
+        assert_eq!(shared_view(&[0.0; 60], &c, 0.0), 1.0);
+        assert_eq!(shared_view(&q, &c[..30], 0.0), 1.0);
+    }
+
+    #[test]
+    fn a_links_overlap_floors_are_the_gates_times_the_shared_view() {
+        // A link matching 0.31 of its points, half its view shared: a link (0.35 × 0.5 ≤ 0.31),
+        // not a loop.
+        let v = DetectorConfig::for_preset("vlp16").unwrap().verify;
+        let r = reg::Registration {
+            fitness: 0.31,
+            structure_fitness: 0.31,
+            rmse: 0.1,
+            degeneracy: reg::Degeneracy {
+                translation: 10.0,
+                rotation: 10.0,
+                marginal_translation: 10.0,
+            },
+            ..reg::Registration::default()
+        };
+        let q: Vec<f32> = (0..60).map(|j| if j < 10 { 1.0 } else { 0.0 }).collect();
+        let c: Vec<f32> = (0..60)
+            .map(|j| if (5..15).contains(&j) { 1.0 } else { 0.0 })
+            .collect();
+        assert!((shared_view(&q, &c, 0.0) - 0.5).abs() < 1e-12);
+        assert_eq!(
+            gate_and_view(&v, &r, &[], 0, None),
+            Err(Rejection::LowOverlap)
+        );
+        assert_eq!(gate_and_view(&v, &r, &[], 0, Some((&q, &c))), Ok(()));
+        // Whole views share everything: the gate's floor.
+        assert_eq!(
+            gate_and_view(&v, &r, &[], 0, Some((&[1.0; 60], &[1.0; 60]))),
+            Err(Rejection::LowOverlap)
+        );
+    }
+
+    #[test]
     fn too_far_means_every_other_check_passed_whatever_the_largest_loop() {
         // A registration that meets every quality check, 4 m long, turned by 100° (beyond an
         // Avia's shared view), or not turned.
@@ -1092,10 +1214,10 @@ pub(super) mod tests {
             };
             // Beyond the view: the view's rejection, with a largest loop of 5 m or of 3 m.
             assert_eq!(
-                gate_and_view(&v, &turned(100.0), &[], 0),
+                gate_and_view(&v, &turned(100.0), &[], 0, None),
                 Err(Rejection::NoSharedView)
             );
-            let straight = gate_and_view(&v, &turned(0.0), &[], 0);
+            let straight = gate_and_view(&v, &turned(0.0), &[], 0, None);
             assert_eq!(
                 straight,
                 if max > 4.0 {
