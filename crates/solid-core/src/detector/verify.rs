@@ -476,7 +476,8 @@ impl LoopDetector {
                 .is_some_and(|(_, global)| global <= path);
             if direct {
                 // The directed allowance never exceeds `angle · path / 2` (the arm is at most
-                // half the path): that cheap test first, the arm's walk along the path after.
+                // half the path): that cheap test first (a hair looser, for rounding), the
+                // arm's walk along the path after.
                 if !self.within_drift(&expected, pose, path, 1.0 + 1e-9) {
                     return Some(false);
                 }
