@@ -188,3 +188,4 @@ def test_a_sparse_narrow_view_turning_is_judged_on_the_view_both_scans_share() -
         assert a is not None and b is not None
         m, deg = _off(np.linalg.inv(truth[i - 1]) @ truth[i], np.linalg.inv(np.asarray(a)) @ np.asarray(b))
         assert m < 0.3 and deg < 1.0, (frames[i], m, deg)
+

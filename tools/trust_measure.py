@@ -23,7 +23,8 @@ yaw and 8 % of scale, and by 0.2°/m and 4 %. ``chain``: the detector's own odom
 (``Detection.pose``: each scan registered with the previous keyframe, chained) against the truth
 (hku1's odom_poses.txt; the loop world and the corridors' simulated poses): its drift over every
 stretch of 10, 25 and 50 m of path inside one frame (mean and 95th percentile of the relative
-pose's error, metres per metre and degrees per metre), the frames it started (links that failed).
+pose's error, metres per metre and degrees per metre), the frames it started (links that failed),
+the links more than 1 m or 5° off the truth.
 """
 
 from __future__ import annotations
@@ -137,7 +138,14 @@ def chain_drift(name: str, res: Any, truth: np.ndarray) -> None:
     E, T = np.asarray(est), truth[frames]
     X = T[:, :3, 3]
     path = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(X, axis=0), axis=1))])
-    parts = [f"{name}: {len(est)} poses in {frame + 1} frame(s), {path[-1]:.0f} m"]
+    # Links: each pose and the previous one of its frame (over a scan the chain could not link).
+    wrong = 0
+    for i in range(1, len(E)):
+        if frame_of_pose[i] == frame_of_pose[i - 1]:
+            d = np.linalg.inv(np.linalg.inv(E[i - 1]) @ E[i]) @ (np.linalg.inv(T[i - 1]) @ T[i])
+            deg = np.degrees(np.arccos(np.clip((np.trace(d[:3, :3]) - 1) / 2, -1, 1)))
+            wrong += bool(np.linalg.norm(d[:3, 3]) > 1.0 or deg > 5.0)
+    parts = [f"{name}: {len(est)} poses in {frame + 1} frame(s), {path[-1]:.0f} m, {wrong} wrong link(s) (> 1 m or 5°)"]
     for length in (10.0, 25.0, 50.0):
         tr, rot = [], []
         for i in range(len(E)):

@@ -87,16 +87,24 @@ fn held(v: &VerifyConfig, start: &Pose, r: &super::Verification) -> bool {
 const FAN_STEP_DEG: f64 = 8.0;
 
 /// The yaws 0, ±[`FAN_STEP_DEG`], ±2·[`FAN_STEP_DEG`], … within ±`fan_deg` (at most `out`'s
-/// length); how many.
-fn fan(fan_deg: f64, out: &mut [f64; 16]) -> usize {
+/// length less one), then `straight` (the yaw that takes the motion's turn out: the turn's end)
+/// unless a yaw already chosen lies within half a step of it; how many.
+fn fan(fan_deg: f64, straight: f64, out: &mut [f64; 16]) -> usize {
     let mut n = 1;
     out[0] = 0.0;
     let mut y = FAN_STEP_DEG;
-    while y <= fan_deg && n + 2 <= out.len() {
+    while y <= fan_deg && n + 3 <= out.len() {
         out[n] = y;
         out[n + 1] = -y;
         n += 2;
         y += FAN_STEP_DEG;
+    }
+    if out[..n]
+        .iter()
+        .all(|&y| libm::fabs(y - straight) > FAN_STEP_DEG / 2.0)
+    {
+        out[n] = straight;
+        n += 1;
     }
     n
 }
@@ -268,12 +276,14 @@ impl LoopDetector {
             }
         };
         // The turn changed between the keyframes (its start or its end): the motion turned by
-        // every [`FAN_STEP_DEG`] within the fan.
+        // every [`FAN_STEP_DEG`] within the fan, and the motion without its turn (a turn of
+        // 35-43° between keyframes 6 m apart, a 90° view, ended beyond the fan's reach).
         let found = match (found, &motion) {
             (Some(r), _) => Some(r),
             (None, Some(m)) => {
                 let mut yaws = [0.0f64; 16];
-                let n = fan(v.fan_deg, &mut yaws);
+                let straight = -crate::angle::yaw_degrees(m[0][0], m[1][0]);
+                let n = fan(v.fan_deg, straight, &mut yaws);
                 verify_yaws(&v, &yaws[..n], q, &cp, m, views)?.filter(met_quality)
             }
             (None, None) => None,
@@ -282,5 +292,30 @@ impl LoopDetector {
             let pose = mul(&rows_to_pose(&prev), &invert(&r.registration.pose));
             pose_to_rows(&pose)
         }))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{fan, FAN_STEP_DEG};
+
+    #[test]
+    fn the_fan_turns_the_motion_every_step_and_takes_its_turn_out() {
+        let mut out = [0.0f64; 16];
+        // A motion turned by 35°: the fan's ±24° and -35° (the turn's end).
+        let n = fan(25.0, -35.0, &mut out);
+        assert_eq!(
+            &out[..n],
+            &[0.0, 8.0, -8.0, 16.0, -16.0, 24.0, -24.0, -35.0]
+        );
+        // A straight motion (or one the fan already covers): the fan alone.
+        assert_eq!(fan(25.0, 0.0, &mut out), 7);
+        assert_eq!(fan(25.0, 22.0, &mut out), 7);
+        assert_eq!(fan(25.0, 30.0, &mut out), 8);
+        // The widest fan leaves room for the turn's end.
+        let n = fan(180.0, 170.0, &mut out);
+        assert_eq!(n, 16);
+        assert_eq!(out[n - 1], 170.0);
+        assert_eq!(out[n - 2], -7.0 * FAN_STEP_DEG);
     }
 }
