@@ -13,6 +13,7 @@
 //! both sides are visited, so NaN points cost time but never hide finite neighbours.
 
 use core::cmp::Ordering;
+use core::ops::Range;
 
 use crate::Error;
 
@@ -106,10 +107,23 @@ impl<'a> KdTree3<'a> {
     /// The nearest point to `q` whose squared distance is below `max_d2` (pass
     /// `f64::INFINITY` for no bound), or `None`. Ties go to the lower id.
     pub fn nearest(&self, q: [f64; 3], max_d2: f64) -> Option<Nearest> {
+        self.nearest_from(q, max_d2, u32::MAX)
+    }
+
+    /// [`KdTree3::nearest`] that first measures point `hint` (an id; ignored when out of
+    /// range): the same answer, found sooner when `hint` is near `q` — the previous answer of a
+    /// run of queries that move little from one to the next (a cloud's points in tree order),
+    /// whose distance bounds the walk from its start.
+    pub fn nearest_from(&self, q: [f64; 3], max_d2: f64, hint: u32) -> Option<Nearest> {
         let mut best = Nearest {
             id: u32::MAX,
             d2: max_d2,
         };
+        if let Some(p) = self.points.get(hint as usize) {
+            // The answer is the least (distance, id) below the bound whatever is offered
+            // first: the hint only tightens the bound sooner.
+            best.offer(hint, dist2(&q, p));
+        }
         if !self.perm.is_empty() {
             self.walk(0, self.perm.len(), &q, &mut best);
         }
@@ -122,13 +136,40 @@ impl<'a> KdTree3<'a> {
     /// # Errors
     /// [`Error::BufferTooSmall`] when `out.len() < k`.
     pub fn knn(&self, q: [f64; 3], k: usize, out: &mut [Nearest]) -> Result<usize, Error> {
+        self.knn_near(q, k, out, 0..0)
+    }
+
+    /// [`KdTree3::knn`] that first measures the points at positions `seeds` of the tree's order
+    /// (clamped to it): the same answer, found sooner when they are near `q` — for a query at
+    /// a point of the tree, the points beside it in the tree's order, which share its leaf.
+    /// The walk then skips them (each point is offered once).
+    ///
+    /// # Errors
+    /// As [`KdTree3::knn`].
+    pub fn knn_near(
+        &self,
+        q: [f64; 3],
+        k: usize,
+        out: &mut [Nearest],
+        seeds: Range<usize>,
+    ) -> Result<usize, Error> {
         Error::check_buffer("out", k, out.len())?;
+        let n = self.perm.len();
+        let skip = seeds.start.min(n)..seeds.end.min(n);
         let mut heap = Heap {
             h: &mut out[..k],
             len: 0,
+            skip: skip.clone(),
         };
-        if k > 0 && !self.perm.is_empty() {
-            self.walk(0, self.perm.len(), &q, &mut heap);
+        if k > 0 && n > 0 {
+            for pos in skip {
+                let id = self.perm[pos];
+                heap.offer(Nearest {
+                    id,
+                    d2: dist2(&q, &self.points[id as usize]),
+                });
+            }
+            self.walk(0, n, &q, &mut heap);
         }
         Ok(heap.finish())
     }
@@ -138,8 +179,8 @@ impl<'a> KdTree3<'a> {
     fn walk<F: Found>(&self, lo: usize, hi: usize, q: &[f64; 3], found: &mut F) {
         let n = hi - lo;
         if n <= LEAF_SIZE {
-            for &id in &self.perm[lo..hi] {
-                found.offer(id, dist2(q, &self.points[id as usize]));
+            for (pos, &id) in (lo..hi).zip(&self.perm[lo..hi]) {
+                found.offer(pos, id, dist2(q, &self.points[id as usize]));
             }
             return;
         }
@@ -147,7 +188,7 @@ impl<'a> KdTree3<'a> {
         let id = self.perm[mid];
         let axis = self.axes[mid] as usize;
         let p = &self.points[id as usize];
-        found.offer(id, dist2(q, p));
+        found.offer(mid, id, dist2(q, p));
         let diff = q[axis] - p[axis];
         let (near, far) = if diff <= 0.0 {
             ((lo, mid), (mid + 1, hi))
@@ -165,15 +206,16 @@ impl<'a> KdTree3<'a> {
 
 /// What a walk of the tree collects: the nearest point ([`Nearest`]) or the k nearest.
 trait Found {
-    /// Takes point `id` at squared distance `d2` if it is among the wanted.
-    fn offer(&mut self, id: u32, d2: f64);
+    /// Takes point `id` (at position `pos` of the tree's order) at squared distance `d2` if it
+    /// is among the wanted.
+    fn offer(&mut self, pos: usize, id: u32, d2: f64);
     /// The squared distance a point must not exceed to matter.
     fn bound(&self) -> f64;
 }
 
 impl Found for Nearest {
     #[inline(always)]
-    fn offer(&mut self, id: u32, d2: f64) {
+    fn offer(&mut self, _pos: usize, id: u32, d2: f64) {
         Nearest::offer(self, id, d2);
     }
     #[inline(always)]
@@ -184,8 +226,11 @@ impl Found for Nearest {
 
 impl Found for Heap<'_> {
     #[inline(always)]
-    fn offer(&mut self, id: u32, d2: f64) {
-        Heap::offer(self, Nearest { id, d2 });
+    fn offer(&mut self, pos: usize, id: u32, d2: f64) {
+        // The seeds were offered before the walk.
+        if !self.skip.contains(&pos) {
+            Heap::offer(self, Nearest { id, d2 });
+        }
     }
     #[inline(always)]
     fn bound(&self) -> f64 {
@@ -204,6 +249,8 @@ fn dist2(a: &[f64; 3], b: &[f64; 3]) -> f64 {
 struct Heap<'s> {
     h: &'s mut [Nearest],
     len: usize,
+    /// Positions of the tree's order already offered (the seeds of [`KdTree3::knn_near`]).
+    skip: Range<usize>,
 }
 
 impl Heap<'_> {
@@ -217,7 +264,7 @@ impl Heap<'_> {
         }
     }
 
-    #[inline]
+    #[inline(always)]
     fn offer(&mut self, c: Nearest) {
         // NaN distances (points with a NaN coordinate) never enter.
         if c.d2.is_nan() {
@@ -338,10 +385,23 @@ mod tests {
                     let mut out = vec![Nearest::default(); k];
                     let m = tree.knn(*q, k, &mut out).unwrap();
                     assert_eq!(&out[..m], &brute(&pts, *q, k)[..], "grid {grid} k {k}");
+                    // Seeded from any run of positions (empty, past the end, the whole tree):
+                    // the same answer.
+                    for seeds in [0..0, 3..9, n / 2..n / 2 + 11, n - 2..n + 5, 0..n] {
+                        let mut seeded = vec![Nearest::default(); k];
+                        let m2 = tree.knn_near(*q, k, &mut seeded, seeds.clone()).unwrap();
+                        assert_eq!(&seeded[..m2], &out[..m], "grid {grid} k {k} {seeds:?}");
+                    }
                 }
                 let b = brute(&pts, *q, 1)[0];
                 assert_eq!(tree.nearest(*q, f64::INFINITY), Some(b));
                 assert_eq!(tree.nearest(*q, b.d2), None, "the bound is strict");
+                // Any hint (far, near, the answer itself, none): the same answer and bound.
+                for hint in [0, b.id, (n / 2) as u32, u32::MAX] {
+                    assert_eq!(tree.nearest_from(*q, f64::INFINITY, hint), Some(b));
+                    assert_eq!(tree.nearest_from(*q, b.d2, hint), None);
+                    assert_eq!(tree.nearest_from(*q, 2.0, hint), tree.nearest(*q, 2.0));
+                }
             }
         }
     }

@@ -161,13 +161,16 @@ fn linearize(
     let mut n = 0;
     let mut cost = 0.0;
     let mut hits = Hits::default();
+    // The source's points are in its tree's order: each one's match is near the previous one's.
+    let mut hint = u32::MAX;
     for (i, p) in source.points.iter().enumerate() {
         let y = r * Vector3::from(*p) + x.t;
         let structure = hits.point(source, i);
-        let Some(nb) = tree.nearest([y[0], y[1], y[2]], max_d2) else {
+        let Some(nb) = tree.nearest_from([y[0], y[1], y[2]], max_d2, hint) else {
             cost += robust.ceiling();
             continue;
         };
+        hint = nb.id;
         // The nearest within max_d2 is the nearest within any smaller distance too.
         if nb.d2 < inlier_d2 {
             hits.hit(nb.d2, structure);
@@ -370,11 +373,13 @@ fn overlap(to: &Level, from: &Level, x: &Rigid, d: f64) -> Overlap {
     let tree = to.tree();
     let r = *x.rot.to_rotation_matrix().matrix();
     let mut hits = Hits::default();
+    let mut hint = u32::MAX;
     for (i, p) in from.points.iter().enumerate() {
         let structure = hits.point(from, i);
         let y = r * Vector3::from(*p) + x.t;
-        if let Some(nb) = tree.nearest([y[0], y[1], y[2]], d * d) {
+        if let Some(nb) = tree.nearest_from([y[0], y[1], y[2]], d * d, hint) {
             hits.hit(nb.d2, structure);
+            hint = nb.id;
         }
     }
     hits.overlap(from.len())
