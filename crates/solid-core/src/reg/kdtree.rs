@@ -125,7 +125,7 @@ impl<'a> KdTree3<'a> {
             best.offer(hint, dist2(&q, p));
         }
         if !self.perm.is_empty() {
-            self.walk(0, self.perm.len(), &q, &mut best);
+            self.walk(0, self.perm.len(), &q, &mut best, &mut [0.0; 3]);
         }
         (best.id != u32::MAX).then_some(best)
     }
@@ -169,14 +169,23 @@ impl<'a> KdTree3<'a> {
                     d2: dist2(&q, &self.points[id as usize]),
                 });
             }
-            self.walk(0, n, &q, &mut heap);
+            self.walk(0, n, &q, &mut heap, &mut [0.0; 3]);
         }
         Ok(heap.finish())
     }
 
     /// Offers to `found` every point of the node `perm[lo..hi]` that may be nearer than its
-    /// bound, nearer side first.
-    fn walk<F: Found>(&self, lo: usize, hi: usize, q: &[f64; 3], found: &mut F) {
+    /// bound, nearer side first. `off[d]` is the query's offset along axis `d` from the node's
+    /// cell (0 inside it, else the offset from the nearest splitting plane on the way): the
+    /// squared distance to any point of the cell is at least `|off|²`.
+    fn walk<F: Found>(
+        &self,
+        lo: usize,
+        hi: usize,
+        q: &[f64; 3],
+        found: &mut F,
+        off: &mut [f64; 3],
+    ) {
         let n = hi - lo;
         if n <= LEAF_SIZE {
             for (pos, &id) in (lo..hi).zip(&self.perm[lo..hi]) {
@@ -195,12 +204,19 @@ impl<'a> KdTree3<'a> {
         } else {
             ((mid + 1, hi), (lo, mid))
         };
-        self.walk(near.0, near.1, q, found);
-        // Visits the far side unless it is certainly too far: also when the bound is NaN, and
-        // on a tie (which the lower id may win).
-        if (diff * diff).partial_cmp(&found.bound()) != Some(Ordering::Greater) {
-            self.walk(far.0, far.1, q, found);
+        self.walk(near.0, near.1, q, found, off);
+        // Every point of the far side is at least `diff` away along `axis` (and as far as
+        // before along the others). Rounding keeps that: a coordinate beyond the plane rounds
+        // to a difference at least as large, and `|off|²` is summed in `dist2`'s order. Visits
+        // the far side unless it is certainly too far: also when the bound is NaN, and on a tie
+        // (which the lower id may win).
+        let old = off[axis];
+        off[axis] = diff;
+        let lower = dist2(off, &[0.0; 3]);
+        if lower.partial_cmp(&found.bound()) != Some(Ordering::Greater) {
+            self.walk(far.0, far.1, q, found, off);
         }
+        off[axis] = old;
     }
 }
 
