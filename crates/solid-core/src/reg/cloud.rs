@@ -4,7 +4,6 @@
 use alloc::vec;
 use alloc::vec::Vec;
 
-
 use super::kdtree::{KdTree3, Nearest};
 use super::{RegConfig, RegError};
 use crate::describe::stages::voxel_downsample;
@@ -216,7 +215,8 @@ pub(crate) fn smallest_eigenvector(c: &[f64; 6]) -> Option<[f64; 3]> {
     let a = c.map(|v| v / scale);
     let q = (a[0] + a[3] + a[5]) / 3.0;
     let b = [a[0] - q, a[1], a[2], a[3] - q, a[4], a[5] - q];
-    let p2 = b[0] * b[0] + b[3] * b[3] + b[5] * b[5] + 2.0 * (b[1] * b[1] + b[2] * b[2] + b[4] * b[4]);
+    let p2 =
+        b[0] * b[0] + b[3] * b[3] + b[5] * b[5] + 2.0 * (b[1] * b[1] + b[2] * b[2] + b[4] * b[4]);
     // Equal eigenvalues to rounding: any direction.
     if p2 <= 1e-30 {
         return Some([1.0, 0.0, 0.0]);
@@ -264,7 +264,11 @@ pub(crate) fn smallest_eigenvector(c: &[f64; 6]) -> Option<[f64; 3]> {
         return Some(u);
     }
     let (s, t) = (s / l, t / l);
-    Some([s * u[0] + t * w[0], s * u[1] + t * w[1], s * u[2] + t * w[2]])
+    Some([
+        s * u[0] + t * w[0],
+        s * u[1] + t * w[1],
+        s * u[2] + t * w[2],
+    ])
 }
 
 /// A cloud prepared for registration: its voxel levels (fine first), each with a kd-tree and
@@ -510,14 +514,20 @@ mod tests {
     fn check(c: &[f64; 6], what: &str) {
         let v = smallest_eigenvector(c).unwrap();
         let (lambda, n) = reference(c);
-        let scale = c.iter().fold(0.0f64, |m, x| m.max(x.abs())).max(f64::MIN_POSITIVE);
+        let scale = c
+            .iter()
+            .fold(0.0f64, |m, x| m.max(x.abs()))
+            .max(f64::MIN_POSITIVE);
         let m = Matrix3::new(c[0], c[1], c[2], c[1], c[3], c[4], c[2], c[4], c[5]);
         let v = Vector3::from(v);
         assert!((v.norm() - 1.0).abs() < 1e-12, "{what}: |v| = {}", v.norm());
         let residual = (m * v - v * lambda[0]).norm() / scale;
         assert!(residual < 1e-7, "{what}: residual {residual:e}");
         let rayleigh = (v.dot(&(m * v)) - lambda[0]).abs() / scale;
-        assert!(rayleigh < 1e-12, "{what}: Rayleigh quotient off by {rayleigh:e}");
+        assert!(
+            rayleigh < 1e-12,
+            "{what}: Rayleigh quotient off by {rayleigh:e}"
+        );
         if (lambda[1] - lambda[0]) / scale > 1e-4 {
             let along = v.dot(&n).abs();
             assert!(along > 1.0 - 1e-9, "{what}: |v·n| = {along}");
@@ -527,8 +537,7 @@ mod tests {
     /// The covariance (`xx, xy, xz, yy, yz, zz`) of `points`.
     fn covariance(points: &[[f64; 3]]) -> [f64; 6] {
         let k = points.len() as f64;
-        let mean: [f64; 3] =
-            core::array::from_fn(|d| points.iter().map(|p| p[d]).sum::<f64>() / k);
+        let mean: [f64; 3] = core::array::from_fn(|d| points.iter().map(|p| p[d]).sum::<f64>() / k);
         let mut c = [0.0; 6];
         for p in points {
             let d = [p[0] - mean[0], p[1] - mean[1], p[2] - mean[2]];
@@ -589,8 +598,14 @@ mod tests {
             smallest_eigenvector(&[2.0, 0.0, 0.0, 2.0, 0.0, 2.0]),
             Some([1.0, 0.0, 0.0])
         );
-        assert_eq!(smallest_eigenvector(&[f64::NAN, 0.0, 0.0, 1.0, 0.0, 1.0]), None);
-        assert_eq!(smallest_eigenvector(&[f64::INFINITY, 0.0, 0.0, 1.0, 0.0, 1.0]), None);
+        assert_eq!(
+            smallest_eigenvector(&[f64::NAN, 0.0, 0.0, 1.0, 0.0, 1.0]),
+            None
+        );
+        assert_eq!(
+            smallest_eigenvector(&[f64::INFINITY, 0.0, 0.0, 1.0, 0.0, 1.0]),
+            None
+        );
         // Diagonal, with repeated eigenvalues in each order.
         for d in [
             [1.0, 2.0, 3.0],
@@ -602,11 +617,16 @@ mod tests {
             [0.0, 0.0, 1.0],
             [1e-12, 1.0, 1.0],
         ] {
-            check(&[d[0], 0.0, 0.0, d[1], 0.0, d[2]], &format!("diagonal {d:?}"));
+            check(
+                &[d[0], 0.0, 0.0, d[1], 0.0, d[2]],
+                &format!("diagonal {d:?}"),
+            );
         }
         // A line of points (two zero eigenvalues), a plane (one), a plane with a point off it,
         // collinear points along each axis and a diagonal, and a horizontal plane.
-        let line: Vec<[f64; 3]> = (0..10).map(|i| [f64::from(i), 2.0 * f64::from(i), -0.5 * f64::from(i)]).collect();
+        let line: Vec<[f64; 3]> = (0..10)
+            .map(|i| [f64::from(i), 2.0 * f64::from(i), -0.5 * f64::from(i)])
+            .collect();
         check(&covariance(&line), "line");
         for axis in 0..3 {
             let pts: Vec<[f64; 3]> = (0..7)
@@ -622,13 +642,21 @@ mod tests {
             .collect();
         check(&covariance(&plane), "plane");
         let v = Vector3::from(smallest_eigenvector(&covariance(&plane)).unwrap());
-        assert!(v.cross(&Vector3::new(0.2, -0.7, -1.0)).norm() < 1e-9, "the plane's normal");
+        assert!(
+            v.cross(&Vector3::new(0.2, -0.7, -1.0)).norm() < 1e-9,
+            "the plane's normal"
+        );
         let mut off = plane.clone();
         off[4][2] += 1e-6;
         check(&covariance(&off), "plane with a point off it");
-        let ground: Vec<[f64; 3]> = (0..9).map(|i| [f64::from(i % 3), f64::from(i / 3), 0.0]).collect();
+        let ground: Vec<[f64; 3]> = (0..9)
+            .map(|i| [f64::from(i % 3), f64::from(i / 3), 0.0])
+            .collect();
         let n = smallest_eigenvector(&covariance(&ground)).unwrap();
-        assert!((n[2].abs() - 1.0).abs() < 1e-12, "the ground's normal is z: {n:?}");
+        assert!(
+            (n[2].abs() - 1.0).abs() < 1e-12,
+            "the ground's normal is z: {n:?}"
+        );
     }
 
     #[test]
@@ -639,15 +667,22 @@ mod tests {
             let f = f64::from(i);
             pts.push([f * 0.3, (f * 1.7).sin(), 0.05 * (f * 0.9).cos() + 0.01 * f]);
         }
-        let nb: Vec<Nearest> = (0..pts.len() as u32).map(|id| Nearest { id, d2: 0.0 }).collect();
+        let nb: Vec<Nearest> = (0..pts.len() as u32)
+            .map(|id| Nearest { id, d2: 0.0 })
+            .collect();
         let (cov, normal) = local_plane(&pts, &nb);
         let (_, n0) = reference(&covariance(&pts));
         let expected = Matrix3::identity() - n0 * n0.transpose() * (1.0 - PLANE_EPSILON);
-        let got = Matrix3::new(cov[0], cov[1], cov[2], cov[1], cov[3], cov[4], cov[2], cov[4], cov[5]);
+        let got = Matrix3::new(
+            cov[0], cov[1], cov[2], cov[1], cov[3], cov[4], cov[2], cov[4], cov[5],
+        );
         assert!((got - expected).abs().max() < 1e-12);
         assert!(Vector3::from(normal).dot(&n0).abs() > 1.0 - 1e-12);
         // Too few neighbours: the identity, no normal.
-        assert_eq!(local_plane(&pts, &nb[..4]), ([1.0, 0.0, 0.0, 1.0, 0.0, 1.0], [0.0; 3]));
+        assert_eq!(
+            local_plane(&pts, &nb[..4]),
+            ([1.0, 0.0, 0.0, 1.0, 0.0, 1.0], [0.0; 3])
+        );
     }
 
     #[test]

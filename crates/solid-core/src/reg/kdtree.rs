@@ -107,25 +107,12 @@ impl<'a> KdTree3<'a> {
     /// The nearest point to `q` whose squared distance is below `max_d2` (pass
     /// `f64::INFINITY` for no bound), or `None`. Ties go to the lower id.
     pub fn nearest(&self, q: [f64; 3], max_d2: f64) -> Option<Nearest> {
-        self.nearest_from(q, max_d2, u32::MAX)
-    }
-
-    /// [`KdTree3::nearest`] that first measures point `hint` (an id; ignored when out of
-    /// range): the same answer, found sooner when `hint` is near `q` — the previous answer of a
-    /// run of queries that move little from one to the next (a cloud's points in tree order),
-    /// whose distance bounds the walk from its start.
-    pub fn nearest_from(&self, q: [f64; 3], max_d2: f64, hint: u32) -> Option<Nearest> {
         let mut best = Nearest {
             id: u32::MAX,
             d2: max_d2,
         };
-        if let Some(p) = self.points.get(hint as usize) {
-            // The answer is the least (distance, id) below the bound whatever is offered
-            // first: the hint only tightens the bound sooner.
-            best.offer(hint, dist2(&q, p));
-        }
         if !self.perm.is_empty() {
-            self.walk(0, self.perm.len(), &q, &mut best, &mut [0.0; 3]);
+            self.walk(0, self.perm.len(), &q, &mut best);
         }
         (best.id != u32::MAX).then_some(best)
     }
@@ -169,23 +156,14 @@ impl<'a> KdTree3<'a> {
                     d2: dist2(&q, &self.points[id as usize]),
                 });
             }
-            self.walk(0, n, &q, &mut heap, &mut [0.0; 3]);
+            self.walk(0, n, &q, &mut heap);
         }
         Ok(heap.finish())
     }
 
     /// Offers to `found` every point of the node `perm[lo..hi]` that may be nearer than its
-    /// bound, nearer side first. `off[d]` is the query's offset along axis `d` from the node's
-    /// cell (0 inside it, else the offset from the nearest splitting plane on the way): the
-    /// squared distance to any point of the cell is at least `|off|²`.
-    fn walk<F: Found>(
-        &self,
-        lo: usize,
-        hi: usize,
-        q: &[f64; 3],
-        found: &mut F,
-        off: &mut [f64; 3],
-    ) {
+    /// bound, nearer side first.
+    fn walk<F: Found>(&self, lo: usize, hi: usize, q: &[f64; 3], found: &mut F) {
         let n = hi - lo;
         if n <= LEAF_SIZE {
             for (pos, &id) in (lo..hi).zip(&self.perm[lo..hi]) {
@@ -204,19 +182,12 @@ impl<'a> KdTree3<'a> {
         } else {
             ((mid + 1, hi), (lo, mid))
         };
-        self.walk(near.0, near.1, q, found, off);
-        // Every point of the far side is at least `diff` away along `axis` (and as far as
-        // before along the others). Rounding keeps that: a coordinate beyond the plane rounds
-        // to a difference at least as large, and `|off|²` is summed in `dist2`'s order. Visits
-        // the far side unless it is certainly too far: also when the bound is NaN, and on a tie
-        // (which the lower id may win).
-        let old = off[axis];
-        off[axis] = diff;
-        let lower = dist2(off, &[0.0; 3]);
-        if lower.partial_cmp(&found.bound()) != Some(Ordering::Greater) {
-            self.walk(far.0, far.1, q, found, off);
+        self.walk(near.0, near.1, q, found);
+        // Visits the far side unless it is certainly too far: also when the bound is NaN, and
+        // on a tie (which the lower id may win).
+        if (diff * diff).partial_cmp(&found.bound()) != Some(Ordering::Greater) {
+            self.walk(far.0, far.1, q, found);
         }
-        off[axis] = old;
     }
 }
 
@@ -412,12 +383,6 @@ mod tests {
                 let b = brute(&pts, *q, 1)[0];
                 assert_eq!(tree.nearest(*q, f64::INFINITY), Some(b));
                 assert_eq!(tree.nearest(*q, b.d2), None, "the bound is strict");
-                // Any hint (far, near, the answer itself, none): the same answer and bound.
-                for hint in [0, b.id, (n / 2) as u32, u32::MAX] {
-                    assert_eq!(tree.nearest_from(*q, f64::INFINITY, hint), Some(b));
-                    assert_eq!(tree.nearest_from(*q, b.d2, hint), None);
-                    assert_eq!(tree.nearest_from(*q, 2.0, hint), tree.nearest(*q, 2.0));
-                }
             }
         }
     }

@@ -161,16 +161,13 @@ fn linearize(
     let mut n = 0;
     let mut cost = 0.0;
     let mut hits = Hits::default();
-    // The source's points are in its tree's order: each one's match is near the previous one's.
-    let mut hint = u32::MAX;
     for (i, p) in source.points.iter().enumerate() {
         let y = r * Vector3::from(*p) + x.t;
         let structure = hits.point(source, i);
-        let Some(nb) = tree.nearest_from([y[0], y[1], y[2]], max_d2, hint) else {
+        let Some(nb) = tree.nearest([y[0], y[1], y[2]], max_d2) else {
             cost += robust.ceiling();
             continue;
         };
-        hint = nb.id;
         // The nearest within max_d2 is the nearest within any smaller distance too.
         if nb.d2 < inlier_d2 {
             hits.hit(nb.d2, structure);
@@ -373,13 +370,11 @@ fn overlap(to: &Level, from: &Level, x: &Rigid, d: f64) -> Overlap {
     let tree = to.tree();
     let r = *x.rot.to_rotation_matrix().matrix();
     let mut hits = Hits::default();
-    let mut hint = u32::MAX;
     for (i, p) in from.points.iter().enumerate() {
         let structure = hits.point(from, i);
         let y = r * Vector3::from(*p) + x.t;
-        if let Some(nb) = tree.nearest_from([y[0], y[1], y[2]], d * d, hint) {
+        if let Some(nb) = tree.nearest([y[0], y[1], y[2]], d * d) {
             hits.hit(nb.d2, structure);
-            hint = nb.id;
         }
     }
     hits.overlap(from.len())
@@ -749,11 +744,23 @@ pub fn register_hypotheses_for(
     let mut best = 0;
     // The pose of the best hypothesis the schedule did not choose (its start or coarse result).
     let mut best_other = base;
+    let eps = if has_coarse { COARSE_EPS_FACTOR } else { 1.0 };
+    // Several hypotheses each get half the level's iterations, and the best one's level then
+    // goes on for the rest (below): one that has not converged by then and is not the best is
+    // clearly behind. Only with the default schedule (the others may keep a hypothesis's start).
+    let several = yaws_deg.len() > 1 && cfg.schedule == Schedule::CoarseFine;
+    let share = RegConfig {
+        max_iterations: if several {
+            cfg.max_iterations.div_ceil(2)
+        } else {
+            cfg.max_iterations
+        },
+        ..*cfg
+    };
     for (k, &yaw) in yaws_deg.iter().enumerate() {
         let s = start(yaw);
         let mut x = s;
-        let eps = if has_coarse { COARSE_EPS_FACTOR } else { 1.0 };
-        let o = align_level(qc, cc, &mut x, max_corr, cfg, eps, 0.0);
+        let o = align_level(qc, cc, &mut x, max_corr, &share, eps, 0.0);
         let mut cost = if o.last.is_some() {
             normalised(&x)
         } else {
@@ -776,6 +783,30 @@ pub fn register_hypotheses_for(
         if k == 0 || out[k].cost < out[best].cost {
             best = k;
             best_other = other;
+        }
+    }
+    // The best hypothesis's level goes on for the iterations it was not given, unless it
+    // converged.
+    let h = out[best];
+    let rest = cfg.max_iterations.saturating_sub(h.iterations);
+    if several && !h.converged && rest > 0 {
+        if let Ok(mut x) = Rigid::from_pose(&h.pose) {
+            let more = RegConfig {
+                max_iterations: rest,
+                ..*cfg
+            };
+            let o = align_level(qc, cc, &mut x, max_corr, &more, eps, 0.0);
+            out[best] = Hypothesis {
+                pose: x.to_pose(),
+                cost: if o.last.is_some() {
+                    normalised(&x)
+                } else {
+                    1.0
+                },
+                converged: o.converged,
+                iterations: h.iterations + o.iterations,
+                ..h
+            };
         }
     }
     // The fine level goes on from the best hypothesis's pose (and from its other pose too when
