@@ -920,6 +920,19 @@ mod tests {
     use crate::reg::{yaw_pose, IDENTITY};
     use crate::Points;
 
+    /// The clouds `moved · xyz` (the query) and `xyz` (the candidate), prepared.
+    fn prepared_pair(xyz: &[f64], moved: &Pose, cfg: &RegConfig) -> (PreparedCloud, PreparedCloud) {
+        let query: Vec<f64> = xyz
+            .chunks(3)
+            .flat_map(|p| {
+                (0..3).map(move |r| (0..3).map(|k| moved[r][k] * p[k]).sum::<f64>() + moved[r][3])
+            })
+            .collect();
+        let q = PreparedCloud::new(Points::new(&query, 3).unwrap(), cfg).unwrap();
+        let c = PreparedCloud::new(Points::new(xyz, 3).unwrap(), cfg).unwrap();
+        (q, c)
+    }
+
     #[test]
     fn hypotheses_share_the_coarse_iterations_and_the_best_goes_on() {
         // An L-shaped building's walls and the ground, seen again 1.5 m and 30° away: from the
@@ -938,15 +951,8 @@ mod tests {
         }
         let mut moved = yaw_pose(30.0);
         (moved[0][3], moved[1][3]) = (1.5, -0.5);
-        let query: Vec<f64> = xyz
-            .chunks(3)
-            .flat_map(|p| {
-                (0..3).map(move |r| (0..3).map(|k| moved[r][k] * p[k]).sum::<f64>() + moved[r][3])
-            })
-            .collect();
         let cfg = RegConfig::default();
-        let q = PreparedCloud::new(Points::new(&query, 3).unwrap(), &cfg).unwrap();
-        let c = PreparedCloud::new(Points::new(&xyz, 3).unwrap(), &cfg).unwrap();
+        let (q, c) = prepared_pair(&xyz, &moved, &cfg);
         let mut out = [Hypothesis::default(); 3];
         let h =
             register_hypotheses(&q, &c, &[0.0, 30.0, 150.0], &IDENTITY, &cfg, &mut out).unwrap();
@@ -991,15 +997,8 @@ mod tests {
         }
         let mut moved = yaw_pose(3.0);
         moved[0][3] = 0.4;
-        let query: Vec<f64> = xyz
-            .chunks(3)
-            .flat_map(|p| {
-                (0..3).map(move |r| (0..3).map(|k| moved[r][k] * p[k]).sum::<f64>() + moved[r][3])
-            })
-            .collect();
         let cfg = RegConfig::default();
-        let q = PreparedCloud::new(Points::new(&query, 3).unwrap(), &cfg).unwrap();
-        let c = PreparedCloud::new(Points::new(&xyz, 3).unwrap(), &cfg).unwrap();
+        let (q, c) = prepared_pair(&xyz, &moved, &cfg);
         let mut measured = 0;
         for start in [IDENTITY, yaw_pose(10.0), moved] {
             let mut x = Rigid::from_pose(&start).unwrap();
