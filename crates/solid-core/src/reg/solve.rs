@@ -745,13 +745,14 @@ pub fn register_hypotheses_for(
     // The pose of the best hypothesis the schedule did not choose (its start or coarse result).
     let mut best_other = base;
     let eps = if has_coarse { COARSE_EPS_FACTOR } else { 1.0 };
-    // Several hypotheses each get half the level's iterations, and the best one's level then
-    // goes on for the rest (below): one that has not converged by then and is not the best is
-    // clearly behind. Only with the default schedule (the others may keep a hypothesis's start).
+    // Several hypotheses each get two thirds of the level's iterations, and the best one's
+    // level then goes on for the rest (below): one that has not converged by then and is not
+    // the best is clearly behind. (Half of them lost a basin pair on hku1.) Only with the
+    // default schedule (the others may keep a hypothesis's start).
     let several = yaws_deg.len() > 1 && cfg.schedule == Schedule::CoarseFine;
     let share = RegConfig {
         max_iterations: if several {
-            cfg.max_iterations.div_ceil(2)
+            (2 * cfg.max_iterations).div_ceil(3)
         } else {
             cfg.max_iterations
         },
@@ -956,7 +957,7 @@ mod tests {
         let mut out = [Hypothesis::default(); 3];
         let h =
             register_hypotheses(&q, &c, &[0.0, 30.0, 150.0], &IDENTITY, &cfg, &mut out).unwrap();
-        let share = cfg.max_iterations.div_ceil(2);
+        let share = (2 * cfg.max_iterations).div_ceil(3);
         for (k, o) in out.iter().enumerate() {
             let cap = if k == h.best {
                 cfg.max_iterations
