@@ -4,8 +4,6 @@
 use alloc::vec;
 use alloc::vec::Vec;
 
-use nalgebra::{Matrix3, SymmetricEigen, Vector3};
-
 use super::kdtree::{KdTree3, Nearest};
 use super::{RegConfig, RegError};
 use crate::describe::stages::voxel_downsample;
@@ -96,7 +94,12 @@ impl Level {
         let mut nb = vec![Nearest::default(); neighbors];
         let tree = self.tree();
         for (i, p) in self.points.iter().enumerate() {
-            let k = tree.knn(*p, neighbors, &mut nb).unwrap_or(0);
+            // The points are in the tree's order (`ordered`): the ones beside point i there
+            // share its leaf, and bound the walk from its start.
+            let first = i.saturating_sub(neighbors / 2);
+            let k = tree
+                .knn_near(*p, neighbors, &mut nb, first..first + neighbors)
+                .unwrap_or(0);
             let (cov, normal) = local_plane(&self.points, &nb[..k]);
             covs[i] = cov;
             normals[i] = normal;
@@ -106,45 +109,166 @@ impl Level {
     }
 }
 
-/// The regularised covariance and normal of a neighbourhood.
+/// The regularised covariance and normal of a neighbourhood: `I − (1 − ε) n nᵀ` with `n` the
+/// unit eigenvector of the neighbourhood's smallest covariance eigenvalue and `ε` =
+/// [`PLANE_EPSILON`] (the eigenvalues become `ε, 1, 1`).
 fn local_plane(points: &[[f64; 3]], nb: &[Nearest]) -> ([f64; 6], [f64; 3]) {
+    const NONE: ([f64; 6], [f64; 3]) = ([1.0, 0.0, 0.0, 1.0, 0.0, 1.0], [0.0; 3]);
     if nb.len() < MIN_NEIGHBORS {
-        return ([1.0, 0.0, 0.0, 1.0, 0.0, 1.0], [0.0; 3]);
+        return NONE;
     }
     let k = nb.len() as f64;
-    let mut mean = Vector3::zeros();
+    let mut mean = [0.0; 3];
     for n in nb {
-        mean += Vector3::from(points[n.id as usize]);
+        let p = &points[n.id as usize];
+        for d in 0..3 {
+            mean[d] += p[d];
+        }
     }
-    mean /= k;
-    let mut c = Matrix3::zeros();
+    let mean = mean.map(|m| m / k);
+    let mut c = [0.0; 6];
     for n in nb {
-        let d = Vector3::from(points[n.id as usize]) - mean;
-        c += d * d.transpose();
+        let p = &points[n.id as usize];
+        let d = [p[0] - mean[0], p[1] - mean[1], p[2] - mean[2]];
+        c[0] += d[0] * d[0];
+        c[1] += d[0] * d[1];
+        c[2] += d[0] * d[2];
+        c[3] += d[1] * d[1];
+        c[4] += d[1] * d[2];
+        c[5] += d[2] * d[2];
     }
-    c /= k;
-    let eig = SymmetricEigen::new(c);
-    // Sort the eigenpairs: the smallest eigenvalue's vector is the normal.
-    let mut order = [0usize, 1, 2];
-    order.sort_by(|&a, &b| eig.eigenvalues[a].total_cmp(&eig.eigenvalues[b]));
-    let u = eig.eigenvectors;
-    let n0 = u.column(order[0]).into_owned();
-    let (n1, n2) = (u.column(order[1]), u.column(order[2]));
-    let reg = n0 * n0.transpose() * PLANE_EPSILON + n1 * n1.transpose() + n2 * n2.transpose();
-    if !reg.iter().all(|v| v.is_finite()) {
-        return ([1.0, 0.0, 0.0, 1.0, 0.0, 1.0], [0.0; 3]);
+    let Some(n0) = smallest_eigenvector(&c.map(|v| v / k)) else {
+        return NONE;
+    };
+    let s = 1.0 - PLANE_EPSILON;
+    let reg = [
+        1.0 - s * n0[0] * n0[0],
+        -s * n0[0] * n0[1],
+        -s * n0[0] * n0[2],
+        1.0 - s * n0[1] * n0[1],
+        -s * n0[1] * n0[2],
+        1.0 - s * n0[2] * n0[2],
+    ];
+    (reg, n0)
+}
+
+/// `a × b`.
+#[inline(always)]
+fn cross(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+#[inline(always)]
+fn dot(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// The rows of the symmetric `c − λI` (`c`: `xx, xy, xz, yy, yz, zz`).
+#[inline(always)]
+fn shifted_rows(c: &[f64; 6], lambda: f64) -> [[f64; 3]; 3] {
+    [
+        [c[0] - lambda, c[1], c[2]],
+        [c[1], c[3] - lambda, c[4]],
+        [c[2], c[4], c[5] - lambda],
+    ]
+}
+
+/// The unit null vector of a rank-2 symmetric `m` (rows): the longest cross product of two of its
+/// rows; None when every cross product vanishes.
+fn null_vector(m: &[[f64; 3]; 3]) -> Option<[f64; 3]> {
+    let candidates = [
+        cross(&m[0], &m[1]),
+        cross(&m[0], &m[2]),
+        cross(&m[1], &m[2]),
+    ];
+    let (mut best, mut len2) = (candidates[0], dot(&candidates[0], &candidates[0]));
+    for c in &candidates[1..] {
+        let l = dot(c, c);
+        if l > len2 {
+            (best, len2) = (*c, l);
+        }
     }
-    (
-        [
-            reg[(0, 0)],
-            reg[(0, 1)],
-            reg[(0, 2)],
-            reg[(1, 1)],
-            reg[(1, 2)],
-            reg[(2, 2)],
-        ],
-        [n0[0], n0[1], n0[2]],
-    )
+    (len2 > 0.0 && len2.is_finite()).then(|| best.map(|v| v / libm::sqrt(len2)))
+}
+
+/// The unit eigenvector of the smallest eigenvalue of the symmetric 3×3 `c` (`xx, xy, xz, yy,
+/// yz, zz`), in closed form: the eigenvalues from the trigonometric solution of the
+/// characteristic cubic, the vector from cross products of the rows of `c − λI` (an iterative
+/// decomposition cost most of a 360° cloud's covariances). When the two smaller eigenvalues
+/// nearly coincide their vectors are ill-defined one by one: the largest eigenvalue's vector,
+/// well separated then, is found first and the smallest's is the null vector of `c − λ_min I`
+/// within its orthogonal complement. A multiple of the identity (every direction an
+/// eigenvector) gives `x`. None for a non-finite `c`.
+pub(crate) fn smallest_eigenvector(c: &[f64; 6]) -> Option<[f64; 3]> {
+    let scale = c.iter().fold(0.0f64, |m, v| m.max(libm::fabs(*v)));
+    if !scale.is_finite() {
+        return None;
+    }
+    if scale == 0.0 {
+        return Some([1.0, 0.0, 0.0]);
+    }
+    // Scaled to entries of at most 1, shifted to a trace of 0.
+    let a = c.map(|v| v / scale);
+    let q = (a[0] + a[3] + a[5]) / 3.0;
+    let b = [a[0] - q, a[1], a[2], a[3] - q, a[4], a[5] - q];
+    let p2 =
+        b[0] * b[0] + b[3] * b[3] + b[5] * b[5] + 2.0 * (b[1] * b[1] + b[2] * b[2] + b[4] * b[4]);
+    // Equal eigenvalues to rounding: any direction.
+    if p2 <= 1e-30 {
+        return Some([1.0, 0.0, 0.0]);
+    }
+    let p = libm::sqrt(p2 / 6.0);
+    let bn = b.map(|v| v / p);
+    let det = bn[0] * (bn[3] * bn[5] - bn[4] * bn[4]) - bn[1] * (bn[1] * bn[5] - bn[4] * bn[2])
+        + bn[2] * (bn[1] * bn[4] - bn[3] * bn[2]);
+    let half = (det / 2.0).clamp(-1.0, 1.0);
+    let phi = libm::acos(half) / 3.0;
+    // The roots of the normalised cubic: 2cos(φ) ≥ 2cos(φ + 4π/3) ≥ 2cos(φ + 2π/3).
+    let beta_max = 2.0 * libm::cos(phi);
+    let beta_min = 2.0 * libm::cos(phi + 2.0 * core::f64::consts::FRAC_PI_3);
+    let lambda_min = q + p * beta_min;
+    if half < 0.0 {
+        // The smallest eigenvalue is the one farthest from the others: directly.
+        if let Some(v) = null_vector(&shifted_rows(&a, lambda_min)) {
+            return Some(v);
+        }
+    }
+    let vmax = null_vector(&shifted_rows(&a, q + p * beta_max))?;
+    // An orthonormal basis (u, w) of the complement of vmax.
+    let u = if libm::fabs(vmax[0]) > libm::fabs(vmax[1]) {
+        let l = libm::sqrt(vmax[0] * vmax[0] + vmax[2] * vmax[2]);
+        [-vmax[2] / l, 0.0, vmax[0] / l]
+    } else {
+        let l = libm::sqrt(vmax[1] * vmax[1] + vmax[2] * vmax[2]);
+        [0.0, vmax[2] / l, -vmax[1] / l]
+    };
+    let w = cross(&vmax, &u);
+    // c − λ_min I within (u, w): a symmetric 2×2 [[m00, m01], [m01, m11]] of rank ≤ 1.
+    let m = shifted_rows(&a, lambda_min);
+    let mv = |v: &[f64; 3]| [dot(&m[0], v), dot(&m[1], v), dot(&m[2], v)];
+    let (mu, mw) = (mv(&u), mv(&w));
+    let (m00, m01, m11) = (dot(&u, &mu), dot(&u, &mw), dot(&w, &mw));
+    // The null vector (s, t) of the row of larger norm: (m01, −m00) or (m11, −m01).
+    let (s, t) = if m00 * m00 + m01 * m01 >= m11 * m11 + m01 * m01 {
+        (m01, -m00)
+    } else {
+        (m11, -m01)
+    };
+    let l = libm::sqrt(s * s + t * t);
+    if l == 0.0 {
+        // The two smaller eigenvalues coincide: any direction of the complement.
+        return Some(u);
+    }
+    let (s, t) = (s / l, t / l);
+    Some([
+        s * u[0] + t * w[0],
+        s * u[1] + t * w[1],
+        s * u[2] + t * w[2],
+    ])
 }
 
 /// A cloud prepared for registration: its voxel levels (fine first), each with a kd-tree and
@@ -368,6 +492,198 @@ impl PreparedCloud {
 mod tests {
     use super::*;
     use crate::reg::{register, IDENTITY};
+
+    use nalgebra::{Matrix3, SymmetricEigen, Vector3};
+
+    /// nalgebra's smallest eigenpair of `c` and its other eigenvalues, ascending.
+    fn reference(c: &[f64; 6]) -> ([f64; 3], Vector3<f64>) {
+        let m = Matrix3::new(c[0], c[1], c[2], c[1], c[3], c[4], c[2], c[4], c[5]);
+        let e = SymmetricEigen::new(m);
+        let mut order = [0usize, 1, 2];
+        order.sort_by(|&a, &b| e.eigenvalues[a].total_cmp(&e.eigenvalues[b]));
+        (
+            order.map(|i| e.eigenvalues[i]),
+            e.eigenvectors.column(order[0]).into_owned(),
+        )
+    }
+
+    /// Checks `smallest_eigenvector(c)` against nalgebra's decomposition: a unit vector, an
+    /// eigenvector of the smallest eigenvalue (residual and Rayleigh quotient within rounding of
+    /// the matrix's scale), and nalgebra's own vector (up to sign) whenever the smallest
+    /// eigenvalue is apart from the next.
+    fn check(c: &[f64; 6], what: &str) {
+        let v = smallest_eigenvector(c).unwrap();
+        let (lambda, n) = reference(c);
+        let scale = c
+            .iter()
+            .fold(0.0f64, |m, x| m.max(x.abs()))
+            .max(f64::MIN_POSITIVE);
+        let m = Matrix3::new(c[0], c[1], c[2], c[1], c[3], c[4], c[2], c[4], c[5]);
+        let v = Vector3::from(v);
+        assert!((v.norm() - 1.0).abs() < 1e-12, "{what}: |v| = {}", v.norm());
+        let residual = (m * v - v * lambda[0]).norm() / scale;
+        assert!(residual < 1e-7, "{what}: residual {residual:e}");
+        let rayleigh = (v.dot(&(m * v)) - lambda[0]).abs() / scale;
+        assert!(
+            rayleigh < 1e-12,
+            "{what}: Rayleigh quotient off by {rayleigh:e}"
+        );
+        if (lambda[1] - lambda[0]) / scale > 1e-4 {
+            let along = v.dot(&n).abs();
+            assert!(along > 1.0 - 1e-9, "{what}: |v·n| = {along}");
+        }
+    }
+
+    /// The covariance (`xx, xy, xz, yy, yz, zz`) of `points`.
+    fn covariance(points: &[[f64; 3]]) -> [f64; 6] {
+        let k = points.len() as f64;
+        let mean: [f64; 3] = core::array::from_fn(|d| points.iter().map(|p| p[d]).sum::<f64>() / k);
+        let mut c = [0.0; 6];
+        for p in points {
+            let d = [p[0] - mean[0], p[1] - mean[1], p[2] - mean[2]];
+            let prods = [
+                d[0] * d[0],
+                d[0] * d[1],
+                d[0] * d[2],
+                d[1] * d[1],
+                d[1] * d[2],
+                d[2] * d[2],
+            ];
+            for (ci, x) in c.iter_mut().zip(prods) {
+                *ci += x / k;
+            }
+        }
+        c
+    }
+
+    #[test]
+    fn the_closed_form_normal_is_nalgebras_smallest_eigenvector() {
+        let mut s = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = move || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        // Random symmetric matrices (indefinite too), and covariances of random neighbourhoods:
+        // blobs, thin planes, lines, tilted, at scales from micrometres to kilometres.
+        for t in 0..3000 {
+            let c: [f64; 6] = core::array::from_fn(|_| next());
+            check(&c, &format!("random {t}"));
+            let (sx, sy, sz) = (next() + 0.5, (next() + 0.5) * 0.5, 10f64.powi(-(t % 7)));
+            let scale = 10f64.powi(t % 9 - 4);
+            let (yaw, tilt) = (next() * 6.0, next() * 3.0);
+            let (cy, sn, ct, st) = (yaw.cos(), yaw.sin(), tilt.cos(), tilt.sin());
+            let pts: Vec<[f64; 3]> = (0..10)
+                .map(|_| {
+                    let (a, b, z) = (next() * sx, next() * sy, next() * sz);
+                    // Turned about z, then about x.
+                    let (x, y) = (cy * a - sn * b, sn * a + cy * b);
+                    [
+                        scale * (x + 3.0),
+                        scale * (ct * y - st * z),
+                        scale * (st * y + ct * z),
+                    ]
+                })
+                .collect();
+            check(&covariance(&pts), &format!("neighbourhood {t}"));
+        }
+    }
+
+    #[test]
+    fn the_closed_form_normal_of_degenerate_neighbourhoods() {
+        // Every direction an eigenvector (zero, identity): x, as nalgebra gives for zero.
+        assert_eq!(smallest_eigenvector(&[0.0; 6]), Some([1.0, 0.0, 0.0]));
+        assert_eq!(
+            smallest_eigenvector(&[2.0, 0.0, 0.0, 2.0, 0.0, 2.0]),
+            Some([1.0, 0.0, 0.0])
+        );
+        assert_eq!(
+            smallest_eigenvector(&[f64::NAN, 0.0, 0.0, 1.0, 0.0, 1.0]),
+            None
+        );
+        assert_eq!(
+            smallest_eigenvector(&[f64::INFINITY, 0.0, 0.0, 1.0, 0.0, 1.0]),
+            None
+        );
+        // Diagonal, with repeated eigenvalues in each order.
+        for d in [
+            [1.0, 2.0, 3.0],
+            [3.0, 2.0, 1.0],
+            [2.0, 1.0, 3.0],
+            [1.0, 1.0, 3.0],
+            [3.0, 1.0, 1.0],
+            [1.0, 3.0, 3.0],
+            [0.0, 0.0, 1.0],
+            [1e-12, 1.0, 1.0],
+        ] {
+            check(
+                &[d[0], 0.0, 0.0, d[1], 0.0, d[2]],
+                &format!("diagonal {d:?}"),
+            );
+        }
+        // A line of points (two zero eigenvalues), a plane (one), a plane with a point off it,
+        // collinear points along each axis and a diagonal, and a horizontal plane.
+        let line: Vec<[f64; 3]> = (0..10)
+            .map(|i| [f64::from(i), 2.0 * f64::from(i), -0.5 * f64::from(i)])
+            .collect();
+        check(&covariance(&line), "line");
+        for axis in 0..3 {
+            let pts: Vec<[f64; 3]> = (0..7)
+                .map(|i| core::array::from_fn(|d| if d == axis { f64::from(i) } else { 1.0 }))
+                .collect();
+            check(&covariance(&pts), &format!("line along {axis}"));
+        }
+        let plane: Vec<[f64; 3]> = (0..10)
+            .map(|i| {
+                let (u, w) = (f64::from(i % 3), f64::from(i / 3));
+                [u, w, 0.2 * u - 0.7 * w + 1.0]
+            })
+            .collect();
+        check(&covariance(&plane), "plane");
+        let v = Vector3::from(smallest_eigenvector(&covariance(&plane)).unwrap());
+        assert!(
+            v.cross(&Vector3::new(0.2, -0.7, -1.0)).norm() < 1e-9,
+            "the plane's normal"
+        );
+        let mut off = plane.clone();
+        off[4][2] += 1e-6;
+        check(&covariance(&off), "plane with a point off it");
+        let ground: Vec<[f64; 3]> = (0..9)
+            .map(|i| [f64::from(i % 3), f64::from(i / 3), 0.0])
+            .collect();
+        let n = smallest_eigenvector(&covariance(&ground)).unwrap();
+        assert!(
+            (n[2].abs() - 1.0).abs() < 1e-12,
+            "the ground's normal is z: {n:?}"
+        );
+    }
+
+    #[test]
+    fn local_planes_match_nalgebras_decomposition() {
+        // The regularised covariance against the construction from nalgebra's eigenvectors.
+        let mut pts = Vec::new();
+        for i in 0..12 {
+            let f = f64::from(i);
+            pts.push([f * 0.3, (f * 1.7).sin(), 0.05 * (f * 0.9).cos() + 0.01 * f]);
+        }
+        let nb: Vec<Nearest> = (0..pts.len() as u32)
+            .map(|id| Nearest { id, d2: 0.0 })
+            .collect();
+        let (cov, normal) = local_plane(&pts, &nb);
+        let (_, n0) = reference(&covariance(&pts));
+        let expected = Matrix3::identity() - n0 * n0.transpose() * (1.0 - PLANE_EPSILON);
+        let got = Matrix3::new(
+            cov[0], cov[1], cov[2], cov[1], cov[3], cov[4], cov[2], cov[4], cov[5],
+        );
+        assert!((got - expected).abs().max() < 1e-12);
+        assert!(Vector3::from(normal).dot(&n0).abs() > 1.0 - 1e-12);
+        // Too few neighbours: the identity, no normal.
+        assert_eq!(
+            local_plane(&pts, &nb[..4]),
+            ([1.0, 0.0, 0.0, 1.0, 0.0, 1.0], [0.0; 3])
+        );
+    }
 
     #[test]
     fn a_deferred_cloud_registers_only_once_completed() {

@@ -13,6 +13,7 @@
 //! both sides are visited, so NaN points cost time but never hide finite neighbours.
 
 use core::cmp::Ordering;
+use core::ops::Range;
 
 use crate::Error;
 
@@ -122,13 +123,40 @@ impl<'a> KdTree3<'a> {
     /// # Errors
     /// [`Error::BufferTooSmall`] when `out.len() < k`.
     pub fn knn(&self, q: [f64; 3], k: usize, out: &mut [Nearest]) -> Result<usize, Error> {
+        self.knn_near(q, k, out, 0..0)
+    }
+
+    /// [`KdTree3::knn`] that first measures the points at positions `seeds` of the tree's order
+    /// (clamped to it): the same answer, found sooner when they are near `q` — for a query at
+    /// a point of the tree, the points beside it in the tree's order, which share its leaf.
+    /// The walk then skips them (each point is offered once).
+    ///
+    /// # Errors
+    /// As [`KdTree3::knn`].
+    pub fn knn_near(
+        &self,
+        q: [f64; 3],
+        k: usize,
+        out: &mut [Nearest],
+        seeds: Range<usize>,
+    ) -> Result<usize, Error> {
         Error::check_buffer("out", k, out.len())?;
+        let n = self.perm.len();
+        let skip = seeds.start.min(n)..seeds.end.min(n);
         let mut heap = Heap {
             h: &mut out[..k],
             len: 0,
+            skip: skip.clone(),
         };
-        if k > 0 && !self.perm.is_empty() {
-            self.walk(0, self.perm.len(), &q, &mut heap);
+        if k > 0 && n > 0 {
+            for pos in skip {
+                let id = self.perm[pos];
+                heap.offer(Nearest {
+                    id,
+                    d2: dist2(&q, &self.points[id as usize]),
+                });
+            }
+            self.walk(0, n, &q, &mut heap);
         }
         Ok(heap.finish())
     }
@@ -138,8 +166,8 @@ impl<'a> KdTree3<'a> {
     fn walk<F: Found>(&self, lo: usize, hi: usize, q: &[f64; 3], found: &mut F) {
         let n = hi - lo;
         if n <= LEAF_SIZE {
-            for &id in &self.perm[lo..hi] {
-                found.offer(id, dist2(q, &self.points[id as usize]));
+            for (pos, &id) in (lo..hi).zip(&self.perm[lo..hi]) {
+                found.offer(pos, id, dist2(q, &self.points[id as usize]));
             }
             return;
         }
@@ -147,7 +175,7 @@ impl<'a> KdTree3<'a> {
         let id = self.perm[mid];
         let axis = self.axes[mid] as usize;
         let p = &self.points[id as usize];
-        found.offer(id, dist2(q, p));
+        found.offer(mid, id, dist2(q, p));
         let diff = q[axis] - p[axis];
         let (near, far) = if diff <= 0.0 {
             ((lo, mid), (mid + 1, hi))
@@ -165,15 +193,16 @@ impl<'a> KdTree3<'a> {
 
 /// What a walk of the tree collects: the nearest point ([`Nearest`]) or the k nearest.
 trait Found {
-    /// Takes point `id` at squared distance `d2` if it is among the wanted.
-    fn offer(&mut self, id: u32, d2: f64);
+    /// Takes point `id` (at position `pos` of the tree's order) at squared distance `d2` if it
+    /// is among the wanted.
+    fn offer(&mut self, pos: usize, id: u32, d2: f64);
     /// The squared distance a point must not exceed to matter.
     fn bound(&self) -> f64;
 }
 
 impl Found for Nearest {
     #[inline(always)]
-    fn offer(&mut self, id: u32, d2: f64) {
+    fn offer(&mut self, _pos: usize, id: u32, d2: f64) {
         Nearest::offer(self, id, d2);
     }
     #[inline(always)]
@@ -184,8 +213,11 @@ impl Found for Nearest {
 
 impl Found for Heap<'_> {
     #[inline(always)]
-    fn offer(&mut self, id: u32, d2: f64) {
-        Heap::offer(self, Nearest { id, d2 });
+    fn offer(&mut self, pos: usize, id: u32, d2: f64) {
+        // The seeds were offered before the walk.
+        if !self.skip.contains(&pos) {
+            Heap::offer(self, Nearest { id, d2 });
+        }
     }
     #[inline(always)]
     fn bound(&self) -> f64 {
@@ -204,6 +236,8 @@ fn dist2(a: &[f64; 3], b: &[f64; 3]) -> f64 {
 struct Heap<'s> {
     h: &'s mut [Nearest],
     len: usize,
+    /// Positions of the tree's order already offered (the seeds of [`KdTree3::knn_near`]).
+    skip: Range<usize>,
 }
 
 impl Heap<'_> {
@@ -217,7 +251,7 @@ impl Heap<'_> {
         }
     }
 
-    #[inline]
+    #[inline(always)]
     fn offer(&mut self, c: Nearest) {
         // NaN distances (points with a NaN coordinate) never enter.
         if c.d2.is_nan() {
@@ -338,6 +372,13 @@ mod tests {
                     let mut out = vec![Nearest::default(); k];
                     let m = tree.knn(*q, k, &mut out).unwrap();
                     assert_eq!(&out[..m], &brute(&pts, *q, k)[..], "grid {grid} k {k}");
+                    // Seeded from any run of positions (empty, past the end, the whole tree):
+                    // the same answer.
+                    for seeds in [0..0, 3..9, n / 2..n / 2 + 11, n - 2..n + 5, 0..n] {
+                        let mut seeded = vec![Nearest::default(); k];
+                        let m2 = tree.knn_near(*q, k, &mut seeded, seeds.clone()).unwrap();
+                        assert_eq!(&seeded[..m2], &out[..m], "grid {grid} k {k} {seeds:?}");
+                    }
                 }
                 let b = brute(&pts, *q, 1)[0];
                 assert_eq!(tree.nearest(*q, f64::INFINITY), Some(b));
