@@ -4,6 +4,7 @@ what passes the gate; a loop carries its metric pose T_query_candidate (docs/spe
 from __future__ import annotations
 
 import math
+from typing import Any
 from pathlib import Path
 
 import numpy as np
@@ -121,6 +122,17 @@ def test_detector_config_round_trips_with_registration_and_gate() -> None:
 
 
 
+def _revisits(detector: dict[str, Any]) -> list[solid.Detection]:
+    """The look-alike city's loop with its poses, frames 0-11 and 48-64 (53-64 revisit 0-11), VLP-16,
+    the preset's detector with `detector` over it."""
+    world = sim.World(seed=1, repetition=0.9)
+    traj = sim.Trajectory.loop(world, laps=1.2, spacing=6.0)
+    seq = sim.simulate(world, sim.Sensor("vlp16"), traj)
+    dc = solid.DetectorConfig.preset("vlp16").replace(**detector)
+    det = solid.LoopDetector(solid.SolidConfig.preset("vlp16"), exclude_recent=3, detector=dc)
+    return [det.detect(seq.scans[f], timestamp=float(f), pose=np.asarray(traj.poses[f])) for f in [*range(0, 12), *range(48, 65)]]
+
+
 def test_a_step_over_its_budget_says_which_candidates_wait() -> None:
     """`verify_step_points` (docs/spec.md §8, budget): a step registers its candidates while their
     cost fits (its first always) and defers the rest, naming them in `Detection.deferred`
@@ -128,15 +140,7 @@ def test_a_step_over_its_budget_says_which_candidates_wait() -> None:
     crates/solid-core's defer tests); a step that found its loop keeps none waiting. The look-alike
     city's revisits (frames 53-64 of 0-11, with poses): a budget of one point defers, an unlimited
     one never does, and both find the same loops."""
-    world = sim.World(seed=1, repetition=0.9)
-    traj = sim.Trajectory.loop(world, laps=1.2, spacing=6.0)
-    seq = sim.simulate(world, sim.Sensor("vlp16"), traj)
-    frames = [*range(0, 12), *range(48, 65)]
-    runs = {}
-    for budget in (1, 2**40):
-        dc = solid.DetectorConfig.preset("vlp16").replace(verify_step_points=budget)
-        det = solid.LoopDetector(solid.SolidConfig.preset("vlp16"), exclude_recent=3, detector=dc)
-        runs[budget] = [det.detect(seq.scans[f], timestamp=float(f), pose=np.asarray(traj.poses[f])) for f in frames]
+    runs = {budget: _revisits({"verify_step_points": budget}) for budget in (1, 2**40)}
     for s in runs[1]:
         assert set(s.deferred) <= {c.id for c in s.candidates if not c.verified}, (s.query, s.deferred)
         assert not (s.loop is not None and s.deferred)
@@ -144,3 +148,17 @@ def test_a_step_over_its_budget_says_which_candidates_wait() -> None:
     assert all(not s.deferred for s in runs[2**40])
     loops = {b: [(s.query, s.loop.candidate) for s in r if s.loop is not None] for b, r in runs.items()}
     assert len(loops[1]) >= 10 and {q for q, _ in loops[1]} == {q for q, _ in loops[2**40]}
+
+
+def test_verify_threads_register_the_same_loops_as_one() -> None:
+    """`verify_threads` (default 1, docs/performance.md#threads): a step's registrations on the
+    verify pool (2 threads, 0: one per core) give every candidate the same verification, bit for
+    bit, as on the calling thread: the registrations are independent of each other."""
+    def outcome(d: solid.Detection) -> list[tuple[int, bool, float | None, bytes | None]]:
+        return [(c.id, c.accepted, c.fitness, None if c.pose is None else np.asarray(c.pose).tobytes()) for c in d.candidates]
+
+    assert solid.DetectorConfig().verify_threads == 1
+    one = _revisits({})
+    assert sum(d.loop is not None for d in one) >= 10
+    for k in (2, 0):
+        assert [outcome(d) for d in _revisits({"verify_threads": k})] == [outcome(d) for d in one], k

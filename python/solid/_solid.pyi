@@ -274,7 +274,7 @@ class DetectorConfig:
         verify_fan_deg: float = 25.0,
         cloud_bits: int = 8,
         cache_bytes: int = 268435456,
-        verify_threads: int = 0,
+        verify_threads: int = 1,
         verify_step_points: int = 60000,
         view_fov_deg: float = 360.0,
         view_min_overlap_deg: float = 20.0,
@@ -314,7 +314,7 @@ class DetectorConfig:
             verify_fan_deg: The fixed ± yaw fan added to the hypotheses, degrees (0: none) (degrees in [0, 180]; default 25.0).
             cloud_bits: Bits per axis of the compact clouds stored with the places (an integer in 1..=16; default 8).
             cache_bytes: Memory for prepared clouds kept between steps, bytes (an integer >= 0; default 268435456).
-            verify_threads: Threads registering a step's candidates at once (0: one per core) (an integer in 0..=256; default 0).
+            verify_threads: Threads registering a step's candidates at once (0: one per core; the default 1: a step registers few candidates under its budget, and a second thread shortened its mean wall time by 1.0-1.25x, docs/performance.md#threads) (an integer in 0..=256; default 1).
             verify_step_points: Work budget of one step, in points: each candidate costs its registrations (1 from a known start, else its hypotheses) times the two clouds' points; the best is always registered, the rest deferred to the next steps (an integer >= 1; default 60000).
             view_fov_deg: The sensor's horizontal field of view, degrees (the view check's; 360: views always overlap) (degrees in (0, 360]; default 360.0).
             view_min_overlap_deg: Reject a verified loop whose yaw leaves the two fields of view sharing less azimuth than this, degrees (0: off) (degrees in [0, 360]; default 20.0).
@@ -400,7 +400,7 @@ class DetectorConfig:
             verify_fan_deg: The fixed ± yaw fan added to the hypotheses, degrees (0: none) (degrees in [0, 180]; default 25.0).
             cloud_bits: Bits per axis of the compact clouds stored with the places (an integer in 1..=16; default 8).
             cache_bytes: Memory for prepared clouds kept between steps, bytes (an integer >= 0; default 268435456).
-            verify_threads: Threads registering a step's candidates at once (0: one per core) (an integer in 0..=256; default 0).
+            verify_threads: Threads registering a step's candidates at once (0: one per core; the default 1: a step registers few candidates under its budget, and a second thread shortened its mean wall time by 1.0-1.25x, docs/performance.md#threads) (an integer in 0..=256; default 1).
             verify_step_points: Work budget of one step, in points: each candidate costs its registrations (1 from a known start, else its hypotheses) times the two clouds' points; the best is always registered, the rest deferred to the next steps (an integer >= 1; default 60000).
             view_fov_deg: The sensor's horizontal field of view, degrees (the view check's; 360: views always overlap) (degrees in (0, 360]; default 360.0).
             view_min_overlap_deg: Reject a verified loop whose yaw leaves the two fields of view sharing less azimuth than this, degrees (0: off) (degrees in [0, 360]; default 20.0).
@@ -487,7 +487,7 @@ class DetectorConfig:
             verify_fan_deg: The fixed ± yaw fan added to the hypotheses, degrees (0: none) (degrees in [0, 180]; default 25.0).
             cloud_bits: Bits per axis of the compact clouds stored with the places (an integer in 1..=16; default 8).
             cache_bytes: Memory for prepared clouds kept between steps, bytes (an integer >= 0; default 268435456).
-            verify_threads: Threads registering a step's candidates at once (0: one per core) (an integer in 0..=256; default 0).
+            verify_threads: Threads registering a step's candidates at once (0: one per core; the default 1: a step registers few candidates under its budget, and a second thread shortened its mean wall time by 1.0-1.25x, docs/performance.md#threads) (an integer in 0..=256; default 1).
             verify_step_points: Work budget of one step, in points: each candidate costs its registrations (1 from a known start, else its hypotheses) times the two clouds' points; the best is always registered, the rest deferred to the next steps (an integer >= 1; default 60000).
             view_fov_deg: The sensor's horizontal field of view, degrees (the view check's; 360: views always overlap) (degrees in (0, 360]; default 360.0).
             view_min_overlap_deg: Reject a verified loop whose yaw leaves the two fields of view sharing less azimuth than this, degrees (0: off) (degrees in [0, 360]; default 20.0).
@@ -569,7 +569,7 @@ class DetectorConfig:
         """Memory for prepared clouds kept between steps, bytes (an integer >= 0; default 268435456)."""
     @property
     def verify_threads(self) -> int:
-        """Threads registering a step's candidates at once (0: one per core) (an integer in 0..=256; default 0)."""
+        """Threads registering a step's candidates at once (0: one per core; the default 1: a step registers few candidates under its budget, and a second thread shortened its mean wall time by 1.0-1.25x, docs/performance.md#threads) (an integer in 0..=256; default 1)."""
     @property
     def verify_step_points(self) -> int:
         """Work budget of one step, in points: each candidate costs its registrations (1 from a known start, else its hypotheses) times the two clouds' points; the best is always registered, the rest deferred to the next steps (an integer >= 1; default 60000)."""

@@ -79,9 +79,13 @@ pub struct VerifyConfig {
     /// Memory for prepared clouds kept between steps (bytes); older ones are prepared again
     /// from the stored compact cloud when needed.
     pub cache_bytes: usize,
-    /// Threads that register a step's candidates at once (0: one per core; 1: the calling
-    /// thread; at most [`MAX_VERIFY_THREADS`]). Needs the `parallel` feature (a default); without it, candidates are registered one
-    /// by one.
+    /// Threads that register a step's candidates at once (0: one per core; 1, the default: the
+    /// calling thread; at most [`MAX_VERIFY_THREADS`]). Needs the `parallel` feature (a default);
+    /// without it, candidates are registered one by one. One by default: under its budget
+    /// ([`VerifyConfig::step_points`]) a step registers one or two candidates, in two rounds
+    /// (the neighbours after the candidates they start from), and on an idle 2-core machine a
+    /// second thread shortened the mean step by 1.17-1.25× on a Livox walk and not at all on a
+    /// 360° drive (docs/performance.md#threads): a core the robot's other processes keep.
     pub threads: usize,
     /// The work one step may spend registering, in points: each candidate costs the query's
     /// plus its own fine points times the registrations it runs (one from a known start, the
@@ -221,7 +225,7 @@ impl Default for VerifyConfig {
             fan_deg: 25.0,
             cloud_bits: 8,
             cache_bytes: 256 << 20,
-            threads: 0,
+            threads: 1,
             step_points: DEFAULT_STEP_POINTS,
             registration: RegConfig::default(),
             gate: Gate {
@@ -430,7 +434,7 @@ impl Params for DetectorConfig {
         field!(DetectorConfig, "cache_bytes", verify.cache_bytes, COUNT, "an integer >= 0",
             "Memory for prepared clouds kept between steps, bytes."),
         field!(DetectorConfig, "verify_threads", verify.threads, Kind::Int { min: 0, max: MAX_VERIFY_THREADS as u64 },
-            "an integer in 0..=256", "Threads registering a step's candidates at once (0: one per core)."),
+            "an integer in 0..=256", "Threads registering a step's candidates at once (0: one per core; the default 1: a step registers few candidates under its budget, and a second thread shortened its mean wall time by 1.0-1.25x, docs/performance.md#threads)."),
         field!(DetectorConfig, "verify_step_points", verify.step_points, Kind::at_least(1), "an integer >= 1",
             "Work budget of one step, in points: each candidate costs its registrations (1 from a known start, else its hypotheses) times the two clouds' points; the best is always registered, the rest deferred to the next steps."),
         field!(DetectorConfig, "view_fov_deg", verify.view_fov_deg, Kind::open_closed(0.0, 360.0),
