@@ -37,7 +37,7 @@ pub struct Level {
 impl Level {
     /// The kd-tree over this level's points.
     pub fn tree(&self) -> KdTree3<'_> {
-        KdTree3::from_parts(&self.points, &self.perm, &self.axes)
+        KdTree3::from_parts(&self.points, &self.perm, &self.axes, true)
     }
 
     /// Number of points.

@@ -51,6 +51,9 @@ pub struct KdTree3<'a> {
     points: &'a [[f64; 3]],
     perm: &'a [u32],
     axes: &'a [u8],
+    /// `perm` is the identity (the points were stored in the tree's order): a walk reads the
+    /// points at its positions directly, without the permutation.
+    ordered: bool,
 }
 
 impl<'a> KdTree3<'a> {
@@ -80,13 +83,30 @@ impl<'a> KdTree3<'a> {
             *p = i as u32;
         }
         build_rec(points, perm, axes);
-        Ok(KdTree3 { points, perm, axes })
+        Ok(KdTree3 {
+            points,
+            perm,
+            axes,
+            ordered: false,
+        })
     }
 
     /// Views buffers that [`KdTree3::build`] arranged over `points` (the crate keeps them
-    /// together, so they always match).
-    pub(crate) fn from_parts(points: &'a [[f64; 3]], perm: &'a [u32], axes: &'a [u8]) -> Self {
-        KdTree3 { points, perm, axes }
+    /// together, so they always match); `ordered` when `perm` is the identity (the points were
+    /// then stored in the tree's order).
+    pub(crate) fn from_parts(
+        points: &'a [[f64; 3]],
+        perm: &'a [u32],
+        axes: &'a [u8],
+        ordered: bool,
+    ) -> Self {
+        debug_assert!(!ordered || perm.iter().enumerate().all(|(i, &p)| p as usize == i));
+        KdTree3 {
+            points,
+            perm,
+            axes,
+            ordered,
+        }
     }
 
     /// Number of points in the tree.
@@ -112,7 +132,7 @@ impl<'a> KdTree3<'a> {
             d2: max_d2,
         };
         if !self.perm.is_empty() {
-            self.walk(0, self.perm.len(), &q, &mut best);
+            self.walk_from(&q, &mut best);
         }
         (best.id != u32::MAX).then_some(best)
     }
@@ -156,37 +176,79 @@ impl<'a> KdTree3<'a> {
                     d2: dist2(&q, &self.points[id as usize]),
                 });
             }
-            self.walk(0, n, &q, &mut heap);
+            self.walk_from(&q, &mut heap);
         }
         Ok(heap.finish())
     }
 
-    /// Offers to `found` every point of the node `perm[lo..hi]` that may be nearer than its
-    /// bound, nearer side first.
-    fn walk<F: Found>(&self, lo: usize, hi: usize, q: &[f64; 3], found: &mut F) {
+    /// [`KdTree3::walk`] of the whole tree, without the permutation when it is the identity.
+    #[inline(always)]
+    fn walk_from<F: Found>(&self, q: &[f64; 3], found: &mut F) {
+        if self.ordered {
+            self.walk::<F, true>(q, found);
+        } else {
+            self.walk::<F, false>(q, found);
+        }
+    }
+
+    /// The id of the point at position `pos` of the tree's order.
+    #[inline(always)]
+    fn id<const ORDERED: bool>(&self, pos: usize) -> u32 {
+        if ORDERED {
+            pos as u32
+        } else {
+            self.perm[pos]
+        }
+    }
+
+    /// Offers to `found` every point of the tree that may be nearer than its bound.
+    #[inline(always)]
+    fn walk<F: Found, const ORDERED: bool>(&self, q: &[f64; 3], found: &mut F) {
+        self.walk_node::<F, ORDERED>(0, self.perm.len(), q, found);
+    }
+
+    /// Offers to `found` every point of the node `lo..hi` of the tree's order that may be nearer
+    /// than its bound, nearer side first. (An explicit stack of far sides instead of the
+    /// recursion ran fewer instructions and took longer, as measured before:
+    /// docs/performance.md#registration.)
+    fn walk_node<F: Found, const ORDERED: bool>(
+        &self,
+        lo: usize,
+        hi: usize,
+        q: &[f64; 3],
+        found: &mut F,
+    ) {
         let n = hi - lo;
         if n <= LEAF_SIZE {
-            for (pos, &id) in (lo..hi).zip(&self.perm[lo..hi]) {
-                found.offer(pos, id, dist2(q, &self.points[id as usize]));
+            if ORDERED {
+                found.offer_run(lo, &self.points[lo..hi], q);
+            } else {
+                for (pos, &id) in (lo..hi).zip(&self.perm[lo..hi]) {
+                    found.offer(pos, id, dist2(q, &self.points[id as usize]));
+                }
             }
             return;
         }
         let mid = lo + n / 2;
-        let id = self.perm[mid];
-        let axis = self.axes[mid] as usize;
+        let id = self.id::<ORDERED>(mid);
+        // The axis is 0, 1 or 2 (`build_rec`); `min` lets the indexing below go unchecked.
+        let axis = usize::from(self.axes[mid]).min(2);
         let p = &self.points[id as usize];
-        found.offer(mid, id, dist2(q, p));
         let diff = q[axis] - p[axis];
         let (near, far) = if diff <= 0.0 {
             ((lo, mid), (mid + 1, hi))
         } else {
             ((mid + 1, hi), (lo, mid))
         };
-        self.walk(near.0, near.1, q, found);
-        // Visits the far side unless it is certainly too far: also when the bound is NaN, and
-        // on a tie (which the lower id may win).
+        self.walk_node::<F, ORDERED>(near.0, near.1, q, found);
+        // The node's own point and its far side, unless certainly too far (also when the bound
+        // is NaN, and on a tie, which the lower id may win). The point lies on the splitting
+        // plane: no nearer than it, so offered only here, where the bound is the near side's
+        // (the answer does not depend on the order of the offers: the nearest by distance,
+        // then by lower id).
         if (diff * diff).partial_cmp(&found.bound()) != Some(Ordering::Greater) {
-            self.walk(far.0, far.1, q, found);
+            found.offer(mid, id, dist2(q, p));
+            self.walk_node::<F, ORDERED>(far.0, far.1, q, found);
         }
     }
 }
@@ -198,6 +260,13 @@ trait Found {
     fn offer(&mut self, pos: usize, id: u32, d2: f64);
     /// The squared distance a point must not exceed to matter.
     fn bound(&self) -> f64;
+    /// Offers the points `run`, at positions (and ids) `lo..` of the tree's order.
+    #[inline(always)]
+    fn offer_run(&mut self, lo: usize, run: &[[f64; 3]], q: &[f64; 3]) {
+        for (pos, p) in (lo..).zip(run) {
+            self.offer(pos, pos as u32, dist2(q, p));
+        }
+    }
 }
 
 impl Found for Nearest {
@@ -208,6 +277,21 @@ impl Found for Nearest {
     #[inline(always)]
     fn bound(&self) -> f64 {
         self.d2
+    }
+    /// The run's nearest point first (the first of equals: the lowest id), then one offer.
+    #[inline(always)]
+    fn offer_run(&mut self, lo: usize, run: &[[f64; 3]], q: &[f64; 3]) {
+        let (mut best, mut at) = (f64::INFINITY, usize::MAX);
+        for (k, p) in run.iter().enumerate() {
+            let d2 = dist2(q, p);
+            // NaN distances never enter.
+            if d2 < best {
+                (best, at) = (d2, k);
+            }
+        }
+        if at != usize::MAX {
+            Nearest::offer(self, (lo + at) as u32, best);
+        }
     }
 }
 
@@ -382,6 +466,45 @@ mod tests {
                 }
                 let b = brute(&pts, *q, 1)[0];
                 assert_eq!(tree.nearest(*q, f64::INFINITY), Some(b));
+                assert_eq!(tree.nearest(*q, b.d2), None, "the bound is strict");
+            }
+        }
+    }
+
+    #[test]
+    fn a_tree_over_points_stored_in_its_order_equals_a_linear_scan() {
+        // The points rearranged in the tree's order (as a prepared cloud stores them): the walk
+        // without the permutation finds what a linear scan does, ties (quantised clouds: many
+        // equal distances) to the lowest id, with and without a bound, seeded or not.
+        for (grid, n) in [(0.0, 1000), (1.0, 1500), (0.5, 700), (5.0, 300), (0.0, 5)] {
+            let raw = cloud(n, 11 + n as u64, grid);
+            let (mut perm, mut axes) = (vec![0; n], vec![0; n]);
+            let _ = KdTree3::build(&raw, &mut perm, &mut axes).unwrap();
+            let pts: Vec<[f64; 3]> = perm.iter().map(|&i| raw[i as usize]).collect();
+            let identity: Vec<u32> = (0..n as u32).collect();
+            let tree = KdTree3::from_parts(&pts, &identity, &axes, true);
+            let unordered = KdTree3 {
+                ordered: false,
+                ..tree
+            };
+            let mut queries = cloud(60, 5, 0.0);
+            queries.extend(cloud(30, 6, grid));
+            queries.extend(pts.iter().step_by(7).copied());
+            for q in &queries {
+                for k in [1, 4, 10] {
+                    let mut out = vec![Nearest::default(); k];
+                    let m = tree.knn(*q, k, &mut out).unwrap();
+                    assert_eq!(&out[..m], &brute(&pts, *q, k)[..], "grid {grid} k {k}");
+                    let mut seeded = vec![Nearest::default(); k];
+                    let m2 = tree.knn_near(*q, k, &mut seeded, 2..2 + k).unwrap();
+                    assert_eq!(&seeded[..m2], &out[..m]);
+                }
+                let b = brute(&pts, *q, 1)[0];
+                for bound in [f64::INFINITY, 1.0, 0.3, b.d2 + 1e-12] {
+                    let want = (b.d2 < bound).then_some(b);
+                    assert_eq!(tree.nearest(*q, bound), want, "grid {grid} bound {bound}");
+                    assert_eq!(unordered.nearest(*q, bound), want);
+                }
                 assert_eq!(tree.nearest(*q, b.d2), None, "the bound is strict");
             }
         }
