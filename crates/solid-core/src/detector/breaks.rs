@@ -12,7 +12,10 @@
 //! [`BREAK_RATIO`] times as fast as the session's typical speed: frames subsampled (a keyframe
 //! selection that skips a stretch) make one long step in a long time, not a break. Without the
 //! caller's poses, the start of each of the detector's own chain frames is a break too
-//! (`Breaks::frame`): loops across it are vouched for in the same way.
+//! (`Breaks::frame`): loops across it are vouched for in the same way. One relation reaches
+//! across breaks: a placement in a map made after a break releases the loops held before it
+//! that agree with it through the session's typical step in place of each broken one
+//! (`LoopDetector::bridged`): a straight stretch before a break waits for the turn after it.
 
 use super::verify::{relative, QueryPlace};
 use super::{Candidate, LoopDetector};
@@ -99,17 +102,23 @@ impl Breaks {
     /// Whether the path between `a` and `b` metres travelled crosses a break (false when either
     /// is NaN: a map's place, or no pose).
     pub(super) fn crossed(&self, a: f64, b: f64) -> bool {
-        let (lo, hi) = (a.min(b), a.max(b));
-        !a.is_nan() && !b.is_nan() && self.at.iter().any(|&[x, y, _]| lo <= x && y <= hi)
+        self.between(a, b).next().is_some()
     }
 
     /// The breaks the path between `a` and `b` metres travelled crosses, in order (none when
     /// either is NaN).
     pub(super) fn between(&self, a: f64, b: f64) -> impl Iterator<Item = [f64; 3]> + '_ {
         let (lo, hi) = (a.min(b), a.max(b));
-        let known = !a.is_nan() && !b.is_nan();
-        (self.at.iter())
-            .filter(move |&&[x, y, _]| known && lo <= x && y <= hi)
+        // The breaks follow each other along the path (each one's end at most the next one's
+        // start): those from the first starting at `lo` on, while they end by `hi`.
+        let first = if a.is_nan() || b.is_nan() {
+            self.at.len()
+        } else {
+            self.at.partition_point(|&[x, _, _]| x < lo)
+        };
+        self.at[first..]
+            .iter()
+            .take_while(move |&&[_, y, _]| y <= hi)
             .copied()
     }
 
