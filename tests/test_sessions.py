@@ -95,6 +95,47 @@ def test_a_session_that_never_enters_the_map_gets_no_loop_into_it(city: Any) -> 
     assert det.map_anchor is None
 
 
+def test_a_breakdown_before_the_turn_costs_only_the_loops_of_its_stretch(city: Any) -> None:
+    """The second session's odometry drifting 1 % and breaking down for three keyframes on the
+    straight street before the turn (each jumping 20 m sideways, 30 m of climb over them:
+    tools/session_measure.py's BREAKDOWN). The loops of the straight stretch before the break wait
+    for a turn; the placement made after the turn lies beyond the break and releases them, the
+    two sides related by the session's typical step across it (docs/spec.md §8, "Breaks"): the
+    breakdown costs no right loop outside its stretch."""
+    world, lap, db, cfg, sensor = city
+    _, second = sim.session_routes(world, spacing=SPACING)
+    second = second[SECOND]
+    scans = sim.simulate(world, sensor, second).scans
+    mine = sim.Session.of(second).trajectory
+    stretch = (14, 17)  # the turn is at frames 19-21
+
+    def run(odometry: sim.Trajectory) -> tuple[set[int], int, list[Any]]:
+        det = solid.LoopDetector.from_database(db, detector=cfg.detector)
+        dets = det.detect_many(scans, poses=odometry.poses)
+        start = det.session_start
+        loops = [d.loop for d in dets if d.loop is not None and d.loop.candidate < start]
+        loops += [lp for d in dets for lp in d.released]
+        right, wrong = set(), 0
+        for lp in loops:
+            truth = np.linalg.inv(h(second.poses[lp.query - start])) @ h(lap.poses[lp.candidate])
+            e = np.linalg.inv(truth) @ np.asarray(lp.pose)
+            deg = np.degrees(np.arccos(np.clip((np.trace(e[:3, :3]) - 1) / 2, -1, 1)))
+            if np.linalg.norm(e[:3, 3]) > 1.0 or deg > 5.0:
+                wrong += 1
+            else:
+                right.add(lp.query - start)
+        return right, wrong, [(d.query - start, d.placement) for d in dets if d.placement is not None]
+
+    clean, wrong, _ = run(mine.drifting(1, seed=1))
+    assert wrong == 0 and len(clean) >= 20
+    broken, wrong, placed = run(mine.drifting(1, seed=1, breakdown=stretch, breakdown_jump_m=20.0, breakdown_climb_m=30.0))
+    assert wrong == 0
+    # Placed once, after the break (and the turn); the loops before the break are released then.
+    assert len(placed) == 1 and placed[0][0] >= stretch[1]
+    assert {q for q in clean if q < stretch[0]} <= broken
+    assert {q for q in clean if not stretch[0] <= q < stretch[1]} <= broken
+
+
 @pytest.fixture(scope="module")
 def written(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, str]:
     """The lap and the first 26 frames of the second route written as two sessions in their own

@@ -12,11 +12,14 @@
 //! [`BREAK_RATIO`] times as fast as the session's typical speed: frames subsampled (a keyframe
 //! selection that skips a stretch) make one long step in a long time, not a break. Without the
 //! caller's poses, the start of each of the detector's own chain frames is a break too
-//! (`Breaks::frame`): loops across it are vouched for in the same way.
+//! (`Breaks::frame`): loops across it are vouched for in the same way. One relation reaches
+//! across breaks: a placement in a map made after a break releases the loops held before it
+//! that agree with it through the session's typical step in place of each broken one
+//! (`LoopDetector::bridged`): a straight stretch before a break waits for the turn after it.
 
 use super::verify::{relative, QueryPlace};
 use super::{Candidate, LoopDetector};
-use crate::reg::Pose;
+use crate::reg::{invert, mul, Pose, IDENTITY};
 
 /// How many times the session's typical step (and speed) a break's step is at least.
 pub(super) const BREAK_RATIO: f64 = 3.0;
@@ -33,8 +36,9 @@ pub(super) struct Breaks {
     /// The last [`BREAK_HISTORY`] steps with poses: metres, and metres per second (NaN without
     /// time), oldest first.
     steps: alloc::collections::VecDeque<[f64; 2]>,
-    /// Each break: the metres travelled before and after its step, in order.
-    at: alloc::vec::Vec<[f64; 2]>,
+    /// Each break: the metres travelled before and after its step, and the session's typical
+    /// step then (the median of the recent steps' metres; 0 before any), in order.
+    at: alloc::vec::Vec<[f64; 3]>,
 }
 
 impl Breaks {
@@ -51,7 +55,8 @@ impl Breaks {
         let fast = speed.is_nan() || typical(1).is_none_or(|t| speed > BREAK_RATIO * t);
         let broke = long && fast;
         if broke {
-            self.at.push([before, after]);
+            let step = typical(0).unwrap_or(0.0);
+            self.at.push([before, after, step]);
         } else {
             // A break's step is no measure of the session's steps.
             if self.steps.len() == BREAK_HISTORY {
@@ -74,7 +79,7 @@ impl Breaks {
         }
         let step = self.median(0, 1).unwrap_or(0.0);
         let after = (before + step).max(before.next_up());
-        self.at.push([before, after]);
+        self.at.push([before, after, step]);
         after
     }
 
@@ -97,8 +102,24 @@ impl Breaks {
     /// Whether the path between `a` and `b` metres travelled crosses a break (false when either
     /// is NaN: a map's place, or no pose).
     pub(super) fn crossed(&self, a: f64, b: f64) -> bool {
+        self.between(a, b).next().is_some()
+    }
+
+    /// The breaks the path between `a` and `b` metres travelled crosses, in order (none when
+    /// either is NaN).
+    pub(super) fn between(&self, a: f64, b: f64) -> impl Iterator<Item = [f64; 3]> + '_ {
         let (lo, hi) = (a.min(b), a.max(b));
-        !a.is_nan() && !b.is_nan() && self.at.iter().any(|&[x, y]| lo <= x && y <= hi)
+        // The breaks follow each other along the path (each one's end at most the next one's
+        // start): those from the first starting at `lo` on, while they end by `hi`.
+        let first = if a.is_nan() || b.is_nan() {
+            self.at.len()
+        } else {
+            self.at.partition_point(|&[x, _, _]| x < lo)
+        };
+        self.at[first..]
+            .iter()
+            .take_while(move |&&[_, y, _]| y <= hi)
+            .copied()
     }
 
     /// How many breaks the session's odometry has had.
@@ -124,6 +145,85 @@ impl LoopDetector {
             }
         }
         Some(relative(&pa, &pb))
+    }
+
+    /// The relative pose `inv(T_wa)·T_wb` of two own poses `a` and `b` (at `ta` and `tb` metres
+    /// travelled), the metres of path its drift grows with and the metres the relation may be off
+    /// beyond that drift. Without a break between them: the poses' relative pose, `|ta − tb|`
+    /// and 0. Across breaks, each break's step is taken as the session's typical one then (as
+    /// [`Breaks::frame`] does for the metres travelled), along the direction of the session's last
+    /// step before it (constant velocity; none known: no motion), and may be off by that
+    /// typical step (the platform stopped, or moved twice its usual step): the poses on the two
+    /// sides are related through the places at the break's two ends. None when a break's end has
+    /// no own place with a pose.
+    pub(super) fn bridged(
+        &self,
+        a: &[f64; 12],
+        ta: f64,
+        b: &[f64; 12],
+        tb: f64,
+    ) -> Option<(Pose, f64, f64)> {
+        if !self.crosses_break(ta, tb) {
+            return Some((relative(a, b), libm::fabs(ta - tb), 0.0));
+        }
+        if ta > tb {
+            let (p, path, off) = self.bridged(b, tb, a, ta)?;
+            return Some((invert(&p), path, off));
+        }
+        let (mut rel, mut cur, mut t) = (IDENTITY, *a, ta);
+        let (mut path, mut off) = (0.0, 0.0);
+        // The session's direction of motion in `cur`'s frame, carried across a break.
+        let mut heading: Option<[f64; 3]> = None;
+        for [x, y, step] in self.breaks.between(ta, tb) {
+            let (kx, px) = self.place_at(x, true)?;
+            let r = relative(&cur, &px);
+            heading = self.heading_at(kx, &px).or_else(|| {
+                heading.map(|d| core::array::from_fn(|i| (0..3).map(|k| r[k][i] * d[k]).sum()))
+            });
+            rel = mul(&rel, &r);
+            path += x - t;
+            let mut s = IDENTITY;
+            if let Some(d) = heading {
+                for (i, row) in s.iter_mut().take(3).enumerate() {
+                    row[3] = step * d[i];
+                }
+            }
+            rel = mul(&rel, &s);
+            path += step;
+            off += step;
+            let (_, py) = self.place_at(y, false)?;
+            (cur, t) = (py, y);
+        }
+        rel = mul(&rel, &relative(&cur, b));
+        Some((rel, path + (tb - t), off))
+    }
+
+    /// The own place with a pose at `metres` travelled (the last such when `last`, else the
+    /// first), and its pose.
+    fn place_at(&self, metres: f64, last: bool) -> Option<(usize, [f64; 12])> {
+        let at = |k: &usize| self.travelled[*k] == metres;
+        let pose = |k: usize| Some(k).zip(self.known_pose((self.session_start + k) as u32));
+        let n = self.travelled.len();
+        if last {
+            (0..n).rev().filter(at).find_map(pose)
+        } else {
+            (0..n).filter(at).find_map(pose)
+        }
+    }
+
+    /// The unit direction, in own place `k`'s frame (pose `p`), of the session's last step into
+    /// it from the nearest earlier place with a pose that no break separates from it.
+    fn heading_at(&self, k: usize, p: &[f64; 12]) -> Option<[f64; 3]> {
+        let t = self.travelled[k];
+        let (_, prev) = (0..k)
+            .rev()
+            .take_while(|&j| !self.crosses_break(self.travelled[j], t))
+            .filter(|&j| self.travelled[j] < t)
+            .find_map(|j| Some(j).zip(self.known_pose((self.session_start + j) as u32)))?;
+        let w = [p[3] - prev[3], p[7] - prev[7], p[11] - prev[11]];
+        let d: [f64; 3] = core::array::from_fn(|i| (0..3).map(|k| p[4 * k + i] * w[k]).sum());
+        let n = libm::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+        (n > 1e-9).then(|| d.map(|x| x / n))
     }
 
     /// Whether a candidate is an own place whose every path to the query `at` (through the

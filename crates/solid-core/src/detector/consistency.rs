@@ -173,23 +173,35 @@ impl LoopDetector {
     }
 
     /// [`LoopDetector::consistent`] within `k` times the drift bounds
-    /// ([`LoopDetector::within_drift_times`]).
+    /// ([`LoopDetector::within_drift_times`]). Two queries (or two own places) on the two sides
+    /// of a break of the odometry are related across it by the session's typical step, off by
+    /// up to that step ([`LoopDetector::bridged`]); its callers compare such pairs only where a
+    /// placement across the break may release a loop held before it.
     fn consistent_times(&self, a: &Hypothesis, b: &Hypothesis, k: (f64, f64)) -> bool {
-        let expected = mul(
-            &mul(&relative(&a.query_pose, &b.query_pose), &b.pose),
-            &relative(&b.place, &a.place),
-        );
-        let along = |t1: f64, t2: f64, p1: &[f64; 12], p2: &[f64; 12]| {
-            let d = libm::fabs(t1 - t2);
-            if d.is_nan() {
-                distance(p1, p2)
-            } else {
-                d
+        let Some((moved, qpath, qoff)) =
+            self.bridged(&a.query_pose, a.travelled, &b.query_pose, b.travelled)
+        else {
+            return false;
+        };
+        let (back, ppath, poff) = if a.place_travelled.is_nan() || b.place_travelled.is_nan() {
+            (
+                relative(&b.place, &a.place),
+                distance(&a.place, &b.place),
+                0.0,
+            )
+        } else {
+            match self.bridged(&b.place, b.place_travelled, &a.place, a.place_travelled) {
+                Some(x) => x,
+                None => return false,
             }
         };
-        let path = along(a.travelled, b.travelled, &a.query_pose, &b.query_pose)
-            + along(a.place_travelled, b.place_travelled, &a.place, &b.place);
-        self.within_drift_times(&expected, &a.pose, path, 0.0, k)
+        let expected = mul(&mul(&moved, &b.pose), &back);
+        let qpath = if qpath.is_nan() {
+            distance(&a.query_pose, &b.query_pose)
+        } else {
+            qpath
+        };
+        self.within_drift_beyond(&expected, &a.pose, qpath + ppath, qoff + poff, k)
     }
 
     /// Whether loops into the map are judged by the placement: placement on, the query has a
@@ -511,12 +523,17 @@ impl LoopDetector {
             .iter()
             .filter(|h| h.query < now)
             .filter(|h| {
-                // Only the set's loops on the same side of every break of the odometry say
-                // anything of `h` (as for a loop after the placement).
+                // The set's loop nearest on the same side of every break of the odometry (as
+                // for a loop after the placement); with none there (the set lies beyond a
+                // break), the nearest, related to `h` across the breaks by the session's
+                // typical step (`bridged`): a set before the break that lacked its turn is
+                // placed by the set after it.
                 let comparable = s
                     .iter()
                     .filter(|n| !self.crosses_break(n.travelled, h.travelled));
-                nearest(comparable, h).is_some_and(|n| self.consistent(h, n))
+                nearest(comparable, h)
+                    .or_else(|| nearest(s.iter(), h))
+                    .is_some_and(|n| self.consistent(h, n))
             })
             .copied()
             .collect();
@@ -1237,6 +1254,92 @@ mod tests {
         det.check_after_gate(&q, &[], &mut cands).unwrap();
         assert!(!det.across_break(&q, &cands[0]));
         assert_eq!(rejection(&cands[1]), Some(Rejection::OdometryDisagrees));
+    }
+
+    /// A session over [`over_map`]'s places in its own frame ([`truth`]), 1 m a step along the
+    /// map's places 5.., half a metre to the side: straight for its first 14 places, then
+    /// turning 20° a step; its odometry jumps 30 m to the side in the step into place 12 (a break)
+    /// and is right again after it. The detector holds the session's 24 places (placing with 3
+    /// loops over 3 m); returns it with each place's pose in the map.
+    fn session_over_map_with_a_break() -> (LoopDetector, Vec<[f64; 12]>) {
+        let mut det = over_map(3);
+        let mut dc = *det.config();
+        let on = dc;
+        dc.verify.enabled = false;
+        det.set_config(dc).unwrap();
+        let c = *det.map().config();
+        let mut in_map = Vec::new();
+        for k in 0..24u32 {
+            let yaw = 20.0 * f64::from(k.saturating_sub(13));
+            let m = pose(yaw, f64::from(5 + k), 0.5);
+            let jump = if k < 12 { 0.0 } else { 30.0 };
+            let odo = mul(
+                &rows_to_pose(&pose(0.0, 0.0, jump)),
+                &mul(&invert(&truth()), &rows_to_pose(&m)),
+            );
+            let d = Descriptor {
+                r: alloc::vec![100.0 + k as f32; c.n_range],
+                a: alloc::vec![1.0; c.n_azimuth],
+                stats: Stats::default(),
+                fingerprint: c.fingerprint(),
+            };
+            det.detect(&d, f64::NAN, Some(crate::reg::pose_to_rows(&odo)))
+                .unwrap();
+            in_map.push(m);
+        }
+        det.set_config(on).unwrap();
+        (det, in_map)
+    }
+
+    #[test]
+    fn loops_held_before_a_break_are_released_by_the_placement_after_it_when_they_agree() {
+        // The straight stretch before the break places nothing (no turn): its loops are held.
+        // The stretch after it places the session once it turned (its fifth loop, 60°); the
+        // placement lies beyond the break, and relates to the loops before it through the
+        // session's typical step (1 m) in place of the 30 m jump: the true loops held before
+        // the break agree and are released with it. Loops into a look-alike 20 m along the map
+        // (the same registration) are as consistent among themselves, but 20 m off across the
+        // break: held, never released.
+        for lookalike in [false, true] {
+            let (mut det, in_map) = session_over_map_with_a_break();
+            assert_eq!(det.odometry_breaks(), 1);
+            // The queries at the session's places (their poses and metres travelled).
+            let (own, first) = (det.session_start as u32, det.len() as u32);
+            let mut late = Vec::new();
+            let mut placed = None;
+            for k in 0..24u32 {
+                let id = first + k;
+                let at = QueryPlace {
+                    id,
+                    pose: det.known_pose(own + k),
+                    travelled: det.travelled_at(own + k).unwrap(),
+                    eligible: own as usize,
+                };
+                let t = relative(&in_map[k as usize], &pose(0.0, f64::from(5 + k), 0.0));
+                let place = if lookalike && k < 12 { 25 + k } else { 5 + k };
+                let mut cands = [verified(place, t)];
+                det.check_after_gate(&at, &[], &mut cands).unwrap();
+                if k < 12 {
+                    assert_eq!(rejection(&cands[0]), Some(Rejection::NotPlaced), "step {k}");
+                }
+                let looped = rejection(&cands[0]).is_none().then_some(id);
+                let (released, change) = det.placement_news(looped);
+                if change == Some(PlacementChange::Placed) {
+                    placed = Some(k);
+                }
+                late.extend(released.iter().map(|l| (l.query - first, l.candidate)));
+            }
+            assert_eq!(placed, Some(16), "look-alike {lookalike}");
+            // Released at the placement: the four held after the break that made it with it, and
+            // the true loops before the break.
+            let after: Vec<(u32, u32)> = (12..16).map(|q| (q, 5 + q)).collect();
+            let want: Vec<(u32, u32)> = if lookalike {
+                after
+            } else {
+                (0..12).map(|q| (q, 5 + q)).chain(after).collect()
+            };
+            assert_eq!(late, want, "look-alike {lookalike}");
+        }
     }
 
     #[test]

@@ -589,14 +589,38 @@ impl LoopDetector {
         turn: f64,
         (k, ceiling): (f64, f64),
     ) -> bool {
-        let v = &self.config.verify;
         let path = if path.is_nan() { 0.0 } else { path };
         reg::pose_distance(expected, pose).is_some_and(|(m, deg)| {
             let swing = turn * deg.to_radians() * path / 2.0;
-            let rotation = (v.odometry_rotation_deg + k * v.odometry_rotation_deg_per_m * path)
-                .min((ceiling * v.odometry_rotation_max_deg).min(180.0));
-            deg <= rotation && m <= v.odometry_translation_m + k * v.odometry_drift * path + swing
+            self.drift_allows(m, swing, deg, path, (k, ceiling))
         })
+    }
+
+    /// [`LoopDetector::within_drift_times`] without the rotation's allowance, with `beyond`
+    /// metres more of translation (how far a relation across a break may be off:
+    /// [`LoopDetector::bridged`]).
+    pub(super) fn within_drift_beyond(
+        &self,
+        expected: &Pose,
+        pose: &Pose,
+        path: f64,
+        beyond: f64,
+        k: (f64, f64),
+    ) -> bool {
+        let path = if path.is_nan() { 0.0 } else { path };
+        reg::pose_distance(expected, pose)
+            .is_some_and(|(m, deg)| self.drift_allows(m, beyond, deg, path, k))
+    }
+
+    /// Whether `m` metres and `deg` degrees off lie within the drift bounds after `path` metres
+    /// with `extra` metres more of translation, the drift per metre `k` times the configured one
+    /// and the rotation's ceiling `ceiling` times (at most 180°).
+    fn drift_allows(&self, m: f64, extra: f64, deg: f64, path: f64, k: (f64, f64)) -> bool {
+        let v = &self.config.verify;
+        let (k, ceiling) = k;
+        let rotation = (v.odometry_rotation_deg + k * v.odometry_rotation_deg_per_m * path)
+            .min((ceiling * v.odometry_rotation_max_deg).min(180.0));
+        deg <= rotation && m <= v.odometry_translation_m + k * v.odometry_drift * path + extra
     }
 
     /// Whether a candidate's pose lies within [`VOUCHED_DRIFT`] times the odometry check's drift
