@@ -409,6 +409,11 @@ impl LoopDetector {
         }
         let placed = self.places_session(at);
         let (mut held, mut supported) = (Vec::new(), Vec::new());
+        held.try_reserve_exact(cands.len())
+            .map_err(|_| DbError::OutOfMemory)?;
+        supported
+            .try_reserve_exact(cands.len())
+            .map_err(|_| DbError::OutOfMemory)?;
         for (i, (c, &vouched)) in cands.iter_mut().zip(&vouched).enumerate() {
             // The placement's consistent set is a map loop's support; the neighbours' that of a
             // loop they vouched for.
