@@ -129,7 +129,7 @@ class Detection:
         """The loop, when the best candidate's score is at most the threshold; else None."""
     @property
     def released(self) -> list[Loop]:
-        """Loops of earlier queries reported late, in query order: loops into the map held until this step placed the session in the map (or revised the placement) and found them consistent with it (docs/spec.md §8, placement), loops the neighbours' vouching waited for (docs/loops.md#when-the-odometry-drifts), and the loops of candidates a step's budget deferred to this one (`verify_step_points`, docs/spec.md §8, budget)."""
+        """Loops of earlier queries reported late, in query order: loops into the map held until this step placed the session in the map (or revised the placement) and found them consistent with it (docs/spec.md §8, placement), loops the neighbours' vouching waited for (docs/loops.md#when-the-odometry-drifts), the loops the previous steps did not support that a later step's loop agrees with (docs/spec.md §8, support), and the loops of candidates a step's budget deferred to this one (`verify_step_points`, docs/spec.md §8, budget)."""
     @property
     def deferred(self) -> list[int]:
         """Ids of the candidates this step's budget deferred (`verify_step_points`, docs/spec.md §8, budget): unverified among `candidates`; the next steps register them, and a loop of theirs comes in `released` of the step that does. Empty when the step found its loop."""

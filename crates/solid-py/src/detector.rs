@@ -292,8 +292,9 @@ pub struct PyDetection {
 impl PyDetection {
     /// Loops of earlier queries reported late, in query order: loops into the map held until
     /// this step's placement (or revision) found them consistent with it, loops the
-    /// neighbours' vouching waited for, and the loops of candidates a step's budget deferred to
-    /// this one (verify_step_points).
+    /// neighbours' vouching waited for, loops the previous steps did not support that a later
+    /// step's loop agrees with, and the loops of candidates a step's budget deferred to this
+    /// one (verify_step_points).
     #[getter]
     fn released(&self) -> Vec<PyLoop> {
         self.released.clone()

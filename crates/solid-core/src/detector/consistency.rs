@@ -158,8 +158,12 @@ pub(super) struct Placement {
     /// neighbours' set lacked only the turn, oldest first: released when a set that qualifies
     /// holds them ([`LoopDetector::vouch`]).
     waiting: VecDeque<Hypothesis>,
-    /// Loops released by this step (a placement, or a set of neighbours that vouches), not yet
-    /// reported.
+    /// Loops within the session that agreed with the odometry but not with enough of the
+    /// previous steps (the support check), oldest first, each with the support it has: the
+    /// next steps' loops may supply the rest ([`LoopDetector::support_held`]).
+    unsupported: VecDeque<(Hypothesis, usize)>,
+    /// Loops released by this step (a placement, a set of neighbours that vouches, or the
+    /// next steps' support), not yet reported.
     released: Vec<Loop>,
     /// What this step did to the placement, not yet reported.
     change: Option<PlacementChange>,
@@ -384,6 +388,64 @@ impl LoopDetector {
             found: Some(lp),
             ..h
         });
+    }
+
+    /// Holds the loop `lp` of hypothesis `h` (of the step's query), which the support check
+    /// turned down with `support` of the previous steps' registrations agreeing: when it agreed
+    /// with the odometry, the next steps' loops may supply the rest
+    /// ([`LoopDetector::support_held`]). A revisit's first query has no previous step to agree
+    /// with; the support check looks backward only.
+    pub(super) fn hold_unsupported(&mut self, h: &Hypothesis, lp: Loop, support: usize) {
+        if !h.odometry {
+            return;
+        }
+        let held = &mut self.placement.unsupported;
+        if held.len() == HELD {
+            held.pop_front();
+        }
+        held.push_back((
+            Hypothesis {
+                found: Some(lp),
+                ..*h
+            },
+            support,
+        ));
+    }
+
+    /// The support of the next steps: each loop of `supported` (hypotheses of the step `at`'s
+    /// candidates that passed the support check and agree with the odometry) supports the held
+    /// loops of earlier queries at most `support_window` steps back that it agrees with
+    /// (consistent through the short paths between them, no break of the odometry between
+    /// their queries or their places), once per query; a held loop whose support reaches
+    /// `min_support` is released (reported by this step) unless its query has a loop. The
+    /// support check is thus symmetric in time: two neighbouring loops that agree support each
+    /// other whichever comes first.
+    pub(super) fn support_held(&mut self, at: &QueryPlace, supported: &[Hypothesis]) {
+        let v = &self.config.verify;
+        let window = v.support_window as u32;
+        let held = core::mem::take(&mut self.placement.unsupported);
+        let mut keep = VecDeque::new();
+        let mut out = Vec::new();
+        for (h, mut n) in held {
+            if at.id.saturating_sub(h.query) > window {
+                continue;
+            }
+            let agrees = supported.iter().any(|s| {
+                s.odometry
+                    && s.query > h.query
+                    && !self.crosses_break(s.travelled, h.travelled)
+                    && !self.crosses_break(s.place_travelled, h.place_travelled)
+                    && self.consistent(s, &h)
+            });
+            n += usize::from(agrees);
+            if n >= v.min_support {
+                out.push(h);
+            } else {
+                keep.push_back((h, n));
+            }
+        }
+        self.placement.unsupported = keep;
+        release(&mut self.placement, &out);
     }
 
     /// Releases the waiting loops of queries before `now` that the vouching `set` holds (the
@@ -1219,7 +1281,12 @@ mod tests {
                 late.extend(released.iter().map(|l| (k, l.query - first, l.candidate)));
             }
             assert_eq!(kept, [5, 6, 7, 8, 9, 10, 11], "{seconds} s a step");
-            let want: Vec<(u32, u32, u32)> = (0..5).map(|q| (5, q, 5 + q)).collect();
+            // Step 0's loop into place 45 (after the jump, where the odometry puts it) had no
+            // previous step to agree with: held, and released by step 1's into place 46, which
+            // agrees with it (the next steps' support); query 0 then has its loop, so the set
+            // placed at step 5 releases the other four.
+            let mut want: Vec<(u32, u32, u32)> = alloc::vec![(1, 0, 45)];
+            want.extend((1..5).map(|q| (5, q, 5 + q)));
             assert_eq!(late, want, "{seconds} s a step");
         }
         // A straight revisit: as likely a stretch of look-alikes (a corridor repeating along

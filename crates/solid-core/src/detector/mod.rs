@@ -107,8 +107,10 @@ pub struct Detection {
     pub accepted: Option<Loop>,
     /// Loops of earlier queries reported late, in query order: loops into the map held until
     /// this step's placement of the session in the map (or its revision) found them consistent
-    /// with it (spec §8, placement), loops the neighbours' vouching waited for, and the loops
-    /// of candidates a step's budget deferred to this one ([`VerifyConfig::step_points`]).
+    /// with it (spec §8, placement), loops the neighbours' vouching waited for, loops the
+    /// previous steps did not support that a later step's loop agrees with (spec §8, support),
+    /// and the loops of candidates a step's budget deferred to this one
+    /// ([`VerifyConfig::step_points`]).
     pub released: Vec<Loop>,
     /// The candidates (ids) this step's budget deferred ([`VerifyConfig::step_points`]): not
     /// registered yet (`verification` None among `candidates`), registered by the next steps,

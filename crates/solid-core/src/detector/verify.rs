@@ -408,15 +408,34 @@ impl LoopDetector {
             return Ok(());
         }
         let placed = self.places_session(at);
-        for (c, &vouched) in cands.iter_mut().zip(&vouched).filter(|(c, _)| passed(c)) {
+        let (mut held, mut supported) = (Vec::new(), Vec::new());
+        held.try_reserve_exact(cands.len())
+            .map_err(|_| DbError::OutOfMemory)?;
+        supported
+            .try_reserve_exact(cands.len())
+            .map_err(|_| DbError::OutOfMemory)?;
+        for (i, (c, &vouched)) in cands.iter_mut().zip(&vouched).enumerate() {
             // The placement's consistent set is a map loop's support; the neighbours' that of a
             // loop they vouched for.
-            if vouched || (placed && self.in_map(c.id) && self.known_pose(c.id).is_some()) {
+            if !passed(c)
+                || vouched
+                || (placed && self.in_map(c.id) && self.known_pose(c.id).is_some())
+            {
                 continue;
             }
-            if self.support(at, c) < v.min_support {
+            let n = self.support(at, c);
+            let h = own.iter().find(|(j, _)| *j == i).map(|(_, h)| h);
+            if n < v.min_support {
+                // Held: the next steps' loops may support it (consistency.rs).
+                held.extend(h.map(|h| (*h, loop_of(c, at.id), n)));
                 reject(c, Rejection::Unsupported);
+            } else {
+                supported.extend(h.copied());
             }
+        }
+        self.support_held(at, &supported);
+        for (h, lp, n) in &held {
+            self.hold_unsupported(h, *lp, *n);
         }
         // A deferred candidate's registration joins its query's step (when still remembered).
         if let Some((_, list)) = self.recent.iter_mut().find(|(q, _)| *q == at.id) {
@@ -1716,6 +1735,21 @@ pub(super) mod tests {
         assert_eq!(rejection(&cands[0]), None);
     }
 
+    /// Adds the place of query `q` as its step would (without a cloud).
+    fn added(det: &mut LoopDetector, q: &QueryPlace) {
+        let d = Descriptor {
+            r: alloc::vec![0.5; det.map().config().n_range],
+            a: alloc::vec![1.0; det.map().config().n_azimuth],
+            stats: Stats::default(),
+            fingerprint: det.map().config().fingerprint(),
+        };
+        det.own
+            .add_with_cloud(&d, det.session, f64::NAN, q.pose, None)
+            .unwrap();
+        det.travelled.push(q.travelled);
+        det.known.push(q.pose.map(|p| (p, 0)));
+    }
+
     #[test]
     fn a_loop_needs_the_support_of_a_previous_step_that_agrees_through_the_poses() {
         let mut det = detector_with_path(12, |v| {
@@ -1732,17 +1766,7 @@ pub(super) mod tests {
         det.check_after_gate(&q, &[], &mut cands).unwrap();
         assert_eq!(rejection(&cands[0]), Some(Rejection::Unsupported));
         // Pretend the step added its place (the support looks up the query's pose).
-        let d = Descriptor {
-            r: alloc::vec![0.5; det.map().config().n_range],
-            a: alloc::vec![1.0; det.map().config().n_azimuth],
-            stats: Stats::default(),
-            fingerprint: det.map().config().fingerprint(),
-        };
-        det.own
-            .add_with_cloud(&d, det.session, f64::NAN, q.pose, None)
-            .unwrap();
-        det.travelled.push(12.0);
-        det.known.push(q.pose.map(|p| (p, 0)));
+        added(&mut det, &q);
         // Step 13: place 3 agrees with step 12's loop through the poses; a loop to place 3
         // with a pose 2 m off does not.
         let q = at(&det, 13.0);
@@ -1752,5 +1776,52 @@ pub(super) mod tests {
         det.check_after_gate(&q, &[], &mut cands).unwrap();
         assert_eq!(rejection(&cands[0]), None);
         assert_eq!(rejection(&cands[1]), Some(Rejection::Unsupported));
+    }
+
+    #[test]
+    fn the_first_loop_of_a_revisit_is_released_when_a_next_step_agrees_with_it() {
+        let mut det = detector_with_path(12, |v| {
+            v.support_window = 3;
+            v.min_support = 1;
+            v.odometry_check = false;
+            v.unique = false;
+        });
+        let truth =
+            |q: &QueryPlace, c: u32| relative(&q.pose.unwrap(), &pose(0.0, f64::from(c), 0.0));
+        // Each step adds its place (the support looks up the query's pose).
+        // Step 12 sees place 2 correctly: the first of its revisit, no previous step to agree
+        // with. Held, nothing released.
+        let q = at(&det, 12.0);
+        let mut cands = [verified(2, truth(&q, 2))];
+        det.check_after_gate(&q, &[], &mut cands).unwrap();
+        assert_eq!(rejection(&cands[0]), Some(Rejection::Unsupported));
+        assert!(det.placement_news(None).0.is_empty());
+        added(&mut det, &q);
+        // Step 13: a loop to place 3 whose pose is 2 m off: step 12's loop does not support
+        // it, it does not release step 12's, and (off the poses) it is not held.
+        let q = at(&det, 13.0);
+        let mut wrong = truth(&q, 3);
+        wrong[0][3] += 2.0;
+        let mut cands = [verified(3, wrong)];
+        det.check_after_gate(&q, &[], &mut cands).unwrap();
+        assert_eq!(rejection(&cands[0]), Some(Rejection::Unsupported));
+        assert!(det.placement_news(None).0.is_empty());
+        added(&mut det, &q);
+        // Step 14 sees place 4 correctly: step 12's registration supports it, and it releases
+        // step 12's loop (reported by this step), not step 13's.
+        let q = at(&det, 14.0);
+        let mut cands = [verified(4, truth(&q, 4))];
+        det.check_after_gate(&q, &[], &mut cands).unwrap();
+        assert_eq!(rejection(&cands[0]), None);
+        let released = det.placement_news(Some(q.id)).0;
+        let got: Vec<(u32, u32)> = released.iter().map(|l| (l.query, l.candidate)).collect();
+        assert_eq!(got, [(12, 2)]);
+        // Once.
+        added(&mut det, &q);
+        let q = at(&det, 15.0);
+        let mut cands = [verified(5, truth(&q, 5))];
+        det.check_after_gate(&q, &[], &mut cands).unwrap();
+        assert_eq!(rejection(&cands[0]), None);
+        assert!(det.placement_news(Some(q.id)).0.is_empty());
     }
 }
