@@ -34,6 +34,7 @@ __all__ = [
     "Candidate",
     "Detection",
     "DetectorConfig",
+    "_drift_swing",
     "_detector_config_from_dict",
     "_param_table",
     "DEFAULT_RADIUS",

@@ -496,6 +496,11 @@ def test_a_run_counts_its_rejections_and_says_when_the_odometry_turned_down_most
         assert m["drift"] == pytest.approx(drift, abs=1e-4)
         assert m["rotation_max_deg"] == pytest.approx(2.0)
     assert measured_drift(SimpleNamespace(poses=None)) is None  # type: ignore[arg-type]
+    # The allowance is the detector's own (one function, in the core); bad shapes are named.
+    with pytest.raises(solid.SolidError, match=r"positions must have shape \(N, 3\)"):
+        solid._solid._drift_swing(np.eye(3), np.eye(3), np.zeros((2, 2)), np.eye(3))
+    with pytest.raises(solid.SolidError, match="r_query must be a"):
+        solid._solid._drift_swing(np.eye(3), np.eye(3), np.zeros((2, 3)), np.eye(2))
     m = {"loops": 1, "drift": 0.05, "rotation_deg_per_m": 0.1, "rotation_max_deg": 37.0}
     (line,) = advice({"loops": 1, "rejections": {ODOMETRY_REJECTION: 40}, "odometry_drift_measured": m}, d)
     assert "measure it at 0.05 of the path" in line and ": --odometry-drift 0.05 --odometry-rotation-max-deg 37 (docs" in line

@@ -35,6 +35,7 @@ __all__ = [
     "Candidate",
     "Detection",
     "DetectorConfig",
+    "_drift_swing",
     "_detector_config_from_dict",
     "_param_table",
     "DEFAULT_RADIUS",
@@ -1971,6 +1972,23 @@ class LoopDetector:
     @property
     def rerank(self) -> bool:
         """Whether re-ranking is on."""
+
+def _drift_swing(
+    r_expected: npt.NDArray[np.float64],
+    r_pose: npt.NDArray[np.float64],
+    positions: npt.NDArray[np.float64],
+    r_query: npt.NDArray[np.float64],
+) -> tuple[float, float, float]:
+    """`ω × arm`: the displacement of the query (in its frame) that a rotation drift at a constant
+    rate along the path `positions` ((N, 3) in the world, the place's first, the query's last)
+    predicts, `ω` the rotation vector of `r_expected · r_poseᵀ` and the arm the place's position
+    less the path's centroid, turned into the query's frame by `r_query`: the odometry check's
+    allowance for a rotation drift (docs/spec.md §8; `solid.commands.measured_drift` uses it).
+
+    Raises:
+        SolidError: A rotation that is not (3, 3), (3, 4) or (4, 4); positions not (N, 3); a NaN
+            or infinity.
+    """
 
 
 DEFAULT_RADIUS: float

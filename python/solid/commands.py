@@ -323,7 +323,7 @@ def measured_drift(result: PipelineResult) -> dict[str, float] | None:
         cos = (np.trace(R_exp.T @ T[:3, :3]) - 1.0) / 2.0
         deg = float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))))
         walked = float(path[q] - path[c])
-        m = float(np.linalg.norm(t_exp - T[:3, 3] - drift_swing(R_exp, T[:3, :3], P[c : q + 1, :, 3], Rq)))
+        m = float(np.linalg.norm(t_exp - T[:3, 3] - np.asarray(_solid._drift_swing(R_exp, T[:3, :3], P[c : q + 1, :, 3], Rq))))
         trans.append(max(0.0, m - d.odometry_translation_m) / walked)
         rot.append(max(0.0, deg - d.odometry_rotation_deg) / walked)
         turned.append(deg)
@@ -335,23 +335,6 @@ def measured_drift(result: PipelineResult) -> dict[str, float] | None:
         "rotation_deg_per_m": float(np.quantile(rot, 0.9)),
         "rotation_max_deg": float(max(turned)),
     }
-
-
-def drift_swing(R_expected: np.ndarray, R_pose: np.ndarray, positions: np.ndarray, R_query: np.ndarray) -> np.ndarray:
-    """``ω × arm``, the query's displacement (in its frame) that a rotation drift at a constant rate
-    along the path ``positions`` (the place's first, the query's last) predicts, ``ω`` the rotation
-    vector of ``R_expected · R_poseᵀ`` and ``arm`` the place's position less the path's centroid
-    (each stretch weighted by its metres): the odometry check's allowance (docs/spec.md §8)."""
-    R = R_expected @ R_pose.T
-    angle = float(np.arccos(np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)))
-    s = np.sin(angle)
-    f = angle / (2.0 * s) if s > 1e-12 else 0.5
-    w = f * np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
-    steps = np.linalg.norm(np.diff(positions, axis=0), axis=1)
-    metres = float(steps.sum())
-    centroid = (steps[:, None] * (positions[1:] + positions[:-1]) / 2.0).sum(axis=0) / metres if metres > 0 else positions[0]
-    arm = R_query.T @ (positions[0] - centroid)
-    return np.cross(w, arm)
 
 
 def advice(metrics: dict[str, Any], detector: Any) -> list[str]:

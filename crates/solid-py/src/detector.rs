@@ -8,7 +8,8 @@ use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use solid_lidar::db::{self, DbError, DetectorConfig, LoopDetector};
-use solid_lidar::reg::Rejection;
+use solid_lidar::detector;
+use solid_lidar::reg::{Pose, Rejection, IDENTITY};
 use solid_lidar::{Config, Descriptor};
 
 use crate::args;
@@ -18,7 +19,7 @@ use crate::arrays::{
 use crate::config::{detector_overrides, PyConfig, PyDetectorConfig};
 use crate::database::{check_fingerprint, read, write, PyDatabase};
 use crate::describe::{batch_map, batch_pool, describe_points, describe_slice, PyDescriptor};
-use crate::errors::core_err;
+use crate::errors::{core_err, SolidError};
 
 /// A detected loop closure.
 #[pyclass(name = "Loop", module = "solid", frozen, eq)]
@@ -826,6 +827,62 @@ fn overrides_dict<'py>(
     Ok(kw)
 }
 
+/// A (3, 3) rotation (or the rotation block of a (3, 4) or (4, 4) pose) as a [`Pose`] with no
+/// translation; `name` names it in the error.
+fn rotation_arg(r: &numpy::PyReadonlyArray2<'_, f64>, name: &str) -> PyResult<Pose> {
+    let a = r.as_array();
+    let (rows, cols) = a.dim();
+    if rows < 3 || cols < 3 || rows > 4 || cols > 4 {
+        return Err(SolidError::new_err(format!(
+            "{name} must be a (3, 3) rotation or a (3, 4) / (4, 4) pose, got shape ({rows}, {cols})"
+        )));
+    }
+    let mut p = IDENTITY;
+    for (i, row) in p.iter_mut().take(3).enumerate() {
+        for (j, v) in row.iter_mut().take(3).enumerate() {
+            *v = a[[i, j]];
+        }
+    }
+    if p.iter().flatten().any(|v| !v.is_finite()) {
+        return Err(SolidError::new_err(format!(
+            "{name} holds a NaN or infinity"
+        )));
+    }
+    Ok(p)
+}
+
+/// `ω × arm`: the displacement of the query (in its frame) that a rotation drift at a constant
+/// rate along the path `positions` ((N, 3) in the world, the place's first, the query's last)
+/// predicts, `ω` the rotation vector of `r_expected · r_poseᵀ` and the arm the place's position
+/// less the path's centroid, turned into the query's frame by `r_query`: the odometry check's
+/// allowance for a rotation drift (docs/spec.md §8; `solid.commands.measured_drift` uses it).
+#[pyfunction]
+#[pyo3(name = "_drift_swing")]
+fn drift_swing(
+    r_expected: numpy::PyReadonlyArray2<'_, f64>,
+    r_pose: numpy::PyReadonlyArray2<'_, f64>,
+    positions: numpy::PyReadonlyArray2<'_, f64>,
+    r_query: numpy::PyReadonlyArray2<'_, f64>,
+) -> PyResult<[f64; 3]> {
+    let expected = rotation_arg(&r_expected, "r_expected")?;
+    let pose = rotation_arg(&r_pose, "r_pose")?;
+    let q = rotation_arg(&r_query, "r_query")?;
+    let p = positions.as_array();
+    if p.ncols() != 3 {
+        return Err(SolidError::new_err(format!(
+            "positions must have shape (N, 3), got (N, {})",
+            p.ncols()
+        )));
+    }
+    if p.iter().any(|v| !v.is_finite()) {
+        return Err(SolidError::new_err("positions hold a NaN or infinity"));
+    }
+    let query: [f64; 12] = core::array::from_fn(|k| q[k / 4][k % 4]);
+    let path = p.rows().into_iter().map(|r| [r[0], r[1], r[2]]);
+    let arm = detector::path_arm(path, &query);
+    Ok(detector::rotation_displacement(&expected, &pose, &arm))
+}
+
 /// Registers the detector's classes on the module.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyLoopDetector>()?;
@@ -834,5 +891,6 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyCandidate>()?;
     m.add_class::<PyDetection>()?;
     m.add("VERIFIED_THRESHOLD", db::VERIFIED_THRESHOLD)?;
+    add_functions! { m, drift_swing }
     Ok(())
 }

@@ -29,6 +29,7 @@
 
 use alloc::sync::Arc;
 
+use super::nearby::weakest_translation;
 use super::verify::{met_quality, relative, seeded, verify_pair_from, verify_yaws};
 use super::{LoopDetector, Step, Trail};
 use crate::db::DbError;
@@ -107,6 +108,39 @@ fn fan(fan_deg: f64, straight: f64, out: &mut [f64; 16]) -> usize {
         n += 1;
     }
     n
+}
+
+/// A link registered from the previous motion `start` keeps the motion along the direction its
+/// clouds constrain least ([`weakest_translation`]: a corridor's axis) when it departs from it
+/// there by more than the odometry check's constant part (`odometry_translation_m`): along a
+/// corridor that repeats, the registration stalls or slides by a module as readily as it finds
+/// the true step (the simulator's corridors, 2 m steps: 8-30 of 479 links from the motion ended
+/// 1.5-5 m off, each along that direction, where no right link departed from the motion there by
+/// more than 0.38 m, nor on hku1's 312). At keyframes a few tenths of a second apart the motion
+/// cannot change by a metre from one step to the next: the registration's answer there is the
+/// look-alike's. Only while the registration turns as the motion did (within
+/// `odometry_rotation_deg`): where the turn changed (a street corner at keyframes 6 m apart, or
+/// after a wrong link) the motion's translation is no better than its rotation.
+fn keep_the_motion(
+    v: &VerifyConfig,
+    start: &Pose,
+    mut r: super::Verification,
+) -> super::Verification {
+    // A turn that changed (the registration turned otherwise than the motion) is no constant
+    // motion: the motion's translation is as wrong as its rotation.
+    let turned_alike = reg::pose_distance(start, &r.registration.pose)
+        .is_some_and(|(_, deg)| deg <= v.odometry_rotation_deg);
+    let Some(u) = weakest_translation(&r.registration).filter(|_| turned_alike) else {
+        return r;
+    };
+    let p = &mut r.registration.pose;
+    let along: f64 = (0..3).map(|i| u[i] * (p[i][3] - start[i][3])).sum();
+    if libm::fabs(along) > v.odometry_translation_m {
+        for (i, row) in p.iter_mut().take(3).enumerate() {
+            row[3] -= along * u[i];
+        }
+    }
+    r
 }
 
 /// The frame of a scan the chain could not link: none.
@@ -264,7 +298,9 @@ impl LoopDetector {
         let a_prev = self.a(id);
         let views = Some((a_query, a_prev.as_slice()));
         let seeded_link = match &motion {
-            Some(m) => seeded(&v, q, &cp, m, views)?.filter(|r| met_quality(r) || held(&v, m, r)),
+            Some(m) => seeded(&v, q, &cp, m, views)?
+                .filter(|r| met_quality(r) || held(&v, m, r))
+                .map(|r| keep_the_motion(&v, m, r)),
             None => None,
         };
         // The hypotheses turn about the previous motion (a turn at constant speed).

@@ -32,7 +32,7 @@ mod verify;
 pub use chain::PoseSource;
 pub use consistency::MapAnchor;
 pub use defer::{DEFERRED_QUERIES, DEFERRED_STEPS};
-pub use verify::{UNVERIFIED_SCORE, VERIFIED_THRESHOLD};
+pub use verify::{path_arm, rotation_displacement, UNVERIFIED_SCORE, VERIFIED_THRESHOLD};
 
 /// One candidate of a detector step, in the detector's ranking order.
 #[derive(Debug, Clone, Copy, PartialEq)]

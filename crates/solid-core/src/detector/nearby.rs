@@ -161,6 +161,20 @@ impl LoopDetector {
     }
 }
 
+/// The unit direction (in the query's frame) along which `r`'s clouds constrain its
+/// translation least: the eigenvector of the smallest eigenvalue of the Hessian's translation
+/// block (a corridor's axis). None when the Hessian is not finite.
+pub(super) fn weakest_translation(r: &reg::Registration) -> Option<[f64; 3]> {
+    let h = &r.hessian;
+    // The Hessian is in (rotation, translation) order about the query's origin.
+    let htt = Matrix3::from_fn(|a, b| h[3 + a][3 + b]);
+    if !htt.iter().all(|x| x.is_finite()) {
+        return None;
+    }
+    let (_, u) = reg::weakest_direction(htt);
+    Some([u[0], u[1], u[2]])
+}
+
 /// Whether `candidate` registered again from `r`'s pose shifted by ±`pose_candidate_shift_m`
 /// along the weakest direction of its translation information comes back to `r`'s pose (within
 /// the gate's agreement tolerances): a registration that slid where the clouds leave the
@@ -175,13 +189,9 @@ pub(super) fn keeps_its_pose(
     if s <= 0.0 {
         return true;
     }
-    let h = &r.hessian;
-    // The Hessian is in (rotation, translation) order about the query's origin.
-    let htt = Matrix3::from_fn(|a, b| h[3 + a][3 + b]);
-    if !htt.iter().all(|x| x.is_finite()) {
+    let Some(u) = weakest_translation(r) else {
         return false;
-    }
-    let (_, u) = reg::weakest_direction(htt);
+    };
     [s, -s].iter().all(|&d| {
         let mut init = r.pose;
         for (a, row) in init.iter_mut().take(3).enumerate() {

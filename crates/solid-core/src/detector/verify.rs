@@ -521,27 +521,11 @@ impl LoopDetector {
         let position = |p: &[f64; 12]| [p[3], p[7], p[11]];
         let posed = (k0..self.known.len())
             .filter_map(|k| self.known_pose((self.session_start + k) as u32))
-            .map(|p| position(&p))
+            .map(|p| position(&p));
+        let path = core::iter::once(position(&pc))
+            .chain(posed)
             .chain(core::iter::once(position(&q)));
-        let (mut sum, mut metres, mut last) = ([0.0; 3], 0.0, position(&pc));
-        for p in posed {
-            let step = libm::sqrt((0..3).map(|i| (p[i] - last[i]) * (p[i] - last[i])).sum());
-            for i in 0..3 {
-                sum[i] += step * (p[i] + last[i]) / 2.0;
-            }
-            metres += step;
-            last = p;
-        }
-        let from = position(&pc);
-        let d: [f64; 3] = if metres > 0.0 {
-            core::array::from_fn(|i| from[i] - sum[i] / metres)
-        } else {
-            [0.0; 3]
-        };
-        // Into the query's frame: R_wq^T · d.
-        Some(core::array::from_fn(|i| {
-            (0..3).map(|j| q[4 * j + i] * d[j]).sum()
-        }))
+        Some(path_arm(path, &q))
     }
 
     /// [`LoopDetector::within_drift`] with the rotation's allowance taken as the displacement
@@ -766,10 +750,37 @@ pub(super) fn rotation_bound(v: &VerifyConfig, path: f64) -> f64 {
         .min(v.odometry_rotation_max_deg)
 }
 
+/// The arm of a rotation drift along a path: its first position less the path's centroid (each
+/// stretch weighted by its metres; the first position when the path has no length), turned into
+/// the frame of `query` (a row-major 3×4 pose, the path's end: `R_queryᵀ · arm`). The odometry
+/// check's allowance for a rotation drift is [`rotation_displacement`] of this arm
+/// (docs/spec.md §8).
+pub fn path_arm(path: impl IntoIterator<Item = [f64; 3]>, query: &[f64; 12]) -> [f64; 3] {
+    let mut path = path.into_iter();
+    let Some(from) = path.next() else {
+        return [0.0; 3];
+    };
+    let (mut sum, mut metres, mut last) = ([0.0; 3], 0.0, from);
+    for p in path {
+        let step = libm::sqrt((0..3).map(|i| (p[i] - last[i]) * (p[i] - last[i])).sum());
+        for i in 0..3 {
+            sum[i] += step * (p[i] + last[i]) / 2.0;
+        }
+        metres += step;
+        last = p;
+    }
+    let d: [f64; 3] = if metres > 0.0 {
+        core::array::from_fn(|i| from[i] - sum[i] / metres)
+    } else {
+        [0.0; 3]
+    };
+    core::array::from_fn(|i| (0..3).map(|j| query[4 * j + i] * d[j]).sum())
+}
+
 /// `ω × arm`: the displacement of the query that the rotation `pose` and `expected` differ by
 /// (`ω`, the rotation vector of `R_expected · R_poseᵀ`) predicts for a rotation drift at a
-/// constant rate along a path with `arm` ([`LoopDetector::drift_arm`]).
-pub(super) fn rotation_displacement(expected: &Pose, pose: &Pose, arm: &[f64; 3]) -> [f64; 3] {
+/// constant rate along a path with `arm` ([`path_arm`]).
+pub fn rotation_displacement(expected: &Pose, pose: &Pose, arm: &[f64; 3]) -> [f64; 3] {
     let r: [[f64; 3]; 3] = core::array::from_fn(|i| {
         core::array::from_fn(|j| (0..3).map(|k| expected[i][k] * pose[j][k]).sum())
     });
