@@ -24,7 +24,7 @@ use alloc::vec::Vec;
 
 use nalgebra::{Matrix3, Rotation3, Vector3};
 
-use super::verify::{distance, registered, reject, relative, QueryPlace, VOUCHED_DRIFT};
+use super::verify::{distance, registered, reject, QueryPlace, VOUCHED_DRIFT};
 use super::{loop_of, Candidate, Loop, LoopDetector, PlacementChange};
 use crate::reg::{invert, mul, rows_to_pose, Pose, Rejection};
 
@@ -182,29 +182,27 @@ impl LoopDetector {
     /// up to that step ([`LoopDetector::bridged`]); its callers compare such pairs only where a
     /// placement across the break may release a loop held before it.
     fn consistent_times(&self, a: &Hypothesis, b: &Hypothesis, k: (f64, f64)) -> bool {
-        let Some((moved, qpath, qoff)) =
-            self.bridged(&a.query_pose, a.travelled, &b.query_pose, b.travelled)
-        else {
+        // The path between two poses: the metres travelled (across breaks, `bridged`), or the
+        // straight distance where one has none (a map's place, no pose).
+        let relate = |p1: &[f64; 12], t1: f64, p2: &[f64; 12], t2: f64| {
+            let (rel, path, off) = self.bridged(p1, t1, p2, t2)?;
+            Some((
+                rel,
+                if path.is_nan() {
+                    distance(p1, p2)
+                } else {
+                    path
+                },
+                off,
+            ))
+        };
+        let (Some((moved, qpath, qoff)), Some((back, ppath, poff))) = (
+            relate(&a.query_pose, a.travelled, &b.query_pose, b.travelled),
+            relate(&b.place, b.place_travelled, &a.place, a.place_travelled),
+        ) else {
             return false;
         };
-        let (back, ppath, poff) = if a.place_travelled.is_nan() || b.place_travelled.is_nan() {
-            (
-                relative(&b.place, &a.place),
-                distance(&a.place, &b.place),
-                0.0,
-            )
-        } else {
-            match self.bridged(&b.place, b.place_travelled, &a.place, a.place_travelled) {
-                Some(x) => x,
-                None => return false,
-            }
-        };
         let expected = mul(&mul(&moved, &b.pose), &back);
-        let qpath = if qpath.is_nan() {
-            distance(&a.query_pose, &b.query_pose)
-        } else {
-            qpath
-        };
         self.within_drift_beyond(&expected, &a.pose, qpath + ppath, qoff + poff, k)
     }
 
@@ -824,6 +822,7 @@ fn spread(mean: &Pose, xs: &[Pose]) -> Option<[[f64; 6]; 6]> {
 
 #[cfg(test)]
 mod tests {
+    use super::super::verify::relative;
     use super::super::verify::tests::{
         detector_along, detector_with_path, pose, rejection, verified,
     };
