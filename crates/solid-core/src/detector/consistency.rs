@@ -28,7 +28,7 @@ use super::verify::{distance, registered, reject, QueryPlace, VOUCHED_DRIFT};
 use super::{loop_of, Candidate, Loop, LoopDetector, PlacementChange};
 use crate::reg::{invert, mul, rows_to_pose, Pose, Rejection};
 
-/// Hypotheses kept for the consistency search (the most recent).
+/// Loops within the session kept for their neighbours' vouching (the most recent).
 const WINDOW: usize = 96;
 
 /// Supporting loops the placement's transform is fitted to (the most recent).
@@ -46,9 +46,20 @@ const RIVAL_RATIO: usize = 2;
 /// intersection in the same arrangement.
 const PLACEMENT_TURN_DEG: f64 = 45.0;
 
-/// Loops into the map held before the placement (or off it), kept for a late release (the
-/// most recent).
+/// Hypotheses into the map kept for the placement's consistency search, and loops into the map
+/// held before the placement (or off it) for a late release (the most recent of each). The
+/// search spans the stretch a session drives before it is placed, not the last few dozen
+/// queries: a rival placement (a copy of the map's stretch turned or shifted) counts with
+/// every query that produced it, however long ago, as the true one does. With the 96 latest
+/// hypotheses, the two copies of a corridor grid's ring turned by ±90° blocked each other,
+/// one left the window, and the other placed the session 67.89 m off (75 wrong loops,
+/// `tools/session_measure.py '{}' 1 os1-64:90 poses 2`); a session in another building of
+/// corridors was placed by 13 loops while the rival set of 8 had left the window (`... hdl64
+/// never 2`). Over the latest 384, neither is placed.
 const HELD: usize = 4 * WINDOW;
+
+/// Words of a hypothesis's consistency with the [`HELD`] before it (one bit each).
+const WORDS: usize = HELD.div_ceil(64);
 
 /// One registered candidate into a map place: where it places the session.
 #[derive(Debug, Clone, Copy)]
@@ -137,8 +148,13 @@ pub struct MapAnchor {
 /// The placement state of a detector.
 #[derive(Debug, Clone, Default)]
 pub(super) struct Placement {
-    /// The recent hypotheses, oldest first.
+    /// The recent hypotheses into the map (the latest [`HELD`]), oldest first.
     window: VecDeque<Hypothesis>,
+    /// For each of `window`'s hypotheses, its consistency with those before it (within
+    /// [`VOUCHED_DRIFT`] times the drift bounds, both ways): bit `d` for the one `d + 1`
+    /// places earlier. Computed once, as it joins: a pair's consistency depends on the pair
+    /// alone (a break of the odometry is noted before the hypotheses after it).
+    agree: VecDeque<[u64; WORDS]>,
     /// The loops supporting the current placement (the latest `FIT`), oldest first; empty
     /// while the session is not placed.
     support: VecDeque<Hypothesis>,
@@ -239,10 +255,7 @@ impl LoopDetector {
             }));
         }
         for (_, h) in &mine {
-            if self.placement.window.len() == WINDOW {
-                self.placement.window.pop_front();
-            }
-            self.placement.window.push_back(*h);
+            self.hypothesise(h);
         }
         for (i, h) in &mine {
             let c = &mut cands[*i];
@@ -501,14 +514,48 @@ impl LoopDetector {
     /// paths between a set's loops (the 1 % bounds broke the true set of a session drifting 3-5 %
     /// into pieces that a look-alike set outnumbered).
     fn consistent_sets(&self, h: &Hypothesis) -> (Vec<Hypothesis>, usize) {
-        let w: Vec<Hypothesis> = (self.placement.window.iter())
-            .filter(|x| !self.crosses_break(x.travelled, h.travelled))
-            .copied()
+        let p = &self.placement;
+        let idx: Vec<usize> = (0..p.window.len())
+            .filter(|&i| !self.crosses_break(p.window[i].travelled, h.travelled))
             .collect();
-        match w.iter().rposition(|x| same(x, h)) {
-            Some(me) => self.consistent_sets_in(&w, me, VOUCHED_DRIFT),
-            None => (alloc::vec![*h], 0),
+        let w: Vec<Hypothesis> = idx.iter().map(|&i| p.window[i]).collect();
+        let Some(me) = w.iter().rposition(|x| same(x, h)) else {
+            return (alloc::vec![*h], 0);
+        };
+        let n = w.len();
+        let mut ok = alloc::vec![false; n * n];
+        for a in 0..n {
+            for b in 0..a {
+                let d = idx[a] - idx[b] - 1;
+                let c = (p.agree[idx[a]][d / 64] >> (d % 64)) & 1 == 1;
+                ok[a * n + b] = c;
+                ok[b * n + a] = c;
+            }
+            ok[a * n + a] = true;
         }
+        largest_sets(&w, &ok, me)
+    }
+
+    /// Adds hypothesis `h` into the map to the window (the oldest leaves a full one), with its
+    /// consistency with those before it.
+    fn hypothesise(&mut self, h: &Hypothesis) {
+        let p = &self.placement;
+        let earlier = p.window.len().min(HELD - 1);
+        let mut bits = [0u64; WORDS];
+        for (d, x) in p.window.iter().rev().take(earlier).enumerate() {
+            if self.consistent_times(h, x, VOUCHED_DRIFT)
+                && self.consistent_times(x, h, VOUCHED_DRIFT)
+            {
+                bits[d / 64] |= 1 << (d % 64);
+            }
+        }
+        let p = &mut self.placement;
+        if p.window.len() == HELD {
+            p.window.pop_front();
+            p.agree.pop_front();
+        }
+        p.window.push_back(*h);
+        p.agree.push_back(bits);
     }
 
     /// [`LoopDetector::consistent_sets`] among the hypotheses `w`, for `w[me]`, consistent within
@@ -530,28 +577,7 @@ impl LoopDetector {
             }
             ok[i * n + i] = true;
         }
-        let grow = |seed: usize| -> Vec<usize> {
-            let mut others: Vec<usize> =
-                (0..n).filter(|&j| j != seed && ok[seed * n + j]).collect();
-            let t = w[seed].travelled;
-            others.sort_by(|&a, &b| {
-                libm::fabs(w[a].travelled - t).total_cmp(&libm::fabs(w[b].travelled - t))
-            });
-            let mut set = alloc::vec![seed];
-            for j in others {
-                if set.iter().all(|&s| ok[s * n + j]) {
-                    set.push(j);
-                }
-            }
-            set
-        };
-        let set: Vec<Hypothesis> = grow(me).into_iter().map(|i| w[i]).collect();
-        let rival = (0..n)
-            .filter(|&j| !ok[me * n + j])
-            .map(|j| distinct(&grow(j).into_iter().map(|i| w[i]).collect::<Vec<_>>()))
-            .max()
-            .unwrap_or(0);
-        (set, rival)
+        largest_sets(w, &ok, me)
     }
 
     /// Whether a consistent set may place the session: `placement_loops` distinct queries over
@@ -720,6 +746,35 @@ fn turns(set: &[Hypothesis]) -> bool {
             crate::reg::pose_distance(a, b).is_some_and(|(_, deg)| deg >= PLACEMENT_TURN_DEG)
         })
     })
+}
+
+/// Among hypotheses `w` whose pairwise consistency is `ok` (`n × n`, row-major), the set grown
+/// greedily from `w[me]` (nearest along the path first, each joining one consistent with all
+/// before it), and the most distinct queries of a set grown so from any hypothesis that
+/// disagrees with `w[me]`.
+fn largest_sets(w: &[Hypothesis], ok: &[bool], me: usize) -> (Vec<Hypothesis>, usize) {
+    let n = w.len();
+    let grow = |seed: usize| -> Vec<usize> {
+        let mut others: Vec<usize> = (0..n).filter(|&j| j != seed && ok[seed * n + j]).collect();
+        let t = w[seed].travelled;
+        others.sort_by(|&a, &b| {
+            libm::fabs(w[a].travelled - t).total_cmp(&libm::fabs(w[b].travelled - t))
+        });
+        let mut set = alloc::vec![seed];
+        for j in others {
+            if set.iter().all(|&s| ok[s * n + j]) {
+                set.push(j);
+            }
+        }
+        set
+    };
+    let set: Vec<Hypothesis> = grow(me).into_iter().map(|i| w[i]).collect();
+    let rival = (0..n)
+        .filter(|&j| !ok[me * n + j])
+        .map(|j| distinct(&grow(j).into_iter().map(|i| w[i]).collect::<Vec<_>>()))
+        .max()
+        .unwrap_or(0);
+    (set, rival)
 }
 
 fn same(a: &Hypothesis, b: &Hypothesis) -> bool {
@@ -932,6 +987,45 @@ mod tests {
         det.check_after_gate(&at, &[], &mut cands).unwrap();
         assert_eq!(rejection(&cands[0]), None);
         assert!(det.map_anchor().is_none());
+    }
+
+    #[test]
+    fn a_rival_placement_counts_however_many_hypotheses_came_since() {
+        // Steps 0-7 see the true place and a look-alike 20 places on: two placements of 8
+        // queries each. Steps 8-15 see only the look-alike, among 12 registered candidates
+        // that place the session each somewhere else (50 m apart): the look-alike's 16 queries
+        // are not more than twice the truth's 8, so nothing is placed, though the truth's
+        // loops are more than 96 hypotheses old (a corridor grid's ring and its copy turned
+        // by 90°). Then the true place again: placed there once its set outnumbers the
+        // look-alike's twice over.
+        let mut det = over_map(4);
+        let mut other = 0.0;
+        let mut placed = None;
+        for k in 0..54 {
+            let (at, [good, alike]) = step(&det, k, true);
+            let mut cands = match k {
+                0..8 => alloc::vec![good, alike],
+                8..16 => alloc::vec![alike],
+                _ => alloc::vec![good],
+            };
+            if (8..16).contains(&k) {
+                for _ in 0..12 {
+                    other += 50.0;
+                    let t = relative(at.pose.as_ref().unwrap(), &pose(0.0, other, 0.0));
+                    cands.push(verified(59, t));
+                }
+            }
+            det.check_after_gate(&at, &[], &mut cands).unwrap();
+            if placed.is_none() && det.map_anchor().is_some() {
+                placed = Some(k);
+            }
+        }
+        // The truth's 8 + 25 (steps 16-40) > 2 × 16.
+        assert_eq!(placed, Some(40));
+        assert!(det.placement.window.len() > 96);
+        let a = det.map_anchor().unwrap();
+        assert!(crate::reg::pose_distance(&a.transform, &truth())
+            .is_some_and(|(m, deg)| m < 1e-6 && deg < 1e-6));
     }
 
     #[test]
