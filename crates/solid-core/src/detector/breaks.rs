@@ -161,10 +161,11 @@ impl LoopDetector {
     /// beyond that drift. Without a break between them: the poses' relative pose, `|ta − tb|`
     /// and 0. Across breaks, each break's step is taken as the session's typical one then (as
     /// [`Breaks::frame`] does for the metres travelled), along the direction of the session's last
-    /// step before it (constant velocity; none known: no motion), and may be off by that
-    /// typical step (the platform stopped, or moved twice its usual step): the poses on the two
-    /// sides are related through the places at the break's two ends. None when a break's end has
-    /// no own place with a pose.
+    /// step before it (constant velocity; none known: no motion), with the rotation the odometry
+    /// made over it (none across a frame the detector's own odometry started), and may be off by
+    /// that typical step (the platform stopped, or moved twice its usual step): the poses on the
+    /// two sides are related through the places at the break's two ends. None when a break's end
+    /// has no own place with a pose.
     pub(super) fn bridged(
         &self,
         a: &[f64; 12],
@@ -197,10 +198,24 @@ impl LoopDetector {
                     row[3] = step * d[i];
                 }
             }
+            let (ky, py) = self.place_at(y, false)?;
+            // The rotation the odometry made over the broken step, when its two ends lie in one
+            // frame of it (the caller's poses): a breakdown loses the position sooner than the
+            // heading (an IMU, a LiDAR odometry sliding along a corridor), and a turn made while
+            // it was broken is a turn. Across a frame the detector's own odometry started, the
+            // two frames' rotations are unrelated: none.
+            if self.known[kx].map(|(_, f)| f) == self.known[ky].map(|(_, f)| f) {
+                let turn = relative(&px, &py);
+                for (row, from) in s.iter_mut().zip(turn.iter()) {
+                    row[..3].copy_from_slice(&from[..3]);
+                }
+                // The direction of motion, in the frame after the step.
+                heading = heading
+                    .map(|d| core::array::from_fn(|i| (0..3).map(|k| turn[k][i] * d[k]).sum()));
+            }
             rel = mul(&rel, &s);
             path += step;
             off += step;
-            let (_, py) = self.place_at(y, false)?;
             (cur, t) = (py, y);
         }
         rel = mul(&rel, &relative(&cur, b));

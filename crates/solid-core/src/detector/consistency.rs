@@ -1571,6 +1571,33 @@ mod tests {
     }
 
     #[test]
+    fn a_turn_made_while_the_odometry_broke_is_carried_across_the_break() {
+        // The session turns 20° in the broken step into place 12 (and 20° a step after it): its
+        // straight stretch before the break waits for a turn, and the placement after the break
+        // relates to it through the break with the odometry's own rotation over the broken step
+        // (the 30 m jump replaced by the typical step): the loops before the break agree and are
+        // released with it.
+        let (mut det, in_map) = session_over_map_turning_from(11);
+        let (own, first) = (det.session_start as u32, det.len() as u32);
+        let mut late = Vec::new();
+        for k in 0..in_map.len() as u32 {
+            let at = QueryPlace {
+                id: first + k,
+                pose: det.known_pose(own + k),
+                travelled: det.travelled_at(own + k).unwrap(),
+                eligible: own as usize,
+            };
+            let t = relative(&in_map[k as usize], &pose(0.0, f64::from(5 + k), 0.0));
+            let mut cands = [verified(5 + k, t)];
+            det.check_after_gate(&at, &[], &mut cands).unwrap();
+            let looped = rejection(&cands[0]).is_none().then_some(at.id);
+            late.extend(det.placement_news(looped).0.iter().map(|l| l.query - first));
+        }
+        assert!((0..12).all(|q| late.contains(&q)), "{late:?}");
+        assert_eq!(det.map_anchors().len(), 2);
+    }
+
+    #[test]
     fn frames_subsampled_make_a_long_step_not_a_break() {
         // The frames skip 30 m in 30 s: the speed is the session's, no break; a stretch of
         // look-alikes 20 m off the odometry is turned down by it, never placed on its own.
