@@ -108,8 +108,10 @@ def test_a_breakdown_before_the_turn_costs_only_the_loops_of_its_stretch(city: A
     scans = sim.simulate(world, sensor, second).scans
     mine = sim.Session.of(second).trajectory
     stretch = (14, 17)  # the turn is at frames 19-21
+    det: Any = None
 
     def run(odometry: sim.Trajectory) -> tuple[set[int], int, list[Any]]:
+        nonlocal det
         det = solid.LoopDetector.from_database(db, detector=cfg.detector)
         dets = det.detect_many(scans, poses=odometry.poses)
         start = det.session_start
@@ -134,6 +136,36 @@ def test_a_breakdown_before_the_turn_costs_only_the_loops_of_its_stretch(city: A
     assert len(placed) == 1 and placed[0][0] >= stretch[1]
     assert {q for q in clean if q < stretch[0]} <= broken
     assert {q for q in clean if not stretch[0] <= q < stretch[1]} <= broken
+    # Each stretch of the odometry between breaks lies in its own frame, with its own anchor: the
+    # placement (the map → odom of now) maps the stretch after the break, the loops released
+    # before it place the stretch before. Either anchor puts the other stretch's poses tens of
+    # metres off.
+    odometry = mine.drifting(1, seed=1, breakdown=stretch, breakdown_jump_m=20.0, breakdown_climb_m=30.0)
+    start = det.session_start
+    in_map = [np.linalg.inv(h(sim.Session.of(lap).frame)) @ h(p) for p in second.poses]
+
+    def off(anchor: Any, q: int) -> float:
+        return float(np.linalg.norm((np.asarray(anchor.transform) @ h(odometry.poses[q]))[:3, 3] - in_map[q][:3, 3]))
+
+    now = det.map_anchor
+    assert now.to_query is None and stretch[0] < now.from_query - start <= stretch[1]
+    anchors = det.map_anchors
+    assert anchors[-1] == now and len(anchors) >= 2
+    before = anchors[0]
+    assert before.from_query == start and before.to_query - start == stretch[0] - 1
+    assert max(off(now, q) for q in range(stretch[1], len(second))) < 1.0
+    assert max(off(before, q) for q in range(stretch[0])) < 1.0
+    assert min(off(now, q) for q in range(stretch[0])) > 20.0
+    # The stream form says the same: the current placement, one per stretch.
+    from solid.localize import Localizer
+
+    loc = Localizer(db, cfg)
+    for points, pose in zip(scans, odometry.poses):
+        loc.add(points, pose=pose)
+    assert loc.current is not None and loc.current.from_frame == now.from_query - start
+    frames = [(p.from_frame, p.to_frame) for p in loc.stretches]
+    assert frames[0] == (0, stretch[0] - 1) and frames[-1][1] is None
+    assert loc.stretches[0].places(3) and not loc.stretches[0].places(stretch[1])
 
 
 @pytest.fixture(scope="module")

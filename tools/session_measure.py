@@ -12,7 +12,7 @@ the issue's matrix; this prints one line per case.
 
 Arguments: detector overrides (JSON), seeds, views (preset[:fov]), cases (poses, nopose, drift1,
 drift2, drift3, drift5 (``Trajectory.drifting``), breakdown (drift 1 % with a breakdown stretch,
-see :data:`BREAKDOWN`), never; default: poses, nopose, never), and the world: city (the default
+see :data:`BREAKDOWN`; ``breakdown:N`` from frame N on), never; default: poses, nopose, never), and the world: city (the default
 city with its repeated blocks: a lap around a block and a route that drives half of it, then
 streets the lap never saw), lookalike (the same city with ``repetition=0.9``: most blocks copy one
 of three templates) or the blocks of a corridor grid (1 or 2; its ring rotated by 90° about the
@@ -62,7 +62,9 @@ def off_truth(truth: np.ndarray, pose: Any) -> bool:
 def measure(world: sim.World, view: str, detector: dict[str, Any], case: str, seed: int, spacing: float = 3.0) -> dict[str, Any]:
     """One case through ``LoopDetector`` (a map from the first session, the second against it):
     loops into the map, how many are wrong, recall, the placement (``map_anchor``) and its error
-    at the session's origin, the queries that got a right loop (``found``, session frames)."""
+    at the first frame of the stretch of odometry it maps (:func:`anchor_error`; the session's
+    origin unless the odometry broke), the same for each stretch's anchor (``map_anchors``), the
+    queries that got a right loop (``found``, session frames)."""
     preset, _, fov = view.partition(":")
     sensor = sim.Sensor(preset, h_fov=float(fov) if fov else None)
     cfg = PipelineConfig.preset(preset, radius=5.0, detector=detector)
@@ -86,10 +88,11 @@ def measure(world: sim.World, view: str, detector: dict[str, Any], case: str, se
     b = sim.Session.of(second)
     poses: Any = b.trajectory.poses
     stretch: list[int] = []
-    if case.startswith("drift") or case == "breakdown":
+    if case.startswith("drift") or case.startswith("breakdown"):
         pct = float(case[5:]) if case.startswith("drift") else BREAKDOWN["drift"]
-        if case == "breakdown":
-            s0 = len(second) // 3
+        if case.startswith("breakdown"):
+            # "breakdown:N": from frame N on (the second route turns at frames 51-55 with 3 m spacing).
+            s0 = int(case.partition(":")[2] or len(second) // 3)
             stretch = [s0, s0 + int(BREAKDOWN["frames"])]
         odo = second.drifting(
             pct, seed=seed, breakdown=(stretch[0], stretch[1]) if stretch else (0, 0),
@@ -127,20 +130,53 @@ def measure(world: sim.World, view: str, detector: dict[str, Any], case: str, se
         "found": sorted(found), "stretch": stretch, "anchor": None, "cpu_s": round(cpu, 1),
     }
     if anchor is not None:
-        err = None
+        # The true poses in the map's frame, and the odometry the detector placed (the given poses,
+        # or without them the detector's own chain).
+        W = [np.linalg.inv(h(a.frame)) @ m for m in B]
+        O = [h(p) for p in poses] if poses is not None else [None if d.pose is None else np.asarray(d.pose) for d in dets]
+
+        def described(x: Any) -> dict[str, Any]:
+            err = None if case == "never" else anchor_error(x, start, O, W)
+            to = None if x.to_query is None else x.to_query - start
+            return {"first_query": x.first_query - start, "loops": x.loops, "metres": x.metres, "error_m": err, "from_query": x.from_query - start, "to_query": to}
+
+        out["anchor"] = described(anchor)
+        out["anchor"]["stretches"] = [described(x) for x in det.map_anchors]
         if case != "never":
+            # The former measure: against the frame at the session's origin, whatever the stretch.
             e = np.linalg.inv(h(b.anchor(a))) @ anchor.transform
-            err = float(np.linalg.norm(e[:3, 3]))
-        out["anchor"] = {"first_query": anchor.first_query - start, "loops": anchor.loops, "metres": anchor.metres, "error_m": err}
+            out["anchor"]["origin_error_m"] = float(np.linalg.norm(e[:3, 3]))
     return out
+
+
+def anchor_error(anchor: Any, start: int, odometry: list[Any], truth: list[np.ndarray]) -> float | None:
+    """How far ``anchor`` (a ``MapAnchor``) puts the first frame of the stretch of odometry it maps
+    (``from_query``; the first there with a pose) from its true place in the map (metres): the
+    anchor maps that stretch's frame only; after a break of the odometry the poses lie in
+    another (at the session's origin, this is the anchor's translation error against the
+    session's true ``T_map_odom``)."""
+    q0 = int(anchor.from_query) - start
+    last = len(odometry) - 1 if anchor.to_query is None else int(anchor.to_query) - start
+    q = next((k for k in range(q0, last + 1) if odometry[k] is not None), None)
+    if q is None:
+        return None
+    return float(np.linalg.norm((np.asarray(anchor.transform) @ odometry[q])[:3, 3] - truth[q][:3, 3]))
 
 
 def line(m: dict[str, Any]) -> str:
     a = m["anchor"]
     placed = "no anchor"
     if a is not None:
-        off = "" if a["error_m"] is None else f", {a['error_m']:.2f} m off at the session origin"
+        at = "the session origin" if not a["from_query"] else f"the first frame of its stretch (query {a['from_query']})"
+        off = "" if a["error_m"] is None else f", {a['error_m']:.2f} m off at {at}"
         placed = f"anchor at query {a['first_query']} from {a['loops']} loops over {a['metres']:.0f} m{off}"
+        earlier = a.get("stretches", [])[:-1]
+        if earlier:
+            # The odometry broke: the stretches before the anchor's, each with its own.
+            placed += "; earlier stretches: " + ", ".join(
+                f"queries {x['from_query']}-{x['to_query']} by {x['loops']} loops" + ("" if x["error_m"] is None else f", {x['error_m']:.2f} m off")
+                for x in earlier
+            )
     rec = "" if m["recall"] is None else f", recall {round(m['recall'] * m['revisits'])}/{m['revisits']} = {m['recall']:.3f}"
     return f"{m['case']}: {m['loops']} loops into the map, {m['wrong']} wrong{rec}, {placed} ({m['cpu_s']:.0f} s CPU)"
 

@@ -12,7 +12,9 @@ Rows (a loop is *pose-false* when its pose is more than 1 m or 5° off the true 
   templates), a map from a lap around a block with its poses, a second session that drives half
   of that lap and then streets it never saw, its poses in its own world frame (``poses``) or none
   (``nopose``); every view, every seed. Loops into the map, pose-false, recall of the second
-  session's queries with a map place within 5 m, the anchor's error. Target: 0 pose-false,
+  session's queries with a map place within 5 m, the anchor's error (at the first frame of the
+  stretch of odometry it maps: the session's origin unless the odometry broke; a broken
+  odometry's earlier stretches are listed with their own anchors). Target: 0 pose-false,
   recall ≥ 0.5.
 - ``never``: a session that never enters the map (``sim.away_route``). Target: 0 loops, no anchor.
 - ``drift``: one session in the look-alike city (1.2 laps, frames 6 m apart, VLP-16, as
@@ -217,6 +219,12 @@ def fmt(r: dict[str, Any]) -> str:
     if r["row"] in ("sessions", "never", "breakdown"):
         a = r["anchor"]
         extra = "" if r.get("case") == "one session" else "no anchor" if a is None else f"anchor {a['loops']} loops/{a['metres']:.0f} m" + ("" if a["error_m"] is None else f", {a['error_m']:.2f} m off")
+        if a is not None and len(a.get("stretches", [])) > 1:
+            # The odometry broke: each stretch between breaks has its own anchor (the m off: at its first frame).
+            extra += " (from query {}); earlier stretches: {}".format(
+                a["from_query"],
+                ", ".join(f"{s['from_query']}-{s['to_query']} {s['loops']} loops" + ("" if s["error_m"] is None else f" {s['error_m']:.2f} m off") for s in a["stretches"][:-1]),
+            )
     if r["row"] == "breakdown":
         extra += f"{'; ' if extra else ''}right loops outside the stretch {r['right_outside']} vs {r['right_outside_clean']} without it: lost {r['lost_outside']}"
     if r["row"] == "drift":

@@ -556,9 +556,27 @@ def _placement_table(doc: dict[str, Any]) -> str:
         ]
         if doc["sigma_translation_m"] is not None:
             rows.append(("spread", f"{doc['sigma_translation_m']:.3f} m, {doc['sigma_rotation_deg']:.3f}° (of the supporting loops' placements)"))
+        stretches = doc.get("stretches") or []
+        if len(stretches) > 1 or doc.get("from_frame") or doc.get("to_frame") is not None:
+            # The odometry broke: each stretch between breaks lies in its own frame.
+            rows.append(("maps frames", _frames_of(doc) + ("" if doc.get("to_frame") is None else ": the odometry broke after, the current frame is not placed")))
+            for s in stretches[:-1]:
+                S = s["transform"]
+                rows.append(
+                    (
+                        "stretch",
+                        f"frames {_frames_of(s)}: translation {S[0][3]:.2f}, {S[1][3]:.2f}, {S[2][3]:.2f} m, "
+                        f"yaw {math.degrees(math.atan2(S[1][0], S[0][0])):.2f}°, {s['loops']} loops",
+                    )
+                )
     rows.append(("loops", f"{doc['loops_into_map']} into the map, {doc['loops_in_session']} within the session"))
     width = max(len(k) for k, _ in rows)
     return "".join(f"{k:<{width}}  {v}\n" for k, v in rows)
+
+
+def _frames_of(doc: dict[str, Any]) -> str:
+    """The frames a placement maps (its stretch of the odometry), as text."""
+    return f"{doc.get('from_frame') or 0}–{'the last' if doc.get('to_frame') is None else doc['to_frame']}"
 
 
 def cmd_eval(args: argparse.Namespace, out: TextIO) -> int:
@@ -687,6 +705,8 @@ def cmd_optimize(args: argparse.Namespace, out: TextIO) -> int:
             + f"{a['inlier_loops']} of {a['cross_session_loops']} loops into the map (in loops.csv; graph.g2o holds the session's own graph, "
             "so `--loops` reuses only its loops within the session)\n"
         )
+        if a is not None and a.get("note"):
+            out.write(f"note: {a['note']}\n")
     out.write(f"wrote {run.folder}\n")
     return 0
 

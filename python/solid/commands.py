@@ -262,15 +262,36 @@ def anchor_dict(result: Any) -> dict[str, Any] | None:
     return None if p is None else p.to_dict()
 
 
+def anchor_scope(result: Any) -> dict[str, Any]:
+    """The frames the run's placement (``result.map_anchor``) maps — one stretch of the odometry
+    between breaks — and, when that is not every frame (the odometry broke), a ``note`` saying
+    so: ``from_frame``, ``to_frame`` (None: through the last), ``stretches`` (how many stretches
+    loops into the map placed, each with its own anchor: ``solid localize --json``)."""
+    from .localize import placement_of_run
+
+    p = placement_of_run(result)
+    if p is None:
+        return {}
+    out: dict[str, Any] = {"from_frame": p.from_frame, "to_frame": p.to_frame, "stretches": len(result.map_anchors)}
+    if (p.from_frame or 0) > 0 or p.to_frame is not None:
+        out["note"] = (
+            f"the odometry broke: the anchor places frames {p.from_frame}–{'the last' if p.to_frame is None else p.to_frame} only, the "
+            "other frames lie in other frames of the odometry (each stretch's anchor: solid localize --json, stretches; docs/loops.md#breakdowns)"
+        )
+    return out
+
+
 def describe_anchor(result: Any) -> str:
     """One line saying where (whether) the session was placed in the map."""
     a = anchor_dict(result)
     if a is None:
         return "not placed in the map: too few loops into it agree with each other (no loop into the map is accepted before)"
     t = a["transform"]
+    note = anchor_scope(result).get("note")
     return (
         f"placed in the map from frame {a['first_frame']} by {a['loops']} consistent loops over {a['metres']:.0f} m "
         f"(map <- session translation {t[0][3]:.2f}, {t[1][3]:.2f}, {t[2][3]:.2f} m; summary.json map_anchor)"
+        + ("" if note is None else f"; {note}")
     )
 
 
@@ -442,8 +463,11 @@ def localize(
     """``solid localize``: the recording run against a saved map and its placement there
     (:func:`solid.localize.placement_of_run`) as a dict (``placed`` False when not placed); with
     ``output``, a folder with ``placement.json``, ``loops.csv``, ``config.json`` and, when placed,
-    ``anchor.txt`` (``T_map_odom`` as one KITTI 3×4 row: ``solid map merge --anchor``'s file)."""
-    from .localize import placement_of_run
+    ``anchor.txt`` (``T_map_odom`` as one KITTI 3×4 row: ``solid map merge --anchor``'s file).
+    The placement maps the frames ``from_frame``–``to_frame`` (one stretch of the odometry between
+    breaks; ``to_frame`` None: through the last frame); ``stretches`` lists the placement of each
+    stretch that loops into the map placed (one, unless the odometry broke)."""
+    from .localize import placement_of_run, placements_of_run
 
     if getattr(dataset, "poses", None) is None:
         raise _solid.ConfigError("placing a session in a map needs its poses (its odometry): give --poses")
@@ -457,6 +481,7 @@ def localize(
         loops_into_map=sum(1 for lp in result.loops() if int(lp.candidate) < base),
         loops_in_session=sum(1 for lp in result.loops() if int(lp.candidate) >= base),
         rejections=rejection_counts(result),
+        stretches=[s.to_dict() for s in placements_of_run(result)],
     )
     if output is None:
         return result, doc, None
@@ -954,6 +979,7 @@ def place_in_map(result: PipelineResult, anchor: Any) -> tuple[PipelineResult, d
             "inlier_loops": est.inliers,
             "cross_session_loops": est.loops,
         }
+        how.update(anchor_scope(result))
     else:
         T = slam.as4(np.asarray(anchor, dtype=np.float64))
         how = {"source": "given"}
@@ -1044,6 +1070,7 @@ def optimize(
             "cross_session_loops": run.anchor.loops,
             "source": "placed" if result.map_anchor is not None else "estimated",
         }
+        metrics["anchor"].update(anchor_scope(result))
     elif map_db is not None:
         metrics["anchor"] = None
     if loops_from is not None:

@@ -8,6 +8,12 @@ where (``T_map_odom``, the transform from the session's pose frame into the map'
 stream (:class:`Localizer`), a finished run (:func:`placement_of_run`) and ``solid localize``.
 ``solid optimize --map``, ``solid eval --map`` and the ROS 2 node start from the same anchor.
 
+An anchor maps one stretch of the session's odometry: the frames from :attr:`Placement.from_frame`
+to :attr:`Placement.to_frame`. After a break of the odometry (a step it cannot have made: a LIO
+losing track, docs/loops.md#breakdowns) the poses lie in another frame, which the anchor does not
+map; each stretch that loops into the map placed has its own (:attr:`Localizer.stretches`,
+:func:`placements_of_run`), and the ``map → odom`` of now is :attr:`Localizer.current`.
+
 >>> import solid
 >>> from solid import sim
 >>> from solid.config import PipelineConfig
@@ -41,7 +47,7 @@ import numpy.typing as npt
 from . import _solid
 from .config import PipelineConfig
 
-__all__ = ["Localizer", "Placement", "placement_of_run"]
+__all__ = ["Localizer", "Placement", "placement_of_run", "placements_of_run"]
 
 F64 = npt.NDArray[np.float64]
 
@@ -56,7 +62,10 @@ class Placement:
     ``last_frame``; ``placed_frame`` / ``placed_time`` say when the session was placed (the step
     whose loop into the map was the first released); ``covariance`` (6×6, rotation in radians
     then translation in metres, or None) is the spread of the supporting loops' placements, not a
-    calibrated uncertainty."""
+    calibrated uncertainty. The transform maps the poses of one stretch of the session's odometry
+    between breaks: frames ``from_frame`` to ``to_frame`` (None: through the latest frame, so
+    that it is the ``map → odom`` of now, :attr:`current`); poses of other frames lie in other
+    frames of the odometry, which it does not place."""
 
     transform: F64
     loops: int
@@ -66,6 +75,18 @@ class Placement:
     placed_frame: int | None
     placed_time: float | None
     covariance: F64 | None
+    from_frame: int | None = None
+    to_frame: int | None = None
+
+    @property
+    def current(self) -> bool:
+        """Whether it maps the current frame of the odometry (no break since its stretch)."""
+        return self.to_frame is None
+
+    def places(self, frame: int) -> bool:
+        """Whether it maps the pose of recording frame ``frame`` (one of its stretch's)."""
+        lo = 0 if self.from_frame is None else self.from_frame
+        return frame >= lo and (self.to_frame is None or frame <= self.to_frame)
 
     @property
     def sigma_translation_m(self) -> float | None:
@@ -78,7 +99,8 @@ class Placement:
         return None if self.covariance is None else math.degrees(math.sqrt(max(0.0, float(np.trace(self.covariance[:3, :3])))))
 
     def map_pose(self, pose: npt.ArrayLike) -> F64:
-        """A pose of the session (``T_odom_sensor``, 3×4 or 4×4) in the map's world (4×4)."""
+        """A pose of the session (``T_odom_sensor``, 3×4 or 4×4, of a frame it :meth:`places`)
+        in the map's world (4×4)."""
         p = np.asarray(pose, dtype=np.float64)
         T = np.eye(4)
         T[: p.shape[0], :] = p
@@ -99,6 +121,8 @@ class Placement:
             "sigma_translation_m": _round(self.sigma_translation_m),
             "sigma_rotation_deg": _round(self.sigma_rotation_deg),
             "covariance": None if self.covariance is None else self.covariance.tolist(),
+            "from_frame": self.from_frame,
+            "to_frame": self.to_frame,
         }
 
 
@@ -112,6 +136,7 @@ def _placement(anchor: Any, frame_of: Any, placed_frame: int | None, placed_time
     if anchor is None:
         return None
     cov = anchor.covariance
+    to = anchor.to_query
     return Placement(
         transform=np.asarray(anchor.transform, dtype=np.float64),
         loops=int(anchor.loops),
@@ -121,6 +146,8 @@ def _placement(anchor: Any, frame_of: Any, placed_frame: int | None, placed_time
         placed_frame=placed_frame,
         placed_time=placed_time,
         covariance=None if cov is None else np.asarray(cov, dtype=np.float64),
+        from_frame=frame_of(int(anchor.from_query)),
+        to_frame=None if to is None else frame_of(int(to)),
     )
 
 
@@ -137,6 +164,27 @@ def placement_of_run(result: Any) -> Placement | None:
     return _placement(result.map_anchor, result.frame_of, frame, t)
 
 
+def placements_of_run(result: Any) -> list[Placement]:
+    """One :class:`Placement` per stretch of the run's odometry between breaks that loops into
+    the map placed (``result.map_anchors``), in order; the last is :func:`placement_of_run`'s.
+    An earlier one was made at the first step from its first supporting frame on whose
+    ``placement`` says "placed" or "revised" (the step that placed its stretch before the
+    break, or the placement after the breaks that released its loops)."""
+    base = int(result.map_size)
+    out = []
+    for a in result.map_anchors:
+        made = next((d for d in result.detections if d.placement is not None and int(d.query) >= int(a.first_query)), None)
+        frame = None if made is None else result.frame_of(int(made.query))
+        t = None if made is None or result.timestamps is None else float(result.timestamps[int(made.query) - base])
+        p = _placement(a, result.frame_of, frame, t)
+        assert p is not None
+        out.append(p)
+    last = placement_of_run(result)
+    if out and last is not None:
+        out[-1] = last
+    return out
+
+
 class Localizer:
     """A session placed in a saved map, scan by scan (a stream, a live sensor).
 
@@ -146,7 +194,10 @@ class Localizer:
     (the odometry's ``T_odom_sensor``): the placement needs it. :attr:`placement` is None until
     consistent loops into the map place the session; :attr:`history` holds one :class:`Placement`
     per supporting set (the first placement, then each revision to a set that outgrew it), each
-    updated as its set grows."""
+    updated as its set grows. A placement maps one stretch of the odometry between breaks
+    (:attr:`Placement.from_frame` … :attr:`Placement.to_frame`): :attr:`current` is the one that
+    maps the current frame (the ``map → odom`` to publish now; None after a break until the
+    stretch after it is placed), :attr:`stretches` holds one per placed stretch."""
 
     def __init__(self, map: Any, config: PipelineConfig | str | None = None) -> None:
         db = _solid.Database.load(Path(map)) if isinstance(map, (str, Path)) else map
@@ -162,11 +213,36 @@ class Localizer:
         self.detector = _solid.LoopDetector.from_database(db, detector=config.detector)
         self.history: list[Placement] = []
         self._frames = 0
+        # When each stretch's anchor first appeared (by its stretch's first query id): frame, time.
+        self._made: dict[int, tuple[int, float | None]] = {}
 
     @property
     def placement(self) -> Placement | None:
-        """The current placement (the latest of :attr:`history`), or None before the first."""
+        """The latest placement (the latest of :attr:`history`), or None before the first."""
         return self.history[-1] if self.history else None
+
+    @property
+    def current(self) -> Placement | None:
+        """The placement of the current frame of the odometry (the ``map → odom`` of now): the
+        latest, unless a break of the odometry has come since its stretch (then None until the
+        stretch after the break is placed)."""
+        p = self.placement
+        return p if p is not None and p.current else None
+
+    @property
+    def stretches(self) -> list[Placement]:
+        """One placement per stretch of the odometry between breaks that loops into the map placed,
+        in order (``LoopDetector.map_anchors``; the last is :attr:`placement`)."""
+        start = int(self.detector.session_start)
+        out = []
+        for a in self.detector.map_anchors:
+            frame, t = self._made.get(int(a.from_query), (None, None))
+            p = _placement(a, lambda q: q - start, frame, t)
+            assert p is not None
+            out.append(p)
+        if out and self.placement is not None:
+            out[-1] = self.placement
+        return out
 
     def add(self, points: npt.ArrayLike, *, pose: npt.ArrayLike | None = None, timestamp: float | None = None) -> Placement | None:
         """One scan (its points, ``pose`` ``T_odom_sensor``, ``timestamp``): the detector's step
@@ -178,6 +254,8 @@ class Localizer:
         last = self.placement
         if anchor is None:
             return last
+        for a in self.detector.map_anchors:
+            self._made.setdefault(int(a.from_query), (frame, timestamp))
         start = int(self.detector.session_start)
         revised = last is None or step.placement is not None
         when = (frame, timestamp) if revised or last is None else (last.placed_frame, last.placed_time)

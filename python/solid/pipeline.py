@@ -124,6 +124,9 @@ class PipelineResult:
     #: The session's placement in the map (``solid.MapAnchor``; None without a map, or before
     #: consistent loops into it placed the session: docs/spec.md §8, placement).
     map_anchor: Any = None
+    #: One anchor per stretch of the session's odometry between breaks that loops into the map
+    #: placed (``LoopDetector.map_anchors``, in order; the last is ``map_anchor``).
+    map_anchors: list[Any] = field(default_factory=list)
 
     def queries(self) -> list[Any]:
         """The steps that had a database to search (docs/spec.md §5 skips the others)."""
@@ -277,6 +280,7 @@ class LoopClosurePipeline:
             map_size=int(det.session_start),
             session=int(det.session),
             map_anchor=det.map_anchor,
+            map_anchors=list(det.map_anchors),
             fov_center=fov_center,
             timings={"detect_s": t_detect},
         )

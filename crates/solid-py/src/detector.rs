@@ -123,6 +123,14 @@ pub struct PyMapAnchor {
     /// Id of the latest supporting query.
     #[pyo3(get)]
     pub last_query: u32,
+    /// Id of the first query of the stretch of the session's odometry (between breaks) that the
+    /// anchor places.
+    #[pyo3(get)]
+    pub from_query: u32,
+    /// Id of the last query of that stretch when a break of the odometry ended it; None: the
+    /// stretch goes on (`transform` is the map -> odom of now).
+    #[pyo3(get)]
+    pub to_query: Option<u32>,
     inner: db::MapAnchor,
 }
 
@@ -144,8 +152,16 @@ impl PyMapAnchor {
     fn __repr__(&self) -> String {
         let t = &self.inner.transform;
         format!(
-            "MapAnchor(loops={}, metres={:.1}, first_query={}, last_query={}, translation=[{:.3}, {:.3}, {:.3}])",
-            self.loops, self.metres, self.first_query, self.last_query, t[0][3], t[1][3], t[2][3]
+            "MapAnchor(loops={}, metres={:.1}, first_query={}, last_query={}, from_query={}, to_query={}, translation=[{:.3}, {:.3}, {:.3}])",
+            self.loops,
+            self.metres,
+            self.first_query,
+            self.last_query,
+            self.from_query,
+            self.to_query.map_or("None".into(), |q| q.to_string()),
+            t[0][3],
+            t[1][3],
+            t[2][3]
         )
     }
 }
@@ -157,6 +173,8 @@ impl From<db::MapAnchor> for PyMapAnchor {
             metres: a.metres,
             first_query: a.first_query,
             last_query: a.last_query,
+            from_query: a.from_query,
+            to_query: a.to_query,
             inner: a,
         }
     }
@@ -734,6 +752,17 @@ impl PyLoopDetector {
     fn map_anchor(&self, py: Python<'_>) -> Option<PyMapAnchor> {
         self.with(py, LoopDetector::map_anchor)
             .map(PyMapAnchor::from)
+    }
+
+    /// The session's anchors in the map, one per stretch of its odometry between breaks that
+    /// loops into the map placed, in order (`MapAnchor.from_query`); the last is `map_anchor`.
+    /// Empty before the session is placed.
+    #[getter]
+    fn map_anchors(&self, py: Python<'_>) -> Vec<PyMapAnchor> {
+        self.with(py, LoopDetector::map_anchors)
+            .into_iter()
+            .map(PyMapAnchor::from)
+            .collect()
     }
 
     /// Id of the first scan of the own session (the number of prior-map places).

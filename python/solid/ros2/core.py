@@ -105,10 +105,12 @@ def placement(detector: Any, map_loop: Any | None, T_odom_query: F64 | None) -> 
     The detector's own anchor (``LoopDetector.map_anchor``: mutually consistent loops into the
     map, docs/loops.md) is used when the core provides one; until then the placement is that of
     the latest verified loop into the map: ``T_map_odom = T_map_candidate · T_loop⁻¹ · T_odom_query⁻¹``
-    (``T_loop`` = ``T_query_candidate``)."""
+    (``T_loop`` = ``T_query_candidate``). An anchor whose stretch of the odometry a break ended
+    (``MapAnchor.to_query`` set) maps an earlier frame of the odometry, not the current one: None
+    then, until the stretch after the break is placed."""
     if hasattr(type(detector), "map_anchor"):
         anchor = detector.map_anchor
-        if anchor is None:
+        if anchor is None or getattr(anchor, "to_query", None) is not None:
             return None
         cov = None if anchor.covariance is None else np.asarray(anchor.covariance, dtype=np.float64)
         support = {"loops": int(anchor.loops), "metres": float(anchor.metres), "covariance": cov}

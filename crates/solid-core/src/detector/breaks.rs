@@ -126,6 +126,15 @@ impl Breaks {
     pub(super) fn count(&self) -> usize {
         self.at.len()
     }
+
+    /// The stretch of odometry between breaks that holds `t` metres travelled: the metres where
+    /// it begins (the end of the last break before it; None: the session's start) and where it
+    /// ends (the start of the next break; None: it goes on through the latest step).
+    pub(super) fn stretch(&self, t: f64) -> (Option<f64>, Option<f64>) {
+        let k = self.at.partition_point(|&[_, y, _]| y <= t);
+        let begin = k.checked_sub(1).map(|j| self.at[j][1]);
+        (begin, self.at.get(k).map(|&[x, _, _]| x))
+    }
 }
 
 impl LoopDetector {
@@ -152,10 +161,11 @@ impl LoopDetector {
     /// beyond that drift. Without a break between them: the poses' relative pose, `|ta − tb|`
     /// and 0. Across breaks, each break's step is taken as the session's typical one then (as
     /// [`Breaks::frame`] does for the metres travelled), along the direction of the session's last
-    /// step before it (constant velocity; none known: no motion), and may be off by that
-    /// typical step (the platform stopped, or moved twice its usual step): the poses on the two
-    /// sides are related through the places at the break's two ends. None when a break's end has
-    /// no own place with a pose.
+    /// step before it (constant velocity; none known: no motion), with the rotation the odometry
+    /// made over it (none across a frame the detector's own odometry started), and may be off by
+    /// that typical step (the platform stopped, or moved twice its usual step): the poses on the
+    /// two sides are related through the places at the break's two ends. None when a break's end
+    /// has no own place with a pose.
     pub(super) fn bridged(
         &self,
         a: &[f64; 12],
@@ -188,10 +198,24 @@ impl LoopDetector {
                     row[3] = step * d[i];
                 }
             }
+            let (ky, py) = self.place_at(y, false)?;
+            // The rotation the odometry made over the broken step, when its two ends lie in one
+            // frame of it (the caller's poses): a breakdown loses the position sooner than the
+            // heading (an IMU, a LiDAR odometry sliding along a corridor), and a turn made while
+            // it was broken is a turn. Across a frame the detector's own odometry started, the
+            // two frames' rotations are unrelated: none.
+            if self.known[kx].map(|(_, f)| f) == self.known[ky].map(|(_, f)| f) {
+                let turn = relative(&px, &py);
+                for (row, from) in s.iter_mut().zip(turn.iter()) {
+                    row[..3].copy_from_slice(&from[..3]);
+                }
+                // The direction of motion, in the frame after the step.
+                heading = heading
+                    .map(|d| core::array::from_fn(|i| (0..3).map(|k| turn[k][i] * d[k]).sum()));
+            }
             rel = mul(&rel, &s);
             path += step;
             off += step;
-            let (_, py) = self.place_at(y, false)?;
             (cur, t) = (py, y);
         }
         rel = mul(&rel, &relative(&cur, b));
@@ -237,6 +261,28 @@ impl LoopDetector {
             && self.expected(at, c.id, true).is_none()
     }
 
+    /// The own queries of the stretch of odometry between breaks that holds `t` metres
+    /// travelled (a query's): the first, and the last when a break ended the stretch (None: it
+    /// goes on, the current frame of the odometry). Poses of the stretch share one frame; the
+    /// poses of two stretches are related by nothing the odometry knows.
+    pub(super) fn stretch_queries(&self, t: f64) -> (u32, Option<u32>) {
+        let (begin, end) = self.breaks.stretch(t);
+        let id = |k: usize| (self.session_start + k) as u32;
+        let known = |k: &usize| !self.travelled[*k].is_nan();
+        let n = self.travelled.len();
+        let first = begin
+            .and_then(|b| (0..n).filter(known).find(|&k| self.travelled[k] >= b))
+            .unwrap_or(0);
+        let last = end.map(|e| {
+            (0..n)
+                .rev()
+                .filter(known)
+                .find(|&k| self.travelled[k] <= e)
+                .unwrap_or(first)
+        });
+        (id(first), last.map(id))
+    }
+
     /// How many breaks the session's odometry has had so far (a step it cannot have made: spec §8,
     /// "Breaks").
     pub fn odometry_breaks(&self) -> usize {
@@ -274,6 +320,12 @@ mod tests {
         assert!(!b.note(10.0, 14.0, 0.1, 5.0));
         assert!(b.note(14.0, 21.0, 0.1, 5.0));
         assert_eq!(b.count(), 1);
+        // The stretches between breaks: before it, after it.
+        assert_eq!(b.stretch(3.0), (None, Some(14.0)));
+        assert_eq!(
+            (b.stretch(14.0), b.stretch(21.0)),
+            ((None, Some(14.0)), (Some(21.0), None))
+        );
     }
 
     #[test]

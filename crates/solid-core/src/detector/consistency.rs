@@ -61,6 +61,10 @@ const HELD: usize = 4 * WINDOW;
 /// Words of a hypothesis's consistency with the [`HELD`] before it (one bit each).
 const WORDS: usize = HELD.div_ceil(64);
 
+/// Anchors of earlier stretches of the odometry kept ([`LoopDetector::map_anchors`], the most
+/// recent).
+pub(super) const STRETCHES: usize = 64;
+
 /// One registered candidate into a map place: where it places the session.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Hypothesis {
@@ -143,6 +147,13 @@ pub struct MapAnchor {
     /// then translation in metres, in the map's frame at the transform): their sample
     /// covariance. None with fewer than two.
     pub covariance: Option<[[f64; 6]; 6]>,
+    /// The first query of the stretch of the session's odometry the anchor places (the first
+    /// after a break of the odometry, or the session's first): `transform` maps the poses of
+    /// this stretch only; those of other stretches lie in other frames.
+    pub from_query: u32,
+    /// The last query of that stretch when a break of the odometry ended it (None: the stretch
+    /// goes on, and `transform` maps the current odometry frame: the `map → odom` of now).
+    pub to_query: Option<u32>,
 }
 
 /// The placement state of a detector.
@@ -183,6 +194,9 @@ pub(super) struct Placement {
     released: Vec<Loop>,
     /// What this step did to the placement, not yet reported.
     change: Option<PlacementChange>,
+    /// The anchors of earlier stretches of the odometry (between breaks) than the placement's,
+    /// oldest first ([`LoopDetector::map_anchors`]).
+    earlier: VecDeque<MapAnchor>,
 }
 
 impl LoopDetector {
@@ -623,6 +637,7 @@ impl LoopDetector {
             })
             .copied()
             .collect();
+        self.keep_stretches(&s, &agree);
         let p = &mut self.placement;
         p.held.extend(
             held.into_iter()
@@ -665,19 +680,83 @@ impl LoopDetector {
     /// `placement_loops` mutually consistent ones over `placement_m` metres, spec §8).
     pub fn map_anchor(&self) -> Option<MapAnchor> {
         let p = &self.placement;
-        let last = p.support.back()?;
-        let (first_query, first_travelled) = p.first?;
-        let xs: Vec<Pose> = p.support.iter().map(Hypothesis::placement).collect();
+        let support: Vec<Hypothesis> = p.support.iter().copied().collect();
+        self.anchor_of(&support, p.loops, p.first?)
+    }
+
+    /// The anchor `support` (oldest first) gives, `loops` distinct queries from `first` (query,
+    /// metres travelled) on supporting it, for the stretch of odometry of its latest query.
+    fn anchor_of(
+        &self,
+        support: &[Hypothesis],
+        loops: usize,
+        (first_query, first_travelled): (u32, f64),
+    ) -> Option<MapAnchor> {
+        let last = support.last()?;
+        let xs: Vec<Pose> = support.iter().map(Hypothesis::placement).collect();
         let transform = mean_pose(&xs);
         let metres = libm::fabs(last.travelled - first_travelled);
+        let (from_query, to_query) = self.stretch_queries(last.travelled);
         Some(MapAnchor {
             transform,
-            loops: p.loops,
+            loops,
             metres: if metres.is_nan() { 0.0 } else { metres },
             first_query,
             last_query: last.query,
             covariance: spread(&transform, &xs),
+            from_query,
+            to_query,
         })
+    }
+
+    /// Before the placement moves to `set` (`place_on`), keeps the anchors of the stretches of
+    /// odometry other than the set's: the current placement's when a break separates it from
+    /// the set, and for each earlier stretch without an anchor, that of the loops of `agree`
+    /// there (held loops released across the breaks: their own registrations place their
+    /// stretch, not the set's transform).
+    fn keep_stretches(&mut self, set: &[Hypothesis], agree: &[Hypothesis]) {
+        let Some(t) = set.iter().map(|h| h.travelled).reduce(f64::max) else {
+            return;
+        };
+        let mut kept: Vec<MapAnchor> = Vec::new();
+        let old = self.placement.support.back().map(|h| h.travelled);
+        if old.is_some_and(|o| self.crosses_break(o, t)) {
+            kept.extend(self.map_anchor());
+        }
+        let mut rest: Vec<Hypothesis> = agree
+            .iter()
+            .filter(|h| self.crosses_break(h.travelled, t))
+            .copied()
+            .collect();
+        rest.sort_by_key(|a| a.query);
+        while let Some(h0) = rest.first().copied() {
+            let (here, others): (Vec<Hypothesis>, Vec<Hypothesis>) = rest
+                .iter()
+                .partition(|h| !self.crosses_break(h.travelled, h0.travelled));
+            rest = others;
+            let from = self.stretch_queries(h0.travelled).0;
+            let earlier = self.placement.earlier.iter().chain(kept.iter());
+            if !earlier.clone().any(|a| a.from_query == from) {
+                kept.extend(self.anchor_of(&here, distinct(&here), (h0.query, h0.travelled)));
+            }
+        }
+        let e = &mut self.placement.earlier;
+        e.extend(kept);
+        e.make_contiguous().sort_by_key(|a| a.from_query);
+        while e.len() > STRETCHES {
+            e.pop_front();
+        }
+    }
+
+    /// The session's anchors in the map, one per stretch of its odometry between breaks that
+    /// loops into the map placed, in order ([`MapAnchor::from_query`]): the placement's
+    /// ([`LoopDetector::map_anchor`]) last, each earlier one fitted to its own stretch's loops
+    /// (those that supported the placement while it lay there, or the loops held there that a
+    /// placement after the breaks released). The latest 64 earlier ones are kept.
+    pub fn map_anchors(&self) -> Vec<MapAnchor> {
+        let mut out: Vec<MapAnchor> = self.placement.earlier.iter().copied().collect();
+        out.extend(self.map_anchor());
+        out
     }
 }
 
@@ -1422,6 +1501,11 @@ mod tests {
     /// and is right again after it. The detector holds the session's 24 places (placing with 3
     /// loops over 3 m); returns it with each place's pose in the map.
     fn session_over_map_with_a_break() -> (LoopDetector, Vec<[f64; 12]>) {
+        session_over_map_turning_from(13)
+    }
+
+    /// [`session_over_map_with_a_break`], turning 20° a step from place `turn` on.
+    fn session_over_map_turning_from(turn: u32) -> (LoopDetector, Vec<[f64; 12]>) {
         let mut det = over_map(3);
         let mut dc = *det.config();
         let on = dc;
@@ -1430,7 +1514,7 @@ mod tests {
         let c = *det.map().config();
         let mut in_map = Vec::new();
         for k in 0..24u32 {
-            let yaw = 20.0 * f64::from(k.saturating_sub(13));
+            let yaw = 20.0 * f64::from(k.saturating_sub(turn));
             let m = pose(yaw, f64::from(5 + k), 0.5);
             let jump = if k < 12 { 0.0 } else { 30.0 };
             let odo = mul(
@@ -1500,6 +1584,111 @@ mod tests {
             };
             assert_eq!(late, want, "look-alike {lookalike}");
         }
+    }
+
+    /// Runs the true loops of [`session_over_map_turning_from`]'s session into the map (query `k`
+    /// at own place `k`'s pose), returning the steps whose placement changed.
+    fn run_over_map(det: &mut LoopDetector, in_map: &[[f64; 12]]) -> Vec<(u32, PlacementChange)> {
+        let (own, first) = (det.session_start as u32, det.len() as u32);
+        let mut changes = Vec::new();
+        for k in 0..in_map.len() as u32 {
+            let at = QueryPlace {
+                id: first + k,
+                pose: det.known_pose(own + k),
+                travelled: det.travelled_at(own + k).unwrap(),
+                eligible: own as usize,
+            };
+            let t = relative(&in_map[k as usize], &pose(0.0, f64::from(5 + k), 0.0));
+            let mut cands = [verified(5 + k, t)];
+            det.check_after_gate(&at, &[], &mut cands).unwrap();
+            let looped = rejection(&cands[0]).is_none().then_some(at.id);
+            if let (_, Some(c)) = det.placement_news(looped) {
+                changes.push((k, c));
+            }
+        }
+        changes
+    }
+
+    /// How far `a` lies from `b`: metres and degrees.
+    fn off(a: &Pose, b: &Pose) -> (f64, f64) {
+        crate::reg::pose_distance(a, b).unwrap()
+    }
+
+    #[test]
+    fn each_stretch_of_the_odometry_between_breaks_has_its_own_anchor() {
+        // The session's odometry before the jump maps into the map by `truth()`; after it (30 m
+        // to the side in the step into place 12) by `truth()·inv(jump)`: no one transform places
+        // both. Placed after the break (the straight stretch before it waits), the anchor
+        // (`map_anchor`, the map → odom of now) is the stretch after the break's, and says so
+        // (`from_query`); the loops before the break that the placement released place their
+        // own stretch.
+        let jump = rows_to_pose(&pose(0.0, 0.0, 30.0));
+        let after = mul(&truth(), &invert(&jump));
+        let (mut det, in_map) = session_over_map_with_a_break();
+        let own = det.session_start as u32;
+        assert_eq!(
+            run_over_map(&mut det, &in_map),
+            [(16, PlacementChange::Placed)]
+        );
+        let now = det.map_anchor().unwrap();
+        assert_eq!((now.from_query, now.to_query), (own + 12, None));
+        assert!(off(&now.transform, &after).0 < 1e-6);
+        let all = det.map_anchors();
+        assert_eq!(all.len(), 2);
+        assert_eq!(all[1], now);
+        let before = all[0];
+        assert_eq!((before.from_query, before.to_query), (own, Some(own + 11)));
+        assert_eq!(before.loops, 12);
+        let (m, deg) = off(&before.transform, &truth());
+        assert!(m < 1e-6 && deg < 1e-6, "{m} m, {deg}°");
+        // Placed before the break (the session turns from its first place on), then again after
+        // it by the loops there (a revision): the first placement stays the anchor of its
+        // stretch, ended by the break.
+        let (mut det, in_map) = session_over_map_turning_from(0);
+        let changes = run_over_map(&mut det, &in_map);
+        assert_eq!(changes[0].1, PlacementChange::Placed);
+        assert!(changes[0].0 < 12);
+        assert_eq!(changes[1].1, PlacementChange::Revised);
+        assert!(changes[1].0 >= 12);
+        let all = det.map_anchors();
+        assert_eq!(all.len(), 2);
+        assert_eq!((all[0].from_query, all[0].to_query), (own, Some(own + 11)));
+        assert_eq!((all[1].from_query, all[1].to_query), (own + 12, None));
+        assert!(off(&all[0].transform, &truth()).0 < 1e-6);
+        assert!(off(&all[1].transform, &after).0 < 1e-6);
+        // A session placed before a break and not since: its anchor maps the stretch before.
+        let (mut det, in_map) = session_over_map_turning_from(0);
+        run_over_map(&mut det, &in_map[..14]);
+        let a = det.map_anchor().unwrap();
+        assert_eq!((a.from_query, a.to_query), (own, Some(own + 11)));
+        assert_eq!(det.map_anchors(), [a]);
+    }
+
+    #[test]
+    fn a_turn_made_while_the_odometry_broke_is_carried_across_the_break() {
+        // The session turns 20° in the broken step into place 12 (and 20° a step after it): its
+        // straight stretch before the break waits for a turn, and the placement after the break
+        // relates to it through the break with the odometry's own rotation over the broken step
+        // (the 30 m jump replaced by the typical step): the loops before the break agree and are
+        // released with it.
+        let (mut det, in_map) = session_over_map_turning_from(11);
+        let (own, first) = (det.session_start as u32, det.len() as u32);
+        let mut late = Vec::new();
+        for k in 0..in_map.len() as u32 {
+            let at = QueryPlace {
+                id: first + k,
+                pose: det.known_pose(own + k),
+                travelled: det.travelled_at(own + k).unwrap(),
+                eligible: own as usize,
+            };
+            let t = relative(&in_map[k as usize], &pose(0.0, f64::from(5 + k), 0.0));
+            let mut cands = [verified(5 + k, t)];
+            det.check_after_gate(&at, &[], &mut cands).unwrap();
+            let looped = rejection(&cands[0]).is_none().then_some(at.id);
+            late.extend(det.placement_news(looped).0.iter().map(|l| l.query - first));
+        }
+        assert!((0..12).all(|q| late.contains(&q)), "{late:?}");
+        assert_eq!(det.map_anchors().len(), 2);
     }
 
     #[test]
