@@ -250,3 +250,37 @@ def test_a_localizer_places_a_stream_and_never_a_session_that_does_not_visit(cit
     for pts, pose in zip(sim.simulate(world, sensor, away).scans, sim.Session.of(away).trajectory.poses):
         assert never.add(pts, pose=pose) is None
     assert never.history == []
+
+
+@pytest.mark.parametrize(("view", "breakdown"), [("os1-64:90", False), ("hdl64", True)], ids=["poses", "breakdown"])
+def test_a_world_that_is_its_own_copy_turned_by_90_degrees_places_no_session(view: str, breakdown: bool) -> None:
+    """A ring of identical corridors is a copy of itself turned by 90° about the block's centre
+    (a 90° OS1-64 with exact poses; an HDL-64 whose odometry breaks down a third of the way):
+    a second walk gathers loops into the copy as consistent as into the truth, so no placement
+    is more than twice as supported as its rivals and no loop into the map is accepted
+    (docs/spec.md §8). The rivals count however long ago they came (the latest 384 hypotheses,
+    not 96: with 96 the walk was placed on the copy, 102 wrong loops) and across a breakdown of
+    the odometry (related by the bridge: without it the stretch after the break was placed on
+    the copy by its own loops, 117 wrong)."""
+    world = sim.World.corridors(seed=1, modules=2, blocks=1)
+    first, second = sim.corridor_sessions(world, laps=1.0, spacing=3.0)
+    preset, _, fov = view.partition(":")
+    cfg = PipelineConfig.preset(preset, radius=5.0)
+    sensor = sim.Sensor(preset, h_fov=float(fov) if fov else None)
+    mapper = solid.LoopDetector(cfg.descriptor, detector=cfg.detector)
+    mapper.detect_many(sim.simulate(world, sensor, first).scans, poses=sim.Session.of(first).trajectory.poses)
+    mine = sim.Session.of(second)
+    odometry = second
+    if breakdown:
+        s0 = len(second) // 3
+        odometry = second.drifting(1, seed=1, breakdown=(s0, s0 + 3), breakdown_jump_m=20.0, breakdown_climb_m=30.0)
+    det = solid.LoopDetector.from_database(mapper.database, detector=cfg.detector)
+    dets = det.detect_many(sim.simulate(world, sensor, second).scans, poses=sim.Session.of(odometry, mine.frame).trajectory.poses)
+    start = det.session_start
+    # The walk does revisit the map: its candidates into the map pass the gate and are held.
+    held = [c for d in dets for c in d.candidates if c.id < start and (c.rejection or "").startswith("not placed yet")]
+    assert len(held) >= 20
+    assert not [d for d in dets if d.loop is not None and d.loop.candidate < start]
+    assert not [lp for d in dets for lp in d.released if lp.candidate < start]
+    assert not [d for d in dets if d.placement is not None]
+    assert det.map_anchor is None

@@ -521,33 +521,48 @@ impl LoopDetector {
     }
 
     /// The largest set of mutually consistent hypotheses of the window holding `h` (grown
-    /// greedily from it, nearest along the path first), and the most distinct queries of a set
-    /// grown so from any hypothesis that disagrees with `h` (those of queries on the same side
-    /// of every break of the session's odometry). Consistent within [`VOUCHED_DRIFT`] times the
+    /// greedily from it, nearest along the path first, among those of queries on the same side
+    /// of every break of the session's odometry: one set, one frame), and the most distinct
+    /// queries of a set grown so from any hypothesis that disagrees with `h`: on its side of
+    /// the breaks, or across them (related by the session's typical step,
+    /// [`LoopDetector::bridged`]): a rival placement supported before a break still rivals
+    /// after it (a corridor grid whose odometry broke down a third of the way round was placed
+    /// on its copy turned by 90° by the stretch after the break alone: 117 wrong loops,
+    /// `tools/session_measure.py '{}' 1 hdl64 breakdown 1`; with the rivals across, none).
+    /// Consistent within [`VOUCHED_DRIFT`] times the
     /// odometry check's drift bounds: the session's odometry may drift several percent over the
     /// paths between a set's loops (the 1 % bounds broke the true set of a session drifting 3-5 %
     /// into pieces that a look-alike set outnumbered).
     fn consistent_sets(&self, h: &Hypothesis) -> (Vec<Hypothesis>, usize) {
         let p = &self.placement;
-        let idx: Vec<usize> = (0..p.window.len())
+        let among = |idx: &[usize]| -> Option<(Vec<Hypothesis>, usize)> {
+            let w: Vec<Hypothesis> = idx.iter().map(|&i| p.window[i]).collect();
+            let me = w.iter().rposition(|x| same(x, h))?;
+            let n = w.len();
+            let mut ok = alloc::vec![false; n * n];
+            for a in 0..n {
+                for b in 0..a {
+                    let d = idx[a] - idx[b] - 1;
+                    let c = (p.agree[idx[a]][d / 64] >> (d % 64)) & 1 == 1;
+                    ok[a * n + b] = c;
+                    ok[b * n + a] = c;
+                }
+                ok[a * n + a] = true;
+            }
+            Some(largest_sets(&w, &ok, me))
+        };
+        let side: Vec<usize> = (0..p.window.len())
             .filter(|&i| !self.crosses_break(p.window[i].travelled, h.travelled))
             .collect();
-        let w: Vec<Hypothesis> = idx.iter().map(|&i| p.window[i]).collect();
-        let Some(me) = w.iter().rposition(|x| same(x, h)) else {
+        let Some((set, rival)) = among(&side) else {
             return (alloc::vec![*h], 0);
         };
-        let n = w.len();
-        let mut ok = alloc::vec![false; n * n];
-        for a in 0..n {
-            for b in 0..a {
-                let d = idx[a] - idx[b] - 1;
-                let c = (p.agree[idx[a]][d / 64] >> (d % 64)) & 1 == 1;
-                ok[a * n + b] = c;
-                ok[b * n + a] = c;
-            }
-            ok[a * n + a] = true;
+        if side.len() == p.window.len() {
+            return (set, rival);
         }
-        largest_sets(&w, &ok, me)
+        let all: Vec<usize> = (0..p.window.len()).collect();
+        let across = among(&all).map_or(0, |(_, r)| r);
+        (set, rival.max(across))
     }
 
     /// Adds hypothesis `h` into the map to the window (the oldest leaves a full one), with its
