@@ -19,6 +19,14 @@ class MapAnchor:
     def last_query(self) -> int:
         """Id of the latest supporting query."""
     @property
+    def from_query(self) -> int:
+        """Id of the first query of the stretch of the session's odometry (between breaks) that
+        the anchor places: `transform` maps that stretch's poses only."""
+    @property
+    def to_query(self) -> int | None:
+        """Id of the last query of that stretch when a break of the odometry ended it; None: the
+        stretch goes on (`transform` is the map -> odom of now)."""
+    @property
     def covariance(self) -> npt.NDArray[np.float64] | None:
         """The spread of the supporting loops' placements about `transform`, (6, 6) float64
         ((rotation in radians, translation in metres) order), or None with fewer than two."""
@@ -366,6 +374,11 @@ class LoopDetector:
         """Where the session lies in the prior map, once loops into the map have placed it
         (docs/spec.md §8, placement: `placement_loops` mutually consistent loops over `placement_m`
         metres of its path); None before, and for a detector without a map or without poses."""
+    @property
+    def map_anchors(self) -> list[MapAnchor]:
+        """The session's anchors in the map, one per stretch of its odometry between breaks that
+        loops into the map placed, in order (`MapAnchor.from_query`); the last is `map_anchor`.
+        Empty before the session is placed."""
     @property
     def session_start(self) -> int:
         """Id of the first scan of the own session (the number of prior-map places)."""
