@@ -59,6 +59,28 @@ def test_the_chain_follows_the_truth_and_a_broken_link_invents_no_pose(loop_worl
     assert all(s.loop is None for s in steps)
 
 
+def test_a_scan_the_chain_cannot_link_registers_no_place_of_a_map(loop_world: tuple[sim.Sequence, F64]) -> None:
+    """A session without poses against a map of the first 12 frames (built with their poses):
+    six frames elsewhere, then a jump back to frames 3-6 of the map. The scans the chain cannot
+    link (no pose: `pose_source` None) register no place of the map: the session's placement
+    judges its loops into a map (docs/spec.md §8) and a scan without a pose cannot be placed, so
+    nothing but the gate would judge them (a corridor grid's session got a loop 94 m off so).
+    The others' candidates into the map are registered and held until a placement."""
+    seq, truth = loop_world
+    mapper = _detector("vlp16", exclude=3)
+    for f in range(12):
+        mapper.detect(seq.scans[f], timestamp=float(f), pose=truth[f])
+    det = solid.LoopDetector.from_database(mapper.database, exclude_recent=3, detector=solid.DetectorConfig.preset("vlp16"))
+    frames = [*range(20, 26), 3, 4, 5, 6]
+    steps = [det.detect(seq.scans[f], timestamp=100.0 + i) for i, f in enumerate(frames)]
+    unlinked = [s for s in steps if s.pose_source is None]
+    assert unlinked and len(unlinked) < len(steps)
+    for s in unlinked:
+        assert s.loop is None and not s.released
+        assert not [c for c in s.candidates if c.id < det.session_start and c.verified], s.candidates
+    assert [c for s in steps if s.pose_source is not None for c in s.candidates if c.id < det.session_start and c.verified]
+
+
 def test_revisits_across_a_frame_the_chain_started_are_found_by_their_consistency(loop_world: tuple[sim.Sequence, F64]) -> None:
     """The chain breaks (a jump of 170 m: two links fail) and the second frame then drives the
     first frame's places again (frames 53-64 revisit 0-11): no odometry relates the two frames,
