@@ -576,7 +576,9 @@ def _placement_table(doc: dict[str, Any]) -> str:
 
 def _frames_of(doc: dict[str, Any]) -> str:
     """The frames a placement maps (its stretch of the odometry), as text."""
-    return f"{doc.get('from_frame') or 0}–{'the last' if doc.get('to_frame') is None else doc['to_frame']}"
+    from .localize import frame_range
+
+    return frame_range(doc.get("from_frame"), doc.get("to_frame"))
 
 
 def cmd_eval(args: argparse.Namespace, out: TextIO) -> int:

@@ -275,7 +275,7 @@ def anchor_scope(result: Any) -> dict[str, Any]:
     out: dict[str, Any] = {"from_frame": p.from_frame, "to_frame": p.to_frame, "stretches": len(result.map_anchors)}
     if (p.from_frame or 0) > 0 or p.to_frame is not None:
         out["note"] = (
-            f"the odometry broke: the anchor places frames {p.from_frame}–{'the last' if p.to_frame is None else p.to_frame} only, the "
+            f"the odometry broke: the anchor places frames {p.frames} only, the "
             "other frames lie in other frames of the odometry (each stretch's anchor: solid localize --json, stretches; docs/loops.md#breakdowns)"
         )
     return out

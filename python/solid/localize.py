@@ -83,6 +83,11 @@ class Placement:
         """Whether it maps the current frame of the odometry (no break since its stretch)."""
         return self.to_frame is None
 
+    @property
+    def frames(self) -> str:
+        """The frames it maps, as text ("12–40", "46–the last")."""
+        return frame_range(self.from_frame, self.to_frame)
+
     def places(self, frame: int) -> bool:
         """Whether it maps the pose of recording frame ``frame`` (one of its stretch's)."""
         lo = 0 if self.from_frame is None else self.from_frame
@@ -162,6 +167,12 @@ def placement_of_run(result: Any) -> Placement | None:
     if placed is not None and result.timestamps is not None:
         t = float(result.timestamps[int(placed.query) - base])
     return _placement(result.map_anchor, result.frame_of, frame, t)
+
+
+def frame_range(from_frame: int | None, to_frame: int | None) -> str:
+    """The frames of a stretch of the odometry as text: ``from_frame`` (None: 0) to ``to_frame``
+    (None: "the last")."""
+    return f"{from_frame or 0}–{'the last' if to_frame is None else to_frame}"
 
 
 def placements_of_run(result: Any) -> list[Placement]:
