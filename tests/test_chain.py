@@ -12,6 +12,7 @@ import pytest
 
 import solid
 from solid import sim, slam
+from solid.config import PipelineConfig
 
 F64 = npt.NDArray[np.float64]
 
@@ -59,26 +60,37 @@ def test_the_chain_follows_the_truth_and_a_broken_link_invents_no_pose(loop_worl
     assert all(s.loop is None for s in steps)
 
 
-def test_a_scan_the_chain_cannot_link_registers_no_place_of_a_map(loop_world: tuple[sim.Sequence, F64]) -> None:
-    """A session without poses against a map of the first 12 frames (built with their poses):
-    six frames elsewhere, then a jump back to frames 3-6 of the map. The scans the chain cannot
-    link (no pose: `pose_source` None) register no place of the map: the session's placement
-    judges its loops into a map (docs/spec.md §8) and a scan without a pose cannot be placed, so
-    nothing but the gate would judge them (a corridor grid's session got a loop 94 m off so).
-    The others' candidates into the map are registered and held until a placement."""
+def test_a_scan_the_chain_cannot_link_gets_no_loop_into_a_map_before_the_placement(loop_world: tuple[sim.Sequence, F64]) -> None:
+    """A session without poses against a map of the first 24 frames (built with their poses):
+    six frames elsewhere, then a jump back to frames 3-21 of the map. A scan the chain cannot
+    link (no pose: `pose_source` None) is taken at the keyframe before it, one typical step off
+    (docs/spec.md §8, "The step's pose"): before the session is placed nothing can judge its
+    loops into the map, so they are held ("not placed yet"), never accepted at its step (a
+    corridor grid's session got a loop 94 m off so, on the gate alone). The scan after the
+    jump is 170 m from the keyframe before it: the placement, made later by the scans with
+    poses, releases none of its loops. No loop is pose-false."""
     seq, truth = loop_world
     mapper = _detector("vlp16", exclude=3)
-    for f in range(12):
+    for f in range(24):
         mapper.detect(seq.scans[f], timestamp=float(f), pose=truth[f])
     det = solid.LoopDetector.from_database(mapper.database, exclude_recent=3, detector=solid.DetectorConfig.preset("vlp16"))
-    frames = [*range(20, 26), 3, 4, 5, 6]
+    frames = [*range(40, 46), *range(3, 22)]
     steps = [det.detect(seq.scans[f], timestamp=100.0 + i) for i, f in enumerate(frames)]
-    unlinked = [s for s in steps if s.pose_source is None]
-    assert unlinked and len(unlinked) < len(steps)
-    for s in unlinked:
+    start = det.session_start
+    unlinked = [i for i, s in enumerate(steps) if s.pose_source is None]
+    placed = [i for i, s in enumerate(steps) if s.placement is not None]
+    assert 6 in unlinked and placed and unlinked[-1] < placed[0], (unlinked, placed)
+    for i in unlinked:
+        s = steps[i]
         assert s.loop is None and not s.released
-        assert not [c for c in s.candidates if c.id < det.session_start and c.verified], s.candidates
-    assert [c for s in steps if s.pose_source is not None for c in s.candidates if c.id < det.session_start and c.verified]
+        into_map = [c for c in s.candidates if c.id < start and c.verified and c.rejection is not None]
+        assert all((c.rejection or "").startswith("not placed yet") for c in into_map), s.candidates
+    assert [c for c in steps[6].candidates if c.id < start and c.verified]
+    loops = [s.loop for s in steps if s.loop is not None] + [lp for s in steps for lp in s.released]
+    assert loops and 6 not in {lp.query - start for lp in loops}
+    for lp in loops:
+        m, deg = _off(truth[frames[lp.query - start]] @ np.asarray(lp.pose), truth[lp.candidate])
+        assert m <= 1.0 and deg <= 5.0, (frames[lp.query - start], lp.candidate, m, deg)
 
 
 def test_revisits_across_a_frame_the_chain_started_are_found_by_their_consistency(loop_world: tuple[sim.Sequence, F64]) -> None:
@@ -234,3 +246,35 @@ def test_along_a_repeating_corridor_a_link_keeps_the_motion_where_the_clouds_lea
         assert a is not None and b is not None
         m, deg = _off(np.linalg.inv(truth[i - 1]) @ truth[i], np.linalg.inv(np.asarray(a)) @ np.asarray(b))
         assert m < 0.3 and deg < 1.0, (frames[i], m, deg)
+
+
+def test_a_scan_the_chain_cannot_link_gets_its_loop_into_a_map_once_the_session_is_placed() -> None:
+    """A 90° OS1-64 without poses over a map of the default city (seed 2) built with poses:
+    twice on the straight street before the turn the chain cannot link a scan (its 90° view sees
+    too little along the street). Such a scan is taken at the keyframe before it, one typical
+    step off: its loops into the map are held as the others before the placement, and released
+    when the placement (after the turn) agrees with them within bounds grown by that step
+    (docs/spec.md §8, "The step's pose"). Before, they registered no place of the map: two
+    right loops lost (tools/session_measure.py '{}' 2 os1-64:90 nopose city: 51 -> 53 loops)."""
+    world = sim.World(seed=2)
+    sensor = sim.Sensor("os1-64", h_fov=90.0)
+    cfg = PipelineConfig.preset("os1-64", radius=5.0)
+    lap, second = sim.session_routes(world, spacing=3.0)
+    second = second[:60]
+    mapper = solid.LoopDetector(cfg.descriptor, detector=cfg.detector)
+    mapper.detect_many(sim.simulate(world, sensor, lap).scans, poses=sim.Session.of(lap).trajectory.poses)
+    det = solid.LoopDetector.from_database(mapper.database, detector=cfg.detector)
+    dets = det.detect_many(sim.simulate(world, sensor, second).scans)
+    start = det.session_start
+    unlinked = [d.query - start for d in dets if d.pose_source is None]
+    placed = [d.query - start for d in dets if d.placement is not None]
+    assert unlinked and placed and all(0 < q < placed[0] for q in unlinked), (unlinked, placed)
+    loops = [d.loop for d in dets if d.loop is not None and d.loop.candidate < start]
+    loops += [lp for d in dets for lp in d.released if lp.candidate < start]
+    for lp in loops:
+        m, deg = _off(slam.as4(second.poses)[lp.query - start] @ np.asarray(lp.pose), slam.as4(lap.poses)[lp.candidate])
+        assert m <= 1.0 and deg <= 5.0, (lp.query - start, lp.candidate, m, deg)
+    # Each unlinked scan: its loop held at its step, released with the placement.
+    held = {d.query - start for d in dets for c in d.candidates if (c.rejection or "").startswith("not placed yet")}
+    assert set(unlinked) <= held
+    assert set(unlinked) <= {lp.query - start for lp in loops}

@@ -83,6 +83,11 @@ impl Breaks {
         after
     }
 
+    /// The session's typical step: the median of the recent steps' metres (0 before any).
+    pub(super) fn typical(&self) -> f64 {
+        self.median(0, 1).unwrap_or(0.0)
+    }
+
     /// The median of the recent steps' metres (`k` 0) or speeds (`k` 1), when at least `least`
     /// of them are known.
     fn median(&self, k: usize, least: usize) -> Option<f64> {

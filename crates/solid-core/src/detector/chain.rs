@@ -30,7 +30,7 @@
 use alloc::sync::Arc;
 
 use super::nearby::weakest_translation;
-use super::verify::{met_quality, relative, seeded, verify_pair_from, verify_yaws};
+use super::verify::{met_quality, relative, seeded, verify_pair_from, verify_yaws, QueryPlace};
 use super::{LoopDetector, Step, Trail};
 use crate::db::DbError;
 use crate::detector::VerifyConfig;
@@ -218,15 +218,45 @@ impl LoopDetector {
     /// Whether own place `id` is a scan the chain could not link, or the query is one (and the
     /// place has a pose, an own place's or a map's): no odometry relates the two, nor any loop
     /// of theirs to another loop, so no loop between them is accepted (it is not registered).
-    /// A map place too: the query has no pose to place the session by (spec §8, placement), so
-    /// nothing would judge its loop into the map but the gate (a corridor grid's Avia session
-    /// without poses got its one wrong loop into the map so, 94 m off, at the step the chain
-    /// skipped: `tools/session_measure.py '{}' 1 avia nopose 2`).
+    /// A map place only without the placement (`placement_loops` 0): nothing would judge the
+    /// query's loop into the map but the gate (a corridor grid's Avia session without poses got
+    /// a wrong loop into the map so, 94 m off, at the step the chain skipped:
+    /// `tools/session_measure.py '{}' 1 avia nopose 2`). With it, the query is related to the
+    /// placement through the keyframe before it, one typical step off
+    /// ([`LoopDetector::unlinked_query`]), and its loops into the map are judged by the
+    /// placement (held until there is one: `consistency::check_placement`).
     pub(super) fn unlinked(&self, id: u32) -> bool {
         match self.place_frame(id) {
             Some(frame) => self.chain.unlinked || frame == UNLINKED,
-            None => self.chain.unlinked && self.in_map(id) && self.known_pose(id).is_some(),
+            None => {
+                self.chain.unlinked
+                    && self.in_map(id)
+                    && self.known_pose(id).is_some()
+                    && !self.placement_loops_on()
+            }
         }
+    }
+
+    /// For a query the own odometry could not link (`at` without a pose, at its step or a
+    /// later one that registers its deferred candidates): the pose and metres travelled of the
+    /// keyframe before it (the previous own place, which has a pose in the chain's frame: else
+    /// the chain would have started a new frame at the query) and the session's typical step,
+    /// how far the query may lie from that keyframe (as across a break of the odometry,
+    /// [`LoopDetector::bridged`]). None for any other query.
+    pub(super) fn unlinked_query(&self, at: &QueryPlace) -> Option<([f64; 12], f64, f64)> {
+        let now = at.id as usize == self.len() && self.chain.unlinked;
+        if at.pose.is_some() || !(now || self.unlinked_place(at.id)) {
+            return None;
+        }
+        let prev = at.id.checked_sub(1)?;
+        if self.place_frame(prev).is_none_or(|f| f == UNLINKED) {
+            return None;
+        }
+        Some((
+            self.known_pose(prev)?,
+            self.travelled_at(prev)?,
+            self.breaks.typical(),
+        ))
     }
 
     /// Whether own place `id` is a scan the chain could not link (whatever the query).

@@ -82,6 +82,10 @@ pub(super) struct Hypothesis {
     odometry: bool,
     /// The registration `T_query_candidate`.
     pose: Pose,
+    /// Metres the query may lie from `query_pose` (0; for a scan the own odometry could not
+    /// link, taken at the keyframe before it, the session's typical step): the path the
+    /// relation drifts over and the translation it may be off grow by as much.
+    step: f64,
     /// For a candidate into the map that passed the gate: its loop (released when the placement
     /// that holds it comes later).
     found: Option<Loop>,
@@ -116,6 +120,7 @@ impl Hypothesis {
             place_travelled,
             odometry: false,
             pose: c.verification?.registration.pose,
+            step: 0.0,
             found: None,
         })
     }
@@ -211,6 +216,8 @@ impl LoopDetector {
     /// of a break of the odometry are related across it by the session's typical step, off by
     /// up to that step ([`LoopDetector::bridged`]); its callers compare such pairs only where a
     /// placement across the break may release a loop held before it.
+    /// A query taken at the keyframe before it (`Hypothesis::step`) adds its step to the path
+    /// and to the translation off.
     fn consistent_times(&self, a: &Hypothesis, b: &Hypothesis, k: (f64, f64)) -> bool {
         // The path between two poses: the metres travelled (across breaks, `bridged`), or the
         // straight distance where one has none (a map's place, no pose).
@@ -233,13 +240,20 @@ impl LoopDetector {
             return false;
         };
         let expected = mul(&mul(&moved, &b.pose), &back);
-        self.within_drift_beyond(&expected, &a.pose, qpath + ppath, qoff + poff, k)
+        let step = a.step + b.step;
+        let (path, off) = (qpath + ppath + step, qoff + poff + step);
+        self.within_drift_beyond(&expected, &a.pose, path, off, k)
     }
 
     /// Whether loops into the map are judged by the placement: placement on, the query has a
     /// pose.
     pub(super) fn places_session(&self, at: &QueryPlace) -> bool {
-        self.config.verify.placement_loops > 0 && at.pose.is_some()
+        self.placement_loops_on() && at.pose.is_some()
+    }
+
+    /// Whether the placement is on (`placement_loops` > 0).
+    pub(super) fn placement_loops_on(&self) -> bool {
+        self.config.verify.placement_loops > 0
     }
 
     /// `true` for a place of the map (another session's).
@@ -253,6 +267,7 @@ impl LoopDetector {
     /// one, [`Rejection::OffPlacement`] after).
     pub(super) fn check_placement(&mut self, at: &QueryPlace, cands: &mut [Candidate]) {
         let Some(q) = at.pose.filter(|_| self.places_session(at)) else {
+            self.check_unlinked(at, cands);
             return;
         };
         let mut mine: Vec<(usize, Hypothesis)> = Vec::new();
@@ -310,6 +325,59 @@ impl LoopDetector {
                 held.pop_front();
             }
             held.push_back(*h);
+        }
+    }
+
+    /// The placement check of the candidates into the map of a query the own odometry could not
+    /// link ([`LoopDetector::unlinked_query`]): taken at the keyframe before it, one typical step
+    /// off (`Hypothesis::step`), a candidate that passed is accepted only when it agrees with
+    /// the placement's nearest supporting loop within bounds that grow with that step (the path
+    /// to drift over, and the translation off; the rotation within the drift bounds over that
+    /// path: a scan that turned fast is turned down), else rejected and held
+    /// ([`Rejection::NotPlaced`] while the session is not placed there, released when a
+    /// placement agrees with it as a held loop of a query with a pose is;
+    /// [`Rejection::OffPlacement`] after). Such a query neither places the session nor
+    /// supports its placement: its pose is not known.
+    fn check_unlinked(&mut self, at: &QueryPlace, cands: &mut [Candidate]) {
+        if !self.placement_loops_on() {
+            return;
+        }
+        let Some((q, travelled, step)) = self.unlinked_query(at) else {
+            return;
+        };
+        for c in cands.iter_mut() {
+            if !c.verification.is_some_and(|r| r.accepted) {
+                continue;
+            }
+            let Some(place) = self.known_pose(c.id).filter(|_| self.in_map(c.id)) else {
+                continue;
+            };
+            let Some(h) = Hypothesis::of(at, q, c, place, f64::NAN) else {
+                continue;
+            };
+            let h = Hypothesis {
+                travelled,
+                step,
+                found: Some(loop_of(c, at.id)),
+                ..h
+            };
+            let agrees = self.agrees_with_placement(&h);
+            if agrees == Some(true) {
+                continue;
+            }
+            reject(
+                c,
+                if agrees.is_none() {
+                    Rejection::NotPlaced
+                } else {
+                    Rejection::OffPlacement
+                },
+            );
+            let held = &mut self.placement.held;
+            if held.len() == HELD {
+                held.pop_front();
+            }
+            held.push_back(h);
         }
     }
 
@@ -738,9 +806,10 @@ impl LoopDetector {
         if old.is_some_and(|o| self.crosses_break(o, t)) {
             kept.extend(self.map_anchor());
         }
+        // Fitted to the loops of queries with poses (not those taken at the keyframe before).
         let mut rest: Vec<Hypothesis> = agree
             .iter()
-            .filter(|h| self.crosses_break(h.travelled, t))
+            .filter(|h| h.step == 0.0 && self.crosses_break(h.travelled, t))
             .copied()
             .collect();
         rest.sort_by_key(|a| a.query);
