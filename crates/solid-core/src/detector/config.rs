@@ -92,9 +92,12 @@ pub struct VerifyConfig {
     /// odometry's or a registered neighbour's, otherwise one per yaw hypothesis; a candidate
     /// chosen by pose two more for its restarts). The best candidate is always registered, the
     /// next ones while the sum stays within this. The others are *deferred* unless the step
-    /// found its loop: the next steps register them first, oldest query first, while their
-    /// budget lasts (the first always), with the same checks, and a loop found for a query
-    /// without one is reported by the step that found it ([`Detection::released`](super::Detection::released)). At most
+    /// found its loop: the next steps register them first, oldest query first, within their
+    /// budget (the first whatever it costs); an own place without a start, of a query whose
+    /// step registered nothing that met the quality checks, only within what the step's own
+    /// best candidate without a start leaves of it (it waits for a step with budget to spare),
+    /// with the same checks, and a loop
+    /// found for a query without one is reported by the step that found it ([`Detection::released`](super::Detection::released)). At most
     /// [`DEFERRED_QUERIES`](super::DEFERRED_QUERIES) queries wait, each at most
     /// [`DEFERRED_STEPS`](super::DEFERRED_STEPS) steps (older ones are dropped); without a next
     /// step ([`LoopDetector::query_scan`](super::LoopDetector::query_scan)) they stay

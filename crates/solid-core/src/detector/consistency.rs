@@ -182,7 +182,7 @@ pub(super) struct Placement {
     /// The first supporting query and its metres travelled.
     first: Option<(u32, f64)>,
     /// The recent queries that have a loop (accepted at their step, or released).
-    looped: VecDeque<u32>,
+    pub(super) looped: VecDeque<u32>,
     /// Hypotheses of loops into the map that passed the gate but were held (not placed yet,
     /// or off the placement), oldest first: released when a placement agrees with them.
     held: VecDeque<Hypothesis>,

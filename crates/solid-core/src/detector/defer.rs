@@ -4,10 +4,15 @@
 //! A step registers its candidates in their order while their cost fits the budget (its best
 //! always); the others are *deferred* unless the step found its loop: kept with the query's
 //! place and cloud, and registered, oldest query first, by the next steps before their own
-//! candidates, while the budget lasts (a step's first always, so that none waits forever).
-//! Most steps of a drive register nothing (no revisit), so their budget clears the backlog a
-//! step or two later. A deferred registration goes through the same gate and checks as at its
-//! own step (against the query's pose and the detector's state when it runs); its loop, when the
+//! candidates, within the budget (the first always, so that none waits forever), except the
+//! look-alikes' backlog: an own place without a start (the hypotheses) of a query whose step
+//! registered nothing that met the quality checks waits for what the step's own best candidate
+//! leaves of the budget (the first always only on a step with none of its own, see
+//! [`LoopDetector::run_deferred`]), so that a step runs its own best or such a backlog
+//! registration without a start, not both. Most steps of a drive register nothing (no
+//! revisit), so their budget clears the backlog a few steps later. A deferred registration
+//! goes through the same gate and checks as at its own step (against the query's pose and the
+//! detector's state when it runs); its loop, when the
 //! query has none yet, is reported with the step that registered it
 //! ([`Detection::released`](super::Detection::released)), and its registration supports the
 //! next steps' loops as its own step's would have.
@@ -16,7 +21,7 @@ use alloc::collections::VecDeque;
 use alloc::sync::Arc;
 use alloc::vec::Vec;
 
-use super::verify::{loop_length_score, QueryPlace};
+use super::verify::{loop_length_score, met_quality, QueryPlace};
 use super::{loop_of, Candidate, LoopDetector};
 use crate::db::DbError;
 use crate::reg::{self, PreparedCloud};
@@ -78,18 +83,58 @@ impl LoopDetector {
                 None => return Ok(None),
             },
         };
-        let seeds = v.gate.min_agreement <= 1;
-        let known = seeds
-            && (led.iter().any(|&l| self.neighbours(l, id))
-                || at
-                    .filter(|_| v.odometry_check)
-                    .and_then(|at| self.odometry_start(at, anchored, id))
-                    .is_some());
+        let known = self.known_start(at, anchored, id, led);
         let mut runs = if known { 1 } else { v.hypotheses.max(1) };
         if by_pose && v.pose_candidate_shift_m > 0.0 {
             runs += 2;
         }
         Ok(Some((q.fine.len() + points).saturating_mul(runs)))
+    }
+
+    /// Whether own or map place `id` registers with the query `at` from a known start (one
+    /// registration, not one per yaw hypothesis): the odometry's or a neighbour's among `led`
+    /// ([`LoopDetector::registration_cost`]).
+    fn known_start(
+        &self,
+        at: Option<&QueryPlace>,
+        anchored: Option<([f64; 12], f64, f64)>,
+        id: u32,
+        led: &[u32],
+    ) -> bool {
+        let v = &self.config.verify;
+        v.gate.min_agreement <= 1
+            && (led.iter().any(|&l| self.neighbours(l, id))
+                || at
+                    .filter(|_| v.odometry_check)
+                    .and_then(|at| self.odometry_start(at, anchored, id))
+                    .is_some())
+    }
+
+    /// The cost ([`LoopDetector::registration_cost`]) of the step's own best candidate among
+    /// `cands` (the step of query `at`, its cloud `q`): the first the poses leave within reach
+    /// that has a cloud; None when the step will register none of its own.
+    ///
+    /// # Errors
+    /// As [`LoopDetector::try_cloud`].
+    pub(super) fn own_best_cost(
+        &self,
+        q: &PreparedCloud,
+        at: &QueryPlace,
+        cands: &[Candidate],
+    ) -> Result<Option<usize>, DbError> {
+        let beyond = self.beyond_reach(Some(at), cands)?;
+        let anchored = self.anchored(at);
+        for (i, c) in cands.iter().enumerate().filter(|&(i, _)| !beyond[i]) {
+            let by_pose = i >= self.config.verify.candidates;
+            match self.registration_cost(q, Some(at), anchored, (c.id, by_pose), &[]) {
+                // From a known start (one registration): the backlog keeps the earlier rule.
+                Ok(Some(_)) if self.known_start(Some(at), anchored, c.id, &[]) => return Ok(None),
+                Ok(Some(cost)) => return Ok(Some(cost)),
+                Ok(None) | Err(DbError::Format { .. }) => {}
+                Err(e) => return Err(e),
+            }
+        }
+        Ok(None)
     }
 
     /// Keeps the candidates `over` (indices in `cands`) of the step's query `at` for the next
@@ -180,18 +225,45 @@ impl LoopDetector {
     }
 
     /// Registers the deferred candidates, oldest query first, while their cost fits the step's
-    /// budget (the step of query `now`): each query's as its own step would have (the gate, the
-    /// checks of a candidate chosen by pose, the checks after the gate), its loop released when
-    /// it has none yet. Returns the work spent.
+    /// budget (the step of query `now`) less `reserve`, the cost of the step's own best
+    /// candidate ([`LoopDetector::own_best_cost`], always registered after them): each query's
+    /// as its own step would have (the gate, the checks of a candidate chosen by pose, the
+    /// checks after the gate), its loop released when it has none yet. The first is
+    /// registered whatever it costs on a step without a candidate of its own (`reserve` None).
+    /// Otherwise an own place without a known start, of a query whose step registered nothing
+    /// that met the quality checks (look-alikes), waits for such a step (a revisit's stretch of
+    /// steps is followed by new ground), so that a step runs one registration without a start
+    /// (the hypotheses), not its own and a deferred one. The others keep the earlier rule (the
+    /// first always, the others within the whole budget): one with a start (the odometry's or
+    /// a neighbour's that met the quality checks); one of a query whose step registered a
+    /// place that met the quality checks but whose loop a later check held (a revisit whose
+    /// odometry broke: the backlog's registrations at the next steps are the support that
+    /// overrules the odometry and releases its held loops, and every step of the revisit has
+    /// its own candidates); a place of another session (a map's, a neighbour's start counted
+    /// whether or not it met the quality checks): a session inside a map has candidates at
+    /// every step, so no step with budget to spare would come, and the placement counts what
+    /// its steps register (measured: without this exception the anchors of the sessions into
+    /// a map count other loops). A query whose loop came since (released) needs no other.
+    /// Returns the work spent.
     ///
     /// # Errors
     /// As [`LoopDetector::verify_candidates`].
-    pub(super) fn run_deferred(&mut self, now: u32) -> Result<usize, DbError> {
+    pub(super) fn run_deferred(
+        &mut self,
+        now: u32,
+        reserve: Option<usize>,
+    ) -> Result<usize, DbError> {
         let v = self.config.verify;
         let mut work = 0usize;
         while let Some(mut d) = self.deferred.queries.pop_front() {
             if now.saturating_sub(d.at.id) > DEFERRED_STEPS {
                 self.deferred.dropped += d.waiting.len();
+                continue;
+            }
+            // A query whose loop came since (released by a later step's vouching) needs no
+            // other, as one whose step found it.
+            if self.placement.looped.contains(&d.at.id) {
+                self.deferred.looped += d.waiting.len();
                 continue;
             }
             let q = match d.cloud.take() {
@@ -208,6 +280,14 @@ impl LoopDetector {
                 q = Arc::new(c);
             }
             let anchored = self.anchored(&d.at);
+            // Whether the query's step registered a place that met the quality checks (passed
+            // the gate, or failed only its `max_translation`): a revisit whose loop a later
+            // check held (the odometry, the support), for which the backlog's registrations are
+            // the support that releases it.
+            let passed = d
+                .done
+                .iter()
+                .any(|c| c.verification.as_ref().is_some_and(met_quality));
             let (mut jobs, mut cands, mut by_pose) = (Vec::new(), Vec::new(), Vec::new());
             while let Some(&(c, pose)) = d.waiting.front() {
                 // A scan the own odometry could not link: it cannot be accepted.
@@ -215,7 +295,22 @@ impl LoopDetector {
                     d.waiting.pop_front();
                     continue;
                 }
-                let led: Vec<u32> = d.done.iter().chain(&cands).map(|c| c.id).collect();
+                // Only an own place without a start, of a query whose step registered nothing
+                // that met the quality checks, on a step whose own best has no start either,
+                // waits for what that best leaves of the budget (its neighbours among the
+                // query's step's registrations give it no start: none met the quality checks,
+                // `register_jobs`); the others keep the earlier rule (see above), its cost (a
+                // neighbour's start counted whatever its result) included.
+                let other = self.in_map(c.id) || self.entry(c.id).0 != self.session;
+                let led: Vec<u32> = cands.iter().map(|c: &Candidate| c.id).collect();
+                let wait = reserve.filter(|_| {
+                    !passed && !other && !self.known_start(Some(&d.at), anchored, c.id, &led)
+                });
+                let led: Vec<u32> = if wait.is_some() {
+                    led
+                } else {
+                    d.done.iter().chain(&cands).map(|c| c.id).collect()
+                };
                 let cost =
                     match self.registration_cost(&q, Some(&d.at), anchored, (c.id, pose), &led) {
                         Ok(Some(cost)) => cost,
@@ -225,8 +320,11 @@ impl LoopDetector {
                         }
                         Err(e) => return Err(e),
                     };
-                // The first of a step always fits (one over a whole budget would never).
-                if work > 0 && work.saturating_add(cost) > v.step_points {
+                // The first always fits (one over a whole budget would never), except one that
+                // waits: a step runs its own best or the backlog's first without a start.
+                if (work > 0 || wait.is_some())
+                    && work.saturating_add(cost).saturating_add(wait.unwrap_or(0)) > v.step_points
+                {
                     break;
                 }
                 d.waiting.pop_front();
@@ -437,5 +535,67 @@ mod tests {
         assert!(d.accepted.is_some_and(|l| near(&l)), "{:?}", d.accepted);
         assert!(d.deferred.is_empty());
         assert_eq!((det.deferred_waiting(), det.deferred_unneeded()), (0, 1));
+    }
+
+    #[test]
+    fn a_deferred_candidate_waits_only_when_its_query_registered_nothing_that_met_the_quality_checks(
+    ) {
+        let c = Config::preset("hdl64").unwrap();
+        let step = |det: &mut LoopDetector, x: f64, (best, next)| {
+            let scan = det.scan(&c, best, next, &seen(x));
+            det.detect_scan(scan, f64::NAN, Some(pose(0.0, x, 0.0)))
+                .unwrap()
+        };
+        // Without the odometry check no candidate has the odometry's start (each takes the
+        // hypotheses); the gate accepts no loop over 1 m; the budget is one registration of
+        // place 8 from the hypotheses.
+        let mut dc = *corridor_places(None).config();
+        dc.verify.odometry_check = false;
+        dc.verify.gate.max_translation = 1.0;
+        dc.verify.step_points = {
+            let det = corridor_places(None);
+            let q = PreparedCloud::deferred(
+                Points::new(&seen(10.0), 3).unwrap(),
+                &det.config.verify.registration,
+            )
+            .unwrap();
+            det.registration_cost(&q, None, None, (8, false), &[])
+                .unwrap()
+                .unwrap()
+        };
+        // The query at x = 10, its second candidate place 5 (not a neighbour of the best: no
+        // start) over the budget. Its best: place 8, 2 m behind (meets the quality checks, too
+        // far for the gate), or the decoy (place 9: fails them).
+        for (best, met) in [(8, true), (9, false)] {
+            let mut det = corridor_places(None);
+            det.set_config(dc).unwrap();
+            let d = step(&mut det, 10.0, (best, 5));
+            let r = d.candidates.iter().find(|c| c.id as usize == best).unwrap();
+            let r = r.verification.unwrap();
+            assert_eq!(met_quality(&r), met, "{r:?}");
+            assert!(d.accepted.is_none(), "{d:?}");
+            assert_eq!(d.deferred, [5]);
+            // The next step (far from every place) registers its own best from the
+            // hypotheses: place 5 is registered first, whatever it costs, when the best of its
+            // query met the quality checks (a revisit whose loop a later check held: the
+            // backlog is its support); otherwise it waits for a step with budget to spare.
+            let d = step(&mut det, 40.0, (0, 1));
+            assert_eq!(d.deferred, [1]);
+            let waiting = if met { 1 } else { 2 };
+            assert_eq!(
+                (det.deferred_waiting(), det.deferred_dropped()),
+                (waiting, 0),
+                "best {best}"
+            );
+            if !met {
+                // A step with no candidate of its own (every place excluded) registers it.
+                let mut idle = dc;
+                idle.exclude_frames = 1000;
+                det.set_config(idle).unwrap();
+                let d = step(&mut det, 41.0, (0, 1));
+                assert!(d.candidates.is_empty(), "{d:?}");
+                assert_eq!((det.deferred_waiting(), det.deferred_dropped()), (1, 0));
+            }
+        }
     }
 }

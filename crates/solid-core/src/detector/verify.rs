@@ -43,10 +43,14 @@ impl LoopDetector {
         }
         if let Some(q) = query {
             // The step's budget (VerifyConfig::step_points): the candidates deferred by earlier
-            // steps take it first, then this step's in their order (the best always
-            // registered); this step's beyond it are deferred to the next steps.
+            // steps are registered first, with what the step's own best leaves of it (all of it,
+            // the first always, on a step without one), then this step's in their order (the
+            // best always registered); this step's beyond it are deferred to the next steps.
             let mut work = match at {
-                Some(at) => self.run_deferred(at.id)?,
+                Some(at) => {
+                    let reserve = self.own_best_cost(q, &at, &cands[..n.min(cands.len())])?;
+                    self.run_deferred(at.id, reserve)?
+                }
                 None => 0,
             };
             // The clouds first (the cache needs `&mut self`), then the registrations, which are
@@ -273,7 +277,7 @@ impl LoopDetector {
     /// own odometry could not link, or all when the query is one ([`LoopDetector::unlinked`]), and
     /// with the odometry check, the own places the poses put beyond reach of the query `at`
     /// ([`LoopDetector::reach`], with the rotation's allowance the check gives them).
-    fn beyond_reach(
+    pub(super) fn beyond_reach(
         &self,
         at: Option<&QueryPlace>,
         cands: &[Candidate],
