@@ -702,24 +702,29 @@ impl LoopDetector {
         // The held loops that agree with the placement's loop nearest to them along the path
         // (as a loop after the placement must), the best-scored of each query.
         let held: Vec<Hypothesis> = p.held.drain(..).collect();
-        let agree: Vec<Hypothesis> = held
-            .iter()
-            .filter(|h| h.query < now)
-            .filter(|h| {
-                // The set's loop nearest on the same side of every break of the odometry (as
-                // for a loop after the placement); with none there (the set lies beyond a
-                // break), the nearest, related to `h` across the breaks by the session's
-                // typical step (`bridged`): a set before the break that lacked its turn is
-                // placed by the set after it.
-                let comparable = s
-                    .iter()
-                    .filter(|n| !self.crosses_break(n.travelled, h.travelled));
-                nearest(comparable, h)
-                    .or_else(|| nearest(s.iter(), h))
-                    .is_some_and(|n| self.consistent(h, n))
-            })
-            .copied()
-            .collect();
+        let mut agree: Vec<Hypothesis> = Vec::new();
+        for h in self.nearest_first(&held, &s).filter(|h| h.query < now) {
+            // The set's loop nearest on the same side of every break of the odometry (as
+            // for a loop after the placement); with none there (the set lies beyond a
+            // break), the nearest, related to `h` across the breaks by the session's
+            // typical step (`bridged`): a set before the break that lacked its turn is
+            // placed by the set after it. And the loop already released nearest to it on
+            // its side (the held loops taken nearest to the set first): bounds that grow
+            // with the path let a loop a registration slid along a street pass a set 50 m
+            // and a break away, not its neighbour's a step away.
+            let comparable = s
+                .iter()
+                .filter(|n| !self.crosses_break(n.travelled, h.travelled));
+            let by_set = nearest(comparable, h)
+                .or_else(|| nearest(s.iter(), h))
+                .is_some_and(|n| self.consistent(h, n));
+            let side = agree
+                .iter()
+                .filter(|n| !self.crosses_break(n.travelled, h.travelled));
+            if by_set && nearest(side, h).is_none_or(|n| self.consistent(h, n)) {
+                agree.push(*h);
+            }
+        }
         self.keep_stretches(&s, &agree);
         let p = &mut self.placement;
         p.held.extend(
@@ -731,6 +736,20 @@ impl LoopDetector {
         p.support.extend(s.iter().rev().take(FIT).rev().copied());
         p.loops = distinct(&s);
         p.first = s.first().map(|h| (h.query, h.travelled));
+    }
+
+    /// The hypotheses `held`, nearest along the path to a loop of `set` first.
+    fn nearest_first<'a>(
+        &self,
+        held: &'a [Hypothesis],
+        set: &[Hypothesis],
+    ) -> impl Iterator<Item = &'a Hypothesis> {
+        let gap = |h: &Hypothesis| {
+            nearest(set.iter(), h).map_or(f64::INFINITY, |n| libm::fabs(n.travelled - h.travelled))
+        };
+        let mut order: Vec<(f64, &Hypothesis)> = held.iter().map(|h| (gap(h), h)).collect();
+        order.sort_by(|a, b| a.0.total_cmp(&b.0));
+        order.into_iter().map(|(_, h)| h)
     }
 
     /// Adds an agreeing loop to the placement's support.
@@ -1669,6 +1688,39 @@ mod tests {
             let want: Vec<(u32, u32)> = (0..16).map(|q| (q, 5 + q)).collect();
             assert_eq!(late, want);
         }
+    }
+
+    #[test]
+    fn a_loop_held_before_a_break_is_released_only_when_its_released_neighbours_agree_too() {
+        // As above, but the first query's registration slid 2 m along the street: its loop goes
+        // into place 3 with the pose of place 5 (its true one). Related across the break to the
+        // placement's nearest loop (the session's typical step in place of the jump, and the
+        // path's bounds) it fits; with the loop of the next query, released before it (the held
+        // loops nearest the placement first), it does not: only queries 1-15 are released.
+        let (mut det, in_map) = session_over_map_with_a_break();
+        let (own, first) = (det.session_start as u32, det.len() as u32);
+        let (mut late, mut placed) = (Vec::new(), None);
+        for k in 0..24u32 {
+            let id = first + k;
+            let at = QueryPlace {
+                id,
+                pose: det.known_pose(own + k),
+                travelled: det.travelled_at(own + k).unwrap(),
+                eligible: own as usize,
+            };
+            let t = relative(&in_map[k as usize], &pose(0.0, f64::from(5 + k), 0.0));
+            let mut cands = [verified(if k == 0 { 3 } else { 5 + k }, t)];
+            det.check_after_gate(&at, &[], &mut cands).unwrap();
+            let looped = rejection(&cands[0]).is_none().then_some(id);
+            let (released, change) = det.placement_news(looped);
+            if change == Some(PlacementChange::Placed) {
+                placed = Some(k);
+            }
+            late.extend(released.iter().map(|l| (l.query - first, l.candidate)));
+        }
+        assert_eq!(placed, Some(16));
+        let want: Vec<(u32, u32)> = (1..16).map(|q| (q, 5 + q)).collect();
+        assert_eq!(late, want);
     }
 
     /// Runs the true loops of [`session_over_map_turning_from`]'s session into the map (query `k`
