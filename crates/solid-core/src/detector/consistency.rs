@@ -312,20 +312,27 @@ impl LoopDetector {
                 self.place_on(&set, at.id);
                 continue;
             }
-            reject(
-                c,
-                if agrees.is_none() {
-                    Rejection::NotPlaced
-                } else {
-                    Rejection::OffPlacement
-                },
-            );
-            let held = &mut self.placement.held;
-            if held.len() == HELD {
-                held.pop_front();
-            }
-            held.push_back(*h);
+            self.hold(c, *h, agrees.is_none());
         }
+    }
+
+    /// Rejects candidate `c` into the map ([`Rejection::NotPlaced`] while the session is not
+    /// placed, `unplaced`; [`Rejection::OffPlacement`] after) and holds its hypothesis `h` (the
+    /// latest [`HELD`]): a later placement that agrees with it releases its loop.
+    fn hold(&mut self, c: &mut Candidate, h: Hypothesis, unplaced: bool) {
+        reject(
+            c,
+            if unplaced {
+                Rejection::NotPlaced
+            } else {
+                Rejection::OffPlacement
+            },
+        );
+        let held = &mut self.placement.held;
+        if held.len() == HELD {
+            held.pop_front();
+        }
+        held.push_back(h);
     }
 
     /// The placement check of the candidates into the map of a query the own odometry could not
@@ -365,19 +372,7 @@ impl LoopDetector {
             if agrees == Some(true) {
                 continue;
             }
-            reject(
-                c,
-                if agrees.is_none() {
-                    Rejection::NotPlaced
-                } else {
-                    Rejection::OffPlacement
-                },
-            );
-            let held = &mut self.placement.held;
-            if held.len() == HELD {
-                held.pop_front();
-            }
-            held.push_back(h);
+            self.hold(c, h, agrees.is_none());
         }
     }
 
@@ -1650,34 +1645,12 @@ mod tests {
         // the 12 true loops after the break do not outnumber it twice over: nothing is placed,
         // and the look-alike loops stay held.
         for lookalike in [false, true] {
-            let (mut det, in_map) = session_over_map_with_a_break();
-            assert_eq!(det.odometry_breaks(), 1);
-            // The queries at the session's places (their poses and metres travelled).
-            let (own, first) = (det.session_start as u32, det.len() as u32);
-            let mut late = Vec::new();
-            let mut placed = None;
-            for k in 0..24u32 {
-                let id = first + k;
-                let at = QueryPlace {
-                    id,
-                    pose: det.known_pose(own + k),
-                    travelled: det.travelled_at(own + k).unwrap(),
-                    eligible: own as usize,
-                };
-                let t = relative(&in_map[k as usize], &pose(0.0, f64::from(5 + k), 0.0));
-                let place = if lookalike && k < 12 { 25 + k } else { 5 + k };
-                let mut cands = [verified(place, t)];
-                det.check_after_gate(&at, &[], &mut cands).unwrap();
-                if k < 12 {
-                    assert_eq!(rejection(&cands[0]), Some(Rejection::NotPlaced), "step {k}");
-                }
-                let looped = rejection(&cands[0]).is_none().then_some(id);
-                let (released, change) = det.placement_news(looped);
-                if change == Some(PlacementChange::Placed) {
-                    placed = Some(k);
-                }
-                late.extend(released.iter().map(|l| (l.query - first, l.candidate)));
-            }
+            let place = |k: u32| if lookalike && k < 12 { 25 + k } else { 5 + k };
+            let (placed, late, rejected) = run_over_map_with_a_break(place);
+            // Before the break (no turn yet) every loop is held.
+            assert!(rejected[..12]
+                .iter()
+                .all(|&r| r == Some(Rejection::NotPlaced)));
             if lookalike {
                 assert_eq!((placed, late), (None, Vec::new()));
                 continue;
@@ -1697,9 +1670,24 @@ mod tests {
         // placement's nearest loop (the session's typical step in place of the jump, and the
         // path's bounds) it fits; with the loop of the next query, released before it (the held
         // loops nearest the placement first), it does not: only queries 1-15 are released.
+        let (placed, late, _) = run_over_map_with_a_break(|k| if k == 0 { 3 } else { 5 + k });
+        assert_eq!(placed, Some(16));
+        let want: Vec<(u32, u32)> = (1..16).map(|q| (q, 5 + q)).collect();
+        assert_eq!(late, want);
+    }
+
+    /// The step that placed the session, the loops released (query from the session's first,
+    /// place) and each step's rejection ([`run_over_map_with_a_break`]).
+    type BreakRun = (Option<u32>, Vec<(u32, u32)>, Vec<Option<Rejection>>);
+
+    /// Runs [`session_over_map_with_a_break`]'s session into the map, query `k` registered at its
+    /// true pose (place `5 + k`'s) into place `place(k)`: the step that placed the session, the
+    /// loops released (query from the session's first, place) and each step's rejection.
+    fn run_over_map_with_a_break(place: impl Fn(u32) -> u32) -> BreakRun {
         let (mut det, in_map) = session_over_map_with_a_break();
+        assert_eq!(det.odometry_breaks(), 1);
         let (own, first) = (det.session_start as u32, det.len() as u32);
-        let (mut late, mut placed) = (Vec::new(), None);
+        let (mut placed, mut late, mut rejected) = (None, Vec::new(), Vec::new());
         for k in 0..24u32 {
             let id = first + k;
             let at = QueryPlace {
@@ -1709,8 +1697,9 @@ mod tests {
                 eligible: own as usize,
             };
             let t = relative(&in_map[k as usize], &pose(0.0, f64::from(5 + k), 0.0));
-            let mut cands = [verified(if k == 0 { 3 } else { 5 + k }, t)];
+            let mut cands = [verified(place(k), t)];
             det.check_after_gate(&at, &[], &mut cands).unwrap();
+            rejected.push(rejection(&cands[0]));
             let looped = rejection(&cands[0]).is_none().then_some(id);
             let (released, change) = det.placement_news(looped);
             if change == Some(PlacementChange::Placed) {
@@ -1718,9 +1707,7 @@ mod tests {
             }
             late.extend(released.iter().map(|l| (l.query - first, l.candidate)));
         }
-        assert_eq!(placed, Some(16));
-        let want: Vec<(u32, u32)> = (1..16).map(|q| (q, 5 + q)).collect();
-        assert_eq!(late, want);
+        (placed, late, rejected)
     }
 
     /// Runs the true loops of [`session_over_map_turning_from`]'s session into the map (query `k`
