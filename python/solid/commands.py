@@ -281,6 +281,19 @@ def anchor_scope(result: Any) -> dict[str, Any]:
     return out
 
 
+def optimize_stretches_note(run: Any, result: Any) -> str:
+    """What ``optimize --map`` says when the odometry broke and several stretches were placed:
+    each started at its own anchor; frames of a stretch no anchor placed, at the nearest's."""
+    note = (
+        f"the odometry broke: the optimisation started each of the {run.stretches} stretches loops into the map placed at its own anchor "
+        "(anchor.txt holds the first frame's; docs/loops.md#breakdowns)"
+    )
+    if run.borrowed:
+        frames = [int(result.frame_ids[k]) for k in run.borrowed]
+        note += f"; frames {frames[0]}-{frames[-1]} ({len(frames)}) lie in stretches no anchor placed and started at the nearest placed stretch's"
+    return note
+
+
 def describe_anchor(result: Any) -> str:
     """One line saying where (whether) the session was placed in the map."""
     a = anchor_dict(result)
@@ -1071,6 +1084,9 @@ def optimize(
             "source": "placed" if result.map_anchor is not None else "estimated",
         }
         metrics["anchor"].update(anchor_scope(result))
+        if run.stretches > 1:
+            metrics["anchor"]["stretches_started"] = run.stretches
+            metrics["anchor"]["note"] = optimize_stretches_note(run, result)
     elif map_db is not None:
         metrics["anchor"] = None
     if loops_from is not None:

@@ -725,6 +725,36 @@ def anchor_of_run(result: Any, session_poses: npt.ArrayLike | None = None) -> An
     return estimate_anchor(poses, stored, [int(lp.query) - base for lp in ok], [int(lp.candidate) for lp in ok], Z)
 
 
+#: The factor on the information of an odometry edge across a break when :func:`optimize_in_map`
+#: starts each stretch at its own anchor (on the simulated breakdown of tests/test_sessions.py,
+#: at full weight the optimum kept 21 of 26 loops into the map and left the frame before the
+#: break 2.2 m off; at 1e-2 or 1e-4, 26 of 26 and 0.24 m).
+BREAK_EDGE_WEIGHT = 1e-4
+
+
+def stretch_anchors_of_run(result: Any) -> tuple[F64, list[int]] | None:
+    """Each frame's ``T_map_session`` (N, 4, 4) when the run's odometry broke and loops into the
+    map placed more than one of its stretches (``result.map_anchors``, docs/loops.md#breakdowns):
+    the anchor of the frame's own stretch, or for a frame of a stretch no anchor placed, that of
+    the nearest placed stretch (by frames). Returns them and the frames (indices into the run's)
+    placed by another stretch's anchor; None with one anchor or none (the run's one anchor then
+    places every frame, :func:`anchor_of_run`)."""
+    anchors = list(getattr(result, "map_anchors", None) or [])
+    if len(anchors) < 2:
+        return None
+    base, n = int(result.map_size), len(result.frames)
+    spans = [(int(a.from_query) - base, n - 1 if a.to_query is None else int(a.to_query) - base) for a in anchors]
+    out = np.empty((n, 4, 4))
+    borrowed = []
+    for k in range(n):
+        gap = [0 if lo <= k <= hi else min(abs(k - lo), abs(k - hi)) for lo, hi in spans]
+        j = int(np.argmin(gap))
+        if gap[j]:
+            borrowed.append(k)
+        out[k] = as4(anchors[j].transform)
+    return out, borrowed
+
+
 def optimize_in_map(
     graph: PoseGraph,
     map_poses: npt.ArrayLike,
@@ -735,10 +765,14 @@ def optimize_in_map(
     initial: Anchor,
     robust: str = ROBUST_SCHEMES[0],
     start: npt.ArrayLike | None = None,
+    stretch_anchors: npt.ArrayLike | None = None,
 ) -> tuple[Anchor | None, F64, F64]:
     """A session's graph optimised into a saved map, the map's places held where the map has
     them: the session's vertices (started at ``initial.T_map_session`` · ``start``, by default
-    their poses; e.g. the session optimised alone) and edges, and a loop edge per
+    their poses; e.g. the session optimised alone; or, given ``stretch_anchors`` (N, 4, 4), each
+    vertex at its own ``T_map_session`` · ``start``: the anchor of its stretch of the odometry
+    between breaks, :func:`stretch_anchors_of_run`, the odometry edges across a break then
+    weakened by :data:`BREAK_EDGE_WEIGHT`) and edges, and a loop edge per
     cross-session loop ``k`` from the session's vertex ``query_index[k]`` to the map's place
     ``candidate_index[k]`` (pose in ``map_poses``), all loops under ``robust``. The anchor is where the optimum puts the session's first frame:
     ``T_map_session = Y₀ · X₀⁻¹`` (``X₀`` its pose in the session's world, ``Y₀`` in the map's),
@@ -755,7 +789,7 @@ def optimize_in_map(
     first_id = int(graph.ids.max()) + 1 if n else 0
     joint = PoseGraph(
         ids=np.r_[graph.ids, first_id + places].astype(np.int64),
-        poses=np.concatenate([initial.T_map_session @ as4(graph.poses if start is None else start), M[places]]),
+        poses=np.concatenate([(initial.T_map_session if stretch_anchors is None else as4(stretch_anchors)) @ as4(graph.poses if start is None else start), M[places]]),
         edge_from=graph.edge_from.copy(),
         edge_to=graph.edge_to.copy(),
         measurements=graph.measurements.copy(),
@@ -763,6 +797,14 @@ def optimize_in_map(
         kinds=list(graph.kinds),
         fixed=list(range(n, n + len(places))),
     )
+    if stretch_anchors is not None:
+        # An odometry edge across a break (its two frames in stretches with different anchors)
+        # holds a step the odometry cannot have made: weakened, it no longer fights the loops.
+        S = as4(stretch_anchors)
+        for e, kind in enumerate(joint.kinds):
+            i, j = int(joint.edge_from[e]), int(joint.edge_to[e])
+            if kind == "odometry" and not np.array_equal(S[i], S[j]):
+                joint.information[e] = joint.information[e] * BREAK_EDGE_WEIGHT
     vertex = {int(m): n + k for k, m in enumerate(places)}
     for q, m, Z, info in zip(query_index, c, as4(loop_poses), np.asarray(loop_information, dtype=np.float64)):
         joint.add_edge(int(q), vertex[int(m)], Z, info, "loop")
@@ -797,6 +839,12 @@ class SlamResult:
     map_poses: F64 | None = None
     #: The factor the odometry noise was multiplied by (:func:`fit_odometry_scale`, or as given).
     noise_scale: float = 1.0
+    #: How many stretches of the odometry between breaks their own anchors started in the map
+    #: (``result.map_anchors``; 1: one anchor started every frame).
+    stretches: int = 1
+    #: The frames (indices into the run's) of stretches no anchor placed, started at the nearest
+    #: placed stretch's anchor.
+    borrowed: list[int] = field(default_factory=list)
 
     def trusted_loops(self) -> int:
         """Loop edges the optimum kept (weight above one half)."""
@@ -856,10 +904,14 @@ def optimize_run(
     if initial is None:
         return out
     info = np.stack([lp.information for lp in ok])
-    anchor, in_map, own_weights = optimize_in_map(graph, stored, q, c, Z, info, initial, robust, optimized)
+    per = stretch_anchors_of_run(result)
+    starts = None if per is None else per[0]
+    anchor, in_map, own_weights = optimize_in_map(graph, stored, q, c, Z, info, initial, robust, optimized, starts)
     if anchor is None:
         return out
     out.anchor, out.map_poses, out.loop_weights = anchor, in_map, own_weights
+    if per is not None:
+        out.stretches, out.borrowed = len(result.map_anchors), per[1]
     out.optimized = inv(anchor.T_map_session) @ in_map
     return out
 
