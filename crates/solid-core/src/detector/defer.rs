@@ -244,6 +244,8 @@ impl LoopDetector {
     /// every step, so no step with budget to spare would come, and the placement counts what
     /// its steps register (measured: without this exception the anchors of the sessions into
     /// a map count other loops). A query whose loop came since (released) needs no other.
+    /// A candidate that waits keeps its place and holds back none after it (its query's or a
+    /// later query's); only one over the budget under the earlier rule ends the backlog's turn.
     /// Returns the work spent.
     ///
     /// # Errors
@@ -255,6 +257,9 @@ impl LoopDetector {
     ) -> Result<usize, DbError> {
         let v = self.config.verify;
         let mut work = 0usize;
+        // Queries whose next candidate waits for budget to spare: they keep their place (oldest
+        // first) without blocking the later queries' candidates that keep the earlier rule.
+        let mut waiting: Vec<Deferred> = Vec::new();
         while let Some(mut d) = self.deferred.queries.pop_front() {
             if now.saturating_sub(d.at.id) > DEFERRED_STEPS {
                 self.deferred.dropped += d.waiting.len();
@@ -289,10 +294,13 @@ impl LoopDetector {
                 .iter()
                 .any(|c| c.verification.as_ref().is_some_and(met_quality));
             let (mut jobs, mut cands, mut by_pose) = (Vec::new(), Vec::new(), Vec::new());
-            while let Some(&(c, pose)) = d.waiting.front() {
+            // A candidate that waits leaves the query's later ones their turn; one over the
+            // budget under the earlier rule ends the step's backlog (`full`).
+            let (mut i, mut full) = (0, false);
+            while let Some(&(c, pose)) = d.waiting.get(i) {
                 // A scan the own odometry could not link: it cannot be accepted.
                 if self.unlinked_place(c.id) {
-                    d.waiting.pop_front();
+                    d.waiting.remove(i);
                     continue;
                 }
                 // Only an own place without a start, of a query whose step registered nothing
@@ -315,7 +323,7 @@ impl LoopDetector {
                     match self.registration_cost(&q, Some(&d.at), anchored, (c.id, pose), &led) {
                         Ok(Some(cost)) => cost,
                         Ok(None) | Err(DbError::Format { .. }) => {
-                            d.waiting.pop_front();
+                            d.waiting.remove(i);
                             continue;
                         }
                         Err(e) => return Err(e),
@@ -325,9 +333,14 @@ impl LoopDetector {
                 if (work > 0 || wait.is_some())
                     && work.saturating_add(cost).saturating_add(wait.unwrap_or(0)) > v.step_points
                 {
+                    if wait.is_some() {
+                        i += 1;
+                        continue;
+                    }
+                    full = true;
                     break;
                 }
-                d.waiting.pop_front();
+                d.waiting.remove(i);
                 let cp = match self.prepared_cloud(c.id) {
                     Ok(Some(cp)) => cp,
                     Ok(None) | Err(DbError::Format { .. }) => continue,
@@ -345,9 +358,16 @@ impl LoopDetector {
             }
             if !d.waiting.is_empty() {
                 d.cloud = Some(q);
+                if !full {
+                    waiting.push(d);
+                    continue;
+                }
                 self.deferred.queries.push_front(d);
                 break;
             }
+        }
+        for d in waiting.into_iter().rev() {
+            self.deferred.queries.push_front(d);
         }
         Ok(work)
     }
