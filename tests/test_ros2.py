@@ -113,13 +113,26 @@ class Listener:
         for name, t in (("config", String), ("path", PathMsg), ("map_to_odom", TransformStamped), ("markers", MarkerArray), ("placement", PoseWithCovarianceStamped)):
             self.node.create_subscription(t, f"/solid/{name}", lambda m, n=name: self.last.__setitem__(n, m), latched)
 
-    def wait(self, cond: Callable[[], bool], timeout: float, what: str, proc: subprocess.Popen[bytes] | None = None) -> None:
+    def wait(
+        self,
+        cond: Callable[[], bool],
+        timeout: float,
+        what: str,
+        proc: subprocess.Popen[bytes] | None = None,
+        resend: Callable[[], None] | None = None,
+    ) -> None:
+        """Spins until ``cond()``; ``resend`` (when given) is called at once and again every 3 s
+        until then: for best-effort messages, which a busy machine can lose on the way."""
         end = time.monotonic() + timeout
+        again = time.monotonic()
         while not cond():
             if time.monotonic() > end:
                 pytest.fail(f"timed out after {timeout:g} s waiting for {what}; last status {self.status}")
             if proc is not None and proc.poll() is not None:
                 pytest.fail(f"the node exited ({proc.returncode}) while waiting for {what}")
+            if resend is not None and time.monotonic() >= again:
+                resend()
+                again = time.monotonic() + 3.0
             self.executor.spin_once(timeout_sec=0.05)
 
     def close(self) -> None:
@@ -312,10 +325,17 @@ def test_overload_errors_and_sigint(avia: Path, listener: Listener, tmp_path: Pa
             (lambda: send(last_ns + 2, cloud_message(pts, last_ns + 2, "body"), "world"), "unknown frames"),
             (lambda: send(1_577_836_980 * 10**9, cloud_message(pts, 1_577_836_980 * 10**9, "body")), "stamp out of order"),
         ]
-        for k, (act, text) in enumerate(checks):
-            act()
-            listener.wait(lambda: listener.status.get("rejected") == k + 1, 20, f"the error {text!r}", node)
-            assert text in listener.status["last_error"], listener.status
+        for act, text in checks:
+            # Each bad cloud is sent again until its error is seen: the inputs are best effort and a
+            # busy machine can lose one on the way (a copy that arrives too is rejected the same way;
+            # one writer's messages arrive in order, so the next check's error comes after it).
+            before = int(listener.status.get("rejected", 0))
+
+            def rejected(before: int = before, text: str = text) -> bool:
+                st = listener.status
+                return int(st.get("rejected", 0)) > before and text in str(st.get("last_error", ""))
+
+            listener.wait(rejected, 30, f"the error {text!r}", node, resend=act)
         t0 = time.monotonic()
         node.send_signal(signal.SIGINT)
         assert node.wait(timeout=5) == 0

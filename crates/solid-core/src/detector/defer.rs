@@ -259,7 +259,7 @@ impl LoopDetector {
         let mut work = 0usize;
         // Queries whose next candidate waits for budget to spare: they keep their place (oldest
         // first) without blocking the later queries' candidates that keep the earlier rule.
-        let mut waiting: Vec<Deferred> = Vec::new();
+        let mut set_aside: Vec<Deferred> = Vec::new();
         while let Some(mut d) = self.deferred.queries.pop_front() {
             if now.saturating_sub(d.at.id) > DEFERRED_STEPS {
                 self.deferred.dropped += d.waiting.len();
@@ -359,14 +359,14 @@ impl LoopDetector {
             if !d.waiting.is_empty() {
                 d.cloud = Some(q);
                 if !full {
-                    waiting.push(d);
+                    set_aside.push(d);
                     continue;
                 }
                 self.deferred.queries.push_front(d);
                 break;
             }
         }
-        for d in waiting.into_iter().rev() {
+        for d in set_aside.into_iter().rev() {
             self.deferred.queries.push_front(d);
         }
         Ok(work)

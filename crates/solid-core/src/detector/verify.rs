@@ -46,12 +46,13 @@ impl LoopDetector {
             // steps are registered first, with what the step's own best leaves of it (all of it,
             // the first always, on a step without one), then this step's in their order (the
             // best always registered); this step's beyond it are deferred to the next steps.
+            // The reserve only when a backlog waits (most steps have none).
             let mut work = match at {
-                Some(at) => {
+                Some(at) if self.deferred_waiting() > 0 => {
                     let reserve = self.own_best_cost(q, &at, &cands[..n.min(cands.len())])?;
                     self.run_deferred(at.id, reserve)?
                 }
-                None => 0,
+                _ => 0,
             };
             // The clouds first (the cache needs `&mut self`), then the registrations, which are
             // independent of each other: in parallel where threads exist.
