@@ -749,7 +749,6 @@ fn check_bins(name: &'static str, v: &[f32]) -> Result<(), Error> {
         None => Ok(()),
     }
 }
-/// `a·b` of two row-major 3×4 `[R|t]` rigid transforms.
 /// How [`Database::merge_anchored`] carries the poses of the database merged into this one's
 /// world (each a row-major 3×4 `T_map_other`, `X ↦ T·X`).
 #[derive(Debug, Clone, Copy)]
@@ -761,6 +760,7 @@ pub enum MergeAnchor<'a> {
     PerPlace(&'a [Option<[f64; 12]>]),
 }
 
+/// `a·b` of two row-major 3×4 `[R|t]` rigid transforms.
 fn compose(a: &[f64; 12], b: &[f64; 12]) -> [f64; 12] {
     use crate::reg::{mul, pose_to_rows, rows_to_pose};
     pose_to_rows(&mul(&rows_to_pose(a), &rows_to_pose(b)))
