@@ -341,6 +341,38 @@ def test_merge_with_an_anchor_moves_the_others_poses_into_this_world(cfg: solid.
     np.testing.assert_allclose(there.poses[0], np.eye(4)[:3])
 
 
+def test_merge_with_one_anchor_per_place_moves_each_by_its_own(cfg: solid.SolidConfig) -> None:
+    """An anchor array of shape (len(other), 3|4, 4): each place by its own transform (a session
+    whose odometry broke: one per stretch), a row of NaN leaving its place without a pose; a
+    count that is not one per place, or one transform that is not rigid, refused, nothing changed."""
+    here, there = solid.Database(cfg), solid.Database(cfg)
+    here.add(synthetic(cfg, 1), pose=np.eye(4))
+    for k in range(3):
+        P = np.eye(4)
+        P[0, 3] = float(k)
+        there.add(synthetic(cfg, 2 + k), pose=P)
+    each = np.tile(np.eye(4), (3, 1, 1))
+    each[0, 1, 3], each[1, 1, 3] = 10.0, 20.0
+    each[2] = np.nan
+    with pytest.raises(solid.SolidError, match="anchors"):
+        here.merge(there, anchor=each[:2])
+    skew = each.copy()
+    skew[1, 0, 1] = 0.5
+    with pytest.raises(solid.SolidError, match="anchor"):
+        here.merge(there, anchor=skew)
+    not_rigid = each.copy()
+    not_rigid[0, 3, 3] = 2.0  # a 4x4 whose last row is not [0, 0, 0, 1]
+    with pytest.raises(ValueError, match=r"anchor\[0\]"):
+        here.merge(there, anchor=not_rigid)
+    assert len(here) == 1
+    here.merge(there, new_sessions=True, anchor=each[:, :3])
+    P = here.poses
+    np.testing.assert_allclose(P[1][:, 3], [0.0, 10.0, 0.0])
+    np.testing.assert_allclose(P[2][:, 3], [1.0, 20.0, 0.0])
+    assert np.isnan(P[3]).all()
+    assert list(here.sessions) == [0, 1, 1, 1]
+
+
 def test_loop_detector_on_kitti_revisit() -> None:
     cfg = solid.SolidConfig.preset("hdl64")
     # KITTI 94/95 and 198/199 are the same places; other pairs are at distance >= 0.08.

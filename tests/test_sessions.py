@@ -223,6 +223,23 @@ def test_localize_reports_when_where_and_how_sure_and_eval_uses_the_same_anchor(
     assert m["source"] == "placed" and np.allclose(np.asarray(m["T_map_session"]), doc["transform"][:3], atol=1e-9)
 
 
+def test_a_run_of_frames_not_numbered_from_0_is_no_broken_odometry(capsys: pytest.CaptureFixture[str], tmp_path: Path, written: Any) -> None:
+    """A run whose frames start past 0 (`--frames 2:30`, or files numbered from where a cut of a
+    drive begins) and whose odometry did not break: its anchor maps every frame, so neither the
+    table nor anchor.txt says it maps only some (before, the first frame's number, 2, read as a
+    break), and anchors.kitti holds one transform, the same, for each of the 28 frames."""
+    _, s1, db = written
+    loc = tmp_path / "loc"
+    code, out, _ = run(capsys, "localize", db, str(s1), "--poses", str(s1 / "poses.txt"), "--frames", "2:30", "-q", "-o", str(loc))
+    assert code == 0 and "T_map_odom" in out
+    assert "maps frames" not in out and "the odometry broke" not in out
+    assert "partial anchor" not in (loc / "anchor.txt").read_text()
+    from solid.commands import merge_anchor
+
+    each = merge_anchor(loc / "anchors.kitti")
+    assert each.shape == (28, 4, 4) and np.allclose(each, merge_anchor(loc / "anchor.txt")[0])
+
+
 def test_a_localizer_places_a_stream_and_never_a_session_that_does_not_visit(city: Any) -> None:
     """The stream form (`solid.localize.Localizer`, what a live sensor or the ROS 2 node feeds):
     None until placed, then T_map_odom within 0.3 m of the truth; nothing for a session that
@@ -312,3 +329,97 @@ def test_optimize_map_starts_each_stretch_of_a_broken_odometry_at_its_own_anchor
     assert np.median(off[: stretch[0]]) < 1.0
     assert np.median(off[stretch[1] :]) < 1.0
     assert out.stretches == len(res.map_anchors) and not out.borrowed
+
+
+def test_optimize_map_starts_a_stretch_no_anchor_placed_at_the_nearest_and_says_which(city: Any) -> None:
+    """The borrowed-anchor path: the second route from 60 m before the map, its odometry breaking
+    twice (frames 6-8, off the map, where no loop into it can place the stretch before; and
+    frames 26-28, inside it). The frames of the stretch no anchor placed are listed in
+    ``SlamResult.borrowed`` and started at the nearest placed stretch's anchor; they are the
+    frames no placement maps (``frame_anchors_of_run``: NaN), which `optimize --map` leaves
+    without a transform in anchors.kitti. Every placed frame ends within 1 m of its truth."""
+    import dataclasses
+
+    from solid import commands, slam
+    from solid.localize import frame_anchors_of_run
+    from solid.pipeline import LoopClosurePipeline
+
+    world, lap, db, cfg, sensor = city
+    _, second = sim.session_routes(world, spacing=SPACING)
+    second = second[:42]
+    jump = {"breakdown_jump_m": 20.0, "breakdown_climb_m": 30.0}
+    odometry = sim.Session.of(second).trajectory.drifting(1, seed=1, breakdown=(6, 9), **jump).odometry(seed=2, breakdown=(26, 29), **jump)
+    seq = dataclasses.replace(sim.simulate(world, sensor, second), trajectory=odometry)
+    res = LoopClosurePipeline(seq, cfg, map=db).run()
+    base = res.map_size
+    spans = [(a.from_query - base, len(second) - 1 if a.to_query is None else a.to_query - base) for a in res.map_anchors]
+    assert len(spans) >= 2 and spans[0][0] > 5  # the stretch before the first break: no anchor
+    unplaced = [k for k in range(len(second)) if not any(lo <= k <= hi for lo, hi in spans)]
+    out = slam.optimize_run(res)
+    assert out.map_poses is not None and out.stretches == len(spans)
+    assert out.borrowed == unplaced and set(range(6)) <= set(unplaced)
+    assert np.isnan(frame_anchors_of_run(res)[unplaced]).all() and np.isfinite(np.delete(frame_anchors_of_run(res), unplaced, axis=0)).all()
+    in_map = np.stack([np.linalg.inv(h(sim.Session.of(lap).frame)) @ h(p) for p in second.poses])
+    off = np.linalg.norm(out.map_poses[:, :3, 3] - in_map[:, :3, 3], axis=1)
+    print("borrowed", unplaced, np.round(off, 2))
+    assert np.delete(off, unplaced).max() < 1.0
+    # Started at another stretch's anchor, across the 20 m jumps: a guess, tens of metres off.
+    assert off[:6].min() > 20.0
+    note = commands.optimize_stretches_note(out, res)
+    assert f"frames {unplaced[0]}-{unplaced[-1]} ({len(unplaced)}) lie in stretches no anchor placed" in note
+    # Why an optimum gives no anchor, as `solid optimize --map` prints it after "anchor: none".
+    assert commands.why_no_anchor(res).startswith(f"no verified loop into the map kept: the optimum kept none of the {len(slam.map_loops(res)[1])}")
+    away = away_route(world)
+    never = LoopClosurePipeline(dataclasses.replace(sim.simulate(world, sensor, away), trajectory=sim.Session.of(away).trajectory), cfg, map=db).run()
+    assert commands.why_no_anchor(never) == "no verified loop into the map"
+
+
+def test_map_merge_places_each_stretch_of_a_broken_odometry_by_its_own_anchor(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """`solid map merge --anchor` of a session whose odometry broke (1 % drift, frames 14-16
+    jumping 20 m sideways with 30 m of climb), its map built from that odometry: anchor.txt (one
+    transform, the latest stretch's) is refused, naming anchors.kitti; anchors.kitti of `solid
+    localize` (each frame's stretch's anchor) puts every place of every stretch within 1 m of its
+    truth in the first map's world (one transform put the frames before the break 59-62 m off),
+    and that of `solid optimize --map` (each frame's optimum) within 0.5 m."""
+    world = sim.World(seed=1)
+    lap, second = sim.session_routes(world, spacing=SPACING)
+    second = second[SECOND]
+    odometry = second.drifting(1, seed=1, breakdown=(14, 17), breakdown_jump_m=20.0, breakdown_climb_m=30.0)
+    s0, s1 = sim.write_sessions(tmp_path / "sim", world, sim.Sensor("vlp16"), [lap, second], own_frames=True, odometry=[lap, odometry])
+    m0, m1 = str(tmp_path / "m0.soliddb"), str(tmp_path / "m1.soliddb")
+    odo = str(s1 / "odometry.txt")
+    assert run(capsys, "map", "build", str(s0), "--poses", str(s0 / "poses.txt"), "-o", m0, "--preset", "vlp16", "-q")[0] == 0
+    assert run(capsys, "map", "build", str(s1), "--poses", odo, "-o", m1, "--preset", "vlp16", "-q")[0] == 0
+    code, out, _ = run(capsys, "localize", m0, str(s1), "--poses", odo, "-q", "--json", "-o", str(tmp_path / "loc"))
+    assert code == 0 and len(json.loads(out)["stretches"]) >= 2
+    code, out, _ = run(capsys, "localize", m0, str(s1), "--poses", odo, "-q", "-o", str(tmp_path / "loc_table"))
+    assert code == 0 and f"--anchor {tmp_path / 'loc_table' / 'anchors.kitti'}" in out
+    # The truth: the session's exact poses carried into the first session's frame.
+    P = np.loadtxt(s1 / "poses.txt").reshape(-1, 3, 4)
+    truth = np.stack([h(np.loadtxt(s1 / "anchor.txt")) @ h(p) for p in P])
+    n0 = len(solid.Database.load(m0))
+
+    def merged_off(anchor: Path, name: str) -> np.ndarray:
+        code, out, err = run(capsys, "map", "merge", m0, m1, "--anchor", str(anchor), "-o", str(tmp_path / name))
+        assert code == 0, err
+        Q = np.asarray(solid.Database.load(tmp_path / name).poses)[n0:]
+        assert len(Q) == len(P)
+        return np.asarray(np.linalg.norm(Q[:, :, 3] - truth[:, :3, 3], axis=1))
+
+    code, _, err = run(capsys, "map", "merge", m0, m1, "--anchor", str(tmp_path / "loc" / "anchor.txt"), "-o", str(tmp_path / "one.soliddb"))
+    assert code != 0 and "maps only some frames of its session" in err and str(tmp_path / "loc" / "anchors.kitti") in err
+    assert not (tmp_path / "one.soliddb").exists()
+    off = merged_off(tmp_path / "loc" / "anchors.kitti", "each.soliddb")
+    assert off.max() < 1.0, np.round(off, 2)
+    rec = json.loads(run(capsys, "map", "info", str(tmp_path / "each.soliddb"), "--json")[1])["anchors"]
+    assert rec[0]["T_map_session"] is None and rec[0]["per_place"]["places"] == len(P) and rec[0]["per_place"]["transforms"] >= 2
+    # A map of other frames than the run's is refused, naming both counts.
+    short = str(tmp_path / "short.soliddb")
+    assert run(capsys, "map", "build", str(s1), "--poses", odo, "--frames", "0:20", "-o", short, "--preset", "vlp16", "-q")[0] == 0
+    code, _, err = run(capsys, "map", "merge", m0, short, "--anchor", str(tmp_path / "loc" / "anchors.kitti"), "-o", str(tmp_path / "x.soliddb"))
+    assert code != 0 and f"holds {len(P)} transforms" in err and "holds 20 places" in err
+    pytest.importorskip("gtsam")
+    code, out, err = run(capsys, "optimize", str(s1), "--poses", odo, "--map", m0, "--preset", "vlp16", "-q", "--no-plots", "-o", str(tmp_path / "opt"))
+    assert code == 0, err
+    off = merged_off(tmp_path / "opt" / "anchors.kitti", "opt.soliddb")
+    assert off.max() < 0.5, np.round(off, 2)

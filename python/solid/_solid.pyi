@@ -1352,11 +1352,16 @@ class Database:
             new_sessions: Renumber the sessions of `other` to follow this database's, so that maps of
                 separate runs stay apart.
             anchor: ``T_map_other`` (3×4 or 4×4): every pose of `other` is carried into this map's
-                world (``X ↦ T·X``) as it is merged (``solid map merge --anchor``).
+                world (``X ↦ T·X``) as it is merged (``solid map merge --anchor``). Or one per place
+                of `other`, an array of shape (len(other), 3, 4) or (len(other), 4, 4): each place's
+                pose carried by its own (a session whose odometry broke: one anchor per stretch,
+                ``anchors.kitti``); a place whose transform is all NaN is merged without a pose.
 
         Raises:
             DatabaseError: `other` has another configuration.
-            SolidError: `anchor` is not a finite rigid transform.
+            SolidError: `anchor` is not a finite rigid transform, or an array of them does not hold
+                one per place of `other`.
+            ValueError: a 4×4 of the array does not end with the row [0, 0, 0, 1].
         """
     def save(self, path: str | PathLike[str], version: int = 4, *, replace: bool = True) -> None:
         """Writes the database to `path` (docs/spec.md §9), atomically: a temporary file in the

@@ -279,13 +279,13 @@ def build_parser() -> argparse.ArgumentParser:
         sub, "localize", "place a recording in a saved map: when, where and how sure (relocalization)",
         "solid localize run1.soliddb run2/ --poses run2/poses.txt",
         "solid localize run1.soliddb run2/ --poses odom.txt --json > placement.json",
-        "solid localize run1.soliddb run2/ --poses odom.txt -o loc2/   # writes loc2/anchor.txt for `solid map merge --anchor`",
+        "solid localize run1.soliddb run2/ --poses odom.txt -o loc2/   # writes loc2/anchor.txt, anchors.kitti for `solid map merge --anchor`",
         note="\nThe session is placed when mutually consistent loops into the map agree on one transform\n"
         "(docs/loops.md#relocalization); T_map_odom maps its --poses frame into the map's world.\n",
     )
     p.add_argument("map", type=Path, help="a map from `solid map build` with poses")
     p.add_argument("sequence", type=Path, help="the recording to place (with --poses: its odometry, in its own frame)")
-    p.add_argument("-o", "--output", type=Path, default=None, help="also write placement.json, anchor.txt, loops.csv here (must not exist or be empty)")
+    p.add_argument("-o", "--output", type=Path, default=None, help="also write placement.json, anchor.txt, anchors.kitti, loops.csv here (must not exist or be empty)")
     p.add_argument("--json", action="store_true", help="print the placement as JSON instead of the table")
     _add_run_tail(p, poses_required=True)
 
@@ -401,6 +401,7 @@ def build_parser() -> argparse.ArgumentParser:
         "solid map merge run1.soliddb run2.soliddb --anchor same -o both.soliddb",
         "solid optimize run2/ --poses odom.txt --map run1.soliddb -o opt2/   # writes opt2/anchor.txt",
         "solid map merge run1.soliddb run2.soliddb --anchor opt2/anchor.txt -o both.soliddb",
+        "solid map merge run1.soliddb run2.soliddb --anchor opt2/anchors.kitti -o both.soliddb   # one per place: the odometry broke",
     )
     mm.add_argument("maps", type=Path, nargs="+")
     mm.add_argument(
@@ -408,9 +409,11 @@ def build_parser() -> argparse.ArgumentParser:
         action="append",
         default=None,
         metavar="FILE|same",
-        help="per map after the first, in order: an anchor file (anchor.txt of `solid optimize --map`, one KITTI 3x4 row: that "
-        "map's world → the first map's) that carries its poses into the first map's world, or 'same' when they already are "
-        "there (one of them is required when two maps hold poses; the merged map records them)",
+        help="per map after the first, in order: an anchor file that carries its poses into the first map's world: anchor.txt of "
+        "`solid localize` or `solid optimize --map` (one KITTI 3x4 row: that map's world → the first map's, for every place), or "
+        "anchors.kitti beside it (one row per frame of that run, applied to its place: a session whose odometry broke, one anchor "
+        "per stretch); or 'same' when they already are there (one of them is required when two maps hold poses; the merged map "
+        "records them)",
     )
     mm.add_argument("-o", "--output", type=Path, required=True, help="the map file to write (must not exist)")
     _add_common(mm)
@@ -536,6 +539,11 @@ def cmd_localize(args: argparse.Namespace, out: TextIO) -> int:
         return 0
     out.write(_placement_table(doc))
     if folder is not None:
+        if doc["placed"] and (len(doc.get("stretches") or []) > 1 or doc.get("partial_anchor")):
+            out.write(
+                f"note: the odometry broke, so anchor.txt maps only frames {_frames_of(doc)}: to merge this session's map, "
+                f"give solid map merge --anchor {folder / commands.ANCHORS_FILE} (each frame's stretch's anchor)\n"
+            )
         out.write(f"wrote {folder}\n")
     return 0
 
@@ -557,7 +565,7 @@ def _placement_table(doc: dict[str, Any]) -> str:
         if doc["sigma_translation_m"] is not None:
             rows.append(("spread", f"{doc['sigma_translation_m']:.3f} m, {doc['sigma_rotation_deg']:.3f}° (of the supporting loops' placements)"))
         stretches = doc.get("stretches") or []
-        if len(stretches) > 1 or doc.get("from_frame") or doc.get("to_frame") is not None:
+        if len(stretches) > 1 or doc.get("partial_anchor"):
             # The odometry broke: each stretch between breaks lies in its own frame.
             rows.append(("maps frames", _frames_of(doc) + ("" if doc.get("to_frame") is None else ": the odometry broke after, the current frame is not placed")))
             for s in stretches[:-1]:
@@ -701,7 +709,7 @@ def cmd_optimize(args: argparse.Namespace, out: TextIO) -> int:
     if "anchor" in m:
         a = m["anchor"]
         out.write(
-            "anchor: none (no verified loop into the map)\n"
+            f"anchor: none ({m.get('anchor_none') or 'no verified loop into the map'})\n"
             if a is None
             else ("anchor: from the detector's placement in the map (solid localize), refined with " if a.get("source") == "placed" else "anchor: from ")
             + f"{a['inlier_loops']} of {a['cross_session_loops']} loops into the map (in loops.csv; graph.g2o holds the session's own graph, "
@@ -813,6 +821,14 @@ def cmd_map(args: argparse.Namespace, out: TextIO) -> int:
         return 0
     if args.map_command == "merge":
         db = commands.merge_maps(args.maps, args.output, args.anchor)
+        given = {str(Path(a).absolute()) for a in args.anchor or [] if a != "same"}
+        for r in commands.map_anchors(db.metadata):
+            pp = r.get("per_place")
+            if pp and r.get("source") in given:
+                out.write(
+                    f"session {r['session']}: {pp['places'] - pp['without_pose']} of {pp['places']} places carried by their own frame's anchor "
+                    f"({pp['transforms']} distinct), {pp['without_pose']} merged without a pose (frames no anchor places)\n"
+                )
         out.write(f"{len(db)} places in {len(set(int(s) for s in db.sessions))} sessions: wrote {args.output}\n")
         return 0
     if args.map_command == "upgrade":

@@ -273,7 +273,10 @@ def anchor_scope(result: Any) -> dict[str, Any]:
     if p is None:
         return {}
     out: dict[str, Any] = {"from_frame": p.from_frame, "to_frame": p.to_frame, "stretches": len(result.map_anchors)}
-    if (p.from_frame or 0) > 0 or p.to_frame is not None:
+    # The run's first frame (a recording's frames need not be numbered from 0: --frames, or files
+    # numbered from where a cut of a longer drive begins).
+    first = int(result.frame_ids[0]) if len(result.frame_ids) else 0
+    if (first if p.from_frame is None else p.from_frame) > first or p.to_frame is not None:
         out["note"] = (
             f"the odometry broke: the anchor places frames {p.frames} only, the "
             "other frames lie in other frames of the odometry (each stretch's anchor: solid localize --json, stretches; docs/loops.md#breakdowns)"
@@ -281,17 +284,40 @@ def anchor_scope(result: Any) -> dict[str, Any]:
     return out
 
 
+def partial_anchor(result: Any, what: str) -> str | None:
+    """What ``anchor.txt`` says (:data:`PARTIAL_ANCHOR`) when the run's odometry broke, so that
+    one transform does not map every frame (``what``: the frames it maps); None otherwise."""
+    if anchor_scope(result).get("note") is None and len(result.map_anchors) < 2:
+        return None
+    return f"it maps {what} only: the odometry broke ({len(result.map_anchors)} of its stretches placed, each with its own anchor)"
+
+
 def optimize_stretches_note(run: Any, result: Any) -> str:
     """What ``optimize --map`` says when the odometry broke and several stretches were placed:
     each started at its own anchor; frames of a stretch no anchor placed, at the nearest's."""
     note = (
         f"the odometry broke: the optimisation started each of the {run.stretches} stretches loops into the map placed at its own anchor "
-        "(anchor.txt holds the first frame's; docs/loops.md#breakdowns)"
+        "(anchor.txt holds the first frame's, anchors.kitti each frame's for solid map merge --anchor; docs/loops.md#breakdowns)"
     )
     if run.borrowed:
         frames = [int(result.frame_ids[k]) for k in run.borrowed]
         note += f"; frames {frames[0]}-{frames[-1]} ({len(frames)}) lie in stretches no anchor placed and started at the nearest placed stretch's"
     return note
+
+
+def why_no_anchor(result: Any) -> str:
+    """Why ``solid optimize --map`` gives no anchor (``metrics.json`` ``anchor_none``, printed
+    after "anchor: none"): no verified loop into the map, none that agree on one transform, or
+    the optimum kept none of them (the detector's placement, ``map_anchor``, is then not used)."""
+    from . import slam
+
+    _, ok = slam.map_loops(result)
+    if not ok:
+        return "no verified loop into the map"
+    if slam.anchor_of_run(result) is None:
+        return f"the {len(ok)} verified loops into the map agree on no one transform"
+    placed = " (the detector's placement, map_anchor, is not used)" if result.map_anchor is not None else ""
+    return f"no verified loop into the map kept: the optimum kept none of the {len(ok)}, so nothing ties the session to the map{placed}"
 
 
 def describe_anchor(result: Any) -> str:
@@ -476,10 +502,13 @@ def localize(
     """``solid localize``: the recording run against a saved map and its placement there
     (:func:`solid.localize.placement_of_run`) as a dict (``placed`` False when not placed); with
     ``output``, a folder with ``placement.json``, ``loops.csv``, ``config.json`` and, when placed,
-    ``anchor.txt`` (``T_map_odom`` as one KITTI 3×4 row: ``solid map merge --anchor``'s file).
+    ``anchor.txt`` (``T_map_odom`` as one KITTI 3×4 row: ``solid map merge --anchor``'s file) and
+    ``anchors.kitti`` (each frame's, :func:`solid.localize.frame_anchors_of_run`).
     The placement maps the frames ``from_frame``–``to_frame`` (one stretch of the odometry between
     breaks; ``to_frame`` None: through the last frame); ``stretches`` lists the placement of each
-    stretch that loops into the map placed (one, unless the odometry broke)."""
+    stretch that loops into the map placed (one, unless the odometry broke). When the placement
+    does not map every frame, ``partial_anchor`` says so (else None), as does ``anchor.txt``
+    (:data:`PARTIAL_ANCHOR`), and ``solid map merge`` takes ``anchors.kitti`` instead."""
     from .localize import placement_of_run, placements_of_run
 
     if getattr(dataset, "poses", None) is None:
@@ -496,15 +525,17 @@ def localize(
         rejections=rejection_counts(result),
         stretches=[s.to_dict() for s in placements_of_run(result)],
     )
+    if p is not None:
+        doc["partial_anchor"] = partial_anchor(result, f"frames {p.frames}")
     if output is None:
         return result, doc, None
     with output_folder(output, "localize", inputs.sequence.name) as out:
         _write_common(out, result)
         write_json(out.work / "placement.json", _summary(result, inputs, "localize") | {"placement": doc})
         if p is not None:
-            from .slam import write_kitti
+            from .localize import frame_anchors_of_run
 
-            write_kitti(out.work / "anchor.txt", p.transform[None])
+            write_anchor_files(out.work, p.transform, frame_anchors_of_run(result), doc["partial_anchor"], inputs.sequence.name)
     return result, doc, out.final
 
 
@@ -679,11 +710,16 @@ def merge_maps(inputs: AbcSequence[Path], output_file: Path, anchors: AbcSequenc
     """``solid map merge``: one database from several, each input's sessions renumbered to follow
     the previous ones (so that runs stay apart). Poses are only comparable within one world:
     ``anchors`` holds, for each map after the first, ``"same"`` when its poses already are in
-    the first map's world, or an anchor file (``anchor.txt`` of ``solid localize`` or ``solid optimize --map``: one
-    KITTI 3×4 row, ``T_map_session``, that map's world → the first map's world) by which its
-    poses are carried into the first map's world. The merged map's metadata records, per
-    session, the anchor applied (:func:`map_anchors`). Two maps with poses and nothing said about
-    their worlds are refused; nothing is written when a map is refused."""
+    the first map's world, or an anchor file by which its poses are carried into the first map's
+    world: ``anchor.txt`` of ``solid localize`` or ``solid optimize --map`` (one KITTI 3×4 row,
+    ``T_map_session``, that map's world → the first map's world, applied to every place), or
+    ``anchors.kitti`` beside it (one row per frame of that run, applied to the place of that
+    frame: a session whose odometry broke has one anchor per stretch; a row of NaN leaves its
+    place without a pose; the map must hold one place per frame of the run). An ``anchor.txt``
+    that says it maps only some frames (the odometry broke) is refused: one transform would
+    misplace the other stretches. The merged map's metadata records, per session, the anchor
+    applied (:func:`map_anchors`). Two maps with poses and nothing said about their worlds are
+    refused; nothing is written when a map is refused."""
     out = Path(output_file)
     if out.exists():
         raise FileExistsError(f"{out} exists: choose another file name or remove it")
@@ -694,7 +730,7 @@ def merge_maps(inputs: AbcSequence[Path], output_file: Path, anchors: AbcSequenc
         raise _solid.ConfigError(f"give one --anchor per map after the first: {len(inputs) - 1} maps, {len(given)} anchors")
 
     # Each anchor read before any map is loaded: a wrong file refuses the merge at once.
-    transforms = [None if str(a) == "same" else read_anchor(Path(a)) for a in given]
+    transforms = [None if str(a) == "same" else merge_anchor(Path(a)) for a in given]
 
     def posed(db: Any) -> bool:
         return bool(np.isfinite(np.asarray(db.poses)).all(axis=(1, 2)).any())
@@ -716,17 +752,31 @@ def merge_maps(inputs: AbcSequence[Path], output_file: Path, anchors: AbcSequenc
                 raise _solid.ConfigError(
                     f"{first_posed} and {p} both hold poses, each in the world of the run that made it, and nothing says "
                     "those worlds are one: give --anchor FILE for each map after the first (anchor.txt of `solid localize` or `solid optimize "
-                    "--map` run on that session against the first map), or --anchor same if they are one world (one ground "
-                    "truth, one SLAM map); otherwise keep the maps apart"
+                    "--map` run on that session against the first map, or anchors.kitti beside it), or --anchor same if they are one world "
+                    "(one ground truth, one SLAM map); otherwise keep the maps apart"
                 )
             first_posed = first_posed or p
         before = set(int(x) for x in db.sessions)
         T = transforms[k] if given else None
-        db.merge(other, new_sessions=True, anchor=T)
+        if T is not None and len(T) > 1 and len(T) != len(other):
+            raise _solid.ConfigError(
+                f"{given[k]} holds {len(T)} transforms, one per frame of the run that wrote it, and {p} holds {len(other)} places: "
+                "they must be one per place, so build that map from the same frames of the same recording (solid map build with the "
+                "same --frames as the run), or give the one-row anchor.txt when the session's odometry did not break"
+            )
+        db.merge(other, new_sessions=True, anchor=None if T is None else (T[0] if len(T) == 1 else T))
         if given:
             source = "same" if T is None else str(Path(given[k]).absolute())
-            applied = (np.eye(4) if T is None else T)[:3].tolist()
-            record += [{"session": n, "source": source, "T_map_session": applied} for n in sorted(set(int(x) for x in db.sessions) - before)]
+            entry: dict[str, Any] = {"source": source}
+            if T is None or len(T) == 1:
+                entry["T_map_session"] = (np.eye(4) if T is None else T[0])[:3].tolist()
+            else:
+                # One per place: the distinct transforms (a stretch's each), and the places none placed.
+                placed = T[np.isfinite(T).all(axis=(1, 2))]
+                distinct = np.unique(np.round(placed[:, :3].reshape(len(placed), 12), 9), axis=0)
+                entry["T_map_session"] = None
+                entry["per_place"] = {"places": len(T), "without_pose": int(len(T) - len(placed)), "transforms": int(len(distinct))}
+            record += [{"session": n} | entry for n in sorted(set(int(x) for x in db.sessions) - before)]
     if record:
         meta = json.loads(db.metadata) if db.metadata else {}
         db.metadata = json.dumps((meta if isinstance(meta, dict) else {}) | {"anchors": record})
@@ -737,7 +787,9 @@ def merge_maps(inputs: AbcSequence[Path], output_file: Path, anchors: AbcSequenc
 def map_anchors(metadata: str) -> list[dict[str, Any]]:
     """The anchors a merged map records (``solid map merge --anchor``): per session after the
     first map's, ``T_map_session`` (the 3×4 its poses were carried by into the first map's
-    world; identity for ``same``) and ``source`` (the anchor file, or ``"same"``)."""
+    world; identity for ``same``; None when each place had its own, ``anchors.kitti``: then
+    ``per_place`` gives the ``places``, those merged ``without_pose`` and the distinct
+    ``transforms``) and ``source`` (the anchor file, or ``"same"``)."""
     try:
         doc = json.loads(metadata) if metadata else {}
     except ValueError:
@@ -933,13 +985,78 @@ def _extrinsic(inputs: Inputs) -> Any | None:
     return load_extrinsic(inputs.calib)
 
 
+#: The anchor file of one transform per frame of a run (``T_map_odom`` of each frame, KITTI rows;
+#: a row of NaN: no anchor places that frame), written beside ``anchor.txt`` by ``solid localize``
+#: and ``solid optimize --map``; ``solid map merge --anchor`` applies it place by place.
+ANCHORS_FILE = "anchors.kitti"
+#: The comment line by which an ``anchor.txt`` says it maps only some frames of its run (the
+#: odometry broke); pose readers skip it, ``solid map merge`` refuses such a file.
+PARTIAL_ANCHOR = "# solid: partial anchor: "
+
+
+def write_anchor_files(folder: Path, first: Any, each: Any, partial: str | None, sequence: str) -> None:
+    """``anchor.txt`` (``first``, one KITTI row; when ``partial`` says which frames alone it maps,
+    a :data:`PARTIAL_ANCHOR` comment first) and :data:`ANCHORS_FILE` (``each``: one row per frame
+    of the run, NaN where no anchor places the frame) in ``folder``."""
+    from .slam import as4
+
+    def rows(P: Any) -> str:
+        return "".join(" ".join(f"{v:.9g}" for v in row) + "\n" for row in np.asarray(P, dtype=np.float64)[:, :3, :].reshape(-1, 12))
+
+    head = "" if partial is None else f"{PARTIAL_ANCHOR}{partial}; {ANCHORS_FILE} beside it holds each frame's (solid map merge --anchor {ANCHORS_FILE})\n"
+    (folder / "anchor.txt").write_text(head + rows(as4(first)[None]), encoding="utf-8")
+    E = np.array(each, dtype=np.float64)
+    E[~np.isfinite(E).all(axis=(1, 2))] = np.nan
+    none = int(np.isnan(E).all(axis=(1, 2)).sum())
+    (folder / ANCHORS_FILE).write_text(
+        f"# solid: T_map_odom of each of the {len(E)} frames of {sequence}'s run, in order (solid map merge --anchor applies row k to "
+        f"place k of a map built from those frames); {none} rows of nan: frames no anchor places (merged without a pose)\n" + rows(E),
+        encoding="utf-8",
+    )
+
+
+def merge_anchor(path: Path) -> Any:
+    """An anchor file for ``solid map merge`` as (K, 4, 4): ``anchor.txt`` (K = 1; refused when it
+    says it maps only some frames, :data:`PARTIAL_ANCHOR`) or :data:`ANCHORS_FILE` (one per frame;
+    a row of NaN: no transform, kept as NaN)."""
+    text = Path(path).read_text(encoding="utf-8")
+    lines = [ln.strip() for ln in text.splitlines()]
+    partial = next((ln[len(PARTIAL_ANCHOR) :].split(f"; {ANCHORS_FILE} beside it")[0] for ln in lines if ln.startswith(PARTIAL_ANCHOR)), None)
+    rows = [ln.split() for ln in lines if ln and not ln.startswith("#")]
+    if rows and all(len(r) == 12 for r in rows):
+        try:
+            a = np.array(rows, dtype=np.float64)
+        except ValueError:
+            raise _solid.ConfigError(f"{path}: an anchor file holds KITTI 3×4 rows of numbers; found a value that is not one") from None
+        bad = np.isnan(a).any(axis=1) & ~np.isnan(a).all(axis=1) | np.isinf(a).any(axis=1)
+        if bad.any():
+            raise _solid.ConfigError(f"{path}: row {int(np.argmax(bad)) + 1} is not finite (a row of nan alone says no transform)")
+        T = np.tile(np.eye(4), (len(a), 1, 1))
+        T[:, :3] = a.reshape(-1, 3, 4)
+        T[np.isnan(a).all(axis=1)] = np.nan
+    else:
+        T = read_anchor(path)[None]
+    if len(T) == 1 and partial is not None:
+        raise _solid.ConfigError(
+            f"{path} maps only some frames of its session: {partial}. One transform would misplace the places of the other stretches: "
+            f"give --anchor {Path(path).with_name(ANCHORS_FILE)} (each frame's transform, applied to its place; the map must be built from "
+            "the same frames of the recording)"
+        )
+    if len(T) == 1 and not np.isfinite(T).all():
+        raise _solid.ConfigError(f"{path}: its one transform is nan: nothing places that session")
+    return T
+
+
 def read_anchor(path: Path) -> Any:
-    """An anchor file (one KITTI 3×4 row, ``T_map_session``) as a 4×4 matrix."""
+    """An anchor file (one KITTI 3×4 row, ``T_map_session``; ``#`` lines are comments) as a 4×4
+    matrix."""
     from .datasets.poses import load_poses
 
     P, _ = load_poses(path)
     if len(P) != 1:
-        raise _solid.ConfigError(f"{path}: an anchor is one KITTI 3×4 row, found {len(P)} poses")
+        raise _solid.ConfigError(
+            f"{path}: an anchor is one KITTI 3×4 row, found {len(P)} poses (one per frame, {ANCHORS_FILE}, is for solid map merge --anchor; give anchor.txt)"
+        )
     T = np.eye(4)
     T[:3] = P[0]
     return T
@@ -1089,6 +1206,7 @@ def optimize(
             metrics["anchor"]["note"] = optimize_stretches_note(run, result)
     elif map_db is not None:
         metrics["anchor"] = None
+        metrics["anchor_none"] = why_no_anchor(result)
     if loops_from is not None:
         metrics["loops"] = len(loops)
         metrics["loops_from"] = str(Path(loops_from).absolute())
@@ -1113,7 +1231,19 @@ def optimize(
         if run.anchor is not None and run.map_poses is not None:
             # The anchor in the frame maps store poses in (calibration applied), where `map merge`
             # and `eval --anchor` apply it; the trajectory, like every other, in that of --poses.
-            slam.write_kitti(out.work / "anchor.txt", run.anchor.T_map_session[None])
+            # anchors.kitti: each frame's, the optimum's pose in the map's world over its odometry
+            # pose (`map merge --anchor anchors.kitti` puts each place where the optimum has it).
+            # A frame of a stretch of the odometry no anchor placed (started at another stretch's:
+            # run.borrowed, or the one anchor's when it maps only some frames) has no transform
+            # there: nothing ties it to the map. Without the detector's placement nothing says
+            # where the stretches are: every frame keeps the optimum's.
+            from .localize import frame_anchors_of_run
+
+            each = slam.as4(run.map_poses) @ slam.inv(slam.as4(run.odometry))
+            if result.map_anchors:
+                each[~np.isfinite(frame_anchors_of_run(result)).all(axis=(1, 2))] = np.nan
+            partial = partial_anchor(result, "the first frame's stretch of the odometry")
+            write_anchor_files(out.work, run.anchor.T_map_session, each, partial, inputs.sequence.name)
             slam.write_kitti(out.work / "trajectory_map.kitti", to_input(run.map_poses))
             slam.write_tum(out.work / "trajectory_map.tum", times, to_input(run.map_poses))
         write_json(out.work / "metrics.json", metrics)

@@ -47,7 +47,7 @@ import numpy.typing as npt
 from . import _solid
 from .config import PipelineConfig
 
-__all__ = ["Localizer", "Placement", "placement_of_run", "placements_of_run"]
+__all__ = ["Localizer", "Placement", "frame_anchors_of_run", "placement_of_run", "placements_of_run"]
 
 F64 = npt.NDArray[np.float64]
 
@@ -193,6 +193,19 @@ def placements_of_run(result: Any) -> list[Placement]:
     last = placement_of_run(result)
     if out and last is not None:
         out[-1] = last
+    return out
+
+
+def frame_anchors_of_run(result: Any) -> F64:
+    """Each frame's ``T_map_odom`` (N, 4, 4, one per frame of the run, in order): the transform of
+    the placement whose stretch of the odometry holds the frame (:func:`placements_of_run`), all
+    NaN for a frame no placement maps (a stretch between breaks no loop into the map placed, or
+    every frame when the run was not placed). ``solid localize`` writes it as ``anchors.kitti``,
+    which ``solid map merge --anchor`` applies place by place."""
+    ids = np.asarray(result.frame_ids, dtype=np.int64)
+    out = np.full((len(ids), 4, 4), np.nan)
+    for p in placements_of_run(result):
+        out[[p.places(int(f)) for f in ids]] = p.transform
     return out
 
 

@@ -4,7 +4,7 @@
 mod common;
 use common::db::{cfg, desc, same, sample_arrays, sample_db, unverified};
 use common::Xorshift;
-use solid_lidar::db::{Database, DbError, LoopDetector, Method, SearchOptions};
+use solid_lidar::db::{Database, DbError, LoopDetector, MergeAnchor, Method, SearchOptions};
 use solid_lidar::Config;
 
 #[test]
@@ -65,6 +65,51 @@ fn merge_with_an_anchor_carries_the_poses_and_refuses_a_non_rigid_one() {
     assert_eq!(a.sessions(), [3, 4, 4]);
     assert_eq!(a.r(1), b.r(0));
     assert_eq!(b.poses()[0], Some(pose(1.0)));
+}
+
+/// A map merged with one anchor per place carries each place's pose by its own transform (a
+/// session whose odometry broke: one per stretch), keeps no pose where none is given, and is
+/// refused, nothing changed, when the list does not hold one per place or one is not rigid.
+#[test]
+fn merge_with_one_anchor_per_place_carries_each_by_its_own() {
+    let c = cfg();
+    let pose = |x: f64| [1.0, 0.0, 0.0, x, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0];
+    let mut a = Database::new(c).unwrap();
+    a.add(&desc(&c, 1), 0, 1.0, Some(pose(0.0))).unwrap();
+    let mut b = Database::new(c).unwrap();
+    for k in 0..3u32 {
+        b.add(
+            &desc(&c, 2 + k),
+            0,
+            2.0 + f64::from(k),
+            Some(pose(f64::from(k))),
+        )
+        .unwrap();
+    }
+    let shift = |y: f64| [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, y, 0.0, 0.0, 1.0, 0.0];
+    let mut skew = shift(0.0);
+    skew[0] = 0.5;
+    for bad in [
+        vec![Some(shift(1.0)); 2],
+        vec![Some(shift(1.0)), Some(skew), None],
+    ] {
+        assert!(a
+            .merge_anchored(&b, true, Some(MergeAnchor::PerPlace(&bad)))
+            .is_err());
+        assert_eq!(a.len(), 1);
+    }
+    let each = [Some(shift(10.0)), Some(shift(20.0)), None];
+    assert_eq!(
+        a.merge_anchored(&b, true, Some(MergeAnchor::PerPlace(&each)))
+            .unwrap(),
+        1
+    );
+    let poses = a.poses();
+    assert_eq!(poses[1].map(|p| (p[3], p[7])), Some((0.0, 10.0)));
+    assert_eq!(poses[2].map(|p| (p[3], p[7])), Some((1.0, 20.0)));
+    assert_eq!(poses[3], None);
+    assert_eq!(a.sessions(), [0, 1, 1, 1]);
+    assert_eq!(b.poses()[2], Some(pose(2.0)));
 }
 
 #[test]

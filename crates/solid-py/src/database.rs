@@ -388,7 +388,10 @@ impl PyDatabase {
 
     /// Appends every entry of `other` (same config required). With `new_sessions`, the sessions
     /// of `other` are renumbered to follow this database's (maps of separate runs stay apart);
-    /// with `anchor` (`T_map_other`), the poses of `other` are carried into this map's world.
+    /// with `anchor` (`T_map_other`, 3x4 or 4x4), the poses of `other` are carried into this map's
+    /// world; with an array of shape (len(other), 3, 4) or (len(other), 4, 4), each place's pose
+    /// by its own transform (a session whose odometry broke: one anchor per stretch), a place
+    /// whose transform is all NaN keeping no pose.
     #[pyo3(signature = (other, new_sessions=false, anchor=None))]
     fn merge(
         &self,
@@ -397,11 +400,27 @@ impl PyDatabase {
         new_sessions: bool,
         anchor: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<()> {
-        let anchor = parse_pose(anchor)
-            .map_err(|e| SolidError::new_err(format!("anchor: {}", e.value(py))))?;
+        let per_place = match anchor {
+            Some(a)
+                if !a.is_none()
+                    && a.getattr("ndim").and_then(|d| d.extract::<usize>()).ok() == Some(3) =>
+            {
+                Some(per_place_anchors(a)?)
+            }
+            _ => None,
+        };
+        let anchor = match per_place {
+            Some(_) => None,
+            None => parse_pose(anchor)
+                .map_err(|e| SolidError::new_err(format!("anchor: {}", e.value(py))))?,
+        };
         let apply = |dst: &mut Database, src: &Database| {
-            dst.merge_with(src, new_sessions, anchor.as_ref())
-                .map(|_| ())
+            let how = match (&per_place, &anchor) {
+                (Some(each), _) => Some(db::MergeAnchor::PerPlace(each)),
+                (None, Some(t)) => Some(db::MergeAnchor::All(t)),
+                (None, None) => None,
+            };
+            dst.merge_anchored(src, new_sessions, how).map(|_| ())
         };
         if std::ptr::eq(self, other) {
             let copy = self.snapshot(py);
@@ -643,6 +662,41 @@ impl PyDatabase {
         let a = Array3::from_shape_vec((n, 3, 4), flat?).map_err(core_err)?;
         Ok(a.into_pyarray(py))
     }
+}
+
+/// A per-place anchor array (N, 3, 4) or (N, 4, 4), float64: each row's transform, None where it
+/// is all NaN (that place keeps no pose).
+fn per_place_anchors(a: &Bound<'_, PyAny>) -> PyResult<Vec<Option<[f64; 12]>>> {
+    let msg =
+        "anchor: one transform per place must be a float64 array of shape (N, 3, 4) or (N, 4, 4)";
+    let arr = a
+        .extract::<numpy::PyReadonlyArray3<'_, f64>>()
+        .map_err(|_| PyTypeError::new_err(msg))?;
+    let view = arr.as_array();
+    let (n, rows, cols) = view.dim();
+    if !matches!((rows, cols), (3, 4) | (4, 4)) {
+        return Err(PyValueError::new_err(format!(
+            "{msg}; got shape ({n}, {rows}, {cols})"
+        )));
+    }
+    let mut out = Vec::with_capacity(n);
+    for (i, t) in view.outer_iter().enumerate() {
+        if t.iter().all(|v| v.is_nan()) {
+            out.push(None);
+            continue;
+        }
+        if rows == 4 && t.row(3).iter().ne([0.0, 0.0, 0.0, 1.0].iter()) {
+            return Err(PyValueError::new_err(format!(
+                "anchor[{i}]: a 4x4 transform must end with the row [0, 0, 0, 1]"
+            )));
+        }
+        let mut p = [0.0; 12];
+        for (k, v) in t.iter().take(12).enumerate() {
+            p[k] = *v;
+        }
+        out.push(Some(p));
+    }
+    Ok(out)
 }
 
 /// Encodes one place for exchange between robots: float32 (416 + 4 B for the defaults) or

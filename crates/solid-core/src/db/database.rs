@@ -370,18 +370,51 @@ impl Database {
         new_sessions: bool,
         anchor: Option<&[f64; 12]>,
     ) -> Result<u32, DbError> {
+        self.merge_anchored(other, new_sessions, anchor.map(MergeAnchor::All))
+    }
+
+    /// [`Database::merge_with`], the poses of `other` carried by `anchor`: one transform for
+    /// every place, or one per place ([`MergeAnchor::PerPlace`]: a session whose odometry broke
+    /// has one anchor per stretch between breaks, or a trajectory optimised into the map one per
+    /// frame; a place with none keeps no pose). Returns the sessions' offset.
+    ///
+    /// # Errors
+    /// As [`Database::merge_with`], for each transform given; [`Error::InvalidParameter`] (name
+    /// `anchors`, the count given) when a per-place list does not hold one entry per place of
+    /// `other`. On error nothing is changed.
+    pub fn merge_anchored(
+        &mut self,
+        other: &Database,
+        new_sessions: bool,
+        anchor: Option<MergeAnchor<'_>>,
+    ) -> Result<u32, DbError> {
         self.check_fingerprint(other.fingerprint)?;
-        if let Some(t) = anchor {
-            check_pose(t).map_err(|e| match e {
-                Error::InvalidParameter {
-                    value, expected, ..
-                } => Error::InvalidParameter {
-                    name: "anchor",
-                    value,
-                    expected,
-                },
-                e => e,
-            })?;
+        let named = |e: Error| match e {
+            Error::InvalidParameter {
+                value, expected, ..
+            } => Error::InvalidParameter {
+                name: "anchor",
+                value,
+                expected,
+            },
+            e => e,
+        };
+        match anchor {
+            Some(MergeAnchor::All(t)) => check_pose(t).map_err(named)?,
+            Some(MergeAnchor::PerPlace(ts)) => {
+                if ts.len() != other.len() {
+                    return Err(Error::invalid(
+                        "anchors",
+                        ts.len() as f64,
+                        "one per place of the database merged",
+                    )
+                    .into());
+                }
+                for t in ts.iter().flatten() {
+                    check_pose(t).map_err(named)?;
+                }
+            }
+            None => {}
         }
         if self.len() + other.len() >= u32::MAX as usize {
             return Err(DbError::Full);
@@ -408,7 +441,12 @@ impl Database {
         self.sessions
             .extend(other.sessions.iter().map(|s| s + offset));
         self.timestamps.extend_from_slice(&other.timestamps);
-        let carry = anchor.map(|t| move |p: &[f64; 12]| compose(t, p));
+        let carry = anchor.map(|a| {
+            move |id: u32, p: &[f64; 12]| match a {
+                MergeAnchor::All(t) => Some(compose(t, p)),
+                MergeAnchor::PerPlace(ts) => ts[id as usize].as_ref().map(|t| compose(t, p)),
+            }
+        });
         let moved = carry.as_ref().map(|f| f as pose_store::Move<'_>);
         self.poses.append(&other.poses, base as u32, moved);
         // The A-SOLiDs are copied as stored (already quantised), the R-SOLiDs sketched again.
@@ -711,6 +749,17 @@ fn check_bins(name: &'static str, v: &[f32]) -> Result<(), Error> {
         None => Ok(()),
     }
 }
+/// How [`Database::merge_anchored`] carries the poses of the database merged into this one's
+/// world (each a row-major 3×4 `T_map_other`, `X ↦ T·X`).
+#[derive(Debug, Clone, Copy)]
+pub enum MergeAnchor<'a> {
+    /// One transform for every place.
+    All(&'a [f64; 12]),
+    /// One per place of the database merged, by id: `None` where nothing places it in this
+    /// world (the place is merged without a pose).
+    PerPlace(&'a [Option<[f64; 12]>]),
+}
+
 /// `a·b` of two row-major 3×4 `[R|t]` rigid transforms.
 fn compose(a: &[f64; 12], b: &[f64; 12]) -> [f64; 12] {
     use crate::reg::{mul, pose_to_rows, rows_to_pose};

@@ -57,7 +57,8 @@ pub use crate::detector::{
 };
 pub use crate::error::DbError;
 pub use database::{
-    check_pose, check_session, BatchResults, Database, SearchOptions, INDEX_AFTER_PASSES,
+    check_pose, check_session, BatchResults, Database, MergeAnchor, SearchOptions,
+    INDEX_AFTER_PASSES,
 };
 pub use exclusion::visible_own_places;
 pub use index_policy::IndexPolicy;

@@ -7,8 +7,9 @@ use alloc::vec::Vec;
 
 use crate::db::lean::pose_matrix;
 
-/// What carries a pose into another world ([`PoseStore::append`]).
-pub(crate) type Move<'a> = &'a dyn Fn(&[f64; 12]) -> [f64; 12];
+/// What carries the pose of a place (its id in the store appended) into another world
+/// ([`PoseStore::append`]); None: the place keeps no pose.
+pub(crate) type Move<'a> = &'a dyn Fn(u32, &[f64; 12]) -> Option<[f64; 12]>;
 
 /// The poses of a database, by id.
 #[derive(Debug, Clone, Default)]
@@ -96,12 +97,12 @@ impl PoseStore {
 
     /// Appends `other`'s poses (room reserved), their ids shifted by `base` (beyond every id
     /// held): each in the form `other` holds it, or, with `moved`, as the matrix `moved` gives for
-    /// it (a map carried into another's world).
+    /// it (a map carried into another's world; none where it gives none).
     pub(crate) fn append(&mut self, other: &PoseStore, base: u32, moved: Option<Move<'_>>) {
         if let Some(f) = moved {
             for id in other.ids() {
-                if let Some(p) = other.get(id) {
-                    self.full.push((id + base, f(&p)));
+                if let Some(p) = other.get(id).and_then(|p| f(id, &p)) {
+                    self.full.push((id + base, p));
                 }
             }
             return;
@@ -151,12 +152,18 @@ mod tests {
         };
         let mut moved = PoseStore::default();
         moved.reserve_for(&other, true).unwrap();
-        moved.append(&other, 0, Some(&shift));
+        moved.append(&other, 0, Some(&|_, p| Some(shift(p))));
         assert!(moved.lean.is_empty() && moved.len() == 3);
         assert_eq!(moved.ids().collect::<Vec<_>>(), [1, 2, 3]);
         for id in 1..4 {
             assert_eq!(moved.get(id), other.get(id).map(|p| shift(&p)));
         }
         assert_eq!(moved.get(0), None);
+        // A place the move gives no pose keeps none.
+        let mut some = PoseStore::default();
+        some.reserve_for(&other, true).unwrap();
+        some.append(&other, 10, Some(&|id, p| (id != 2).then(|| shift(p))));
+        assert_eq!(some.ids().collect::<Vec<_>>(), [11, 13]);
+        assert_eq!(some.get(12), None);
     }
 }
