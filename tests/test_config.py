@@ -10,7 +10,7 @@ import pytest
 
 import solid
 from solid import _solid
-from solid.config import ConfigFileError, InputOptions, PipelineConfig, descriptor_fields, detector_fields
+from solid.config import REMOVED_DETECTOR_KEYS, ConfigFileError, InputOptions, PipelineConfig, descriptor_fields, detector_fields
 
 
 def test_fields_and_defaults_come_from_the_core() -> None:
@@ -76,6 +76,19 @@ def test_invalid_configurations_name_the_problem(tmp_path: Path, doc: object, me
     f.write_text(json.dumps(doc))
     with pytest.raises((solid.ConfigError, TypeError), match=message):
         PipelineConfig.load(f)
+
+
+def test_a_config_naming_a_removed_check_loads_without_it_and_says_so(tmp_path: Path) -> None:
+    """The config.json of a run made before a check was removed: its detector keys are dropped
+    with a warning that names them, the rest is read as written."""
+    doc = PipelineConfig.preset("avia", detector={"exclude_meters": 12.0}).to_dict()
+    doc["detector"].update(view_fov_deg=70.4, view_min_overlap_deg=20.0, pose_candidate_shift_m=3.0)
+    f = tmp_path / "config.json"
+    f.write_text(json.dumps(doc))
+    with pytest.warns(UserWarning, match="pose_candidate_shift_m, view_fov_deg, view_min_overlap_deg ignored"):
+        cfg = PipelineConfig.load(f)
+    assert cfg == PipelineConfig.preset("avia", detector={"exclude_meters": 12.0})
+    assert not set(REMOVED_DETECTOR_KEYS) & set(cfg.to_dict()["detector"])
 
 
 def test_hostile_files_are_refused(tmp_path: Path) -> None:

@@ -190,9 +190,6 @@ def test_the_presets_table_is_solid_presets() -> None:
             assert getattr(cfg, field) == number(r[field]), (name, field)
         assert solid.DetectorConfig.preset(name).threshold == number(r["loop threshold"]), name
         assert solid.LoopDetector(cfg).threshold == number(r["loop threshold"]), name
-        # The view check's field of view comes from the preset, through the config made from it.
-        assert solid.DetectorConfig.preset(name).view_fov_deg == number(r["horizontal fov"]), name
-        assert solid.LoopDetector(cfg).config.view_fov_deg == number(r["horizontal fov"]), name
         assert sensors[name] == r["sensor"]
     common = re.search(r"Every preset uses (.*?)\. ", section(4), flags=re.S).group(1)  # type: ignore[union-attr]
     for field, value in re.findall(r"`(\w+)` = ([\d.]+)", common):
@@ -217,9 +214,6 @@ def test_the_detector_parameter_table_is_detector_config() -> None:
     for name, (value, valid) in rows.items():
         if name == "threshold":
             assert value.startswith("the preset's loop threshold")
-        elif name == "view_fov_deg":
-            # The preset's horizontal view (§4, checked there); without a preset, all of 360°.
-            assert value.startswith("the preset's") and default.view_fov_deg == 360.0
         elif isinstance(getattr(default, name), bool):
             assert value == ("on" if getattr(default, name) else "off"), name
         elif name in ("registration", "gate"):

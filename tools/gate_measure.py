@@ -48,7 +48,7 @@ def disagreement(res: Any, P: np.ndarray) -> tuple[list[float], list[float]]:
     false: list[float] = []
     for d in res.queries():
         for c in d.candidates:
-            if not c.verified or not (c.accepted or c.rejection in ("the views do not overlap", "disagrees with the odometry", "another candidate disagrees", "not supported by the previous steps", "a look-alike the odometry cannot rule out")):
+            if not c.verified or not (c.accepted or c.rejection in ("disagrees with the odometry", "another candidate disagrees", "not supported by the previous steps", "a look-alike the odometry cannot rule out")):
                 continue
             q, k = res.frame_of(d.query), res.frame_of(c.id)
             rel = np.linalg.inv(T[q]) @ T[k]

@@ -270,15 +270,12 @@ class DetectorConfig:
         verify_candidates: int = 5,
         pose_candidates: int = 2,
         pose_candidate_min_information: float = 3.0,
-        pose_candidate_shift_m: float = 3.0,
         verify_hypotheses: int = 4,
         verify_fan_deg: float = 25.0,
         cloud_bits: int = 8,
         cache_bytes: int = 268435456,
         verify_threads: int = 1,
         verify_step_points: int = 60000,
-        view_fov_deg: float = 360.0,
-        view_min_overlap_deg: float = 20.0,
         odometry_check: bool = True,
         odometry_translation_m: float = 1.0,
         odometry_drift: float = 0.01,
@@ -310,15 +307,12 @@ class DetectorConfig:
             verify_candidates: Candidates registered per step (an integer in 1..=1000; default 5).
             pose_candidates: Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates (0: none) (an integer in 0..=1000; default 2).
             pose_candidate_min_information: Smallest translation information (the gate's degeneracy.translation, per correspondence) a candidate chosen by pose must reach: its registration started where the odometry puts the query (a finite number >= 0; default 3.0).
-            pose_candidate_shift_m: Register a candidate chosen by pose again from its pose shifted this many metres each way along its weakest translation direction; keep it only when both return (0: off) (a finite number >= 0; default 3.0).
             verify_hypotheses: Initial yaws per registration, at most (0°, the A-SOLiD minima, then the fan) (an integer in 1..=16; default 4).
             verify_fan_deg: The fixed ± yaw fan added to the hypotheses, degrees (0: none) (degrees in [0, 180]; default 25.0).
             cloud_bits: Bits per axis of the compact clouds stored with the places (an integer in 1..=16; default 8).
             cache_bytes: Memory for prepared clouds kept between steps, bytes (an integer >= 0; default 268435456).
             verify_threads: Threads registering a step's candidates at once (0: one per core; the default 1: a step registers few candidates under its budget, and a second thread shortened its mean wall time by 1.0-1.25x, docs/performance.md#threads) (an integer in 0..=256; default 1).
             verify_step_points: Work budget of one step, in points: each candidate costs its registrations (1 from a known start, else its hypotheses) times the two clouds' points; the best is always registered, the rest deferred to the next steps (an integer >= 1; default 60000).
-            view_fov_deg: The sensor's horizontal field of view, degrees (the view check's; 360: views always overlap) (degrees in (0, 360]; default 360.0).
-            view_min_overlap_deg: Reject a verified loop whose yaw leaves the two fields of view sharing less azimuth than this, degrees (0: off) (degrees in [0, 360]; default 20.0).
             odometry_check: Reject a verified loop whose pose disagrees with the poses of its two places (same session) beyond the drift bounds, unless its neighbours vouch for it (min_support) (a bool; default True).
             odometry_translation_m: Translation a loop may differ from the poses' relative pose by at no path, metres (a finite number >= 0; default 1.0).
             odometry_drift: Translation the odometry may drift per metre travelled between the two places (a fraction), beside the displacement the rotation difference predicts along the path (a finite number >= 0; default 0.01).
@@ -355,15 +349,12 @@ class DetectorConfig:
         verify_candidates: int | None = None,
         pose_candidates: int | None = None,
         pose_candidate_min_information: float | None = None,
-        pose_candidate_shift_m: float | None = None,
         verify_hypotheses: int | None = None,
         verify_fan_deg: float | None = None,
         cloud_bits: int | None = None,
         cache_bytes: int | None = None,
         verify_threads: int | None = None,
         verify_step_points: int | None = None,
-        view_fov_deg: float | None = None,
-        view_min_overlap_deg: float | None = None,
         odometry_check: bool | None = None,
         odometry_translation_m: float | None = None,
         odometry_drift: float | None = None,
@@ -396,15 +387,12 @@ class DetectorConfig:
             verify_candidates: Candidates registered per step (an integer in 1..=1000; default 5).
             pose_candidates: Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates (0: none) (an integer in 0..=1000; default 2).
             pose_candidate_min_information: Smallest translation information (the gate's degeneracy.translation, per correspondence) a candidate chosen by pose must reach: its registration started where the odometry puts the query (a finite number >= 0; default 3.0).
-            pose_candidate_shift_m: Register a candidate chosen by pose again from its pose shifted this many metres each way along its weakest translation direction; keep it only when both return (0: off) (a finite number >= 0; default 3.0).
             verify_hypotheses: Initial yaws per registration, at most (0°, the A-SOLiD minima, then the fan) (an integer in 1..=16; default 4).
             verify_fan_deg: The fixed ± yaw fan added to the hypotheses, degrees (0: none) (degrees in [0, 180]; default 25.0).
             cloud_bits: Bits per axis of the compact clouds stored with the places (an integer in 1..=16; default 8).
             cache_bytes: Memory for prepared clouds kept between steps, bytes (an integer >= 0; default 268435456).
             verify_threads: Threads registering a step's candidates at once (0: one per core; the default 1: a step registers few candidates under its budget, and a second thread shortened its mean wall time by 1.0-1.25x, docs/performance.md#threads) (an integer in 0..=256; default 1).
             verify_step_points: Work budget of one step, in points: each candidate costs its registrations (1 from a known start, else its hypotheses) times the two clouds' points; the best is always registered, the rest deferred to the next steps (an integer >= 1; default 60000).
-            view_fov_deg: The sensor's horizontal field of view, degrees (the view check's; 360: views always overlap) (degrees in (0, 360]; default 360.0).
-            view_min_overlap_deg: Reject a verified loop whose yaw leaves the two fields of view sharing less azimuth than this, degrees (0: off) (degrees in [0, 360]; default 20.0).
             odometry_check: Reject a verified loop whose pose disagrees with the poses of its two places (same session) beyond the drift bounds, unless its neighbours vouch for it (min_support) (a bool; default True).
             odometry_translation_m: Translation a loop may differ from the poses' relative pose by at no path, metres (a finite number >= 0; default 1.0).
             odometry_drift: Translation the odometry may drift per metre travelled between the two places (a fraction), beside the displacement the rotation difference predicts along the path (a finite number >= 0; default 0.01).
@@ -443,15 +431,12 @@ class DetectorConfig:
         verify_candidates: int | None = None,
         pose_candidates: int | None = None,
         pose_candidate_min_information: float | None = None,
-        pose_candidate_shift_m: float | None = None,
         verify_hypotheses: int | None = None,
         verify_fan_deg: float | None = None,
         cloud_bits: int | None = None,
         cache_bytes: int | None = None,
         verify_threads: int | None = None,
         verify_step_points: int | None = None,
-        view_fov_deg: float | None = None,
-        view_min_overlap_deg: float | None = None,
         odometry_check: bool | None = None,
         odometry_translation_m: float | None = None,
         odometry_drift: float | None = None,
@@ -483,15 +468,12 @@ class DetectorConfig:
             verify_candidates: Candidates registered per step (an integer in 1..=1000; default 5).
             pose_candidates: Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates (0: none) (an integer in 0..=1000; default 2).
             pose_candidate_min_information: Smallest translation information (the gate's degeneracy.translation, per correspondence) a candidate chosen by pose must reach: its registration started where the odometry puts the query (a finite number >= 0; default 3.0).
-            pose_candidate_shift_m: Register a candidate chosen by pose again from its pose shifted this many metres each way along its weakest translation direction; keep it only when both return (0: off) (a finite number >= 0; default 3.0).
             verify_hypotheses: Initial yaws per registration, at most (0°, the A-SOLiD minima, then the fan) (an integer in 1..=16; default 4).
             verify_fan_deg: The fixed ± yaw fan added to the hypotheses, degrees (0: none) (degrees in [0, 180]; default 25.0).
             cloud_bits: Bits per axis of the compact clouds stored with the places (an integer in 1..=16; default 8).
             cache_bytes: Memory for prepared clouds kept between steps, bytes (an integer >= 0; default 268435456).
             verify_threads: Threads registering a step's candidates at once (0: one per core; the default 1: a step registers few candidates under its budget, and a second thread shortened its mean wall time by 1.0-1.25x, docs/performance.md#threads) (an integer in 0..=256; default 1).
             verify_step_points: Work budget of one step, in points: each candidate costs its registrations (1 from a known start, else its hypotheses) times the two clouds' points; the best is always registered, the rest deferred to the next steps (an integer >= 1; default 60000).
-            view_fov_deg: The sensor's horizontal field of view, degrees (the view check's; 360: views always overlap) (degrees in (0, 360]; default 360.0).
-            view_min_overlap_deg: Reject a verified loop whose yaw leaves the two fields of view sharing less azimuth than this, degrees (0: off) (degrees in [0, 360]; default 20.0).
             odometry_check: Reject a verified loop whose pose disagrees with the poses of its two places (same session) beyond the drift bounds, unless its neighbours vouch for it (min_support) (a bool; default True).
             odometry_translation_m: Translation a loop may differ from the poses' relative pose by at no path, metres (a finite number >= 0; default 1.0).
             odometry_drift: Translation the odometry may drift per metre travelled between the two places (a fraction), beside the displacement the rotation difference predicts along the path (a finite number >= 0; default 0.01).
@@ -518,7 +500,7 @@ class DetectorConfig:
             TypeError: An unknown parameter, or a value of the wrong type.
         """
     def to_dict(self) -> dict[str, Any]:
-        """The parameters by name (exclude_frames, exclude_meters, exclude_seconds, threshold, top_k, rerank, verify, verify_candidates, pose_candidates, pose_candidate_min_information, pose_candidate_shift_m, verify_hypotheses, verify_fan_deg, cloud_bits, cache_bytes, verify_threads, verify_step_points, view_fov_deg, view_min_overlap_deg, odometry_check, odometry_translation_m, odometry_drift, odometry_rotation_deg, odometry_rotation_deg_per_m, odometry_rotation_max_deg, unique, unique_ratio, support_window, min_support, loop_reset_m, lookalike_m, lookalike_margin, placement_loops, placement_m, registration, gate): what `DetectorConfig(**d)` takes back.
+        """The parameters by name (exclude_frames, exclude_meters, exclude_seconds, threshold, top_k, rerank, verify, verify_candidates, pose_candidates, pose_candidate_min_information, verify_hypotheses, verify_fan_deg, cloud_bits, cache_bytes, verify_threads, verify_step_points, odometry_check, odometry_translation_m, odometry_drift, odometry_rotation_deg, odometry_rotation_deg_per_m, odometry_rotation_max_deg, unique, unique_ratio, support_window, min_support, loop_reset_m, lookalike_m, lookalike_margin, placement_loops, placement_m, registration, gate): what `DetectorConfig(**d)` takes back.
 
         Returns:
             A new dict.
@@ -554,9 +536,6 @@ class DetectorConfig:
     def pose_candidate_min_information(self) -> float:
         """Smallest translation information (the gate's degeneracy.translation, per correspondence) a candidate chosen by pose must reach: its registration started where the odometry puts the query (a finite number >= 0; default 3.0)."""
     @property
-    def pose_candidate_shift_m(self) -> float:
-        """Register a candidate chosen by pose again from its pose shifted this many metres each way along its weakest translation direction; keep it only when both return (0: off) (a finite number >= 0; default 3.0)."""
-    @property
     def verify_hypotheses(self) -> int:
         """Initial yaws per registration, at most (0°, the A-SOLiD minima, then the fan) (an integer in 1..=16; default 4)."""
     @property
@@ -574,12 +553,6 @@ class DetectorConfig:
     @property
     def verify_step_points(self) -> int:
         """Work budget of one step, in points: each candidate costs its registrations (1 from a known start, else its hypotheses) times the two clouds' points; the best is always registered, the rest deferred to the next steps (an integer >= 1; default 60000)."""
-    @property
-    def view_fov_deg(self) -> float:
-        """The sensor's horizontal field of view, degrees (the view check's; 360: views always overlap) (degrees in (0, 360]; default 360.0)."""
-    @property
-    def view_min_overlap_deg(self) -> float:
-        """Reject a verified loop whose yaw leaves the two fields of view sharing less azimuth than this, degrees (0: off) (degrees in [0, 360]; default 20.0)."""
     @property
     def odometry_check(self) -> bool:
         """Reject a verified loop whose pose disagrees with the poses of its two places (same session) beyond the drift bounds, unless its neighbours vouch for it (min_support) (a bool; default True)."""

@@ -20,7 +20,8 @@ JSON layout::
                "frames": null, "subsample_m": null}}
 
 Any section or key may be left out (it takes its default); unknown keys are errors that name
-them. ``-0.0`` is written as ``0.0`` so that equal configurations dump, compare and hash equally.
+them, except the detector keys of checks since removed (:data:`REMOVED_DETECTOR_KEYS`), which are
+dropped with a warning so that the ``config.json`` of an earlier run still loads. ``-0.0`` is written as ``0.0`` so that equal configurations dump, compare and hash equally.
 The evaluation section only says how loops are scored (docs/spec.md §5: a loop is correct when its
 candidate lies within ``radius`` and its pose within the pose tolerance of the truth); it never
 changes what the detector accepts, so ``solid eval`` and ``solid detect`` with the same detector
@@ -31,6 +32,7 @@ from __future__ import annotations
 
 import json
 import math
+import warnings
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from collections.abc import Set as AbcSet
@@ -41,7 +43,17 @@ from .arrays import PathLike
 from .errors import ConfigFileError
 from .outputs import atomic_write_bytes
 
-__all__ = ["ConfigFileError", "InputOptions", "PipelineConfig", "default_text", "descriptor_fields", "detector_fields", "param_table", "per_preset_fields"]
+__all__ = ["REMOVED_DETECTOR_KEYS", "ConfigFileError", "InputOptions", "PipelineConfig", "default_text", "descriptor_fields", "detector_fields", "param_table", "per_preset_fields"]
+
+
+#: Detector parameters of checks removed since they were written to ``config.json`` files, with
+#: why (docs/performance.md#the-trust-matrix-issue-41).
+#: A configuration that names one loads without it, with a warning.
+REMOVED_DETECTOR_KEYS: dict[str, str] = {
+    "pose_candidate_shift_m": "the shifted re-registration of candidates chosen by pose was removed (off, no loop was wrong and some right ones more)",
+    "view_fov_deg": "the view check was removed (off, no loop changed)",
+    "view_min_overlap_deg": "the view check was removed (off, no loop changed)",
+}
 
 
 def descriptor_fields() -> dict[str, type]:
@@ -204,6 +216,15 @@ class PipelineConfig:
             if not isinstance(v, dict):
                 raise _solid.ConfigError(f"{where}: section {sec!r} must be an object")
             sections[sec] = v
+        removed = sorted(set(sections["detector"]) & set(REMOVED_DETECTOR_KEYS))
+        if removed:
+            warnings.warn(
+                f"{where}: detector keys {', '.join(removed)} ignored: "
+                + "; ".join(sorted({REMOVED_DETECTOR_KEYS[k] for k in removed})),
+                UserWarning,
+                stacklevel=2,
+            )
+            sections["detector"] = {k: v for k, v in sections["detector"].items() if k not in REMOVED_DETECTOR_KEYS}
         allowed = {
             "descriptor": set(descriptor_fields()),
             "detector": set(detector_fields()),

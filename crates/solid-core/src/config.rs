@@ -44,8 +44,8 @@ pub struct Preset {
     /// distance), chosen from the F1-max thresholds measured on the shared data and the
     /// simulator: see [`LOOP_THRESHOLD_MEASUREMENT`].
     pub loop_threshold: f64,
-    /// The sensor's horizontal field of view (degrees, 360 for a spinning sensor): the loop
-    /// detector's default `view_fov_deg`. Not a descriptor parameter (SOLiD bins all of 360°).
+    /// The sensor's horizontal field of view (degrees, 360 for a spinning sensor). Not a
+    /// descriptor parameter (SOLiD bins all of 360°).
     pub h_fov: f64,
 }
 

@@ -214,18 +214,16 @@ fn a_prior_map_is_never_excluded_and_candidates_are_ranked() {
 }
 
 #[test]
-fn a_config_from_a_preset_gives_the_detector_that_presets_threshold_and_view() {
+fn a_config_from_a_preset_gives_the_detector_that_presets_threshold() {
     for p in &solid_lidar::PRESETS {
         let d = DetectorConfig::for_base_preset(Some(p));
         assert_eq!(d.threshold, p.loop_threshold, "{}", p.name);
-        assert_eq!(d.verify.view_fov_deg, p.h_fov, "{}", p.name);
         assert_eq!(d, DetectorConfig::for_preset(p.name).unwrap());
         // Nothing else depends on the preset.
-        let mut general = DetectorConfig {
+        let general = DetectorConfig {
             threshold: p.loop_threshold,
             ..DetectorConfig::default()
         };
-        general.verify.view_fov_deg = p.h_fov;
         assert_eq!(d, general, "{}", p.name);
     }
     // A config made from no preset: the general default (the largest preset threshold).

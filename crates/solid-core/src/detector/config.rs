@@ -64,11 +64,6 @@ pub struct VerifyConfig {
     /// there, so a translation the clouds leave loose (along a corridor) ends where the
     /// odometry says, drift included; the descriptor's candidates keep the gate's threshold.
     pub pose_candidate_min_information: f64,
-    /// A candidate chosen by pose is registered again from its pose shifted by this many metres
-    /// each way along the weakest direction of its translation information, and kept only when
-    /// both come back to it (the gate's `agree_translation`, `agree_rotation_deg`): a slide
-    /// follows its start, a true fit does not. 0: off.
-    pub pose_candidate_shift_m: f64,
     /// At most this many initial yaws per candidate: 0°, the A-SOLiD minima, then ±`fan_deg`.
     pub hypotheses: usize,
     /// The fixed yaw fan added to the hypotheses (degrees; 0: none). On a narrow field of view
@@ -108,17 +103,6 @@ pub struct VerifyConfig {
     /// What a registration must meet to be a loop; its `max_translation` is the largest loop
     /// (metres between the places).
     pub gate: Gate,
-    /// The sensor's horizontal field of view (degrees, in (0, 360]): a preset's
-    /// ([`crate::Preset::h_fov`]) for a config made from it, 360 otherwise. Only the view check
-    /// reads it; with 360 two views always overlap.
-    pub view_fov_deg: f64,
-    /// The view check: a registration that passed the gate is rejected
-    /// ([`Rejection::NoSharedView`](crate::reg::Rejection::NoSharedView)) when its yaw turns the
-    /// candidate's field of view (`view_fov_deg` wide, centred on the sensor's x axis) away from
-    /// the query's until they share less than this much azimuth (degrees; 0: off). A narrow
-    /// sensor turned away sees other walls, and a registration that slid one onto another
-    /// reports it by its yaw.
-    pub view_min_overlap_deg: f64,
     /// Check a verified loop against the poses, when the query and the candidate both have one
     /// and belong to the same session: its registered `T_query_candidate` must lie within the
     /// drift bounds below of `inv(T_world_query)·T_world_candidate`, or the candidate is
@@ -223,7 +207,6 @@ impl Default for VerifyConfig {
             candidates: DEFAULT_VERIFY_CANDIDATES,
             pose_candidates: DEFAULT_POSE_CANDIDATES,
             pose_candidate_min_information: DEFAULT_POSE_CANDIDATE_MIN_INFORMATION,
-            pose_candidate_shift_m: DEFAULT_POSE_CANDIDATE_SHIFT_M,
             hypotheses: 4,
             fan_deg: 25.0,
             cloud_bits: 8,
@@ -235,8 +218,6 @@ impl Default for VerifyConfig {
                 max_translation: DEFAULT_MAX_LOOP_DISTANCE,
                 ..Gate::default()
             },
-            view_fov_deg: 360.0,
-            view_min_overlap_deg: DEFAULT_VIEW_MIN_OVERLAP_DEG,
             odometry_check: true,
             odometry_translation_m: 1.0,
             odometry_drift: 0.01,
@@ -256,26 +237,18 @@ impl Default for VerifyConfig {
     }
 }
 
-/// Default [`VerifyConfig::view_min_overlap_deg`] (docs/performance.md#loops-a-pose-graph-can-trust).
-pub const DEFAULT_VIEW_MIN_OVERLAP_DEG: f64 = 20.0;
-
 /// Default [`VerifyConfig::candidates`].
 pub const DEFAULT_VERIFY_CANDIDATES: usize = 5;
 
 /// Default [`VerifyConfig::pose_candidates`]: among look-alikes the descriptor's candidates rarely
 /// hold the true place, the two nearest the odometry's position do; their checks
-/// (`pose_candidate_min_information`, `pose_candidate_shift_m`, the odometry without the
-/// rotation's allowance) keep them right under a drifting odometry
+/// (`pose_candidate_min_information`, the odometry without the rotation's allowance) keep them right under a drifting odometry
 /// (docs/performance.md#loops-a-pose-graph-can-trust).
 pub const DEFAULT_POSE_CANDIDATES: usize = 2;
 
 /// Default [`VerifyConfig::pose_candidate_min_information`]
 /// (docs/performance.md#loops-a-pose-graph-can-trust).
 pub const DEFAULT_POSE_CANDIDATE_MIN_INFORMATION: f64 = 3.0;
-
-/// Default [`VerifyConfig::pose_candidate_shift_m`]
-/// (docs/performance.md#loops-a-pose-graph-can-trust).
-pub const DEFAULT_POSE_CANDIDATE_SHIFT_M: f64 = 3.0;
 
 /// Default [`VerifyConfig::loop_reset_m`] (docs/performance.md#loops-a-pose-graph-can-trust).
 pub const DEFAULT_LOOP_RESET_M: f64 = 200.0;
@@ -367,14 +340,10 @@ impl DetectorConfig {
     /// Python `SolidConfig.base_preset` keeps it through `replace` and pickling).
     pub fn for_base_preset(base: Option<&Preset>) -> DetectorConfig {
         match base {
-            Some(p) => {
-                let mut d = DetectorConfig {
-                    threshold: p.loop_threshold,
-                    ..DetectorConfig::default()
-                };
-                d.verify.view_fov_deg = p.h_fov;
-                d
-            }
+            Some(p) => DetectorConfig {
+                threshold: p.loop_threshold,
+                ..DetectorConfig::default()
+            },
             None => DetectorConfig::default(),
         }
     }
@@ -426,8 +395,6 @@ impl Params for DetectorConfig {
             "an integer in 0..=1000", "Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates (0: none)."),
         field!(DetectorConfig, "pose_candidate_min_information", verify.pose_candidate_min_information, Kind::closed(0.0, FINITE),
             "a finite number >= 0", "Smallest translation information (the gate's degeneracy.translation, per correspondence) a candidate chosen by pose must reach: its registration started where the odometry puts the query."),
-        field!(DetectorConfig, "pose_candidate_shift_m", verify.pose_candidate_shift_m, Kind::closed(0.0, FINITE),
-            "a finite number >= 0", "Register a candidate chosen by pose again from its pose shifted this many metres each way along its weakest translation direction; keep it only when both return (0: off)."),
         field!(DetectorConfig, "verify_hypotheses", verify.hypotheses, Kind::Int { min: 1, max: 16 },
             "an integer in 1..=16", "Initial yaws per registration, at most (0°, the A-SOLiD minima, then the fan)."),
         field!(DetectorConfig, "verify_fan_deg", verify.fan_deg, Kind::closed(0.0, 180.0), "degrees in [0, 180]",
@@ -440,10 +407,6 @@ impl Params for DetectorConfig {
             "an integer in 0..=256", "Threads registering a step's candidates at once (0: one per core; the default 1: a step registers few candidates under its budget, and a second thread shortened its mean wall time by 1.0-1.25x, docs/performance.md#threads)."),
         field!(DetectorConfig, "verify_step_points", verify.step_points, Kind::at_least(1), "an integer >= 1",
             "Work budget of one step, in points: each candidate costs its registrations (1 from a known start, else its hypotheses) times the two clouds' points; the best is always registered, the rest deferred to the next steps."),
-        field!(DetectorConfig, "view_fov_deg", verify.view_fov_deg, Kind::open_closed(0.0, 360.0),
-            "degrees in (0, 360]", "The sensor's horizontal field of view, degrees (the view check's; 360: views always overlap)."),
-        field!(DetectorConfig, "view_min_overlap_deg", verify.view_min_overlap_deg, Kind::closed(0.0, 360.0), "degrees in [0, 360]",
-            "Reject a verified loop whose yaw leaves the two fields of view sharing less azimuth than this, degrees (0: off)."),
         field!(DetectorConfig, "odometry_check", verify.odometry_check, Kind::Bool, "a bool",
             "Reject a verified loop whose pose disagrees with the poses of its two places (same session) beyond the drift bounds, unless its neighbours vouch for it (min_support)."),
         field!(DetectorConfig, "odometry_translation_m", verify.odometry_translation_m, Kind::closed(0.0, FINITE),

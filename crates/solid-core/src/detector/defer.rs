@@ -55,11 +55,11 @@ pub(super) struct Queue {
 }
 
 impl LoopDetector {
-    /// The work of registering own or map place `id` (`by_pose`: chosen by pose) with the query
-    /// cloud `q`, in points: the two clouds' fine points times the registrations it runs, one
-    /// from a known start (the odometry's, [`LoopDetector::odometry_start`], or a neighbour's
-    /// among `led`, the candidates registered before it), else one per yaw hypothesis; a
-    /// candidate chosen by pose adds its two shifted restarts. None when the place has no cloud.
+    /// The work of registering own or map place `id` with the query cloud `q`, in points: the
+    /// two clouds' fine points times the registrations it runs, one from a known start (the
+    /// odometry's, [`LoopDetector::odometry_start`], or a neighbour's among `led`, the
+    /// candidates registered before it), else one per yaw hypothesis. None when the place has
+    /// no cloud.
     ///
     /// # Errors
     /// As [`LoopDetector::try_cloud`].
@@ -68,7 +68,7 @@ impl LoopDetector {
         q: &PreparedCloud,
         at: Option<&QueryPlace>,
         anchored: Option<([f64; 12], f64, f64)>,
-        (id, by_pose): (u32, bool),
+        id: u32,
         led: &[u32],
     ) -> Result<Option<usize>, DbError> {
         let v = &self.config.verify;
@@ -84,10 +84,7 @@ impl LoopDetector {
             },
         };
         let known = self.known_start(at, anchored, id, led);
-        let mut runs = if known { 1 } else { v.hypotheses.max(1) };
-        if by_pose && v.pose_candidate_shift_m > 0.0 {
-            runs += 2;
-        }
+        let runs = if known { 1 } else { v.hypotheses.max(1) };
         Ok(Some((q.fine.len() + points).saturating_mul(runs)))
     }
 
@@ -124,9 +121,8 @@ impl LoopDetector {
     ) -> Result<Option<usize>, DbError> {
         let beyond = self.beyond_reach(Some(at), cands)?;
         let anchored = self.anchored(at);
-        for (i, c) in cands.iter().enumerate().filter(|&(i, _)| !beyond[i]) {
-            let by_pose = i >= self.config.verify.candidates;
-            match self.registration_cost(q, Some(at), anchored, (c.id, by_pose), &[]) {
+        for (c, _) in cands.iter().zip(&beyond).filter(|&(_, &b)| !b) {
+            match self.registration_cost(q, Some(at), anchored, c.id, &[]) {
                 // From a known start (one registration): the backlog keeps the earlier rule.
                 Ok(Some(_)) if self.known_start(Some(at), anchored, c.id, &[]) => return Ok(None),
                 Ok(Some(cost)) => return Ok(Some(cost)),
@@ -319,15 +315,14 @@ impl LoopDetector {
                 } else {
                     d.done.iter().chain(&cands).map(|c| c.id).collect()
                 };
-                let cost =
-                    match self.registration_cost(&q, Some(&d.at), anchored, (c.id, pose), &led) {
-                        Ok(Some(cost)) => cost,
-                        Ok(None) | Err(DbError::Format { .. }) => {
-                            d.waiting.remove(i);
-                            continue;
-                        }
-                        Err(e) => return Err(e),
-                    };
+                let cost = match self.registration_cost(&q, Some(&d.at), anchored, c.id, &led) {
+                    Ok(Some(cost)) => cost,
+                    Ok(None) | Err(DbError::Format { .. }) => {
+                        d.waiting.remove(i);
+                        continue;
+                    }
+                    Err(e) => return Err(e),
+                };
                 // The first always fits (one over a whole budget would never), except one that
                 // waits: a step runs its own best or the backlog's first without a start.
                 if (work > 0 || wait.is_some())
@@ -387,11 +382,7 @@ impl LoopDetector {
         self.register_jobs(&a, q, Some(&at), jobs, cands, &d.done)?;
         // The candidates chosen by pose follow the descriptor's, as in their step.
         let split = by_pose.iter().position(|&p| p).unwrap_or(by_pose.len());
-        let clouds: Vec<Option<Arc<PreparedCloud>>> = jobs[split..]
-            .iter()
-            .map(|(_, cp)| Some(Arc::clone(cp)))
-            .collect();
-        self.check_pose_candidates(&at, Some(q), &clouds, &mut cands[split..])?;
+        self.check_pose_candidates(&at, &mut cands[split..]);
         let r = self.r(at.id).to_vec();
         self.check_after_gate(&at, &r, cands)?;
         let best = cands
@@ -525,7 +516,7 @@ mod tests {
                 &det.config.verify.registration,
             )
             .unwrap();
-            det.registration_cost(&q, None, None, (8, false), &[9])
+            det.registration_cost(&q, None, None, 8, &[9])
                 .unwrap()
                 .unwrap()
         };
@@ -579,7 +570,7 @@ mod tests {
                 &det.config.verify.registration,
             )
             .unwrap();
-            det.registration_cost(&q, None, None, (8, false), &[])
+            det.registration_cost(&q, None, None, 8, &[])
                 .unwrap()
                 .unwrap()
         };

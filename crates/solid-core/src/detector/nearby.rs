@@ -4,19 +4,17 @@
 //! look-alike places the descriptor's few best rarely hold the true one; the odometry still says
 //! roughly where the query is.
 
-use alloc::sync::Arc;
 use alloc::vec::Vec;
 
 use nalgebra::Matrix3;
 
 use super::anchor::Reach;
-use super::verify::{registered, reject, run_jobs, QueryPlace};
+use super::verify::{registered, reject, QueryPlace};
 use super::{Candidate, LoopDetector};
 use crate::compare::cosine_distance;
 use crate::db::DbError;
-use crate::detector::VerifyConfig;
 use crate::heading_refined;
-use crate::reg::{self, PreparedCloud, Rejection};
+use crate::reg::{self, Rejection};
 
 impl LoopDetector {
     /// Puts the step's candidates in the order verification takes them: the descriptor's first
@@ -103,18 +101,9 @@ impl LoopDetector {
     /// whose clouds leave the translation loose ends where the odometry says (a slide along a
     /// corridor), and where the odometry has drifted a look-alike next to its position fits as
     /// well as the true place would. So the registration must reach
-    /// `pose_candidate_min_information`, agree with the odometry within its bounds without
-    /// the rotation's allowance (a candidate chosen by pose is only as good as the position),
-    /// and, with the query's cloud and its own (`clouds[i]` of `by_pose[i]`), come back when
-    /// registered again from a shifted start ([`keeps_its_pose`]; the restarts share the
-    /// detector's pool).
-    pub(super) fn check_pose_candidates(
-        &self,
-        at: &QueryPlace,
-        query: Option<&PreparedCloud>,
-        clouds: &[Option<Arc<PreparedCloud>>],
-        by_pose: &mut [Candidate],
-    ) -> Result<(), DbError> {
+    /// `pose_candidate_min_information` and agree with the odometry within its bounds without
+    /// the rotation's allowance (a candidate chosen by pose is only as good as the position).
+    pub(super) fn check_pose_candidates(&self, at: &QueryPlace, by_pose: &mut [Candidate]) {
         let v = &self.config.verify;
         for c in by_pose.iter_mut().filter(|c| registered(c)) {
             let info = c
@@ -127,25 +116,6 @@ impl LoopDetector {
                 reject(c, Rejection::OdometryDisagrees);
             }
         }
-        let Some(q) = query.filter(|_| v.pose_candidate_shift_m > 0.0) else {
-            return Ok(());
-        };
-        let jobs: Vec<(usize, &Arc<PreparedCloud>, reg::Registration)> = by_pose
-            .iter()
-            .zip(clouds)
-            .enumerate()
-            .filter(|(_, (c, _))| registered(c))
-            .filter_map(|(i, (c, cp))| Some((i, cp.as_ref()?, c.verification?.registration)))
-            .collect();
-        let kept = run_jobs(&jobs, v.threads, |&(_, cp, ref r)| {
-            Ok(keeps_its_pose(v, q, cp, r))
-        })?;
-        for ((i, _, _), keeps) in jobs.iter().zip(kept) {
-            if !keeps {
-                reject(&mut by_pose[*i], Rejection::Disagreement);
-            }
-        }
-        Ok(())
     }
 
     /// Place `id` as an unverified candidate of the query `(r, a)`.
@@ -175,41 +145,9 @@ pub(super) fn weakest_translation(r: &reg::Registration) -> Option<[f64; 3]> {
     Some([u[0], u[1], u[2]])
 }
 
-/// Whether `candidate` registered again from `r`'s pose shifted by ±`pose_candidate_shift_m`
-/// along the weakest direction of its translation information comes back to `r`'s pose (within
-/// the gate's agreement tolerances): a registration that slid where the clouds leave the
-/// translation loose follows its start, a true fit returns. True when the shift is 0.
-pub(super) fn keeps_its_pose(
-    v: &VerifyConfig,
-    query: &PreparedCloud,
-    candidate: &PreparedCloud,
-    r: &reg::Registration,
-) -> bool {
-    let s = v.pose_candidate_shift_m;
-    if s <= 0.0 {
-        return true;
-    }
-    let Some(u) = weakest_translation(r) else {
-        return false;
-    };
-    [s, -s].iter().all(|&d| {
-        let mut init = r.pose;
-        for (a, row) in init.iter_mut().take(3).enumerate() {
-            row[3] += d * u[a];
-        }
-        reg::register(query, candidate, &init, &v.registration)
-            .ok()
-            .and_then(|r2| reg::pose_distance(&r.pose, &r2.pose))
-            .is_some_and(|(m, deg)| {
-                m <= v.gate.agree_translation && deg <= v.gate.agree_rotation_deg
-            })
-    })
-}
-
 #[cfg(test)]
 pub(super) mod tests {
     use crate::detector::{DetectorConfig, LoopDetector};
-    use crate::reg::{self, PreparedCloud};
     use crate::{Config, Descriptor, Stats};
 
     /// Row-major 3×4 pose at (x, y), facing +x.
@@ -256,30 +194,6 @@ pub(super) mod tests {
             }
         }
         p
-    }
-
-    #[test]
-    fn a_registration_that_follows_its_start_is_not_kept() {
-        let v = crate::detector::VerifyConfig::default();
-        let cfg = &v.registration;
-        let keeps = |boxes: &[f64]| {
-            let c = PreparedCloud::from_downsampled(&corridor(boxes), cfg).unwrap();
-            let r = reg::register(&c, &c, &reg::IDENTITY, cfg).unwrap();
-            let off = super::keeps_its_pose(
-                &crate::detector::VerifyConfig {
-                    pose_candidate_shift_m: 0.0,
-                    ..v
-                },
-                &c,
-                &c,
-                &r,
-            );
-            (super::keeps_its_pose(&v, &c, &c, &r), off)
-        };
-        // A bare corridor: started 2 m along it, the registration stays there.
-        assert_eq!(keeps(&[]), (false, true));
-        // Boxes at irregular places pin it: both restarts come back.
-        assert_eq!(keeps(&[-13.0, -4.5, 3.0, 11.5]), (true, true));
     }
 
     #[test]

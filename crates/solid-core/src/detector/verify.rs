@@ -68,21 +68,20 @@ impl LoopDetector {
                     over.push(i);
                     continue;
                 }
-                let (id, by_pose) = (cands[i].id, i >= v.candidates);
+                let id = cands[i].id;
                 let led: Vec<u32> = jobs.iter().map(|&(j, _)| cands[j].id).collect();
                 // Never silently unverified: the candidate says its cloud is corrupt. A map
                 // file that changed or cannot be read fails the step (naming it).
                 let corrupt = |c: &mut Candidate| c.verification = Some(corrupt_cloud());
-                let cost =
-                    match self.registration_cost(q, at.as_ref(), anchored, (id, by_pose), &led) {
-                        Ok(Some(cost)) => cost,
-                        Ok(None) => continue,
-                        Err(DbError::Format { .. }) => {
-                            corrupt(&mut cands[i]);
-                            continue;
-                        }
-                        Err(e) => return Err(e),
-                    };
+                let cost = match self.registration_cost(q, at.as_ref(), anchored, id, &led) {
+                    Ok(Some(cost)) => cost,
+                    Ok(None) => continue,
+                    Err(DbError::Format { .. }) => {
+                        corrupt(&mut cands[i]);
+                        continue;
+                    }
+                    Err(e) => return Err(e),
+                };
                 if !jobs.is_empty() && work.saturating_add(cost) > v.step_points {
                     over.push(i);
                     continue;
@@ -109,17 +108,7 @@ impl LoopDetector {
                 // Before the checks after the gate: the deferred ones' neighbours' starts.
                 self.defer(at, cands, &over)?;
                 // The candidates chosen by pose follow the descriptor's first `v.candidates`.
-                let by_pose = v.candidates.min(n)..n;
-                let mut clouds = Vec::new();
-                clouds
-                    .try_reserve_exact(by_pose.len())
-                    .map_err(|_| DbError::OutOfMemory)?;
-                clouds.extend(by_pose.clone().map(|i| {
-                    jobs.iter()
-                        .find(|(j, _)| *j == i)
-                        .map(|(_, cp)| Arc::clone(cp))
-                }));
-                self.check_pose_candidates(&at, Some(q), &clouds, &mut cands[by_pose])?;
+                self.check_pose_candidates(&at, &mut cands[v.candidates.min(n)..n]);
                 self.check_after_gate(&at, r_query, cands)?;
             }
             for c in cands.iter_mut() {
@@ -917,7 +906,7 @@ pub const CLUSTER_IDS: u32 = 2;
 pub(super) type LinkViews<'a> = Option<(&'a [f32], &'a [f32])>;
 
 /// Registers one candidate once from `start` and checks the gate (without the hypotheses'
-/// agreement) and the view; None when the clouds cannot be registered.
+/// agreement); None when the clouds cannot be registered.
 pub(super) fn seeded(
     v: &VerifyConfig,
     query: &PreparedCloud,
@@ -928,7 +917,7 @@ pub(super) fn seeded(
     let Ok(r) = reg::register(query, candidate, start, &v.registration) else {
         return Ok(None);
     };
-    let check = gate_and_view(v, &r, &[], 0, link);
+    let check = gate_linked(v, &r, &[], 0, link);
     Ok(Some(Verification {
         registration: r,
         accepted: check.is_ok(),
@@ -1008,7 +997,7 @@ pub(super) fn verify_yaws(
         return Ok(None);
     };
     let tried = &hyps[..h.count];
-    let check = gate_and_view(v, &h.registration, tried, h.best, link);
+    let check = gate_linked(v, &h.registration, tried, h.best, link);
     Ok(Some(Verification {
         registration: h.registration,
         accepted: check.is_ok(),
@@ -1023,29 +1012,15 @@ pub(super) fn verify_yaws(
     }))
 }
 
-/// Degrees of azimuth two horizontal fields of view `fov` wide share when one is turned by `yaw`
-/// from the other (both centred on their sensor's x axis): the two arcs' overlap on the circle,
-/// all of `fov` for a 360° sensor.
-fn shared_azimuth_deg(fov: f64, yaw: f64) -> f64 {
-    let d = libm::fabs(libm::remainder(yaw, 360.0));
-    let overlap = (fov - d).max(0.0) + (fov - (360.0 - d)).max(0.0);
-    overlap.min(fov)
-}
-
-/// The gate, then the view check; a registration the gate finds too long is checked for the
-/// view too, so that [`Rejection::TooFar`] means "every check but the length passed" whatever
-/// `max_translation` is (a neighbour's start and [`registered`] must not depend on the largest
-/// loop asked for: eval's suggested detect run reproduces its rows).
-/// A chain link's overlap floors (`link`) are the gate's times the share of the views the two
-/// scans have in common at the registered pose ([`shared_view`]).
-fn gate_and_view(
+/// The gate, with a chain link's overlap floors (`link`) the gate's times the share of the views
+/// the two scans have in common at the registered pose ([`shared_view`]).
+fn gate_linked(
     v: &VerifyConfig,
     r: &reg::Registration,
     hypotheses: &[Hypothesis],
     best: usize,
     link: LinkViews<'_>,
 ) -> Result<(), Rejection> {
-    let view = || view_check(v, r.yaw_degrees());
     let gate = match link {
         None => v.gate,
         Some((a_query, a_candidate)) => {
@@ -1057,11 +1032,7 @@ fn gate_and_view(
             }
         }
     };
-    match gate.check(r, hypotheses, best) {
-        Ok(()) => view(),
-        Err(Rejection::TooFar) => view().and(Err(Rejection::TooFar)),
-        Err(e) => Err(e),
-    }
+    gate.check(r, hypotheses, best)
 }
 
 /// The share of their views two scans have in common when the query is turned by `yaw` degrees
@@ -1092,15 +1063,6 @@ pub(super) fn shared_view(a_query: &[f32], a_candidate: &[f32], yaw: f64) -> f64
             .sum()
     };
     (seen(a_query, a_candidate, s) / all_query).min(seen(a_candidate, a_query, -s) / all_candidate)
-}
-
-/// The view check ([`VerifyConfig::view_min_overlap_deg`]) of a loop turned by `yaw` degrees.
-fn view_check(v: &VerifyConfig, yaw: f64) -> Result<(), Rejection> {
-    if shared_azimuth_deg(v.view_fov_deg, yaw) < v.view_min_overlap_deg {
-        Err(Rejection::NoSharedView)
-    } else {
-        Ok(())
-    }
 }
 
 /// `f` of every job, in order, the first error in job order: shared among the threads of this
@@ -1142,41 +1104,6 @@ pub(super) mod tests {
 
     fn close(a: &Pose, b: &Pose) -> bool {
         reg::pose_distance(a, b).is_some_and(|(m, deg)| m < 1e-9 && deg < 1e-6)
-    }
-
-    #[test]
-    fn views_turned_apart_share_no_azimuth() {
-        // A 70° window turned by 100° shares nothing, by 20° it shares 50°; the sign and a full
-        // turn do not matter; a 360° sensor always shares all of its view.
-        assert_eq!(shared_azimuth_deg(70.0, 100.0), 0.0);
-        assert!((shared_azimuth_deg(70.0, 20.0) - 50.0).abs() < 1e-9);
-        assert!((shared_azimuth_deg(70.0, -380.0) - 50.0).abs() < 1e-9);
-        assert!((shared_azimuth_deg(70.0, 340.0) - 50.0).abs() < 1e-9);
-        for yaw in [0.0, 45.0, 90.0, 180.0, -135.0, 270.0] {
-            assert_eq!(shared_azimuth_deg(360.0, yaw), 360.0);
-        }
-        // A window wider than 180° overlaps on both sides.
-        assert!((shared_azimuth_deg(270.0, 180.0) - 180.0).abs() < 1e-9);
-        // Through the detector's check: a 70° window with the default minimum.
-        let v = VerifyConfig {
-            view_fov_deg: 70.0,
-            ..VerifyConfig::default()
-        };
-        assert_eq!(view_check(&v, 100.0), Err(Rejection::NoSharedView));
-        assert_eq!(view_check(&v, -100.0), Err(Rejection::NoSharedView));
-        assert_eq!(view_check(&v, 20.0), Ok(()));
-        let off = VerifyConfig {
-            view_min_overlap_deg: 0.0,
-            ..v
-        };
-        assert_eq!(view_check(&off, 100.0), Ok(()));
-        let spinning = VerifyConfig::default();
-        assert_eq!(view_check(&spinning, 180.0), Ok(()));
-        // The presets' detector defaults carry the sensor's view.
-        let avia = DetectorConfig::for_preset("avia").unwrap().verify;
-        assert_eq!(view_check(&avia, 100.0), Err(Rejection::NoSharedView));
-        let hdl64 = DetectorConfig::for_preset("hdl64").unwrap().verify;
-        assert_eq!(view_check(&hdl64, 180.0), Ok(()));
     }
 
     #[test]
@@ -1224,69 +1151,15 @@ pub(super) mod tests {
             .collect();
         assert!((shared_view(&q, &c, 0.0) - 0.5).abs() < 1e-12);
         assert_eq!(
-            gate_and_view(&v, &r, &[], 0, None),
+            gate_linked(&v, &r, &[], 0, None),
             Err(Rejection::LowOverlap)
         );
-        assert_eq!(gate_and_view(&v, &r, &[], 0, Some((&q, &c))), Ok(()));
+        assert_eq!(gate_linked(&v, &r, &[], 0, Some((&q, &c))), Ok(()));
         // Whole views share everything: the gate's floor.
         assert_eq!(
-            gate_and_view(&v, &r, &[], 0, Some((&[1.0; 60], &[1.0; 60]))),
+            gate_linked(&v, &r, &[], 0, Some((&[1.0; 60], &[1.0; 60]))),
             Err(Rejection::LowOverlap)
         );
-    }
-
-    #[test]
-    fn too_far_means_every_other_check_passed_whatever_the_largest_loop() {
-        // A registration that meets every quality check, 4 m long, turned by 100° (beyond an
-        // Avia's shared view), or not turned.
-        let open = reg::Gate {
-            require_converged: false,
-            min_fitness: 0.0,
-            min_structure_fitness: 0.0,
-            max_rmse: f64::INFINITY,
-            min_translation_information: 0.0,
-            min_rotation_information: 0.0,
-            min_marginal_translation_information: 0.0,
-            min_agreement: 0,
-            max_translation: 5.0,
-            ..reg::Gate::default()
-        };
-        let avia = DetectorConfig::for_preset("avia").unwrap().verify;
-        let turned = |yaw: f64| {
-            let (s, c) = (yaw.to_radians().sin(), yaw.to_radians().cos());
-            reg::Registration {
-                pose: [
-                    [c, -s, 0.0, 4.0],
-                    [s, c, 0.0, 0.0],
-                    [0.0, 0.0, 1.0, 0.0],
-                    [0.0, 0.0, 0.0, 1.0],
-                ],
-                ..reg::Registration::default()
-            }
-        };
-        for max in [5.0, 3.0] {
-            let v = VerifyConfig {
-                gate: reg::Gate {
-                    max_translation: max,
-                    ..open
-                },
-                ..avia
-            };
-            // Beyond the view: the view's rejection, with a largest loop of 5 m or of 3 m.
-            assert_eq!(
-                gate_and_view(&v, &turned(100.0), &[], 0, None),
-                Err(Rejection::NoSharedView)
-            );
-            let straight = gate_and_view(&v, &turned(0.0), &[], 0, None);
-            assert_eq!(
-                straight,
-                if max > 4.0 {
-                    Ok(())
-                } else {
-                    Err(Rejection::TooFar)
-                }
-            );
-        }
     }
 
     #[test]
@@ -1629,8 +1502,7 @@ pub(super) mod tests {
             informed(verified(2, truth), 2.0),
             informed(verified(2, truth), f64::NAN),
         ];
-        det.check_pose_candidates(&q, None, &[], &mut by_pose)
-            .unwrap();
+        det.check_pose_candidates(&q, &mut by_pose);
         assert_eq!(rejection(&by_pose[0]), Some(Rejection::OdometryDisagrees));
         assert_eq!(rejection(&by_pose[1]), None);
         assert_eq!(
@@ -1644,8 +1516,7 @@ pub(super) mod tests {
         // With the odometry check off only the information counts.
         let det = detector_with_path(10, |v| v.odometry_check = false);
         let mut by_pose = [informed(verified(2, off), 50.0)];
-        det.check_pose_candidates(&q, None, &[], &mut by_pose)
-            .unwrap();
+        det.check_pose_candidates(&q, &mut by_pose);
         assert_eq!(rejection(&by_pose[0]), None);
     }
 

@@ -7,8 +7,8 @@ use super::{agreement, Hypothesis, Registration};
 use crate::params::{field, Field, Kind, Params, FINITE};
 use crate::Error;
 
-/// Why [`Gate::check`] rejected a registration, in the order the checks run; from `NoSharedView`
-/// on they come from a loop detector's checks that follow the gate ([`crate::db::VerifyConfig`]).
+/// Why [`Gate::check`] rejected a registration, in the order the checks run; from
+/// `OdometryDisagrees` on they come from a loop detector's checks that follow the gate ([`crate::db::VerifyConfig`]).
 #[non_exhaustive]
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Rejection {
@@ -31,9 +31,6 @@ pub enum Rejection {
     Disagreement,
     /// The two places are farther apart than `max_translation`.
     TooFar,
-    /// The pose turns the two sensors' horizontal fields of view apart: they share less than
-    /// the detector's `view_min_overlap_deg` of azimuth, so they cannot see the same place.
-    NoSharedView,
     /// The pose disagrees with the relative pose of the two places' poses beyond the
     /// odometry's drift bounds.
     OdometryDisagrees,
@@ -70,7 +67,6 @@ impl fmt::Display for Rejection {
             Rejection::WeakMarginalTranslation => "translation trades against rotation",
             Rejection::Disagreement => "hypotheses disagree",
             Rejection::TooFar => "too far apart",
-            Rejection::NoSharedView => "the views do not overlap",
             Rejection::OdometryDisagrees => "disagrees with the odometry",
             Rejection::Ambiguous => "another candidate disagrees",
             Rejection::Unsupported => "not supported by the previous steps",
