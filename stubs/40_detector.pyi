@@ -98,7 +98,7 @@ class Candidate:
         """Whether its registration passed the gate."""
     @property
     def rejection(self) -> str | None:
-        """Why the gate, or the detector's checks after it (view, odometry, uniqueness, support), rejected its registration (None when accepted or not registered); a candidate whose stored cloud is corrupt or unreadable is not registered and says so, naming the place ("place 12: its stored cloud is corrupt or unreadable")."""
+        """Why the gate, or the detector's checks after it (odometry, look-alike, uniqueness, support, placement), rejected its registration (None when accepted or not registered); a candidate whose stored cloud is corrupt or unreadable is not registered and says so, naming the place ("place 12: its stored cloud is corrupt or unreadable")."""
     @property
     def pose(self) -> npt.NDArray[np.float64] | None:
         """`T_query_candidate` (4, 4) of its registration (None when not registered)."""

@@ -418,6 +418,9 @@ def test_map_merge_places_each_stretch_of_a_broken_odometry_by_its_own_anchor(ca
     assert run(capsys, "map", "build", str(s1), "--poses", odo, "--frames", "0:20", "-o", short, "--preset", "vlp16", "-q")[0] == 0
     code, _, err = run(capsys, "map", "merge", m0, short, "--anchor", str(tmp_path / "loc" / "anchors.kitti"), "-o", str(tmp_path / "x.soliddb"))
     assert code != 0 and f"holds {len(P)} transforms" in err and "holds 20 places" in err
+    # A poses file of as many rows (the run's own odometry) is not an anchor: refused, naming what is.
+    code, _, err = run(capsys, "map", "merge", m0, m1, "--anchor", odo, "-o", str(tmp_path / "y.soliddb"))
+    assert code != 0 and "not a per-frame anchor file" in err and not (tmp_path / "y.soliddb").exists()
     pytest.importorskip("gtsam")
     code, out, err = run(capsys, "optimize", str(s1), "--poses", odo, "--map", m0, "--preset", "vlp16", "-q", "--no-plots", "-o", str(tmp_path / "opt"))
     assert code == 0, err

@@ -989,6 +989,9 @@ def _extrinsic(inputs: Inputs) -> Any | None:
 #: a row of NaN: no anchor places that frame), written beside ``anchor.txt`` by ``solid localize``
 #: and ``solid optimize --map``; ``solid map merge --anchor`` applies it place by place.
 ANCHORS_FILE = "anchors.kitti"
+#: The first line of :data:`ANCHORS_FILE`: what tells it from a trajectory or a poses file, which
+#: ``map merge --anchor`` refuses (one row per frame too, but not transforms into the map).
+PER_FRAME_ANCHORS = "# solid: T_map_odom of each of the "
 #: The comment line by which an ``anchor.txt`` says it maps only some frames of its run (the
 #: odometry broke); pose readers skip it, ``solid map merge`` refuses such a file.
 PARTIAL_ANCHOR = "# solid: partial anchor: "
@@ -1009,7 +1012,7 @@ def write_anchor_files(folder: Path, first: Any, each: Any, partial: str | None,
     E[~np.isfinite(E).all(axis=(1, 2))] = np.nan
     none = int(np.isnan(E).all(axis=(1, 2)).sum())
     (folder / ANCHORS_FILE).write_text(
-        f"# solid: T_map_odom of each of the {len(E)} frames of {sequence}'s run, in order (solid map merge --anchor applies row k to "
+        f"{PER_FRAME_ANCHORS}{len(E)} frames of {sequence}'s run, in order (solid map merge --anchor applies row k to "
         f"place k of a map built from those frames); {none} rows of nan: frames no anchor places (merged without a pose)\n" + rows(E),
         encoding="utf-8",
     )
@@ -1023,6 +1026,11 @@ def merge_anchor(path: Path) -> Any:
     lines = [ln.strip() for ln in text.splitlines()]
     partial = next((ln[len(PARTIAL_ANCHOR) :].split(f"; {ANCHORS_FILE} beside it")[0] for ln in lines if ln.startswith(PARTIAL_ANCHOR)), None)
     rows = [ln.split() for ln in lines if ln and not ln.startswith("#")]
+    if len(rows) > 1 and not (lines and lines[0].startswith(PER_FRAME_ANCHORS)):
+        raise _solid.ConfigError(
+            f"{path}: {len(rows)} rows, but not a per-frame anchor file ({ANCHORS_FILE} of solid localize -o or solid optimize --map, "
+            f"which starts with {PER_FRAME_ANCHORS.strip()!r}): a trajectory or a poses file is not an anchor; give anchor.txt or {ANCHORS_FILE}"
+        )
     if rows and all(len(r) == 12 for r in rows):
         try:
             a = np.array(rows, dtype=np.float64)

@@ -134,17 +134,17 @@ impl LoopDetector {
     }
 
     /// Keeps the candidates `over` (indices in `cands`) of the step's query `at` for the next
-    /// steps; `cands` as the gate left them.
+    /// steps; `cands` as the gate left them, those from `by_pose` on chosen by pose.
     pub(super) fn defer(
         &mut self,
         at: QueryPlace,
         cands: &[Candidate],
         over: &[usize],
+        by_pose: usize,
     ) -> Result<(), DbError> {
         if over.is_empty() {
             return Ok(());
         }
-        let by_pose = self.config.verify.candidates;
         let mut waiting = VecDeque::new();
         waiting
             .try_reserve_exact(over.len())

@@ -703,7 +703,7 @@ impl LoopDetector {
         let mut cands = self.rank(&d.r, &d.a, self.len(), self.config.top_k)?;
         if self.config.verify.enabled {
             let n = self.config.verify.candidates;
-            self.verify_candidates((&d.r, &d.a), scan.cloud.as_ref(), None, n, &mut cands)?;
+            self.verify_candidates((&d.r, &d.a), scan.cloud.as_ref(), None, (n, n), &mut cands)?;
         }
         Ok(self.accept(&cands, self.len() as u32))
     }

@@ -20,7 +20,9 @@ impl LoopDetector {
     /// Puts the step's candidates in the order verification takes them: the descriptor's first
     /// `verify.candidates`, then up to `verify.pose_candidates` more of the own session's places
     /// `..eligible` nearest to the query's pose (added to the list when the descriptor's ranking
-    /// lacks them), then the rest. Returns how many to verify.
+    /// lacks them), then the rest. Returns where the candidates chosen by pose begin and how
+    /// many to verify (`(head, n)`: `head..n` were chosen by pose; the descriptor may rank fewer
+    /// than `verify.candidates`).
     pub(super) fn add_pose_candidates(
         &self,
         r: &[f32],
@@ -29,11 +31,11 @@ impl LoopDetector {
         travelled: f64,
         eligible: usize,
         cands: &mut Vec<Candidate>,
-    ) -> Result<usize, DbError> {
+    ) -> Result<(usize, usize), DbError> {
         let v = &self.config.verify;
         let head = v.candidates.min(cands.len());
         let Some(q) = pose.filter(|_| v.pose_candidates > 0) else {
-            return Ok(head);
+            return Ok((head, head));
         };
         let near = self.nearest_by_pose(q, travelled, eligible, &cands[..head])?;
         let mut picked = Vec::new();
@@ -51,7 +53,7 @@ impl LoopDetector {
             .try_reserve(picked.len())
             .map_err(|_| DbError::OutOfMemory)?;
         cands.splice(head..head, picked);
-        Ok(n)
+        Ok((head, n))
     }
 
     /// Up to `pose_candidates` ids of own-session places `..eligible` with a pose, not in
@@ -221,7 +223,7 @@ pub(super) mod tests {
         let n = det
             .add_pose_candidates(&d.r, &d.a, Some(&q), 80.0, eligible, &mut cands)
             .unwrap();
-        assert_eq!(n, 4);
+        assert_eq!(n, (2, 4));
         assert_eq!(
             cands[..2]
                 .iter()
@@ -249,18 +251,25 @@ pub(super) mod tests {
         let n = det
             .add_pose_candidates(&d.r, &d.a, Some(&far), 80.0, eligible, &mut cands)
             .unwrap();
-        assert_eq!((n, cands.len()), (2, ranked.len()));
+        assert_eq!((n, cands.len()), ((2, 2), ranked.len()));
         // Without a pose, or with pose_candidates = 0: the descriptor's only.
         let mut cands = ranked.clone();
         let n = det
             .add_pose_candidates(&d.r, &d.a, None, f64::NAN, eligible, &mut cands)
             .unwrap();
-        assert_eq!((n, &cands), (2, &ranked));
+        assert_eq!((n, &cands), ((2, 2), &ranked));
+        // The descriptor ranked fewer than `candidates` (here one, as `top_k` 1 gives): those
+        // chosen by pose begin right after it, where the caller checks them as such.
+        let mut one = ranked[..1].to_vec();
+        let n = det
+            .add_pose_candidates(&d.r, &d.a, Some(&q), 80.0, eligible, &mut one)
+            .unwrap();
+        assert_eq!((n, one[1].id), ((1, 3), 12));
         dc.verify.pose_candidates = 0;
         det.set_config(dc).unwrap();
         let n = det
             .add_pose_candidates(&d.r, &d.a, Some(&q), 80.0, eligible, &mut cands)
             .unwrap();
-        assert_eq!((n, &cands), (2, &ranked));
+        assert_eq!((n, &cands), ((2, 2), &ranked));
     }
 }

@@ -23,8 +23,9 @@ pub(super) struct QueryPlace {
 
 impl LoopDetector {
     /// Registers the query's cloud with its first `n` candidates' and scores every candidate
-    /// (see [`VerifyConfig`]); candidates end sorted by score. Those after the first
-    /// `candidates` were chosen by pose and must reach `pose_candidate_min_information`. With `at` (a step that adds the query),
+    /// (see [`VerifyConfig`]); candidates end sorted by score. Those from `head` on
+    /// ([`LoopDetector::add_pose_candidates`]) were chosen by pose and must reach
+    /// `pose_candidate_min_information`. With `at` (a step that adds the query),
     /// the candidates that passed the gate are checked against the poses and the previous
     /// steps, and remembered for the next steps. Returns the query's cloud completed
     /// ([`PreparedCloud::complete`]) when it was deferred and got registered.
@@ -33,10 +34,11 @@ impl LoopDetector {
         (r_query, a_query): (&[f32], &[f32]),
         query: Option<&PreparedCloud>,
         at: Option<QueryPlace>,
-        n: usize,
+        (head, n): (usize, usize),
         cands: &mut [Candidate],
     ) -> Result<Option<PreparedCloud>, DbError> {
         let mut completed = None;
+        let head = head.min(n);
         let v = self.config.verify;
         for c in cands.iter_mut() {
             c.score = UNVERIFIED_SCORE + c.distance / 2.0;
@@ -106,9 +108,10 @@ impl LoopDetector {
             self.register_jobs(a_query, q, at.as_ref(), &jobs, cands, &[])?;
             if let Some(at) = at {
                 // Before the checks after the gate: the deferred ones' neighbours' starts.
-                self.defer(at, cands, &over)?;
-                // The candidates chosen by pose follow the descriptor's first `v.candidates`.
-                self.check_pose_candidates(&at, &mut cands[v.candidates.min(n)..n]);
+                self.defer(at, cands, &over, head)?;
+                // The candidates chosen by pose follow the descriptor's (from `head`).
+                let end = n.min(cands.len());
+                self.check_pose_candidates(&at, &mut cands[head.min(end)..end]);
                 self.check_after_gate(&at, r_query, cands)?;
             }
             for c in cands.iter_mut() {
