@@ -578,11 +578,22 @@ def optimize_graph(graph: PoseGraph, robust: str = ROBUST_SCHEMES[0], *, max_ite
             # TLS stops with weights within a tolerance of 0 or 1, but a loop's information so
             # outweighs a long odometry chain's that a "0" of 1e-5 still bends the map: the
             # optimum returned is that of the loops kept.
-            kept = gtsam.NonlinearFactorGraph()
-            for k in range(fg.size()):
-                if w[k] > 0.5:
-                    kept.add(fg.at(k))
-            values = gtsam.LevenbergMarquardtOptimizer(kept, init, lm).optimize()
+            values = _kept_optimum(gtsam, fg, init, lm, w > 0.5)
+            # GNC is a heuristic for the TLS cost and can settle in a worse minimum (every loop
+            # out, the odometry's: one true loop moved to the adjacent keyframe flipped it,
+            # docs/slam.md#robust-back-end). The loops a Cauchy kernel's optimum finds within
+            # the inlier threshold are a second candidate; the lower TLS cost wins.
+            cauchy, _ = _factors(gtsam, graph, "cauchy")
+            known_set = set(known)
+            at_cauchy = gtsam.LevenbergMarquardtOptimizer(cauchy, init, lm).optimize()
+            inlier = np.array(
+                [k in known_set or 2 * fg.at(k).error(at_cauchy) <= GNC_INLIER_CHI2 for k in range(fg.size())]
+            )
+            if not np.array_equal(inlier, w > 0.5):
+                other = _kept_optimum(gtsam, fg, init, lm, inlier)
+                if _tls_cost(fg, other, known) < _tls_cost(fg, values, known):
+                    values = other
+                    weights = np.array([float(inlier[len(graph.fixed) + e]) for e in loops])
     else:
         values = gtsam.LevenbergMarquardtOptimizer(fg, init, lm).optimize()
         if robust in _KERNEL_WIDTH:
@@ -592,6 +603,23 @@ def optimize_graph(graph: PoseGraph, robust: str = ROBUST_SCHEMES[0], *, max_ite
                 weights[n] = float(f.noiseModel().robust().weight(whitened))
     out = np.stack([np.asarray(values.atPose3(int(v)).matrix()) for v in graph.ids])
     return out, weights
+
+
+def _kept_optimum(gtsam: Any, fg: Any, init: Any, lm: Any, kept: Any) -> Any:
+    """The least-squares optimum of the factors of ``fg`` that ``kept`` (a mask) keeps."""
+    sub = gtsam.NonlinearFactorGraph()
+    for k in range(fg.size()):
+        if kept[k]:
+            sub.add(fg.at(k))
+    return gtsam.LevenbergMarquardtOptimizer(sub, init, lm).optimize()
+
+
+def _tls_cost(fg: Any, values: Any, known: list[int]) -> float:
+    """The truncated-least-squares cost GNC-TLS minimises: the known inliers' χ² and each other
+    factor's χ² capped at :data:`GNC_INLIER_CHI2`."""
+    inliers = set(known)
+    chi = [2 * fg.at(k).error(values) for k in range(fg.size())]
+    return float(sum(c if k in inliers else min(c, GNC_INLIER_CHI2) for k, c in enumerate(chi)))
 
 
 # ---- errors ---------------------------------------------------------------------------------------

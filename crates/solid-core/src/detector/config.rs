@@ -84,8 +84,8 @@ pub struct VerifyConfig {
     pub threads: usize,
     /// The work one step may spend registering, in points: each candidate costs the query's
     /// plus its own fine points times the registrations it runs (one from a known start, the
-    /// odometry's or a registered neighbour's, otherwise one per yaw hypothesis). The best
-    /// candidate is always registered, the
+    /// odometry's or a registered neighbour's, otherwise one per yaw hypothesis; a follower of a
+    /// cluster left out still counts one). The best candidate is always registered, the
     /// next ones while the sum stays within this. The others are *deferred* unless the step
     /// found its loop: the next steps register them first, oldest query first, within their
     /// budget (the first whatever it costs); an own place without a start, of a query whose

@@ -379,9 +379,9 @@ impl LoopDetector {
     ) -> Result<bool, DbError> {
         let at = d.at;
         let a = self.a(at.id);
-        self.register_jobs(&a, q, Some(&at), jobs, cands, &d.done)?;
         // The candidates chosen by pose follow the descriptor's, as in their step.
         let split = by_pose.iter().position(|&p| p).unwrap_or(by_pose.len());
+        self.register_jobs(&a, q, Some(&at), (jobs, split), cands, &d.done)?;
         self.check_pose_candidates(&at, &mut cands[split..]);
         let r = self.r(at.id).to_vec();
         self.check_after_gate(&at, &r, cands)?;

@@ -105,7 +105,7 @@ impl LoopDetector {
                 c.complete()?;
                 completed.insert(c)
             };
-            self.register_jobs(a_query, q, at.as_ref(), &jobs, cands, &[])?;
+            self.register_jobs(a_query, q, at.as_ref(), (&jobs, head), cands, &[])?;
             if let Some(at) = at {
                 // Before the checks after the gate: the deferred ones' neighbours' starts.
                 self.defer(at, cands, &over, head)?;
@@ -126,24 +126,36 @@ impl LoopDetector {
     }
 
     /// Registers the query `q` with each job's candidate cloud (`jobs[k] = (index in cands, cloud)`)
-    /// and records the verifications in `cands`. Each candidate starts from the best start known
-    /// (spec §8, docs/performance.md#starts):
+    /// and records the verifications in `cands` (those from index `pose_from` on were chosen by
+    /// pose). A *follower* (a candidate with a better-ranked one of the same session at most
+    /// [`CLUSTER_IDS`] places away among the jobs or `done`, its *leader*: an adjacent keyframe
+    /// of the same place) is registered after the others, and only when its leader may not be
+    /// the step's loop: one registration per cluster of adjacent places. A follower is not
+    /// registered when its leader is one of the jobs, a descriptor candidate (not chosen by
+    /// pose: its own checks, the information and the odometry without the turn, are still to
+    /// come), whose registration passed the gate and
+    /// the odometry check ([`LoopDetector::agrees_with_odometry`]), or when its leader was left
+    /// out so. A leader among `done` (the query's own step did not take it as its loop) never
+    /// leaves its followers out.
+    /// Each registered candidate starts from the best start known (spec §8,
+    /// docs/performance.md#starts):
     ///
-    /// 1. a *neighbour*: a better-ranked candidate of the same session at most [`CLUSTER_IDS`]
-    ///    places away (an adjacent keyframe of the same place) whose registration met the
-    ///    gate's quality checks ([`registered`]): its pose composed with the two places'
-    ///    relative pose (their poses', the identity without poses). Such candidates are
-    ///    registered after the others, once; kept when the result meets the quality checks;
+    /// 1. a *neighbour*: for a follower that is registered, whose leader met the quality checks
+    ///    ([`registered`]: it passed the gate without leaving its followers out, or failed only
+    ///    its `max_translation`, then within the guards of the odometry's start when it had
+    ///    one) and agrees with the odometry, the leader's pose composed with the two places'
+    ///    relative pose (their poses', the identity without poses), once; kept when the result
+    ///    meets the quality checks;
     /// 2. the *odometry*: with the odometry check, an own place with poses starts from the
     ///    relative pose the poses predict (through the anchor when it applies,
-    ///    [`LoopDetector::expected`]), once. A result that meets the quality checks is kept when
-    ///    it also passes the guards of a candidate chosen by pose that need no registration:
+    ///    [`LoopDetector::expected`]), once. A result that passes the gate is kept when it also
+    ///    passes the guards of a candidate chosen by pose that need no registration:
     ///    `pose_candidate_min_information` and the odometry without the rotation's allowance (a
     ///    start from the odometry must not let a loose translation end where the odometry
-    ///    says); one that fails the quality checks is final (from the odometry's start the
-    ///    hypotheses from the identity measured no loop more);
-    /// 3. otherwise (no start, or a seeded result that met the quality checks but not the guards)
-    ///    the yaw hypotheses from the identity ([`verify_pair`]).
+    ///    says); one that fails the gate, by its length (`max_translation`) too, is final (from
+    ///    the odometry's start the hypotheses from the identity measured no loop more);
+    /// 3. otherwise (no start, or a seeded result that passed the gate but not the guards) the
+    ///    yaw hypotheses from the identity ([`verify_pair`]).
     ///
     /// `done`: the query's candidates registered before (by its own step, for candidates it
     /// deferred), as the gate left them: neighbours too, after the jobs.
@@ -152,7 +164,7 @@ impl LoopDetector {
         a_query: &[f32],
         q: &PreparedCloud,
         at: Option<&QueryPlace>,
-        jobs: &[(usize, Arc<PreparedCloud>)],
+        (jobs, pose_from): (&[(usize, Arc<PreparedCloud>)], usize),
         cands: &mut [Candidate],
         done: &[Candidate],
     ) -> Result<(), DbError> {
@@ -185,6 +197,13 @@ impl LoopDetector {
             );
         }
         let det: &LoopDetector = self;
+        // The guards of a result from the odometry's start (those of a candidate chosen by pose
+        // that need no registration).
+        let guarded = |(expected, path): (Pose, f64), s: &Verification| {
+            let r = &s.registration;
+            r.degeneracy.translation >= v.pose_candidate_min_information
+                && det.within_drift(&expected, &r.pose, path, 0.0)
+        };
         let one = |k: usize, neighbour: Option<Pose>| -> Result<Option<Verification>, DbError> {
             let cp = &jobs[k].1;
             if let Some(start) = neighbour {
@@ -193,15 +212,12 @@ impl LoopDetector {
                     return Ok(s);
                 }
             }
-            if let Some((expected, path)) = odometry[k] {
-                let s = seeded(&v, q, cp, &expected, None)?;
-                let guarded = |s: &Verification| {
-                    let r = &s.registration;
-                    r.degeneracy.translation >= v.pose_candidate_min_information
-                        && det.within_drift(&expected, &r.pose, path, 0.0)
-                };
+            if let Some(start) = odometry[k] {
+                let s = seeded(&v, q, cp, &start.0, None)?;
+                // A result that fails the gate, by its length too, is final (the hypotheses
+                // would not make a loop of it; docs/performance.md#one-registration-per-cluster-r18-cluster).
                 match s {
-                    Some(s) if !met_quality(&s) || guarded(&s) => return Ok(Some(s)),
+                    Some(s) if !s.accepted || guarded(start, &s) => return Ok(Some(s)),
                     _ => {}
                 }
             }
@@ -217,25 +233,60 @@ impl LoopDetector {
             at.and_then(|at| self.expected_through(at, anchored, id))
                 .is_none_or(|(e, path)| self.within_drift(&e, pose, path, 1.0))
         };
-        let followers: Vec<(usize, Option<Pose>)> = (0..jobs.len())
-            .filter_map(|k| {
-                let (a, lead) = match follows[k]? {
-                    Ok(j) => (ids[j], cands[jobs[j].0].verification),
-                    Err(d) => (done[d].id, done[d].verification),
-                };
-                let b = ids[k];
-                // The leader's pose carried over to this place, when it met the quality checks
-                // (and, with the odometry check, agrees with the odometry: a look-alike's pose
-                // would carry its neighbours along).
-                let start = lead
-                    .filter(|r| met_quality(r) && agrees(a, &r.registration.pose))
-                    .map(|r| match self.related(a, b) {
-                        Some(ab) => mul(&r.registration.pose, &ab),
-                        None => r.registration.pose,
-                    });
-                Some((k, start))
-            })
-            .collect();
+        // One registration per cluster of adjacent places: a follower whose leader passed the
+        // gate and the odometry check, or whose leader was left out so, is not registered.
+        let mut left_out: Vec<bool> = Vec::new();
+        left_out
+            .try_reserve_exact(jobs.len())
+            .map_err(|_| DbError::OutOfMemory)?;
+        left_out.resize(jobs.len(), false);
+        let mut followers: Vec<(usize, Option<Pose>)> = Vec::new();
+        for k in 0..jobs.len() {
+            let Some(follow) = follows[k] else { continue };
+            let (a, lead) = match follow {
+                Ok(j) if left_out[j] => {
+                    left_out[k] = true;
+                    continue;
+                }
+                Ok(j) => (ids[j], cands[jobs[j].0].verification),
+                Err(d) => (done[d].id, done[d].verification),
+            };
+            // The leader's result, when it met the quality checks and (with the odometry check)
+            // agrees with the odometry: a look-alike's pose would carry its neighbours along. One
+            // that failed the gate from the odometry's start counts only within that start's
+            // guards (it is final without them, and the odometry's start must not reach a
+            // follower unguarded through it).
+            let seed = at.and_then(|at| self.odometry_start(at, anchored, a));
+            let lead = lead.filter(|r| {
+                met_quality(r)
+                    && agrees(a, &r.registration.pose)
+                    && (r.accepted || seed.is_none_or(|s| guarded(s, r)))
+            });
+            // Left out when the leader is one of this step's descriptor candidates (one chosen by
+            // pose has its own checks still to pass; a registration of the query's own step was
+            // not its loop) that passed the gate and the odometry check.
+            let settled = match follow {
+                Ok(j) => {
+                    lead.is_some_and(|r| r.accepted)
+                        && jobs[j].0 < pose_from
+                        && at
+                            .is_none_or(|at| self.agrees_with_odometry(at, &cands[jobs[j].0], true))
+                }
+                Err(_) => false,
+            };
+            if settled {
+                left_out[k] = true;
+                continue;
+            }
+            // A leader that failed only its length: its pose carried over to this place (which
+            // may lie nearer the query).
+            let start = lead.map(|r| match self.related(a, ids[k]) {
+                Some(ab) => mul(&r.registration.pose, &ab),
+                None => r.registration.pose,
+            });
+            followers.try_reserve(1).map_err(|_| DbError::OutOfMemory)?;
+            followers.push((k, start));
+        }
         let second = run_jobs(&followers, v.threads, |&(k, start)| one(k, start))?;
         for (&(k, _), r) in followers.iter().zip(second) {
             cands[jobs[k].0].verification = r;
@@ -1341,79 +1392,176 @@ pub(super) mod tests {
 
     #[test]
     fn candidates_start_from_the_odometry_or_a_registered_neighbour_else_from_the_hypotheses() {
-        use crate::detector::nearby::tests::corridor;
-        // Places 0..10 1 m apart along a corridor whose boxes pin the translation; the query at
-        // x = 10 (its clouds: the world seen from there).
-        let world = corridor(&[-13.0, -4.5, 3.0, 11.5]);
-        let run = |tweak: &dyn Fn(&mut VerifyConfig), with_pose: bool| {
-            let det = detector_with_path(10, |v| {
-                v.gate.max_translation = 10.0;
-                tweak(v);
-            });
-            let cfg = &det.config.verify.registration;
-            let seen = |x: f64| {
-                let p: Vec<[f64; 3]> = world.iter().map(|p| [p[0] - x, p[1], p[2]]).collect();
-                Arc::new(PreparedCloud::from_downsampled(&p, cfg).unwrap())
-            };
-            let q = seen(10.0);
-            let mut at = at(&det, 10.0);
-            if !with_pose {
-                at.pose = None;
-            }
-            // Place 8, its neighbour 9 and place 5.
-            let ids = [8u32, 9, 5];
-            let mut cands = ids.map(|id| Candidate {
-                verification: None,
-                ..verified(id, reg::IDENTITY)
-            });
-            let jobs: Vec<(usize, Arc<PreparedCloud>)> = ids
-                .iter()
-                .enumerate()
-                .map(|(i, &id)| (i, seen(f64::from(id))))
-                .collect();
-            let a = alloc::vec![1.0f32; det.map().config().n_azimuth];
-            det.register_jobs(&a, &q, Some(&at), &jobs, &mut cands, &[])
-                .unwrap();
-            cands.map(|c| {
-                let r = c.verification.unwrap();
-                (r.hypotheses, r.registration.translation()[0], r.rejection)
-            })
-        };
         let near = |x: f64, want: f64| (x - want).abs() < 0.1;
-        // With poses: places 8 and 5 from the odometry, 9 from 8's pose: one registration
-        // each, at the true poses (without the information floor of a start from the odometry).
+        let hyps =
+            |v: &[Option<(usize, f64, Option<Rejection>)>; 3]| v.map(|r| r.map(|(h, _, _)| h));
+        // With poses: places 8 and 5 from the odometry, one registration each, at the true poses
+        // (without the information floor of a start from the odometry); place 9, 8's neighbour,
+        // is not registered: 8 passed the gate.
         let floor = |v: &mut VerifyConfig| v.pose_candidate_min_information = 0.0;
-        let v = run(&floor, true);
-        assert_eq!(v.map(|(h, _, _)| h), [1, 1, 1], "{v:?}");
-        assert!(
-            near(v[0].1, -2.0) && near(v[1].1, -1.0) && near(v[2].1, -5.0),
-            "{v:?}"
-        );
-        assert_eq!(v.map(|(_, _, r)| r), [None; 3]);
+        let v = register_three(&floor, true, false);
+        assert_eq!(hyps(&v), [Some(1), None, Some(1)], "{v:?}");
+        let (r8, r5) = (v[0].unwrap(), v[2].unwrap());
+        assert!(near(r8.1, -2.0) && near(r5.1, -5.0), "{v:?}");
+        assert_eq!((r8.2, r5.2), (None, None));
         // A start from the odometry whose translation information stays below the floor is not
-        // kept: the hypotheses take over (the neighbour still follows its leader).
-        let v = run(
+        // kept: the hypotheses take over.
+        let v = register_three(
             &|v: &mut VerifyConfig| v.pose_candidate_min_information = 1e9,
             true,
+            false,
         );
-        assert!(v[0].0 > 1 && v[1].0 == 1 && v[2].0 > 1, "{v:?}");
-        assert!(near(v[0].1, -2.0) && near(v[1].1, -1.0), "{v:?}");
-        // Without a pose the leaders take the hypotheses; the neighbour still follows place 8.
-        let v = run(&floor, false);
-        assert!(v[0].0 > 1 && v[1].0 == 1 && v[2].0 > 1, "{v:?}");
-        assert!(near(v[0].1, -2.0) && near(v[1].1, -1.0), "{v:?}");
-        // A gate that asks for the hypotheses' agreement: every candidate takes them.
-        let v = run(&|v: &mut VerifyConfig| v.gate.min_agreement = 2, true);
-        assert!(v.iter().all(|&(h, _, _)| h > 1), "{v:?}");
+        assert!(
+            v[0].unwrap().0 > 1 && v[1].is_none() && v[2].unwrap().0 > 1,
+            "{v:?}"
+        );
+        assert!(near(v[0].unwrap().1, -2.0), "{v:?}");
+        // Without a pose the leaders take the hypotheses.
+        let v = register_three(&floor, false, false);
+        assert!(
+            v[0].unwrap().0 > 1 && v[1].is_none() && v[2].unwrap().0 > 1,
+            "{v:?}"
+        );
+        // A gate that asks for the hypotheses' agreement: every candidate takes them (no
+        // neighbour is left out: none is a start).
+        let v = register_three(
+            &|v: &mut VerifyConfig| v.gate.min_agreement = 2,
+            true,
+            false,
+        );
+        assert!(v.iter().all(|r| r.is_some_and(|(h, _, _)| h > 1)), "{v:?}");
         // Where the odometry's bound exceeds the coarse level's reach, no seed from it.
-        let v = run(
+        let v = register_three(
             &|v: &mut VerifyConfig| {
                 floor(v);
                 v.odometry_drift = 2.0;
             },
             true,
+            false,
         );
-        assert!(v[0].0 > 1 && v[1].0 == 1, "{v:?}");
+        assert!(v[0].unwrap().0 > 1 && v[1].is_none(), "{v:?}");
+    }
+
+    /// Registers the query at x = 10 of [`detector_with_path`]`(10, ...)` (with a 10 m gate and
+    /// `tweak`; `with_pose`: the query has its pose) with places 8, 9 and 5 (in that order: 9 is
+    /// 8's neighbour), their clouds the corridor seen from there (`turned`: place 8's another
+    /// place, a corridor across this one) through [`LoopDetector::register_jobs`]: per place
+    /// (hypotheses run, the pose's x translation, the rejection), None when not registered.
+    fn register_three(
+        tweak: &dyn Fn(&mut VerifyConfig),
+        with_pose: bool,
+        turned: bool,
+    ) -> [Option<(usize, f64, Option<Rejection>)>; 3] {
+        register_three_from(tweak, with_pose, turned, 3)
+    }
+
+    /// [`register_three`] with the candidates from index `pose_from` on chosen by pose.
+    fn register_three_from(
+        tweak: &dyn Fn(&mut VerifyConfig),
+        with_pose: bool,
+        turned: bool,
+        pose_from: usize,
+    ) -> [Option<(usize, f64, Option<Rejection>)>; 3] {
+        use crate::detector::nearby::tests::corridor;
+        // Boxes that pin the translation along the corridor.
+        let world = corridor(&[-13.0, -4.5, 3.0, 11.5]);
+        let det = detector_with_path(10, |v| {
+            v.gate.max_translation = 10.0;
+            tweak(v);
+        });
+        let cfg = &det.config.verify.registration;
+        let seen_in = |world: &[[f64; 3]], x: f64| {
+            let p: Vec<[f64; 3]> = world.iter().map(|p| [p[0] - x, p[1], p[2]]).collect();
+            Arc::new(PreparedCloud::from_downsampled(&p, cfg).unwrap())
+        };
+        let seen = |x: f64| seen_in(&world, x);
+        let q = seen(10.0);
+        let mut at = at(&det, 10.0);
+        if !with_pose {
+            at.pose = None;
+        }
+        let ids = [8u32, 9, 5];
+        let mut cands = ids.map(|id| Candidate {
+            verification: None,
+            ..verified(id, reg::IDENTITY)
+        });
+        let mut jobs: Vec<(usize, Arc<PreparedCloud>)> = ids
+            .iter()
+            .enumerate()
+            .map(|(i, &id)| (i, seen(f64::from(id))))
+            .collect();
+        if turned {
+            let across: Vec<[f64; 3]> = world.iter().map(|p| [p[1], p[0], p[2]]).collect();
+            jobs[0].1 = seen_in(&across, 0.0);
+        }
+        let a = alloc::vec![1.0f32; det.map().config().n_azimuth];
+        det.register_jobs(&a, &q, Some(&at), (&jobs, pose_from), &mut cands, &[])
+            .unwrap();
+        cands.map(|c| {
+            c.verification
+                .map(|r| (r.hypotheses, r.registration.translation()[0], r.rejection))
+        })
+    }
+
+    #[test]
+    fn a_neighbour_of_a_place_that_passed_the_gate_is_registered_only_when_that_one_fails() {
+        let near = |x: f64, want: f64| (x - want).abs() < 0.1;
+        let floor = |v: &mut VerifyConfig| v.pose_candidate_min_information = 0.0;
+        // Place 8 passed the gate: its neighbour 9 is not registered (one registration for the
+        // cluster), place 5 (no neighbour of 8) is.
+        let v = register_three(&floor, true, false);
+        assert!(v[0].is_some_and(|r| r.2.is_none()), "{v:?}");
+        assert!(v[1].is_none() && v[2].is_some(), "{v:?}");
+        // Place 8's cloud is another place's (a corridor across this one): it fails the gate, so
+        // its neighbour is registered after it (from the odometry), at its true pose.
+        let v = register_three(&floor, true, true);
+        let (r8, r9) = (v[0].unwrap(), v[1].unwrap());
+        assert!(r8.2.is_some_and(|r| r != Rejection::TooFar), "{v:?}");
+        assert!(r9.0 == 1 && r9.2.is_none() && near(r9.1, -1.0), "{v:?}");
+        // Place 8 failed only its length (a 1.5 m gate): its neighbour, which may lie nearer,
+        // is registered from 8's pose carried over (one registration) and passes at 1 m.
+        let v = register_three(
+            &|v: &mut VerifyConfig| {
+                floor(v);
+                v.gate.max_translation = 1.5;
+            },
+            true,
+            false,
+        );
+        let (r8, r9) = (v[0].unwrap(), v[1].unwrap());
+        assert_eq!(r8.2, Some(Rejection::TooFar), "{v:?}");
+        assert!(r9.0 == 1 && r9.2.is_none() && near(r9.1, -1.0), "{v:?}");
+        // A start from the odometry that ends beyond the gate's length is final even off the
+        // guards (here the information floor): no hypotheses after it. Such a result does not
+        // carry its pose to its neighbour (the odometry's start would reach 9 unguarded
+        // through it): 9 takes its own start, which passes the gate off the guards, so the
+        // hypotheses decide it.
+        let v = register_three(
+            &|v: &mut VerifyConfig| {
+                v.pose_candidate_min_information = 1e9;
+                v.gate.max_translation = 1.5;
+            },
+            true,
+            false,
+        );
+        let (r8, r9, r5) = (v[0].unwrap(), v[1].unwrap(), v[2].unwrap());
+        assert!(r8.0 == 1 && r8.2 == Some(Rejection::TooFar), "{v:?}");
+        assert!(r5.0 == 1 && r5.2 == Some(Rejection::TooFar), "{v:?}");
+        assert!(r9.0 > 1, "{v:?}");
+        // Without a pose too: 9 follows 8 (the hypotheses for 8, none for 9).
+        let v = register_three(&floor, false, false);
+        assert!(
+            v[0].is_some_and(|r| r.0 > 1 && r.2.is_none()) && v[1].is_none(),
+            "{v:?}"
+        );
+        // A leader chosen by pose has its own checks still to pass: its neighbour is registered
+        // (from its pose, one registration).
+        let v = register_three_from(&floor, true, false, 0);
+        assert!(v[0].is_some_and(|r| r.2.is_none()), "{v:?}");
+        assert!(
+            v[1].is_some_and(|r| r.0 == 1 && r.2.is_none() && near(r.1, -1.0)),
+            "{v:?}"
+        );
     }
 
     #[test]
