@@ -1001,20 +1001,18 @@ def write_anchor_files(folder: Path, first: Any, each: Any, partial: str | None,
     """``anchor.txt`` (``first``, one KITTI row; when ``partial`` says which frames alone it maps,
     a :data:`PARTIAL_ANCHOR` comment first) and :data:`ANCHORS_FILE` (``each``: one row per frame
     of the run, NaN where no anchor places the frame) in ``folder``."""
-    from .slam import as4
-
-    def rows(P: Any) -> str:
-        return "".join(" ".join(f"{v:.9g}" for v in row) + "\n" for row in np.asarray(P, dtype=np.float64)[:, :3, :].reshape(-1, 12))
+    from .slam import as4, write_kitti
 
     head = "" if partial is None else f"{PARTIAL_ANCHOR}{partial}; {ANCHORS_FILE} beside it holds each frame's (solid map merge --anchor {ANCHORS_FILE})\n"
-    (folder / "anchor.txt").write_text(head + rows(as4(first)[None]), encoding="utf-8")
+    write_kitti(folder / "anchor.txt", as4(first)[None], head)
     E = np.array(each, dtype=np.float64)
     E[~np.isfinite(E).all(axis=(1, 2))] = np.nan
     none = int(np.isnan(E).all(axis=(1, 2)).sum())
-    (folder / ANCHORS_FILE).write_text(
+    write_kitti(
+        folder / ANCHORS_FILE,
+        E,
         f"{PER_FRAME_ANCHORS}{len(E)} frames of {sequence}'s run, in order (solid map merge --anchor applies row k to "
-        f"place k of a map built from those frames); {none} rows of nan: frames no anchor places (merged without a pose)\n" + rows(E),
-        encoding="utf-8",
+        f"place k of a map built from those frames); {none} rows of nan: frames no anchor places (merged without a pose)\n",
     )
 
 

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence as AbcSequence
+from collections.abc import Set as AbcSet
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -591,7 +592,7 @@ def optimize_graph(graph: PoseGraph, robust: str = ROBUST_SCHEMES[0], *, max_ite
             )
             if not np.array_equal(inlier, w > 0.5):
                 other = _kept_optimum(gtsam, fg, init, lm, inlier)
-                if _tls_cost(fg, other, known) < _tls_cost(fg, values, known):
+                if _tls_cost(fg, other, known_set) < _tls_cost(fg, values, known_set):
                     values = other
                     weights = np.array([float(inlier[len(graph.fixed) + e]) for e in loops])
     else:
@@ -614,12 +615,11 @@ def _kept_optimum(gtsam: Any, fg: Any, init: Any, lm: Any, kept: Any) -> Any:
     return gtsam.LevenbergMarquardtOptimizer(sub, init, lm).optimize()
 
 
-def _tls_cost(fg: Any, values: Any, known: list[int]) -> float:
-    """The truncated-least-squares cost GNC-TLS minimises: the known inliers' χ² and each other
-    factor's χ² capped at :data:`GNC_INLIER_CHI2`."""
-    inliers = set(known)
+def _tls_cost(fg: Any, values: Any, known: AbcSet[int]) -> float:
+    """The truncated-least-squares cost GNC-TLS minimises: the ``known`` inliers' χ² and each
+    other factor's χ² capped at :data:`GNC_INLIER_CHI2`."""
     chi = [2 * fg.at(k).error(values) for k in range(fg.size())]
-    return float(sum(c if k in inliers else min(c, GNC_INLIER_CHI2) for k, c in enumerate(chi)))
+    return float(sum(c if k in known else min(c, GNC_INLIER_CHI2) for k, c in enumerate(chi)))
 
 
 # ---- errors ---------------------------------------------------------------------------------------
@@ -767,19 +767,17 @@ def stretch_anchors_of_run(result: Any) -> tuple[F64, list[int]] | None:
     the nearest placed stretch (by frames). Returns them and the frames (indices into the run's)
     placed by another stretch's anchor; None with one anchor or none (the run's one anchor then
     places every frame, :func:`anchor_of_run`)."""
-    anchors = list(getattr(result, "map_anchors", None) or [])
-    if len(anchors) < 2:
+    if len(getattr(result, "map_anchors", None) or []) < 2:
         return None
-    base, n = int(result.map_size), len(result.frames)
-    spans = [(int(a.from_query) - base, n - 1 if a.to_query is None else int(a.to_query) - base) for a in anchors]
-    out = np.empty((n, 4, 4))
-    borrowed = []
-    for k in range(n):
-        gap = [0 if lo <= k <= hi else min(abs(k - lo), abs(k - hi)) for lo, hi in spans]
-        j = int(np.argmin(gap))
-        if gap[j]:
-            borrowed.append(k)
-        out[k] = as4(anchors[j].transform)
+    from .localize import frame_anchors_of_run
+
+    out = frame_anchors_of_run(result)
+    finite = np.isfinite(out).all(axis=(1, 2))
+    placed = np.flatnonzero(finite)
+    borrowed = [int(k) for k in np.flatnonzero(~finite)]
+    for k in borrowed:
+        # The nearest placed frame's (the earlier on a tie), so its stretch's anchor.
+        out[k] = out[placed[int(np.argmin(np.abs(placed - k)))]]
     return out, borrowed
 
 
@@ -966,10 +964,11 @@ def optimize_with_loops_of(
     return SlamResult(graph, graph.poses.copy(), optimized, weights, robust, noise_scale=scale)
 
 
-def write_kitti(path: Path | str, poses: npt.ArrayLike) -> None:
-    """One row-major 3×4 ``[R | t]`` per line (KITTI's odometry format)."""
+def write_kitti(path: Path | str, poses: npt.ArrayLike, header: str = "") -> None:
+    """One row-major 3×4 ``[R | t]`` per line (KITTI's odometry format), after ``header`` (its
+    ``#`` comment lines, which pose readers skip)."""
     P = as4(poses)[:, :3, :].reshape(-1, 12)
-    Path(path).write_text("".join(" ".join(f"{v:.9g}" for v in row) + "\n" for row in P), encoding="utf-8")
+    Path(path).write_text(header + "".join(" ".join(f"{v:.9g}" for v in row) + "\n" for row in P), encoding="utf-8")
 
 
 def write_tum(path: Path | str, times: npt.ArrayLike, poses: npt.ArrayLike) -> None:

@@ -243,20 +243,24 @@ impl LoopDetector {
         let mut followers: Vec<(usize, Option<Pose>)> = Vec::new();
         for k in 0..jobs.len() {
             let Some(follow) = follows[k] else { continue };
-            let (a, lead) = match follow {
+            // The leader: its place, its result, and the odometry's start it had.
+            let (a, lead, seed) = match follow {
                 Ok(j) if left_out[j] => {
                     left_out[k] = true;
                     continue;
                 }
-                Ok(j) => (ids[j], cands[jobs[j].0].verification),
-                Err(d) => (done[d].id, done[d].verification),
+                Ok(j) => (ids[j], cands[jobs[j].0].verification, odometry[j]),
+                Err(d) => {
+                    let id = done[d].id;
+                    let seed = at.and_then(|at| self.odometry_start(at, anchored, id));
+                    (id, done[d].verification, seed)
+                }
             };
             // The leader's result, when it met the quality checks and (with the odometry check)
             // agrees with the odometry: a look-alike's pose would carry its neighbours along. One
             // that failed the gate from the odometry's start counts only within that start's
             // guards (it is final without them, and the odometry's start must not reach a
             // follower unguarded through it).
-            let seed = at.and_then(|at| self.odometry_start(at, anchored, a));
             let lead = lead.filter(|r| {
                 met_quality(r)
                     && agrees(a, &r.registration.pose)
@@ -278,8 +282,9 @@ impl LoopDetector {
                 left_out[k] = true;
                 continue;
             }
-            // A leader that failed only its length: its pose carried over to this place (which
-            // may lie nearer the query).
+            // The leader's pose carried over to this place (a leader that did not settle it: one
+            // that failed only its length, whose neighbour may lie nearer the query, or one
+            // chosen by pose, or of the query's own step).
             let start = lead.map(|r| match self.related(a, ids[k]) {
                 Some(ab) => mul(&r.registration.pose, &ab),
                 None => r.registration.pose,
