@@ -336,7 +336,7 @@ def test_merge_with_an_anchor_moves_the_others_poses_into_this_world(cfg: solid.
     with pytest.raises(solid.SolidError, match="anchor"):
         here.merge(there, anchor=[1.0, 2.0])
     assert len(here) == 1
-    here.merge(there, new_sessions=True, anchor=T)
+    here.merge(there, new_sessions=True, anchor=T.astype(np.float32))
     np.testing.assert_allclose(here.poses[1], T[:3])
     np.testing.assert_allclose(there.poses[0], np.eye(4)[:3])
 
@@ -364,8 +364,21 @@ def test_merge_with_one_anchor_per_place_moves_each_by_its_own(cfg: solid.SolidC
     not_rigid[0, 3, 3] = 2.0  # a 4x4 whose last row is not [0, 0, 0, 1]
     with pytest.raises(ValueError, match=r"anchor\[0\]"):
         here.merge(there, anchor=not_rigid)
+    part_nan = each.copy()
+    part_nan[1, 0, 3] = np.nan
+    with pytest.raises(solid.ConfigError, match="anchor of place 1: invalid anchor = NaN"):
+        here.merge(there, anchor=part_nan)
+    with pytest.raises(solid.ConfigError, match="2 given, but the database merged has 3 places"):
+        here.merge(there, anchor=each[:2])
+    with pytest.raises(TypeError, match="got dtype int64"):
+        here.merge(there, anchor=np.zeros((3, 3, 4), dtype=np.int64))
+    with pytest.raises(ValueError, match=r"got shape \(3, 3, 3\)"):
+        here.merge(there, anchor=each[:, :3, :3])
+    with pytest.raises(solid.SolidError, match=r"one per place, an array of shape"):
+        here.merge(there, anchor=np.zeros((3, 12)))
     assert len(here) == 1
-    here.merge(there, new_sessions=True, anchor=each[:, :3])
+    # float32 is read as float64, not refused (NaN rows still mean "no pose").
+    here.merge(there, new_sessions=True, anchor=each[:, :3].astype(np.float32))
     P = here.poses
     np.testing.assert_allclose(P[1][:, 3], [0.0, 10.0, 0.0])
     np.testing.assert_allclose(P[2][:, 3], [1.0, 20.0, 0.0])

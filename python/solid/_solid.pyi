@@ -1329,12 +1329,17 @@ class Database:
                 of `other`, an array of shape (len(other), 3, 4) or (len(other), 4, 4): each place's
                 pose carried by its own (a session whose odometry broke: one anchor per stretch,
                 ``anchors.kitti``); a place whose transform is all NaN is merged without a pose.
+                float32 is read as float64.
 
         Raises:
             DatabaseError: `other` has another configuration.
-            SolidError: `anchor` is not a finite rigid transform, or an array of them does not hold
-                one per place of `other`.
-            ValueError: a 4×4 of the array does not end with the row [0, 0, 0, 1].
+            ConfigError: `anchor` is not a finite rigid transform; of an array of them, one is not
+                (the message names its place) or there is not one per place of `other` (it names
+                both counts).
+            SolidError: `anchor` is of none of the shapes above.
+            TypeError: an array of transforms is neither float64 nor float32.
+            ValueError: a 4×4 of the array does not end with the row [0, 0, 0, 1], or the array's
+                transforms are not 3×4 or 4×4.
         """
     def save(self, path: str | PathLike[str], version: int = 4, *, replace: bool = True) -> None:
         """Writes the database to `path` (docs/spec.md §9), atomically: a temporary file in the

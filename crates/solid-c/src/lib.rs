@@ -105,6 +105,9 @@ impl From<DbError> for Failure {
             DbError::Io { .. } | DbError::Changed { .. } => SolidStatus::Io,
             DbError::Full => SolidStatus::Full,
             DbError::OutOfMemory => SolidStatus::OutOfMemory,
+            DbError::AnchorCount { .. } | DbError::BadAnchor { .. } => {
+                SolidStatus::InvalidParameter
+            }
             _ => SolidStatus::InvalidArgument,
         };
         Failure::new(status, e.to_string())

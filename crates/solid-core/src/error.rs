@@ -230,6 +230,21 @@ pub enum DbError {
         /// How it changed, in words.
         how: String,
     },
+    /// A per-place anchor list of a merge (`Database::merge_anchored`) that does not hold one
+    /// transform per place of the database merged.
+    AnchorCount {
+        /// Transforms given.
+        given: usize,
+        /// Places of the database merged (`other.len()`).
+        places: usize,
+    },
+    /// A per-place anchor of a merge that is not a finite rigid transform.
+    BadAnchor {
+        /// The place (id in the database merged) whose transform it is.
+        place: usize,
+        /// What is wrong with it (an [`Error::InvalidParameter`] named `anchor`).
+        error: Error,
+    },
     /// More than `u32::MAX` entries (or sessions).
     Full,
     /// Memory for the operation could not be allocated (nothing was changed).
@@ -261,6 +276,12 @@ impl fmt::Display for DbError {
                 "the map {file} changed while it was open ({how}): its clouds can no longer be \
                  read as they were loaded; load it again"
             ),
+            DbError::AnchorCount { given, places } => write!(
+                f,
+                "per-place anchors: {given} given, but the database merged has {places} places \
+                 (one transform per place, a row of NaN for a place without one)"
+            ),
+            DbError::BadAnchor { place, error } => write!(f, "anchor of place {place}: {error}"),
             DbError::Full => write!(f, "database full: at most 2^32 - 1 entries"),
             DbError::OutOfMemory => write!(f, "out of memory"),
         }

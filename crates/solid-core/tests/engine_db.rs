@@ -89,13 +89,27 @@ fn merge_with_one_anchor_per_place_carries_each_by_its_own() {
     let shift = |y: f64| [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, y, 0.0, 0.0, 1.0, 0.0];
     let mut skew = shift(0.0);
     skew[0] = 0.5;
-    for bad in [
-        vec![Some(shift(1.0)); 2],
-        vec![Some(shift(1.0)), Some(skew), None],
+    let mut part_nan = shift(1.0);
+    part_nan[7] = f64::NAN;
+    // Each refusal names what is wrong: both counts, or the place whose transform it is.
+    for (bad, says) in [
+        (
+            vec![Some(shift(1.0)); 2],
+            "per-place anchors: 2 given, but the database merged has 3 places",
+        ),
+        (
+            vec![Some(shift(1.0)), Some(skew), None],
+            "anchor of place 1: invalid anchor",
+        ),
+        (
+            vec![None, None, Some(part_nan)],
+            "anchor of place 2: invalid anchor = NaN: expected finite values",
+        ),
     ] {
-        assert!(a
+        let e = a
             .merge_anchored(&b, true, Some(MergeAnchor::PerPlace(&bad)))
-            .is_err());
+            .unwrap_err();
+        assert!(e.to_string().starts_with(says), "{e}");
         assert_eq!(a.len(), 1);
     }
     let each = [Some(shift(10.0)), Some(shift(20.0)), None];

@@ -391,7 +391,7 @@ impl PyDatabase {
     /// with `anchor` (`T_map_other`, 3x4 or 4x4), the poses of `other` are carried into this map's
     /// world; with an array of shape (len(other), 3, 4) or (len(other), 4, 4), each place's pose
     /// by its own transform (a session whose odometry broke: one anchor per stretch), a place
-    /// whose transform is all NaN keeping no pose.
+    /// whose transform is all NaN keeping no pose. float32 arrays are read as float64.
     #[pyo3(signature = (other, new_sessions=false, anchor=None))]
     fn merge(
         &self,
@@ -411,8 +411,13 @@ impl PyDatabase {
         };
         let anchor = match per_place {
             Some(_) => None,
-            None => parse_pose(anchor)
-                .map_err(|e| SolidError::new_err(format!("anchor: {}", e.value(py))))?,
+            None => parse_pose(anchor).map_err(|e| {
+                SolidError::new_err(format!(
+                    "anchor: {} (or, one per place, an array of shape (len(other), 3, 4) or \
+                     (len(other), 4, 4))",
+                    e.value(py)
+                ))
+            })?,
         };
         let apply = |dst: &mut Database, src: &Database| {
             let how = match (&per_place, &anchor) {
@@ -667,20 +672,28 @@ impl PyDatabase {
 /// A per-place anchor array (N, 3, 4) or (N, 4, 4), float64: each row's transform, None where it
 /// is all NaN (that place keeps no pose).
 fn per_place_anchors(a: &Bound<'_, PyAny>) -> PyResult<Vec<Option<[f64; 12]>>> {
-    let msg =
-        "anchor: one transform per place must be a float64 array of shape (N, 3, 4) or (N, 4, 4)";
-    let arr = a
-        .extract::<numpy::PyReadonlyArray3<'_, f64>>()
-        .map_err(|_| PyTypeError::new_err(msg))?;
-    let view = arr.as_array();
-    let (n, rows, cols) = view.dim();
+    let msg = "anchor: one transform per place must be a float64 or float32 array of shape \
+               (len(other), 3, 4) or (len(other), 4, 4)";
+    // float32 is read as float64 (the transforms are applied in float64 either way).
+    let arr: Array3<f64> = if let Ok(a) = a.extract::<numpy::PyReadonlyArray3<'_, f64>>() {
+        a.as_array().to_owned()
+    } else if let Ok(a) = a.extract::<numpy::PyReadonlyArray3<'_, f32>>() {
+        a.as_array().mapv(f64::from)
+    } else {
+        let dtype = a
+            .getattr("dtype")
+            .map(|d| d.to_string())
+            .unwrap_or_else(|_| "?".into());
+        return Err(PyTypeError::new_err(format!("{msg}; got dtype {dtype}")));
+    };
+    let (n, rows, cols) = arr.dim();
     if !matches!((rows, cols), (3, 4) | (4, 4)) {
         return Err(PyValueError::new_err(format!(
             "{msg}; got shape ({n}, {rows}, {cols})"
         )));
     }
     let mut out = Vec::with_capacity(n);
-    for (i, t) in view.outer_iter().enumerate() {
+    for (i, t) in arr.outer_iter().enumerate() {
         if t.iter().all(|v| v.is_nan()) {
             out.push(None);
             continue;

@@ -59,11 +59,15 @@ impl ToPyErr for Error {
 }
 
 /// I/O errors are the matching `OSError` (with `filename`), everything the database itself
-/// refuses (a config mismatch, a corrupt or foreign file) `DatabaseError`.
+/// refuses (a config mismatch, a corrupt or foreign file) `DatabaseError`, a merge's bad anchors
+/// (argument values) `ConfigError`.
 impl ToPyErr for DbError {
     fn to_py_err(self) -> PyErr {
         match self {
             DbError::Core(c) => c.to_py_err(),
+            DbError::AnchorCount { .. } | DbError::BadAnchor { .. } => {
+                ConfigError::new_err(self.to_string())
+            }
             DbError::Io { file, source } => io_err(&source, Some(file)),
             DbError::OutOfMemory => PyMemoryError::new_err(
                 "out of memory: the database operation could not allocate (nothing was changed)",

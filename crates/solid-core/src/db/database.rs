@@ -379,9 +379,10 @@ impl Database {
     /// frame; a place with none keeps no pose). Returns the sessions' offset.
     ///
     /// # Errors
-    /// As [`Database::merge_with`], for each transform given; [`Error::InvalidParameter`] (name
-    /// `anchors`, the count given) when a per-place list does not hold one entry per place of
-    /// `other`. On error nothing is changed.
+    /// As [`Database::merge_with`] for one transform; for one per place,
+    /// [`DbError::AnchorCount`] (both counts) when the list does not hold one entry per place of
+    /// `other`, [`DbError::BadAnchor`] (the place's id) when one is not finite or not a rotation.
+    /// On error nothing is changed.
     pub fn merge_anchored(
         &mut self,
         other: &Database,
@@ -403,15 +404,18 @@ impl Database {
             Some(MergeAnchor::All(t)) => check_pose(t).map_err(named)?,
             Some(MergeAnchor::PerPlace(ts)) => {
                 if ts.len() != other.len() {
-                    return Err(Error::invalid(
-                        "anchors",
-                        ts.len() as f64,
-                        "one per place of the database merged",
-                    )
-                    .into());
+                    return Err(DbError::AnchorCount {
+                        given: ts.len(),
+                        places: other.len(),
+                    });
                 }
-                for t in ts.iter().flatten() {
-                    check_pose(t).map_err(named)?;
+                for (place, t) in ts.iter().enumerate() {
+                    if let Some(t) = t {
+                        check_pose(t).map_err(|e| DbError::BadAnchor {
+                            place,
+                            error: named(e),
+                        })?;
+                    }
                 }
             }
             None => {}
