@@ -37,6 +37,7 @@ __all__ = [
     "_drift_swing",
     "_detector_config_from_dict",
     "_param_table",
+    "_removed_detector_keys",
     "DEFAULT_RADIUS",
     "DEFAULT_POSE_TOLERANCE_M",
     "DEFAULT_POSE_TOLERANCE_DEG",

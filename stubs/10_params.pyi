@@ -48,6 +48,12 @@ class DetectorConfig:
 def _detector_config_from_dict(params: dict[str, Any]) -> DetectorConfig: ...
 
 
+def _removed_detector_keys() -> dict[str, str]:
+    """The parameters DetectorConfig no longer has, each with why and what replaces it (the
+    core's table; ``solid.config.REMOVED_DETECTOR_KEYS``). Setting one is refused naming this.
+    """
+
+
 def _param_table(name: str) -> list[dict[str, Any]]:
     """The core's parameter table of "SolidConfig", "DetectorConfig", "RegistrationConfig" or
     "AcceptanceGate": one dict per field (name, aliases, type, min/max or choices, expected,

@@ -91,6 +91,17 @@ def test_a_config_naming_a_removed_check_loads_without_it_and_says_so(tmp_path: 
     assert not set(REMOVED_DETECTOR_KEYS) & set(cfg.to_dict()["detector"])
 
 
+def test_setting_a_removed_detector_key_is_refused_saying_it_was_removed() -> None:
+    """A call naming a removed key is code to fix, not a file to keep reading: refused (as C's
+    solid_detector_config_set refuses it), the message saying it was removed, in which version,
+    why and that nothing replaces it; the keys are the core's one table."""
+    assert set(REMOVED_DETECTOR_KEYS) == {"pose_candidate_shift_m", "view_fov_deg", "view_min_overlap_deg"}
+    with pytest.raises(TypeError, match=r'"view_min_overlap_deg" was removed in solid \d+\.\d+\.\d+: the view check was removed.*nothing replaces it'):
+        solid.DetectorConfig(view_min_overlap_deg=20.0)  # type: ignore[call-arg]
+    with pytest.raises(TypeError, match="unknown DetectorConfig parameter"):
+        solid.DetectorConfig(no_such_key=1.0)  # type: ignore[call-arg]
+
+
 def test_hostile_files_are_refused(tmp_path: Path) -> None:
     deep = tmp_path / "deep.json"
     deep.write_text("[" * 100_000)

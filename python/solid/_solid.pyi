@@ -38,6 +38,7 @@ __all__ = [
     "_drift_swing",
     "_detector_config_from_dict",
     "_param_table",
+    "_removed_detector_keys",
     "DEFAULT_RADIUS",
     "DEFAULT_POSE_TOLERANCE_M",
     "DEFAULT_POSE_TOLERANCE_DEG",
@@ -610,6 +611,12 @@ class DetectorConfig:
 
 
 def _detector_config_from_dict(params: dict[str, Any]) -> DetectorConfig: ...
+
+
+def _removed_detector_keys() -> dict[str, str]:
+    """The parameters DetectorConfig no longer has, each with why and what replaces it (the
+    core's table; ``solid.config.REMOVED_DETECTOR_KEYS``). Setting one is refused naming this.
+    """
 
 
 def _param_table(name: str) -> list[dict[str, Any]]:

@@ -47,13 +47,10 @@ __all__ = ["REMOVED_DETECTOR_KEYS", "ConfigFileError", "InputOptions", "Pipeline
 
 
 #: Detector parameters of checks removed since they were written to ``config.json`` files, with
-#: why (docs/performance.md#the-trust-matrix-issue-41).
-#: A configuration that names one loads without it, with a warning.
-REMOVED_DETECTOR_KEYS: dict[str, str] = {
-    "pose_candidate_shift_m": "the shifted re-registration of candidates chosen by pose was removed (off, no loop was wrong and some right ones more)",
-    "view_fov_deg": "the view check was removed (off, no loop changed)",
-    "view_min_overlap_deg": "the view check was removed (off, no loop changed)",
-}
+#: why and what replaces them (docs/performance.md#the-trust-matrix-issue-41; the core's table,
+#: which refuses setting one: ``DetectorConfig(...)``, C ``solid_detector_config_set``).
+#: A configuration file that names one loads without it, with a warning.
+REMOVED_DETECTOR_KEYS: dict[str, str] = _solid._removed_detector_keys()
 
 
 def descriptor_fields() -> dict[str, type]:

@@ -473,7 +473,10 @@ void solid_detector_config_free(struct SolidDetectorConfig *config);
 
 /**
  * Sets detector parameter `name` to `value` (booleans as 0 or 1, integers as whole doubles);
- * checked as [`solid_config_set`].
+ * checked as [`solid_config_set`]. A parameter since removed (`view_fov_deg`,
+ * `view_min_overlap_deg`, `pose_candidate_shift_m`) is refused as an unknown one
+ * (`SOLID_STATUS_INVALID_ARGUMENT`), the message saying in which version it was removed, why,
+ * and what replaces it (nothing, for these: drop the call).
  */
 enum SolidStatus solid_detector_config_set(struct SolidDetectorConfig *config,
                                            const char *name,

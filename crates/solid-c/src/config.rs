@@ -5,7 +5,7 @@
 use std::ffi::c_char;
 
 use solid_lidar::db::DetectorConfig;
-use solid_lidar::params::{Field, Kind, Params, Value};
+use solid_lidar::params::{removed_message, Field, Kind, Params, Value};
 use solid_lidar::reg::{Gate, RegConfig};
 use solid_lidar::Config;
 
@@ -14,7 +14,7 @@ use crate::{guard, new_handle, nonnull, out, put, release, string, Failure, Soli
 /// A parameter set whose fields C reads and writes by name: the core's tables
 /// ([`solid_lidar::params`]), and for the detector, its registration and gate tables under
 /// `registration.` and `gate.`.
-trait Named: Sized + Copy {
+trait Named: Params {
     /// The field called `name` of the set, as a place to read and write.
     fn slot<'a>(&'a mut self, name: &str) -> Option<Box<dyn AnySlot + 'a>>;
     /// Checks the whole set (fields and the rules between them).
@@ -80,8 +80,15 @@ named! {
     };
 }
 
-fn unknown(name: &str) -> Failure {
-    Failure::arg(format!("unknown parameter {name:?}"))
+/// The error of a name that is not a parameter of `P`; of one since removed
+/// ([`Params::REMOVED`]), saying so, why and what replaces it.
+fn unknown<P: Params>(name: &str) -> Failure {
+    match removed_message::<P>(name) {
+        Some(why) => Failure::arg(format!(
+            "{why} (a config.json of an earlier run that names it loads without it, with a warning)"
+        )),
+        None => Failure::arg(format!("unknown parameter {name:?}")),
+    }
 }
 
 /// Sets parameter `name` of `p` to `value` and checks the whole set: on error `p` is unchanged.
@@ -89,7 +96,7 @@ fn set_value<P: Named>(p: &mut P, name: &str, value: Value<'_>) -> Result<(), Fa
     let mut changed = *p;
     changed
         .slot(name)
-        .ok_or_else(|| unknown(name))?
+        .ok_or_else(|| unknown::<P>(name))?
         .put(value)?;
     changed.check()?;
     *p = changed;
@@ -98,7 +105,7 @@ fn set_value<P: Named>(p: &mut P, name: &str, value: Value<'_>) -> Result<(), Fa
 
 /// Sets parameter `name` of `p` from a C double, converted to the parameter's kind.
 fn set_by_name<P: Named>(p: &mut P, name: &str, value: f64) -> Result<(), Failure> {
-    let kind = (*p).slot(name).ok_or_else(|| unknown(name))?.kind();
+    let kind = (*p).slot(name).ok_or_else(|| unknown::<P>(name))?.kind();
     let bad = |expected: &str| {
         Failure::new(
             SolidStatus::InvalidParameter,
@@ -128,7 +135,7 @@ fn set_by_name<P: Named>(p: &mut P, name: &str, value: f64) -> Result<(), Failur
 /// Parameter `name` of `p` as a double (booleans as 0 or 1).
 fn get_by_name<P: Named>(p: &P, name: &str) -> Result<f64, Failure> {
     let mut copy = *p;
-    let v = copy.slot(name).ok_or_else(|| unknown(name))?.get();
+    let v = copy.slot(name).ok_or_else(|| unknown::<P>(name))?.get();
     match v {
         Value::Name(n) => Err(Failure::arg(format!(
             "{name} is a name ({n:?}), not a number"
@@ -308,7 +315,10 @@ pub unsafe extern "C" fn solid_detector_config_free(config: *mut SolidDetectorCo
 }
 
 /// Sets detector parameter `name` to `value` (booleans as 0 or 1, integers as whole doubles);
-/// checked as [`solid_config_set`].
+/// checked as [`solid_config_set`]. A parameter since removed (`view_fov_deg`,
+/// `view_min_overlap_deg`, `pose_candidate_shift_m`) is refused as an unknown one
+/// (`SOLID_STATUS_INVALID_ARGUMENT`), the message saying in which version it was removed, why,
+/// and what replaces it (nothing, for these: drop the call).
 #[no_mangle]
 pub unsafe extern "C" fn solid_detector_config_set(
     config: *mut SolidDetectorConfig,

@@ -272,6 +272,35 @@ fn parameters_by_name_are_checked_and_kept_on_error() {
             solid_detector_config_set_name(dc, f.as_ptr(), nope.as_ptr()),
             SolidStatus::InvalidParameter
         );
+        // A parameter since removed is refused as Python refuses it (a config.json naming one
+        // loads without it there, with a warning), the message saying so and why; nothing changes.
+        let removed = c("view_min_overlap_deg");
+        assert_eq!(
+            solid_detector_config_set(dc, removed.as_ptr(), 20.0),
+            SolidStatus::InvalidArgument
+        );
+        let said = last_error();
+        assert!(
+            said.contains("\"view_min_overlap_deg\" was removed in solid ")
+                && said.contains("the view check was removed")
+                && said.contains("nothing replaces it"),
+            "{said}"
+        );
+        let mut v = 0.0;
+        assert_eq!(
+            solid_detector_config_get(dc, removed.as_ptr(), &mut v),
+            SolidStatus::InvalidArgument
+        );
+        assert!(last_error().contains("was removed in solid "));
+        assert_eq!(
+            solid_detector_config_set(dc, c("no_such_key").as_ptr(), 1.0),
+            SolidStatus::InvalidArgument
+        );
+        assert!(
+            last_error().contains("unknown parameter"),
+            "{}",
+            last_error()
+        );
         solid_detector_config_free(dc);
     }
 }

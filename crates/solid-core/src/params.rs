@@ -173,6 +173,11 @@ pub trait Params: Sized + Copy + 'static {
     const NAME: &'static str;
     /// The fields, in the order users see them.
     const FIELDS: &'static [Field<Self>];
+    /// Parameters the set no longer has, each with why and what replaces it. Setting one (C
+    /// `*_config_set`, Python keyword arguments) is refused naming this ([`removed_message`]);
+    /// a `config.json` of an earlier run that names one loads without it, with a warning
+    /// (Python `solid.config.REMOVED_DETECTOR_KEYS`, read from here).
+    const REMOVED: &'static [(&'static str, &'static str)] = &[];
 
     /// The defaults (for a [`Field::required`] field, a placeholder that fails the checks).
     fn defaults() -> Self;
@@ -194,6 +199,19 @@ pub trait Params: Sized + Copy + 'static {
     fn check_fields(&self) -> Result<(), Error> {
         Self::FIELDS.iter().try_for_each(|f| f.check(self))
     }
+}
+
+/// Why parameter `name` of `P` is no more ([`Params::REMOVED`]), naming the version of this
+/// library it is gone from: None for a name never removed.
+#[cfg(feature = "alloc")]
+pub fn removed_message<P: Params>(name: &str) -> Option<alloc::string::String> {
+    P::REMOVED.iter().find(|(k, _)| *k == name).map(|(k, why)| {
+        alloc::format!(
+            "{} parameter {k:?} was removed in solid {}: {why}",
+            P::NAME,
+            env!("CARGO_PKG_VERSION")
+        )
+    })
 }
 
 /// A value of a Rust field type as a table [`Value`], and back (for values the field's

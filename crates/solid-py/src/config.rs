@@ -9,7 +9,7 @@ use pyo3::pyclass::boolean_struct::True;
 use pyo3::types::{PyBool, PyCFunction, PyDict, PyList, PyTuple};
 use pyo3::PyClass;
 use solid_lidar::db::DetectorConfig;
-use solid_lidar::params::{Field, Kind, Params, Value};
+use solid_lidar::params::{removed_message, Field, Kind, Params, Value};
 use solid_lidar::reg::{Gate, RegConfig};
 use solid_lidar::{Config, Preset, PRESETS};
 
@@ -96,6 +96,8 @@ fn apply<T: Params>(
             nested(set, &key, &v)?;
         } else if let Some(f) = T::field(&key) {
             fields.push((f, v));
+        } else if let Some(why) = removed_message::<T>(&key) {
+            return Err(PyTypeError::new_err(why));
         } else {
             return Err(PyTypeError::new_err(format!(
                 "unknown {} parameter {key:?}; valid: {}",
@@ -254,6 +256,17 @@ fn _param_table<'py>(py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyList>
             Gate::NAME
         ))),
     }
+}
+
+/// The parameters `DetectorConfig` no longer has, each with why and what replaces it (the core's
+/// `Params::REMOVED`): `solid.config.REMOVED_DETECTOR_KEYS`.
+#[pyfunction]
+fn _removed_detector_keys<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+    let out = PyDict::new(py);
+    for (k, why) in DetectorConfig::REMOVED {
+        out.set_item(k, why)?;
+    }
+    Ok(out)
 }
 
 /// The names of the presets, for messages.
@@ -696,6 +709,6 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     add_properties::<PyDetectorConfig>(m)?;
     add_properties::<PyRegConfig>(m)?;
     add_properties::<PyGate>(m)?;
-    add_functions! { m, _config_from_dict, _detector_config_from_dict, _param_table }
+    add_functions! { m, _config_from_dict, _detector_config_from_dict, _param_table, _removed_detector_keys }
     Ok(())
 }

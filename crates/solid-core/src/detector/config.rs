@@ -373,6 +373,24 @@ pub const MAX_VERIFY_THREADS: usize = 256;
 
 impl Params for DetectorConfig {
     const NAME: &'static str = "DetectorConfig";
+    /// Checks removed since they were written to configurations, each with why and what
+    /// replaces it (nothing, for these: off, they changed no loop or only lost right ones;
+    /// docs/performance.md#the-trust-matrix-issue-41).
+    const REMOVED: &'static [(&'static str, &'static str)] = &[
+        (
+            "pose_candidate_shift_m",
+            "the shifted re-registration of candidates chosen by pose was removed (off, no loop \
+             was wrong and some right ones more); nothing replaces it",
+        ),
+        (
+            "view_fov_deg",
+            "the view check was removed (off, no loop changed); nothing replaces it",
+        ),
+        (
+            "view_min_overlap_deg",
+            "the view check was removed (off, no loop changed); nothing replaces it",
+        ),
+    ];
     const FIELDS: &'static [Field<DetectorConfig>] = &[
         field!(DetectorConfig, "exclude_frames", exclude_frames, COUNT, "an integer >= 0",
             "Skip the places of the own session added in the last this many steps.",
