@@ -374,6 +374,31 @@ def test_optimize_map_starts_a_stretch_no_anchor_placed_at_the_nearest_and_says_
     assert commands.why_no_anchor(never) == "no verified loop into the map"
 
 
+def test_optimize_map_lists_the_frames_one_anchor_does_not_place(city: Any) -> None:
+    """One break of the odometry (frames 6-8), off the map: only the stretch after it is placed,
+    one anchor (``map_anchors``) that maps part of the run. The frames before the break, which
+    that anchor started, are listed in ``SlamResult.borrowed`` (before: empty, as only with two
+    anchors or more were they), the frames no placement maps (``frame_anchors_of_run``: NaN)."""
+    import dataclasses
+
+    from solid import slam
+    from solid.localize import frame_anchors_of_run
+    from solid.pipeline import LoopClosurePipeline
+
+    pytest.importorskip("gtsam")
+    world, lap, db, cfg, sensor = city
+    _, second = sim.session_routes(world, spacing=SPACING)
+    second = second[:42]
+    odometry = sim.Session.of(second).trajectory.drifting(1, seed=1, breakdown=(6, 9), breakdown_jump_m=20.0, breakdown_climb_m=30.0)
+    res = LoopClosurePipeline(dataclasses.replace(sim.simulate(world, sensor, second), trajectory=odometry), cfg, map=db).run()
+    assert len(res.map_anchors) == 1
+    unplaced = [int(k) for k in np.flatnonzero(np.isnan(frame_anchors_of_run(res)).all(axis=(1, 2)))]
+    assert unplaced and set(range(6)) <= set(unplaced) and unplaced == list(range(len(unplaced)))
+    out = slam.optimize_run(res)
+    assert out.anchor is not None and out.stretches == 1
+    assert out.borrowed == unplaced
+
+
 def test_map_merge_places_each_stretch_of_a_broken_odometry_by_its_own_anchor(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     """`solid map merge --anchor` of a session whose odometry broke (1 % drift, frames 14-16
     jumping 20 m sideways with 30 m of climb), its map built from that odometry: anchor.txt (one

@@ -1239,8 +1239,8 @@ def optimize(
             # and `eval --anchor` apply it; the trajectory, like every other, in that of --poses.
             # anchors.kitti: each frame's, the optimum's pose in the map's world over its odometry
             # pose (`map merge --anchor anchors.kitti` puts each place where the optimum has it).
-            # A frame of a stretch of the odometry no anchor placed (started at another stretch's:
-            # run.borrowed, or the one anchor's when it maps only some frames) has no transform
+            # A frame of a stretch of the odometry no anchor placed (started at another stretch's,
+            # or the one anchor's when it maps only some frames: run.borrowed) has no transform
             # there: nothing ties it to the map. Without the detector's placement nothing says
             # where the stretches are: every frame keeps the optimum's.
             from .localize import frame_anchors_of_run

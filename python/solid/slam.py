@@ -761,22 +761,32 @@ BREAK_EDGE_WEIGHT = 1e-4
 
 
 def stretch_anchors_of_run(result: Any) -> tuple[F64, list[int]] | None:
-    """Each frame's ``T_map_session`` (N, 4, 4) when the run's odometry broke and loops into the
-    map placed more than one of its stretches (``result.map_anchors``, docs/loops.md#breakdowns):
-    the anchor of the frame's own stretch, or for a frame of a stretch no anchor placed, that of
-    the nearest placed stretch (by frames). Returns them and the frames (indices into the run's)
-    placed by another stretch's anchor; None with one anchor or none (the run's one anchor then
-    places every frame, :func:`anchor_of_run`)."""
-    if len(getattr(result, "map_anchors", None) or []) < 2:
+    """Each frame's ``T_map_session`` (N, 4, 4) when loops into the map placed the run
+    (``result.map_anchors``: one anchor per placed stretch of the odometry between breaks,
+    docs/loops.md#breakdowns): the anchor of the frame's own stretch, or for a frame of a
+    stretch no anchor placed, that of the nearest placed stretch (:func:`nearest_placed`).
+    Returns them and the frames (indices into the run's) placed by another stretch's anchor:
+    with one anchor, those outside its stretch when the odometry broke. None when no anchor
+    placed the run (an anchor estimated from the loops, :func:`anchor_of_run`, then places
+    every frame)."""
+    if not (getattr(result, "map_anchors", None) or []):
         return None
     from .localize import frame_anchors_of_run
 
-    out = frame_anchors_of_run(result)
+    return nearest_placed(frame_anchors_of_run(result))
+
+
+def nearest_placed(anchors: npt.ArrayLike) -> tuple[F64, list[int]]:
+    """Per-frame anchors (N, 4, 4; a row not finite: a frame no anchor places) with each such
+    frame's taken from the nearest placed frame (by frames, the earlier on a tie: so its
+    stretch's anchor), and those frames (indices). Every frame NaN stays so (nothing to take)."""
+    out = np.array(anchors, dtype=np.float64)
     finite = np.isfinite(out).all(axis=(1, 2))
     placed = np.flatnonzero(finite)
+    if not placed.size:
+        return out, []
     borrowed = [int(k) for k in np.flatnonzero(~finite)]
     for k in borrowed:
-        # The nearest placed frame's (the earlier on a tie), so its stretch's anchor.
         out[k] = out[placed[int(np.argmin(np.abs(placed - k)))]]
     return out, borrowed
 
@@ -868,8 +878,8 @@ class SlamResult:
     #: How many stretches of the odometry between breaks their own anchors started in the map
     #: (``result.map_anchors``; 1: one anchor started every frame).
     stretches: int = 1
-    #: The frames (indices into the run's) of stretches no anchor placed, started at the nearest
-    #: placed stretch's anchor.
+    #: The frames (indices into the run's) of stretches no anchor placed (the odometry broke),
+    #: started at the nearest placed stretch's anchor (with one anchor: that one's).
     borrowed: list[int] = field(default_factory=list)
 
     def trusted_loops(self) -> int:
@@ -931,13 +941,15 @@ def optimize_run(
         return out
     info = np.stack([lp.information for lp in ok])
     per = stretch_anchors_of_run(result)
-    starts = None if per is None else per[0]
+    stretches = 1 if per is None else len(result.map_anchors)
+    # One anchor starts every frame as ``initial`` (its transform); several, each its stretch's.
+    starts = per[0] if per is not None and stretches > 1 else None
     anchor, in_map, own_weights = optimize_in_map(graph, stored, q, c, Z, info, initial, robust, optimized, starts)
     if anchor is None:
         return out
     out.anchor, out.map_poses, out.loop_weights = anchor, in_map, own_weights
     if per is not None:
-        out.stretches, out.borrowed = len(result.map_anchors), per[1]
+        out.stretches, out.borrowed = stretches, per[1]
     out.optimized = inv(anchor.T_map_session) @ in_map
     return out
 
