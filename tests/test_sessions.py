@@ -374,6 +374,54 @@ def test_optimize_map_starts_a_stretch_no_anchor_placed_at_the_nearest_and_says_
     assert commands.why_no_anchor(never) == "no verified loop into the map"
 
 
+def check_eval_and_view_take_per_frame_anchors(capsys: pytest.CaptureFixture[str], tmp_path: Path, s1: Path, m0: str, odo: str, truth: np.ndarray) -> None:
+    """`solid eval --anchor anchors.kitti` of that broken session (refused before: "found 30
+    poses") places each frame by its own row; a row of NaN (frames 0-2 here) is a frame no anchor
+    places: scored at the nearest placed frame's and listed (metrics.json, a note), left out of
+    `solid view`'s trajectory. `--anchor anchor.txt`, which maps only some frames, is applied to
+    every frame with a note saying so; `solid view` of a run whose anchor.txt is partial draws it
+    by anchors.kitti beside it, or without it by anchor.txt with that note."""
+    import shutil
+
+    from solid import view
+    from solid.commands import ANCHORS_FILE, merge_anchor, write_frame_anchors
+
+    loc = tmp_path / "loc"
+    each = merge_anchor(loc / ANCHORS_FILE)
+    each[:3] = np.nan
+    gaps = tmp_path / "gaps"
+    gaps.mkdir()
+    write_frame_anchors(gaps, each, "s1")
+    ev = tmp_path / "ev_each"
+    argv = ("eval", str(s1), "--poses", odo, "--map", m0, "-q", "--no-plots")
+    code, out, err = run(capsys, *argv, "--anchor", str(gaps / ANCHORS_FILE), "-o", str(ev))
+    assert code == 0, err
+    a = json.loads((ev / "metrics.json").read_text())["anchor"]
+    assert a["source"] == "given" and a["T_map_session"] is None and a["per_frame"] == {"frames": len(truth), "unplaced_frames": [0, 1, 2]}
+    assert "3 of 30 frames" in err and "3 frames no anchor places (frames 0-2)" in err
+    rv = view.read_run(ev)
+    off = np.linalg.norm(rv.trajectories["odometry"][:, :3, 3] - truth[:, :3, 3], axis=1)
+    assert np.isnan(off[:3]).all() and off[3:].max() < 1.0, np.round(off, 2)
+    assert any("3 of 30 frames" in n for n in rv.notes)
+
+    code, out, err = run(capsys, *argv, "--anchor", str(loc / "anchor.txt"), "-o", str(tmp_path / "ev_one"))
+    assert code == 0, err
+    assert "maps only some frames of its session" in err and "yet is applied to every frame" in err and str(loc / ANCHORS_FILE) in err
+    a = json.loads((tmp_path / "ev_one" / "metrics.json").read_text())["anchor"]
+    assert a["T_map_session"] is not None and "per_frame" not in a and "yet is applied to every frame" in a["notes"][0]
+    # A run folder whose anchor.txt maps only some frames: drawn by anchors.kitti beside it, or,
+    # without it, by anchor.txt with the note (the frames of the other stretches then land far off).
+    both = tmp_path / "ev_both"
+    shutil.copytree(ev, both)
+    shutil.copy(loc / "anchor.txt", both / "anchor.txt")
+    off = np.linalg.norm(view.read_run(both).trajectories["odometry"][:, :3, 3] - truth[:, :3, 3], axis=1)
+    assert np.isnan(off[:3]).all() and off[3:].max() < 1.0
+    (both / ANCHORS_FILE).unlink()
+    rv = view.read_run(both)
+    off = np.linalg.norm(rv.trajectories["odometry"][:, :3, 3] - truth[:, :3, 3], axis=1)
+    assert any("yet is applied to every frame" in n for n in rv.notes) and off.max() > 10.0
+
+
 def test_optimize_map_lists_the_frames_one_anchor_does_not_place(city: Any) -> None:
     """One break of the odometry (frames 6-8), off the map: only the stretch after it is placed,
     one anchor (``map_anchors``) that maps part of the run. The frames before the break, which
@@ -446,6 +494,7 @@ def test_map_merge_places_each_stretch_of_a_broken_odometry_by_its_own_anchor(ca
     # A poses file of as many rows (the run's own odometry) is not an anchor: refused, naming what is.
     code, _, err = run(capsys, "map", "merge", m0, m1, "--anchor", odo, "-o", str(tmp_path / "y.soliddb"))
     assert code != 0 and "not a per-frame anchor file" in err and not (tmp_path / "y.soliddb").exists()
+    check_eval_and_view_take_per_frame_anchors(capsys, tmp_path, s1, m0, odo, truth)
     pytest.importorskip("gtsam")
     code, out, err = run(capsys, "optimize", str(s1), "--poses", odo, "--map", m0, "--preset", "vlp16", "-q", "--no-plots", "-o", str(tmp_path / "opt"))
     assert code == 0, err

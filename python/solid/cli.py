@@ -299,7 +299,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _add_run_head(p, "a map from `solid map build` (with poses): score against it too")
     w = p.add_mutually_exclusive_group()
-    w.add_argument("--anchor", type=Path, metavar="FILE", help="with --map: this session's world → the map's world (anchor.txt of `solid optimize --map`; default: estimated from the verified loops into the map)")
+    w.add_argument("--anchor", type=Path, metavar="FILE", help="with --map: this session's world → the map's world (anchor.txt of `solid localize` or `solid optimize --map`, or anchors.kitti beside it: each frame's; default: estimated from the verified loops into the map)")
     w.add_argument("--same-world", action="store_true", help="with --map: this session's poses are already in the map's world")
     _add_truth_args(p)
     p.add_argument("--baseline", action="append", choices=["scancontext"], default=[], help="also evaluate this baseline on the same queries")
@@ -635,6 +635,14 @@ def cmd_eval(args: argparse.Namespace, out: TextIO) -> int:
             "given": f"from {args.anchor}",
         }
         out.write(f"session placed in the map's world: {how.get(a['source'], a['source'])}\n")
+        for note in a.get("notes", []):
+            sys.stderr.write(f"note: {note}\n")
+        unplaced = (a.get("per_frame") or {}).get("unplaced_frames")
+        if unplaced:
+            sys.stderr.write(
+                f"note: {len(unplaced)} frames no anchor places (frames {unplaced[0]}-{unplaced[-1]}) are scored at the nearest "
+                "placed frame's anchor: a guess across a break of the odometry (metrics.json anchor.per_frame.unplaced_frames)\n"
+            )
     excl = m.get("exclusion_median_m")
     if excl is not None:
         out.write(f"exclusion: {cfg.detector.exclude_frames} frames ≈ {excl:.1f} m travelled on this sequence (median)\n")
@@ -722,13 +730,16 @@ def cmd_optimize(args: argparse.Namespace, out: TextIO) -> int:
 
 
 def _anchor_arg(args: argparse.Namespace) -> Any:
-    """eval's --anchor FILE (a 4×4), --same-world ("same") or neither (None: estimated)."""
-    from .commands import read_anchor
+    """eval's --anchor FILE (its path: anchor.txt or anchors.kitti, read by
+    :func:`solid.commands.run_anchor` against the run's frames), --same-world ("same") or
+    neither (None: estimated)."""
+    from .commands import anchor_file
 
     if getattr(args, "anchor", None) is not None:
         if args.map is None:
             raise ValueError("--anchor places a session in a map: give --map too")
-        return read_anchor(args.anchor)
+        anchor_file(args.anchor)  # a wrong file is refused before the run
+        return Path(args.anchor)
     return "same" if getattr(args, "same_world", False) else None
 
 

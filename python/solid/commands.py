@@ -587,7 +587,9 @@ def evaluate(
     same questions (the same queries, each with the same places to choose from). ``extra`` is
     added to ``metrics.json``; ``write_more(folder, result, evaluations)`` writes further files
     into the output folder before it appears. Against a map, the session is placed in the map's
-    world first (:func:`place_in_map` with ``anchor``), and ``metrics.json`` says how.
+    world first (:func:`place_in_map` with ``anchor``; a path: an anchor file, :func:`run_anchor`,
+    whose notes ``metrics.json`` keeps, and whose per-frame anchors are written to the folder as
+    :data:`ANCHORS_FILE`), and ``metrics.json`` says how.
     """
     if getattr(dataset, "poses", None) is None:
         raise _solid.ConfigError("evaluation needs poses (give --poses)")
@@ -603,8 +605,18 @@ def evaluate(
 
     result = _run(dataset, config, map_db, threads, progress, on_scan)
     placed = None
+    each = None
     if map_db is not None:
+        given = anchor if isinstance(anchor, Path) else None
+        notes: list[str] = []
+        if given is not None:
+            anchor, notes = run_anchor(given, len(result.frame_ids))
+            each = anchor if anchor.ndim == 3 else None
         result, placed = place_in_map(result, anchor)
+        if given is not None:
+            placed["file"] = str(given.absolute())
+        if notes:
+            placed["notes"] = notes
     main = result.evaluate()
     if main.query.size == 0:
         raise _solid.ConfigError(
@@ -654,6 +666,9 @@ def evaluate(
                 [*map(shlex.quote, command_hint), "--config", shlex.quote(str(out.final / "config.json")), setting[0], repr(setting[1])]
             )
         write_json(out.work / "metrics.json", metrics)
+        if each is not None:
+            # The per-frame anchors applied, for `solid view` of this run.
+            write_frame_anchors(out.work, each, inputs.sequence.name)
         if plots:
             _plots(out, result, evals, inputs)
         if write_more is not None:
@@ -1005,6 +1020,14 @@ def write_anchor_files(folder: Path, first: Any, each: Any, partial: str | None,
 
     head = "" if partial is None else f"{PARTIAL_ANCHOR}{partial}; {ANCHORS_FILE} beside it holds each frame's (solid map merge --anchor {ANCHORS_FILE})\n"
     write_kitti(folder / "anchor.txt", as4(first)[None], head)
+    write_frame_anchors(folder, each, sequence)
+
+
+def write_frame_anchors(folder: Path, each: Any, sequence: str) -> None:
+    """:data:`ANCHORS_FILE` in ``folder``: ``each`` (one ``T_map_odom`` per frame of the run,
+    NaN where no anchor places the frame) under its :data:`PER_FRAME_ANCHORS` line."""
+    from .slam import write_kitti
+
     E = np.array(each, dtype=np.float64)
     E[~np.isfinite(E).all(axis=(1, 2))] = np.nan
     none = int(np.isnan(E).all(axis=(1, 2)).sum())
@@ -1017,9 +1040,25 @@ def write_anchor_files(folder: Path, first: Any, each: Any, partial: str | None,
 
 
 def merge_anchor(path: Path) -> Any:
-    """An anchor file for ``solid map merge`` as (K, 4, 4): ``anchor.txt`` (K = 1; refused when it
-    says it maps only some frames, :data:`PARTIAL_ANCHOR`) or :data:`ANCHORS_FILE` (one per frame;
-    a row of NaN: no transform, kept as NaN)."""
+    """An anchor file for ``solid map merge`` as (K, 4, 4) (:func:`anchor_file`): ``anchor.txt``
+    (K = 1; refused when it says it maps only some frames, :data:`PARTIAL_ANCHOR`) or
+    :data:`ANCHORS_FILE` (one per frame; a row of NaN: no transform, kept as NaN)."""
+    T, partial = anchor_file(path)
+    if len(T) == 1 and partial is not None:
+        raise _solid.ConfigError(
+            f"{path} maps only some frames of its session: {partial}. One transform would misplace the places of the other stretches: "
+            f"give --anchor {Path(path).with_name(ANCHORS_FILE)} (each frame's transform, applied to its place; the map must be built from "
+            "the same frames of the recording)"
+        )
+    return T
+
+
+def anchor_file(path: Path) -> tuple[Any, str | None]:
+    """An anchor file as (K, 4, 4), and what an ``anchor.txt`` that maps only some frames of its
+    run says of them (its :data:`PARTIAL_ANCHOR` line; else None): ``anchor.txt`` (K = 1) or
+    :data:`ANCHORS_FILE` (one per frame; a row of NaN: no transform, kept as NaN). Refused: a
+    many-row file that is not :data:`ANCHORS_FILE` (a trajectory or a poses file), a row partly
+    not finite, a one-row file of NaN."""
     text = Path(path).read_text(encoding="utf-8")
     lines = [ln.strip() for ln in text.splitlines()]
     partial = next((ln[len(PARTIAL_ANCHOR) :].split(f"; {ANCHORS_FILE} beside it")[0] for ln in lines if ln.startswith(PARTIAL_ANCHOR)), None)
@@ -1042,15 +1081,36 @@ def merge_anchor(path: Path) -> Any:
         T[np.isnan(a).all(axis=1)] = np.nan
     else:
         T = read_anchor(path)[None]
-    if len(T) == 1 and partial is not None:
-        raise _solid.ConfigError(
-            f"{path} maps only some frames of its session: {partial}. One transform would misplace the places of the other stretches: "
-            f"give --anchor {Path(path).with_name(ANCHORS_FILE)} (each frame's transform, applied to its place; the map must be built from "
-            "the same frames of the recording)"
-        )
     if len(T) == 1 and not np.isfinite(T).all():
         raise _solid.ConfigError(f"{path}: its one transform is nan: nothing places that session")
-    return T
+    return T, partial
+
+
+def run_anchor(path: Path, frames: int) -> tuple[Any, list[str]]:
+    """An anchor file (:func:`anchor_file`) for the ``frames`` frames of one run (``solid eval
+    --anchor``, ``solid view``): ``anchor.txt``'s one transform (4, 4) for every frame, or
+    :data:`ANCHORS_FILE`'s one per frame (``frames``, 4, 4; a row of NaN: a frame no anchor
+    places), with the notes to print: an ``anchor.txt`` that maps only some frames applied to
+    every frame anyway, the frames no anchor places. A per-frame file of another frame count is
+    refused, naming both."""
+    T, partial = anchor_file(path)
+    notes: list[str] = []
+    if len(T) == 1:
+        if partial is not None:
+            notes.append(
+                f"{path} maps only some frames of its session ({partial}), yet is applied to every frame: the frames of the other "
+                f"stretches of the odometry are misplaced (give {Path(path).with_name(ANCHORS_FILE)}, each frame's transform, where it is)"
+            )
+        return T[0], notes
+    if len(T) != frames:
+        raise _solid.ConfigError(
+            f"{path} holds {len(T)} transforms, one per frame of its run, but this run has {frames} frames: "
+            "give the anchors of this run (the same recording and --frames)"
+        )
+    unplaced = np.flatnonzero(np.isnan(T).all(axis=(1, 2)))
+    if unplaced.size:
+        notes.append(f"{path}: {unplaced.size} of {frames} frames (the first: frame index {int(unplaced[0])}) no anchor places")
+    return T, notes
 
 
 def read_anchor(path: Path) -> Any:
@@ -1089,7 +1149,10 @@ class _AnchoredDatabase:
 
 def place_in_map(result: PipelineResult, anchor: Any) -> tuple[PipelineResult, dict[str, Any]]:
     """A run against a map with its session's poses in the map's world, and how that world was
-    known: ``anchor`` is a 4×4 ``T_map_session`` (given), ``"same"`` (the user says the poses
+    known: ``anchor`` is a 4×4 ``T_map_session`` (given) or one per frame of the run ((N, 4, 4),
+    :func:`run_anchor` of :data:`ANCHORS_FILE`; a frame of a row of NaN is placed by the nearest
+    placed frame's, :func:`solid.slam.nearest_placed`, and listed: ``per_frame``,
+    ``unplaced_frames``), ``"same"`` (the user says the poses
     already are in the map's world), or None: estimated from the run's verified loops into the
     map (:func:`solid.slam.anchor_of_run`: the detector's placement, or the loops' consensus when
     the run has none), an error when there is none."""
@@ -1119,7 +1182,19 @@ def place_in_map(result: PipelineResult, anchor: Any) -> tuple[PipelineResult, d
     else:
         T = slam.as4(np.asarray(anchor, dtype=np.float64))
         how = {"source": "given"}
-    how["T_map_session"] = T[:3].tolist()
+    if T.ndim == 3:
+        # One per frame (anchors.kitti, run_anchor): a frame no anchor places is scored at the
+        # nearest placed frame's (a guess across a break of the odometry), and listed.
+        frames = len(result.frame_ids)
+        if len(T) != frames or len(result.database) - base != frames:
+            raise _solid.ConfigError(f"{len(T)} per-frame anchors for a run of {frames} frames ({len(result.database) - base} places): give this run's")
+        T, borrowed = slam.nearest_placed(T)
+        if borrowed and len(borrowed) == frames:
+            raise _solid.ConfigError("the per-frame anchors place no frame of this run: nothing says where the session lies in the map's world")
+        how["T_map_session"] = None
+        how["per_frame"] = {"frames": frames, "unplaced_frames": [int(result.frame_ids[k]) for k in borrowed]}
+    else:
+        how["T_map_session"] = T[:3].tolist()
     poses = None if result.poses is None else (T @ slam.as4(result.poses))[:, :3, :]
     return dataclasses.replace(result, database=_AnchoredDatabase(result.database, T, base), poses=poses), how
 

@@ -273,7 +273,7 @@ def read_run(folder: Path | str) -> RunView:
     ``solid optimize``; the recording is opened again (from the absolute paths the run recorded)
     for its poses, times and scans."""
     from . import _solid
-    from .commands import open_recording, read_anchor
+    from .commands import ANCHORS_FILE, anchor_file, open_recording, run_anchor
     from .config import PipelineConfig
     from .pipeline import check_run
 
@@ -302,15 +302,20 @@ def read_run(folder: Path | str) -> RunView:
     map_size = int(meta.get("map_places") or 0)
     notes: list[str] = []
 
-    # A run against a map: its session in the map's world, the map's places.
-    T_map = np.eye(4)
+    # A run against a map: its session in the map's world (one transform, or one per frame when
+    # the odometry broke: anchors.kitti, a frame no anchor places left out), the map's places.
+    T_map: F64 = np.eye(4)
     places = None
     if map_size:
         a = meta.get("anchor")
-        if (folder / "anchor.txt").is_file():
-            T_map = read_anchor(folder / "anchor.txt")
+        one, each = folder / "anchor.txt", folder / ANCHORS_FILE
+        if one.is_file() or each.is_file():
+            partial = one.is_file() and anchor_file(one)[1] is not None
+            T_map, said = run_anchor(each if each.is_file() and (partial or not one.is_file()) else one, len(odometry))
+            notes += said
         elif isinstance(a, dict) and a.get("T_map_session") is not None:
             T_map = _as4(np.asarray(a["T_map_session"]))
+            notes += a.get("notes", [])
         else:
             notes.append("the run does not say where its session lies in the map's world: drawn as given")
         if inputs.get("map") and Path(inputs["map"]).is_file():
@@ -456,6 +461,8 @@ def _log_run(rec: Any, run: RunView, chosen: LoopEdge | None) -> None:
     ends = "optimized" if "optimized" in run.trajectories else "odometry"
     for e in run.loops:
         a, b = _loop_ends(run, e, ends)
+        if not (np.isfinite(a).all() and np.isfinite(b).all()):
+            continue  # an end at a frame no anchor places in the map's world
         t = None if e.query_time is None else e.query_time - run.t0
         q, c = e.names()
         log_loop(rec, e.kind, q, c, a, b, t, e.query_frame)
