@@ -545,14 +545,16 @@ def _factors(gtsam: Any, graph: PoseGraph, robust: str) -> tuple[Any, list[int]]
     return fg, known
 
 
-def optimize_graph(graph: PoseGraph, robust: str = ROBUST_SCHEMES[0], *, max_iterations: int = 100) -> tuple[F64, F64]:
+def optimize_graph(graph: PoseGraph, robust: str = ROBUST_SCHEMES[0], *, max_iterations: int = 100, tls_guard: bool = True) -> tuple[F64, F64]:
     """Optimise ``graph`` with GTSAM (Levenberg–Marquardt) from its initial values, the
     vertices :attr:`PoseGraph.fixed` held at their poses. ``robust`` (one of
     :data:`ROBUST_SCHEMES`) treats the loop edges:
     ``gnc-tls``/``gnc-gm`` graduated non-convexity with a truncated-least-squares / Geman–McClure
     cost (odometry known to be inliers), ``cauchy``/``dcs``/``huber`` an M-estimator kernel,
     ``none`` plain least squares. Returns the optimised poses (N, 4, 4) and each loop edge's
-    weight in [0, 1] (how much the optimum trusts it; 1 without a robust scheme)."""
+    weight in [0, 1] (how much the optimum trusts it; 1 without a robust scheme). ``tls_guard``
+    False returns GNC-TLS's own minimum, without the Cauchy optimum's loops as a second candidate
+    (docs/slam.md#robust-back-end; for comparison)."""
     if robust not in ROBUST_SCHEMES:
         raise ValueError(f"robust must be one of {', '.join(ROBUST_SCHEMES)}, got {robust!r}")
     gtsam = require_gtsam()
@@ -584,17 +586,8 @@ def optimize_graph(graph: PoseGraph, robust: str = ROBUST_SCHEMES[0], *, max_ite
             # out, the odometry's: one true loop moved to the adjacent keyframe flipped it,
             # docs/slam.md#robust-back-end). The loops a Cauchy kernel's optimum finds within
             # the inlier threshold are a second candidate; the lower TLS cost wins.
-            cauchy, _ = _factors(gtsam, graph, "cauchy")
-            known_set = set(known)
-            at_cauchy = gtsam.LevenbergMarquardtOptimizer(cauchy, init, lm).optimize()
-            inlier = np.array(
-                [k in known_set or 2 * fg.at(k).error(at_cauchy) <= GNC_INLIER_CHI2 for k in range(fg.size())]
-            )
-            if not np.array_equal(inlier, w > 0.5):
-                other = _kept_optimum(gtsam, fg, init, lm, inlier)
-                if _tls_cost(fg, other, known_set) < _tls_cost(fg, values, known_set):
-                    values = other
-                    weights = np.array([float(inlier[len(graph.fixed) + e]) for e in loops])
+            if tls_guard:
+                values, weights = _tls_guard(gtsam, graph, fg, init, lm, known, w > 0.5, values, weights)
     else:
         values = gtsam.LevenbergMarquardtOptimizer(fg, init, lm).optimize()
         if robust in _KERNEL_WIDTH:
@@ -604,6 +597,21 @@ def optimize_graph(graph: PoseGraph, robust: str = ROBUST_SCHEMES[0], *, max_ite
                 weights[n] = float(f.noiseModel().robust().weight(whitened))
     out = np.stack([np.asarray(values.atPose3(int(v)).matrix()) for v in graph.ids])
     return out, weights
+
+
+def _tls_guard(gtsam: Any, graph: PoseGraph, fg: Any, init: Any, lm: Any, known: list[int], kept: Any, values: Any, weights: F64) -> tuple[Any, F64]:
+    """GNC-TLS's optimum ``values`` (of the factors ``kept``; loop weights ``weights``) or, when
+    its TLS cost is lower, that of the factors a Cauchy kernel's optimum leaves within the inlier
+    threshold, with those loops' weights (0 or 1)."""
+    cauchy, _ = _factors(gtsam, graph, "cauchy")
+    known_set = set(known)
+    at_cauchy = gtsam.LevenbergMarquardtOptimizer(cauchy, init, lm).optimize()
+    inlier = np.array([k in known_set or 2 * fg.at(k).error(at_cauchy) <= GNC_INLIER_CHI2 for k in range(fg.size())])
+    if not np.array_equal(inlier, kept):
+        other = _kept_optimum(gtsam, fg, init, lm, inlier)
+        if _tls_cost(fg, other, known_set) < _tls_cost(fg, values, known_set):
+            return other, np.array([float(inlier[len(graph.fixed) + e]) for e in graph.loops()])
+    return values, weights
 
 
 def _kept_optimum(gtsam: Any, fg: Any, init: Any, lm: Any, kept: Any) -> Any:
