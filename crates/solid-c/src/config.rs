@@ -81,12 +81,10 @@ named! {
 }
 
 /// The error of a name that is not a parameter of `P`; of one since removed
-/// ([`Params::REMOVED`]), saying so, why and what replaces it.
+/// ([`Params::REMOVED`]), saying so, in which version, why and what replaces it.
 fn unknown<P: Params>(name: &str) -> Failure {
     match removed_message::<P>(name) {
-        Some(why) => Failure::arg(format!(
-            "{why} (a config.json of an earlier run that names it loads without it, with a warning)"
-        )),
+        Some(why) => Failure::arg(why),
         None => Failure::arg(format!("unknown parameter {name:?}")),
     }
 }

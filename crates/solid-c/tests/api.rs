@@ -281,9 +281,10 @@ fn parameters_by_name_are_checked_and_kept_on_error() {
         );
         let said = last_error();
         assert!(
-            said.contains("\"view_min_overlap_deg\" was removed in solid ")
+            said.contains("\"view_min_overlap_deg\" was removed in solid 0.1.0: ")
                 && said.contains("the view check was removed")
-                && said.contains("nothing replaces it"),
+                && said.contains("nothing replaces it")
+                && !said.contains("config.json"),
             "{said}"
         );
         let mut v = 0.0;
@@ -291,7 +292,7 @@ fn parameters_by_name_are_checked_and_kept_on_error() {
             solid_detector_config_get(dc, removed.as_ptr(), &mut v),
             SolidStatus::InvalidArgument
         );
-        assert!(last_error().contains("was removed in solid "));
+        assert!(last_error().contains("was removed in solid 0.1.0: "));
         assert_eq!(
             solid_detector_config_set(dc, c("no_such_key").as_ptr(), 1.0),
             SolidStatus::InvalidArgument

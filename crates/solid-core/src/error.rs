@@ -279,7 +279,7 @@ impl fmt::Display for DbError {
             DbError::AnchorCount { given, places } => write!(
                 f,
                 "per-place anchors: {given} given, but the database merged has {places} places \
-                 (one transform per place, a row of NaN for a place without one)"
+                 (one transform per place: None, in Python a row of NaN, for a place without one)"
             ),
             DbError::BadAnchor { place, error } => write!(f, "anchor of place {place}: {error}"),
             DbError::Full => write!(f, "database full: at most 2^32 - 1 entries"),
@@ -294,6 +294,7 @@ impl std::error::Error for DbError {
         match self {
             DbError::Core(e) => Some(e),
             DbError::Io { source, .. } => Some(source),
+            DbError::BadAnchor { error, .. } => Some(error),
             _ => None,
         }
     }

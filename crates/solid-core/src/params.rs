@@ -173,11 +173,11 @@ pub trait Params: Sized + Copy + 'static {
     const NAME: &'static str;
     /// The fields, in the order users see them.
     const FIELDS: &'static [Field<Self>];
-    /// Parameters the set no longer has, each with why and what replaces it. Setting one (C
-    /// `*_config_set`, Python keyword arguments) is refused naming this ([`removed_message`]);
-    /// a `config.json` of an earlier run that names one loads without it, with a warning
-    /// (Python `solid.config.REMOVED_DETECTOR_KEYS`, read from here).
-    const REMOVED: &'static [(&'static str, &'static str)] = &[];
+    /// Parameters the set no longer has, each with the version that removed it, why, and what
+    /// replaces it. Setting one (C `*_config_set`, Python keyword arguments) is refused naming
+    /// this ([`removed_message`]); a `config.json` of an earlier run that names one loads
+    /// without it, with a warning (Python `solid.config.REMOVED_DETECTOR_KEYS`, read from here).
+    const REMOVED: &'static [Removed] = &[];
 
     /// The defaults (for a [`Field::required`] field, a placeholder that fails the checks).
     fn defaults() -> Self;
@@ -201,15 +201,29 @@ pub trait Params: Sized + Copy + 'static {
     }
 }
 
-/// Why parameter `name` of `P` is no more ([`Params::REMOVED`]), naming the version of this
-/// library it is gone from: None for a name never removed.
+/// A parameter a set no longer has ([`Params::REMOVED`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Removed {
+    /// Its name.
+    pub name: &'static str,
+    /// The version of solid that removed it (not the version built: a message of a later
+    /// version still names the one it went in).
+    pub since: &'static str,
+    /// Why, and what replaces it.
+    pub why: &'static str,
+}
+
+/// Why parameter `name` of `P` is no more ([`Params::REMOVED`]), naming the version of solid
+/// that removed it: None for a name never removed.
 #[cfg(feature = "alloc")]
 pub fn removed_message<P: Params>(name: &str) -> Option<alloc::string::String> {
-    P::REMOVED.iter().find(|(k, _)| *k == name).map(|(k, why)| {
+    P::REMOVED.iter().find(|r| r.name == name).map(|r| {
         alloc::format!(
-            "{} parameter {k:?} was removed in solid {}: {why}",
+            "{} parameter {:?} was removed in solid {}: {}",
             P::NAME,
-            env!("CARGO_PKG_VERSION")
+            r.name,
+            r.since,
+            r.why
         )
     })
 }

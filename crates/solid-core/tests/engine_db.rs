@@ -110,6 +110,12 @@ fn merge_with_one_anchor_per_place_carries_each_by_its_own() {
             .merge_anchored(&b, true, Some(MergeAnchor::PerPlace(&bad)))
             .unwrap_err();
         assert!(e.to_string().starts_with(says), "{e}");
+        // A bad transform's error is the one wrapped (its source); a count has none.
+        let source = std::error::Error::source(&e).map(|s| s.to_string());
+        match &e {
+            DbError::BadAnchor { error, .. } => assert_eq!(source, Some(error.to_string())),
+            _ => assert_eq!(source, None),
+        }
         assert_eq!(a.len(), 1);
     }
     let each = [Some(shift(10.0)), Some(shift(20.0)), None];

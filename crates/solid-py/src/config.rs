@@ -263,8 +263,8 @@ fn _param_table<'py>(py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyList>
 #[pyfunction]
 fn _removed_detector_keys<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
     let out = PyDict::new(py);
-    for (k, why) in DetectorConfig::REMOVED {
-        out.set_item(k, why)?;
+    for r in DetectorConfig::REMOVED {
+        out.set_item(r.name, r.why)?;
     }
     Ok(out)
 }

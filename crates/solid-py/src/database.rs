@@ -5,7 +5,7 @@
 use std::path::PathBuf;
 use std::sync::{Arc, PoisonError, RwLock, RwLockReadGuard, RwLockWriteGuard};
 
-use numpy::ndarray::{Array2, Array3};
+use numpy::ndarray::{Array2, Array3, ArrayView3};
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -669,23 +669,28 @@ impl PyDatabase {
     }
 }
 
-/// A per-place anchor array (N, 3, 4) or (N, 4, 4), float64: each row's transform, None where it
-/// is all NaN (that place keeps no pose).
+/// A per-place anchor array (N, 3, 4) or (N, 4, 4), float64 or float32: each row's transform,
+/// None where it is all NaN (that place keeps no pose).
 fn per_place_anchors(a: &Bound<'_, PyAny>) -> PyResult<Vec<Option<[f64; 12]>>> {
     let msg = "anchor: one transform per place must be a float64 or float32 array of shape \
                (len(other), 3, 4) or (len(other), 4, 4)";
-    // float32 is read as float64 (the transforms are applied in float64 either way).
-    let arr: Array3<f64> = if let Ok(a) = a.extract::<numpy::PyReadonlyArray3<'_, f64>>() {
-        a.as_array().to_owned()
+    // float64 is read where it lies; float32 alone is copied, as float64 (the transforms are
+    // applied in float64 either way).
+    if let Ok(a) = a.extract::<numpy::PyReadonlyArray3<'_, f64>>() {
+        anchor_rows(a.as_array(), msg)
     } else if let Ok(a) = a.extract::<numpy::PyReadonlyArray3<'_, f32>>() {
-        a.as_array().mapv(f64::from)
+        anchor_rows(a.as_array().mapv(f64::from).view(), msg)
     } else {
         let dtype = a
             .getattr("dtype")
             .map(|d| d.to_string())
             .unwrap_or_else(|_| "?".into());
-        return Err(PyTypeError::new_err(format!("{msg}; got dtype {dtype}")));
-    };
+        Err(PyTypeError::new_err(format!("{msg}; got dtype {dtype}")))
+    }
+}
+
+/// [`per_place_anchors`] of a float64 view.
+fn anchor_rows(arr: ArrayView3<'_, f64>, msg: &str) -> PyResult<Vec<Option<[f64; 12]>>> {
     let (n, rows, cols) = arr.dim();
     if !matches!((rows, cols), (3, 4) | (4, 4)) {
         return Err(PyValueError::new_err(format!(

@@ -1,7 +1,7 @@
 //! The parameters of a [`super::LoopDetector`]: [`DetectorConfig`] and its [`VerifyConfig`], with
 //! their defaults and checks.
 
-use crate::params::{field, Field, Kind, Params, FINITE};
+use crate::params::{field, Field, Kind, Params, Removed, FINITE};
 use crate::reg::{self, Gate, RegConfig};
 use crate::{Error, Preset, PRESETS};
 
@@ -376,20 +376,23 @@ impl Params for DetectorConfig {
     /// Checks removed since they were written to configurations, each with why and what
     /// replaces it (nothing, for these: off, they changed no loop or only lost right ones;
     /// docs/performance.md#the-trust-matrix-issue-41).
-    const REMOVED: &'static [(&'static str, &'static str)] = &[
-        (
-            "pose_candidate_shift_m",
-            "the shifted re-registration of candidates chosen by pose was removed (off, no loop \
-             was wrong and some right ones more); nothing replaces it",
-        ),
-        (
-            "view_fov_deg",
-            "the view check was removed (off, no loop changed); nothing replaces it",
-        ),
-        (
-            "view_min_overlap_deg",
-            "the view check was removed (off, no loop changed); nothing replaces it",
-        ),
+    const REMOVED: &'static [Removed] = &[
+        Removed {
+            name: "pose_candidate_shift_m",
+            since: "0.1.0",
+            why: "the shifted re-registration of candidates chosen by pose was removed (off, no \
+                  loop was wrong and some right ones more); nothing replaces it",
+        },
+        Removed {
+            name: "view_fov_deg",
+            since: "0.1.0",
+            why: "the view check was removed (off, no loop changed); nothing replaces it",
+        },
+        Removed {
+            name: "view_min_overlap_deg",
+            since: "0.1.0",
+            why: "the view check was removed (off, no loop changed); nothing replaces it",
+        },
     ];
     const FIELDS: &'static [Field<DetectorConfig>] = &[
         field!(DetectorConfig, "exclude_frames", exclude_frames, COUNT, "an integer >= 0",
