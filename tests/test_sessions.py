@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -47,6 +48,33 @@ def city() -> tuple[sim.World, sim.Trajectory, Any, PipelineConfig, sim.Sensor]:
     mapper = solid.LoopDetector(cfg.descriptor, detector=cfg.detector)
     mapper.detect_many(sim.simulate(world, sensor, lap).scans, poses=sim.Session.of(lap).trajectory.poses)
     return world, lap, mapper.database, cfg, sensor
+
+
+def test_frames_no_anchor_places_are_named_stretch_by_stretch_and_none_placed_is_refused(tmp_path: Path) -> None:
+    """The frames a note names (``localize.frame_spans``): the recording's numbers of a run, one
+    range per stretch of frames next to each other in the run. ``slam.nearest_placed`` of anchors
+    that place no frame lists every frame (nothing to take), and ``place_in_map`` refuses it, as
+    ``anchor_file`` refuses a file of NaN rows alone, naming it."""
+    from solid import commands, slam
+    from solid.localize import frame_spans
+
+    ids = [1, 2, 3, 4, 5, 10, 11, 12, 20]
+    assert frame_spans(ids, [0, 1, 5, 6, 8]) == "1–2, 10–11, 20"
+    assert frame_spans(ids, [4, 3]) == "4–5"
+    nan = np.full((3, 4, 4), np.nan)
+    T, borrowed = slam.nearest_placed(nan)
+    assert borrowed == [0, 1, 2] and np.isnan(T).all()
+    some = nan.copy()
+    some[2] = np.eye(4)
+    T, borrowed = slam.nearest_placed(some)
+    assert borrowed == [0, 1] and (T == np.eye(4)).all()
+    run3 = SimpleNamespace(map_size=0, frame_ids=np.arange(3), database=[None] * 3, poses=None)
+    with pytest.raises(solid.ConfigError, match="place no frame of this run"):
+        commands.place_in_map(run3, nan)  # type: ignore[arg-type]
+    path = tmp_path / commands.ANCHORS_FILE
+    commands.write_frame_anchors(tmp_path, nan, "s")
+    with pytest.raises(solid.ConfigError, match=f"{path}: every row is nan: no row places a frame"):
+        commands.anchor_file(path)
 
 
 def test_a_session_in_its_own_frame_is_placed_in_the_map_by_consistent_loops(city: Any) -> None:
@@ -341,7 +369,7 @@ def test_optimize_map_starts_a_stretch_no_anchor_placed_at_the_nearest_and_says_
     import dataclasses
 
     from solid import commands, slam
-    from solid.localize import frame_anchors_of_run
+    from solid.localize import frame_anchors_of_run, frame_spans
     from solid.pipeline import LoopClosurePipeline
 
     world, lap, db, cfg, sensor = city
@@ -366,7 +394,7 @@ def test_optimize_map_starts_a_stretch_no_anchor_placed_at_the_nearest_and_says_
     # Started at another stretch's anchor, across the 20 m jumps: a guess, tens of metres off.
     assert off[:6].min() > 20.0
     note = commands.optimize_stretches_note(out, res)
-    assert f"frames {unplaced[0]}-{unplaced[-1]} ({len(unplaced)}) lie in stretches no anchor placed" in note
+    assert f"frames {frame_spans(res.frame_ids, unplaced)} ({len(unplaced)}) lie in stretches no anchor placed" in note
     # Why an optimum gives no anchor, as `solid optimize --map` prints it after "anchor: none".
     assert commands.why_no_anchor(res).startswith(f"no verified loop into the map kept: the optimum kept none of the {len(slam.map_loops(res)[1])}")
     away = away_route(world)
@@ -376,33 +404,64 @@ def test_optimize_map_starts_a_stretch_no_anchor_placed_at_the_nearest_and_says_
 
 def check_eval_and_view_take_per_frame_anchors(capsys: pytest.CaptureFixture[str], tmp_path: Path, s1: Path, m0: str, odo: str, truth: np.ndarray) -> None:
     """`solid eval --anchor anchors.kitti` of that broken session (refused before: "found 30
-    poses") places each frame by its own row; a row of NaN (frames 0-2 here) is a frame no anchor
-    places: scored at the nearest placed frame's and listed (metrics.json, a note), left out of
-    `solid view`'s trajectory. `--anchor anchor.txt`, which maps only some frames, is applied to
-    every frame with a note saying so; `solid view` of a run whose anchor.txt is partial draws it
-    by anchors.kitti beside it, or without it by anchor.txt with that note."""
+    poses") places each frame by its own row; a row of NaN is a frame no anchor places: scored at
+    the nearest placed frame's and listed (metrics.json, one note naming its frames by the
+    recording's numbers, stretch by stretch: a run of --frames 1:, rows of NaN for frames 1-2 and
+    10-11), left out of `solid view`'s trajectory. A file of NaN rows alone, or of another frame
+    count, is refused before the run. `--anchor anchor.txt`, which maps only some frames, is
+    applied to every frame with a note saying so; `solid view` of a run whose anchor.txt is
+    partial draws it by anchors.kitti beside it, or without it by anchor.txt with that note."""
     import shutil
 
-    from solid import view
+    from solid import commands, view
     from solid.commands import ANCHORS_FILE, merge_anchor, write_frame_anchors
 
     loc = tmp_path / "loc"
-    each = merge_anchor(loc / ANCHORS_FILE)
-    each[:3] = np.nan
+    full = merge_anchor(loc / ANCHORS_FILE)
+    argv = ("eval", str(s1), "--poses", odo, "--map", m0, "-q", "--no-plots")
+
+    def no_run(*args: Any) -> Any:
+        raise AssertionError("the detection run started")
+
+    # Refused before the run: rows of NaN alone (no row places a frame), and another frame count.
+    for name, rows, says in (
+        ("nan", np.full_like(full, np.nan), "every row is nan: no row places a frame"),
+        ("short", full[:20], f"holds 20 transforms, one per frame of its run, but this run has {len(truth)} frames"),
+    ):
+        d = tmp_path / f"anchors_{name}"
+        d.mkdir()
+        write_frame_anchors(d, rows, "s1")
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setattr(commands, "_run", no_run)
+            code, _, err = run(capsys, *argv, "--anchor", str(d / ANCHORS_FILE), "-o", str(tmp_path / f"ev_{name}"))
+        assert code != 0 and f"{d / ANCHORS_FILE}" in err and says in err, err
+        assert not (tmp_path / f"ev_{name}").exists()
+    # So from Python, the anchor file's path a str, or the anchors an array.
+    ds, _ = commands.open_recording(s1, poses=odo)
+    for short, says in ((str(tmp_path / "anchors_short" / ANCHORS_FILE), "holds 20 transforms"), (full[:20], f"20 per-frame anchors for a run of {len(truth)} frames")):
+        with pytest.MonkeyPatch.context() as mp, pytest.raises(solid.ConfigError, match=says):
+            mp.setattr(commands, "_run", no_run)
+            commands.evaluate(ds, PipelineConfig.preset("vlp16"), commands.Inputs(s1), map_db=object(), anchor=short)
+
+    # A run not numbered from 0 (frames 1-29), no anchor for frames 1-2 and 10-11 (rows 0-1, 9-10).
+    gone = [0, 1, 9, 10]
+    each = full[1:].copy()
+    each[gone] = np.nan
     gaps = tmp_path / "gaps"
     gaps.mkdir()
     write_frame_anchors(gaps, each, "s1")
     ev = tmp_path / "ev_each"
-    argv = ("eval", str(s1), "--poses", odo, "--map", m0, "-q", "--no-plots")
-    code, out, err = run(capsys, *argv, "--anchor", str(gaps / ANCHORS_FILE), "-o", str(ev))
+    code, out, err = run(capsys, *argv, "--frames", "1:", "--anchor", str(gaps / ANCHORS_FILE), "-o", str(ev))
     assert code == 0, err
     a = json.loads((ev / "metrics.json").read_text())["anchor"]
-    assert a["source"] == "given" and a["T_map_session"] is None and a["per_frame"] == {"frames": len(truth), "unplaced_frames": [0, 1, 2]}
-    assert "3 of 30 frames" in err and "3 frames no anchor places (frames 0-2)" in err
+    frames = len(truth) - 1
+    assert a["source"] == "given" and a["T_map_session"] is None and a["per_frame"] == {"frames": frames, "unplaced_frames": [1, 2, 10, 11]}
+    said = f"4 of {frames} frames no anchor places (frames 1–2, 10–11) are scored at the nearest placed frame's anchor"
+    assert err.count("no anchor places") == 1 and said in err and [n for n in a["notes"] if said in n] == a["notes"]
     rv = view.read_run(ev)
-    off = np.linalg.norm(rv.trajectories["odometry"][:, :3, 3] - truth[:, :3, 3], axis=1)
-    assert np.isnan(off[:3]).all() and off[3:].max() < 1.0, np.round(off, 2)
-    assert any("3 of 30 frames" in n for n in rv.notes)
+    off = np.linalg.norm(rv.trajectories["odometry"][:, :3, 3] - truth[1:, :3, 3], axis=1)
+    assert np.isnan(off[gone]).all() and np.delete(off, gone).max() < 1.0, np.round(off, 2)
+    assert any(f"4 of {frames} frames no anchor places (frames 1–2, 10–11): left out" in n for n in rv.notes), rv.notes
 
     code, out, err = run(capsys, *argv, "--anchor", str(loc / "anchor.txt"), "-o", str(tmp_path / "ev_one"))
     assert code == 0, err
@@ -414,11 +473,11 @@ def check_eval_and_view_take_per_frame_anchors(capsys: pytest.CaptureFixture[str
     both = tmp_path / "ev_both"
     shutil.copytree(ev, both)
     shutil.copy(loc / "anchor.txt", both / "anchor.txt")
-    off = np.linalg.norm(view.read_run(both).trajectories["odometry"][:, :3, 3] - truth[:, :3, 3], axis=1)
-    assert np.isnan(off[:3]).all() and off[3:].max() < 1.0
+    off = np.linalg.norm(view.read_run(both).trajectories["odometry"][:, :3, 3] - truth[1:, :3, 3], axis=1)
+    assert np.isnan(off[gone]).all() and np.delete(off, gone).max() < 1.0
     (both / ANCHORS_FILE).unlink()
     rv = view.read_run(both)
-    off = np.linalg.norm(rv.trajectories["odometry"][:, :3, 3] - truth[:, :3, 3], axis=1)
+    off = np.linalg.norm(rv.trajectories["odometry"][:, :3, 3] - truth[1:, :3, 3], axis=1)
     assert any("yet is applied to every frame" in n for n in rv.notes) and off.max() > 10.0
 
 
@@ -498,5 +557,9 @@ def test_map_merge_places_each_stretch_of_a_broken_odometry_by_its_own_anchor(ca
     pytest.importorskip("gtsam")
     code, out, err = run(capsys, "optimize", str(s1), "--poses", odo, "--map", m0, "--preset", "vlp16", "-q", "--no-plots", "-o", str(tmp_path / "opt"))
     assert code == 0, err
+    # Its note (each stretch started at its own anchor): metrics.json anchor.notes, a list, printed.
+    a = json.loads((tmp_path / "opt" / "metrics.json").read_text())["anchor"]
+    assert "note" not in a and len(a["notes"]) == 1 and a["notes"][0].startswith("the odometry broke: the optimisation started each of the")
+    assert f"note: {a['notes'][0]}\n" in out
     off = merged_off(tmp_path / "opt" / "anchors.kitti", "opt.soliddb")
     assert off.max() < 0.5, np.round(off, 2)

@@ -637,12 +637,6 @@ def cmd_eval(args: argparse.Namespace, out: TextIO) -> int:
         out.write(f"session placed in the map's world: {how.get(a['source'], a['source'])}\n")
         for note in a.get("notes", []):
             sys.stderr.write(f"note: {note}\n")
-        unplaced = (a.get("per_frame") or {}).get("unplaced_frames")
-        if unplaced:
-            sys.stderr.write(
-                f"note: {len(unplaced)} frames no anchor places (frames {unplaced[0]}-{unplaced[-1]}) are scored at the nearest "
-                "placed frame's anchor: a guess across a break of the odometry (metrics.json anchor.per_frame.unplaced_frames)\n"
-            )
     excl = m.get("exclusion_median_m")
     if excl is not None:
         out.write(f"exclusion: {cfg.detector.exclude_frames} frames ≈ {excl:.1f} m travelled on this sequence (median)\n")
@@ -723,8 +717,8 @@ def cmd_optimize(args: argparse.Namespace, out: TextIO) -> int:
             + f"{a['inlier_loops']} of {a['cross_session_loops']} loops into the map (in loops.csv; graph.g2o holds the session's own graph, "
             "so `--loops` reuses only its loops within the session)\n"
         )
-        if a is not None and a.get("note"):
-            out.write(f"note: {a['note']}\n")
+        for note in [] if a is None else a.get("notes", []):
+            out.write(f"note: {note}\n")
     out.write(f"wrote {run.folder}\n")
     return 0
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import json
 import shlex
 import time
@@ -27,7 +28,7 @@ from .datasets import Dataset, detect_format, open_dataset, read_points
 from .datasets.selection import iter_selected
 from .evaluation import Evaluation, loop_delay_steps
 from .outputs import Output, atomic_write_bytes, output_folder, write_csv, write_json
-from .pipeline import DEFAULT_FOV_CENTER, LoopClosurePipeline, PipelineResult, Progress
+from .pipeline import DEFAULT_FOV_CENTER, LoopClosurePipeline, PipelineResult, Progress, check_run
 from .records import LOOP_COLUMNS, QUERY_COLUMNS, fmt_opt, pose_columns
 from .transforms import quaternion
 
@@ -264,8 +265,8 @@ def anchor_dict(result: Any) -> dict[str, Any] | None:
 
 def anchor_scope(result: Any) -> dict[str, Any]:
     """The frames the run's placement (``result.map_anchor``) maps — one stretch of the odometry
-    between breaks — and, when that is not every frame (the odometry broke), a ``note`` saying
-    so: ``from_frame``, ``to_frame`` (None: through the last), ``stretches`` (how many stretches
+    between breaks — and, when that is not every frame (the odometry broke), ``notes`` (a list)
+    saying so: ``from_frame``, ``to_frame`` (None: through the last), ``stretches`` (how many stretches
     loops into the map placed, each with its own anchor: ``solid localize --json``)."""
     from .localize import placement_of_run
 
@@ -277,17 +278,17 @@ def anchor_scope(result: Any) -> dict[str, Any]:
     # numbered from where a cut of a longer drive begins).
     first = int(result.frame_ids[0]) if len(result.frame_ids) else 0
     if (first if p.from_frame is None else p.from_frame) > first or p.to_frame is not None:
-        out["note"] = (
+        out["notes"] = [
             f"the odometry broke: the anchor places frames {p.frames} only, the "
             "other frames lie in other frames of the odometry (each stretch's anchor: solid localize --json, stretches; docs/loops.md#breakdowns)"
-        )
+        ]
     return out
 
 
 def partial_anchor(result: Any, what: str) -> str | None:
     """What ``anchor.txt`` says (:data:`PARTIAL_ANCHOR`) when the run's odometry broke, so that
     one transform does not map every frame (``what``: the frames it maps); None otherwise."""
-    if anchor_scope(result).get("note") is None and len(result.map_anchors) < 2:
+    if not anchor_scope(result).get("notes") and len(result.map_anchors) < 2:
         return None
     return f"it maps {what} only: the odometry broke ({len(result.map_anchors)} of its stretches placed, each with its own anchor)"
 
@@ -300,8 +301,10 @@ def optimize_stretches_note(run: Any, result: Any) -> str:
         "(anchor.txt holds the first frame's, anchors.kitti each frame's for solid map merge --anchor; docs/loops.md#breakdowns)"
     )
     if run.borrowed:
-        frames = [int(result.frame_ids[k]) for k in run.borrowed]
-        note += f"; frames {frames[0]}-{frames[-1]} ({len(frames)}) lie in stretches no anchor placed and started at the nearest placed stretch's"
+        from .localize import frame_spans
+
+        spans = frame_spans(result.frame_ids, run.borrowed)
+        note += f"; frames {spans} ({len(run.borrowed)}) lie in stretches no anchor placed and started at the nearest placed stretch's"
     return note
 
 
@@ -326,11 +329,11 @@ def describe_anchor(result: Any) -> str:
     if a is None:
         return "not placed in the map: too few loops into it agree with each other (no loop into the map is accepted before)"
     t = a["transform"]
-    note = anchor_scope(result).get("note")
+    notes = anchor_scope(result).get("notes", [])
     return (
         f"placed in the map from frame {a['first_frame']} by {a['loops']} consistent loops over {a['metres']:.0f} m "
         f"(map <- session translation {t[0][3]:.2f}, {t[1][3]:.2f}, {t[2][3]:.2f} m; summary.json map_anchor)"
-        + ("" if note is None else f"; {note}")
+        + "".join(f"; {n}" for n in notes)
     )
 
 
@@ -587,9 +590,10 @@ def evaluate(
     same questions (the same queries, each with the same places to choose from). ``extra`` is
     added to ``metrics.json``; ``write_more(folder, result, evaluations)`` writes further files
     into the output folder before it appears. Against a map, the session is placed in the map's
-    world first (:func:`place_in_map` with ``anchor``; a path: an anchor file, :func:`run_anchor`,
-    whose notes ``metrics.json`` keeps, and whose per-frame anchors are written to the folder as
-    :data:`ANCHORS_FILE`), and ``metrics.json`` says how.
+    world first (:func:`place_in_map` with ``anchor``: a path (``str`` or ``os.PathLike``) is an
+    anchor file, :func:`run_anchor`, read and checked against the run's frame count before the
+    run; per-frame anchors, from a file or an (N, 4, 4) array, are written to the folder as
+    :data:`ANCHORS_FILE`), and ``metrics.json`` says how (``anchor``, its ``notes`` a list).
     """
     if getattr(dataset, "poses", None) is None:
         raise _solid.ConfigError("evaluation needs poses (give --poses)")
@@ -603,20 +607,27 @@ def evaluate(
         def on_scan(i: int, pts: Any) -> None:
             sc_desc.append(sc.describe(pts, scancontext))
 
+    # An anchor file is read, and per-frame anchors checked against the run's frame count,
+    # before the run.
+    given = Path(anchor) if map_db is not None and isinstance(anchor, (str, os.PathLike)) and anchor != "same" else None
+    notes: list[str] = []
+    if given is not None:
+        anchor, notes = run_anchor(given, len(check_run(dataset, config)))
+    elif map_db is not None and anchor is not None and not isinstance(anchor, str) and np.ndim(anchor) == 3:
+        frames = len(check_run(dataset, config))
+        if len(anchor) != frames:
+            raise _solid.ConfigError(f"{len(anchor)} per-frame anchors for a run of {frames} frames: give this run's")
     result = _run(dataset, config, map_db, threads, progress, on_scan)
     placed = None
     each = None
     if map_db is not None:
-        given = anchor if isinstance(anchor, Path) else None
-        notes: list[str] = []
-        if given is not None:
-            anchor, notes = run_anchor(given, len(result.frame_ids))
-            each = anchor if anchor.ndim == 3 else None
         result, placed = place_in_map(result, anchor)
+        if placed.get("per_frame") is not None:
+            each = np.asarray(anchor, dtype=np.float64)  # the rows given, NaN where none places a frame
         if given is not None:
             placed["file"] = str(given.absolute())
-        if notes:
-            placed["notes"] = notes
+        if notes or placed.get("notes"):
+            placed["notes"] = notes + placed.get("notes", [])
     main = result.evaluate()
     if main.query.size == 0:
         raise _solid.ConfigError(
@@ -1083,6 +1094,8 @@ def anchor_file(path: Path) -> tuple[Any, str | None]:
         T = read_anchor(path)[None]
     if len(T) == 1 and not np.isfinite(T).all():
         raise _solid.ConfigError(f"{path}: its one transform is nan: nothing places that session")
+    if not np.isfinite(T).all(axis=(1, 2)).any():
+        raise _solid.ConfigError(f"{path}: every row is nan: no row places a frame, so nothing places that session")
     return T, partial
 
 
@@ -1090,10 +1103,26 @@ def run_anchor(path: Path, frames: int) -> tuple[Any, list[str]]:
     """An anchor file (:func:`anchor_file`) for the ``frames`` frames of one run (``solid eval
     --anchor``, ``solid view``): ``anchor.txt``'s one transform (4, 4) for every frame, or
     :data:`ANCHORS_FILE`'s one per frame (``frames``, 4, 4; a row of NaN: a frame no anchor
-    places), with the notes to print: an ``anchor.txt`` that maps only some frames applied to
-    every frame anyway, the frames no anchor places. A per-frame file of another frame count is
-    refused, naming both."""
-    T, partial = anchor_file(path)
+    places; the caller says what it does with those frames), with the notes to print: an
+    ``anchor.txt`` that maps only some frames applied to every frame anyway. A per-frame file of
+    another frame count is refused, naming both."""
+    return _run_anchor(path, *anchor_file(path), frames)
+
+
+def folder_anchor(folder: Path, frames: int) -> tuple[Any, list[str]] | None:
+    """The anchor a run folder holds for its ``frames`` frames (:func:`run_anchor`; None: no
+    anchor file): ``anchor.txt``, or :data:`ANCHORS_FILE` beside it when ``anchor.txt`` maps only
+    some frames (or is not there). Each file is read once."""
+    one, each = folder / "anchor.txt", folder / ANCHORS_FILE
+    if one.is_file():
+        T, partial = anchor_file(one)
+        if partial is None or not each.is_file():
+            return _run_anchor(one, T, partial, frames)
+    return run_anchor(each, frames) if each.is_file() else None
+
+
+def _run_anchor(path: Path, T: Any, partial: str | None, frames: int) -> tuple[Any, list[str]]:
+    """:func:`run_anchor` of the file ``path`` read (:func:`anchor_file`: ``T``, ``partial``)."""
     notes: list[str] = []
     if len(T) == 1:
         if partial is not None:
@@ -1107,9 +1136,6 @@ def run_anchor(path: Path, frames: int) -> tuple[Any, list[str]]:
             f"{path} holds {len(T)} transforms, one per frame of its run, but this run has {frames} frames: "
             "give the anchors of this run (the same recording and --frames)"
         )
-    unplaced = np.flatnonzero(np.isnan(T).all(axis=(1, 2)))
-    if unplaced.size:
-        notes.append(f"{path}: {unplaced.size} of {frames} frames (the first: frame index {int(unplaced[0])}) no anchor places")
     return T, notes
 
 
@@ -1152,7 +1178,7 @@ def place_in_map(result: PipelineResult, anchor: Any) -> tuple[PipelineResult, d
     known: ``anchor`` is a 4×4 ``T_map_session`` (given) or one per frame of the run ((N, 4, 4),
     :func:`run_anchor` of :data:`ANCHORS_FILE`; a frame of a row of NaN is placed by the nearest
     placed frame's, :func:`solid.slam.nearest_placed`, and listed: ``per_frame``,
-    ``unplaced_frames``), ``"same"`` (the user says the poses
+    ``unplaced_frames``, and a note in ``notes``; refused when no row places a frame), ``"same"`` (the user says the poses
     already are in the map's world), or None: estimated from the run's verified loops into the
     map (:func:`solid.slam.anchor_of_run`: the detector's placement, or the loops' consensus when
     the run has none), an error when there is none."""
@@ -1189,10 +1215,17 @@ def place_in_map(result: PipelineResult, anchor: Any) -> tuple[PipelineResult, d
         if len(T) != frames or len(result.database) - base != frames:
             raise _solid.ConfigError(f"{len(T)} per-frame anchors for a run of {frames} frames ({len(result.database) - base} places): give this run's")
         T, borrowed = slam.nearest_placed(T)
-        if borrowed and len(borrowed) == frames:
+        if len(borrowed) == frames:
             raise _solid.ConfigError("the per-frame anchors place no frame of this run: nothing says where the session lies in the map's world")
         how["T_map_session"] = None
         how["per_frame"] = {"frames": frames, "unplaced_frames": [int(result.frame_ids[k]) for k in borrowed]}
+        if borrowed:
+            from .localize import frame_spans
+
+            how.setdefault("notes", []).append(
+                f"{len(borrowed)} of {frames} frames no anchor places (frames {frame_spans(result.frame_ids, borrowed)}) are scored at the "
+                "nearest placed frame's anchor: a guess across a break of the odometry (metrics.json anchor.per_frame.unplaced_frames)"
+            )
     else:
         how["T_map_session"] = T[:3].tolist()
     poses = None if result.poses is None else (T @ slam.as4(result.poses))[:, :3, :]
@@ -1284,7 +1317,9 @@ def optimize(
         metrics["anchor"].update(anchor_scope(result))
         if run.stretches > 1:
             metrics["anchor"]["stretches_started"] = run.stretches
-            metrics["anchor"]["note"] = optimize_stretches_note(run, result)
+            # Each stretch started at its own anchor: this note replaces anchor_scope's (which
+            # says one anchor maps only some frames).
+            metrics["anchor"]["notes"] = [optimize_stretches_note(run, result)]
     elif map_db is not None:
         metrics["anchor"] = None
         metrics["anchor_none"] = why_no_anchor(result)
@@ -1357,7 +1392,6 @@ def _optimize_reused(
     """The frames the run selects (no scan is read), optimised with the loops of ``loops_from``
     (:func:`solid.slam.optimize_with_loops_of`)."""
     from . import slam
-    from .pipeline import check_run
 
     idx = check_run(dataset, config)
     poses = np.asarray(dataset.poses, dtype=np.float64)[idx]

@@ -175,6 +175,21 @@ def frame_range(from_frame: int | None, to_frame: int | None) -> str:
     return f"{from_frame or 0}–{'the last' if to_frame is None else to_frame}"
 
 
+def frame_spans(frame_ids: Any, indices: Any) -> str:
+    """Frames of a run (``indices`` into it) as the recording's frame numbers (``frame_ids``, the
+    run's), one :func:`frame_range` per stretch of frames next to each other in the run (one
+    number for a frame alone): "0–7, 20–25"."""
+    ks = sorted({int(k) for k in indices})
+    spans: list[list[int]] = []
+    for k in ks:
+        if spans and k == spans[-1][1] + 1:
+            spans[-1][1] = k
+        else:
+            spans.append([k, k])
+    ids = [int(f) for f in frame_ids]
+    return ", ".join(str(ids[a]) if a == b else frame_range(ids[a], ids[b]) for a, b in spans)
+
+
 def placements_of_run(result: Any) -> list[Placement]:
     """One :class:`Placement` per stretch of the run's odometry between breaks that loops into
     the map placed (``result.map_anchors``), in order; the last is :func:`placement_of_run`'s.

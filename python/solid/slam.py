@@ -545,16 +545,16 @@ def _factors(gtsam: Any, graph: PoseGraph, robust: str) -> tuple[Any, list[int]]
     return fg, known
 
 
-def optimize_graph(graph: PoseGraph, robust: str = ROBUST_SCHEMES[0], *, max_iterations: int = 100, tls_guard: bool = True) -> tuple[F64, F64]:
+def optimize_graph(graph: PoseGraph, robust: str = ROBUST_SCHEMES[0], *, max_iterations: int = 100) -> tuple[F64, F64]:
     """Optimise ``graph`` with GTSAM (Levenberg–Marquardt) from its initial values, the
     vertices :attr:`PoseGraph.fixed` held at their poses. ``robust`` (one of
     :data:`ROBUST_SCHEMES`) treats the loop edges:
     ``gnc-tls``/``gnc-gm`` graduated non-convexity with a truncated-least-squares / Geman–McClure
     cost (odometry known to be inliers), ``cauchy``/``dcs``/``huber`` an M-estimator kernel,
     ``none`` plain least squares. Returns the optimised poses (N, 4, 4) and each loop edge's
-    weight in [0, 1] (how much the optimum trusts it; 1 without a robust scheme). ``tls_guard``
-    False returns GNC-TLS's own minimum, without the Cauchy optimum's loops as a second candidate
-    (docs/slam.md#robust-back-end; for comparison)."""
+    weight in [0, 1] (how much the optimum trusts it; 1 without a robust scheme). GNC-TLS's
+    own minimum is checked against that of the loops a Cauchy optimum keeps (:func:`_tls_guard`,
+    docs/slam.md#robust-back-end)."""
     if robust not in ROBUST_SCHEMES:
         raise ValueError(f"robust must be one of {', '.join(ROBUST_SCHEMES)}, got {robust!r}")
     gtsam = require_gtsam()
@@ -586,8 +586,7 @@ def optimize_graph(graph: PoseGraph, robust: str = ROBUST_SCHEMES[0], *, max_ite
             # out, the odometry's: one true loop moved to the adjacent keyframe flipped it,
             # docs/slam.md#robust-back-end). The loops a Cauchy kernel's optimum finds within
             # the inlier threshold are a second candidate; the lower TLS cost wins.
-            if tls_guard:
-                values, weights = _tls_guard(gtsam, graph, fg, init, lm, known, w > 0.5, values, weights)
+            values, weights = _tls_guard(gtsam, graph, fg, init, lm, known, w > 0.5, values, weights)
     else:
         values = gtsam.LevenbergMarquardtOptimizer(fg, init, lm).optimize()
         if robust in _KERNEL_WIDTH:
@@ -787,13 +786,14 @@ def stretch_anchors_of_run(result: Any) -> tuple[F64, list[int]] | None:
 def nearest_placed(anchors: npt.ArrayLike) -> tuple[F64, list[int]]:
     """Per-frame anchors (N, 4, 4; a row not finite: a frame no anchor places) with each such
     frame's taken from the nearest placed frame (by frames, the earlier on a tie: so its
-    stretch's anchor), and those frames (indices). Every frame NaN stays so (nothing to take)."""
+    stretch's anchor), and those frames (indices). When no frame is placed, nothing is there to
+    take: every row stays as it was and every frame is listed (callers refuse that)."""
     out = np.array(anchors, dtype=np.float64)
     finite = np.isfinite(out).all(axis=(1, 2))
     placed = np.flatnonzero(finite)
-    if not placed.size:
-        return out, []
     borrowed = [int(k) for k in np.flatnonzero(~finite)]
+    if not placed.size:
+        return out, borrowed
     for k in borrowed:
         out[k] = out[placed[int(np.argmin(np.abs(placed - k)))]]
     return out, borrowed

@@ -273,8 +273,9 @@ def read_run(folder: Path | str) -> RunView:
     ``solid optimize``; the recording is opened again (from the absolute paths the run recorded)
     for its poses, times and scans."""
     from . import _solid
-    from .commands import ANCHORS_FILE, anchor_file, open_recording, run_anchor
+    from .commands import folder_anchor, open_recording
     from .config import PipelineConfig
+    from .localize import frame_spans
     from .pipeline import check_run
 
     folder = Path(folder)
@@ -308,11 +309,16 @@ def read_run(folder: Path | str) -> RunView:
     places = None
     if map_size:
         a = meta.get("anchor")
-        one, each = folder / "anchor.txt", folder / ANCHORS_FILE
-        if one.is_file() or each.is_file():
-            partial = one.is_file() and anchor_file(one)[1] is not None
-            T_map, said = run_anchor(each if each.is_file() and (partial or not one.is_file()) else one, len(odometry))
+        held = folder_anchor(folder, len(odometry))
+        if held is not None:
+            T_map, said = held
             notes += said
+            unplaced = np.flatnonzero(np.isnan(T_map).all(axis=(1, 2))) if T_map.ndim == 3 else np.zeros(0, dtype=np.intp)
+            if unplaced.size:
+                notes.append(
+                    f"{len(unplaced)} of {len(odometry)} frames no anchor places (frames {frame_spans(frame_ids, unplaced)}): "
+                    "left out of the trajectory"
+                )
         elif isinstance(a, dict) and a.get("T_map_session") is not None:
             T_map = _as4(np.asarray(a["T_map_session"]))
             notes += a.get("notes", [])
