@@ -203,13 +203,22 @@ impl LoopDetector {
                     row[3] = step * d[i];
                 }
             }
-            let (ky, py) = self.place_at(y, false)?;
+            // The pose at the break's end, and the frame of the own odometry it lies in: the
+            // place there, or `b` itself when it lies there and is no place yet (the step's
+            // query, related to the hypotheses before it before its place is added: without
+            // it, the first query after a break agreed with nothing before the break, and
+            // joining a consistent set first it kept that set from reaching across).
+            let (fy, py) = match self.place_at(y, false) {
+                Some((ky, py)) => (self.known[ky].map(|(_, f)| f), py),
+                None if y == tb => (Some(self.chain.frame), *b),
+                None => return None,
+            };
             // The rotation the odometry made over the broken step, when its two ends lie in one
             // frame of it (the caller's poses): a breakdown loses the position sooner than the
             // heading (an IMU, a LiDAR odometry sliding along a corridor), and a turn made while
             // it was broken is a turn. Across a frame the detector's own odometry started, the
             // two frames' rotations are unrelated: none.
-            if self.known[kx].map(|(_, f)| f) == self.known[ky].map(|(_, f)| f) {
+            if self.known[kx].map(|(_, f)| f) == fy {
                 let turn = relative(&px, &py);
                 for (row, from) in s.iter_mut().zip(turn.iter()) {
                     row[..3].copy_from_slice(&from[..3]);
