@@ -57,7 +57,11 @@ pub struct VerifyConfig {
     /// query has a pose: the own session's eligible places nearest to the query's position,
     /// each within reach of an accepted loop (the gate's `max_translation` plus the odometry
     /// check's drift bounds after the path between the two). Among look-alike places the
-    /// descriptor's best rarely hold the true one; the odometry says roughly where it is. 0: none.
+    /// descriptor's best rarely hold the true one; the odometry says roughly where it is. One
+    /// more per typical step of the session the odometry may be off by after the path to the
+    /// nearest (`odometry_translation_m + odometry_drift · path`), at most this many more, unless
+    /// the latest loop (the anchor) gives the shorter path: after a lap without a loop the
+    /// nearest few are the true place's neighbours. 0: none.
     pub pose_candidates: usize,
     /// Smallest [`crate::reg::Degeneracy::translation`] a candidate chosen by pose must reach,
     /// above the gate's: it was chosen where the odometry puts the query and registered from
@@ -241,9 +245,11 @@ impl Default for VerifyConfig {
 pub const DEFAULT_VERIFY_CANDIDATES: usize = 5;
 
 /// Default [`VerifyConfig::pose_candidates`]: among look-alikes the descriptor's candidates rarely
-/// hold the true place, the two nearest the odometry's position do; their checks
-/// (`pose_candidate_min_information`, the odometry without the rotation's allowance) keep them right under a drifting odometry
-/// (docs/performance.md#loops-a-pose-graph-can-trust).
+/// hold the true place, the two nearest the odometry's position do (more after a long path,
+/// [`VerifyConfig::pose_candidates`]); their checks (`pose_candidate_min_information`, the
+/// odometry check with the displacement the rotation predicts) keep them right under a drifting
+/// odometry (docs/performance.md#loops-a-pose-graph-can-trust,
+/// docs/performance.md#after-a-lap-without-a-loop-the-places-the-odometry-cannot-tell-apart-r19-drift).
 pub const DEFAULT_POSE_CANDIDATES: usize = 2;
 
 /// Default [`VerifyConfig::pose_candidate_min_information`]
@@ -413,7 +419,7 @@ impl Params for DetectorConfig {
         field!(DetectorConfig, "verify_candidates", verify.candidates, Kind::Int { min: 1, max: MAX_TOP_K as u64 },
             "an integer in 1..=1000", "Candidates registered per step."),
         field!(DetectorConfig, "pose_candidates", verify.pose_candidates, Kind::Int { min: 0, max: MAX_TOP_K as u64 },
-            "an integer in 0..=1000", "Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates (0: none)."),
+            "an integer in 0..=1000", "Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates, and while no loop anchors the odometry one more per typical step it may be off by after the path (odometry_translation_m + odometry_drift · path), at most as many more (0: none)."),
         field!(DetectorConfig, "pose_candidate_min_information", verify.pose_candidate_min_information, Kind::closed(0.0, FINITE),
             "a finite number >= 0", "Smallest translation information (the gate's degeneracy.translation, per correspondence) a candidate chosen by pose must reach: its registration started where the odometry puts the query."),
         field!(DetectorConfig, "verify_hypotheses", verify.hypotheses, Kind::Int { min: 1, max: 16 },
