@@ -1061,11 +1061,11 @@ fn spread(mean: &Pose, xs: &[Pose]) -> Option<[[f64; 6]; 6]> {
 mod tests {
     use super::super::verify::relative;
     use super::super::verify::tests::{
-        detector_along, detector_with_path, pose, rejection, verified,
+        detector_along, detector_with_path, flat, pose, rejection, verified,
     };
     use super::*;
     use crate::db::{Database, DetectorConfig};
-    use crate::{Config, Descriptor, Stats};
+    use crate::Config;
 
     /// A detector over a map of 60 places 1 m apart along the map's x axis (facing +x), placing
     /// with `loops` loops over 3 m.
@@ -1073,12 +1073,7 @@ mod tests {
         let c = Config::preset("hdl64").unwrap();
         let mut db = Database::new(c).unwrap();
         for i in 0..60 {
-            let d = Descriptor {
-                r: alloc::vec![1.0 + i as f32; c.n_range],
-                a: alloc::vec![1.0; c.n_azimuth],
-                stats: Stats::default(),
-                fingerprint: c.fingerprint(),
-            };
+            let d = flat(&c, 1.0 + i as f32);
             db.add(&d, 0, f64::NAN, Some(pose(0.0, f64::from(i), 0.0)))
                 .unwrap();
         }
@@ -1624,12 +1619,7 @@ mod tests {
                 &rows_to_pose(&pose(0.0, 0.0, jump)),
                 &mul(&invert(&truth()), &rows_to_pose(&m)),
             );
-            let d = Descriptor {
-                r: alloc::vec![100.0 + k as f32; c.n_range],
-                a: alloc::vec![1.0; c.n_azimuth],
-                stats: Stats::default(),
-                fingerprint: c.fingerprint(),
-            };
+            let d = flat(&c, 100.0 + k as f32);
             det.detect(&d, f64::NAN, Some(crate::reg::pose_to_rows(&odo)))
                 .unwrap();
             in_map.push(m);
@@ -1689,12 +1679,7 @@ mod tests {
             crate::reg::pose_to_rows(&p)
         };
         for k in 0..12u32 {
-            let d = Descriptor {
-                r: alloc::vec![100.0 + k as f32; c.n_range],
-                a: alloc::vec![1.0; c.n_azimuth],
-                stats: Stats::default(),
-                fingerprint: c.fingerprint(),
-            };
+            let d = flat(&c, 100.0 + k as f32);
             det.detect(&d, f64::NAN, Some(odo(k, 0.0))).unwrap();
         }
         let own = det.session_start as u32;

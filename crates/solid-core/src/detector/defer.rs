@@ -410,9 +410,9 @@ impl LoopDetector {
 mod tests {
     use super::*;
     use crate::detector::nearby::tests::corridor;
-    use crate::detector::verify::tests::pose;
+    use crate::detector::verify::tests::{pose, with_r};
     use crate::detector::{DetectorConfig, Scan, VerifyConfig};
-    use crate::{Config, Descriptor, Points, Stats};
+    use crate::{Config, Descriptor, Points};
 
     /// A descriptor nearest to place `best`, then to place `next` (the others farther, equal).
     fn descriptor(c: &Config, best: usize, next: usize) -> Descriptor {
@@ -420,12 +420,7 @@ mod tests {
         r[0] = 1.0;
         r[best + 1] = 0.1;
         r[next + 1] += 0.05;
-        Descriptor {
-            r,
-            a: alloc::vec![1.0; c.n_azimuth],
-            stats: Stats::default(),
-            fingerprint: c.fingerprint(),
-        }
+        with_r(c, r)
     }
 
     /// The corridor's world seen from x (places 0..9 stand at x = 0..9, facing +x).

@@ -180,8 +180,9 @@ pub(super) fn weakest_translation(r: &reg::Registration) -> Option<[f64; 3]> {
 
 #[cfg(test)]
 pub(super) mod tests {
+    use crate::detector::verify::tests::with_r;
     use crate::detector::{DetectorConfig, LoopDetector};
-    use crate::{Config, Descriptor, Stats};
+    use crate::{Config, Descriptor};
 
     /// Row-major 3×4 pose at (x, y), facing +x.
     fn at(x: f64, y: f64) -> [f64; 12] {
@@ -191,12 +192,7 @@ pub(super) mod tests {
     fn descriptor(c: &Config, i: u32) -> Descriptor {
         let mut r = alloc::vec![1.0f32; c.n_range];
         r[i as usize % c.n_range] += 1.0;
-        Descriptor {
-            r,
-            a: alloc::vec![1.0; c.n_azimuth],
-            stats: Stats::default(),
-            fingerprint: c.fingerprint(),
-        }
+        with_r(c, r)
     }
 
     /// A 40 m corridor 6 m wide and 3 m high (walls, floor, ceiling every 0.2 m), with boxes at

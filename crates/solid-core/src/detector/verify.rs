@@ -1155,6 +1155,21 @@ pub(super) mod tests {
     use crate::reg::{Degeneracy, Registration};
     use crate::{Config, Descriptor, Stats};
 
+    /// A descriptor of `c` with R-SOLiD `r` and an A-SOLiD of ones.
+    pub(crate) fn with_r(c: &Config, r: Vec<f32>) -> Descriptor {
+        Descriptor {
+            r,
+            a: alloc::vec![1.0; c.n_azimuth],
+            stats: Stats::default(),
+            fingerprint: c.fingerprint(),
+        }
+    }
+
+    /// A descriptor of `c` whose R-SOLiD is `r` in every ring ([`with_r`]).
+    pub(crate) fn flat(c: &Config, r: f32) -> Descriptor {
+        with_r(c, alloc::vec![r; c.n_range])
+    }
+
     /// Row-major 3×4 pose: yaw (degrees) about z, then at (x, y).
     pub(crate) fn pose(yaw_deg: f64, x: f64, y: f64) -> [f64; 12] {
         let (s, c) = libm::sincos(yaw_deg.to_radians());
@@ -1293,12 +1308,7 @@ pub(super) mod tests {
         dc.verify.enabled = false;
         let mut det = LoopDetector::new(c, dc).unwrap();
         for i in 0..n {
-            let d = Descriptor {
-                r: alloc::vec![1.0 + i as f32; c.n_range],
-                a: alloc::vec![1.0; c.n_azimuth],
-                stats: Stats::default(),
-                fingerprint: c.fingerprint(),
-            };
+            let d = flat(&c, 1.0 + i as f32);
             let (p, t) = place(i);
             det.detect(&d, t, Some(p)).unwrap();
         }
