@@ -131,7 +131,7 @@ class Detection:
         """The candidates were drawn from the entries 0..eligible (the others were too recent); 0: nothing to search yet."""
     @property
     def candidates(self) -> list[Candidate]:
-        """Up to `top_k` candidates, best first; with verification and a pose, also the places chosen by pose (`pose_candidates`)."""
+        """Up to `top_k` candidates, best first; with verification and a pose, also the places chosen by pose (`pose_candidates`, up to twice that after a long path without a loop)."""
     @property
     def loop(self) -> Loop | None:
         """The loop, when the best candidate's score is at most the threshold; else None."""

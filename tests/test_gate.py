@@ -160,7 +160,7 @@ def test_with_a_drifting_odometry_loops_are_right_by_the_truth() -> None:
     """The detector sees a drifting odometry (0.01°/m of yaw, 1 % scale, noise); every loop it
     accepts is within the tolerance of the true relative pose, and it finds most revisits. The
     shipped defaults verify two places chosen by pose: without their checks (information floor,
-    restarts, the odometry without the rotation's allowance) 16 of their 33 loops here slid 4-15 m."""
+    restarts, the odometry check) 16 of their 33 loops here slid 4-15 m."""
     assert PipelineConfig.preset("os1-64").detector.pose_candidates > 0
     world, traj = corridor_walk(3)
     run = drift_run(world, traj, sim.Sensor("os1-64", h_fov=90.0), "os1-64", 3)

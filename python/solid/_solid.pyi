@@ -306,7 +306,7 @@ class DetectorConfig:
             rerank: Re-rank the candidates by R-SOLiD plus rotation-aligned A-SOLiD distance (a bool; default False).
             verify: Verify the best candidates by registering the places' clouds; a loop then carries its pose (a bool; default True).
             verify_candidates: Candidates registered per step (an integer in 1..=1000; default 5).
-            pose_candidates: Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates, and while no loop anchors the odometry one more per typical step it may be off by after the path (odometry_translation_m + odometry_drift · path), at most as many more (0: none) (an integer in 0..=1000; default 2).
+            pose_candidates: Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates, and, unless the latest loop gives the nearest place the shorter path, one more per typical step it may be off by after the path (odometry_translation_m + odometry_drift · path), at most as many more (0: none) (an integer in 0..=1000; default 2).
             pose_candidate_min_information: Smallest translation information (the gate's degeneracy.translation, per correspondence) a candidate chosen by pose must reach: its registration started where the odometry puts the query (a finite number >= 0; default 3.0).
             verify_hypotheses: Initial yaws per registration, at most (0°, the A-SOLiD minima, then the fan) (an integer in 1..=16; default 4).
             verify_fan_deg: The fixed ± yaw fan added to the hypotheses, degrees (0: none) (degrees in [0, 180]; default 25.0).
@@ -386,7 +386,7 @@ class DetectorConfig:
             rerank: Re-rank the candidates by R-SOLiD plus rotation-aligned A-SOLiD distance (a bool; default False).
             verify: Verify the best candidates by registering the places' clouds; a loop then carries its pose (a bool; default True).
             verify_candidates: Candidates registered per step (an integer in 1..=1000; default 5).
-            pose_candidates: Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates, and while no loop anchors the odometry one more per typical step it may be off by after the path (odometry_translation_m + odometry_drift · path), at most as many more (0: none) (an integer in 0..=1000; default 2).
+            pose_candidates: Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates, and, unless the latest loop gives the nearest place the shorter path, one more per typical step it may be off by after the path (odometry_translation_m + odometry_drift · path), at most as many more (0: none) (an integer in 0..=1000; default 2).
             pose_candidate_min_information: Smallest translation information (the gate's degeneracy.translation, per correspondence) a candidate chosen by pose must reach: its registration started where the odometry puts the query (a finite number >= 0; default 3.0).
             verify_hypotheses: Initial yaws per registration, at most (0°, the A-SOLiD minima, then the fan) (an integer in 1..=16; default 4).
             verify_fan_deg: The fixed ± yaw fan added to the hypotheses, degrees (0: none) (degrees in [0, 180]; default 25.0).
@@ -467,7 +467,7 @@ class DetectorConfig:
             rerank: Re-rank the candidates by R-SOLiD plus rotation-aligned A-SOLiD distance (a bool; default False).
             verify: Verify the best candidates by registering the places' clouds; a loop then carries its pose (a bool; default True).
             verify_candidates: Candidates registered per step (an integer in 1..=1000; default 5).
-            pose_candidates: Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates, and while no loop anchors the odometry one more per typical step it may be off by after the path (odometry_translation_m + odometry_drift · path), at most as many more (0: none) (an integer in 0..=1000; default 2).
+            pose_candidates: Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates, and, unless the latest loop gives the nearest place the shorter path, one more per typical step it may be off by after the path (odometry_translation_m + odometry_drift · path), at most as many more (0: none) (an integer in 0..=1000; default 2).
             pose_candidate_min_information: Smallest translation information (the gate's degeneracy.translation, per correspondence) a candidate chosen by pose must reach: its registration started where the odometry puts the query (a finite number >= 0; default 3.0).
             verify_hypotheses: Initial yaws per registration, at most (0°, the A-SOLiD minima, then the fan) (an integer in 1..=16; default 4).
             verify_fan_deg: The fixed ± yaw fan added to the hypotheses, degrees (0: none) (degrees in [0, 180]; default 25.0).
@@ -532,7 +532,7 @@ class DetectorConfig:
         """Candidates registered per step (an integer in 1..=1000; default 5)."""
     @property
     def pose_candidates(self) -> int:
-        """Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates, and while no loop anchors the odometry one more per typical step it may be off by after the path (odometry_translation_m + odometry_drift · path), at most as many more (0: none) (an integer in 0..=1000; default 2)."""
+        """Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates, and, unless the latest loop gives the nearest place the shorter path, one more per typical step it may be off by after the path (odometry_translation_m + odometry_drift · path), at most as many more (0: none) (an integer in 0..=1000; default 2)."""
     @property
     def pose_candidate_min_information(self) -> float:
         """Smallest translation information (the gate's degeneracy.translation, per correspondence) a candidate chosen by pose must reach: its registration started where the odometry puts the query (a finite number >= 0; default 3.0)."""
@@ -1671,7 +1671,7 @@ class Detection:
         """The candidates were drawn from the entries 0..eligible (the others were too recent); 0: nothing to search yet."""
     @property
     def candidates(self) -> list[Candidate]:
-        """Up to `top_k` candidates, best first; with verification and a pose, also the places chosen by pose (`pose_candidates`)."""
+        """Up to `top_k` candidates, best first; with verification and a pose, also the places chosen by pose (`pose_candidates`, up to twice that after a long path without a loop)."""
     @property
     def loop(self) -> Loop | None:
         """The loop, when the best candidate's score is at most the threshold; else None."""

@@ -169,8 +169,9 @@ impl LoopDetector {
     /// step before it (constant velocity; none known: no motion), with the rotation the odometry
     /// made over it (none across a frame the detector's own odometry started), and may be off by
     /// that typical step (the platform stopped, or moved twice its usual step): the poses on the
-    /// two sides are related through the places at the break's two ends. None when a break's end
-    /// has no own place with a pose.
+    /// two sides are related through the places at the break's two ends (at the end of the last
+    /// one, `b` itself when it lies there and is no place yet: the step's query, related before
+    /// its place is added). None when a break's end has no own place with a pose.
     pub(super) fn bridged(
         &self,
         a: &[f64; 12],
@@ -210,7 +211,11 @@ impl LoopDetector {
             // joining a consistent set first it kept that set from reaching across).
             let (fy, py) = match self.place_at(y, false) {
                 Some((ky, py)) => (self.known[ky].map(|(_, f)| f), py),
-                None if y == tb => (Some(self.chain.frame), *b),
+                None if y == tb => {
+                    // Only the step's own place is missing: every earlier one lies before it.
+                    debug_assert!(self.travelled.iter().all(|&t| t.is_nan() || t < tb));
+                    (Some(self.chain.frame), *b)
+                }
                 None => return None,
             };
             // The rotation the odometry made over the broken step, when its two ends lie in one

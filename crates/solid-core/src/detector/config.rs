@@ -419,7 +419,7 @@ impl Params for DetectorConfig {
         field!(DetectorConfig, "verify_candidates", verify.candidates, Kind::Int { min: 1, max: MAX_TOP_K as u64 },
             "an integer in 1..=1000", "Candidates registered per step."),
         field!(DetectorConfig, "pose_candidates", verify.pose_candidates, Kind::Int { min: 0, max: MAX_TOP_K as u64 },
-            "an integer in 0..=1000", "Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates, and while no loop anchors the odometry one more per typical step it may be off by after the path (odometry_translation_m + odometry_drift · path), at most as many more (0: none)."),
+            "an integer in 0..=1000", "Places nearest to the query's pose (own session, within reach of the gate and the odometry check) registered beside the descriptor's candidates, and, unless the latest loop gives the nearest place the shorter path, one more per typical step it may be off by after the path (odometry_translation_m + odometry_drift · path), at most as many more (0: none)."),
         field!(DetectorConfig, "pose_candidate_min_information", verify.pose_candidate_min_information, Kind::closed(0.0, FINITE),
             "a finite number >= 0", "Smallest translation information (the gate's degeneracy.translation, per correspondence) a candidate chosen by pose must reach: its registration started where the odometry puts the query."),
         field!(DetectorConfig, "verify_hypotheses", verify.hypotheses, Kind::Int { min: 1, max: 16 },

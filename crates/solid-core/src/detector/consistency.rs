@@ -1664,14 +1664,15 @@ mod tests {
         // break that the step made ends at the query itself, which the bridge takes in place of
         // the place at the break's end (none yet). Without it the first query after a break
         // agreed with no hypothesis before the break, and, the nearest to the break joining a
-        // set first, kept every set from reaching across it.
+        // set first, kept every set from reaching across it. The query turned 20° while the
+        // odometry broke: the turn is carried across (the caller's poses: one frame).
         let mut det = over_map(3);
         let mut dc = *det.config();
         dc.verify.enabled = false;
         det.set_config(dc).unwrap();
         let c = *det.map().config();
-        let odo = |k: u32, jump: f64| {
-            let m = rows_to_pose(&pose(0.0, f64::from(5 + k), 0.5));
+        let odo = |k: u32, jump: f64, yaw: f64| {
+            let m = rows_to_pose(&pose(yaw, f64::from(5 + k), 0.5));
             let p = mul(
                 &rows_to_pose(&pose(0.0, 0.0, jump)),
                 &mul(&invert(&truth()), &m),
@@ -1680,7 +1681,7 @@ mod tests {
         };
         for k in 0..12u32 {
             let d = flat(&c, 100.0 + k as f32);
-            det.detect(&d, f64::NAN, Some(odo(k, 0.0))).unwrap();
+            det.detect(&d, f64::NAN, Some(odo(k, 0.0, 0.0))).unwrap();
         }
         let own = det.session_start as u32;
         let (t5, t11) = (
@@ -1688,7 +1689,7 @@ mod tests {
             det.travelled_at(own + 11).unwrap(),
         );
         // The step into the query jumps 30 m to the side: a break ending at the query.
-        let (q, y) = (odo(12, 30.0), t11 + 30.0);
+        let (q, y) = (odo(12, 30.0, 20.0), t11 + 30.0);
         let largest = det.config().verify.gate.max_translation;
         assert!(det.breaks.note(t11, y, f64::NAN, largest));
         let p5 = det.known_pose(own + 5).unwrap();
@@ -1696,8 +1697,8 @@ mod tests {
             .bridged(&p5, t5, &q, y)
             .expect("related across the break");
         // Place 5 to the query: 6 m to place 11, then the session's typical step (1 m) ahead
-        // in place of the jump: where the query truly is, 7 m on.
-        let truly = relative(&p5, &odo(12, 0.0));
+        // in place of the jump, turned as the odometry turned: where the query truly is, 7 m on.
+        let truly = relative(&p5, &odo(12, 0.0, 20.0));
         let (m, deg) = crate::reg::pose_distance(&rel, &truly).unwrap();
         assert!(m < 1e-9 && deg < 1e-9, "{m} m, {deg}°");
         assert_eq!((path, off), (t11 - t5 + 1.0, 1.0));

@@ -197,8 +197,10 @@ impl LoopDetector {
             );
         }
         let det: &LoopDetector = self;
-        // The guards of a result from the odometry's start (those of a candidate chosen by pose
-        // that need no registration).
+        // The guards of a result from the odometry's start: the information floor and the
+        // odometry bounds without the rotation's allowance (stricter than a candidate chosen by
+        // pose's check, which adds it: a result from this start that fails them is registered
+        // again from the yaw hypotheses, not thrown away).
         let guarded = |(expected, path): (Pose, f64), s: &Verification| {
             let r = &s.registration;
             r.degeneracy.translation >= v.pose_candidate_min_information
