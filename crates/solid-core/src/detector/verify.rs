@@ -966,6 +966,22 @@ pub const CLUSTER_IDS: u32 = 2;
 /// held to the gate's floors.
 pub(super) type LinkViews<'a> = Option<(&'a [f32], &'a [f32])>;
 
+/// The overlap floors below which a stalled level of a candidate's registration stops (the gate
+/// rejects it there: [`reg::Floors`]); none (0) for a chain link, whose floors depend on the pose.
+fn stall_floors(v: &VerifyConfig, link: LinkViews<'_>) -> reg::Floors {
+    if link.is_some() {
+        reg::Floors {
+            fitness: 0.0,
+            structure: 0.0,
+        }
+    } else {
+        reg::Floors {
+            fitness: v.gate.min_fitness,
+            structure: v.gate.min_structure_fitness,
+        }
+    }
+}
+
 /// Registers one candidate once from `start` and checks the gate (without the hypotheses'
 /// agreement); None when the clouds cannot be registered.
 pub(super) fn seeded(
@@ -975,7 +991,13 @@ pub(super) fn seeded(
     start: &Pose,
     link: LinkViews<'_>,
 ) -> Result<Option<Verification>, DbError> {
-    let Ok(r) = reg::register(query, candidate, start, &v.registration) else {
+    let Ok(r) = reg::register_verifying(
+        query,
+        candidate,
+        start,
+        &v.registration,
+        stall_floors(v, link),
+    ) else {
         return Ok(None);
     };
     let check = gate_linked(v, &r, &[], 0, link);
@@ -1046,7 +1068,7 @@ pub(super) fn verify_yaws(
     } else {
         v.gate.min_fitness.clamp(0.0, 1.0)
     };
-    let Ok(h) = reg::register_hypotheses_for(
+    let Ok(h) = reg::register_hypotheses_verifying(
         query,
         candidate,
         &yaws[..m],
@@ -1054,6 +1076,7 @@ pub(super) fn verify_yaws(
         &v.registration,
         &mut hyps[..m],
         give_up,
+        stall_floors(v, link),
     ) else {
         return Ok(None);
     };

@@ -232,6 +232,76 @@ const MIN_STEP_SCALE: f64 = 0.125;
 /// Factor by which the step scale grows back after a step that lowered the cost.
 const STEP_RECOVERY: f64 = 1.5;
 
+/// A verifying detector's level stops (without converging) after this many iterations in a row
+/// that did not lower its lowest robust cost while the candidate's overlap is below the gate's
+/// floors ([`Floors`]): the damping has shrunk the steps and the cost no longer falls. On hku1's
+/// failing candidates the fine level ran its 20 iterations so, its cost rising from the first
+/// step while millimetre steps crept on (docs/performance.md, r19-p95). A registration at or
+/// above the floors runs on (stopped at every stall, a corridor's true match lost the last
+/// centimetres of its creep along the weak axis), and so do [`register`] and
+/// [`register_hypotheses`]: a start metres off crosses such stalls on its way.
+const STALL_ITERATIONS: usize = 3;
+
+/// The gate's overlap floors (`min_fitness`, `min_structure_fitness`) for a verifying
+/// detector's registration: a level stalled ([`STALL_ITERATIONS`]) stops only while the
+/// candidate's overlap at its pose is below one of them (the gate would reject it there; the
+/// fitness is the smaller of the two clouds' overlaps). A registration at or above both runs on
+/// exactly as without.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Floors {
+    pub(crate) fitness: f64,
+    pub(crate) structure: f64,
+}
+
+/// Whether a stalled level stops at pose `x` (its last linearisation given): see [`Floors`].
+type Stall<'a> = Option<&'a dyn Fn(&Rigid, &Linear) -> bool>;
+
+impl Floors {
+    /// Whether an overlap is below a floor.
+    fn below(self, o: &Overlap) -> bool {
+        o.all < self.fitness || o.structure < self.structure
+    }
+
+    /// The fine level's test: its linearisation has measured the overlap (when its
+    /// correspondences reach the inlier distance; otherwise measured here).
+    fn fine<'a>(
+        self,
+        query: &'a PreparedCloud,
+        candidate: &'a PreparedCloud,
+        cfg: &'a RegConfig,
+    ) -> impl Fn(&Rigid, &Linear) -> bool + 'a {
+        move |x, lin| {
+            if fine_inlier_d2(cfg) > 0.0 {
+                self.below(&lin.overlap)
+            } else {
+                self.below(&overlap(
+                    &query.fine,
+                    &candidate.fine,
+                    x,
+                    cfg.inlier_distance,
+                ))
+            }
+        }
+    }
+
+    /// The coarse level's test: the candidate's overlap measured on the fine clouds at `x`.
+    fn coarse<'a>(
+        self,
+        query: &'a PreparedCloud,
+        candidate: &'a PreparedCloud,
+        cfg: &'a RegConfig,
+    ) -> impl Fn(&Rigid, &Linear) -> bool + 'a {
+        move |x, _| {
+            self.below(&overlap(
+                &query.fine,
+                &candidate.fine,
+                x,
+                cfg.inlier_distance,
+            ))
+        }
+    }
+}
+
 /// What one level's optimisation reports.
 struct LevelOutcome {
     iterations: usize,
@@ -249,8 +319,11 @@ struct LevelOutcome {
 /// thresholds. A stricter line search (reject any step that raises the cost) was measured
 /// first: on hku1 it stopped on bumps of the cost while the Gauss–Newton direction still
 /// pointed a metre away, towards the right pose. A level converges when a (scaled) update is
-/// below both `rotation_eps_deg` and `translation_eps`. Every linearisation counts as an
-/// iteration.
+/// below both `rotation_eps_deg` and `translation_eps`. With `stall` (a verifying detector's), a
+/// level that has not lowered its lowest cost for [`STALL_ITERATIONS`] iterations in a row stops
+/// there, not converged, when `stall` says so at its pose (below the gate's [`Floors`]: a wrong
+/// match creeping on at the smallest scales). Every linearisation counts as an iteration.
+#[allow(clippy::too_many_arguments)]
 fn align_level(
     target: &Level,
     source: &Level,
@@ -259,6 +332,7 @@ fn align_level(
     cfg: &RegConfig,
     eps_scale: f64,
     inlier_d2: f64,
+    stall: Stall<'_>,
 ) -> LevelOutcome {
     let robust = Robust::new(cfg, max_corr);
     let max_d2 = max_corr * max_corr;
@@ -271,6 +345,8 @@ fn align_level(
         last: None,
     };
     let mut scale = 1.0;
+    // The lowest cost so far, and the iterations since it last fell.
+    let (mut lowest, mut stalled) = (lin.cost, 0);
     while out.iterations < cfg.max_iterations {
         if lin.n < MIN_CORRESPONDENCES {
             return out;
@@ -294,9 +370,17 @@ fn align_level(
         } else {
             (scale * STEP_RECOVERY).min(1.0)
         };
+        if next.cost < lowest {
+            (lowest, stalled) = (next.cost, 0);
+        } else {
+            stalled += 1;
+        }
         lin = next;
         if w.norm() < rot_eps && v.norm() < trans_eps {
             out.converged = true;
+            break;
+        }
+        if stalled >= STALL_ITERATIONS && stall.is_some_and(|failing| failing(x, &lin)) {
             break;
         }
     }
@@ -428,7 +512,24 @@ pub fn register(
         return Err(RegError::NotPreparedWith);
     }
     let mut x = Rigid::from_pose(init)?;
-    Ok(register_from(query, candidate, &mut x, cfg))
+    Ok(register_from(query, candidate, &mut x, cfg, None))
+}
+
+/// [`register`] as a verifying detector runs it: each level also stops once its cost has stalled
+/// ([`STALL_ITERATIONS`]) below the gate's `floors`; the gate judges the result.
+pub(crate) fn register_verifying(
+    query: &PreparedCloud,
+    candidate: &PreparedCloud,
+    init: &Pose,
+    cfg: &RegConfig,
+    floors: Floors,
+) -> Result<Registration, RegError> {
+    cfg.validate()?;
+    if !query.prepared_with(cfg) || !candidate.prepared_with(cfg) {
+        return Err(RegError::NotPreparedWith);
+    }
+    let mut x = Rigid::from_pose(init)?;
+    Ok(register_from(query, candidate, &mut x, cfg, Some(floors)))
 }
 
 fn register_from(
@@ -436,11 +537,13 @@ fn register_from(
     candidate: &PreparedCloud,
     x: &mut Rigid,
     cfg: &RegConfig,
+    floors: Option<Floors>,
 ) -> Registration {
     let (Some(qc), Some(cc)) = (&query.coarse, &candidate.coarse) else {
-        return fine_from(query, candidate, x, None, cfg, 0);
+        return fine_from(query, candidate, x, None, cfg, 0, floors);
     };
     let start = *x;
+    let failing = floors.map(|f| f.coarse(query, candidate, cfg));
     let o = align_level(
         qc,
         cc,
@@ -449,6 +552,9 @@ fn register_from(
         cfg,
         COARSE_EPS_FACTOR,
         0.0,
+        failing
+            .as_ref()
+            .map(|f| f as &dyn Fn(&Rigid, &Linear) -> bool),
     );
     let alt = match cfg.schedule {
         Schedule::CoarseFine => None,
@@ -460,7 +566,7 @@ fn register_from(
         }
         Schedule::Both => Some(start),
     };
-    fine_from(query, candidate, x, alt, cfg, o.iterations)
+    fine_from(query, candidate, x, alt, cfg, o.iterations, floors)
 }
 
 /// The fine level's robust cost at `x` (correspondences found there).
@@ -503,7 +609,12 @@ fn fine_from(
     alt: Option<Rigid>,
     cfg: &RegConfig,
     mut iterations: usize,
+    floors: Option<Floors>,
 ) -> Registration {
+    let failing = floors.map(|f| f.fine(query, candidate, cfg));
+    let stall = failing
+        .as_ref()
+        .map(|f| f as &dyn Fn(&Rigid, &Linear) -> bool);
     let mut o = align_level(
         &query.fine,
         &candidate.fine,
@@ -512,6 +623,7 @@ fn fine_from(
         cfg,
         1.0,
         fine_inlier_d2(cfg),
+        stall,
     );
     iterations += o.iterations;
     if let Some(mut y) = alt {
@@ -523,6 +635,7 @@ fn fine_from(
             cfg,
             1.0,
             fine_inlier_d2(cfg),
+            stall,
         );
         iterations += p.iterations;
         if final_cost(&p) < final_cost(&o) {
@@ -679,6 +792,54 @@ pub fn register_hypotheses_for(
     out: &mut [Hypothesis],
     min_fitness: f64,
 ) -> Result<Hypotheses, RegError> {
+    hypotheses(
+        query,
+        candidate,
+        yaws_deg,
+        init,
+        cfg,
+        out,
+        min_fitness,
+        None,
+    )
+}
+
+/// [`register_hypotheses_for`] as a verifying detector runs it: each level also stops once its
+/// cost has stalled ([`STALL_ITERATIONS`]) below the gate's `floors`; the gate judges the result.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn register_hypotheses_verifying(
+    query: &PreparedCloud,
+    candidate: &PreparedCloud,
+    yaws_deg: &[f64],
+    init: &Pose,
+    cfg: &RegConfig,
+    out: &mut [Hypothesis],
+    min_fitness: f64,
+    floors: Floors,
+) -> Result<Hypotheses, RegError> {
+    hypotheses(
+        query,
+        candidate,
+        yaws_deg,
+        init,
+        cfg,
+        out,
+        min_fitness,
+        Some(floors),
+    )
+}
+
+#[allow(clippy::too_many_arguments)]
+fn hypotheses(
+    query: &PreparedCloud,
+    candidate: &PreparedCloud,
+    yaws_deg: &[f64],
+    init: &Pose,
+    cfg: &RegConfig,
+    out: &mut [Hypothesis],
+    min_fitness: f64,
+    floors: Option<Floors>,
+) -> Result<Hypotheses, RegError> {
     cfg.validate()?;
     if !(0.0..=1.0).contains(&min_fitness) {
         return Err(Error::InvalidParameter {
@@ -758,10 +919,14 @@ pub fn register_hypotheses_for(
         },
         ..*cfg
     };
+    let failing = floors.map(|f| f.coarse(query, candidate, cfg));
+    let stall = failing
+        .as_ref()
+        .map(|f| f as &dyn Fn(&Rigid, &Linear) -> bool);
     for (k, &yaw) in yaws_deg.iter().enumerate() {
         let s = start(yaw);
         let mut x = s;
-        let o = align_level(qc, cc, &mut x, max_corr, &share, eps, 0.0);
+        let o = align_level(qc, cc, &mut x, max_corr, &share, eps, 0.0, stall);
         let mut cost = if o.last.is_some() {
             normalised(&x)
         } else {
@@ -796,7 +961,7 @@ pub fn register_hypotheses_for(
                 max_iterations: rest,
                 ..*cfg
             };
-            let o = align_level(qc, cc, &mut x, max_corr, &more, eps, 0.0);
+            let o = align_level(qc, cc, &mut x, max_corr, &more, eps, 0.0, stall);
             out[best] = Hypothesis {
                 pose: x.to_pose(),
                 cost: if o.last.is_some() {
@@ -838,7 +1003,15 @@ pub fn register_hypotheses_for(
     Ok(Hypotheses {
         count: yaws_deg.len(),
         best,
-        registration: fine_from(query, candidate, &mut x, alt, cfg, out[best].iterations),
+        registration: fine_from(
+            query,
+            candidate,
+            &mut x,
+            alt,
+            cfg,
+            out[best].iterations,
+            floors,
+        ),
     })
 }
 
@@ -1011,6 +1184,7 @@ mod tests {
                 &cfg,
                 1.0,
                 fine_inlier_d2(&cfg),
+                None,
             );
             let Some(lin) = &o.last else { continue };
             let own = overlap(&q.fine, &c.fine, &x, cfg.inlier_distance);
@@ -1028,5 +1202,129 @@ mod tests {
             measured += 1;
         }
         assert_eq!(measured, 3);
+    }
+
+    /// A room with a pillar (`(dx, dy)` off the room's axis near x = 1 m).
+    fn room(dx: f64, dy: f64) -> Vec<f64> {
+        let mut xyz = Vec::new();
+        for i in 0..=160 {
+            for j in 0..=24 {
+                let (u, z) = (-8.0 + 0.1 * f64::from(i), 0.1 * f64::from(j));
+                xyz.extend([u, -5.0, z, u, 5.0, z, 8.0, 0.0625 * f64::from(i) - 5.0, z]);
+                xyz.extend([1.0 + dx + 0.2 * libm::cos(u), dy + 0.2 * libm::sin(u), z]);
+            }
+            for j in 0..=100 {
+                xyz.extend([-8.0 + 0.1 * f64::from(i), -5.0 + 0.1 * f64::from(j), 0.0]);
+            }
+        }
+        xyz
+    }
+
+    /// An L-shaped building's walls and the ground (another place than [`room`]).
+    fn building() -> Vec<f64> {
+        let mut xyz = Vec::new();
+        for i in 0..=120 {
+            for j in 0..=20 {
+                let (u, z) = (0.1 * f64::from(i), 0.15 * f64::from(j));
+                xyz.extend([u - 4.0, 3.0, z, 8.0, u - 6.0, z, u * 0.5 - 6.0, -4.0, z]);
+                xyz.extend([-6.0, u * 0.6 - 4.0, z]);
+            }
+            for j in 0..=80 {
+                xyz.extend([0.12 * f64::from(i) - 6.0, 0.1 * f64::from(j) - 5.0, 0.0]);
+            }
+        }
+        xyz
+    }
+
+    #[test]
+    fn a_verifying_level_stops_at_a_stall_only_below_the_gates_floors() {
+        // A wrong match (the building against the room, turned 45°), given 200 iterations a
+        // level: without the stall (`register`'s) each level creeps on, 57 coarse iterations
+        // and 191 fine before converging; with the gate's floors, a verifying detector's stops,
+        // not converged, once its lowest cost has not fallen for STALL_ITERATIONS iterations
+        // while its overlap is below them; with floors of 0 it runs exactly as without.
+        let cfg = RegConfig {
+            max_iterations: 200,
+            ..RegConfig::default()
+        };
+        let gate = super::super::Gate::default();
+        let floors = Floors {
+            fitness: gate.min_fitness,
+            structure: gate.min_structure_fitness,
+        };
+        let none = Floors {
+            fitness: 0.0,
+            structure: 0.0,
+        };
+        let q = PreparedCloud::new(Points::new(&building(), 3).unwrap(), &cfg).unwrap();
+        let c = PreparedCloud::new(Points::new(&room(0.0, 0.0), 3).unwrap(), &cfg).unwrap();
+        for coarse in [true, false] {
+            let (target, source, corr, eps, inlier) = if coarse {
+                let (Some(qc), Some(cc)) = (&q.coarse, &c.coarse) else {
+                    panic!("no coarse level")
+                };
+                (
+                    qc,
+                    cc,
+                    cfg.coarse_max_correspondence,
+                    COARSE_EPS_FACTOR,
+                    0.0,
+                )
+            } else {
+                (
+                    &q.fine,
+                    &c.fine,
+                    cfg.max_correspondence,
+                    1.0,
+                    fine_inlier_d2(&cfg),
+                )
+            };
+            let run = |f: Option<Floors>| {
+                let mut x = Rigid::from_pose(&yaw_pose(45.0)).unwrap();
+                let failing = |x: &Rigid, lin: &Linear| {
+                    f.is_some_and(|f| {
+                        if coarse {
+                            f.coarse(&q, &c, &cfg)(x, lin)
+                        } else {
+                            f.fine(&q, &c, &cfg)(x, lin)
+                        }
+                    })
+                };
+                let o = align_level(
+                    target,
+                    source,
+                    &mut x,
+                    corr,
+                    &cfg,
+                    eps,
+                    inlier,
+                    Some(&failing),
+                );
+                (o.iterations, o.converged, x.to_pose())
+            };
+            let (creeps, stops, runs_on) = (run(None), run(Some(floors)), run(Some(none)));
+            assert!(creeps.0 > 40, "coarse {coarse}: {} iterations", creeps.0);
+            assert!(
+                !stops.1 && stops.0 < 20,
+                "coarse {coarse}: {} iterations, converged {}",
+                stops.0,
+                stops.1
+            );
+            assert_eq!(runs_on, creeps, "coarse {coarse}");
+        }
+        // The room seen 0.3 m and 3° away: at or above the floors all along its stalls, the
+        // verifying registration is exactly `register`'s, at the truth.
+        let mut moved = yaw_pose(3.0);
+        moved[0][3] = 0.3;
+        let (q, c) = prepared_pair(&room(0.3, 0.0), &moved, &cfg);
+        let plain = register(&q, &c, &IDENTITY, &cfg).unwrap();
+        let verifying = register_verifying(&q, &c, &IDENTITY, &cfg, floors).unwrap();
+        assert!(plain.converged);
+        assert_eq!(
+            (plain.pose, plain.iterations, plain.fitness),
+            (verifying.pose, verifying.iterations, verifying.fitness)
+        );
+        let (m, deg) = pose_distance(&plain.pose, &moved).unwrap();
+        assert!(m < 0.02 && deg < 0.2, "{m} m, {deg}° off");
     }
 }
