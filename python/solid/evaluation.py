@@ -160,20 +160,29 @@ class Evaluation:
     def setting_for(self, threshold: float, verified: bool) -> tuple[str, float] | None:
         """The detector flag and value whose run accepts exactly the top-1s with score ≤
         ``threshold``: without verification ``--threshold`` itself; with it, the gate's largest loop
-        (``--gate-max-translation``), since a verified score orders the loops by length (the
-        longest accepted loop's length, so that no float rounding drops it). None when no setting
-        does (``threshold`` reaches candidates the gate rejected)."""
+        (``--gate-max-translation``), since a verified score orders the loops by length: halfway
+        from the longest accepted loop's length to the next longer loop the gate passed (the
+        longest's own length when there is none), so that neither float rounding nor a
+        registration ending a micrometre elsewhere (a start changed by the smaller largest loop)
+        moves a loop across it. None when no setting does (``threshold`` reaches candidates the
+        gate rejected)."""
         if not verified:
             return "--threshold", float(threshold)
         if threshold > _solid.VERIFIED_THRESHOLD or self.pose is None:
             return None
-        keep = (self.score <= threshold) & np.isfinite(self.pose[:, 0, 3])
+        pose = self.pose
+        passed = np.isfinite(pose[:, 0, 3]) & (self.score < _solid.VERIFIED_THRESHOLD)
+        keep = (self.score <= threshold) & passed
         if not keep.any():
             return None
-        t = self.pose[keep, :3, 3]
-        # The length the gate compares, summed in its order: x² + y² + z², then the square root.
-        lengths = [math.sqrt(x * x + y * y + z * z) for x, y, z in t.tolist()]
-        return "--gate-max-translation", max(lengths)
+
+        def lengths(rows: np.ndarray) -> list[float]:
+            # The length the gate compares, summed in its order: x² + y² + z², then the square root.
+            return [math.sqrt(x * x + y * y + z * z) for x, y, z in pose[rows, :3, 3].tolist()]
+
+        longest = max(lengths(keep))
+        longer = [m for m in lengths(passed & ~keep) if m > longest]
+        return "--gate-max-translation", (longest + min(longer)) / 2 if longer else longest
 
     def rows(self) -> list[dict[str, Any]]:
         """``queries.csv`` rows (:data:`QUERY_COLUMNS`)."""
