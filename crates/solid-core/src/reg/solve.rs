@@ -270,16 +270,12 @@ impl Floors {
         candidate: &'a PreparedCloud,
         cfg: &'a RegConfig,
     ) -> impl Fn(&Rigid, &Linear) -> bool + 'a {
+        let measured = self.coarse(query, candidate, cfg);
         move |x, lin| {
             if fine_inlier_d2(cfg) > 0.0 {
                 self.below(&lin.overlap)
             } else {
-                self.below(&overlap(
-                    &query.fine,
-                    &candidate.fine,
-                    x,
-                    cfg.inlier_distance,
-                ))
+                measured(x, lin)
             }
         }
     }
@@ -507,12 +503,7 @@ pub fn register(
     init: &Pose,
     cfg: &RegConfig,
 ) -> Result<Registration, RegError> {
-    cfg.validate()?;
-    if !query.prepared_with(cfg) || !candidate.prepared_with(cfg) {
-        return Err(RegError::NotPreparedWith);
-    }
-    let mut x = Rigid::from_pose(init)?;
-    Ok(register_from(query, candidate, &mut x, cfg, None))
+    register_checked(query, candidate, init, cfg, None)
 }
 
 /// [`register`] as a verifying detector runs it: each level also stops once its cost has stalled
@@ -524,12 +515,24 @@ pub(crate) fn register_verifying(
     cfg: &RegConfig,
     floors: Floors,
 ) -> Result<Registration, RegError> {
+    register_checked(query, candidate, init, cfg, Some(floors))
+}
+
+/// [`register`]'s checks of the configuration, the clouds' preparation and the start, then
+/// [`register_from`] with the stall `floors`, if any.
+fn register_checked(
+    query: &PreparedCloud,
+    candidate: &PreparedCloud,
+    init: &Pose,
+    cfg: &RegConfig,
+    floors: Option<Floors>,
+) -> Result<Registration, RegError> {
     cfg.validate()?;
     if !query.prepared_with(cfg) || !candidate.prepared_with(cfg) {
         return Err(RegError::NotPreparedWith);
     }
     let mut x = Rigid::from_pose(init)?;
-    Ok(register_from(query, candidate, &mut x, cfg, Some(floors)))
+    Ok(register_from(query, candidate, &mut x, cfg, floors))
 }
 
 fn register_from(
