@@ -11,8 +11,9 @@
 //! consistency). A look-alike world repeats a stretch (a street's face, a corridor's module),
 //! not a stretch with a turn: the loops into a copy agree with each other as far as the
 //! repetition goes. So the session is placed only when a set of mutually consistent hypotheses
-//! holds `placement_loops` queries over `placement_m` metres of its path, facing directions
-//! [`PLACEMENT_TURN_DEG`] apart, with more than twice the queries of any set that disagrees;
+//! holds `placement_loops` queries over `placement_m` metres of its path, two of them at most
+//! `placement_m` apart facing directions [`PLACEMENT_TURN_DEG`] apart (the turn itself seen),
+//! with more than twice the queries of any set that disagrees;
 //! loops into the map that passed the gate before are held, and released with the placement
 //! when they agree with it. From then on a loop into the map is accepted when it agrees with
 //! the placement's nearest supporting loop (by path), and the placement is revised when a
@@ -38,12 +39,17 @@ const FIT: usize = 48;
 /// queries of every set that disagrees with it.
 const RIVAL_RATIO: usize = 2;
 
-/// A consistent set places the session only when its queries face directions at least this
-/// many degrees apart (the session turned within it): a look-alike world repeats a stretch
-/// (a street's face, a corridor's module) along one direction, so a set along one straight
-/// stretch is as likely a copy as the place (the trust matrix's never-visiting sessions were
-/// placed by straight sets of 7-10 loops over 18-57 m), while a turn needs the copy of an
-/// intersection in the same arrangement.
+/// A consistent set places the session only when two of its queries at most `placement_m`
+/// metres of path apart face directions at least this many degrees apart (the session turned
+/// within it): a look-alike world repeats a stretch (a street's face, a corridor's module)
+/// along one direction, so a set along one straight stretch is as likely a copy as the place
+/// (the trust matrix's never-visiting sessions were placed by straight sets of 7-10 loops over
+/// 18-57 m), while a turn needs the copy of an intersection in the same arrangement. Two
+/// straight stretches facing apart with no loop at the turn between them are not one: a city
+/// that repeats its blocks at a regular pitch makes the copies of two streets agree (the trust
+/// matrix's never-visiting sessions of seed 5, Avia and OS1-64 90°: 15 and 22 wrong loops
+/// over 90-93 m whose queries facing apart lay more than 15 m of path apart; the Avia's two
+/// legs 51 m).
 const PLACEMENT_TURN_DEG: f64 = 45.0;
 
 /// Hypotheses into the map kept for the placement's consistency search, and loops into the map
@@ -420,7 +426,8 @@ impl LoopDetector {
     /// - holds the loops of `min_support + 1` distinct queries among the last `support_window`
     ///   steps (the support check's), and across a break also `placement_loops` distinct
     ///   queries over `placement_m` metres, as a session is placed in a map;
-    /// - faces directions [`PLACEMENT_TURN_DEG`] apart: a straight run of agreeing look-alikes
+    /// - faces directions [`PLACEMENT_TURN_DEG`] apart (across a break: two queries at most
+    ///   `placement_m` metres of path apart, as a placement): a straight run of agreeing look-alikes
     ///   vouched for itself on the four-module corridors with a drifting odometry (33 wrong
     ///   loops on three views, `tools/gate_measure.py '{}' drift`), and placed every loop across
     ///   the chain's frames on a copy (313 of 313, OS1-64 90°, `tools/trust_measure.py
@@ -457,7 +464,7 @@ impl LoopDetector {
             && (!across || (n >= v.placement_loops && span(&set) >= v.placement_m));
         if n <= RIVAL_RATIO * rival {
             Vouch::No
-        } else if large && turns(&set) {
+        } else if large && turns(&set, if across { v.placement_m } else { f64::INFINITY }) {
             Vouch::Yes(set)
         } else {
             Vouch::Waits
@@ -678,10 +685,13 @@ impl LoopDetector {
     }
 
     /// Whether a consistent set may place the session: `placement_loops` distinct queries over
-    /// `placement_m` metres of path, facing directions [`PLACEMENT_TURN_DEG`] apart.
+    /// `placement_m` metres of path, two of them at most `placement_m` metres apart facing
+    /// directions [`PLACEMENT_TURN_DEG`] apart.
     fn qualifies(&self, set: &[Hypothesis]) -> bool {
         let v = &self.config.verify;
-        distinct(set) >= v.placement_loops && span(set) >= v.placement_m && turns(set)
+        distinct(set) >= v.placement_loops
+            && span(set) >= v.placement_m
+            && turns(set, v.placement_m)
     }
 
     /// Makes `set` the placement (a new one, or a revision) at query `now`, and releases the
@@ -920,12 +930,14 @@ fn nearest<'a>(
     })
 }
 
-/// Whether a set's queries face directions [`PLACEMENT_TURN_DEG`] apart (any two of them).
-fn turns(set: &[Hypothesis]) -> bool {
+/// Whether two of a set's queries at most `within_m` metres of path apart face directions
+/// [`PLACEMENT_TURN_DEG`] apart.
+fn turns(set: &[Hypothesis], within_m: f64) -> bool {
     let rots: Vec<Pose> = set.iter().map(|h| rows_to_pose(&h.query_pose)).collect();
     rots.iter().enumerate().any(|(i, a)| {
-        rots[..i].iter().any(|b| {
-            crate::reg::pose_distance(a, b).is_some_and(|(_, deg)| deg >= PLACEMENT_TURN_DEG)
+        rots[..i].iter().enumerate().any(|(j, b)| {
+            libm::fabs(set[i].travelled - set[j].travelled) <= within_m
+                && crate::reg::pose_distance(a, b).is_some_and(|(_, deg)| deg >= PLACEMENT_TURN_DEG)
         })
     })
 }
@@ -1103,7 +1115,18 @@ mod tests {
         lookalike: bool,
         deg: f64,
     ) -> (QueryPlace, [Candidate; 2]) {
-        let in_map = pose(deg * f64::from(k), f64::from(5 + k), 0.5);
+        step_facing(det, k, lookalike, deg * f64::from(k))
+    }
+
+    /// Step `k` of a session that drives the map's places 5.. (1 m a step) facing `yaw`
+    /// degrees: its query, its true loop and, with `lookalike`, a look-alike's.
+    fn step_facing(
+        det: &LoopDetector,
+        k: u32,
+        lookalike: bool,
+        yaw: f64,
+    ) -> (QueryPlace, [Candidate; 2]) {
+        let in_map = pose(yaw, f64::from(5 + k), 0.5);
         let q = crate::reg::pose_to_rows(&mul(&invert(&truth()), &rows_to_pose(&in_map)));
         let at = QueryPlace {
             id: det.len() as u32 + k,
@@ -1286,18 +1309,43 @@ mod tests {
             assert_eq!(det.placement_news(None), (Vec::new(), None));
         }
         assert!(det.map_anchor().is_none());
-        // The same stretch turning by 10° a step: placed once its queries face 45° apart (step
-        // 5: 50°, over 5 m), the loops held before released then.
+        // The same stretch turning by 20° a step: placed once two queries at most
+        // `placement_m` (3 m) apart face 45° apart (step 3: 60° over 3 m), the loops held
+        // before released then.
         let mut det = over_map(3);
         for k in 0..8 {
-            let (at, mut cands) = step_turning(&det, k, false, 10.0);
+            let (at, mut cands) = step_turning(&det, k, false, 20.0);
             det.check_after_gate(&at, &[], &mut cands).unwrap();
             let (released, change) =
                 det.placement_news(rejection(&cands[0]).is_none().then_some(at.id));
-            assert_eq!(change.is_some(), k == 5, "step {k}");
-            assert_eq!(rejection(&cands[0]).is_none(), k >= 5, "step {k}");
-            assert_eq!(released.len(), if k == 5 { 5 } else { 0 }, "step {k}");
+            assert_eq!(change.is_some(), k == 3, "step {k}");
+            assert_eq!(rejection(&cands[0]).is_none(), k >= 3, "step {k}");
+            assert_eq!(released.len(), if k == 3 { 3 } else { 0 }, "step {k}");
         }
+    }
+
+    #[test]
+    fn two_straight_stretches_facing_apart_place_the_session_only_with_the_turn_between_them() {
+        // Loops along a stretch facing 0° (steps 0-5), none for the next 10 m, then along one
+        // facing 90° (steps 16-21), all consistent: a look-alike world's copies of two streets
+        // at the world's regular pitch agree so (the never-visiting sessions of the trust
+        // matrix's seed 5) without the intersection between them. Not placed.
+        let mut det = over_map(3);
+        for k in (0..6).chain(16..22) {
+            let (at, mut cands) = step_facing(&det, k, false, if k < 10 { 0.0 } else { 90.0 });
+            det.check_after_gate(&at, &[], &mut cands).unwrap();
+            assert_eq!(rejection(&cands[0]), Some(Rejection::NotPlaced), "step {k}");
+        }
+        assert!(det.map_anchor().is_none());
+        // The same with the loops through the turn (steps 6-15): placed at the turn (step 10,
+        // facing 90° a metre after a query facing 0°).
+        let mut det = over_map(3);
+        for k in 0..22 {
+            let (at, mut cands) = step_facing(&det, k, false, if k < 10 { 0.0 } else { 90.0 });
+            det.check_after_gate(&at, &[], &mut cands).unwrap();
+            assert_eq!(rejection(&cands[0]).is_none(), k >= 10, "step {k}");
+        }
+        assert!(det.map_anchor().is_some());
     }
 
     #[test]
@@ -1526,9 +1574,9 @@ mod tests {
     #[test]
     fn loops_across_a_break_of_the_odometry_are_placed_by_each_other() {
         // 30 m to the side, beyond five times the drift bounds: without the break the odometry
-        // would turn every one down. Across it, the revisit turning 10° a step: the first five
-        // wait (3 queries over 3 m, facing directions 45° apart, place the stretch) and are
-        // released with step 5, once; then every loop is kept.
+        // would turn every one down. Across it, the revisit turning 20° a step: the first three
+        // wait (3 queries over 3 m, two at most 3 m apart facing directions 45° apart, place the
+        // stretch) and are released with step 3, once; then every loop is kept.
         // Each step also registers a place after the jump where the odometry puts it: the two
         // loops' paths cross the break, so they are not each other's rivals (uniqueness).
         for seconds in [1.0, f64::NAN] {
@@ -1537,7 +1585,7 @@ mod tests {
             let (mut kept, mut late) = (Vec::new(), Vec::new());
             let first = det.len() as u32;
             for k in 0..12 {
-                let (at, mut cands) = revisit_after_jump(&det, k, false, 10.0);
+                let (at, mut cands) = revisit_after_jump(&det, k, false, 20.0);
                 let after = pose(0.0, f64::from(45 + k % 10), 30.0);
                 cands.push(verified(45 + k % 10, relative(&at.pose.unwrap(), &after)));
                 det.check_after_gate(&at, &[], &mut cands).unwrap();
@@ -1550,13 +1598,13 @@ mod tests {
                 let (released, _) = det.placement_news(looped);
                 late.extend(released.iter().map(|l| (k, l.query - first, l.candidate)));
             }
-            assert_eq!(kept, [5, 6, 7, 8, 9, 10, 11], "{seconds} s a step");
+            assert_eq!(kept, [3, 4, 5, 6, 7, 8, 9, 10, 11], "{seconds} s a step");
             // Step 0's loop into place 45 (after the jump, where the odometry puts it) had no
             // previous step to agree with: held, and released by step 1's into place 46, which
             // agrees with it (the next steps' support); query 0 then has its loop, so the set
-            // placed at step 5 releases the other four.
+            // placed at step 3 releases the other two.
             let mut want: Vec<(u32, u32, u32)> = alloc::vec![(1, 0, 45)];
-            want.extend((1..5).map(|q| (5, q, 5 + q)));
+            want.extend((1..3).map(|q| (3, q, 5 + q)));
             assert_eq!(late, want, "{seconds} s a step");
         }
         // A straight revisit: as likely a stretch of look-alikes (a corridor repeating along
