@@ -22,6 +22,13 @@ the walk's change of heading), by:
 - ``solid``: ``solid.register`` with ``RegistrationConfig()`` (plus ``--solid`` overrides);
 - ``solid-det``: the same from the detector's yaw hypotheses (0°, the A-SOLiD minima, the ±25° fan;
   ``DetectorConfig().verify_hypotheses`` of them), applied before the start as the detector does;
+- ``solid-v`` and ``solid-det-v``: ``solid`` and ``solid-det`` as a verifying detector registers a
+  loop candidate (``solid._solid._register_verifying`` with ``DetectorConfig().gate``): a level also
+  stops at a cost stall (3 iterations without a new lowest cost) while the overlap there is below
+  the gate's ``min_fitness`` / ``min_structure_fitness``, and from the hypotheses a candidate clearly
+  below ``min_fitness`` gives up before the fine level (docs/spec.md §11). ``solid-v`` is the
+  detector's registration from a start (the odometry's), ``solid-det-v`` its registration from the
+  hypotheses (without a start: the identity);
 - ``sg-fine``: small_gicp GICP on one level (``voxel_size`` voxels, ``max_correspondence``);
 - ``sg-2lv``: small_gicp on solid's two levels (``coarse_voxel_size`` / ``coarse_max_correspondence``,
   then the fine level from its result).
@@ -33,7 +40,9 @@ estimates covariances from the same ``neighbors``; its GICP has the same converg
 timed); each registration is timed as CPU time (``time.process_time``) in the same process.
 
 Printed per walk and method: how many registrations end within 0.3 m and 2° of the truth, and the
-CPU time per registration with its ratio to solid's.
+CPU time per registration with its ratio to solid's. ``--misses`` also lists each start that a
+solid method misses and a small_gicp method finds (the pair, the start's offset, the pose error
+and the registration's iterations and fitness).
 """
 
 from __future__ import annotations
@@ -119,7 +128,8 @@ def main() -> int:
     ap.add_argument("--yaw", type=float, default=30.0, help="largest yaw of a start off the truth, degrees")
     ap.add_argument("--seed", type=int, default=38)
     ap.add_argument("--solid", action="append", default=[], metavar="NAME=VALUE", help="a RegistrationConfig override (repeatable)")
-    ap.add_argument("--methods", default="solid,solid-det,sg-fine,sg-2lv")
+    ap.add_argument("--methods", default="solid,solid-v,solid-det,solid-det-v,sg-fine,sg-2lv")
+    ap.add_argument("--misses", action="store_true", help="list the starts a solid method misses and small_gicp finds")
     args = ap.parse_args()
     try:
         import small_gicp
@@ -127,6 +137,7 @@ def main() -> int:
         print("small_gicp is not installed (pip install -r requirements-dev.txt): nothing to compare with", file=sys.stderr)
         return 1
     import solid
+    from solid import _solid
 
     cfg = solid.RegistrationConfig(**overrides(args.solid))
     det = solid.DetectorConfig()
@@ -158,22 +169,44 @@ def main() -> int:
             r = small_gicp.align(qc, cc, qct, init_T_target_source=init, max_correspondence_distance=cfg.coarse_max_correspondence, max_iterations=cfg.max_iterations, num_threads=1)
             return sg_fine(q, c, np.asarray(r.T_target_source))
 
+        last: dict[str, Any] = {}  # each solid method's registration of the current start
+
         def ours_one(q: int, c: int, init: np.ndarray) -> np.ndarray:
-            return np.asarray(solid.register(ours[q], ours[c], init, config=cfg).pose)
+            last["solid"] = r = solid.register(ours[q], ours[c], init, config=cfg)
+            return np.asarray(r.pose)
 
         if refine:
             default = solid.RegistrationConfig()
             plain = {i: solid.PreparedCloud(scans[i], default) for i in used} if cfg != default else ours
 
-        def ours_det(q: int, c: int, init: np.ndarray) -> np.ndarray:
+        def det_yaws(q: int, c: int) -> list[float]:
             yaws = solid.hypothesis_yaws(desc[q], desc[c], det.verify_hypotheses)
             for y in (det.verify_fan_deg, -det.verify_fan_deg):
                 bin_deg = 360.0 / dcfg.n_azimuth
                 if len(yaws) < det.verify_hypotheses and all(min(abs(x - y) % 360, 360 - abs(x - y) % 360) >= bin_deg for x in yaws):
                     yaws.append(y)
-            return np.asarray(solid.register(ours[q], ours[c], init, yaws=yaws, config=cfg).pose)
+            return yaws
 
-        run: dict[str, Callable[[int, int, np.ndarray], np.ndarray]] = {"solid": ours_one, "solid-det": ours_det, "sg-fine": sg_fine, "sg-2lv": sg_2lv}
+        def ours_det(q: int, c: int, init: np.ndarray) -> np.ndarray:
+            last["solid-det"] = r = solid.register(ours[q], ours[c], init, yaws=det_yaws(q, c), config=cfg)
+            return np.asarray(r.pose)
+
+        def ours_v(q: int, c: int, init: np.ndarray) -> np.ndarray:
+            last["solid-v"] = r = _solid._register_verifying(ours[q], ours[c], init, config=cfg, gate=det.gate)
+            return np.asarray(r.pose)
+
+        def ours_det_v(q: int, c: int, init: np.ndarray) -> np.ndarray:
+            last["solid-det-v"] = r = _solid._register_verifying(ours[q], ours[c], init, yaws=det_yaws(q, c), config=cfg, gate=det.gate)
+            return np.asarray(r.pose)
+
+        run: dict[str, Callable[[int, int, np.ndarray], np.ndarray]] = {
+            "solid": ours_one,
+            "solid-v": ours_v,
+            "solid-det": ours_det,
+            "solid-det-v": ours_det_v,
+            "sg-fine": sg_fine,
+            "sg-2lv": sg_2lv,
+        }
         truth: dict[tuple[int, int], np.ndarray] = {}
         dropped = 0
         for q, c in pairs:
@@ -206,17 +239,30 @@ def main() -> int:
             print(f" {label}:")
             ok = {m: 0 for m in methods}
             cpu = {m: 0.0 for m in methods}
+            misses = []
             for q, c, init, t in starts:
+                found = {}
                 for m in methods:
                     t0 = time.process_time()
                     pose = run[m](q, c, init)
                     cpu[m] += time.process_time() - t0
                     e_m, e_deg = error(pose, t)
-                    ok[m] += int(e_m <= OK_M and e_deg <= OK_DEG)
+                    found[m] = (e_m <= OK_M and e_deg <= OK_DEG, e_m, e_deg)
+                    ok[m] += int(found[m][0])
+                if args.misses and any(v[0] for m, v in found.items() if m.startswith("sg")):
+                    off_m, off_deg = error(init, t)
+                    for m, (hit, e_m, e_deg) in found.items():
+                        if m.startswith("solid") and not hit:
+                            r = last.get(m)
+                            how = f", {r.iterations} iterations, converged {r.converged}, fitness {r.fitness:.3f} / structure {r.structure_fitness:.3f}" if r is not None else ""
+                            misses.append(f"   {m}: pair {q}-{c} from {off_m:.2f} m / {off_deg:.1f} deg off: {e_m:.2f} m / {e_deg:.1f} deg off the truth{how}")
+                last.clear()
             n = max(1, len(starts))
             for m in methods:
                 ratio = f"  {cpu[m] / cpu['solid']:.2f}x solid's CPU" if "solid" in cpu and cpu["solid"] > 0 else ""
-                print(f"  {m:<10} {ok[m]:4d} of {len(starts)}  {1e3 * cpu[m] / n:7.2f} ms CPU per registration{ratio}", flush=True)
+                print(f"  {m:<11} {ok[m]:4d} of {len(starts)}  {1e3 * cpu[m] / n:7.2f} ms CPU per registration{ratio}", flush=True)
+            if misses:
+                print("  missed by solid, found by small_gicp:\n" + "\n".join(misses), flush=True)
     return 0
 
 

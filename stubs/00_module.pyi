@@ -54,6 +54,7 @@ __all__ = [
     "Registration",
     "AcceptanceGate",
     "register",
+    "_register_verifying",
     "hypothesis_yaws",
     "encode_cloud",
     "decode_cloud",

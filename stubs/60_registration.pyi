@@ -175,6 +175,25 @@ def register(
     """
 
 
+def _register_verifying(
+    query: PreparedCloud | npt.NDArray[np.float32] | npt.NDArray[np.float64],
+    candidate: PreparedCloud | npt.NDArray[np.float32] | npt.NDArray[np.float64],
+    init: npt.ArrayLike | None = None,
+    *,
+    yaws: Iterable[float] | None = None,
+    config: RegistrationConfig | None = None,
+    gate: AcceptanceGate | None = None,
+) -> Registration:
+    """`register` as a verifying detector runs it for a loop candidate, for the convergence-basin
+    benchmark (`benches/reg_basin.py`); not part of the public API.
+
+    A level also stops once its cost has not reached a new low for 3 iterations while the
+    candidate's overlap there is below `gate`'s `min_fitness` or `min_structure_fitness`; with
+    `yaws`, a candidate whose best hypothesis is clearly below `min_fitness` gives up before the
+    fine level (docs/spec.md §11). `gate` None: `AcceptanceGate()`. Arguments and errors as
+    `register`'s.
+    """
+
 def hypothesis_yaws(query: Descriptor, candidate: Descriptor, n: int = 4) -> list[float]:
     """Initial yaws worth trying for a pair of places: 0° then the A-SOLiD minima.
 

@@ -215,6 +215,33 @@ def test_the_gate_rejects_an_unrelated_place(data: Path) -> None:
     assert not solid.AcceptanceGate().accepts(r)
 
 
+
+def test_the_detectors_verifying_registration_stops_early_only_below_the_gates_floors(data: Path) -> None:
+    # solid._solid._register_verifying (benches/reg_basin.py's solid-v / solid-det-v): as the
+    # verifying detector registers a loop candidate (spec §11 "Levels").
+    from solid import _solid
+
+    gate = solid.AcceptanceGate()
+    yaws = [0.0, -25.0, 25.0]
+    a, b = hku1_scan(data, 150), hku1_scan(data, 20)  # no common view
+    plain = solid.register(a, b, yaws=yaws)
+    verifying = _solid._register_verifying(a, b, yaws=yaws, gate=gate)
+    assert verifying.iterations < plain.iterations, (verifying.iterations, plain.iterations)
+    assert gate.check(verifying) is not None
+    # Floors of 0: nothing is below them, the registration is register's.
+    none = solid.AcceptanceGate(min_fitness=0.0, min_structure_fitness=0.0)
+    same = _solid._register_verifying(a, b, yaws=yaws, gate=none)
+    np.testing.assert_array_equal(same.pose, plain.pose)
+    assert same.iterations == plain.iterations
+    # A true match from a start: register's registration exactly.
+    scan = np.ascontiguousarray(hku1_scan(data, 100))
+    t = pose(8.0, (0.7, -0.4, 0.05))
+    query = apply(t, scan)
+    want, got = solid.register(query, scan), _solid._register_verifying(query, scan, gate=gate)
+    np.testing.assert_array_equal(got.pose, want.pose)
+    assert (got.iterations, got.fitness, got.converged) == (want.iterations, want.fitness, True)
+    assert gate.accepts(got)
+
 def test_python_threads_can_register_at_once(data: Path) -> None:
     scans = [hku1_scan(data, i) for i in (280, 20, 281, 21)]
     want = [solid.register(scans[i], scans[i + 1]).pose for i in (0, 2)]

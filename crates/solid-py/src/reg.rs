@@ -10,14 +10,14 @@ use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 use solid_lidar::reg::{
-    self, decode_cloud, encode_cloud, hypothesis_yaws as core_yaws, Hypothesis, Pose,
+    self, decode_cloud, encode_cloud, hypothesis_yaws as core_yaws, Gate, Hypothesis, Pose,
     PreparedCloud, RegConfig, RegError, Registration, IDENTITY,
 };
 use solid_lidar::Points;
 
 use crate::args;
 use crate::arrays::{borrow_points, matrix6, pose_array, Borrowed, PointSlice};
-use crate::config::PyRegConfig;
+use crate::config::{PyGate, PyRegConfig};
 use crate::describe::{comparable, PyDescriptor};
 use crate::errors::{core_err, SolidError};
 
@@ -362,6 +362,40 @@ fn register(
     yaws: Option<Vec<f64>>,
     config: Option<&PyRegConfig>,
 ) -> PyResult<PyRegistration> {
+    register_with(py, query, candidate, init, yaws, config, None)
+}
+
+/// `register` as a verifying detector runs it for a loop candidate (`gate`: its acceptance gate;
+/// None: `AcceptanceGate()`): a level also stops at a cost stall below the gate's
+/// `min_fitness` / `min_structure_fitness`, and with `yaws` a candidate clearly below
+/// `min_fitness` gives up before the fine level. For the convergence-basin benchmark
+/// (`benches/reg_basin.py`); not part of the public API.
+#[pyfunction]
+#[pyo3(name = "_register_verifying", signature = (query, candidate, init=None, *, yaws=None, config=None, gate=None))]
+fn register_verifying(
+    py: Python<'_>,
+    query: &Bound<'_, PyAny>,
+    candidate: &Bound<'_, PyAny>,
+    init: Option<&Bound<'_, PyAny>>,
+    yaws: Option<Vec<f64>>,
+    config: Option<&PyRegConfig>,
+    gate: Option<&PyGate>,
+) -> PyResult<PyRegistration> {
+    let gate = gate.map_or_else(Gate::default, |g| g.inner);
+    register_with(py, query, candidate, init, yaws, config, Some(gate))
+}
+
+/// `register`, or with `gate` the verifying detector's registration (`reg::register_verifying`,
+/// `reg::register_hypotheses_verifying` with the gate's floors and `min_fitness`).
+fn register_with(
+    py: Python<'_>,
+    query: &Bound<'_, PyAny>,
+    candidate: &Bound<'_, PyAny>,
+    init: Option<&Bound<'_, PyAny>>,
+    yaws: Option<Vec<f64>>,
+    config: Option<&PyRegConfig>,
+    gate: Option<Gate>,
+) -> PyResult<PyRegistration> {
     let cfg = config_or_default(config);
     let init = parse_init(init)?;
     let q = cloud_arg(query, "query", &cfg)?;
@@ -377,15 +411,34 @@ fn register(
     let out = py.detach(|| -> Result<PyRegistration, RegError> {
         let qp = resolve(q_src, &cfg)?;
         let cp = resolve(c_src, &cfg)?;
+        let floors = gate.map(|g| reg::Floors {
+            fitness: g.min_fitness,
+            structure: g.min_structure_fitness,
+        });
         match yaws {
             None => Ok(PyRegistration {
-                inner: reg::register(&qp, &cp, &init, &cfg)?,
+                inner: match floors {
+                    None => reg::register(&qp, &cp, &init, &cfg)?,
+                    Some(f) => reg::register_verifying(&qp, &cp, &init, &cfg, f)?,
+                },
                 hypotheses: Vec::new(),
                 best: None,
             }),
             Some(y) => {
                 let mut hyps = vec![Hypothesis::default(); y.len()];
-                let h = reg::register_hypotheses(&qp, &cp, &y, &init, &cfg, &mut hyps)?;
+                let h = match (floors, gate) {
+                    (Some(f), Some(g)) => reg::register_hypotheses_verifying(
+                        &qp,
+                        &cp,
+                        &y,
+                        &init,
+                        &cfg,
+                        &mut hyps,
+                        g.min_fitness.clamp(0.0, 1.0),
+                        f,
+                    )?,
+                    _ => reg::register_hypotheses(&qp, &cp, &y, &init, &cfg, &mut hyps)?,
+                };
                 Ok(PyRegistration {
                     inner: h.registration,
                     hypotheses: hyps,
@@ -461,6 +514,6 @@ pub fn register_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyPrepared>()?;
     m.add_class::<PyHypothesis>()?;
     m.add_class::<PyRegistration>()?;
-    add_functions! { m, register, hypothesis_yaws, encode_cloud_py, decode_cloud_py }
+    add_functions! { m, register, register_verifying, hypothesis_yaws, encode_cloud_py, decode_cloud_py }
     Ok(())
 }

@@ -97,14 +97,14 @@ pub use cloud::{Level, PreparedCloud, MAX_LEVEL_POINTS, MIN_NEIGHBORS, PLANE_EPS
 pub use gate::{Gate, Rejection};
 pub use information::{Information, LOOP_SIGMA_M, LOOP_SIGMA_ROT_DEG};
 pub use kdtree::{KdTree3, Nearest};
+pub(crate) use solve::weakest_direction;
 pub use solve::{
     agreement, hypothesis_yaws, pose_distance, register, register_hypotheses,
     register_hypotheses_for, Hypotheses, Hypothesis, HORIZONTAL, MAX_HYPOTHESES,
     ROTATION_TOLERANCE,
 };
-pub(crate) use solve::{
-    register_hypotheses_verifying, register_verifying, weakest_direction, Floors,
-};
+#[doc(hidden)]
+pub use solve::{register_hypotheses_verifying, register_verifying, Floors};
 pub use wire::{check_cloud, cloud_points, decode_cloud, encode_cloud};
 
 use crate::Error;

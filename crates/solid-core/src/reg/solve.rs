@@ -239,18 +239,23 @@ const STEP_RECOVERY: f64 = 1.5;
 /// step while millimetre steps crept on (docs/performance.md, r19-p95). A registration at or
 /// above the floors runs on (stopped at every stall, a corridor's true match lost the last
 /// centimetres of its creep along the weak axis), and so do [`register`] and
-/// [`register_hypotheses`]: a start metres off crosses such stalls on its way.
+/// [`register_hypotheses`]: a start metres off crosses such stalls on its way; so does the
+/// coarse level of [`register_verifying`] (from a single start).
 const STALL_ITERATIONS: usize = 3;
 
 /// The gate's overlap floors (`min_fitness`, `min_structure_fitness`) for a verifying
 /// detector's registration: a level stalled ([`STALL_ITERATIONS`]) stops only while the
 /// candidate's overlap at its pose is below one of them (the gate would reject it there; the
 /// fitness is the smaller of the two clouds' overlaps). A registration at or above both runs on
-/// exactly as without.
+/// exactly as without. Public only for the convergence-basin benchmark (`benches/reg_basin.py`,
+/// through the Python module's `_register_verifying`).
+#[doc(hidden)]
 #[derive(Clone, Copy, Debug)]
-pub(crate) struct Floors {
-    pub(crate) fitness: f64,
-    pub(crate) structure: f64,
+pub struct Floors {
+    /// The gate's `min_fitness`.
+    pub fitness: f64,
+    /// The gate's `min_structure_fitness`.
+    pub structure: f64,
 }
 
 /// Whether a stalled level stops at pose `x` (its last linearisation given): see [`Floors`].
@@ -506,9 +511,13 @@ pub fn register(
     register_checked(query, candidate, init, cfg, None)
 }
 
-/// [`register`] as a verifying detector runs it: each level also stops once its cost has stalled
-/// ([`STALL_ITERATIONS`]) below the gate's `floors`; the gate judges the result.
-pub(crate) fn register_verifying(
+/// [`register`] as a verifying detector runs it: the fine level also stops once its cost has
+/// stalled ([`STALL_ITERATIONS`]) below the gate's `floors`; the gate judges the result. The
+/// coarse level runs as [`register`]'s: stopped at its stalls, the coarse level of a start 1–3 m
+/// and up to 30° off stopped true matches on plateaus it was still crossing towards the truth
+/// (`make bench-basin`, docs/performance.md "Convergence basin").
+#[doc(hidden)]
+pub fn register_verifying(
     query: &PreparedCloud,
     candidate: &PreparedCloud,
     init: &Pose,
@@ -546,7 +555,7 @@ fn register_from(
         return fine_from(query, candidate, x, None, cfg, 0, floors);
     };
     let start = *x;
-    let failing = floors.map(|f| f.coarse(query, candidate, cfg));
+    // No stall at this coarse level, `floors` or not (see [`register_verifying`]).
     let o = align_level(
         qc,
         cc,
@@ -555,9 +564,7 @@ fn register_from(
         cfg,
         COARSE_EPS_FACTOR,
         0.0,
-        failing
-            .as_ref()
-            .map(|f| f as &dyn Fn(&Rigid, &Linear) -> bool),
+        None,
     );
     let alt = match cfg.schedule {
         Schedule::CoarseFine => None,
@@ -809,8 +816,9 @@ pub fn register_hypotheses_for(
 
 /// [`register_hypotheses_for`] as a verifying detector runs it: each level also stops once its
 /// cost has stalled ([`STALL_ITERATIONS`]) below the gate's `floors`; the gate judges the result.
+#[doc(hidden)]
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn register_hypotheses_verifying(
+pub fn register_hypotheses_verifying(
     query: &PreparedCloud,
     candidate: &PreparedCloud,
     yaws_deg: &[f64],
@@ -1329,5 +1337,53 @@ mod tests {
         );
         let (m, deg) = pose_distance(&plain.pose, &moved).unwrap();
         assert!(m < 0.02 && deg < 0.2, "{m} m, {deg}° off");
+    }
+
+    #[test]
+    fn a_verifying_registration_from_a_start_does_not_stop_its_coarse_level_at_a_stall() {
+        // The wrong match above from the same start, given 200 iterations a level: a single
+        // start's verifying registration runs its coarse level as `register` does, through its
+        // stalls below the floors (57 iterations of creep), and here ends exactly as
+        // `register` (the fine level converges from there). From the hypotheses (the same single
+        // yaw) the coarse level stops at its first stall below the floors.
+        let cfg = RegConfig {
+            max_iterations: 200,
+            ..RegConfig::default()
+        };
+        let gate = super::super::Gate::default();
+        let floors = Floors {
+            fitness: gate.min_fitness,
+            structure: gate.min_structure_fitness,
+        };
+        let q = PreparedCloud::new(Points::new(&building(), 3).unwrap(), &cfg).unwrap();
+        let c = PreparedCloud::new(Points::new(&room(0.0, 0.0), 3).unwrap(), &cfg).unwrap();
+        let (Some(qc), Some(cc)) = (&q.coarse, &c.coarse) else {
+            panic!("no coarse level")
+        };
+        let start = yaw_pose(45.0);
+        let mut x = Rigid::from_pose(&start).unwrap();
+        let coarse = align_level(
+            qc,
+            cc,
+            &mut x,
+            cfg.coarse_max_correspondence,
+            &cfg,
+            COARSE_EPS_FACTOR,
+            0.0,
+            None,
+        );
+        assert!(coarse.iterations > 40, "{} iterations", coarse.iterations);
+        let plain = register(&q, &c, &start, &cfg).unwrap();
+        let verifying = register_verifying(&q, &c, &start, &cfg, floors).unwrap();
+        assert!(verifying.iterations > coarse.iterations);
+        assert_eq!(
+            (plain.pose, plain.iterations, plain.fitness),
+            (verifying.pose, verifying.iterations, verifying.fitness)
+        );
+        let mut out = [Hypothesis::default(); 1];
+        let h = register_hypotheses_verifying(&q, &c, &[0.0], &start, &cfg, &mut out, 0.0, floors)
+            .unwrap();
+        assert!(out[0].iterations < 20, "{} iterations", out[0].iterations);
+        assert!(h.registration.iterations < coarse.iterations);
     }
 }
