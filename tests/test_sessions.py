@@ -438,7 +438,7 @@ def check_eval_and_view_take_per_frame_anchors(capsys: pytest.CaptureFixture[str
         assert not (tmp_path / f"ev_{name}").exists()
     # So from Python, the anchor file's path a str, or the anchors an array.
     ds, _ = commands.open_recording(s1, poses=odo)
-    for short, says in ((str(tmp_path / "anchors_short" / ANCHORS_FILE), "holds 20 transforms"), (full[:20], f"20 per-frame anchors for a run of {len(truth)} frames")):
+    for short, says in ((str(tmp_path / "anchors_short" / ANCHORS_FILE), "holds 20 transforms"), (full[:20], f"the per-frame anchors given hold 20 transforms, one per frame of its run, but this run has {len(truth)} frames")):
         with pytest.MonkeyPatch.context() as mp, pytest.raises(solid.ConfigError, match=says):
             mp.setattr(commands, "_run", no_run)
             commands.evaluate(ds, PipelineConfig.preset("vlp16"), commands.Inputs(s1), map_db=object(), anchor=short)

@@ -607,16 +607,17 @@ def evaluate(
         def on_scan(i: int, pts: Any) -> None:
             sc_desc.append(sc.describe(pts, scancontext))
 
-    # An anchor file is read, and per-frame anchors checked against the run's frame count,
-    # before the run.
+    # An anchor file is read into the anchors it holds, and per-frame anchors (the file's or an
+    # array) checked against the run's frame count once, before the run.
     given = Path(anchor) if map_db is not None and isinstance(anchor, (str, os.PathLike)) and anchor != "same" else None
     notes: list[str] = []
-    if given is not None:
-        anchor, notes = run_anchor(given, len(check_run(dataset, config)))
-    elif map_db is not None and anchor is not None and not isinstance(anchor, str) and np.ndim(anchor) == 3:
+    each_given = map_db is not None and anchor is not None and not isinstance(anchor, str) and np.ndim(anchor) == 3
+    if given is not None or each_given:
         frames = len(check_run(dataset, config))
-        if len(anchor) != frames:
-            raise _solid.ConfigError(f"{len(anchor)} per-frame anchors for a run of {frames} frames: give this run's")
+        if given is not None:
+            anchor, notes = _file_anchor(given, *anchor_file(given))
+        if anchor is not None and np.ndim(anchor) == 3:
+            _check_anchor_frames(anchor, frames, given)
     result = _run(dataset, config, map_db, threads, progress, on_scan)
     placed = None
     each = None
@@ -1123,6 +1124,17 @@ def folder_anchor(folder: Path, frames: int) -> tuple[Any, list[str]] | None:
 
 def _run_anchor(path: Path, T: Any, partial: str | None, frames: int) -> tuple[Any, list[str]]:
     """:func:`run_anchor` of the file ``path`` read (:func:`anchor_file`: ``T``, ``partial``)."""
+    anchor, notes = _file_anchor(path, T, partial)
+    if np.ndim(anchor) == 3:
+        _check_anchor_frames(anchor, frames, path)
+    return anchor, notes
+
+
+def _file_anchor(path: Path, T: Any, partial: str | None) -> tuple[Any, list[str]]:
+    """The anchors of the file ``path`` read (:func:`anchor_file`: ``T``, ``partial``): its one
+    transform (4, 4) with the note an ``anchor.txt`` that maps only some frames needs, or its
+    per-frame ones (K, 4, 4), not yet checked against a run's frame count
+    (:func:`_check_anchor_frames`)."""
     notes: list[str] = []
     if len(T) == 1:
         if partial is not None:
@@ -1131,12 +1143,18 @@ def _run_anchor(path: Path, T: Any, partial: str | None, frames: int) -> tuple[A
                 f"stretches of the odometry are misplaced (give {Path(path).with_name(ANCHORS_FILE)}, each frame's transform, where it is)"
             )
         return T[0], notes
+    return T, notes
+
+
+def _check_anchor_frames(T: Any, frames: int, path: Path | None) -> None:
+    """Refuses per-frame anchors ``T`` (K, 4, 4) of another frame count than the run's ``frames``,
+    naming the file ``path`` they were read from (None: given as an array)."""
     if len(T) != frames:
+        held = f"{path} holds" if path is not None else "the per-frame anchors given hold"
         raise _solid.ConfigError(
-            f"{path} holds {len(T)} transforms, one per frame of its run, but this run has {frames} frames: "
+            f"{held} {len(T)} transforms, one per frame of its run, but this run has {frames} frames: "
             "give the anchors of this run (the same recording and --frames)"
         )
-    return T, notes
 
 
 def read_anchor(path: Path) -> Any:

@@ -227,7 +227,7 @@ impl Database {
         }
         check_session(session)?;
         let first = self.len();
-        if first + m >= u32::MAX as usize {
+        if first + m >= entry_limit() {
             return Err(DbError::Full);
         }
         for p in poses.unwrap_or(&[]) {
@@ -326,6 +326,23 @@ impl Database {
         Ok(())
     }
 
+    /// What [`Database::add_vectors`] checks of one descriptor's vectors, without adding them:
+    /// their lengths and values (finite, non-negative).
+    ///
+    /// # Errors
+    /// As [`Database::add_vectors`] for the vectors.
+    pub(crate) fn check_vectors(&self, r: &[f32], a: &[f32]) -> Result<(), DbError> {
+        super::same_len("r_solid vs config n_range", r.len(), self.config.n_range)?;
+        super::same_len(
+            "a_solid vs config n_azimuth",
+            a.len(),
+            self.config.n_azimuth,
+        )?;
+        check_bins("r_solid", r)?;
+        check_bins("a_solid", a)?;
+        Ok(())
+    }
+
     pub(crate) fn check_fingerprint(&self, got: u64) -> Result<(), DbError> {
         if got != self.fingerprint {
             return Err(DbError::ConfigMismatch {
@@ -420,7 +437,7 @@ impl Database {
             }
             None => {}
         }
-        if self.len() + other.len() >= u32::MAX as usize {
+        if self.len() + other.len() >= entry_limit() {
             return Err(DbError::Full);
         }
         let offset = match self.sessions.iter().max() {
@@ -743,6 +760,33 @@ impl Database {
 
 /// Checks that a descriptor vector holds what descriptors hold: finite, non-negative values
 /// (SPEC §3; the cosine distance is in [0, 1] only for those).
+/// How many entries a database holds at most, and ids a detector gives at most, plus one: ids
+/// are `u32` below `u32::MAX` ([`DbError::Full`]). Tests lower it on their own thread
+/// ([`tests_limit`]) to reach a full database.
+pub(crate) fn entry_limit() -> usize {
+    #[cfg(test)]
+    {
+        if let Some(n) = tests_limit::LIMIT.with(core::cell::Cell::get) {
+            return n;
+        }
+    }
+    u32::MAX as usize
+}
+
+/// A lower [`entry_limit`] for the tests of the calling thread.
+#[cfg(test)]
+pub(crate) mod tests_limit {
+    std::thread_local! {
+        /// None: `u32::MAX`.
+        pub(crate) static LIMIT: core::cell::Cell<Option<usize>> = const { core::cell::Cell::new(None) };
+    }
+
+    /// Sets the calling thread's limit (None: the real one).
+    pub(crate) fn set(n: Option<usize>) {
+        LIMIT.with(|l| l.set(n));
+    }
+}
+
 fn check_bins(name: &'static str, v: &[f32]) -> Result<(), Error> {
     match v.iter().find(|x| !super::format::is_bin_value(**x)) {
         Some(bad) => Err(Error::InvalidParameter {

@@ -55,6 +55,9 @@ pub use crate::detector::{
     DEFAULT_RERANK, DEFAULT_TOP_K, DEFAULT_VERIFY_CANDIDATES, MAX_TOP_K, MAX_VERIFY_THREADS,
 };
 pub use crate::error::DbError;
+pub(crate) use database::entry_limit;
+#[cfg(test)]
+pub(crate) use database::tests_limit;
 pub use database::{
     check_pose, check_session, BatchResults, Database, MergeAnchor, SearchOptions,
     INDEX_AFTER_PASSES,

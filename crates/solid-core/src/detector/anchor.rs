@@ -25,6 +25,16 @@ pub(super) enum Reach {
     Beyond,
 }
 
+/// The path the poses' prediction of a loop goes through ([`LoopDetector::expected_via`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Via {
+    /// The two places' poses (no anchor applies, or its path is not the shorter).
+    Poses,
+    /// The latest anchor: its path is the shorter (`shorter`), or the two places' path crosses
+    /// a break of the odometry (the anchor's is the only one).
+    Anchor { shorter: bool },
+}
+
 /// The latest confirmed loop of the own session: the query's pose and metres travelled, the
 /// candidate's id and the loop's pose.
 #[derive(Debug, Clone, Copy)]
@@ -76,6 +86,19 @@ impl LoopDetector {
         anchored: Option<([f64; 12], f64, f64)>,
         c: u32,
     ) -> Option<(Pose, f64)> {
+        self.expected_via(at, anchored, c)
+            .map(|(pose, path, _)| (pose, path))
+    }
+
+    /// [`LoopDetector::expected_through`] and the path it went through: whether the latest
+    /// anchor gives place `c` the shorter path is decided here only (the odometry check's
+    /// rotation allowance and the widened pose candidates ask it).
+    pub(super) fn expected_via(
+        &self,
+        at: &QueryPlace,
+        anchored: Option<([f64; 12], f64, f64)>,
+        c: u32,
+    ) -> Option<(Pose, f64, Via)> {
         let q = at.pose?;
         let tc = self.travelled_at(c);
         let pc = self.known_pose(c)?;
@@ -87,11 +110,12 @@ impl LoopDetector {
             let path = since + libm::fabs(t - t0);
             let through = !self.crosses_break(at.travelled - since, at.travelled)
                 && !self.crosses_break(t0, t);
-            if through && (path < global || broken) {
-                return Some((relative(&qa, &pc), path));
+            let shorter = path < global;
+            if through && (shorter || broken) {
+                return Some((relative(&qa, &pc), path, Via::Anchor { shorter }));
             }
         }
-        (!broken).then(|| (relative(&q, &pc), global))
+        (!broken).then(|| (relative(&q, &pc), global, Via::Poses))
     }
 
     /// Whether own place `c` lies within reach of the query `at` by the poses (through

@@ -382,11 +382,14 @@ impl LoopDetector {
     }
 
     /// The hypotheses of the step's registered candidates into the session's own places with
-    /// poses (by index in `cands`), remembered for the next steps' [`LoopDetector::vouched`].
+    /// poses (by index in `cands`), remembered for the next steps' [`LoopDetector::vouched`];
+    /// `holds[i]`: candidate `i`'s odometry check (None: across a break of the odometry; else
+    /// whether it agrees, [`LoopDetector::agrees_with_odometry`]).
     pub(super) fn record_own(
         &mut self,
         at: &QueryPlace,
         cands: &[Candidate],
+        holds: &[Option<bool>],
     ) -> Vec<(usize, Hypothesis)> {
         let mut mine = Vec::new();
         let Some(q) = at.pose else { return mine };
@@ -398,7 +401,7 @@ impl LoopDetector {
                 continue;
             };
             mine.extend(Hypothesis::of(at, q, c, place, t).map(|h| {
-                let odometry = !self.across_break(at, c) && self.agrees_with_odometry(at, c, true);
+                let odometry = holds[i] == Some(true);
                 (i, Hypothesis { odometry, ..h })
             }));
         }

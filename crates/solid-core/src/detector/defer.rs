@@ -382,9 +382,10 @@ impl LoopDetector {
         // The candidates chosen by pose follow the descriptor's, as in their step.
         let split = by_pose.iter().position(|&p| p).unwrap_or(by_pose.len());
         self.register_jobs(&a, q, Some(&at), (jobs, split), cands, &d.done)?;
-        self.check_pose_candidates(&at, &mut cands[split..]);
+        let agreed = self.check_pose_candidates(&at, &mut cands[split..]);
+        let agreed: Vec<usize> = agreed.into_iter().map(|i| split + i).collect();
         let r = self.r(at.id).to_vec();
-        self.check_after_gate(&at, &r, cands)?;
+        self.check_after_gate_with(&at, &r, cands, &agreed)?;
         let best = cands
             .iter()
             .filter(|c| c.verification.is_some_and(|r| r.accepted))

@@ -12,7 +12,7 @@ use alloc::vec;
 use alloc::vec::Vec;
 
 use crate::compare::aligned_distance;
-use crate::db::{check_pose, visible_own_places};
+use crate::db::{check_pose, entry_limit, visible_own_places};
 use crate::db::{Database, DbError, Method, SearchOptions};
 use crate::reg::{self, PreparedCloud, Registration, Rejection};
 use crate::{heading_refined, Config, Descriptor, Error};
@@ -488,8 +488,13 @@ impl LoopDetector {
     /// [`DbError::ConfigMismatch`] for a descriptor made with another config;
     /// [`DbError::Core`] for an infinite timestamp, a non-finite pose or one whose 3×3 part is
     /// not a rotation, a missing pose or timestamp that the exclusion needs, a timestamp older
-    /// than the previous one when excluding by seconds; otherwise as [`Database::add`]. On
-    /// error nothing is added.
+    /// than the previous one when excluding by seconds; otherwise as [`Database::add`]
+    /// ([`DbError::Full`] when the place's id would reach `u32::MAX`, the map's places
+    /// counted). On error nothing is added, and the detector is as it was before the call
+    /// (its odometry's steps and breaks, its chain, support window, anchor and placement):
+    /// everything that refuses a place is checked before the step changes anything. Only a
+    /// failure in the middle of a verifying step (out of memory, a map's file that cannot be
+    /// read) can leave the registrations it made behind.
     pub fn detect(
         &mut self,
         d: &Descriptor,
@@ -499,7 +504,28 @@ impl LoopDetector {
         self.own.check_fingerprint(d.fingerprint)?;
         self.no_verification("detect")?;
         let step = self.step(timestamp, pose, self.trail)?;
+        self.admit(d)?;
+        self.room(1)?;
         self.detect_checked(d, None, step)
+    }
+
+    /// Checks what adding `d`'s place would refuse ([`Database::add_vectors`]: its vectors'
+    /// lengths and values), before a step changes anything: a step notes the odometry's step,
+    /// links the chain, registers candidates and holds placement hypotheses before it adds
+    /// the place, and none of that may stay behind when the add fails.
+    fn admit(&self, d: &Descriptor) -> Result<(), DbError> {
+        self.own.check_fingerprint(d.fingerprint)?;
+        self.own.check_vectors(&d.r, &d.a)
+    }
+
+    /// Checks that `n` more places fit: [`DbError::Full`] when the last one's id would reach
+    /// `u32::MAX` (the map's places and the own ones together: the own places' ids follow the
+    /// map's).
+    fn room(&self, n: usize) -> Result<(), DbError> {
+        match self.len().checked_add(n) {
+            Some(last) if last < entry_limit() => Ok(()),
+            _ => Err(DbError::Full),
+        }
     }
 
     /// Refuses a descriptor-only call when verification is on (it needs the scan's points).
@@ -635,13 +661,14 @@ impl LoopDetector {
         // The time and path checks need the previous scans of this batch.
         let mut trail = self.trail;
         for (i, d) in descriptors.iter().enumerate() {
-            self.own.check_fingerprint(d.fingerprint)?;
+            self.admit(d)?;
             let t = timestamps.get(i).copied().unwrap_or(f64::NAN);
             let p = poses.get(i).copied().flatten();
             let s = self.step(t, p, trail)?;
             trail = s.trail;
             steps.push(s);
         }
+        self.room(n)?;
         let mut out = Vec::new();
         out.try_reserve_exact(n).map_err(|_| DbError::OutOfMemory)?;
         let mut clouds = clouds.into_iter();
@@ -768,6 +795,17 @@ impl LoopDetector {
         cloud: Option<PreparedCloud>,
         s: Step,
     ) -> Result<Detection, DbError> {
+        // Everything that can refuse the place is checked before the step changes anything
+        // (`admit`, `room`); the memory of its records reserved.
+        self.travelled
+            .try_reserve(1)
+            .map_err(|_| DbError::OutOfMemory)?;
+        self.latest_time
+            .try_reserve(1)
+            .map_err(|_| DbError::OutOfMemory)?;
+        self.known
+            .try_reserve(1)
+            .map_err(|_| DbError::OutOfMemory)?;
         let v = self.config.verify;
         let (mut cloud, stored) = match cloud {
             Some(c) if v.enabled => {
@@ -808,12 +846,6 @@ impl LoopDetector {
                 self.anchor_on(&at, c);
             }
         }
-        self.travelled
-            .try_reserve(1)
-            .map_err(|_| DbError::OutOfMemory)?;
-        self.latest_time
-            .try_reserve(1)
-            .map_err(|_| DbError::OutOfMemory)?;
         let id = self
             .own
             .add_with_cloud(d, self.session, s.timestamp, given, stored.as_deref())?
@@ -909,5 +941,99 @@ impl LoopDetector {
         // Stable: equal keys keep the search's order (distance, then lower id).
         ranked.sort_by(|x, y| x.0.total_cmp(&y.0));
         Ok(ranked.into_iter().map(|(_, c)| c).collect())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::db::tests_limit;
+    use crate::detector::nearby::tests::corridor;
+    use crate::detector::verify::tests::{pose, with_r};
+
+    /// The corridor seen from x (facing +x).
+    fn seen(x: f64) -> Vec<f64> {
+        let world = corridor(&[-13.0, -4.5, 3.0, 11.5]);
+        world.iter().flat_map(|p| [p[0] - x, p[1], p[2]]).collect()
+    }
+
+    /// Place `i`'s descriptor: nearest to the places next to it.
+    fn descriptor(c: &Config, i: usize) -> Descriptor {
+        let mut r = alloc::vec![1.0f32; c.n_range];
+        r[i % c.n_range] += 1.0;
+        r[(i + 1) % c.n_range] += 0.5;
+        with_r(c, r)
+    }
+
+    #[test]
+    fn a_step_the_full_database_refuses_leaves_the_detector_as_it_was() {
+        let c = Config::preset("hdl64").unwrap();
+        let mut dc = DetectorConfig {
+            exclude_frames: 2,
+            exclude_meters: 0.0,
+            exclude_seconds: 0.0,
+            ..DetectorConfig::default()
+        };
+        dc.verify.enabled = true;
+        // Along the corridor 1 m a step and back (loops, an anchor, the support window), with
+        // the caller's poses and with the detector's own odometry; the step at 7 refused once.
+        let xs: Vec<f64> = (0..8).chain((0..6).rev()).map(f64::from).collect();
+        for given in [true, false] {
+            let scan = |det: &LoopDetector, i: usize| Scan {
+                descriptor: descriptor(&c, xs[i] as usize),
+                cloud: det
+                    .prepare_cloud(Points::new(&seen(xs[i]), 3).unwrap())
+                    .unwrap(),
+            };
+            let at = |i: usize| given.then(|| pose(0.0, xs[i], 0.0));
+            let run = |refused: Option<usize>| {
+                let mut det = LoopDetector::new(c, dc).unwrap();
+                let mut out = Vec::new();
+                for i in 0..xs.len() {
+                    if refused == Some(i) {
+                        let before = alloc::format!("{det:?}");
+                        tests_limit::set(Some(det.len() + 1));
+                        let refused = det.detect_scan(scan(&det, i), i as f64, at(i));
+                        let batch = det.detect_scans(alloc::vec![scan(&det, i)], &[], &[at(i)]);
+                        tests_limit::set(None);
+                        assert!(matches!(refused, Err(DbError::Full)), "{refused:?}");
+                        assert!(matches!(batch, Err(DbError::Full)), "{batch:?}");
+                        assert_eq!(alloc::format!("{det:?}"), before, "given {given}");
+                    }
+                    out.push(det.detect_scan(scan(&det, i), i as f64, at(i)).unwrap());
+                }
+                (out, det)
+            };
+            let (once, det) = run(None);
+            assert!(
+                once.iter().any(|d| d.accepted.is_some()),
+                "no loop: {once:?}"
+            );
+            let (refused, again) = run(Some(7));
+            assert_eq!(refused, once, "given {given}");
+            assert_eq!(alloc::format!("{again:?}"), alloc::format!("{det:?}"));
+        }
+        // Without verification: a descriptor the database refuses (a negative value) changes
+        // nothing either (the break notes the odometry's step).
+        dc.verify.enabled = false;
+        let mut det = LoopDetector::new(c, dc).unwrap();
+        for i in 0..4 {
+            det.detect(&descriptor(&c, i), f64::NAN, Some(pose(0.0, i as f64, 0.0)))
+                .unwrap();
+        }
+        let before = alloc::format!("{det:?}");
+        let mut bad = descriptor(&c, 4);
+        bad.r[3] = -1.0;
+        let far = Some(pose(0.0, 40.0, 0.0));
+        assert!(det.detect(&bad, f64::NAN, far).is_err());
+        bad.a.pop();
+        assert!(det.detect(&bad, f64::NAN, far).is_err());
+        tests_limit::set(Some(det.len() + 1));
+        assert!(matches!(
+            det.detect(&descriptor(&c, 4), f64::NAN, far),
+            Err(DbError::Full)
+        ));
+        tests_limit::set(None);
+        assert_eq!(alloc::format!("{det:?}"), before);
     }
 }

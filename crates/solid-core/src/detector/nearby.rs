@@ -8,7 +8,7 @@ use alloc::vec::Vec;
 
 use nalgebra::Matrix3;
 
-use super::anchor::Reach;
+use super::anchor::{Reach, Via};
 use super::verify::{registered, reject, QueryPlace};
 use super::{Candidate, LoopDetector};
 use crate::compare::cosine_distance;
@@ -111,13 +111,11 @@ impl LoopDetector {
         // every step the anchor does not hold gets them (hku1: 1.07x the CPU a step).
         let n = best.first().map_or(0, |&(_, id)| {
             let step = self.breaks.typical();
-            let Some((_, path)) = self.expected_through(&at, anchored, id) else {
+            let Some((_, path, via)) = self.expected_via(&at, anchored, id) else {
                 return v.pose_candidates;
             };
-            let direct = self
-                .travelled_at(id)
-                .map_or(f64::NAN, |t| libm::fabs(travelled - t));
-            if step.is_nan() || step <= 0.0 || path.is_nan() || path < direct {
+            let shorter = via == Via::Anchor { shorter: true };
+            if step.is_nan() || step <= 0.0 || path.is_nan() || shorter {
                 return v.pose_candidates;
             }
             let off = v.odometry_translation_m + v.odometry_drift * path;
@@ -140,19 +138,36 @@ impl LoopDetector {
     /// it. (Without the rotation's allowance, until r19-drift, every true place chosen by pose
     /// after the four-module corridors' 744 m lap drifting 1 % was turned down: 10.8-15.7 m
     /// off the odometry, 0.6-2.0 m off that displacement.)
-    pub(super) fn check_pose_candidates(&self, at: &QueryPlace, by_pose: &mut [Candidate]) {
+    ///
+    /// Returns the indices in `by_pose` of the candidates that passed the odometry check here
+    /// (with it on): the odometry check after the gate takes them as agreeing
+    /// ([`LoopDetector::check_after_gate_with`]) instead of asking again.
+    pub(super) fn check_pose_candidates(
+        &self,
+        at: &QueryPlace,
+        by_pose: &mut [Candidate],
+    ) -> Vec<usize> {
         let v = &self.config.verify;
-        for c in by_pose.iter_mut().filter(|c| registered(c)) {
+        let mut agreed = Vec::new();
+        for (i, c) in by_pose.iter_mut().enumerate() {
+            if !registered(c) {
+                continue;
+            }
             let info = c
                 .verification
                 .map_or(f64::NAN, |r| r.registration.degeneracy.translation);
             // A NaN information never passes.
             if info.is_nan() || info < v.pose_candidate_min_information {
                 reject(c, Rejection::DegenerateTranslation);
-            } else if v.odometry_check && !self.agrees_with_odometry(at, c, true) {
-                reject(c, Rejection::OdometryDisagrees);
+            } else if v.odometry_check {
+                if self.agrees_with_odometry(at, c, true) {
+                    agreed.push(i);
+                } else {
+                    reject(c, Rejection::OdometryDisagrees);
+                }
             }
         }
+        agreed
     }
 
     /// Place `id` as an unverified candidate of the query `(r, a)`.

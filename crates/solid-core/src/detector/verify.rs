@@ -4,7 +4,7 @@
 use alloc::sync::Arc;
 use alloc::vec::Vec;
 
-use super::anchor::Reach;
+use super::anchor::{Reach, Via};
 use super::consistency::Vouch;
 use super::{loop_of, Candidate, LoopDetector, Verification};
 use crate::db::DbError;
@@ -111,8 +111,10 @@ impl LoopDetector {
                 self.defer(at, cands, &over, head)?;
                 // The candidates chosen by pose follow the descriptor's (from `head`).
                 let end = n.min(cands.len());
-                self.check_pose_candidates(&at, &mut cands[head.min(end)..end]);
-                self.check_after_gate(&at, r_query, cands)?;
+                let from = head.min(end);
+                let agreed = self.check_pose_candidates(&at, &mut cands[from..end]);
+                let agreed: Vec<usize> = agreed.into_iter().map(|i| from + i).collect();
+                self.check_after_gate_with(&at, r_query, cands, &agreed)?;
             }
             for c in cands.iter_mut() {
                 if let Some(r) = c.verification.filter(|r| r.accepted) {
@@ -346,20 +348,46 @@ impl LoopDetector {
         Ok(beyond)
     }
 
-    /// The odometry check, then the support of the previous steps ([`VerifyConfig`]), on the
-    /// candidates that passed the gate; remembers the step's candidates that passed the odometry
-    /// check for the next steps' support.
+    /// [`LoopDetector::check_after_gate_with`] without candidates checked before (the tests').
+    #[cfg(test)]
     pub(super) fn check_after_gate(
         &mut self,
         at: &QueryPlace,
         r_query: &[f32],
         cands: &mut [Candidate],
     ) -> Result<(), DbError> {
+        self.check_after_gate_with(at, r_query, cands, &[])
+    }
+
+    /// The odometry check, then the support of the previous steps ([`VerifyConfig`]), on the
+    /// candidates that passed the gate; remembers the step's candidates that passed the odometry
+    /// check for the next steps' support. The candidates at the indices `agreed` passed the
+    /// odometry check already (candidates chosen by pose:
+    /// [`LoopDetector::check_pose_candidates`]): it is not asked again.
+    pub(super) fn check_after_gate_with(
+        &mut self,
+        at: &QueryPlace,
+        r_query: &[f32],
+        cands: &mut [Candidate],
+        agreed: &[usize],
+    ) -> Result<(), DbError> {
         let v = self.config.verify;
         let passed = |c: &Candidate| c.verification.is_some_and(|r| r.accepted);
+        // Each registered candidate's odometry check, once (the hypotheses and the check
+        // below ask it): None across a break of the odometry, else whether it agrees.
+        let mut holds = Vec::new();
+        holds
+            .try_reserve_exact(cands.len())
+            .map_err(|_| DbError::OutOfMemory)?;
+        holds.extend(cands.iter().enumerate().map(|(i, c)| {
+            if !registered(c) || self.across_break(at, c) {
+                return None;
+            }
+            Some(agreed.contains(&i) || self.agrees_with_odometry(at, c, true))
+        }));
         // Loops within the session that the odometry turns down may be vouched for by their
         // neighbours' consistency (the odometry drifted beyond its bounds, or broke down).
-        let own = self.record_own(at, cands);
+        let own = self.record_own(at, cands, &holds);
         let mut vouched = Vec::new();
         vouched
             .try_reserve_exact(cands.len())
@@ -372,8 +400,8 @@ impl LoopDetector {
                     continue;
                 }
                 // Across a break of the odometry, the loops across it decide (as in a map).
-                let across = self.across_break(at, c);
-                if !across && self.agrees_with_odometry(at, c, true) {
+                let across = holds[i].is_none();
+                if holds[i] == Some(true) {
                     continue;
                 }
                 if across || self.within_vouched_drift(at, c) {
@@ -542,13 +570,10 @@ impl LoopDetector {
         pose: &Pose,
         turn: bool,
     ) -> Option<bool> {
-        let (expected, path) = self.expected(at, c, true)?;
+        let (expected, path, via) = self.expected_via(at, self.anchored(at), c)?;
         if turn {
             // Through the two places' poses (not the anchor's shorter path), the drift's arm.
-            let direct = self
-                .expected(at, c, false)
-                .is_some_and(|(_, global)| global <= path);
-            if direct {
+            if via == Via::Poses {
                 // The directed allowance never exceeds `angle · path / 2` (the arm is at most
                 // half the path): that cheap test first (a hair looser, for rounding), the
                 // arm's walk along the path after.
