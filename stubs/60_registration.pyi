@@ -187,8 +187,8 @@ def _register_verifying(
     """`register` as a verifying detector runs it for a loop candidate, for the convergence-basin
     benchmark (`benches/reg_basin.py`); not part of the public API.
 
-    A level also stops once its cost has not reached a new low for 3 iterations while the
-    candidate's overlap there is below `gate`'s `min_fitness` or `min_structure_fitness`; with
+    The fine level (with `yaws`, every level) also stops once its cost has not reached a new low
+    for 3 iterations while the candidate's overlap there is below `gate`'s `min_fitness` or `min_structure_fitness`; with
     `yaws`, a candidate whose best hypothesis is clearly below `min_fitness` gives up before the
     fine level (docs/spec.md §11). `gate` None: `AcceptanceGate()`. Arguments and errors as
     `register`'s.

@@ -97,8 +97,8 @@ def test_revisits_across_a_frame_the_chain_started_are_found_by_their_consistenc
     """The chain breaks (a jump of 170 m: two links fail) and the second frame then drives the
     first frame's places again (frames 53-64 revisit 0-11): no odometry relates the two frames,
     so each loop across is accepted only when the loops across the break place each other
-    (`placement_loops` queries over `placement_m` metres, facing directions 45° apart, more
-    than twice any rival) — the same rule as across a break of a caller's odometry. The path
+    (`placement_loops` queries over `placement_m` metres, two of them at most `placement_m`
+    apart facing directions 45° apart, more than twice any rival) — the same rule as across a break of a caller's odometry. The path
     turns about 7° a frame: the loops of the last four revisits are accepted at their step, the
     eight before them were held and are released with the set that turns (`Detection.released`),
     none is pose-false (before, places of an earlier frame were never registered: no loop at

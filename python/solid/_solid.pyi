@@ -329,7 +329,7 @@ class DetectorConfig:
             lookalike_m: Reject a loop when an own place farther than this from its place, about as close by descriptor, fits the drift bounds too (0: off) (a finite number >= 0; default 10.0).
             lookalike_margin: How much larger a look-alike's R-SOLiD distance may be than the loop's candidate's (a number in [0, 1]; default 0.2).
             placement_loops: Loops into a map are accepted once this many queries' loops into it agree with each other over a turn (the session is placed in the map; the loops held before are released then), then when they agree with that placement (0: off) (an integer >= 0; default 3).
-            placement_m: Metres of the session's path the loops that place it in the map must span, and the most between two of them facing 45° apart (the turn they must hold) (a finite number >= 0; default 15.0).
+            placement_m: Metres of the session's path the loops that place it in the map must span, and the most between two of them facing 45° apart (the turn they must hold; 0: no span, the turn anywhere among them) (a finite number >= 0; default 15.0).
             registration: The registration parameters (an object, or a dict of overrides of the current ones).
             gate: The acceptance gate (an object, or a dict of overrides of the current one).
 
@@ -409,7 +409,7 @@ class DetectorConfig:
             lookalike_m: Reject a loop when an own place farther than this from its place, about as close by descriptor, fits the drift bounds too (0: off) (a finite number >= 0; default 10.0).
             lookalike_margin: How much larger a look-alike's R-SOLiD distance may be than the loop's candidate's (a number in [0, 1]; default 0.2).
             placement_loops: Loops into a map are accepted once this many queries' loops into it agree with each other over a turn (the session is placed in the map; the loops held before are released then), then when they agree with that placement (0: off) (an integer >= 0; default 3).
-            placement_m: Metres of the session's path the loops that place it in the map must span, and the most between two of them facing 45° apart (the turn they must hold) (a finite number >= 0; default 15.0).
+            placement_m: Metres of the session's path the loops that place it in the map must span, and the most between two of them facing 45° apart (the turn they must hold; 0: no span, the turn anywhere among them) (a finite number >= 0; default 15.0).
             registration: The registration parameters (an object, or a dict of overrides of the current ones).
             gate: The acceptance gate (an object, or a dict of overrides of the current one).
 
@@ -490,7 +490,7 @@ class DetectorConfig:
             lookalike_m: Reject a loop when an own place farther than this from its place, about as close by descriptor, fits the drift bounds too (0: off) (a finite number >= 0; default 10.0).
             lookalike_margin: How much larger a look-alike's R-SOLiD distance may be than the loop's candidate's (a number in [0, 1]; default 0.2).
             placement_loops: Loops into a map are accepted once this many queries' loops into it agree with each other over a turn (the session is placed in the map; the loops held before are released then), then when they agree with that placement (0: off) (an integer >= 0; default 3).
-            placement_m: Metres of the session's path the loops that place it in the map must span, and the most between two of them facing 45° apart (the turn they must hold) (a finite number >= 0; default 15.0).
+            placement_m: Metres of the session's path the loops that place it in the map must span, and the most between two of them facing 45° apart (the turn they must hold; 0: no span, the turn anywhere among them) (a finite number >= 0; default 15.0).
             registration: The registration parameters (an object, or a dict of overrides of the current ones).
             gate: The acceptance gate (an object, or a dict of overrides of the current one).
 
@@ -599,7 +599,7 @@ class DetectorConfig:
         """Loops into a map are accepted once this many queries' loops into it agree with each other over a turn (the session is placed in the map; the loops held before are released then), then when they agree with that placement (0: off) (an integer >= 0; default 3)."""
     @property
     def placement_m(self) -> float:
-        """Metres of the session's path the loops that place it in the map must span, and the most between two of them facing 45° apart (the turn they must hold) (a finite number >= 0; default 15.0)."""
+        """Metres of the session's path the loops that place it in the map must span, and the most between two of them facing 45° apart (the turn they must hold; 0: no span, the turn anywhere among them) (a finite number >= 0; default 15.0)."""
     # end of generated
     @property
     def registration(self) -> RegistrationConfig:
@@ -2343,8 +2343,8 @@ def _register_verifying(
     """`register` as a verifying detector runs it for a loop candidate, for the convergence-basin
     benchmark (`benches/reg_basin.py`); not part of the public API.
 
-    A level also stops once its cost has not reached a new low for 3 iterations while the
-    candidate's overlap there is below `gate`'s `min_fitness` or `min_structure_fitness`; with
+    The fine level (with `yaws`, every level) also stops once its cost has not reached a new low
+    for 3 iterations while the candidate's overlap there is below `gate`'s `min_fitness` or `min_structure_fitness`; with
     `yaws`, a candidate whose best hypothesis is clearly below `min_fitness` gives up before the
     fine level (docs/spec.md §11). `gate` None: `AcceptanceGate()`. Arguments and errors as
     `register`'s.

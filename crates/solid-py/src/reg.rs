@@ -366,7 +366,8 @@ fn register(
 }
 
 /// `register` as a verifying detector runs it for a loop candidate (`gate`: its acceptance gate;
-/// None: `AcceptanceGate()`): a level also stops at a cost stall below the gate's
+/// None: `AcceptanceGate()`): the fine level (with `yaws`, every level) also stops at a cost
+/// stall below the gate's
 /// `min_fitness` / `min_structure_fitness`, and with `yaws` a candidate clearly below
 /// `min_fitness` gives up before the fine level. For the convergence-basin benchmark
 /// (`benches/reg_basin.py`); not part of the public API.

@@ -758,8 +758,6 @@ impl Database {
     }
 }
 
-/// Checks that a descriptor vector holds what descriptors hold: finite, non-negative values
-/// (SPEC §3; the cosine distance is in [0, 1] only for those).
 /// How many entries a database holds at most, and ids a detector gives at most, plus one: ids
 /// are `u32` below `u32::MAX` ([`DbError::Full`]). Tests lower it on their own thread
 /// ([`tests_limit`]) to reach a full database.
@@ -787,6 +785,8 @@ pub(crate) mod tests_limit {
     }
 }
 
+/// Checks that a descriptor vector holds what descriptors hold: finite, non-negative values
+/// (SPEC §3; the cosine distance is in [0, 1] only for those).
 fn check_bins(name: &'static str, v: &[f32]) -> Result<(), Error> {
     match v.iter().find(|x| !super::format::is_bin_value(**x)) {
         Some(bad) => Err(Error::InvalidParameter {

@@ -197,7 +197,8 @@ pub struct VerifyConfig {
     /// into the map then pass as within one session, by the support of the previous steps).
     pub placement_loops: usize,
     /// Metres of the session's path the loops that place it in the map must span, and the most
-    /// between two of them facing 45° apart (the turn they must hold).
+    /// between two of them facing 45° apart (the turn they must hold; 0: no span, the turn
+    /// anywhere among them).
     pub placement_m: f64,
 }
 
@@ -464,7 +465,7 @@ impl Params for DetectorConfig {
         field!(DetectorConfig, "placement_loops", verify.placement_loops, COUNT, "an integer >= 0",
             "Loops into a map are accepted once this many queries' loops into it agree with each other over a turn (the session is placed in the map; the loops held before are released then), then when they agree with that placement (0: off)."),
         field!(DetectorConfig, "placement_m", verify.placement_m, Kind::closed(0.0, FINITE), "a finite number >= 0",
-            "Metres of the session's path the loops that place it in the map must span, and the most between two of them facing 45° apart (the turn they must hold)."),
+            "Metres of the session's path the loops that place it in the map must span, and the most between two of them facing 45° apart (the turn they must hold; 0: no span, the turn anywhere among them)."),
     ];
 
     fn defaults() -> DetectorConfig {

@@ -467,7 +467,16 @@ impl LoopDetector {
             && (!across || (n >= v.placement_loops && span(&set) >= v.placement_m));
         if n <= RIVAL_RATIO * rival {
             Vouch::No
-        } else if large && turns(&set, if across { v.placement_m } else { f64::INFINITY }) {
+        } else if large
+            && turns(
+                &set,
+                if across {
+                    turn_within(v)
+                } else {
+                    f64::INFINITY
+                },
+            )
+        {
             Vouch::Yes(set)
         } else {
             Vouch::Waits
@@ -694,7 +703,7 @@ impl LoopDetector {
         let v = &self.config.verify;
         distinct(set) >= v.placement_loops
             && span(set) >= v.placement_m
-            && turns(set, v.placement_m)
+            && turns(set, turn_within(v))
     }
 
     /// Makes `set` the placement (a new one, or a revision) at query `now`, and releases the
@@ -931,6 +940,16 @@ fn nearest<'a>(
     set.min_by(|a, b| {
         libm::fabs(a.travelled - h.travelled).total_cmp(&libm::fabs(b.travelled - h.travelled))
     })
+}
+
+/// The most metres of path between two queries of a placing set facing [`PLACEMENT_TURN_DEG`]
+/// apart: `placement_m`, unbounded when it is 0 (no span asked: the turn anywhere in the set).
+fn turn_within(v: &crate::detector::VerifyConfig) -> f64 {
+    if v.placement_m > 0.0 {
+        v.placement_m
+    } else {
+        f64::INFINITY
+    }
 }
 
 /// Whether two of a set's queries at most `within_m` metres of path apart face directions
@@ -1349,6 +1368,15 @@ mod tests {
             assert_eq!(rejection(&cands[0]).is_none(), k >= 10, "step {k}");
         }
         assert!(det.map_anchor().is_some());
+        // `placement_m` 0 asks no span: the turn may lie anywhere in the set, and the two legs
+        // place it (at the second leg's first step).
+        let mut det = over_map(3);
+        det.config.verify.placement_m = 0.0;
+        for k in (0..6).chain(16..22) {
+            let (at, mut cands) = step_facing(&det, k, false, if k < 10 { 0.0 } else { 90.0 });
+            det.check_after_gate(&at, &[], &mut cands).unwrap();
+            assert_eq!(rejection(&cands[0]).is_none(), k >= 16, "step {k}");
+        }
     }
 
     #[test]

@@ -489,12 +489,12 @@ impl LoopDetector {
     /// [`DbError::Core`] for an infinite timestamp, a non-finite pose or one whose 3×3 part is
     /// not a rotation, a missing pose or timestamp that the exclusion needs, a timestamp older
     /// than the previous one when excluding by seconds; otherwise as [`Database::add`]
-    /// ([`DbError::Full`] when the place's id would reach `u32::MAX`, the map's places
+    /// ([`DbError::Full`] when the place's id would be `u32::MAX` or more, the map's places
     /// counted). On error nothing is added, and the detector is as it was before the call
     /// (its odometry's steps and breaks, its chain, support window, anchor and placement):
     /// everything that refuses a place is checked before the step changes anything. Only a
-    /// failure in the middle of a verifying step (out of memory, a map's file that cannot be
-    /// read) can leave the registrations it made behind.
+    /// failure that no input check foresees (out of memory, a map's file that cannot be read)
+    /// can leave part of the step behind (its odometry step, the registrations it made).
     pub fn detect(
         &mut self,
         d: &Descriptor,
@@ -518,8 +518,8 @@ impl LoopDetector {
         self.own.check_vectors(&d.r, &d.a)
     }
 
-    /// Checks that `n` more places fit: [`DbError::Full`] when the last one's id would reach
-    /// `u32::MAX` (the map's places and the own ones together: the own places' ids follow the
+    /// Checks that `n` more places fit: [`DbError::Full`] when the last one's id would be
+    /// `u32::MAX` or more (the map's places and the own ones together: the own places' ids follow the
     /// map's).
     fn room(&self, n: usize) -> Result<(), DbError> {
         match self.len().checked_add(n) {
