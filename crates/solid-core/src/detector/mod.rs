@@ -303,7 +303,12 @@ impl LoopDetector {
         detector.validate()?;
         let session = match map.sessions().iter().max() {
             None => 0,
-            Some(&s) => s.checked_add(1).ok_or(DbError::Full)?,
+            // The session after the map's last must be numbered (below `u32::MAX`), or every
+            // step would be refused after it changed the detector.
+            Some(&s) => s
+                .checked_add(1)
+                .filter(|&n| crate::db::check_session(n).is_ok())
+                .ok_or(DbError::Full)?,
         };
         if map.index_pending() > 0 {
             Arc::make_mut(&mut map).build_index()?;
@@ -963,6 +968,23 @@ mod tests {
         r[i % c.n_range] += 1.0;
         r[(i + 1) % c.n_range] += 0.5;
         with_r(c, r)
+    }
+
+    #[test]
+    fn a_map_whose_last_session_leaves_no_number_for_the_next_is_refused() {
+        // The session after u32::MAX - 1 would be u32::MAX, which no place may carry: refused
+        // when the detector is made, not at every step after it changed the detector.
+        let c = Config::preset("hdl64").unwrap();
+        let d = crate::detector::verify::tests::flat(&c, 1.0);
+        for (last, ok) in [(u32::MAX - 2, true), (u32::MAX - 1, false)] {
+            let mut db = Database::new(c).unwrap();
+            db.add(&d, last, f64::NAN, None).unwrap();
+            let det = LoopDetector::with_map(Arc::new(db), DetectorConfig::default());
+            assert_eq!(det.is_ok(), ok, "last session {last}");
+            if !ok {
+                assert!(matches!(det, Err(DbError::Full)));
+            }
+        }
     }
 
     #[test]
