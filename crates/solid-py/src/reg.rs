@@ -412,10 +412,7 @@ fn register_with(
     let out = py.detach(|| -> Result<PyRegistration, RegError> {
         let qp = resolve(q_src, &cfg)?;
         let cp = resolve(c_src, &cfg)?;
-        let floors = gate.map(|g| reg::Floors {
-            fitness: g.min_fitness,
-            structure: g.min_structure_fitness,
-        });
+        let floors = gate.map(|g| reg::Floors::of(&g));
         match yaws {
             None => Ok(PyRegistration {
                 inner: match floors {

@@ -997,15 +997,9 @@ pub(super) type LinkViews<'a> = Option<(&'a [f32], &'a [f32])>;
 /// rejects it there: [`reg::Floors`]); none (0) for a chain link, whose floors depend on the pose.
 fn stall_floors(v: &VerifyConfig, link: LinkViews<'_>) -> reg::Floors {
     if link.is_some() {
-        reg::Floors {
-            fitness: 0.0,
-            structure: 0.0,
-        }
+        reg::Floors::NONE
     } else {
-        reg::Floors {
-            fitness: v.gate.min_fitness,
-            structure: v.gate.min_structure_fitness,
-        }
+        reg::Floors::of(&v.gate)
     }
 }
 

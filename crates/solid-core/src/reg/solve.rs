@@ -3,7 +3,7 @@
 use nalgebra::{Matrix3, Matrix6, SymmetricEigen, UnitQuaternion, Vector3, Vector6};
 
 use super::cloud::{Level, PreparedCloud};
-use super::{Degeneracy, Factor, Kernel, Pose, RegConfig, RegError, Registration, Schedule};
+use super::{Degeneracy, Factor, Gate, Kernel, Pose, RegConfig, RegError, Registration, Schedule};
 use crate::Error;
 
 /// Fewest correspondences for a Gauss–Newton step (six unknowns).
@@ -250,6 +250,7 @@ const STALL_ITERATIONS: usize = 3;
 /// exactly as without. Public only for the convergence-basin benchmark (`benches/reg_basin.py`,
 /// through the Python module's `_register_verifying`).
 #[doc(hidden)]
+#[non_exhaustive]
 #[derive(Clone, Copy, Debug)]
 pub struct Floors {
     /// The gate's `min_fitness`.
@@ -262,6 +263,20 @@ pub struct Floors {
 type Stall<'a> = Option<&'a dyn Fn(&Rigid, &Linear) -> bool>;
 
 impl Floors {
+    /// No floors (0): a stalled level never stops (a chain link, whose floors depend on the pose).
+    pub const NONE: Floors = Floors {
+        fitness: 0.0,
+        structure: 0.0,
+    };
+
+    /// The floors of `gate` (`min_fitness`, `min_structure_fitness`).
+    pub fn of(gate: &Gate) -> Floors {
+        Floors {
+            fitness: gate.min_fitness,
+            structure: gate.min_structure_fitness,
+        }
+    }
+
     /// Whether an overlap is below a floor.
     fn below(self, o: &Overlap) -> bool {
         o.all < self.fitness || o.structure < self.structure
@@ -1259,14 +1274,8 @@ mod tests {
             ..RegConfig::default()
         };
         let gate = super::super::Gate::default();
-        let floors = Floors {
-            fitness: gate.min_fitness,
-            structure: gate.min_structure_fitness,
-        };
-        let none = Floors {
-            fitness: 0.0,
-            structure: 0.0,
-        };
+        let floors = Floors::of(&gate);
+        let none = Floors::NONE;
         let q = PreparedCloud::new(Points::new(&building(), 3).unwrap(), &cfg).unwrap();
         let c = PreparedCloud::new(Points::new(&room(0.0, 0.0), 3).unwrap(), &cfg).unwrap();
         for coarse in [true, false] {
@@ -1351,10 +1360,7 @@ mod tests {
             ..RegConfig::default()
         };
         let gate = super::super::Gate::default();
-        let floors = Floors {
-            fitness: gate.min_fitness,
-            structure: gate.min_structure_fitness,
-        };
+        let floors = Floors::of(&gate);
         let q = PreparedCloud::new(Points::new(&building(), 3).unwrap(), &cfg).unwrap();
         let c = PreparedCloud::new(Points::new(&room(0.0, 0.0), 3).unwrap(), &cfg).unwrap();
         let (Some(qc), Some(cc)) = (&q.coarse, &c.coarse) else {
