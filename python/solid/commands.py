@@ -607,17 +607,14 @@ def evaluate(
         def on_scan(i: int, pts: Any) -> None:
             sc_desc.append(sc.describe(pts, scancontext))
 
-    # An anchor file is read into the anchors it holds, and per-frame anchors (the file's or an
-    # array) checked against the run's frame count once, before the run.
+    # An anchor file is read, and per-frame anchors (the file's or an array) checked against the
+    # run's frame count by one check, before the run.
     given = Path(anchor) if map_db is not None and isinstance(anchor, (str, os.PathLike)) and anchor != "same" else None
     notes: list[str] = []
-    each_given = map_db is not None and anchor is not None and not isinstance(anchor, str) and np.ndim(anchor) == 3
-    if given is not None or each_given:
-        frames = len(check_run(dataset, config))
-        if given is not None:
-            anchor, notes = _file_anchor(given, *anchor_file(given))
-        if anchor is not None and np.ndim(anchor) == 3:
-            _check_anchor_frames(anchor, frames, given)
+    if given is not None:
+        anchor, notes = run_anchor(given, len(check_run(dataset, config)))
+    elif map_db is not None and anchor is not None and not isinstance(anchor, str) and np.ndim(anchor) == 3:
+        _check_anchor_frames(anchor, len(check_run(dataset, config)), None)
     result = _run(dataset, config, map_db, threads, progress, on_scan)
     placed = None
     each = None
@@ -1124,17 +1121,6 @@ def folder_anchor(folder: Path, frames: int) -> tuple[Any, list[str]] | None:
 
 def _run_anchor(path: Path, T: Any, partial: str | None, frames: int) -> tuple[Any, list[str]]:
     """:func:`run_anchor` of the file ``path`` read (:func:`anchor_file`: ``T``, ``partial``)."""
-    anchor, notes = _file_anchor(path, T, partial)
-    if np.ndim(anchor) == 3:
-        _check_anchor_frames(anchor, frames, path)
-    return anchor, notes
-
-
-def _file_anchor(path: Path, T: Any, partial: str | None) -> tuple[Any, list[str]]:
-    """The anchors of the file ``path`` read (:func:`anchor_file`: ``T``, ``partial``): its one
-    transform (4, 4) with the note an ``anchor.txt`` that maps only some frames needs, or its
-    per-frame ones (K, 4, 4), not yet checked against a run's frame count
-    (:func:`_check_anchor_frames`)."""
     notes: list[str] = []
     if len(T) == 1:
         if partial is not None:
@@ -1143,6 +1129,7 @@ def _file_anchor(path: Path, T: Any, partial: str | None) -> tuple[Any, list[str
                 f"stretches of the odometry are misplaced (give {Path(path).with_name(ANCHORS_FILE)}, each frame's transform, where it is)"
             )
         return T[0], notes
+    _check_anchor_frames(T, frames, path)
     return T, notes
 
 
