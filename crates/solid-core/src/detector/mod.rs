@@ -509,7 +509,8 @@ impl LoopDetector {
         self.own.check_fingerprint(d.fingerprint)?;
         self.no_verification("detect")?;
         let step = self.step(timestamp, pose, self.trail)?;
-        self.admit(d)?;
+        // The fingerprint is checked above (first, as before the place's other checks).
+        self.own.check_vectors(&d.r, &d.a)?;
         self.room(1)?;
         self.detect_checked(d, None, step)
     }
