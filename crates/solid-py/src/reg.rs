@@ -367,9 +367,8 @@ fn register(
 
 /// `register` as a verifying detector runs it for a loop candidate (`gate`: its acceptance gate;
 /// None: `AcceptanceGate()`): the fine level (with `yaws`, every level) also stops at a cost
-/// stall below the gate's
-/// `min_fitness` / `min_structure_fitness`, and with `yaws` a candidate clearly below
-/// `min_fitness` gives up before the fine level. For the convergence-basin benchmark
+/// stall below the gate's `min_fitness` / `min_structure_fitness`, and with `yaws` a candidate
+/// clearly below `min_fitness` gives up before the fine level. For the convergence-basin benchmark
 /// (`benches/reg_basin.py`); not part of the public API.
 #[pyfunction]
 #[pyo3(name = "_register_verifying", signature = (query, candidate, init=None, *, yaws=None, config=None, gate=None))]

@@ -1262,6 +1262,19 @@ mod tests {
         xyz
     }
 
+    /// The stall tests' wrong match: the building against the room, with 200 iterations a level
+    /// and the default gate's floors (the configuration, the floors, the two prepared clouds).
+    fn wrong_match() -> (RegConfig, Floors, PreparedCloud, PreparedCloud) {
+        let cfg = RegConfig {
+            max_iterations: 200,
+            ..RegConfig::default()
+        };
+        let floors = Floors::of(&super::super::Gate::default());
+        let q = PreparedCloud::new(Points::new(&building(), 3).unwrap(), &cfg).unwrap();
+        let c = PreparedCloud::new(Points::new(&room(0.0, 0.0), 3).unwrap(), &cfg).unwrap();
+        (cfg, floors, q, c)
+    }
+
     #[test]
     fn a_verifying_level_stops_at_a_stall_only_below_the_gates_floors() {
         // A wrong match (the building against the room, turned 45°), given 200 iterations a
@@ -1269,15 +1282,8 @@ mod tests {
         // and 191 fine before converging; with the gate's floors, a verifying detector's stops,
         // not converged, once its lowest cost has not fallen for STALL_ITERATIONS iterations
         // while its overlap is below them; with floors of 0 it runs exactly as without.
-        let cfg = RegConfig {
-            max_iterations: 200,
-            ..RegConfig::default()
-        };
-        let gate = super::super::Gate::default();
-        let floors = Floors::of(&gate);
+        let (cfg, floors, q, c) = wrong_match();
         let none = Floors::NONE;
-        let q = PreparedCloud::new(Points::new(&building(), 3).unwrap(), &cfg).unwrap();
-        let c = PreparedCloud::new(Points::new(&room(0.0, 0.0), 3).unwrap(), &cfg).unwrap();
         for coarse in [true, false] {
             let (target, source, corr, eps, inlier) = if coarse {
                 let (Some(qc), Some(cc)) = (&q.coarse, &c.coarse) else {
@@ -1355,14 +1361,7 @@ mod tests {
         // stalls below the floors (57 iterations of creep), and here ends exactly as
         // `register` (the fine level converges from there). From the hypotheses (the same single
         // yaw) the coarse level stops at its first stall below the floors.
-        let cfg = RegConfig {
-            max_iterations: 200,
-            ..RegConfig::default()
-        };
-        let gate = super::super::Gate::default();
-        let floors = Floors::of(&gate);
-        let q = PreparedCloud::new(Points::new(&building(), 3).unwrap(), &cfg).unwrap();
-        let c = PreparedCloud::new(Points::new(&room(0.0, 0.0), 3).unwrap(), &cfg).unwrap();
+        let (cfg, floors, q, c) = wrong_match();
         let (Some(qc), Some(cc)) = (&q.coarse, &c.coarse) else {
             panic!("no coarse level")
         };
