@@ -247,8 +247,12 @@ const STALL_ITERATIONS: usize = 3;
 /// detector's registration: a level stalled ([`STALL_ITERATIONS`]) stops only while the
 /// candidate's overlap at its pose is below one of them (the gate would reject it there; the
 /// fitness is the smaller of the two clouds' overlaps). A registration at or above both runs on
-/// exactly as without. Public only for the convergence-basin benchmark (`benches/reg_basin.py`,
-/// through the Python module's `_register_verifying`).
+/// exactly as without.
+///
+/// Crate-private, like [`register_verifying`] and [`register_hypotheses_verifying`], except
+/// with the feature `unstable-bench-internals` (not part of the public API, outside semver), for
+/// the convergence-basin benchmark (`benches/reg_basin.py`, through the Python module's private
+/// `_register_verifying`).
 #[doc(hidden)]
 #[non_exhaustive]
 #[derive(Clone, Copy, Debug)]
@@ -530,7 +534,7 @@ pub fn register(
 /// stalled ([`STALL_ITERATIONS`]) below the gate's `floors`; the gate judges the result. The
 /// coarse level runs as [`register`]'s: stopped at its stalls, the coarse level of a start 1–3 m
 /// and up to 30° off stopped true matches on plateaus it was still crossing towards the truth
-/// (`make bench-basin`, docs/performance.md "Convergence basin").
+/// (`make bench-basin`, docs/performance.md "Convergence basin"). Outside semver: see [`Floors`].
 #[doc(hidden)]
 pub fn register_verifying(
     query: &PreparedCloud,
@@ -831,6 +835,7 @@ pub fn register_hypotheses_for(
 
 /// [`register_hypotheses_for`] as a verifying detector runs it: each level also stops once its
 /// cost has stalled ([`STALL_ITERATIONS`]) below the gate's `floors`; the gate judges the result.
+/// Outside semver: see [`Floors`].
 #[doc(hidden)]
 #[allow(clippy::too_many_arguments)]
 pub fn register_hypotheses_verifying(
