@@ -236,7 +236,20 @@ def assemble() -> str:
     parts = [p.read_text(encoding="utf-8").strip("\n") for p in sorted(PARTS.glob("*.pyi"))]
     text = expand_shared("\n\n\n".join(parts) + "\n")
     end = text.index('"""', 3) + 3  # the module docstring of the first part
+    check_exports(text)
     return render(text[:end] + "\n" + NOTE + text[end:])
+
+
+def check_exports(text: str) -> None:
+    """Fails when the stub's `__all__` lists a private name (`_name`; dunders such as
+    `__version__` are public): the module leaves those out of its `__all__` (crates/solid-py's
+    `drop_private_names`), and stubtest compares the two."""
+    for node in ast.parse(text).body:
+        if isinstance(node, ast.Assign) and any(isinstance(t, ast.Name) and t.id == "__all__" for t in node.targets):
+            names = ast.literal_eval(node.value)
+            private = [n for n in names if n.startswith("_") and not (n.startswith("__") and n.endswith("__"))]
+            if private:
+                raise SystemExit(f"stubgen: __all__ lists private names: {', '.join(private)}")
 
 
 SHARED = re.compile(r"^(\s*)<(Args|Raises) of (\w+)\.(\w+)>$")

@@ -43,5 +43,20 @@ fn _solid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     reg::register_module(m)?;
     sim::register(m)?;
     io::register(m)?;
-    Ok(())
+    drop_private_names(m)
+}
+
+/// Leaves the private names (`_name`: helpers of the Python package, its tests and the
+/// benchmarks, outside the API) out of the module's `__all__`, which pyo3 fills with every name
+/// added; dunders (`__version__`) stay. The stub's `__all__` (stubs/00_module.pyi) lists the
+/// same names (`tools/stubgen.py` rejects a private one; stubtest compares them).
+fn drop_private_names(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    let mut public = Vec::new();
+    for name in m.index()?.iter() {
+        let n: String = name.extract()?;
+        if !n.starts_with('_') || (n.starts_with("__") && n.ends_with("__")) {
+            public.push(n);
+        }
+    }
+    m.setattr("__all__", public)
 }
