@@ -382,11 +382,13 @@ fn register_verifying(
     gate: Option<&PyGate>,
 ) -> PyResult<PyRegistration> {
     let gate = gate.map_or_else(Gate::default, |g| g.inner);
-    register_with(py, query, candidate, init, yaws, config, Some(gate))
+    let floors = reg::Floors::of(&gate);
+    register_with(py, query, candidate, init, yaws, config, Some(floors))
 }
 
-/// `register`, or with `gate` the verifying detector's registration (`reg::register_verifying`,
-/// `reg::register_hypotheses_verifying` with the gate's floors and `min_fitness`).
+/// `register`, or with a gate's `floors` the verifying detector's registration
+/// (`reg::register_verifying`, `reg::register_hypotheses_verifying` giving up below the floors'
+/// `min_fitness`: `Floors::give_up`, as the detector).
 fn register_with(
     py: Python<'_>,
     query: &Bound<'_, PyAny>,
@@ -394,7 +396,7 @@ fn register_with(
     init: Option<&Bound<'_, PyAny>>,
     yaws: Option<Vec<f64>>,
     config: Option<&PyRegConfig>,
-    gate: Option<Gate>,
+    floors: Option<reg::Floors>,
 ) -> PyResult<PyRegistration> {
     let cfg = config_or_default(config);
     let init = parse_init(init)?;
@@ -411,7 +413,6 @@ fn register_with(
     let out = py.detach(|| -> Result<PyRegistration, RegError> {
         let qp = resolve(q_src, &cfg)?;
         let cp = resolve(c_src, &cfg)?;
-        let floors = gate.map(|g| reg::Floors::of(&g));
         match yaws {
             None => Ok(PyRegistration {
                 inner: match floors {
@@ -423,18 +424,18 @@ fn register_with(
             }),
             Some(y) => {
                 let mut hyps = vec![Hypothesis::default(); y.len()];
-                let h = match (floors, gate) {
-                    (Some(f), Some(g)) => reg::register_hypotheses_verifying(
+                let h = match floors {
+                    Some(f) => reg::register_hypotheses_verifying(
                         &qp,
                         &cp,
                         &y,
                         &init,
                         &cfg,
                         &mut hyps,
-                        g.min_fitness.clamp(0.0, 1.0),
+                        f.give_up(),
                         f,
                     )?,
-                    _ => reg::register_hypotheses(&qp, &cp, &y, &init, &cfg, &mut hyps)?,
+                    None => reg::register_hypotheses(&qp, &cp, &y, &init, &cfg, &mut hyps)?,
                 };
                 Ok(PyRegistration {
                     inner: h.registration,

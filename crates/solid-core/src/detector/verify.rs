@@ -1083,12 +1083,9 @@ pub(super) fn verify_yaws(
 ) -> Result<Option<Verification>, DbError> {
     let mut hyps = [Hypothesis::default(); 16];
     let m = yaws.len().min(hyps.len());
-    // A candidate clearly no match gives up before the fine level (it cannot pass the gate).
-    let give_up = if link.is_some() {
-        0.0
-    } else {
-        v.gate.min_fitness.clamp(0.0, 1.0)
-    };
+    // A candidate clearly no match gives up before the fine level (it cannot pass the gate); a
+    // chain link's floors are none, it never does.
+    let floors = stall_floors(v, link);
     let Ok(h) = reg::register_hypotheses_verifying(
         query,
         candidate,
@@ -1096,8 +1093,8 @@ pub(super) fn verify_yaws(
         base,
         &v.registration,
         &mut hyps[..m],
-        give_up,
-        stall_floors(v, link),
+        floors.give_up(),
+        floors,
     ) else {
         return Ok(None);
     };

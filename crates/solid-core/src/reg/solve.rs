@@ -281,6 +281,13 @@ impl Floors {
         }
     }
 
+    /// The `min_fitness` below which [`register_hypotheses_verifying`] gives up before the fine
+    /// level, for these floors: the fitness floor within `[0, 1]` (0 for [`Floors::NONE`]: it
+    /// never gives up).
+    pub fn give_up(self) -> f64 {
+        self.fitness.clamp(0.0, 1.0)
+    }
+
     /// Whether an overlap is below a floor.
     fn below(self, o: &Overlap) -> bool {
         o.all < self.fitness || o.structure < self.structure
@@ -835,7 +842,8 @@ pub fn register_hypotheses_for(
 
 /// [`register_hypotheses_for`] as a verifying detector runs it: each level also stops once its
 /// cost has stalled ([`STALL_ITERATIONS`]) below the gate's `floors`; the gate judges the result.
-/// Outside semver: see [`Floors`].
+/// The detector gives up below the floors' fitness (`min_fitness`: [`Floors::give_up`]). Outside
+/// semver: see [`Floors`].
 #[doc(hidden)]
 #[allow(clippy::too_many_arguments)]
 pub fn register_hypotheses_verifying(
