@@ -89,6 +89,29 @@ def test_hand_case_metrics() -> None:
     assert float(rows[0]["true_heading_deg"]) == pytest.approx(-30.0)
 
 
+def test_places_of_unknown_pose_are_left_out_of_the_scores() -> None:
+    # The hand case's frames as a detector's steps, q5 given frame 0 alone. Frame 1's pose unknown
+    # (a frame no anchor places: solid eval --anchor anchors.kitti): q4 and q7, whose candidates
+    # include it, are left out; q5 stays, and frame 1 (0.2 m from it) is no true place of it.
+    from types import SimpleNamespace as NS
+
+    ranked = {3: [0], 4: [1, 0], 5: [0], 6: [2, 0], 7: [2, 1]}
+    dist = {3: 0.10, 4: 0.10, 5: 0.30, 6: 0.30, 7: 0.05}
+    steps = [
+        NS(query=q, eligible=q - 2, candidates=[NS(id=c, distance=dist[q], score=dist[q], heading=0.0, accepted=False) for c in ids])
+        for q, ids in ranked.items()
+    ]
+    db = NS(poses=poses_from(XS, YAWS), timestamps=np.zeros(len(XS)), sessions=np.zeros(len(XS), np.uint32))
+    every = ev.evaluate_detections("x", steps, db, radius=1.0, threshold=0.1)
+    assert every.query.tolist() == [3, 4, 5, 6, 7] and every.left_out.size == 0
+    assert list(every.gt_positive) == [True, False, True, False, True]
+    known = ev.evaluate_detections("x", steps, db, radius=1.0, threshold=0.1, unknown=[1])
+    assert known.query.tolist() == [3, 5, 6] and known.left_out.tolist() == [4, 7]
+    assert list(known.gt_positive) == [True, False, False] and list(known.correct) == [True, False, False]
+    assert known.ids.tolist() == [[0, -1], [0, -1], [2, 0]]
+    assert known.metrics()["gt_queries"] == 1 and known.metrics()["accepted"] == 1
+
+
 def test_scoring_refuses_bad_input() -> None:
     P = poses_from(XS, YAWS)
     q = np.array([3])

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from conftest import run
+from conftest import read_csv, run
 
 import solid
 import solid.cli
@@ -404,10 +404,10 @@ def test_optimize_map_starts_a_stretch_no_anchor_placed_at_the_nearest_and_says_
 
 def check_eval_and_view_take_per_frame_anchors(capsys: pytest.CaptureFixture[str], tmp_path: Path, s1: Path, m0: str, odo: str, truth: np.ndarray) -> None:
     """`solid eval --anchor anchors.kitti` of that broken session (refused before: "found 30
-    poses") places each frame by its own row; a row of NaN is a frame no anchor places: scored at
-    the nearest placed frame's and listed (metrics.json, one note naming its frames by the
-    recording's numbers, stretch by stretch: a run of --frames 1:, rows of NaN for frames 1-2 and
-    10-11), left out of `solid view`'s trajectory. A file of NaN rows alone, or of another frame
+    poses") places each frame by its own row; a row of NaN is a frame no anchor places: left out
+    of the scores (where it lies in the map's world is unknown) and listed (metrics.json, one note
+    naming its frames by the recording's numbers, stretch by stretch: a run of --frames 1:, rows
+    of NaN for frames 1-2 and 10-11), left out of `solid view`'s trajectory. A file of NaN rows alone, or of another frame
     count, is refused before the run. `--anchor anchor.txt`, which maps only some frames, is
     applied to every frame with a note saying so; `solid view` of a run whose anchor.txt is
     partial draws it by anchors.kitti beside it, or without it by anchor.txt with that note."""
@@ -455,9 +455,25 @@ def check_eval_and_view_take_per_frame_anchors(capsys: pytest.CaptureFixture[str
     assert code == 0, err
     a = json.loads((ev / "metrics.json").read_text())["anchor"]
     frames = len(truth) - 1
-    assert a["source"] == "given" and a["T_map_session"] is None and a["per_frame"] == {"frames": frames, "unplaced_frames": [1, 2, 10, 11]}
-    said = f"4 of {frames} frames no anchor places (frames 1–2, 10–11) are scored at the nearest placed frame's anchor"
+    assert a["source"] == "given" and a["T_map_session"] is None
+    assert a["per_frame"] == {"frames": frames, "unplaced_frames": [1, 2, 10, 11], "left_out_queries": [1, 2, 10, 11]}
+    said = f"4 of {frames} frames no anchor places (frames 1–2, 10–11) are left out of the scores"
     assert err.count("no anchor places") == 1 and said in err and [n for n in a["notes"] if said in n] == a["notes"]
+    # Scored: the other frames' queries alone (each of the 29 frames queries the map).
+    m = json.loads((ev / "metrics.json").read_text())
+    scored = sorted(int(r["query_frame"]) for r in read_csv(ev / "queries.csv"))
+    assert m["queries"] == len(scored) == frames - 4 and not {1, 2, 10, 11} & set(scored), scored
+    # No anchor for the stretch before the break (frames 1-13): carried by the next stretch's
+    # anchor, its true loops into the map were scored place-false (10 of 26 on frames 0-29).
+    before = full[1:].copy()
+    before[:13] = np.nan
+    d = tmp_path / "before"
+    d.mkdir()
+    write_frame_anchors(d, before, "s1")
+    code, out, err = run(capsys, *argv, "--frames", "1:", "--anchor", str(d / ANCHORS_FILE), "-o", str(tmp_path / "ev_before"))
+    assert code == 0, err
+    m = json.loads((tmp_path / "ev_before" / "metrics.json").read_text())
+    assert m["queries"] == frames - 13 and m["place_false_accepts"] == m["pose_false_accepts"] == 0 and m["precision"] == 1.0, m
     rv = view.read_run(ev)
     off = np.linalg.norm(rv.trajectories["odometry"][:, :3, 3] - truth[1:, :3, 3], axis=1)
     assert np.isnan(off[gone]).all() and np.delete(off, gone).max() < 1.0, np.round(off, 2)
@@ -504,6 +520,22 @@ def test_optimize_map_lists_the_frames_one_anchor_does_not_place(city: Any) -> N
     out = slam.optimize_run(res)
     assert out.anchor is not None and out.stretches == 1
     assert out.borrowed == unplaced
+
+
+def test_eval_lists_the_queries_of_placed_frames_it_left_out_for_a_candidate_no_anchor_places() -> None:
+    # solid eval's metrics.json anchor: frames 101-102 unplaced (entries 11-12 of a map of 10);
+    # the queries of frames 105, 106 and 108 had a candidate among them, left out too.
+    from solid.commands import _note_left_out
+
+    res: Any = SimpleNamespace(map_size=10, frame_ids=np.arange(100, 110))
+    placed: dict[str, Any] = {"per_frame": {"frames": 10, "unplaced_frames": [101, 102]}, "notes": ["first"]}
+    _note_left_out(placed, res, np.array([11, 12, 15, 16, 18]), [11, 12])
+    assert placed["per_frame"]["left_out_queries"] == [101, 102, 105, 106, 108]
+    assert placed["notes"][0] == "first" and len(placed["notes"]) == 2
+    assert placed["notes"][1].startswith("3 queries of placed frames (frames 105–106, 108) are left out too: a candidate of theirs")
+    placed = {"per_frame": {}}
+    _note_left_out(placed, res, np.array([11]), [11, 12])
+    assert placed == {"per_frame": {"left_out_queries": [101]}}
 
 
 def test_map_merge_places_each_stretch_of_a_broken_odometry_by_its_own_anchor(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:

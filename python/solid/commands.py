@@ -593,7 +593,10 @@ def evaluate(
     world first (:func:`place_in_map` with ``anchor``: a path (``str`` or ``os.PathLike``) is an
     anchor file, :func:`run_anchor`, read and checked against the run's frame count before the
     run; per-frame anchors, from a file or an (N, 4, 4) array, are written to the folder as
-    :data:`ANCHORS_FILE`), and ``metrics.json`` says how (``anchor``, its ``notes`` a list).
+    :data:`ANCHORS_FILE`), and ``metrics.json`` says how (``anchor``, its ``notes`` a list). A
+    frame no per-frame anchor places (a row of NaN) is left out of the scores, and so is a query
+    with a candidate of such a frame (``unknown`` of :func:`solid.evaluation.evaluate_detections`):
+    listed in ``anchor.per_frame`` (``unplaced_frames``, ``left_out_queries``) and its notes.
     """
     if getattr(dataset, "poses", None) is None:
         raise _solid.ConfigError("evaluation needs poses (give --poses)")
@@ -618,15 +621,21 @@ def evaluate(
     result = _run(dataset, config, map_db, threads, progress, on_scan)
     placed = None
     each = None
+    unknown: list[int] = []
     if map_db is not None:
         result, placed = place_in_map(result, anchor)
         if placed.get("per_frame") is not None:
             each = np.asarray(anchor, dtype=np.float64)  # the rows given, NaN where none places a frame
+            unknown = [result.map_size + int(k) for k in np.flatnonzero(~np.isfinite(each).all(axis=(1, 2)))]
         if given is not None:
             placed["file"] = str(given.absolute())
         if notes or placed.get("notes"):
             placed["notes"] = notes + placed.get("notes", [])
-    main = result.evaluate()
+    main = result.evaluate(unknown=unknown)
+    if main.left_out.size and placed is not None:
+        _note_left_out(placed, result, main.left_out, unknown)
+    if main.query.size == 0 and main.left_out.size:
+        raise _solid.ConfigError(f"no query left: each of the {main.left_out.size} is of a frame no anchor places or has a candidate there (give anchors that place more frames)")
     if main.query.size == 0:
         raise _solid.ConfigError(
             f"no query: none of the {len(result.frames)} frames has a place to be matched with "
@@ -683,6 +692,22 @@ def evaluate(
         if write_more is not None:
             write_more(out.work, result, evals)
     return EvalRun(result, evals, out.final, metrics)
+
+
+def _note_left_out(placed: dict[str, Any], result: PipelineResult, left_out: Any, unknown: list[int]) -> None:
+    """Lists in ``placed`` (metrics.json ``anchor``) the queries :func:`evaluate` left out of the
+    scores (``per_frame.left_out_queries``, their frames), with a note for those of placed frames
+    (a candidate of theirs is a place of a frame no anchor places)."""
+    from .localize import frame_spans
+
+    k = np.asarray(left_out, dtype=np.int64) - result.map_size
+    placed["per_frame"]["left_out_queries"] = [int(result.frame_ids[i]) for i in k]
+    others = sorted(set(k.tolist()) - {u - result.map_size for u in unknown})
+    if others:
+        placed.setdefault("notes", []).append(
+            f"{len(others)} queries of placed frames (frames {frame_spans(result.frame_ids, others)}) are left out too: a candidate of "
+            "theirs is a place of a frame no anchor places (metrics.json anchor.per_frame.left_out_queries)"
+        )
 
 
 def _plots(out: Output, result: PipelineResult, evals: list[Evaluation], inputs: Inputs) -> None:
@@ -1181,9 +1206,10 @@ class _AnchoredDatabase:
 def place_in_map(result: PipelineResult, anchor: Any) -> tuple[PipelineResult, dict[str, Any]]:
     """A run against a map with its session's poses in the map's world, and how that world was
     known: ``anchor`` is a 4×4 ``T_map_session`` (given) or one per frame of the run ((N, 4, 4),
-    :func:`run_anchor` of :data:`ANCHORS_FILE`; a frame of a row of NaN is placed by the nearest
-    placed frame's, :func:`solid.slam.nearest_placed`, and listed: ``per_frame``,
-    ``unplaced_frames``, and a note in ``notes``; refused when no row places a frame), ``"same"`` (the user says the poses
+    :func:`run_anchor` of :data:`ANCHORS_FILE`; a frame of a row of NaN, which no anchor places,
+    is carried by the nearest placed frame's, :func:`solid.slam.nearest_placed`, and listed:
+    ``per_frame``, ``unplaced_frames``, and a note in ``notes`` (:func:`evaluate` leaves them out
+    of the scores); refused when no row places a frame), ``"same"`` (the user says the poses
     already are in the map's world), or None: estimated from the run's verified loops into the
     map (:func:`solid.slam.anchor_of_run`: the detector's placement, or the loops' consensus when
     the run has none), an error when there is none."""
@@ -1214,8 +1240,9 @@ def place_in_map(result: PipelineResult, anchor: Any) -> tuple[PipelineResult, d
         T = slam.as4(np.asarray(anchor, dtype=np.float64))
         how = {"source": "given"}
     if T.ndim == 3:
-        # One per frame (anchors.kitti, run_anchor): a frame no anchor places is scored at the
-        # nearest placed frame's (a guess across a break of the odometry), and listed.
+        # One per frame (anchors.kitti, run_anchor): a frame no anchor places is carried by the
+        # nearest placed frame's (a guess across a break of the odometry), and listed; evaluate
+        # leaves it out of the scores.
         frames = len(result.frame_ids)
         if len(T) != frames or len(result.database) - base != frames:
             raise _solid.ConfigError(f"{len(T)} per-frame anchors for a run of {frames} frames ({len(result.database) - base} places): give this run's")
@@ -1228,8 +1255,8 @@ def place_in_map(result: PipelineResult, anchor: Any) -> tuple[PipelineResult, d
             from .localize import frame_spans
 
             how.setdefault("notes", []).append(
-                f"{len(borrowed)} of {frames} frames no anchor places (frames {frame_spans(result.frame_ids, borrowed)}) are scored at the "
-                "nearest placed frame's anchor: a guess across a break of the odometry (metrics.json anchor.per_frame.unplaced_frames)"
+                f"{len(borrowed)} of {frames} frames no anchor places (frames {frame_spans(result.frame_ids, borrowed)}) are left out of the "
+                "scores: where they lie in the map's world is unknown (metrics.json anchor.per_frame.unplaced_frames)"
             )
     else:
         how["T_map_session"] = T[:3].tolist()

@@ -57,6 +57,8 @@ class Evaluation:
     rmse: F64 | None = None
     frame_of: Callable[[int], int | None] = field(repr=False, default=lambda i: None)
     extra: dict[str, Any] = field(default_factory=dict)
+    #: Queries left out of the scores (entry ids): :func:`evaluate_detections`'s ``unknown``.
+    left_out: I64 = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
 
     @property
     def radius(self) -> float:
@@ -318,11 +320,15 @@ def evaluate_detections(
     frame_of: Callable[[int], int | None] | None = None,
     pose_tolerance_m: float = _solid.DEFAULT_POSE_TOLERANCE_M,
     pose_tolerance_deg: float = _solid.DEFAULT_POSE_TOLERANCE_DEG,
+    unknown: AbcSequence[int] = (),
 ) -> Evaluation:
     """Score the steps of a :class:`solid.LoopDetector` run (``Detection`` objects) against the
     poses stored with the database's places; steps with nothing eligible are skipped (docs/spec.md §5).
     A loop into the map that a later step released (``Detection.released``: held until the
-    session's placement) is scored as its own query's loop."""
+    session's placement) is scored as its own query's loop. ``unknown``: entry ids whose pose in
+    the scoring world is unknown (places of frames no anchor places, ``solid eval --anchor
+    anchors.kitti``): none is a true place of a query, and a step whose query or any ranked
+    candidate is one is left out (``Evaluation.left_out``), since whether it is right is unknown."""
     steps = [d for d in detections if d.eligible > 0]
     late = {int(lp.query): lp for d in detections for lp in getattr(d, "released", ())}
     k = max((len(d.candidates) for d in steps), default=1)
@@ -350,15 +356,25 @@ def evaluate_detections(
             dist[i], score[i], head[i] = lp.distance, lp.score, lp.heading
             pose[i] = lp.pose
             fit[i], rms[i] = lp.fitness, lp.rmse
-    return evaluate_candidates(
+    query = np.array([d.query for d in steps], dtype=np.int64)
+    eligible = np.array([d.eligible for d in steps], dtype=np.int64)
+    poses = _poses_of(database)
+    gone = np.asarray(unknown, dtype=np.int64)
+    out = np.isin(query, gone) | np.isin(ids, gone).any(axis=1)
+    if gone.size:
+        poses = poses.copy()
+        poses[gone] = np.nan  # no true place of any query (evaluate_candidates)
+        keep = ~out
+        query, eligible, ids, dist, score, head, pose, fit, rms = (a[keep] for a in (query, eligible, ids, dist, score, head, pose, fit, rms))
+    ev = evaluate_candidates(
         name,
-        np.array([d.query for d in steps], dtype=np.int64),
-        np.array([d.eligible for d in steps], dtype=np.int64),
+        query,
+        eligible,
         ids,
         dist,
         score,
         head,
-        _poses_of(database),
+        poses,
         radius=radius,
         pose_tolerance_m=pose_tolerance_m,
         pose_tolerance_deg=pose_tolerance_deg,
@@ -370,6 +386,8 @@ def evaluate_detections(
         fitness=fit,
         rmse=rms,
     )
+    ev.left_out = np.array([d.query for d in steps], dtype=np.int64)[out]
+    return ev
 
 
 def loop_delay_steps(detector: Any) -> dict[str, int]:

@@ -23,7 +23,7 @@ from __future__ import annotations
 import sys
 import time
 import warnings
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence as AbcSequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any, Protocol, Union
@@ -151,9 +151,10 @@ class PipelineResult:
         sessions = np.asarray(self.database.sessions)
         return [loop_row(lp, times, sessions, self.frame_of) for lp in self.loops()]
 
-    def evaluate(self, radius: float | None = None, name: str = "SOLiD") -> Any:
+    def evaluate(self, radius: float | None = None, name: str = "SOLiD", unknown: AbcSequence[int] = ()) -> Any:
         """docs/spec.md §5 scores of this run's candidates against the poses of every place (the map's
-        stored poses and this recording's), at ``radius`` (default: the config's)."""
+        stored poses and this recording's), at ``radius`` (default: the config's); ``unknown``: the
+        places whose pose is unknown, left out (:func:`solid.evaluation.evaluate_detections`)."""
         det = self.config.detector
         return evaluate_detections(
             name,
@@ -165,6 +166,7 @@ class PipelineResult:
             # With verification, the scores of the loops that passed the gate lie in [0, 1].
             threshold=_solid.VERIFIED_THRESHOLD if det.verify else det.threshold,
             frame_of=self.frame_of,
+            unknown=unknown,
         )
 
 
