@@ -635,10 +635,15 @@ impl Database {
         self.poses.get(id)
     }
 
+    /// The entries with a pose and their poses (row-major 3×4 `[R|t]`), in no set order.
+    pub(crate) fn each_pose(&self) -> impl Iterator<Item = (u32, [f64; 12])> + '_ {
+        self.poses.each()
+    }
+
     /// Per-entry poses (row-major 3×4 `[R|t]`).
     pub fn poses(&self) -> Vec<Option<[f64; 12]>> {
         let mut out = vec![None; self.len()];
-        for (id, p) in self.poses.each() {
+        for (id, p) in self.each_pose() {
             out[id as usize] = Some(p);
         }
         out

@@ -13,7 +13,9 @@
 //! repetition goes. So the session is placed only when a set of mutually consistent hypotheses
 //! holds `placement_loops` queries over `placement_m` metres of its path, two of them at most
 //! `placement_m` apart facing directions [`PLACEMENT_TURN_DEG`] apart (the turn itself seen),
-//! with more than twice the queries of any set that disagrees;
+//! with more than twice the queries of any set that disagrees and more than three times those of its own
+//! queries it puts past the map's places without a loop there (the evidence of absence: a copy
+//! repeats the map's parts, not the places between them);
 //! loops into the map that passed the gate before are held, and released with the placement
 //! when they agree with it. From then on a loop into the map is accepted when it agrees with
 //! the placement's nearest supporting loop (by path), and the placement is revised when a
@@ -21,6 +23,7 @@
 //! released stay released: the step says "revised").
 
 use alloc::collections::VecDeque;
+use alloc::sync::Arc;
 use alloc::vec::Vec;
 
 use nalgebra::{Matrix3, Rotation3, Vector3};
@@ -39,6 +42,14 @@ const FIT: usize = 48;
 /// queries of every set that disagrees with it.
 const RIVAL_RATIO: usize = 2;
 
+/// A consistent set places the session only with more than this many times the queries it puts
+/// past the map's places without a loop ([`LoopDetector::unseen`]: the evidence of absence, a
+/// reading that the session is not where the set puts it). At their placement the trust
+/// matrix's true sets (seeds 1-5, every view) held 4.2 times theirs or more (most had none);
+/// the never-visiting sessions of seed 5 that copies of the map's streets placed, 1.3-2.2 times
+/// (the HDL-64 at 90° was placed at 2.2 with [`RIVAL_RATIO`]).
+const ABSENCE_RATIO: usize = 3;
+
 /// A consistent set places the session only when two of its queries at most `placement_m`
 /// metres of path apart face directions at least this many degrees apart (the session turned
 /// within it): a look-alike world repeats a stretch (a street's face, a corridor's module)
@@ -51,6 +62,13 @@ const RIVAL_RATIO: usize = 2;
 /// over 90-93 m whose queries facing apart lay more than 15 m of path apart; the Avia's two
 /// legs 51 m).
 const PLACEMENT_TURN_DEG: f64 = 45.0;
+
+/// A query under a placement passes a map place within this many metres (3-D) facing within
+/// [`PASSED_DEG`] ([`LoopDetector::unseen`]).
+const PASSED_M: f64 = 3.0;
+
+/// See [`PASSED_M`].
+const PASSED_DEG: f64 = 30.0;
 
 /// Hypotheses into the map kept for the placement's consistency search, and loops into the map
 /// held before the placement (or off it) for a late release (the most recent of each). The
@@ -75,6 +93,8 @@ pub(super) const STRETCHES: usize = 64;
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Hypothesis {
     query: u32,
+    /// The place's id.
+    place_id: u32,
     /// `T_wq` (the session's frame).
     query_pose: [f64; 12],
     /// Metres the session travelled at the query.
@@ -120,6 +140,7 @@ impl Hypothesis {
     ) -> Option<Hypothesis> {
         Some(Hypothesis {
             query: at.id,
+            place_id: c.id,
             query_pose: q,
             travelled: at.travelled,
             place,
@@ -208,6 +229,51 @@ pub(super) struct Placement {
     /// The anchors of earlier stretches of the odometry (between breaks) than the placement's,
     /// oldest first ([`LoopDetector::map_anchors`]).
     earlier: VecDeque<MapAnchor>,
+    /// The map's places by cell ([`LoopDetector::map_cells`]), shared by the detector's clones.
+    cells: Option<Arc<MapCells>>,
+}
+
+/// The map's places with a pose by cube ([`PASSED_M`] a side; any axis may be up).
+#[derive(Debug, Clone, Default)]
+pub(super) struct MapCells {
+    /// (cell along x, y, z, place id), sorted.
+    keys: Vec<([i32; 3], u32)>,
+}
+
+impl MapCells {
+    /// The cell of a position.
+    fn key(p: [f64; 3]) -> [i32; 3] {
+        p.map(|v| libm::floor(v / PASSED_M).clamp(i32::MIN as f64, i32::MAX as f64) as i32)
+    }
+
+    /// None when the memory cannot be had.
+    fn of(map: &crate::db::Database) -> Option<MapCells> {
+        let mut keys: Vec<([i32; 3], u32)> = Vec::new();
+        keys.try_reserve_exact(map.poses_stored()).ok()?;
+        keys.extend(
+            map.each_pose()
+                .map(|(id, p)| (Self::key([p[3], p[7], p[11]]), id)),
+        );
+        keys.sort_unstable();
+        Some(MapCells { keys })
+    }
+
+    /// The places in the cells around `p`'s position (every place within [`PASSED_M`] of it,
+    /// and some farther).
+    fn near(&self, p: &Pose) -> impl Iterator<Item = u32> + '_ {
+        let [x, y, z] = Self::key([p[0][3], p[1][3], p[2][3]]);
+        let around = |c: i32| [c.saturating_sub(1), c, c.saturating_add(1)];
+        around(x)
+            .into_iter()
+            .flat_map(move |cx| around(y).into_iter().map(move |cy| (cx, cy)))
+            .flat_map(move |(cx, cy)| {
+                let lo = [cx, cy, z.saturating_sub(1)];
+                let hi = [cx, cy, z.saturating_add(1)];
+                let from = self.keys.partition_point(|k| k.0 < lo);
+                let to = self.keys.partition_point(|k| k.0 <= hi);
+                self.keys[from..to].iter().map(|k| k.1)
+            })
+    }
 }
 
 impl LoopDetector {
@@ -313,12 +379,86 @@ impl LoopDetector {
                 .filter(|s| !self.crosses_break(s.travelled, h.travelled))
                 .filter(|s| self.placement.window.iter().any(|w| same(w, s)))
                 .count();
-            if self.qualifies(&set) && n > RIVAL_RATIO * rival.max(held) {
+            if self.qualifies(&set)
+                && n > RIVAL_RATIO * rival.max(held)
+                && !self.unseen_at_least(&set, n.div_ceil(ABSENCE_RATIO).max(1))
+            {
                 self.place_on(&set, at.id);
                 continue;
             }
             self.hold(c, *h, agrees.is_none());
         }
+    }
+
+    /// The evidence of absence against a set of hypotheses into the map, counted as a rival
+    /// reading's queries: of the session's queries between the set's first and last, those the
+    /// set puts where they pass a place of the map (one of the sessions of the set's places,
+    /// within [`PASSED_M`] metres facing within [`PASSED_DEG`]; a query put where the set's
+    /// hypothesis nearest to it along the path places it) while none of the set's hypotheses is
+    /// theirs. Where a session truly passes the map its registrations find the places there;
+    /// a copy of a stretch of the map in a look-alike world repeats its parts, not the places
+    /// between them, and the session passes those without a loop. A query whose map candidates
+    /// were not all registered says nothing: one that has a loop (a step that finds its loop
+    /// drops the candidates it deferred) or whose deferred candidates still wait, and one older
+    /// than the loops remembered. Whether there are at least `limit` such queries (counting
+    /// stops there).
+    fn unseen_at_least(&mut self, set: &[Hypothesis], limit: usize) -> bool {
+        let (Some(lo), Some(hi)) = (
+            set.iter().map(|h| h.query).min(),
+            set.iter().map(|h| h.query).max(),
+        ) else {
+            return false;
+        };
+        let Some(cells) = self.map_cells() else {
+            return false;
+        };
+        let mut sessions: Vec<u32> = set
+            .iter()
+            .filter_map(|h| self.map.sessions().get(h.place_id as usize).copied())
+            .collect();
+        sessions.sort_unstable();
+        sessions.dedup();
+        let looped = &self.placement.looped;
+        // The loops of queries before the oldest remembered are forgotten.
+        let remembered = match looped.front() {
+            Some(&q) if looped.len() == 2 * WINDOW => q,
+            _ => 0,
+        };
+        let passes = |q: &Pose| {
+            cells.near(q).any(|id| {
+                sessions
+                    .binary_search(&self.map.sessions()[id as usize])
+                    .is_ok()
+                    && self
+                        .map
+                        .pose(id)
+                        .and_then(|p| crate::reg::pose_distance(&rows_to_pose(&p), q))
+                        .is_some_and(|(m, deg)| m <= PASSED_M && deg <= PASSED_DEG)
+            })
+        };
+        (lo.max(remembered)..=hi)
+            .filter(|&id| {
+                !set.iter().any(|h| h.query == id) && !looped.contains(&id) && !self.deferring(id)
+            })
+            .filter(|&id| {
+                let (Some(q), Some(t)) = (self.known_pose(id), self.travelled_at(id)) else {
+                    return false;
+                };
+                nearest_to(set.iter(), t)
+                    .is_some_and(|n| passes(&mul(&n.placement(), &rows_to_pose(&q))))
+            })
+            .take(limit)
+            .count()
+            == limit
+    }
+
+    /// The map's places by cell, made at their first use (the detector never changes its map);
+    /// None when their memory cannot be had (the evidence of absence then says nothing).
+    fn map_cells(&mut self) -> Option<Arc<MapCells>> {
+        if self.placement.cells.is_none() {
+            self.placement.cells = MapCells::of(&self.map).map(Arc::new);
+        }
+        self.placement.cells.clone()
     }
 
     /// Rejects candidate `c` into the map ([`Rejection::NotPlaced`] while the session is not
@@ -937,9 +1077,13 @@ fn nearest<'a>(
     set: impl Iterator<Item = &'a Hypothesis>,
     h: &Hypothesis,
 ) -> Option<&'a Hypothesis> {
-    set.min_by(|a, b| {
-        libm::fabs(a.travelled - h.travelled).total_cmp(&libm::fabs(b.travelled - h.travelled))
-    })
+    nearest_to(set, h.travelled)
+}
+
+/// The hypothesis of `set` nearest along the session's path to where it had travelled `t`
+/// metres.
+fn nearest_to<'a>(set: impl Iterator<Item = &'a Hypothesis>, t: f64) -> Option<&'a Hypothesis> {
+    set.min_by(|a, b| libm::fabs(a.travelled - t).total_cmp(&libm::fabs(b.travelled - t)))
 }
 
 /// The most metres of path between two queries of a placing set facing [`PLACEMENT_TURN_DEG`]
@@ -1672,6 +1816,50 @@ mod tests {
         assert_eq!(rejection(&cands[1]), Some(Rejection::OdometryDisagrees));
     }
 
+    /// [`session_over_map`] turning from place 13, its odometry right, turned `aside(k)` degrees
+    /// more at place `k`.
+    fn session_along_map(aside: impl Fn(u32) -> f64) -> (LoopDetector, Vec<[f64; 12]>) {
+        session_over_map(13, |_| 0.0, aside)
+    }
+
+    #[test]
+    fn the_queries_a_set_puts_past_the_maps_places_without_a_loop_rival_it() {
+        // Each step's loop into the map's place it passes, but for the steps `hole` (with
+        // `their_own`, each of those has a loop within the session instead): the first step it
+        // is placed at.
+        let placed_at = |hole: core::ops::Range<u32>, aside: f64, their_own: bool| {
+            let away = hole.clone();
+            let (mut det, in_map) =
+                session_along_map(|k| if away.contains(&k) { aside } else { 0.0 });
+            let own = det.session_start as u32;
+            // The query as its own place (added above, its pose known).
+            (0..in_map.len() as u32).find(|&k| {
+                if hole.contains(&k) {
+                    det.placement_news(their_own.then_some(own + k));
+                    return false;
+                }
+                looped_over_map(&mut det, &in_map, k, own + k)
+            })
+        };
+        // Every step's loop: placed once the session turned 45° within `placement_m` (3 m).
+        assert_eq!(placed_at(0..0, 0.0, false), Some(16));
+        // Steps 4-8 pass the map's places without a loop: a reading of 5 queries that the
+        // session is not where the set puts it (a copy of the map's stretches repeats their
+        // parts, not the places between them). Placed once the set holds more than three times
+        // that: 16 queries, at step 20.
+        assert_eq!(placed_at(4..9, 0.0, false), Some(20));
+        // Steps 4-9 (6 queries): the set never holds 19 by the session's last step.
+        assert_eq!(placed_at(4..10, 0.0, false), None);
+        // 3 (steps 4-6): placed as with every loop.
+        assert_eq!(placed_at(4..7, 0.0, false), Some(16));
+        // Steps 4-9 facing 90° aside, where the session passes no place of the map (no place it
+        // could see as the map's): no evidence against the set.
+        assert_eq!(placed_at(4..10, 90.0, false), Some(16));
+        // Steps 4-9 each with a loop within the session: a step that finds its loop drops the
+        // candidates it deferred, so the map may not have been asked: no evidence either.
+        assert_eq!(placed_at(4..10, 0.0, true), Some(16));
+    }
+
     /// A session over [`over_map`]'s places in its own frame ([`truth`]), 1 m a step along the
     /// map's places 5.., half a metre to the side: straight for its first 14 places, then
     /// turning 20° a step; its odometry jumps 30 m to the side in the step into place 12 (a break)
@@ -1683,6 +1871,19 @@ mod tests {
 
     /// [`session_over_map_with_a_break`], turning 20° a step from place `turn` on.
     fn session_over_map_turning_from(turn: u32) -> (LoopDetector, Vec<[f64; 12]>) {
+        session_over_map(turn, |k| if k < 12 { 0.0 } else { 30.0 }, |_| 0.0)
+    }
+
+    /// A session of 24 places over [`over_map`]'s places 5.. in its own frame ([`truth`]), 1 m
+    /// a step, half a metre to the side, turning 20° a step from place `turn` on and `aside(k)`
+    /// degrees more at place `k`, its odometry off by `jump(k)` metres to the side there. The
+    /// detector holds the places (added without verification); returns it with each place's
+    /// pose in the map.
+    fn session_over_map(
+        turn: u32,
+        jump: impl Fn(u32) -> f64,
+        aside: impl Fn(u32) -> f64,
+    ) -> (LoopDetector, Vec<[f64; 12]>) {
         let mut det = over_map(3);
         let mut dc = *det.config();
         let on = dc;
@@ -1691,11 +1892,10 @@ mod tests {
         let c = *det.map().config();
         let mut in_map = Vec::new();
         for k in 0..24u32 {
-            let yaw = 20.0 * f64::from(k.saturating_sub(turn));
+            let yaw = 20.0 * f64::from(k.saturating_sub(turn)) + aside(k);
             let m = pose(yaw, f64::from(5 + k), 0.5);
-            let jump = if k < 12 { 0.0 } else { 30.0 };
             let odo = mul(
-                &rows_to_pose(&pose(0.0, 0.0, jump)),
+                &rows_to_pose(&pose(0.0, 0.0, jump(k))),
                 &mul(&invert(&truth()), &rows_to_pose(&m)),
             );
             let d = flat(&c, 100.0 + k as f32);
@@ -1704,6 +1904,9 @@ mod tests {
             in_map.push(m);
         }
         det.set_config(on).unwrap();
+        // The places' loops without verification (by descriptor alone) are no step's: the
+        // replayed steps decide the loops.
+        det.placement.looped.clear();
         (det, in_map)
     }
 
@@ -1827,21 +2030,13 @@ mod tests {
     fn run_over_map_with_a_break(place: impl Fn(u32) -> u32) -> BreakRun {
         let (mut det, in_map) = session_over_map_with_a_break();
         assert_eq!(det.odometry_breaks(), 1);
-        let (own, first) = (det.session_start as u32, det.len() as u32);
+        let first = det.len() as u32;
         let (mut placed, mut late, mut rejected) = (None, Vec::new(), Vec::new());
         for k in 0..24u32 {
             let id = first + k;
-            let at = QueryPlace {
-                id,
-                pose: det.known_pose(own + k),
-                travelled: det.travelled_at(own + k).unwrap(),
-                eligible: own as usize,
-            };
-            let t = relative(&in_map[k as usize], &pose(0.0, f64::from(5 + k), 0.0));
-            let mut cands = [verified(place(k), t)];
-            det.check_after_gate(&at, &[], &mut cands).unwrap();
-            rejected.push(rejection(&cands[0]));
-            let looped = rejection(&cands[0]).is_none().then_some(id);
+            let r = step_over_map(&mut det, &in_map, k, id, place(k));
+            rejected.push(r);
+            let looped = r.is_none().then_some(id);
             let (released, change) = det.placement_news(looped);
             if change == Some(PlacementChange::Placed) {
                 placed = Some(k);
@@ -1863,20 +2058,11 @@ mod tests {
         det: &mut LoopDetector,
         in_map: &[[f64; 12]],
     ) -> (Vec<(u32, PlacementChange)>, Vec<u32>) {
-        let (own, first) = (det.session_start as u32, det.len() as u32);
+        let first = det.len() as u32;
         let mut changes = Vec::new();
         let mut released = Vec::new();
         for k in 0..in_map.len() as u32 {
-            let at = QueryPlace {
-                id: first + k,
-                pose: det.known_pose(own + k),
-                travelled: det.travelled_at(own + k).unwrap(),
-                eligible: own as usize,
-            };
-            let t = relative(&in_map[k as usize], &pose(0.0, f64::from(5 + k), 0.0));
-            let mut cands = [verified(5 + k, t)];
-            det.check_after_gate(&at, &[], &mut cands).unwrap();
-            let looped = rejection(&cands[0]).is_none().then_some(at.id);
+            let looped = looped_over_map(det, in_map, k, first + k).then_some(first + k);
             let (out, change) = det.placement_news(looped);
             released.extend(out.iter().map(|l| l.query - first));
             if let Some(c) = change {
@@ -1884,6 +2070,34 @@ mod tests {
             }
         }
         (changes, released)
+    }
+
+    /// Whether the step of the session's place `k` (query id `id`, its pose the place's) gets
+    /// its loop into the map's place it passes (`in_map[k]`: its pose in the map).
+    fn looped_over_map(det: &mut LoopDetector, in_map: &[[f64; 12]], k: u32, id: u32) -> bool {
+        step_over_map(det, in_map, k, id, 5 + k).is_none()
+    }
+
+    /// The rejection of the step of the session's place `k` (query id `id`, its pose the
+    /// place's) registered at its true pose (`in_map[k]`: place `5 + k`'s) into `place`.
+    fn step_over_map(
+        det: &mut LoopDetector,
+        in_map: &[[f64; 12]],
+        k: u32,
+        id: u32,
+        place: u32,
+    ) -> Option<Rejection> {
+        let own = det.session_start as u32;
+        let at = QueryPlace {
+            id,
+            pose: det.known_pose(own + k),
+            travelled: det.travelled_at(own + k).unwrap(),
+            eligible: own as usize,
+        };
+        let t = relative(&in_map[k as usize], &pose(0.0, f64::from(5 + k), 0.0));
+        let mut cands = [verified(place, t)];
+        det.check_after_gate(&at, &[], &mut cands).unwrap();
+        rejection(&cands[0])
     }
 
     /// How far `a` lies from `b`: metres and degrees.

@@ -215,6 +215,14 @@ impl LoopDetector {
         self.deferred.looped
     }
 
+    /// Whether query `id` has candidates its step deferred still waiting.
+    pub(super) fn deferring(&self, id: u32) -> bool {
+        self.deferred
+            .queries
+            .iter()
+            .any(|d| d.at.id == id && !d.waiting.is_empty())
+    }
+
     /// Candidates deferred by earlier steps and still waiting.
     pub fn deferred_waiting(&self) -> usize {
         self.deferred.queries.iter().map(|d| d.waiting.len()).sum()
