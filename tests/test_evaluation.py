@@ -110,6 +110,9 @@ def test_places_of_unknown_pose_are_left_out_of_the_scores() -> None:
     assert list(known.gt_positive) == [True, False, False] and list(known.correct) == [True, False, False]
     assert known.ids.tolist() == [[0, -1], [0, -1], [2, 0]]
     assert known.metrics()["gt_queries"] == 1 and known.metrics()["accepted"] == 1
+    for bad in ([-1], [len(XS)]):  # an id no entry has (negative ids would wrap)
+        with pytest.raises(ValueError, match="unknown: entry ids"):
+            ev.evaluate_detections("x", steps, db, radius=1.0, threshold=0.1, unknown=bad)
 
 
 def test_scoring_refuses_bad_input() -> None:

@@ -359,7 +359,9 @@ def evaluate_detections(
     query = np.array([d.query for d in steps], dtype=np.int64)
     eligible = np.array([d.eligible for d in steps], dtype=np.int64)
     poses = _poses_of(database)
-    gone = np.asarray(unknown, dtype=np.int64)
+    gone = np.asarray(unknown, dtype=np.int64).reshape(-1)
+    if gone.size and ((gone < 0) | (gone >= len(poses))).any():
+        raise _solid.ConfigError(f"unknown: entry ids must lie in [0, {len(poses)}) (the database's entries), got {gone.min()}..{gone.max()}")
     out = np.isin(query, gone) | np.isin(ids, gone).any(axis=1)
     if gone.size:
         poses = poses.copy()
