@@ -157,6 +157,8 @@ demo: wheel
 lint:
 	cargo fmt --all -- --check
 	cargo clippy --workspace --all-targets --all-features -- -D warnings
+	# The core alone, its default features (the workspace's build turns on `unstable-internals`).
+	cargo clippy -p solid-lidar --all-targets -- -D warnings
 
 rust-test:
 	cargo test --workspace

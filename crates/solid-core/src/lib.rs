@@ -48,9 +48,13 @@ pub mod eval;
 pub mod lzf;
 mod math;
 pub mod params;
-#[cfg(feature = "parallel")]
+// The crate's thread pools: crate-private, except with the feature `unstable-internals`
+// (outside semver, for the Python module's `describe_batch` workers).
+#[cfg(all(feature = "parallel", feature = "unstable-internals"))]
 #[doc(hidden)]
 pub mod pool;
+#[cfg(all(feature = "parallel", not(feature = "unstable-internals")))]
+pub(crate) mod pool;
 #[cfg(feature = "alloc")]
 pub mod reg;
 pub mod search;

@@ -221,21 +221,27 @@ pub(crate) fn scan_helpers() -> Option<Threads> {
     parallel("solid-helper")
 }
 
+// The thread counts below serve the bindings (the feature `unstable-internals`) and the tests.
+
 /// What a count of threads means in every API (Rust, the Python keywords, the C setters, the CLI
 /// flags): 0 asks for one thread per core, any other number for that many.
+#[cfg(any(test, feature = "unstable-internals"))]
 pub const ONE_PER_CORE: usize = 0;
 
 /// The threads a count asks for on this machine: its cores for [`ONE_PER_CORE`], else the count.
+#[cfg(any(test, feature = "unstable-internals"))]
 pub fn threads_asked(threads: usize) -> usize {
     threads_on(threads, cores())
 }
 
 /// This machine's cores (1 when unknown).
+#[cfg(any(test, feature = "unstable-internals"))]
 fn cores() -> usize {
     std::thread::available_parallelism().map_or(1, |n| n.get())
 }
 
 /// [`threads_asked`] on a machine of `cores` cores.
+#[cfg(any(test, feature = "unstable-internals"))]
 fn threads_on(threads: usize, cores: usize) -> usize {
     if threads == ONE_PER_CORE {
         cores
@@ -249,11 +255,13 @@ fn threads_on(threads: usize, cores: usize) -> usize {
 /// thread): at most one per core, since more only adds switching. The pool has the threads asked
 /// for even when there are fewer jobs (the jobs then take fewer of them): one pool per size
 /// asked, not one per batch length. Ask [`pool_of`] for it.
+#[cfg(feature = "unstable-internals")]
 pub fn batch_threads(threads: usize, jobs: usize) -> Option<usize> {
     batch_threads_of(threads, jobs, cores())
 }
 
 /// [`batch_threads`] on a machine of `cores` cores.
+#[cfg(any(test, feature = "unstable-internals"))]
 fn batch_threads_of(threads: usize, jobs: usize, cores: usize) -> Option<usize> {
     let threads = threads_on(threads, cores).min(cores);
     (threads.min(jobs) > 1).then_some(threads)

@@ -4,7 +4,9 @@
 //! pool. The child must still start its own. (A process of its own: the race needs a process
 //! that has not asked for any pool yet.)
 
-#![cfg(all(unix, feature = "parallel"))]
+// The pools are public only with `unstable-internals` (the workspace's tests build with it:
+// the Python module asks for it).
+#![cfg(all(unix, feature = "parallel", feature = "unstable-internals"))]
 
 mod common;
 

@@ -104,11 +104,11 @@ pub use solve::{
     ROTATION_TOLERANCE,
 };
 // The verifying detector's registration: crate-private, except with the feature
-// `unstable-bench-internals` (outside semver, for the Python module's private
+// `unstable-internals` (outside semver, for the Python module's private
 // `_register_verifying`, the convergence-basin benchmark's).
-#[cfg(not(feature = "unstable-bench-internals"))]
+#[cfg(not(feature = "unstable-internals"))]
 pub(crate) use solve::{register_hypotheses_verifying, register_verifying, Floors};
-#[cfg(feature = "unstable-bench-internals")]
+#[cfg(feature = "unstable-internals")]
 #[doc(hidden)]
 pub use solve::{register_hypotheses_verifying, register_verifying, Floors};
 pub use wire::{check_cloud, cloud_points, decode_cloud, encode_cloud};

@@ -250,7 +250,7 @@ const STALL_ITERATIONS: usize = 3;
 /// exactly as without.
 ///
 /// Crate-private, like [`register_verifying`] and [`register_hypotheses_verifying`], except
-/// with the feature `unstable-bench-internals` (not part of the public API, outside semver), for
+/// with the feature `unstable-internals` (not part of the public API, outside semver), for
 /// the convergence-basin benchmark (`benches/reg_basin.py`, through the Python module's private
 /// `_register_verifying`).
 #[doc(hidden)]
