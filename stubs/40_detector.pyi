@@ -8,7 +8,7 @@ class MapAnchor:
         (fitted to the latest supporting loops)."""
     @property
     def loops(self) -> int:
-        """Mutually consistent loops into the map that support it (distinct queries)."""
+        """Distinct queries that support it: those of the set of registrations into the map that placed it (one the gate turned down counts when it agrees) and of the loops accepted on it since."""
     @property
     def metres(self) -> float:
         """Metres of the session's path they span."""

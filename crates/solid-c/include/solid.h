@@ -336,7 +336,8 @@ typedef struct SolidMapAnchor {
    */
   double transform[16];
   /**
-   * Mutually consistent loops into the map that support it (distinct queries).
+   * Distinct queries that support it: those of the set of registrations into the map that placed
+   * it (one the gate turned down counts when it agrees) and of the loops accepted on it since.
    */
   size_t loops;
   /**

@@ -196,7 +196,8 @@ pub struct SolidMapAnchor {
     /// `T_map_world`, row-major 4x4: maps the session's pose frame ("odom") into the map's
     /// frame, fitted to the latest supporting loops.
     pub transform: [f64; 16],
-    /// Mutually consistent loops into the map that support it (distinct queries).
+    /// Distinct queries that support it: those of the set of registrations into the map that placed
+    /// it (one the gate turned down counts when it agrees) and of the loops accepted on it since.
     pub loops: usize,
     /// Metres of the session's path they span.
     pub metres: f64,

@@ -167,7 +167,8 @@ pub struct MapAnchor {
     /// `T_map_world`: maps the session's pose frame ("odom") into the map's frame, fitted to the
     /// latest supporting loops (their rotations' chordal mean, their translations' mean).
     pub transform: Pose,
-    /// Mutually consistent loops into the map that support it (distinct queries).
+    /// Distinct queries that support it: those of the set of registrations into the map that placed
+    /// it (one the gate turned down counts when it agrees) and of the loops accepted on it since.
     pub loops: usize,
     /// Metres of the session's path they span.
     pub metres: f64,
