@@ -13,9 +13,9 @@
 //! repetition goes. So the session is placed only when a set of mutually consistent hypotheses
 //! holds `placement_loops` queries over `placement_m` metres of its path, two of them at most
 //! `placement_m` apart facing directions [`PLACEMENT_TURN_DEG`] apart (the turn itself seen),
-//! with more than twice the queries of any set that disagrees and more than three times those of its own
-//! queries it puts past the map's places without a loop there (the evidence of absence: a copy
-//! repeats the map's parts, not the places between them);
+//! with more than twice the queries of any set that disagrees and more than three times those of
+//! its own queries it puts past the map's places without a loop there (the evidence of absence: a
+//! copy repeats the map's parts, not the places between them);
 //! loops into the map that passed the gate before are held, and released with the placement
 //! when they agree with it. From then on a loop into the map is accepted when it agrees with
 //! the placement's nearest supporting loop (by path), and the placement is revised when a
@@ -42,12 +42,12 @@ const FIT: usize = 48;
 /// queries of every set that disagrees with it.
 const RIVAL_RATIO: usize = 2;
 
-/// A consistent set places the session only with more than this many times the queries it puts
-/// past the map's places without a loop ([`LoopDetector::unseen`]: the evidence of absence, a
-/// reading that the session is not where the set puts it). At their placement the trust
-/// matrix's true sets (seeds 1-5, every view) held 4.2 times theirs or more (most had none);
-/// the never-visiting sessions of seed 5 that copies of the map's streets placed, 1.3-2.2 times
-/// (the HDL-64 at 90° was placed at 2.2 with [`RIVAL_RATIO`]).
+/// A consistent set places the session only with more than this many times the queries it puts past
+/// the map's places without a loop ([`LoopDetector::unseen_at_least`]: the evidence of absence, a
+/// reading that the session is not where the set puts it). At their placement the trust matrix's
+/// true sets (seeds 1-5, every view) held 4.2 times theirs or more (most had none); the
+/// never-visiting sessions of seed 5 that copies of the map's streets placed, 1.3-2.2 times (the
+/// HDL-64 at 90° was placed at 2.2 with [`RIVAL_RATIO`]).
 const ABSENCE_RATIO: usize = 3;
 
 /// A consistent set places the session only when two of its queries at most `placement_m`
@@ -64,7 +64,7 @@ const ABSENCE_RATIO: usize = 3;
 const PLACEMENT_TURN_DEG: f64 = 45.0;
 
 /// A query under a placement passes a map place within this many metres (3-D) facing within
-/// [`PASSED_DEG`] ([`LoopDetector::unseen`]).
+/// [`PASSED_DEG`] ([`LoopDetector::unseen_at_least`]).
 const PASSED_M: f64 = 3.0;
 
 /// See [`PASSED_M`].
@@ -235,7 +235,7 @@ pub(super) struct Placement {
 }
 
 /// The map's places with a pose by cube ([`PASSED_M`] a side; any axis may be up).
-#[derive(Debug, Clone, Default)]
+#[derive(Debug)]
 pub(super) struct MapCells {
     /// (cell along x, y, z, place id), sorted.
     keys: Vec<([i32; 3], u32)>,
@@ -571,11 +571,11 @@ impl LoopDetector {
     ///   steps (the support check's), and across a break also `placement_loops` distinct
     ///   queries over `placement_m` metres, as a session is placed in a map;
     /// - faces directions [`PLACEMENT_TURN_DEG`] apart (across a break: two queries at most
-    ///   `placement_m` metres of path apart, as a placement): a straight run of agreeing look-alikes
-    ///   vouched for itself on the four-module corridors with a drifting odometry (33 wrong
-    ///   loops on three views, `tools/gate_measure.py '{}' drift`), and placed every loop across
-    ///   the chain's frames on a copy (313 of 313, OS1-64 90°, `tools/trust_measure.py
-    ///   noposes`);
+    ///   `placement_m` metres of path apart, as a placement): a straight run of agreeing
+    ///   look-alikes vouched for itself on the four-module corridors with a drifting odometry
+    ///   (33 wrong loops on three views, `tools/gate_measure.py '{}' drift`), and placed every
+    ///   loop across the chain's frames on a copy (313 of 313, OS1-64 90°,
+    ///   `tools/trust_measure.py noposes`);
     /// - holds more than twice the queries of any consistent set that disagrees with it: among
     ///   the other loops of the same queries and the loops that agree with the odometry (a
     ///   look-alike has to be the only reading of a stretch where the odometry did not hold),
