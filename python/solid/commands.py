@@ -626,7 +626,10 @@ def evaluate(
         result, placed = place_in_map(result, anchor)
         if placed.get("per_frame") is not None:
             each = np.asarray(anchor, dtype=np.float64)  # the rows given, NaN where none places a frame
-            unknown = [result.map_size + int(k) for k in np.flatnonzero(~np.isfinite(each).all(axis=(1, 2)))]
+            from . import slam
+
+            # The places of the frames no anchor places (place_in_map listed them the same way).
+            unknown = [result.map_size + k for k in slam.nearest_placed(each)[1]]
         if given is not None:
             placed["file"] = str(given.absolute())
         if notes or placed.get("notes"):

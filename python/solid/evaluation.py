@@ -356,7 +356,8 @@ def evaluate_detections(
             dist[i], score[i], head[i] = lp.distance, lp.score, lp.heading
             pose[i] = lp.pose
             fit[i], rms[i] = lp.fitness, lp.rmse
-    query = np.array([d.query for d in steps], dtype=np.int64)
+    every = np.array([d.query for d in steps], dtype=np.int64)
+    query = every
     eligible = np.array([d.eligible for d in steps], dtype=np.int64)
     poses = _poses_of(database)
     gone = np.asarray(unknown, dtype=np.int64).reshape(-1)
@@ -388,7 +389,7 @@ def evaluate_detections(
         fitness=fit,
         rmse=rms,
     )
-    ev.left_out = np.array([d.query for d in steps], dtype=np.int64)[out]
+    ev.left_out = every[out]
     return ev
 
 
