@@ -278,16 +278,26 @@ def step_block(doc: dict[str, Any]) -> list[str]:
         "the machine shared with other work): `LoopDetector.detect(points, timestamp, pose)` with the shipped defaults "
         "of the walk's preset and one verify thread, CPU time per step (describe, prepare the cloud, search, register, "
         f"check), this build beside {base} in the same run; then one registration of the pairs this build registered "
-        "(up to 300), solid against small_gicp, both single-threaded with the same two levels from the identity.",
+        "(up to 300), solid against small_gicp, both single-threaded with the same two levels from the identity. "
+        "A step that registers nothing costs about the descriptor, so when a share s of the steps register (the "
+        "revisits) the p95 is a registering step and the p95 ÷ mean is about 1 / s: shown beside it, with the "
+        "registering steps' own p95 ÷ mean. Where the loops differ from the baseline's, docs/performance.md "
+        "(Verified step) says which and why.",
         "",
-        f"| walk | steps | mean | median | p95 | {base}: mean | ratio | same loops | registered a step | "
+        f"| walk | steps | mean | median | p95 | p95 ÷ mean | steps that register: share, p95 ÷ their mean | {base}: mean | ratio | same loops | registered a step | "
         "one registration: solid | small_gicp | small_gicp ÷ solid |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for name, r in doc["walks"].items():
         t, b, p = r["this"], r.get("baseline"), r.get("peers")
+        share = (
+            f"{100 * t['registering_share']:.0f} %, {t['registering_p95_ms'] / t['registering_mean_ms']:.2f}×"
+            if "registering_share" in t
+            else ""
+        )
         lines.append(
             f"| {name} | {t['steps']} | {t['mean_ms']:.1f} ms | {t['median_ms']:.1f} ms | {t['p95_ms']:.1f} ms | "
+            f"{t['p95_ms'] / t['mean_ms']:.2f}× | {share} | "
             + (f"{b['mean_ms']:.1f} ms | {r['ratio']:.2f}× | {same(r)} | " if b else "| | | ")
             + f"{t['registered_per_step']:.2f} | "
             + (f"{p['solid_ms']:.2f} ms | {p['small_gicp_ms']:.2f} ms | {p['small_gicp_ms'] / p['solid_ms']:.2f}× |" if p else "| | |")
