@@ -248,15 +248,15 @@ def test_a_revisit_along_a_corridor_registers_at_its_true_pose_from_every_nearby
     assert max(off) <= 0.5, f"metres off the truth from starts -3, 0, +3 m along the corridor: {off}"
 
 
-@pytest.mark.xfail(strict=True, reason="open: from the third pass on, a route's earlier passes are look-alikes the odometry cannot rule out (docs/performance.md#a-route-driven-three-times-the-third-pass-loses-its-loops)")
 def test_a_route_driven_three_times_finds_the_revisits_of_its_third_pass() -> None:
     """The city loop (``sim.World(seed=1)``, a scan every 2 m, 160 a lap) driven 3.2 times by a
-    VLP-16 on a drifting odometry: the second pass loops 150 of its 160 queries, but the third
-    loses its loops. Its queries' candidates on the first two passes lie where the odometry put
-    them, over 10 m apart after the drift, and each pass's neighbours 10-15 m along the street
-    fit the loose bounds of the anchor's long path back to the first pass: "a look-alike the
-    odometry cannot rule out". What a fix needs: the bounds' path through the accepted loops
-    that join the passes (the anchor's place to the first pass), not along the whole route."""
+    VLP-16 on a drifting odometry: the third pass finds its revisits as the second does, and no
+    loop is wrong. Its candidates on the first two passes lie where the odometry put them, over
+    10 m apart after the drift; through the odometry alone the anchor's path back to the first
+    pass is a whole lap, whose bounds admit the street's neighbouring places as look-alikes, and
+    the two passes' candidates of one step disagree. The accepted loops that joined the passes
+    give the short path (docs/spec.md §8, "Passes"): without it the third pass found 22 of its
+    192 revisits (docs/performance.md#a-route-driven-three-times-the-third-pass-lost-its-loops-r22-passes)."""
     world = sim.World(seed=1)
     traj = sim.Trajectory.loop(world, laps=3.2, spacing=2.0)
     run = drift_run(world, traj, sim.Sensor("vlp16"), "vlp16", 0)

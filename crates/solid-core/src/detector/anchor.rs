@@ -14,6 +14,10 @@ use crate::compare::cosine_distance;
 use crate::detector::VerifyConfig;
 use crate::reg::{invert, mul, pose_to_rows, rows_to_pose, Pose, Rejection};
 
+/// Places joined to one place that [`LoopDetector::joined_with`] follows at most (its passes and
+/// the loops of their neighbours: a route driven many times, or a robot standing still).
+pub(super) const JOINED_MOST: usize = 64;
+
 /// Where an own place lies from a step's query by the poses ([`LoopDetector::reach`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) enum Reach {
@@ -107,7 +111,11 @@ impl LoopDetector {
         let global = if global.is_nan() { 0.0 } else { global };
         let broken = tc.is_some_and(|t| self.crosses_break(at.travelled, t));
         if let (Some((qa, since, t0)), Some(t)) = (anchored, tc) {
-            let path = since + libm::fabs(t - t0);
+            // Through the anchor's place, or another pass of it that an accepted loop joined to
+            // it when that one is nearer along the path to `c`: on a route's third pass the
+            // anchor is a loop into the second, and the first pass lies a lap from it along the
+            // path but one loop away.
+            let (qa, t0, path) = self.nearest_base(qa, t0, since + libm::fabs(t - t0), since, t);
             let through = !self.crosses_break(at.travelled - since, at.travelled)
                 && !self.crosses_break(t0, t);
             let shorter = path < global;
@@ -158,6 +166,7 @@ impl LoopDetector {
                 candidate: c.id,
                 pose: r.registration.pose,
             });
+            self.anchor_bases = self.joined_with(c.id);
         }
     }
 
@@ -184,8 +193,111 @@ impl LoopDetector {
                     candidate: lp.candidate,
                     pose,
                 });
+                self.anchor_bases = self.joined_with(lp.candidate);
             }
         }
+    }
+
+    /// The anchored query pose `qa` moved to the anchor's base nearest along the path to a place
+    /// at `t` metres (the anchor's place at `t0`, `path` metres through it, or one of
+    /// [`LoopDetector::anchor_bases`](super::LoopDetector)): `(pose, its place's metres, path)`.
+    fn nearest_base(
+        &self,
+        qa: [f64; 12],
+        t0: f64,
+        path: f64,
+        since: f64,
+        t: f64,
+    ) -> ([f64; 12], f64, f64) {
+        let mut best = (qa, t0, path);
+        let Some(c0) = self.anchor.and_then(|a| self.known_pose(a.candidate)) else {
+            return best;
+        };
+        for (j, r) in &self.anchor_bases {
+            let (Some(tj), Some(pj)) = (self.travelled_at(*j), self.known_pose(*j)) else {
+                continue;
+            };
+            let through = since + libm::fabs(t - tj);
+            if through < best.2 {
+                // The query where the anchor puts it, seen from place j instead of the anchor's
+                // place: T_wj · T_j←c0 · T_c0←w · qa.
+                let from_c0 = mul(&invert(&rows_to_pose(&c0)), &rows_to_pose(&qa));
+                let q = mul(&mul(&rows_to_pose(&pj), &invert(r)), &from_c0);
+                best = (pose_to_rows(&q), tj, through);
+            }
+        }
+        best
+    }
+
+    /// Joins own places `a` and `b` by an accepted loop's pose `pose` (`T_a←b`: the same place);
+    /// places of another session or of the map are not recorded.
+    pub(super) fn join(&mut self, a: u32, b: u32, pose: &Pose) {
+        let own = |id: u32| (id as usize) >= self.session_start && (id as usize) < self.len();
+        if a == b || !own(a) || !own(b) {
+            return;
+        }
+        for (x, y, p) in [(a, b, *pose), (b, a, invert(pose))] {
+            let list = self.joined.entry(x).or_default();
+            if !list.iter().any(|(k, _)| *k == y) && list.try_reserve(1).is_ok() {
+                list.push((y, p));
+            }
+        }
+    }
+
+    /// The own places the accepted loops joined to `id`, directly or through others (one place's
+    /// passes), without `id`, each with the pose from `id` to it (`T_id←j`, the loops' poses
+    /// composed); at most [`JOINED_MOST`].
+    pub(super) fn joined_with(&self, id: u32) -> Vec<(u32, Pose)> {
+        let mut out: Vec<(u32, Pose)> = Vec::new();
+        let take = |out: &mut Vec<(u32, Pose)>, j: u32, p: Pose| {
+            if j != id
+                && !out.iter().any(|(k, _)| *k == j)
+                && out.len() < JOINED_MOST
+                && out.try_reserve(1).is_ok()
+            {
+                out.push((j, p));
+            }
+        };
+        for (j, p) in self.joined.get(&id).map_or(&[][..], |l| l.as_slice()) {
+            take(&mut out, *j, *p);
+        }
+        let mut next = 0;
+        while next < out.len() {
+            let (j, to_j) = out[next];
+            next += 1;
+            for (k, p) in self.joined.get(&j).map_or(&[][..], |l| l.as_slice()) {
+                take(&mut out, *k, mul(&to_j, p));
+            }
+        }
+        out
+    }
+
+    /// How own place `c2` lies from own place `c` (`T_c←c2`) through a place `j` joined to `c`
+    /// by accepted loops ([`LoopDetector::joined_with`]) and the odometry from `j` to `c2`, and
+    /// the metres of path from `j` to `c2`, when that path is shorter than the one from `c` to
+    /// `c2`: another pass of a place lies a lap away along the path but one loop away.
+    pub(super) fn joined_between(&self, c: u32, c2: u32) -> Option<(Pose, f64)> {
+        if !self.joined.contains_key(&c) {
+            return None;
+        }
+        let (tc, tc2, pc2) = (
+            self.travelled_at(c)?,
+            self.travelled_at(c2)?,
+            self.known_pose(c2)?,
+        );
+        let mut best: Option<(Pose, f64)> = None;
+        let mut shortest = libm::fabs(tc - tc2);
+        for (j, t_c_j) in self.joined_with(c) {
+            let (Some(tj), Some(pj)) = (self.travelled_at(j), self.known_pose(j)) else {
+                continue;
+            };
+            let path = libm::fabs(tj - tc2);
+            if path < shortest && !self.crosses_break(tj, tc2) {
+                shortest = path;
+                best = Some((mul(&t_c_j, &relative(&pj, &pc2)), path));
+            }
+        }
+        best
     }
 
     /// Rejects each passed candidate that has a look-alike ([`LoopDetector::lookalike`]).
@@ -246,6 +358,44 @@ mod tests {
         assert_eq!(pose_to_rows(&t), p);
         let i = mul(&t, &invert(&t));
         assert!(reg::pose_distance(&i, &reg::IDENTITY).is_some_and(|(m, d)| m < 1e-12 && d < 1e-9));
+    }
+
+    #[test]
+    fn a_loop_joining_two_passes_relates_their_places_through_it() {
+        // Pass 1: places 0-9 at x = 0..9; pass 2: places 10-19 over the same street, but the
+        // odometry drifted 12 m: x = 12..21. A loop accepted from place 15 to place 5 (the
+        // identity: the same place) joins the passes.
+        let det0 = super::super::verify::tests::detector_along(
+            20,
+            |i| {
+                let x = if i < 10 {
+                    f64::from(i)
+                } else {
+                    f64::from(i - 10) + 12.0
+                };
+                (pose(0.0, x, 0.0), f64::NAN)
+            },
+            |_| {},
+        );
+        let mut det = det0.clone();
+        det.join(15, 5, &reg::IDENTITY);
+        assert_eq!(det.joined_with(5).len(), 1);
+        // Place 3 seen from place 15: through place 5 (2 m of path) 2 m behind it, not 14 m as
+        // the drifted poses say (and place 15's own path to place 3 is 24 m).
+        let (t_15_3, path) = det.joined_between(15, 3).unwrap();
+        assert!(
+            (t_15_3[0][3] + 2.0).abs() < 1e-9 && (path - 2.0).abs() < 1e-9,
+            "{t_15_3:?} {path}"
+        );
+        assert!(det0.joined_between(15, 3).is_none());
+        // A query at place 15's pose registered to place 15 (the identity) and to place 6 (1 m
+        // ahead of it) at their true poses: the two passes' candidates agree through the loop,
+        // not through the drifted poses (11 m apart for 1 m).
+        let q = pose(0.0, 17.0, 0.0);
+        let ahead = relative(&pose(0.0, 0.0, 0.0), &pose(0.0, 1.0, 0.0));
+        let (me, other) = ((&q, 15, &reg::IDENTITY), (&q, 6, &ahead));
+        assert_eq!(det.agree_through_poses(me, other), Some(true));
+        assert_eq!(det0.agree_through_poses(me, other), Some(false));
     }
 
     #[test]

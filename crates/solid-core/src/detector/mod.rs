@@ -199,6 +199,12 @@ pub struct LoopDetector {
     chain: chain::Chain,
     /// Candidates over a step's budget, registered by the next steps.
     deferred: defer::Queue,
+    /// The own places each accepted loop between two own places joined, both ways, with the
+    /// loop's pose from the first to the second (`T_a←b`): the same place on another pass.
+    joined: BTreeMap<u32, Vec<(u32, reg::Pose)>>,
+    /// The places joined to the anchor's place ([`LoopDetector::joined_with`]) with the pose from
+    /// the anchor's place to each: the anchor's path reaches an earlier pass through them.
+    anchor_bases: Vec<(u32, reg::Pose)>,
 }
 
 /// One scan ready for a detector step: its descriptor and, for verification, its prepared cloud
@@ -333,6 +339,8 @@ impl LoopDetector {
             known: Vec::new(),
             chain: chain::Chain::default(),
             deferred: defer::Queue::default(),
+            joined: BTreeMap::new(),
+            anchor_bases: Vec::new(),
         })
     }
 
@@ -867,6 +875,11 @@ impl LoopDetector {
         }
         let (released, placement) = self.placement_news(accepted.is_some().then_some(id));
         self.anchor_released(&released);
+        for lp in accepted.iter().chain(&released) {
+            if let Some(pose) = lp.pose {
+                self.join(lp.query, lp.candidate, &pose);
+            }
+        }
         Ok(Detection {
             query: id,
             eligible: eligible as u32,

@@ -751,7 +751,7 @@ impl LoopDetector {
     /// (`q`, `q2` given): `inv(T_wq)·T_wq2·t2·inv(T_wc2)·T_wc` against `t` (None when a
     /// candidate has no pose, or the path between the two candidates crosses a break of the
     /// odometry: the poses do not say).
-    fn agree_through_poses(
+    pub(super) fn agree_through_poses(
         &self,
         (q, c, t): (&[f64; 12], u32, &Pose),
         (q2, c2, t2): (&[f64; 12], u32, &Pose),
@@ -762,8 +762,14 @@ impl LoopDetector {
                 return None;
             }
         }
-        let expected = mul(&mul(&relative(q, q2), t2), &relative(&pc2, &pc));
-        let path = distance(q, q2) + distance(&pc2, &pc);
+        // Between two passes of one place the poses drifted a lap apart; an accepted loop joining
+        // c's pass to c2's says how they lie (`joined_between`).
+        let (between, short) = match self.joined_between(c, c2) {
+            Some((t_c_c2, path)) => (reg::invert(&t_c_c2), path),
+            None => (relative(&pc2, &pc), distance(&pc2, &pc)),
+        };
+        let expected = mul(&mul(&relative(q, q2), t2), &between);
+        let path = distance(q, q2) + short;
         Some(self.within_drift(&expected, t, path, 1.0))
     }
 
