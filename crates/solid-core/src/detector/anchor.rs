@@ -8,6 +8,8 @@
 //! look-alikes among the own places that the current bounds cannot rule out is not accepted
 //! ([`VerifyConfig::lookalike_m`]).
 
+use alloc::vec::Vec;
+
 use super::verify::{distance, reject, relative, rotation_bound, QueryPlace};
 use super::{Candidate, LoopDetector};
 use crate::compare::cosine_distance;
@@ -209,24 +211,33 @@ impl LoopDetector {
         since: f64,
         t: f64,
     ) -> ([f64; 12], f64, f64) {
-        let mut best = (qa, t0, path);
-        let Some(c0) = self.anchor.and_then(|a| self.known_pose(a.candidate)) else {
-            return best;
-        };
-        for (j, r) in &self.anchor_bases {
-            let (Some(tj), Some(pj)) = (self.travelled_at(*j), self.known_pose(*j)) else {
+        if self.anchor_bases.is_empty() {
+            return (qa, t0, path);
+        }
+        // The nearest base by metres whose path to the place crosses no break of the odometry.
+        let mut best: Option<(usize, f64, f64)> = None;
+        for (i, (j, _)) in self.anchor_bases.iter().enumerate() {
+            let Some(tj) = self.travelled_at(*j) else {
                 continue;
             };
             let through = since + libm::fabs(t - tj);
-            if through < best.2 {
-                // The query where the anchor puts it, seen from place j instead of the anchor's
-                // place: T_wj · T_j←c0 · T_c0←w · qa.
-                let from_c0 = mul(&invert(&rows_to_pose(&c0)), &rows_to_pose(&qa));
-                let q = mul(&mul(&rows_to_pose(&pj), &invert(r)), &from_c0);
-                best = (pose_to_rows(&q), tj, through);
+            if through < best.map_or(path, |b| b.2) && !self.crosses_break(tj, t) {
+                best = Some((i, tj, through));
             }
         }
-        best
+        let c0 = self.anchor.and_then(|a| self.known_pose(a.candidate));
+        let Some(((i, tj, through), c0)) = best.zip(c0) else {
+            return (qa, t0, path);
+        };
+        let (j, r) = &self.anchor_bases[i];
+        let Some(pj) = self.known_pose(*j) else {
+            return (qa, t0, path);
+        };
+        // The query where the anchor puts it, seen from place j instead of the anchor's place:
+        // T_wj · T_j←c0 · T_c0←w · qa.
+        let from_c0 = mul(&invert(&rows_to_pose(&c0)), &rows_to_pose(&qa));
+        let q = mul(&mul(&rows_to_pose(&pj), &invert(r)), &from_c0);
+        (pose_to_rows(&q), tj, through)
     }
 
     /// Joins own places `a` and `b` by an accepted loop's pose `pose` (`T_a←b`: the same place);
@@ -236,11 +247,22 @@ impl LoopDetector {
         if a == b || !own(a) || !own(b) {
             return;
         }
+        // At most JOINED_MOST a place (what `joined_with` follows), reserved before either is
+        // recorded: a join is both ways or not at all.
+        let room = |list: Option<&Vec<(u32, Pose)>>, y: u32| {
+            list.map_or(0, Vec::len) < JOINED_MOST
+                && !list.is_some_and(|l| l.iter().any(|(k, _)| *k == y))
+        };
+        if !room(self.joined.get(&a), b) || !room(self.joined.get(&b), a) {
+            return;
+        }
         for (x, y, p) in [(a, b, *pose), (b, a, invert(pose))] {
-            let list = self.joined.entry(x).or_default();
-            if !list.iter().any(|(k, _)| *k == y) && list.try_reserve(1).is_ok() {
-                list.push((y, p));
+            let mut list = self.joined.remove(&x).unwrap_or_default();
+            if list.try_reserve(1).is_err() {
+                return;
             }
+            list.push((y, p));
+            self.joined.insert(x, list);
         }
     }
 
@@ -249,24 +271,26 @@ impl LoopDetector {
     /// composed); at most [`JOINED_MOST`].
     pub(super) fn joined_with(&self, id: u32) -> Vec<(u32, Pose)> {
         let mut out: Vec<(u32, Pose)> = Vec::new();
-        let take = |out: &mut Vec<(u32, Pose)>, j: u32, p: Pose| {
-            if j != id
-                && !out.iter().any(|(k, _)| *k == j)
-                && out.len() < JOINED_MOST
-                && out.try_reserve(1).is_ok()
-            {
-                out.push((j, p));
-            }
-        };
+        let new = |out: &Vec<(u32, Pose)>, j: u32| j != id && !out.iter().any(|(k, _)| *k == j);
         for (j, p) in self.joined.get(&id).map_or(&[][..], |l| l.as_slice()) {
-            take(&mut out, *j, *p);
+            if out.len() == JOINED_MOST || out.try_reserve(1).is_err() {
+                return out;
+            }
+            if new(&out, *j) {
+                out.push((*j, *p));
+            }
         }
         let mut next = 0;
         while next < out.len() {
             let (j, to_j) = out[next];
             next += 1;
             for (k, p) in self.joined.get(&j).map_or(&[][..], |l| l.as_slice()) {
-                take(&mut out, *k, mul(&to_j, p));
+                if out.len() == JOINED_MOST || out.try_reserve(1).is_err() {
+                    return out;
+                }
+                if new(&out, *k) {
+                    out.push((*k, mul(&to_j, p)));
+                }
             }
         }
         out
@@ -396,6 +420,38 @@ mod tests {
         let (me, other) = ((&q, 15, &reg::IDENTITY), (&q, 6, &ahead));
         assert_eq!(det.agree_through_poses(me, other), Some(true));
         assert_eq!(det0.agree_through_poses(me, other), Some(false));
+    }
+
+    #[test]
+    fn joins_compose_their_poses_through_turned_passes() {
+        // Three passes of one place, each seen turned: the true poses below; loops 2 → 1 and
+        // 1 → 0 joined with their true poses. Place 0 seen from place 2 is the two loops
+        // composed, T_2←1 · T_1←0, whatever the odometry says.
+        let truth = [
+            pose(0.0, 0.0, 0.0),
+            pose(90.0, 0.5, 0.2),
+            pose(-150.0, -0.3, 0.4),
+        ];
+        let mut det = detector_with_path(3, |_| {});
+        det.join(1, 0, &relative(&truth[1], &truth[0]));
+        det.join(2, 1, &relative(&truth[2], &truth[1]));
+        let from_2 = det.joined_with(2);
+        assert_eq!(from_2.iter().map(|(j, _)| *j).collect::<Vec<_>>(), [1, 0]);
+        let t_2_0 = from_2[1].1;
+        let want = relative(&truth[2], &truth[0]);
+        assert!(reg::pose_distance(&t_2_0, &want).is_some_and(|(m, deg)| m < 1e-9 && deg < 1e-6));
+        // And back: place 2 seen from place 0.
+        let t_0_2 = det
+            .joined_with(0)
+            .into_iter()
+            .find(|(j, _)| *j == 2)
+            .unwrap()
+            .1;
+        let back = relative(&truth[0], &truth[2]);
+        assert!(reg::pose_distance(&t_0_2, &back).is_some_and(|(m, deg)| m < 1e-9 && deg < 1e-6));
+        // A join is recorded once, both ways.
+        det.join(0, 1, &relative(&truth[0], &truth[1]));
+        assert_eq!(det.joined_with(1).len(), 2);
     }
 
     #[test]
