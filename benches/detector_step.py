@@ -66,7 +66,7 @@ def walk(name: str) -> tuple[str, list[Any], list[float], list[Any]]:
     seq = sim.simulate(world, sim.Sensor(sensor), traj)
     odo = traj.odometry(yaw_bias_deg_per_m=0.01, scale_error=0.01, translation_noise=0.01, rotation_noise_deg=0.02, seed=0)
     poses = [None] * len(seq.scans) if parts[4:] else list(np.asarray(odo.poses))
-    return sensor.split(":")[0], list(seq.scans), [float(t) for t in seq.times], poses
+    return sensor, list(seq.scans), [float(t) for t in seq.times], poses
 
 
 def child(name: str, overrides: dict[str, Any]) -> None:

@@ -117,7 +117,7 @@ impl LoopDetector {
             // it when that one is nearer along the path to `c`: on a route's third pass the
             // anchor is a loop into the second, and the first pass lies a lap from it along the
             // path but one loop away.
-            let (qa, t0, path) = self.nearest_base(qa, t0, since + libm::fabs(t - t0), since, t);
+            let (qa, t0, path) = self.nearest_base(qa, t0, since, t);
             let through = !self.crosses_break(at.travelled - since, at.travelled)
                 && !self.crosses_break(t0, t);
             let shorter = path < global;
@@ -200,44 +200,44 @@ impl LoopDetector {
         }
     }
 
-    /// The anchored query pose `qa` moved to the anchor's base nearest along the path to a place
-    /// at `t` metres (the anchor's place at `t0`, `path` metres through it, or one of
-    /// [`LoopDetector::anchor_bases`](super::LoopDetector)): `(pose, its place's metres, path)`.
-    fn nearest_base(
-        &self,
-        qa: [f64; 12],
-        t0: f64,
-        path: f64,
-        since: f64,
-        t: f64,
-    ) -> ([f64; 12], f64, f64) {
-        if self.anchor_bases.is_empty() {
-            return (qa, t0, path);
-        }
-        // The nearest base by metres whose path to the place crosses no break of the odometry.
-        let mut best: Option<(usize, f64, f64)> = None;
-        for (i, (j, _)) in self.anchor_bases.iter().enumerate() {
-            let Some(tj) = self.travelled_at(*j) else {
-                continue;
-            };
-            let through = since + libm::fabs(t - tj);
-            if through < best.map_or(path, |b| b.2) && !self.crosses_break(tj, t) {
-                best = Some((i, tj, through));
-            }
-        }
+    /// The anchored query pose `qa` (`since` metres after the anchor) moved to the anchor's base
+    /// nearest along the path to a place at `t` metres: the anchor's place at `t0`, or one of
+    /// [`LoopDetector::anchor_bases`](super::LoopDetector) nearer. `(pose, its place's metres,
+    /// the path through it)`.
+    fn nearest_base(&self, qa: [f64; 12], t0: f64, since: f64, t: f64) -> ([f64; 12], f64, f64) {
         let c0 = self.anchor.and_then(|a| self.known_pose(a.candidate));
-        let Some(((i, tj, through), c0)) = best.zip(c0) else {
-            return (qa, t0, path);
-        };
-        let (j, r) = &self.anchor_bases[i];
-        let Some(pj) = self.known_pose(*j) else {
-            return (qa, t0, path);
+        let nearer = self.nearer_pass(&self.anchor_bases, t, libm::fabs(t - t0));
+        let Some(((r, tj, pj), c0)) = nearer.zip(c0) else {
+            return (qa, t0, since + libm::fabs(t - t0));
         };
         // The query where the anchor puts it, seen from place j instead of the anchor's place:
         // T_wj · T_j←c0 · T_c0←w · qa.
         let from_c0 = mul(&invert(&rows_to_pose(&c0)), &rows_to_pose(&qa));
         let q = mul(&mul(&rows_to_pose(&pj), &invert(r)), &from_c0);
-        (pose_to_rows(&q), tj, through)
+        (pose_to_rows(&q), tj, since + libm::fabs(t - tj))
+    }
+
+    /// Of `passes` (places joined to one place, each with the pose from it:
+    /// [`LoopDetector::joined_with`]), the one with a pose nearest along the path to a place at
+    /// `t` metres, nearer than `than` metres and with no break of the odometry between them:
+    /// its pose from the place, its metres and its pose in the world.
+    fn nearer_pass<'p>(
+        &self,
+        passes: &'p [(u32, Pose)],
+        t: f64,
+        than: f64,
+    ) -> Option<(&'p Pose, f64, [f64; 12])> {
+        let mut best: Option<(&'p Pose, f64, [f64; 12])> = None;
+        for (j, r) in passes {
+            let (Some(tj), Some(pj)) = (self.travelled_at(*j), self.known_pose(*j)) else {
+                continue;
+            };
+            let metres = libm::fabs(t - tj);
+            if metres < best.map_or(than, |b| libm::fabs(t - b.1)) && !self.crosses_break(tj, t) {
+                best = Some((r, tj, pj));
+            }
+        }
+        best
     }
 
     /// Joins own places `a` and `b` by an accepted loop's pose `pose` (`T_a←b`: the same place);
@@ -247,22 +247,22 @@ impl LoopDetector {
         if a == b || !own(a) || !own(b) {
             return;
         }
-        // At most JOINED_MOST a place (what `joined_with` follows), reserved before either is
-        // recorded: a join is both ways or not at all.
-        let room = |list: Option<&Vec<(u32, Pose)>>, y: u32| {
-            list.map_or(0, Vec::len) < JOINED_MOST
-                && !list.is_some_and(|l| l.iter().any(|(k, _)| *k == y))
+        // At most JOINED_MOST a place (what `joined_with` follows), both ways or not at all.
+        let room = |x: u32, y: u32| {
+            self.joined
+                .get(&x)
+                .is_none_or(|l| l.len() < JOINED_MOST && !l.iter().any(|(k, _)| *k == y))
         };
-        if !room(self.joined.get(&a), b) || !room(self.joined.get(&b), a) {
+        if !room(a, b) || !room(b, a) {
             return;
         }
-        for (x, y, p) in [(a, b, *pose), (b, a, invert(pose))] {
-            let mut list = self.joined.remove(&x).unwrap_or_default();
-            if list.try_reserve(1).is_err() {
+        for x in [a, b] {
+            if self.joined.entry(x).or_default().try_reserve(1).is_err() {
                 return;
             }
-            list.push((y, p));
-            self.joined.insert(x, list);
+        }
+        for (x, y, p) in [(a, b, *pose), (b, a, invert(pose))] {
+            self.joined.entry(x).or_default().push((y, p));
         }
     }
 
@@ -309,19 +309,9 @@ impl LoopDetector {
             self.travelled_at(c2)?,
             self.known_pose(c2)?,
         );
-        let mut best: Option<(Pose, f64)> = None;
-        let mut shortest = libm::fabs(tc - tc2);
-        for (j, t_c_j) in self.joined_with(c) {
-            let (Some(tj), Some(pj)) = (self.travelled_at(j), self.known_pose(j)) else {
-                continue;
-            };
-            let path = libm::fabs(tj - tc2);
-            if path < shortest && !self.crosses_break(tj, tc2) {
-                shortest = path;
-                best = Some((mul(&t_c_j, &relative(&pj, &pc2)), path));
-            }
-        }
-        best
+        let passes = self.joined_with(c);
+        let (t_c_j, tj, pj) = self.nearer_pass(&passes, tc2, libm::fabs(tc - tc2))?;
+        Some((mul(t_c_j, &relative(&pj, &pc2)), libm::fabs(tj - tc2)))
     }
 
     /// Rejects each passed candidate that has a look-alike ([`LoopDetector::lookalike`]).
